@@ -1,0 +1,1 @@
+"""coordinator: campaigns (loop set service, membership, SQLite histories) and the ``hysid`` CLI."""

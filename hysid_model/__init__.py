@@ -1,0 +1,13 @@
+"""hysid_model: physics and data for hysteresis-loop identification.
+
+Data flows one way: files -> loops (:mod:`hysid_model.loops`) -> model terms
+(:mod:`hysid_model.terms`, :mod:`hysid_model.model`) -> objective
+(:mod:`hysid_model.objective`) -> uncertainty (:mod:`hysid_model.uncertainty`).
+"""
+
+from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
+from hysid_model.model import Model, build_model
+from hysid_model.objective import Objective
+
+__all__ = ["HysidInputError", "LoopSet", "Model", "Objective", "build_model"]

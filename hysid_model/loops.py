@@ -1,0 +1,126 @@
+"""The loop set: every measured hysteresis loop as a loading and an unloading branch.
+
+A loop is stored as in the thesis' ``HexpT``/``HexpB`` (Appendix A): the top
+(loading, x' > 0) and bottom (unloading, x' < 0) branches, each resampled on
+``n`` displacement points (``reinterpolate``) and centred (``centercurveloop``).
+All loops of a set share ``n`` so that a whole population can be evaluated
+against all of them in one vectorized call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hysid_model.errors import HysidInputError
+
+
+@dataclass
+class LoopSet:
+    """Loops of one specimen; arrays are indexed ``[loop]`` or ``[loop, sample]``.
+
+    ``top`` and ``bottom`` have shape ``(L, n, 2)`` holding displacement (m) and
+    force (N). ``sigma`` is each loop's force-noise standard deviation (N), NaN
+    where unknown. ``meq_kg`` is the known equivalent mass, or None when unknown
+    (then it is fitted).
+    """
+
+    name: str
+    freq_hz: np.ndarray
+    x0: np.ndarray
+    top: np.ndarray
+    bottom: np.ndarray
+    sigma: np.ndarray
+    meq_kg: float | None = None
+    cycles: np.ndarray | None = None
+    labels: list[str] = field(default_factory=list)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.freq_hz = np.asarray(self.freq_hz, dtype=float).reshape(-1)
+        self.x0 = np.asarray(self.x0, dtype=float).reshape(-1)
+        self.top = np.asarray(self.top, dtype=float)
+        self.bottom = np.asarray(self.bottom, dtype=float)
+        self.sigma = np.asarray(self.sigma, dtype=float).reshape(-1)
+        n_loops = self.freq_hz.size
+        if self.cycles is None:
+            self.cycles = np.zeros(n_loops, dtype=int)
+        self.cycles = np.asarray(self.cycles, dtype=int).reshape(-1)
+        if not self.labels:
+            self.labels = [f"loop{j:03d}" for j in range(n_loops)]
+        if n_loops == 0:
+            raise HysidInputError(f"{self.name}: the loop set is empty")
+        if self.top.ndim != 3 or self.top.shape[2] != 2 or self.top.shape != self.bottom.shape:
+            raise HysidInputError(f"{self.name}: branches must be (loops, samples, 2) arrays of equal shape")
+        for arr, what in ((self.x0, "x0"), (self.sigma, "sigma"), (self.cycles, "cycles")):
+            if arr.size != n_loops:
+                raise HysidInputError(f"{self.name}: {what} has {arr.size} entries for {n_loops} loops")
+        if self.top.shape[0] != n_loops or len(self.labels) != n_loops:
+            raise HysidInputError(f"{self.name}: {self.top.shape[0]} branch pairs and {len(self.labels)} labels for {n_loops} loops")
+        if not (np.all(np.isfinite(self.top)) and np.all(np.isfinite(self.bottom))):
+            raise HysidInputError(f"{self.name}: branch data hold NaN or inf")
+        if np.any(~np.isfinite(self.freq_hz)) or np.any(self.freq_hz <= 0):
+            raise HysidInputError(f"{self.name}: every loop needs a positive frequency")
+        if np.any(~np.isfinite(self.x0)) or np.any(self.x0 <= 0):
+            raise HysidInputError(f"{self.name}: every loop needs a positive amplitude X0")
+        if self.meq_kg is not None and not (np.isfinite(self.meq_kg) and self.meq_kg > 0):
+            raise HysidInputError(f"{self.name}: meq_kg must be a positive mass or unknown (None), got {self.meq_kg}")
+
+    @property
+    def n_loops(self) -> int:
+        return int(self.freq_hz.size)
+
+    @property
+    def n_samples(self) -> int:
+        """Samples per branch (the thesis' ``interppts``)."""
+        return int(self.top.shape[1])
+
+    @property
+    def omega(self) -> np.ndarray:
+        return 2.0 * np.pi * self.freq_hz
+
+    @property
+    def peak_force(self) -> np.ndarray:
+        """max |F| over both branches of each loop (the thesis' ``maxF``)."""
+        return np.maximum(np.abs(self.top[:, :, 1]).max(axis=1), np.abs(self.bottom[:, :, 1]).max(axis=1))
+
+    @property
+    def has_sigma(self) -> bool:
+        return bool(np.all(np.isfinite(self.sigma)) and np.all(self.sigma > 0))
+
+    def phases(self) -> np.ndarray:
+        """Phase wt of every sample, shape ``(L, 2n)``: top branch first, then bottom.
+
+        With x = X0 sin(wt) (Eq. 4.5) the loading branch has cos(wt) >= 0 and
+        the unloading branch cos(wt) <= 0.
+        """
+        s_top = np.clip(self.top[:, :, 0] / self.x0[:, None], -1.0, 1.0)
+        s_bot = np.clip(self.bottom[:, :, 0] / self.x0[:, None], -1.0, 1.0)
+        return np.concatenate([np.arcsin(s_top), np.pi - np.arcsin(s_bot)], axis=1)
+
+    def forces(self) -> np.ndarray:
+        """Measured force at every sample, shape ``(L, 2n)``: top branch, then bottom."""
+        return np.concatenate([self.top[:, :, 1], self.bottom[:, :, 1]], axis=1)
+
+    def subset(self, index: np.ndarray | list[int]) -> "LoopSet":
+        idx = np.asarray(index, dtype=int)
+        return LoopSet(
+            name=self.name,
+            freq_hz=self.freq_hz[idx],
+            x0=self.x0[idx],
+            top=self.top[idx],
+            bottom=self.bottom[idx],
+            sigma=self.sigma[idx],
+            meq_kg=self.meq_kg,
+            cycles=self.cycles[idx],
+            labels=[self.labels[i] for i in idx],
+            meta=dict(self.meta),
+        )
+
+    def with_meq(self, meq_kg: float | None) -> "LoopSet":
+        out = self.subset(np.arange(self.n_loops))
+        out.meq_kg = meq_kg
+        out.__post_init__()
+        return out

@@ -1,0 +1,173 @@
+"""A model is an ordered list of terms; this module evaluates it for a population.
+
+Presets: ``baseline`` = the oscillator of Eq. 4.4/4.6 with constant xi and wn;
+``thesis`` = the final model of Eq. 4.8-4.10 (xi0, S_xi, w0, S_w). Any effect
+of :data:`hysid_model.terms.EFFECTS` can be appended, ``thesis+<effect id>``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hysid_model.errors import HysidInputError
+from hysid_model.params import Parameter
+from hysid_model.terms import (
+    EFFECTS,
+    AmplitudeDependentDamping,
+    AmplitudeDependentFrequency,
+    Coefficients,
+    Kinematics,
+    ModalState,
+    Oscillator,
+    Term,
+    Values,
+    add_coefficient,
+)
+
+PARAMETER_ORDER = ("xi0", "S_xi", "w0", "S_w", "meq")
+"""Parameters are ordered as the thesis' chromosome ``[xi0, S_xi, w0, S_w]`` (Appendix A),
+since the GA's single-point crossover depends on gene order; other terms' follow in term order."""
+
+PRESETS: dict[str, tuple[str, ...]] = {
+    "baseline": (),
+    "thesis": (AmplitudeDependentDamping.id, AmplitudeDependentFrequency.id),
+}
+
+
+@dataclass
+class Model:
+    """Terms plus the parameter bounds in force (defaults overridable per dataset)."""
+
+    terms: list[Term]
+    spec: str = ""
+
+    def __post_init__(self) -> None:
+        names = [p.name for t in self.terms for p in t.params]
+        if len(set(names)) != len(names):
+            raise HysidInputError(f"model {self.spec!r}: two terms define the same parameter ({', '.join(names)})")
+        params = [p for t in self.terms for p in t.params]
+        rank = {name: i for i, name in enumerate(PARAMETER_ORDER)}
+        order = sorted(range(len(params)), key=lambda i: (rank.get(params[i].name, len(rank)), i))
+        self._params: list[Parameter] = [params[i] for i in order]
+
+    # --- parameters -------------------------------------------------------
+    @property
+    def parameters(self) -> list[Parameter]:
+        return list(self._params)
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self._params]
+
+    @property
+    def dim(self) -> int:
+        return len(self._params)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """``(D, 2)`` array of lower and upper bounds."""
+        return np.array([[p.lower, p.upper] for p in self._params], dtype=float)
+
+    @property
+    def has_memory(self) -> bool:
+        return any(t.memory for t in self.terms)
+
+    def set_bounds(self, bounds: dict[str, tuple[float, float]]) -> None:
+        unknown = sorted(set(bounds) - set(self.names))
+        if unknown:
+            raise HysidInputError(f"bounds given for unknown parameter(s) {', '.join(unknown)}; model has {', '.join(self.names)}")
+        self._params = [p.with_bounds(*bounds[p.name]) if p.name in bounds else p for p in self._params]
+
+    def values(self, pop: np.ndarray) -> Values:
+        """Split a ``(P, D)`` population into named ``(P, 1)`` columns."""
+        pop = np.atleast_2d(np.asarray(pop, dtype=float))
+        if pop.shape[1] != self.dim:
+            raise ValueError(f"expected {self.dim} parameters ({', '.join(self.names)}), got {pop.shape[1]}")
+        return {name: pop[:, i : i + 1] for i, name in enumerate(self.names)}
+
+    def as_dict(self, theta: np.ndarray) -> dict[str, float]:
+        return {name: float(x) for name, x in zip(self.names, np.asarray(theta, dtype=float).reshape(-1))}
+
+    def from_dict(self, values: dict[str, float]) -> np.ndarray:
+        missing = [n for n in self.names if n not in values]
+        if missing:
+            raise HysidInputError(f"values missing for parameter(s) {', '.join(missing)}")
+        return np.array([float(values[n]) for n in self.names])
+
+    # --- evaluation -------------------------------------------------------
+    def modal_state(self, pop: np.ndarray, kin: Kinematics) -> tuple[Values, ModalState]:
+        v = self.values(pop)
+        shape = (v[self.names[0]].shape[0], kin.x0.size)
+        state = ModalState(xi=np.zeros(shape), wn=np.zeros(shape), m=np.zeros(shape))
+        for term in self.terms:
+            term.modal(v, state, kin)
+        return v, state
+
+    def coefficients(self, pop: np.ndarray, kin: Kinematics) -> Coefficients:
+        """Feature coefficients of the measured steady-state force, each ``(P, L)``."""
+        v, state = self.modal_state(pop, kin)
+        coefs: Coefficients = {}
+        for term in self.terms:
+            for name, value in term.force(v, state, kin).items():
+                add_coefficient(coefs, name, np.broadcast_to(value, state.xi.shape))
+        for term in self.terms:
+            coefs = term.measure(v, coefs, kin)
+        return coefs
+
+    def memory_force(self, pop: np.ndarray, kin: Kinematics, phase: np.ndarray) -> np.ndarray | None:
+        """Summed force of the memory terms at the sample phases, ``(P, L, 2n)``, or None."""
+        memory_terms = [t for t in self.terms if t.memory]
+        if not memory_terms:
+            return None
+        v, state = self.modal_state(pop, kin)
+        return sum(t.time_force(v, state, kin, phase) for t in memory_terms)
+
+    def modal(self, theta: np.ndarray, x0: np.ndarray | float, meq_kg: float | None) -> ModalState:
+        """xi, wn and m at amplitude(s) ``x0`` for one parameter vector (as listed under Table 5.3)."""
+        x0 = np.atleast_1d(np.asarray(x0, dtype=float))
+        kin = Kinematics(x0=x0, omega=np.ones_like(x0), meq_kg=meq_kg)
+        _, state = self.modal_state(np.asarray(theta, dtype=float).reshape(1, -1), kin)
+        return ModalState(xi=state.xi[0], wn=state.wn[0], m=state.m[0])
+
+    def describe(self) -> str:
+        lines = [f"model {self.spec}:"]
+        for t in self.terms:
+            plist = ", ".join(f"{p.name} [{p.unit}]" for p in t.params) or "no parameters"
+            lines.append(f"  {t.id}: {plist}")
+        return "\n".join(lines)
+
+
+def build_model(spec: str = "thesis", meq_kg: float | None = None, fit_mass: bool = False) -> Model:
+    """Build a model from ``baseline``/``thesis`` plus ``+effect`` ids.
+
+    The mass is fitted when ``meq_kg`` is None (unknown) or ``fit_mass`` is set.
+    """
+    parts = [p.strip() for p in spec.split("+") if p.strip()]
+    if not parts or parts[0] not in PRESETS:
+        raise HysidInputError(f"model {spec!r}: must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)")
+    effect_ids = list(PRESETS[parts[0]])
+    for part in parts[1:]:
+        if part not in EFFECTS:
+            raise HysidInputError(f"model {spec!r}: unknown effect {part!r}; known: {', '.join(sorted(EFFECTS))}")
+        if part in effect_ids:
+            raise HysidInputError(f"model {spec!r}: effect {part!r} is already in the model")
+        effect_ids.append(part)
+    terms: list[Term] = [Oscillator(fit_mass=fit_mass or meq_kg is None)]
+    terms += [EFFECTS[e]() for e in effect_ids]
+    return Model(terms=terms, spec=spec)
+
+
+def to_physical(state: ModalState) -> dict[str, np.ndarray]:
+    """Modal (xi, wn, m) -> physical (k, c, m): k = m wn^2, c = 2 m xi wn (Eq. 2.4)."""
+    return {"k": state.m * state.wn**2, "c": 2.0 * state.m * state.xi * state.wn, "m": state.m}
+
+
+def from_physical(k: np.ndarray | float, c: np.ndarray | float, m: np.ndarray | float) -> ModalState:
+    """Physical (k, c, m) -> modal: wn = sqrt(k/m), xi = c / (2 sqrt(k m))."""
+    k, c, m = (np.asarray(a, dtype=float) for a in (k, c, m))
+    if np.any(k <= 0) or np.any(m <= 0):
+        raise HysidInputError("physical form needs positive stiffness k and mass m")
+    wn = np.sqrt(k / m)
+    return ModalState(xi=c / (2.0 * m * wn), wn=wn, m=m)

@@ -1,0 +1,122 @@
+"""The thesis' computer-generated *Synth* set (section 5.2).
+
+120 loops: the 40 frequencies of Table 5.2 at X0 = 0.5, 1.0 and 1.5 mm (loops
+ordered by amplitude, then frequency, as the thesis' ``hysloopsnames``), with
+Meq = 40 g and the parameters of Table 5.3 in the final model, Eq. 4.8-4.10.
+Noise follows the thesis: Gaussian, on the force only, with standard deviation
+noise% x that loop's peak force (``maxF*noiselevel/100*randn``, Appendix A).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
+
+FREQUENCIES_HZ = np.array([
+    25, 26, 26.5, 27, 27.5, 28, 28.2, 28.4, 28.6, 28.8,
+    29, 29.1, 29.2, 29.3, 29.4, 29.5, 29.6, 29.7, 29.8, 29.9,
+    30, 30.1, 30.2, 30.3, 30.4, 30.5, 30.6, 30.7, 30.8, 30.9,
+    31, 31.2, 31.4, 31.6, 31.8, 32, 32.5, 33, 33.5, 34,
+])  # Table 5.2
+AMPLITUDES_M = np.array([0.5e-3, 1.0e-3, 1.5e-3])
+MEQ_KG = 40e-3
+TRUE_PARAMS = {"xi0": 0.0042, "S_xi": -0.4, "w0": 189.1239, "S_w": -1256.64}  # Table 5.3
+BOUNDS = {"xi0": (0.0, 0.1), "S_xi": (-10.0, 10.0), "w0": (100.0, 500.0), "S_w": (-10000.0, 10000.0)}  # Table 5.4
+
+
+def thesis_force(t: np.ndarray, freq_hz: float, x0: float, params: dict[str, float], meq_kg: float) -> np.ndarray:
+    """Eq. 4.10 written out: the steady-state force under x = X0 sin(wt)."""
+    w = 2.0 * np.pi * freq_hz
+    xi = params["xi0"] + params["S_xi"] * x0
+    wn = params["w0"] + params["S_w"] * x0
+    amplitude = meq_kg * x0 * np.hypot(wn**2 - w**2, 2.0 * xi * wn * w)
+    return amplitude * np.sin(w * t + np.arctan2(2.0 * xi * wn * w, wn**2 - w**2))
+
+
+def _grid() -> tuple[np.ndarray, np.ndarray]:
+    x0 = np.repeat(AMPLITUDES_M, FREQUENCIES_HZ.size)
+    freq = np.tile(FREQUENCIES_HZ, AMPLITUDES_M.size)
+    return freq, x0
+
+
+def _labels(freq: np.ndarray, x0: np.ndarray) -> list[str]:
+    return [f"SYNTH_{a * 1e4:02.0f}mm_{f:g}Hz" for f, a in zip(freq, x0)]
+
+
+def _check_noise(noise_pct: float) -> None:
+    if not (np.isfinite(noise_pct) and 0.0 <= noise_pct <= 100.0):
+        raise HysidInputError(f"noise must be a percentage from 0 to 100, got {noise_pct}")
+
+
+def synth_loops(noise_pct: float = 0.0, seed: int = 0, n_points: int = 100, params: dict[str, float] | None = None) -> LoopSet:
+    """The Synth set as branch data: ``n_points`` per branch, evenly spaced in x (``reinterpolate``)."""
+    _check_noise(noise_pct)
+    params = TRUE_PARAMS if params is None else params
+    freq, x0 = _grid()
+    rng = np.random.default_rng(seed)
+    n_loops = freq.size
+    top = np.empty((n_loops, n_points, 2))
+    bottom = np.empty((n_loops, n_points, 2))
+    sigma = np.empty(n_loops)
+    for j in range(n_loops):
+        w = 2.0 * np.pi * freq[j]
+        x = np.linspace(-x0[j], x0[j], n_points)
+        s = np.clip(x / x0[j], -1.0, 1.0)
+        t_load = np.arcsin(s) / w
+        t_unload = (np.pi - np.arcsin(s)) / w
+        f_top = thesis_force(t_load, freq[j], x0[j], params, MEQ_KG)
+        f_bot = thesis_force(t_unload, freq[j], x0[j], params, MEQ_KG)
+        peak = max(np.abs(f_top).max(), np.abs(f_bot).max())
+        sigma[j] = peak * noise_pct / 100.0
+        top[j] = np.column_stack([x, f_top + sigma[j] * rng.standard_normal(n_points)])
+        bottom[j] = np.column_stack([x, f_bot + sigma[j] * rng.standard_normal(n_points)])
+    return LoopSet(
+        name=f"synth-{noise_pct:g}pct-seed{seed}",
+        freq_hz=freq,
+        x0=x0,
+        top=top,
+        bottom=bottom,
+        sigma=sigma if noise_pct > 0 else np.full(n_loops, np.nan),
+        meq_kg=MEQ_KG,
+        labels=_labels(freq, x0),
+        meta={"source": "synth", "noise_pct": noise_pct, "seed": seed, "true_params": dict(params), "bounds": BOUNDS},
+    )
+
+
+@dataclass
+class RawRecord:
+    """One simulated DAQ record: time (s), displacement (m) and force (N)."""
+
+    label: str
+    freq_hz: float
+    x0: float
+    t: np.ndarray
+    x: np.ndarray
+    force: np.ndarray
+    sigma: float
+
+
+def synth_raw(
+    noise_pct: float = 0.0,
+    seed: int = 0,
+    sample_rate_hz: float = 10_000.0,
+    duration_s: float = 0.4,
+    params: dict[str, float] | None = None,
+) -> list[RawRecord]:
+    """The Synth set as raw time series over several cycles (thesis grid: 1e-4 s over 0.4 s)."""
+    _check_noise(noise_pct)
+    params = TRUE_PARAMS if params is None else params
+    freq, x0 = _grid()
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(duration_s * sample_rate_hz))) / sample_rate_hz
+    records = []
+    for label, f, a in zip(_labels(freq, x0), freq, x0):
+        clean = thesis_force(t, f, a, params, MEQ_KG)
+        sigma = np.abs(clean).max() * noise_pct / 100.0
+        x = a * np.sin(2.0 * np.pi * f * t)
+        records.append(RawRecord(label, float(f), float(a), t, x, clean + sigma * rng.standard_normal(t.size), float(sigma)))
+    return records

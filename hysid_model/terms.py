@@ -1,0 +1,158 @@
+"""Model terms: physics as data.
+
+A model (:mod:`hysid_model.model`) is an ordered list of terms. Each term owns
+its parameters (name, unit, default bounds) and contributes in up to three
+stages, always vectorized over a population ``P`` and the loops ``L``:
+
+1. ``modal``: adjust the modal quantities shared by the 1-DOF oscillator, the
+   damping ratio ``xi``, natural frequency ``wn`` (rad/s) and mass ``m`` (kg),
+   each of shape ``(P, L)`` (e.g. Eq. 4.8 and 4.9 make them depend on X0);
+2. ``force``: add coefficients of basis features (:mod:`hysid_model.basis`) to
+   the steady-state force, e.g. Eq. 4.6 / 4.10 for the oscillator;
+3. ``measure``: transform the force as the measurement chain sees it.
+
+Terms with memory (internal state, e.g. Bouc-Wen) instead return their force at
+the sample phases from :func:`hysid_model.timedomain.periodic_steady_state`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from hysid_model.params import Parameter
+
+Values = dict[str, np.ndarray]
+"""Parameter values by name, each of shape ``(P, 1)`` so they broadcast over loops."""
+
+Coefficients = dict[str, np.ndarray]
+"""Feature name -> coefficient (N) of shape ``(P, L)``."""
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """What the prescribed motion x = X0 sin(wt) of each loop gives a term (Eq. 4.5)."""
+
+    x0: np.ndarray
+    omega: np.ndarray
+    meq_kg: float | None
+
+
+@dataclass
+class ModalState:
+    """Damping ratio, natural frequency (rad/s) and mass (kg) per candidate and loop."""
+
+    xi: np.ndarray
+    wn: np.ndarray
+    m: np.ndarray
+
+
+def add_coefficient(coefs: Coefficients, name: str, value: np.ndarray) -> None:
+    coefs[name] = coefs[name] + value if name in coefs else value
+
+
+class Term:
+    """Base class; subclasses set ``id``, ``explanation`` and ``params``."""
+
+    id: ClassVar[str] = ""
+    explanation: ClassVar[str] = ""
+    memory: ClassVar[bool] = False
+    params: tuple[Parameter, ...] = ()
+
+    def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
+        """Stage 1: adjust ``state`` in place (default: nothing)."""
+
+    def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
+        """Stage 2: feature coefficients this term adds to the force (default: none)."""
+        return {}
+
+    def measure(self, v: Values, coefs: Coefficients, kin: Kinematics) -> Coefficients:
+        """Stage 3: the force as measured (default: unchanged)."""
+        return coefs
+
+    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
+        """Force of a memory term at the sample phases, shape ``(P, L, 2n)``."""
+        raise TypeError(f"term {self.id} has no memory")
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({', '.join(p.name for p in self.params)})"
+
+
+class Oscillator(Term):
+    """Linear 1-DOF oscillator with equivalent viscous damping, Eq. 4.4.
+
+    Under x = X0 sin(wt) its steady-state force is closed form (Eq. 4.6):
+    F = m X0 [(wn^2 - w^2) sin(wt) + 2 xi wn w cos(wt)]. The mass is the known
+    equivalent mass Meq unless the term fits it (parameter ``meq``).
+    """
+
+    id = "oscillator"
+    explanation = "Mass, viscous damping ratio xi and natural frequency wn of the equivalent 1-DOF system (Eq. 4.4-4.6)."
+
+    def __init__(self, fit_mass: bool = False, mass_bounds: tuple[float, float] = (1e-3, 10.0)) -> None:
+        params = [
+            Parameter("xi0", "1", 0.0, 0.1, "damping ratio (at zero amplitude)"),
+            Parameter("w0", "rad/s", 100.0, 500.0, "natural frequency (at zero amplitude)"),
+        ]
+        if fit_mass:
+            params.append(Parameter("meq", "kg", *mass_bounds, "equivalent mass"))
+        self.params = tuple(params)
+        self.fit_mass = fit_mass
+
+    def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
+        state.xi = state.xi + v["xi0"]
+        state.wn = state.wn + v["w0"]
+        if self.fit_mass:
+            state.m = state.m + v["meq"]
+        else:
+            if kin.meq_kg is None:
+                raise ValueError("the equivalent mass is unknown: build the oscillator with fit_mass=True")
+            state.m = state.m + kin.meq_kg
+
+    def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
+        w = kin.omega
+        scale = state.m * kin.x0
+        return {
+            "s1": scale * (state.wn**2 - w**2),
+            "c1": scale * (2.0 * state.xi * state.wn * w),
+        }
+
+
+class AmplitudeDependentDamping(Term):
+    """Damping ratio linear in amplitude, xi(X0) = xi0 + S_xi X0 (Eq. 4.8)."""
+
+    id = "amplitude_dependent_damping"
+    explanation = (
+        "The damping ratio changes linearly with the excitation amplitude (Eq. 4.8); "
+        "in the thesis the resonance peak sharpens as the amplitude grows (Fig. 4.7, 4.10)."
+    )
+    params = (Parameter("S_xi", "1/m", -10.0, 10.0, "slope of the damping ratio with amplitude"),)
+
+    def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
+        state.xi = state.xi + v["S_xi"] * kin.x0
+
+
+class AmplitudeDependentFrequency(Term):
+    """Natural frequency linear in amplitude, wn(X0) = w0 + S_w X0 (Eq. 4.9).
+
+    Physically the softening of the supports, K = (1/Kb + 1/(Ks - A X0))^-1 (Eq. 4.7).
+    """
+
+    id = "amplitude_dependent_frequency"
+    explanation = (
+        "The natural frequency changes linearly with the excitation amplitude (Eq. 4.9): "
+        "support stiffness that softens with amplitude (Eq. 4.7, Fig. 4.6, 4.9)."
+    )
+    params = (Parameter("S_w", "rad/s/m", -10000.0, 10000.0, "slope of the natural frequency with amplitude"),)
+
+    def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
+        state.wn = state.wn + v["S_w"] * kin.x0
+
+
+EFFECTS: dict[str, type[Term]] = {
+    AmplitudeDependentDamping.id: AmplitudeDependentDamping,
+    AmplitudeDependentFrequency.id: AmplitudeDependentFrequency,
+}
+"""The effect library: terms that can be added to a model by id (``thesis+<id>``)."""

@@ -1,0 +1,56 @@
+"""Standard errors: Fisher information and the Cramer-Rao bound.
+
+For Gaussian force noise of standard deviation sigma_j on loop j, the Fisher
+information of the parameters is I = J^T diag(1/sigma^2) J with J the Jacobian
+of the model force at every sample; the Cramer-Rao bound is I^-1. With the
+thesis' (non-ML) loop weights W the least-squares estimator's covariance is the
+sandwich (J^T W J)^-1 J^T W Sigma W J (J^T W J)^-1. Where sigma is unknown it is
+estimated from the residuals of each loop at the given parameters.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hysid_model.objective import Objective
+
+
+def noise_sigma(obj: Objective, theta: np.ndarray) -> np.ndarray:
+    """Each loop's sigma: the known one, else the residual RMS (dof-corrected)."""
+    sigma = obj.loops.sigma.copy()
+    unknown = ~(np.isfinite(sigma) & (sigma > 0))
+    if np.any(unknown):
+        n_total = obj.y.size
+        dof_factor = n_total / max(n_total - obj.dim, 1)
+        rms = np.sqrt(obj.per_loop_sse(theta) / obj.y.shape[1] * dof_factor)
+        sigma[unknown] = rms[unknown]
+    return sigma
+
+
+def fisher_information(obj: Objective, theta: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
+    sigma = noise_sigma(obj, theta) if sigma is None else np.asarray(sigma, dtype=float)
+    jac = obj.jacobian(theta, weighted=False)
+    inv_var = np.repeat(1.0 / sigma**2, obj.y.shape[1])
+    return jac.T @ (jac * inv_var[:, None])
+
+
+def cramer_rao_stderr(obj: Objective, theta: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
+    """sqrt(diag(I^-1)): the smallest standard error any unbiased estimator can reach."""
+    return np.sqrt(np.diag(np.linalg.pinv(fisher_information(obj, theta, sigma))))
+
+
+def covariance(obj: Objective, theta: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
+    """Covariance of the weighted least-squares estimate under the objective's weights."""
+    sigma = noise_sigma(obj, theta) if sigma is None else np.asarray(sigma, dtype=float)
+    jac = obj.jacobian(theta, weighted=False)
+    n = obj.y.shape[1]
+    w = np.repeat(obj.loop_weight, n)
+    var = np.repeat(sigma**2, n)
+    bread = np.linalg.pinv(jac.T @ (jac * w[:, None]))
+    meat = jac.T @ (jac * (w**2 * var)[:, None])
+    return bread @ meat @ bread
+
+
+def standard_errors(obj: Objective, theta: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
+    cov = covariance(obj, theta, sigma)
+    return np.sqrt(np.clip(np.diag(cov), 0.0, None))
