@@ -13,7 +13,7 @@ import typer
 from coordinator import cli_bench, cli_campaign, cli_data, cli_diagnose, cli_fit
 from hysid_model.errors import HysidInputError
 from hysid_model.model import PRESETS, build_model
-from hysid_model.terms import EFFECTS
+from hysid_model.effects import EFFECTS
 
 app = typer.Typer(
     name="hysid",

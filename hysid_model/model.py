@@ -2,7 +2,7 @@
 
 Presets: ``baseline`` = the oscillator of Eq. 4.4/4.6 with constant xi and wn;
 ``thesis`` = the final model of Eq. 4.8-4.10 (xi0, S_xi, w0, S_w). Any effect
-of :data:`hysid_model.terms.EFFECTS` can be appended, ``thesis+<effect id>``.
+of :data:`hysid_model.effects.EFFECTS` can be appended, ``thesis+<effect id>``.
 """
 
 from __future__ import annotations
@@ -11,14 +11,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
 from hysid_model.params import Parameter
 from hysid_model.terms import (
-    EFFECTS,
     AmplitudeDependentDamping,
     AmplitudeDependentFrequency,
     Coefficients,
     Kinematics,
+    MeasurementTerm,
     ModalState,
     Oscillator,
     Term,
@@ -29,6 +30,14 @@ from hysid_model.terms import (
 PARAMETER_ORDER = ("xi0", "S_xi", "w0", "S_w", "meq")
 """Parameters are ordered as the thesis' chromosome ``[xi0, S_xi, w0, S_w]`` (Appendix A),
 since the GA's single-point crossover depends on gene order; other terms' follow in term order."""
+
+CHAIN_ORDERS = np.arange(128)
+"""Harmonic orders through which a measurement chain's proper part G filters the
+sign-of-velocity feature and memory forces (the delay is applied exactly). The
+neglected tail of a unit step is below 0.005 w_c/w for a high-pass at w_c."""
+
+_SQUARE_WAVE = np.where(CHAIN_ORDERS % 2 == 1, 4.0 / (np.pi * np.maximum(CHAIN_ORDERS, 1)) * (-1.0) ** ((CHAIN_ORDERS - 1) // 2), 0.0)
+"""Complex amplitudes of sgn(cos wt) = (4/pi) sum_k odd (-1)^((k-1)/2) cos(k wt) / k."""
 
 PRESETS: dict[str, tuple[str, ...]] = {
     "baseline": (),
@@ -51,6 +60,10 @@ class Model:
         rank = {name: i for i, name in enumerate(PARAMETER_ORDER)}
         order = sorted(range(len(params)), key=lambda i: (rank.get(params[i].name, len(rank)), i))
         self._params: list[Parameter] = [params[i] for i in order]
+        self._sensors = [t for t in self.terms if isinstance(t, MeasurementTerm)]
+        probe_kin = Kinematics(x0=np.ones(1), omega=np.ones(1), meq_kg=1.0)
+        v, state = self.modal_state(self.bounds.mean(axis=1)[None, :], probe_kin)
+        self._filters_sgn = bool(self._sensors) and "sgn" in self._force_coefficients(v, state, probe_kin)
 
     # --- parameters -------------------------------------------------------
     @property
@@ -72,7 +85,9 @@ class Model:
 
     @property
     def has_memory(self) -> bool:
-        return any(t.memory for t in self.terms)
+        """True when the force is evaluated sample by sample: memory terms, or a
+        measurement chain filtering the sign-of-velocity feature."""
+        return self._filters_sgn or any(t.memory for t in self.terms)
 
     def set_bounds(self, bounds: dict[str, tuple[float, float]]) -> None:
         unknown = sorted(set(bounds) - set(self.names))
@@ -105,24 +120,68 @@ class Model:
             term.modal(v, state, kin)
         return v, state
 
-    def coefficients(self, pop: np.ndarray, kin: Kinematics) -> Coefficients:
-        """Feature coefficients of the measured steady-state force, each ``(P, L)``."""
-        v, state = self.modal_state(pop, kin)
+    def _force_coefficients(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         coefs: Coefficients = {}
         for term in self.terms:
             for name, value in term.force(v, state, kin).items():
                 add_coefficient(coefs, name, np.broadcast_to(value, state.xi.shape))
+        return coefs
+
+    def coefficients(self, pop: np.ndarray, kin: Kinematics) -> Coefficients:
+        """Feature coefficients of the measured steady-state force, each ``(P, L)``."""
+        v, state = self.modal_state(pop, kin)
+        coefs = self._force_coefficients(v, state, kin)
         for term in self.terms:
             coefs = term.measure(v, coefs, kin)
         return coefs
 
-    def memory_force(self, pop: np.ndarray, kin: Kinematics, phase: np.ndarray) -> np.ndarray | None:
-        """Summed force of the memory terms at the sample phases, ``(P, L, 2n)``, or None."""
+    def memory_force(self, pop: np.ndarray, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray | None:
+        """Force evaluated per sample at ``phase`` (L, N), ``(P, L, N)``, or None.
+
+        That is the memory terms' force, plus, when the model has measurement
+        terms, the sign-of-velocity feature; both as the measurement chain sees
+        them. The first ``n_top`` samples (default N/2) of each loop are on the
+        loading branch, which decides sgn at the turning points.
+        """
         memory_terms = [t for t in self.terms if t.memory]
-        if not memory_terms:
+        if not memory_terms and not self._filters_sgn:
             return None
         v, state = self.modal_state(pop, kin)
-        return sum(t.time_force(v, state, kin, phase) for t in memory_terms)
+        if not self._sensors:
+            return sum(t.time_force(v, state, kin, phase) for t in memory_terms)
+        sgn = self._force_coefficients(v, state, kin)["sgn"] if self._filters_sgn else None
+        return self._through_chain(v, state, kin, phase, phase.shape[-1] // 2 if n_top is None else n_top, sgn, memory_terms)
+
+    def _through_chain(
+        self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int, sgn: np.ndarray | None, memory_terms: list[Term]
+    ) -> np.ndarray:
+        """u(wt - w tau_d) + Re sum_k (G_k - 1) U_k exp(j k (wt - w tau_d)): the non-harmonic force u
+        (Coulomb's sgn, memory forces) through the chain's delay tau_d (exact) and gain G (Eq. 4.1-4.2)."""
+        n_pop = state.xi.shape[0]
+        delay = np.broadcast_to(sum(np.asarray(t.delay(v, kin), dtype=float) for t in self._sensors), (n_pop, 1))[:, :, None]
+        shifted = phase[None] - kin.omega[None, :, None] * delay
+        out = np.zeros(shifted.shape)
+        if sgn is not None:
+            cos = np.cos(shifted)
+            branch = np.where(np.arange(phase.shape[-1]) < n_top, 1.0, -1.0)
+            out += sgn[:, :, None] * np.where(np.abs(cos) < 1e-9, branch, np.sign(cos))
+        if memory_terms:
+            out += sum(t.time_force(v, state, kin, shifted) for t in memory_terms)
+        gain = np.ones((1, 1, CHAIN_ORDERS.size), dtype=complex)
+        for t in self._sensors:
+            gain = gain * t.gain(v, kin, CHAIN_ORDERS)
+        if np.all(gain == 1.0):
+            return out
+        amplitude = np.zeros((n_pop, phase.shape[0], CHAIN_ORDERS.size), dtype=complex)
+        if sgn is not None:
+            amplitude += sgn[:, :, None] * _SQUARE_WAVE
+        if memory_terms:
+            grid = np.broadcast_to(np.linspace(0.0, 2.0 * np.pi, 2 * CHAIN_ORDERS.size, endpoint=False), (phase.shape[0], 2 * CHAIN_ORDERS.size))
+            spectrum = np.fft.rfft(sum(t.time_force(v, state, kin, grid) for t in memory_terms), axis=-1)[..., : CHAIN_ORDERS.size]
+            amplitude += spectrum * np.where(CHAIN_ORDERS == 0, 1.0, 2.0) / grid.shape[-1]
+        lag = np.exp(-1j * CHAIN_ORDERS * kin.omega[None, :, None] * delay)
+        waves = np.exp(1j * phase[..., None] * CHAIN_ORDERS)
+        return out + np.einsum("plk,lnk->pln", (gain - 1.0) * amplitude * lag, waves).real
 
     def modal(self, theta: np.ndarray, x0: np.ndarray | float, meq_kg: float | None) -> ModalState:
         """xi, wn and m at amplitude(s) ``x0`` for one parameter vector (as listed under Table 5.3)."""

@@ -13,8 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hysid_model.basis import design_matrix
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
+from hysid_model.model import Model
+from hysid_model.terms import Kinematics
 
 FREQUENCIES_HZ = np.array([
     25, 26, 26.5, 27, 27.5, 28, 28.2, 28.4, 28.6, 28.8,
@@ -118,5 +121,66 @@ def synth_raw(
         clean = thesis_force(t, f, a, params, MEQ_KG)
         sigma = np.abs(clean).max() * noise_pct / 100.0
         x = a * np.sin(2.0 * np.pi * f * t)
+        records.append(RawRecord(label, float(f), float(a), t, x, clean + sigma * rng.standard_normal(t.size), float(sigma)))
+    return records
+
+
+def model_force(model: Model, theta: np.ndarray, freq_hz: float, x0: float, meq_kg: float | None, phase: np.ndarray) -> np.ndarray:
+    """Steady-state force of ``model`` at ``theta`` under x = X0 sin(phase), phase = w t (Eq. 4.5).
+
+    Samples with cos(phase) >= 0 are on the loading branch (x' >= 0); the model
+    is evaluated on both branches as for a loop, and the result is returned in
+    the order of ``phase``.
+    """
+    phase = np.asarray(phase, dtype=float).reshape(-1)
+    order = np.concatenate([np.flatnonzero(np.cos(phase) >= 0.0), np.flatnonzero(np.cos(phase) < 0.0)])
+    n_top = int(np.count_nonzero(np.cos(phase) >= 0.0))
+    kin = Kinematics(x0=np.array([float(x0)]), omega=np.array([2.0 * np.pi * float(freq_hz)]), meq_kg=meq_kg)
+    pop = np.asarray(theta, dtype=float).reshape(1, -1)
+    coefs = model.coefficients(pop, kin)
+    sorted_phase = phase[order][None, :]
+    names = list(coefs)
+    force = design_matrix(names, sorted_phase, n_top)[0] @ np.array([coefs[n][0, 0] for n in names])
+    memory = model.memory_force(pop, kin, sorted_phase, n_top=n_top)
+    if memory is not None:
+        force = force + memory[0, 0]
+    out = np.empty_like(force)
+    out[order] = force
+    return out
+
+
+def simulate_raw(
+    model: Model,
+    theta: np.ndarray,
+    freq_hz: np.ndarray,
+    x0: np.ndarray,
+    *,
+    meq_kg: float | None,
+    noise_n: float | np.ndarray,
+    seed: int = 0,
+    samples_per_cycle: int = 128,
+    cycles: int = 8,
+    x_noise: float = 1e-4,
+) -> list[RawRecord]:
+    """Raw steady-state records of any model: ``cycles`` periods sampled ``samples_per_cycle`` times each.
+
+    Each record starts at a random phase; the force gets Gaussian noise of std
+    ``noise_n`` (N, scalar or per record), the displacement noise of std
+    ``x_noise`` times X0. For hidden-effect tests of ``hysid diagnose``.
+    """
+    freq_hz = np.asarray(freq_hz, dtype=float).reshape(-1)
+    x0 = np.asarray(x0, dtype=float).reshape(-1)
+    noise = np.broadcast_to(np.asarray(noise_n, dtype=float), freq_hz.shape)
+    if freq_hz.shape != x0.shape or np.any(freq_hz <= 0) or np.any(x0 <= 0) or np.any(noise < 0):
+        raise HysidInputError("simulate_raw needs matching positive frequencies and amplitudes and a noise >= 0")
+    rng = np.random.default_rng(seed)
+    records = []
+    for f, a, sigma in zip(freq_hz, x0, noise):
+        w = 2.0 * np.pi * f
+        t = np.arange(cycles * samples_per_cycle) / (samples_per_cycle * f)
+        phase = w * t + rng.uniform(0.0, 2.0 * np.pi)
+        clean = model_force(model, theta, f, a, meq_kg, phase)
+        x = a * np.sin(phase) + x_noise * a * rng.standard_normal(t.size)
+        label = f"SIM_{a * 1e3:.4g}mm_{f:g}Hz"
         records.append(RawRecord(label, float(f), float(a), t, x, clean + sigma * rng.standard_normal(t.size), float(sigma)))
     return records

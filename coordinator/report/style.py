@@ -1,0 +1,94 @@
+"""One figure style for every hysid report: sizes for a printed page, colour-blind-safe colours.
+
+Figures are built on :class:`matplotlib.figure.Figure` directly (no pyplot, no
+GUI backend, no global state) inside :func:`styled`, and saved as PNG at
+:data:`DPI`.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import Callable, ParamSpec, TypeVar
+
+import matplotlib as mpl
+from matplotlib.figure import Figure
+
+DPI = 200
+PAGE_WIDTH_IN = 7.0
+"""Full text width of a two-column journal page."""
+
+RC = {
+    "font.family": "DejaVu Sans",
+    "font.size": 8.5,
+    "axes.titlesize": 8.5,
+    "axes.labelsize": 8.5,
+    "legend.fontsize": 7.5,
+    "xtick.labelsize": 7.5,
+    "ytick.labelsize": 7.5,
+    "axes.grid": True,
+    "grid.alpha": 0.3,
+    "grid.linewidth": 0.5,
+    "axes.linewidth": 0.7,
+    "lines.linewidth": 1.2,
+    "lines.markersize": 4.0,
+    "legend.frameon": False,
+    "mathtext.fontset": "dejavusans",
+    "savefig.dpi": DPI,
+    "savefig.bbox": "tight",
+    "savefig.pad_inches": 0.05,
+}
+
+TRIAL = "#0072B2"
+"""Measured ('trial') data: blue, as the thesis' loop plots."""
+MODEL = "#D55E00"
+"""Model: vermilion."""
+TRUE = "#CC0000"
+"""True value (the thesis' red dotted line)."""
+PEAK = "#CC79A7"
+"""Resonance peak markers (magenta in Fig. 6.1)."""
+HALF_POWER = "#56B4E9"
+"""-3 dB markers (cyan in Fig. 6.1)."""
+SERIES = ("#0072B2", "#D55E00", "#009E73", "#E69F00", "#CC79A7", "#56B4E9", "#F0E442", "#000000")
+"""Okabe-Ito palette for amplitudes, runs and settings."""
+
+MATH = {
+    "xi0": r"$\xi_0$",
+    "S_xi": r"$S_\xi$",
+    "w0": r"$\omega_0$",
+    "S_w": r"$S_\omega$",
+    "meq": r"$M_{eq}$",
+}
+"""Parameter names as the thesis typesets them."""
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def series_color(i: int) -> str:
+    return SERIES[i % len(SERIES)]
+
+
+def math_name(name: str) -> str:
+    return MATH.get(name, name.replace("_", r"\_"))
+
+
+def styled(func: Callable[P, R]) -> Callable[P, R]:
+    """Run a figure builder under :data:`RC` (rc parameters are read when artists are made and saved)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        with mpl.rc_context(RC):
+            return func(*args, **kwargs)
+
+    return wrapper
+
+
+def new_figure(height_in: float, width_in: float = PAGE_WIDTH_IN) -> Figure:
+    return Figure(figsize=(width_in, height_in), layout="constrained")
+
+
+def save(fig: Figure, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI, format="png")
+    return path

@@ -1,0 +1,486 @@
+"""The campaign coordinator: serves the loop set, tracks islands, records everything, decides when to stop.
+
+All incoming traffic (island histories and migrants, membership changes)
+lands in one queue and is handled by one thread, which owns the SQLite store
+(:mod:`coordinator.store`) and commits after every batch. The coordinator
+
+* serves ``config`` (campaign configuration + loop set) and ``best``;
+* records joins, graceful leaves (a final history, then the token goes) and
+  losses (the token goes without a final history: crash, kill, or a frozen
+  process whose Zenoh lease expired);
+* stores every history row and migrant message, and every rejected message
+  with its reason;
+* keeps the global best, **re-evaluating** any candidate that claims to beat
+  it (a claimed fitness is never trusted) and publishes it for late joiners;
+* after a restart (``--resume``) asks every live island for the history rows
+  it missed;
+* stops on a total evaluation budget, a target fitness, a stall (evaluations
+  without improvement), a time limit or when every island has finished; then
+  polishes the global best (section 3.1's calculus-based refinement), derives
+  standard errors and builds the same :class:`coordinator.fit.FitResult` as
+  ``hysid fit``.
+
+:func:`serve_zenoh` wires a coordinator to a Zenoh session; single-node
+campaigns feed the same queue from island threads (:mod:`coordinator.campaign`).
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any, Protocol
+
+import numpy as np
+import zenoh
+
+from coordinator.fit import FitResult, RunResult, build_objective
+from coordinator.store import IslandRecord, Store, StoredBest
+from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
+from hysid_model.objective import Objective
+from island.node import key_prefix
+from island.polish import polish
+from island.protocol import (
+    NAME_PATTERN,
+    Best,
+    CampaignConfig,
+    MessageRejected,
+    Migration,
+    decode_config,
+    decode_history,
+    decode_migrants,
+    encode_best,
+    encode_config,
+    encode_stop,
+)
+
+LEAVE_GRACE_S = 0.5
+"""After a token disappears, how long a final history may still arrive to count as a graceful leave."""
+STOP_GRACE_S = 10.0
+"""After the stop order, how long to wait for islands' final histories."""
+
+
+@dataclass
+class StopRules:
+    """When the campaign ends (any rule that is set); ``stall`` counts evaluations without improvement."""
+
+    budget: int | None = None
+    target: float | None = None
+    stall: int | None = None
+    time_limit_s: float | None = None
+
+    def __post_init__(self) -> None:
+        for name, value in (("--budget", self.budget), ("--stall", self.stall)):
+            if value is not None and value < 1:
+                raise HysidInputError(f"{name} {value}: must be a positive number of evaluations")
+        if self.target is not None and not (np.isfinite(self.target) and self.target >= 0):
+            raise HysidInputError(f"--target {self.target}: must be a finite fitness >= 0")
+        if self.time_limit_s is not None and not self.time_limit_s > 0:
+            raise HysidInputError(f"--time-limit {self.time_limit_s}: must be a positive number of seconds")
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"budget": self.budget, "target": self.target, "stall": self.stall, "time_limit_s": self.time_limit_s}
+
+
+def new_config(
+    loops: LoopSet,
+    *,
+    name: str,
+    model: str = "thesis",
+    weights: str | None = None,
+    algos: list[str] | None = None,
+    options: dict[str, dict[str, Any]] | None = None,
+    migration: Migration | None = None,
+    seed: int = 0,
+) -> CampaignConfig:
+    """A campaign configuration with the bounds and weights ``hysid fit`` would use on ``loops``."""
+    objective = build_objective(loops, model, weights)
+    return CampaignConfig(
+        name=name,
+        model=model,
+        weights=objective.weights,
+        bounds={n: (float(lo), float(hi)) for n, (lo, hi) in zip(objective.model.names, objective.bounds)},
+        algos=list(algos or ["ga", "pso"]),
+        options=dict(options or {}),
+        migration=migration or Migration(),
+        seed=seed,
+    )
+
+
+class Link(Protocol):
+    """What the coordinator sends out (Zenoh publications, or in-process for single-node campaigns)."""
+
+    def announce_stop(self, message: bytes) -> None: ...
+
+    def publish_best(self, message: bytes) -> None: ...
+
+    def request_history(self, island: str, run: str, since: int) -> None:
+        """Ask an island for its rows after ``since``; the answer arrives in the inbox as a history message."""
+
+
+@dataclass
+class Member:
+    status: str = "alive"
+    """alive, left (said goodbye), lost (vanished: crash, kill, lease expired)"""
+    run: str = ""
+    gone_at: float | None = None
+
+
+@dataclass
+class IslandView:
+    """What progress shows of one island run."""
+
+    algo: str
+    iteration: int = 0
+    best: float = np.inf
+    final: bool = False
+
+
+@dataclass
+class Progress:
+    elapsed_s: float
+    evaluations: int
+    best: float
+    members: dict[str, str]
+    islands: dict[str, IslandView]
+    migrations: int
+    rejected: int
+
+
+class Coordinator:
+    """One campaign's coordinator state machine (see the module docstring)."""
+
+    def __init__(self, store: Store, config: CampaignConfig, loops: LoopSet, rules: StopRules, *, dataset: str = "", resume: bool = False) -> None:
+        self.store = store
+        self.config = config
+        self.name = config.name
+        self.loops = loops
+        self.objective = config.objective(loops)
+        self.rules = rules
+        self.config_message = encode_config(config, loops)
+        if not resume:
+            store.create_campaign(self.name, dataset, self.config_message)
+        else:
+            store.set_status(self.name, "running")
+        self.inbox: queue.Queue[tuple[Any, ...]] = queue.Queue()
+        self.members: dict[str, Member] = {}
+        self.islands: dict[tuple[str, str], IslandView] = {}
+        self.run_evaluations: dict[tuple[str, str], int] = {}
+        for rec in store.islands(self.name):
+            self.run_evaluations[(rec.island, rec.run)] = rec.evaluations
+            self.islands[(rec.island, rec.run)] = IslandView(rec.algo, rec.iterations, rec.best_fitness, rec.final)
+        self.best: StoredBest | None = store.best(self.name)
+        self.best_message: bytes | None = None if self.best is None else self._best_message()
+        self.migrations = store.count("migrations", self.name)
+        self.rejected = store.count("rejected", self.name)
+        self.started = time.monotonic()
+        self.stop_reason: str | None = None
+        self._lock = threading.Lock()
+
+    # --- state -------------------------------------------------------------------
+    @property
+    def evaluations(self) -> int:
+        return int(sum(self.run_evaluations.values()))
+
+    def progress(self) -> Progress:
+        return Progress(
+            elapsed_s=time.monotonic() - self.started,
+            evaluations=self.evaluations,
+            best=np.inf if self.best is None else self.best.fitness,
+            members={i: m.status for i, m in self.members.items()},
+            islands={f"{i}" if sum(k[0] == i for k in self.islands) == 1 else f"{i}/{r}": v for (i, r), v in self.islands.items()},
+            migrations=self.migrations,
+            rejected=self.rejected,
+        )
+
+    def _best_message(self) -> bytes:
+        assert self.best is not None
+        return encode_best(Best(self.name, self.best.island, self.best.x, self.best.fitness))
+
+    # --- handling what arrives ----------------------------------------------------------
+    def handle(self, link: Link, item: tuple[Any, ...]) -> None:
+        """One inbox item: ``("msg", key, payload)`` or ``("member", island, alive)``."""
+        if item[0] == "member":
+            self._member(link, item[1], item[2])
+            return
+        _, key, payload = item
+        kind, _, sender = key[len(key_prefix(self.name)) + 1 :].partition("/")
+        try:
+            if kind == "history":
+                self._history(decode_history(payload, self.name, self.objective.bounds, sender))
+            elif kind == "migrants":
+                self._migrants(link, payload, sender)
+            else:
+                raise MessageRejected("schema", f"unexpected key {key[:100]}")
+        except MessageRejected as exc:
+            self.store.add_rejected(self.name, key, exc.reason, str(exc), len(payload))
+            self.rejected += 1
+
+    def _member(self, link: Link, island: str, alive: bool) -> None:
+        if not NAME_PATTERN.match(island):
+            self.store.add_rejected(self.name, f"members/{island}", "sender", "liveliness token with an invalid island name", 0)
+            self.rejected += 1
+            return
+        member = self.members.get(island)
+        if alive:
+            event = "join" if member is None else ("back" if member.status != "alive" else "seen")
+            self.members[island] = Member("alive", member.run if member else "")
+            self.store.member_event(self.name, island, event)
+            run = self.members[island].run
+            link.request_history(island, run, self.store.last_iteration(self.name, island, run) if run else -1)
+        elif member is not None and member.status == "alive":
+            if self.islands.get((island, member.run), IslandView("")).final:
+                member.status = "left"
+                self.store.member_event(self.name, island, "left")
+            else:
+                member.gone_at = time.monotonic()
+
+    def _settle_departures(self) -> None:
+        """Tokens gone without a final history for ``LEAVE_GRACE_S``: the island is lost."""
+        now = time.monotonic()
+        for island, member in self.members.items():
+            if member.status == "alive" and member.gone_at is not None and now - member.gone_at >= LEAVE_GRACE_S:
+                member.status = "lost"
+                self.store.member_event(self.name, island, "lost")
+
+    def _history(self, h: Any) -> None:
+        key = (h.island, h.run)
+        self.store.add_history(self.name, h.island, h.run, h.rows)
+        iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
+        evaluations = int(h.rows[:, 2].max()) if h.rows.size else 0
+        self.store.update_island(self.name, IslandRecord(
+            h.island, h.run, h.algo, h.seed, iterations, evaluations, h.best_f, h.best_x,
+            h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final,
+        ))
+        self.run_evaluations[key] = max(self.run_evaluations.get(key, 0), evaluations)
+        view = self.islands.setdefault(key, IslandView(h.algo))
+        view.iteration = max(view.iteration, iterations)
+        view.best = min(view.best, h.best_f)
+        view.final = view.final or h.final
+        member = self.members.get(h.island)
+        if member is not None:
+            member.run = h.run
+            if h.final and member.status == "alive" and member.gone_at is not None:
+                member.status = "left"
+                self.store.member_event(self.name, h.island, "left")
+        self._consider(h.island, h.best_x, h.best_f)
+
+    def _migrants(self, link: Link, payload: bytes, sender: str) -> None:
+        m = decode_migrants(payload, self.name, self.objective.bounds, sender)
+        self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at)
+        self.migrations += 1
+        i = int(np.argmin(m.claimed))
+        if self._consider(m.island, m.x[i], float(m.claimed[i])):
+            link.publish_best(self.best_message or b"")
+
+    def _consider(self, island: str, x: np.ndarray, claimed: float) -> bool:
+        """Re-evaluate a candidate that claims to beat the global best; True if it really does."""
+        if self.best is not None and not claimed < self.best.fitness:
+            return False
+        f = float(self.objective(x[None, :])[0])
+        if not np.isfinite(f) or (self.best is not None and not f < self.best.fitness):
+            return False
+        self.best = StoredBest(island, np.array(x, dtype=float), f, self.evaluations)
+        self.store.set_best(self.name, self.best)
+        self.best_message = self._best_message()
+        return True
+
+    # --- the loop -----------------------------------------------------------------
+    def check_stop(self) -> str | None:
+        r = self.rules
+        if r.budget is not None and self.evaluations >= r.budget:
+            return f"budget of {r.budget:,} evaluations spent"
+        if r.target is not None and self.best is not None and self.best.fitness <= r.target:
+            return f"target fitness {r.target:g} reached"
+        if r.stall is not None and self.best is not None and self.evaluations - self.best.evaluations >= r.stall:
+            return f"no improvement in {r.stall:,} evaluations"
+        if r.time_limit_s is not None and time.monotonic() - self.started >= r.time_limit_s:
+            return f"time limit of {r.time_limit_s:g} s"
+        if self.members and all(m.status != "alive" for m in self.members.values()) and all(v.final for v in self.islands.values()):
+            return "every island finished"
+        return None
+
+    def drain(self, link: Link, timeout: float) -> None:
+        """Handle what arrived (waiting up to ``timeout`` for the first item) and commit."""
+        try:
+            item = self.inbox.get(timeout=timeout)
+        except queue.Empty:
+            self._settle_departures()
+            self.store.commit()
+            return
+        while True:
+            self.handle(link, item)
+            try:
+                item = self.inbox.get_nowait()
+            except queue.Empty:
+                break
+        self._settle_departures()
+        self.store.commit()
+
+    def serve(
+        self,
+        link: Link,
+        on_progress: Callable[[Progress], None] | None = None,
+        *,
+        extra_stop: Callable[[], str | None] | None = None,
+        progress_every_s: float = 1.0,
+    ) -> str:
+        """Run until a stop rule (or ``extra_stop()``) fires; announce the stop, collect final histories; returns the reason."""
+        last = 0.0
+        while self.stop_reason is None:
+            self.drain(link, timeout=0.05)
+            self.stop_reason = self.check_stop() or (extra_stop() if extra_stop is not None else None)
+            if on_progress is not None and time.monotonic() - last >= progress_every_s:
+                on_progress(self.progress())
+                last = time.monotonic()
+        self.store.set_status(self.name, "stopping", self.stop_reason)
+        message = encode_stop(self.name, self.stop_reason)
+        deadline = time.monotonic() + STOP_GRACE_S
+        while time.monotonic() < deadline and any(m.status == "alive" for m in self.members.values()):
+            link.announce_stop(message)
+            for _ in range(10):
+                self.drain(link, timeout=0.05)
+        self.drain(link, timeout=LEAVE_GRACE_S)
+        self.store.set_status(self.name, "stopped", self.stop_reason)
+        if on_progress is not None:
+            on_progress(self.progress())
+        return self.stop_reason
+
+    # --- the result ----------------------------------------------------------------
+    def result(self, *, polish_best: bool = True) -> FitResult:
+        """Every island run re-evaluated, the global best polished, standard errors: a :class:`FitResult`."""
+        objective = replace(self.config, objective_kind="closed_form").objective(self.loops)
+        records = self.store.islands(self.name)
+        history: dict[tuple[str, str], list[dict[str, float]]] = {}
+        for island, run, it, f, ev, wall in self.store.history(self.name):
+            history.setdefault((island, run), []).append({"iteration": it, "best_fitness": f, "evaluations": ev, "wall_s": wall})
+        several = {r.island for r in records if sum(q.island == r.island for q in records) > 1}
+        runs = []
+        for rec in records:
+            f = float(objective(rec.best_x[None, :])[0])
+            rows = history.get((rec.island, rec.run), [])
+            runs.append(RunResult(
+                label=f"{rec.island}/{rec.run}" if rec.island in several else rec.island, algo=rec.algo, seed=rec.seed,
+                theta=rec.best_x, fitness=f, evaluations=rec.evaluations, history=rows, search_theta=rec.best_x,
+                search_fitness=f, wall_s=rows[-1]["wall_s"] if rows else 0.0,
+            ))
+        global_best = None if self.best is None else float(objective(self.best.x[None, :])[0])
+        if global_best is not None and (not runs or global_best < min(r.fitness for r in runs)):
+            runs.append(RunResult(
+                label=f"global best (from {self.best.island})", algo=runs[0].algo if runs else self.config.algos[0], seed=self.config.seed,
+                theta=self.best.x, fitness=global_best, evaluations=0, history=[], search_theta=self.best.x,
+                search_fitness=global_best, wall_s=0.0,
+            ))
+        if not runs:
+            raise HysidInputError(f"campaign {self.name!r}: no island reported any result, so there is nothing to report")
+        best = int(np.argmin([r.fitness for r in runs]))
+        if polish_best:
+            runs[best] = polished(objective, runs[best])
+        settings = {
+            "campaign": self.name,
+            "polish": polish_best,
+            "algos": self.config.algos,
+            "options": self.config.options,
+            "migration": self.config.as_dict()["migration"],
+            "seed": self.config.seed,
+            "stop_rules": self.rules.as_dict(),
+            "stop_reason": self.stop_reason or self.store.stop_reason(self.name),
+            "db": self.store.path,
+        }
+        result = FitResult.from_runs(objective, runs, settings)
+        result.extra = {"islands": self.island_summaries(records, runs), "migrations": self.migration_summary(records), "members": self.store.members(self.name)}
+        return result
+
+    def island_summaries(self, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
+        status = {i: m.status for i, m in self.members.items()}
+        return [
+            {**rec.as_dict(), "best_fitness": run.search_fitness, "status": status.get(rec.island, "unknown")}
+            for rec, run in zip(records, runs)
+        ]
+
+    def migration_summary(self, records: list[IslandRecord]) -> dict[str, Any]:
+        return {
+            **self.config.as_dict()["migration"],
+            "messages": self.store.count("migrations", self.name),
+            "received": sum(r.received for r in records),
+            "taken": sum(r.taken for r in records),
+            "rejected": self.store.count("rejected", self.name),
+            "rejected_reasons": self.store.rejected_reasons(self.name),
+        }
+
+
+def polished(objective: Objective, run: RunResult) -> RunResult:
+    """``run`` refined by the least-squares polish (section 3.1), as ``hysid fit`` does."""
+    p = polish(objective, run.theta)
+    run.polish = {"fitness": float(p.fitness), "evaluations": int(p.evaluations), "success": bool(p.success), "message": str(p.message)}
+    if p.fitness <= run.fitness:
+        run.theta, run.fitness = np.asarray(p.theta, dtype=float), float(p.fitness)
+    run.evaluations += int(p.evaluations)
+    return run
+
+
+def resume(store: Store, name: str, rules: StopRules) -> Coordinator:
+    """The coordinator of a stored campaign, with its history, islands and best as they were."""
+    _, message, _ = store.campaign(name)
+    config, loops = decode_config(message, name)
+    return Coordinator(store, config, loops, rules, resume=True)
+
+
+# --- Zenoh ---------------------------------------------------------------------------
+class ZenohLink:
+    """The coordinator's Zenoh entities under ``hysid/<campaign>/``: queryables ``config`` and
+    ``best``, subscribers to ``history/*`` and ``migrants/*``, the members' liveliness
+    tokens, publications on ``control`` and ``best``."""
+
+    def __init__(self, session: zenoh.Session, coordinator: Coordinator) -> None:
+        self.session = session
+        self.coordinator = coordinator
+        prefix = key_prefix(coordinator.name)
+        self.prefix = prefix
+        inbox = coordinator.inbox
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            inbox.put(("msg", str(sample.key_expr), sample.payload.to_bytes()))
+
+        def on_member(sample: zenoh.Sample) -> None:
+            inbox.put(("member", str(sample.key_expr).rsplit("/", 1)[-1], sample.kind == zenoh.SampleKind.PUT))
+
+        def on_config(query: zenoh.Query) -> None:
+            query.reply(query.key_expr, coordinator.config_message)
+
+        def on_best(query: zenoh.Query) -> None:
+            message = coordinator.best_message
+            if message is not None:
+                query.reply(query.key_expr, message)
+
+        self._control = session.declare_publisher(f"{prefix}/control", congestion_control=zenoh.CongestionControl.BLOCK)
+        self._best = session.declare_publisher(f"{prefix}/best")
+        self._entities = [
+            session.declare_queryable(f"{prefix}/config", on_config),
+            session.declare_queryable(f"{prefix}/best", on_best),
+            session.declare_subscriber(f"{prefix}/history/*", on_sample),
+            session.declare_subscriber(f"{prefix}/migrants/*", on_sample),
+            session.liveliness().declare_subscriber(f"{prefix}/members/*", on_member, history=True),
+        ]
+
+    def announce_stop(self, message: bytes) -> None:
+        self._control.put(message)
+
+    def publish_best(self, message: bytes) -> None:
+        self._best.put(message)
+
+    def request_history(self, island: str, run: str, since: int) -> None:
+        inbox = self.coordinator.inbox
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            if reply.ok is not None:
+                inbox.put(("msg", str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
+
+        self.session.get(f"{self.prefix}/history/{island}?run={run};since={since}", on_reply, timeout=5.0)
+
+    def close(self) -> None:
+        for entity in self._entities + [self._control, self._best]:
+            entity.undeclare()

@@ -1,0 +1,228 @@
+"""The campaign database (SQLite): what a coordinator must not lose.
+
+One file holds any number of campaigns. Tables: ``campaigns`` (configuration
+message with the loop set, status, stop reason, final result), ``members``
+(join / leave / lost / back events), ``history`` (every island's convergence
+rows, keyed by island, run and iteration so that a row sent twice is stored
+once), ``islands`` (each island run's algorithm, evaluations and migration
+counters), ``migrations`` (every migrant message seen), ``rejected`` (every
+message that failed validation, with the reason) and ``best`` (the global
+best, as re-evaluated by the coordinator).
+
+The journal is WAL with ``synchronous=FULL``; the coordinator commits after
+each batch of messages it handles, so a crash of the coordinator loses nothing
+it has acknowledged and ``--resume`` carries on from the file.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hysid_model.errors import HysidInputError
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS campaigns (
+    name TEXT PRIMARY KEY, dataset TEXT NOT NULL, config BLOB NOT NULL, created REAL NOT NULL,
+    status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT);
+CREATE TABLE IF NOT EXISTS members (
+    id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, event TEXT NOT NULL, t REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS history (
+    campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, iteration INTEGER NOT NULL,
+    best_fitness REAL NOT NULL, evaluations INTEGER NOT NULL, wall_s REAL NOT NULL, t REAL NOT NULL,
+    PRIMARY KEY (campaign, island, run, iteration));
+CREATE TABLE IF NOT EXISTS islands (
+    campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, algo TEXT NOT NULL, seed INTEGER NOT NULL,
+    iterations INTEGER NOT NULL, evaluations INTEGER NOT NULL, best_fitness REAL NOT NULL, best_x BLOB NOT NULL,
+    sent INTEGER NOT NULL, received INTEGER NOT NULL, taken INTEGER NOT NULL, rejected INTEGER NOT NULL,
+    final INTEGER NOT NULL, PRIMARY KEY (campaign, island, run));
+CREATE TABLE IF NOT EXISTS migrations (
+    id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL,
+    iteration INTEGER NOT NULL, n INTEGER NOT NULL, best_claimed REAL NOT NULL, sent_at REAL NOT NULL, t REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS rejected (
+    id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, key TEXT NOT NULL, reason TEXT NOT NULL,
+    detail TEXT NOT NULL, size INTEGER NOT NULL, t REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS best (
+    campaign TEXT PRIMARY KEY, island TEXT NOT NULL, x BLOB NOT NULL, fitness REAL NOT NULL,
+    evaluations INTEGER NOT NULL, t REAL NOT NULL);
+"""
+
+
+@dataclass(frozen=True)
+class StoredBest:
+    island: str
+    x: np.ndarray
+    fitness: float
+    evaluations: int
+    """Total campaign evaluations when this best was found (for the stall rule)."""
+
+
+@dataclass(frozen=True)
+class IslandRecord:
+    island: str
+    run: str
+    algo: str
+    seed: int
+    iterations: int
+    evaluations: int
+    best_fitness: float
+    best_x: np.ndarray
+    sent: int
+    received: int
+    taken: int
+    rejected: int
+    final: bool
+
+    def as_dict(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "best_x"}
+
+
+class Store:
+    """A campaign database file (``":memory:"`` for a throw-away one)."""
+
+    def __init__(self, path: Path | str) -> None:
+        self.path = str(path)
+        try:
+            self.db = sqlite3.connect(self.path, check_same_thread=False)
+            self.db.execute("PRAGMA journal_mode=WAL")
+            self.db.execute("PRAGMA synchronous=FULL")
+            self.db.executescript(SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            raise HysidInputError(f"{self.path}: not a usable campaign database ({exc})") from None
+
+    def close(self) -> None:
+        self.db.commit()
+        self.db.close()
+
+    def commit(self) -> None:
+        self.db.commit()
+
+    # --- campaigns --------------------------------------------------------------
+    def create_campaign(self, name: str, dataset: str, config: bytes) -> None:
+        """Register a new campaign; an existing one is never overwritten."""
+        if self.db.execute("SELECT 1 FROM campaigns WHERE name = ?", (name,)).fetchone():
+            raise HysidInputError(f"{self.path}: campaign {name!r} already exists; use --resume to carry on, or another --campaign or --db")
+        self.db.execute(
+            "INSERT INTO campaigns (name, dataset, config, created, status) VALUES (?, ?, ?, ?, 'running')",
+            (name, dataset, config, time.time()),
+        )
+        self.db.commit()
+
+    def campaign(self, name: str) -> tuple[str, bytes, str]:
+        """``(dataset, config message, status)`` of a stored campaign."""
+        row = self.db.execute("SELECT dataset, config, status FROM campaigns WHERE name = ?", (name,)).fetchone()
+        if row is None:
+            known = [r[0] for r in self.db.execute("SELECT name FROM campaigns ORDER BY created")]
+            raise HysidInputError(f"{self.path}: no campaign {name!r} to resume (stored: {', '.join(known) or 'none'})")
+        return row[0], bytes(row[1]), row[2]
+
+    def set_status(self, name: str, status: str, reason: str | None = None, result: dict[str, Any] | None = None) -> None:
+        self.db.execute(
+            "UPDATE campaigns SET status = ?, stop_reason = ?, ended = ?, result = ? WHERE name = ?",
+            (status, reason, time.time() if status != "running" else None, None if result is None else json.dumps(result), name),
+        )
+        self.db.commit()
+
+    def stop_reason(self, name: str) -> str | None:
+        row = self.db.execute("SELECT stop_reason FROM campaigns WHERE name = ?", (name,)).fetchone()
+        return None if row is None else row[0]
+
+    # --- records as messages arrive (committed by the caller per batch) ------------------
+    def member_event(self, campaign: str, island: str, event: str) -> None:
+        self.db.execute("INSERT INTO members (campaign, island, event, t) VALUES (?, ?, ?, ?)", (campaign, island, event, time.time()))
+
+    def add_history(self, campaign: str, island: str, run: str, rows: np.ndarray) -> int:
+        """Store rows ``[iteration, best_fitness, evaluations, wall_s]``; returns how many were new."""
+        now = time.time()
+        before = self.db.total_changes
+        self.db.executemany(
+            "INSERT OR IGNORE INTO history VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            [(campaign, island, run, int(r[0]), float(r[1]), int(r[2]), float(r[3]), now) for r in rows],
+        )
+        return self.db.total_changes - before
+
+    def update_island(self, campaign: str, record: IslandRecord) -> None:
+        """Upsert an island run's counters; iterations and evaluations only grow."""
+        r = record
+        self.db.execute(
+            """INSERT INTO islands VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+               ON CONFLICT (campaign, island, run) DO UPDATE SET
+               iterations = max(iterations, excluded.iterations), evaluations = max(evaluations, excluded.evaluations),
+               best_x = CASE WHEN excluded.best_fitness < best_fitness THEN excluded.best_x ELSE best_x END,
+               best_fitness = min(best_fitness, excluded.best_fitness), sent = max(sent, excluded.sent),
+               received = max(received, excluded.received), taken = max(taken, excluded.taken),
+               rejected = max(rejected, excluded.rejected), final = max(final, excluded.final)""",
+            (campaign, r.island, r.run, r.algo, r.seed, r.iterations, r.evaluations, r.best_fitness,
+             np.asarray(r.best_x, dtype="<f8").tobytes(), r.sent, r.received, r.taken, r.rejected, int(r.final)),
+        )
+
+    def add_migration(self, campaign: str, island: str, run: str, iteration: int, n: int, best_claimed: float, sent_at: float) -> None:
+        self.db.execute(
+            "INSERT INTO migrations (campaign, island, run, iteration, n, best_claimed, sent_at, t) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (campaign, island, run, iteration, n, best_claimed, sent_at, time.time()),
+        )
+
+    def add_rejected(self, campaign: str, key: str, reason: str, detail: str, size: int) -> None:
+        self.db.execute(
+            "INSERT INTO rejected (campaign, key, reason, detail, size, t) VALUES (?, ?, ?, ?, ?, ?)",
+            (campaign, key[:200], reason, detail[:300], size, time.time()),
+        )
+
+    def set_best(self, campaign: str, best: StoredBest) -> None:
+        self.db.execute(
+            "INSERT OR REPLACE INTO best VALUES (?, ?, ?, ?, ?, ?)",
+            (campaign, best.island, np.asarray(best.x, dtype="<f8").tobytes(), best.fitness, best.evaluations, time.time()),
+        )
+
+    # --- queries -------------------------------------------------------------------
+    def best(self, campaign: str) -> StoredBest | None:
+        row = self.db.execute("SELECT island, x, fitness, evaluations FROM best WHERE campaign = ?", (campaign,)).fetchone()
+        if row is None:
+            return None
+        return StoredBest(row[0], np.frombuffer(row[1], dtype="<f8").copy(), float(row[2]), int(row[3]))
+
+    def islands(self, campaign: str) -> list[IslandRecord]:
+        rows = self.db.execute(
+            "SELECT island, run, algo, seed, iterations, evaluations, best_fitness, best_x, sent, received, taken, rejected, final "
+            "FROM islands WHERE campaign = ? ORDER BY island, run", (campaign,),
+        )
+        return [
+            IslandRecord(*r[:7], np.frombuffer(r[7], dtype="<f8").copy(), *r[8:12], bool(r[12]))
+            for r in rows
+        ]
+
+    def total_evaluations(self, campaign: str) -> int:
+        return int(self.db.execute("SELECT coalesce(sum(evaluations), 0) FROM islands WHERE campaign = ?", (campaign,)).fetchone()[0])
+
+    def last_iteration(self, campaign: str, island: str, run: str) -> int:
+        """Highest stored iteration of an island run, -1 if none."""
+        row = self.db.execute(
+            "SELECT coalesce(max(iteration), -1) FROM history WHERE campaign = ? AND island = ? AND run = ?", (campaign, island, run)
+        ).fetchone()
+        return int(row[0])
+
+    def history(self, campaign: str) -> list[tuple[str, str, int, float, int, float]]:
+        """All rows ``(island, run, iteration, best_fitness, evaluations, wall_s)``."""
+        return self.db.execute(
+            "SELECT island, run, iteration, best_fitness, evaluations, wall_s FROM history WHERE campaign = ? ORDER BY island, run, iteration",
+            (campaign,),
+        ).fetchall()
+
+    def members(self, campaign: str) -> list[tuple[str, str, float]]:
+        """Membership events ``(island, event, unix time)`` in order."""
+        return self.db.execute("SELECT island, event, t FROM members WHERE campaign = ? ORDER BY id", (campaign,)).fetchall()
+
+    def count(self, table: str, campaign: str) -> int:
+        if table not in ("migrations", "rejected", "history", "members"):
+            raise ValueError(f"no countable table {table!r}")
+        return int(self.db.execute(f"SELECT count(*) FROM {table} WHERE campaign = ?", (campaign,)).fetchone()[0])
+
+    def rejected_reasons(self, campaign: str) -> dict[str, int]:
+        rows = self.db.execute("SELECT reason, count(*) FROM rejected WHERE campaign = ? GROUP BY reason", (campaign,))
+        return {r: int(n) for r, n in rows}

@@ -1,0 +1,26 @@
+"""Dry (Coulomb) friction, Eq. 2.5."""
+
+from __future__ import annotations
+
+from hysid_model.params import Parameter
+from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values
+
+
+class CoulombFriction(Term):
+    """F_d sgn(x') added to the force (Eq. 2.5): +F_d on loading, -F_d on unloading.
+
+    The force jumps by 2 F_d at each reversal; its harmonics are the odd cosine
+    terms 4 F_d / (pi k), so it dissipates 4 F_d X0 per cycle at any frequency.
+    """
+
+    id = "coulomb_friction"
+    strength = "F_d"
+    explanation = (
+        "Dry sliding friction of magnitude F_d = mu N opposing the velocity (Eq. 2.5): the force jumps by "
+        "2 F_d at every reversal, the loops become rectangular, and the energy dissipated per cycle, "
+        "4 F_d X0, does not depend on frequency."
+    )
+    params = (Parameter("F_d", "N", 0.0, 1.0e6, "friction force magnitude mu N"),)
+
+    def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
+        return {"sgn": v["F_d"]}

@@ -1,0 +1,473 @@
+"""Loop extraction: from a raw time series (t, x, F) or raw branches to a loop.
+
+The thesis (Appendix A, ``PrepareExpData`` with ``getloopdisp``) smooths a
+record, picks *one* cycle by hand, splits it at the displacement reversals into
+a top (loading) and a bottom (unloading) branch, centres it
+(``centercurveloop``) and resamples each branch on 100 points evenly spaced in
+x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
+:func:`extract_loop` does the same from every steady whole cycle of a record:
+
+1. frequency: peak of the displacement spectrum, refined by least squares of x
+   on harmonics of w t in the steady window (variable projection, Brent);
+   compared with the nominal (manifest) frequency, > 2 % apart is an error;
+2. steady window: given (``dataset.toml``) or found as the longest run of
+   cycles whose displacement and force first-harmonic amplitudes are constant;
+   the whole cycles inside it are used;
+3. reference: x = X0 sin(theta) + x_offset with theta = w t + phi (Eq. 4.5),
+   by harmonic least squares over those whole cycles;
+4. branches: on the grid x_i = linspace(-X0, X0, n) (``reinterpolate``) the
+   loading branch sits at theta_i = arcsin(x_i / X0), the unloading branch at
+   pi - theta_i, exactly the phases :meth:`LoopSet.phases` gives the model.
+   Each branch value is a local-linear least-squares fit of the force against
+   theta over all cycles, in a phase window around theta_i. The windows are
+   disjoint (branch values have independent noise) and one-sided at the
+   reversals, so loading and unloading samples never mix and a friction jump
+   at the reversal stays sharp; a local-linear fit is unbiased for a linear
+   trend, so smooth branches are not biased to first order;
+5. centring (cf. ``centercurveloop``): the grid is centred on the fitted
+   displacement offset, and the force mean over the whole cycles is removed
+   (the mean, not the mid-range of ``centercurveloop``, so noise spikes do not
+   move the loop);
+6. noise: sigma_raw, the std of one raw force sample about the mean cycle, is
+   the median over windows of the scatter about the local fits (chi-square
+   corrected; a median, so the few windows on a steep transition do not count).
+   A branch value is a weighted average of m ~ 1/v_i raw samples with
+   v_i = [(U^T U)^-1]_00, so its std is sigma_raw sqrt(v_i); the loop's
+   ``sigma`` is sigma_raw sqrt(mean v_i), the noise of the branch samples *as
+   stored*, which maximum-likelihood weights and Cramer-Rao bounds need.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.special import gammaincinv
+
+from hysid_model.errors import HysidInputError
+
+FREQ_TOLERANCE = 0.02
+"""Largest relative difference between the nominal and the measured frequency."""
+STEADY_TOLERANCE = 0.01
+"""A cycle is steady when its amplitudes are within 1 % (or 4 robust stds) of the plateau."""
+WAVEFORM_TOLERANCE = 1e-3
+"""A cycle whose waveform differs from the median cycle by less than 0.1 % of its RMS is steady whatever the noise."""
+HARMONICS = 3
+"""Harmonics of w t in the displacement fit (x of a real shaker is not a pure sine)."""
+END_WINDOW = 4.0
+"""One-sided window at a reversal, in interior window widths: a local-linear fit
+at the edge of a window has 4x the variance of one at its centre, so a 4x wider
+window gives every branch value the same variance."""
+WIDEN = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
+"""Widening factors tried for a phase window that holds too few distinct samples."""
+CYCLE_SLACK = 0.02
+"""Fraction of a period by which the whole cycles may overrun a given window."""
+
+
+@dataclass
+class ExtractedLoop:
+    """One loop from a raw record; ``top``/``bottom`` are ``(n, 2)`` (x in m, F in N)."""
+
+    freq_hz: float
+    x0: float
+    top: np.ndarray
+    bottom: np.ndarray
+    sigma: float
+    sigma_raw: float
+    cycles: int
+    phase_deg: float
+    force_amplitude: float
+    x_offset: float
+    x_peak: float
+    force_mean: float
+    window_s: tuple[float, float]
+    samples_per_point: float
+    window_overlap: float
+
+    def meta(self) -> dict[str, float]:
+        """Per-loop facts kept in ``LoopSet.meta['per_loop']``."""
+        return {
+            "phase_deg": self.phase_deg,
+            "force_amplitude_n": self.force_amplitude,
+            "sigma_raw_n": self.sigma_raw,
+            "samples_per_point": self.samples_per_point,
+            "window_overlap": self.window_overlap,
+            "x_offset_m": self.x_offset,
+            "x_peak_m": self.x_peak,
+            "force_mean_n": self.force_mean,
+            "steady_t0_s": self.window_s[0],
+            "steady_t1_s": self.window_s[1],
+        }
+
+
+def centre_branches(top: np.ndarray, bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Appendix A ``centercurveloop``: shift x and F so both ranges are symmetric about 0."""
+    both = np.concatenate([top, bottom])
+    shift = 0.5 * (both.max(axis=0) + both.min(axis=0))
+    return top - shift, bottom - shift
+
+
+def _branch_on_grid(branch: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Linear interpolation with linear extrapolation (``interp1(..., 'linear', 'extrap')``).
+
+    Repeated x values (a sampled branch often has them at the reversals) are averaged.
+    """
+    xs, inverse = np.unique(branch[:, 0], return_inverse=True)
+    fs = np.bincount(inverse, weights=branch[:, 1]) / np.bincount(inverse)
+    if xs.size == 1:
+        return np.full(grid.size, fs[0])
+    out = np.interp(grid, xs, fs)
+    lo, hi = grid < xs[0], grid > xs[-1]
+    out[lo] = fs[0] + (grid[lo] - xs[0]) * (fs[1] - fs[0]) / (xs[1] - xs[0])
+    out[hi] = fs[-1] + (grid[hi] - xs[-1]) * (fs[-1] - fs[-2]) / (xs[-1] - xs[-2])
+    return out
+
+
+def loop_from_branches(top: np.ndarray, bottom: np.ndarray, n_points: int, source: str) -> tuple[float, np.ndarray, np.ndarray]:
+    """Raw branches (e.g. the thesis' ``HexpT``/``HexpB``) -> (X0, top, bottom) on the grid.
+
+    Centred (``centercurveloop``), X0 = peak |x| (the thesis' ``Xpk``), both
+    branches resampled on ``linspace(-X0, X0, n)`` (``reinterpolate``). The
+    loading branch is the one with the larger force at equal x (true for any
+    loop that dissipates energy); the branches are swapped if needed.
+    """
+    for arr, what in ((top, "top"), (bottom, "bottom")):
+        if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 2:
+            raise HysidInputError(f"{source}: the {what} branch must be an N x 2 array (x, F) with N >= 2, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise HysidInputError(f"{source}: the {what} branch holds NaN or inf")
+    top, bottom = centre_branches(top, bottom)
+    x0 = float(max(np.abs(top[:, 0]).max(), np.abs(bottom[:, 0]).max()))
+    if not x0 > 0:
+        raise HysidInputError(f"{source}: the displacement does not vary (peak |x| = 0)")
+    grid = np.linspace(-x0, x0, n_points)
+    f_top, f_bot = _branch_on_grid(top, grid), _branch_on_grid(bottom, grid)
+    if np.mean(f_top - f_bot) < 0:
+        f_top, f_bot = f_bot, f_top
+    return x0, np.column_stack([grid, f_top]), np.column_stack([grid, f_bot])
+
+
+def _harmonic_design(theta: np.ndarray, harmonics: int) -> np.ndarray:
+    """Columns 1, sin(k theta), cos(k theta) for k = 1..harmonics (by the angle-sum recurrence)."""
+    s1, c1 = np.sin(theta), np.cos(theta)
+    cols = [np.ones_like(theta), s1, c1]
+    s, c = s1, c1
+    for _ in range(harmonics - 1):
+        s, c = s * c1 + c * s1, c * c1 - s * s1
+        cols += [s, c]
+    return np.column_stack(cols)
+
+
+def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
+    """Frequency of the largest displacement spectral peak (Hann window, zero padding, parabolic interpolation)."""
+    n = t.size
+    dt = (t[-1] - t[0]) / (n - 1)
+    nfft = 1 << int(np.ceil(np.log2(8 * n)))
+    mag = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nfft))
+    first = int(np.ceil(nfft / (n - 1)))  # below one period per record there is no cycle to extract
+    if first >= mag.size - 1 or not np.any(mag[first:] > 0):
+        raise HysidInputError(f"{source}: the displacement does not oscillate")
+    k = first + int(np.argmax(mag[first:-1]))
+    if k > first:
+        a, b, c = np.log(mag[k - 1 : k + 2] + 1e-300)
+        den = a - 2 * b + c
+        k = k + (0.5 * (a - c) / den if den < 0 else 0.0)
+    return float(k / (nfft * dt))
+
+
+def _refine_frequency(t: np.ndarray, x: np.ndarray, f0: float) -> float:
+    """Frequency minimising the residual of x on ``HARMONICS`` harmonics of w t (variable projection)."""
+    tc = t - 0.5 * (t[0] + t[-1])
+    span = t[-1] - t[0]
+
+    xx = float(x @ x)
+
+    def rss(f: float) -> float:
+        design = _harmonic_design(2 * np.pi * f * tc, HARMONICS)
+        rhs = design.T @ x
+        return xx - float(rhs @ np.linalg.solve(design.T @ design, rhs))
+
+    half_width = 0.5 / span
+    res = minimize_scalar(rss, bounds=(f0 - half_width, f0 + half_width), method="bounded", options={"xatol": 1e-9 * f0})
+    return float(res.x)
+
+
+def _cycles_of(t: np.ndarray, t_a: float, freq: float, n_cycles: int) -> tuple[np.ndarray, np.ndarray]:
+    """(sample selector, cycle index) of the samples in the cycles [t_a + k/f, t_a + (k+1)/f), k < n_cycles."""
+    cycle = np.floor((t - t_a) * freq).astype(int)
+    keep = (cycle >= 0) & (cycle < n_cycles)
+    return keep, cycle[keep]
+
+
+def _per_cycle_amplitudes(theta: np.ndarray, cycle: np.ndarray, n_cycles: int, signals: list[np.ndarray]) -> list[np.ndarray]:
+    """First-harmonic amplitude of each signal in each cycle (3-term least squares per cycle, batched)."""
+    basis = [np.ones_like(theta), np.sin(theta), np.cos(theta)]
+    gram = np.empty((n_cycles, 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            gram[:, i, j] = gram[:, j, i] = np.bincount(cycle, weights=basis[i] * basis[j], minlength=n_cycles)
+    out = []
+    for y in signals:
+        rhs = np.stack([np.bincount(cycle, weights=b * y, minlength=n_cycles) for b in basis], axis=1)
+        coef = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
+        out.append(np.hypot(coef[:, 1], coef[:, 2]))
+    return out
+
+
+def _per_cycle_deviation(phase: np.ndarray, cycle: np.ndarray, n_cycles: int, y: np.ndarray, n_bins: int) -> tuple[np.ndarray, float]:
+    """RMS difference of each cycle's phase-binned waveform from the median cycle, and the median cycle's RMS."""
+    cell = cycle * n_bins + np.minimum((phase * n_bins).astype(int), n_bins - 1)
+    count = np.bincount(cell, minlength=n_cycles * n_bins).reshape(n_cycles, n_bins)
+    total = np.bincount(cell, weights=y, minlength=n_cycles * n_bins).reshape(n_cycles, n_bins)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = np.where(count > 0, total / count, np.nan)
+    ref = np.nanmedian(means, axis=0)
+    return np.sqrt(np.nanmean((means - ref) ** 2, axis=1)), float(np.sqrt(np.nanmean((ref - np.nanmean(ref)) ** 2)))
+
+
+def _plateau(amplitude: np.ndarray) -> np.ndarray:
+    """Cycles whose amplitude is within the tolerance of the plateau (median of the cycles above 90 % of the largest)."""
+    top = amplitude >= 0.9 * amplitude.max()
+    ref = np.median(amplitude[top])
+    if ref <= 0:
+        return np.ones(amplitude.size, dtype=bool)
+    dev = amplitude / ref - 1.0
+    tol = max(STEADY_TOLERANCE, 4.0 * 1.4826 * np.median(np.abs(dev[top])))
+    return np.abs(dev) <= tol
+
+
+def _longest_run(mask: np.ndarray) -> tuple[int, int]:
+    """(start, length) of the longest run of True."""
+    padded = np.concatenate([[0], mask.astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(padded))
+    if edges.size == 0:
+        return 0, 0
+    starts, stops = edges[::2], edges[1::2]
+    best = int(np.argmax(stops - starts))
+    return int(starts[best]), int(stops[best] - starts[best])
+
+
+def _too_few_cycles(source: str, found: int, of: int) -> HysidInputError:
+    return HysidInputError(
+        f"{source}: fewer than 2 steady cycles (longest run of steady cycles: {found} of {of}); "
+        "give steady_t0_s/steady_t1_s in dataset.toml or record more cycles"
+    )
+
+
+def _auto_window(t: np.ndarray, x: np.ndarray, force: np.ndarray, f0: float, source: str) -> tuple[float, float]:
+    """The longest run of steady whole cycles, found in two stages.
+
+    1. amplitude plateau: cycles whose displacement and force first-harmonic
+       amplitudes are within ``STEADY_TOLERANCE`` (or 4 robust stds) of the
+       plateau (drops the ramps of a tapered sine);
+    2. waveform: within that run, with the refined frequency, cycles whose
+       phase-binned x and F waveforms differ from the median cycle
+       significantly more than the typical cycle does (4 stds of a noise-only
+       chi-square, or ``WAVEFORM_TOLERANCE`` of the waveform's RMS) are
+       dropped: transients that do not change the first harmonic.
+    """
+    n_cycles = int(np.floor((t[-1] - t[0]) * f0 * (1 + 1e-9)))
+    if n_cycles < 2:
+        raise HysidInputError(f"{source}: the record holds {(t[-1] - t[0]) * f0:.2f} cycles at {f0:.6g} Hz; at least 2 steady cycles are needed")
+    keep, cycle = _cycles_of(t, t[0], f0, n_cycles)
+    theta = 2 * np.pi * f0 * (t[keep] - t[0])
+    amp_x, amp_f = _per_cycle_amplitudes(theta, cycle, n_cycles, [x[keep], force[keep]])
+    start, length = _longest_run(_plateau(amp_x) & _plateau(amp_f))
+    if length < 2:
+        raise _too_few_cycles(source, length, n_cycles)
+    t_a = t[0] + start / f0
+    sel = (t >= t_a) & (t <= t_a + length / f0)
+    freq = _refine_frequency(t[sel], x[sel], f0)
+    length = int(np.floor(length * freq / f0 + CYCLE_SLACK))
+    keep, cycle = _cycles_of(t, t_a, freq, length)
+    phase = np.mod((t[keep] - t_a) * freq, 1.0)
+    n_bins = int(np.clip(np.count_nonzero(keep) // (2 * max(length, 1)), 4, 32))
+    steady = np.ones(length, dtype=bool)
+    noise_factor = np.sqrt(1.0 + 4.0 * np.sqrt(2.0 / n_bins))  # d^2 of a noise-only cycle ~ chi2 with n_bins dof
+    for y in (x[keep], force[keep]):
+        dev, scale = _per_cycle_deviation(phase, cycle, length, y, n_bins)
+        steady &= dev <= max(noise_factor * np.median(dev), WAVEFORM_TOLERANCE * scale)
+    first, run = _longest_run(steady)
+    if run < 2:
+        raise _too_few_cycles(source, run, n_cycles)
+    return t_a + first / freq, t_a + (first + run) / freq
+
+
+def _cycle_mean(t: np.ndarray, y: np.ndarray, t_a: float, t_b: float) -> float:
+    """Time average of y over [t_a, t_b] (trapezoid of the linear interpolant, exact end points).
+
+    A plain sample mean over "whole cycles" is off by up to one sample's share
+    of the waveform, which for a 400 N loop sampled 700 times a cycle is
+    already a visible 0.05 N offset.
+    """
+    inner = (t > t_a) & (t < t_b)
+    grid = np.concatenate([[t_a], t[inner], [t_b]])
+    vals = np.interp(grid, t, y)
+    return float(np.sum(0.5 * (vals[1:] + vals[:-1]) * np.diff(grid)) / (t_b - t_a))
+
+
+@lru_cache(maxsize=16)
+def _phase_windows(n_points: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """Phase windows of the 2n branch samples, in ``[top(n), bottom(n)]`` order.
+
+    Returns (evaluation phase c, window start s, window width w, half-cycle
+    limits lo and hi, h): at widening factor r the window is
+    ``[c + s r h, c + (s + w) r h)`` clipped to ``[lo, hi)``, the sample's own
+    half cycle (loading [-pi/2, pi/2), unloading [pi/2, 3pi/2)). Interior
+    windows are centred (s = -1/2, w = 1); the four reversal samples get
+    one-sided windows of width ``END_WINDOW`` on their own branch's side. h is
+    the largest width for which the windows at r = 1 are disjoint.
+    """
+    theta = np.arcsin(np.linspace(-1.0, 1.0, n_points))
+    gaps = np.diff(theta)
+    if n_points == 2:
+        h = gaps[0] / (2 * END_WINDOW)
+    else:
+        interior = gaps[1:-1].min() if n_points > 3 else np.inf
+        h = min(interior, gaps[0] / (END_WINDOW + 0.5))
+    centre = np.concatenate([theta, np.pi - theta])
+    start = np.full(2 * n_points, -0.5)
+    width = np.ones(2 * n_points)
+    forward = [0, 2 * n_points - 1]  # loading at x = -X0 (-pi/2), unloading at x = +X0 (pi/2)
+    backward = [n_points - 1, n_points]  # loading at x = +X0 (pi/2), unloading at x = -X0 (3pi/2)
+    width[forward + backward] = END_WINDOW
+    start[forward] = 0.0
+    start[backward] = -END_WINDOW
+    lo = np.repeat([-0.5 * np.pi, 0.5 * np.pi], n_points)
+    return centre, start, width, lo, lo + np.pi, float(h)
+
+
+def _chi2_median_ratio(dof: float) -> float:
+    """median(chi2_dof) / dof."""
+    return float(2.0 * gammaincinv(0.5 * dof, 0.5) / dof)
+
+
+def _concatenated_ranges(first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(owner, position) of every element of the ranges [first_j, stop_j)."""
+    counts = stop - first
+    owner = np.repeat(np.arange(first.size), counts)
+    position = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts - first, counts)
+    return owner, position
+
+
+def _branches(theta: np.ndarray, force: np.ndarray, n_points: int, source: str) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Local-linear branch values at the 2n sample phases.
+
+    Returns (values, variance factors v, sigma_raw, overlap). Each window
+    starts at width factor 1 and is widened (``WIDEN``) until it holds >= 3
+    samples spread over >= 10 % of its width, so records whose samples fall on
+    few phases per cycle (an integer number of samples per period) still give
+    a local *linear* fit; widened windows overlap their neighbours, which
+    ``overlap`` (mean number of windows per used sample, 1 = independent) reports.
+    """
+    centre, start, width, half_lo, half_hi, h = _phase_windows(n_points)
+    psi = np.mod(theta + 0.5 * np.pi, 2 * np.pi) - 0.5 * np.pi
+    order = np.argsort(psi, kind="stable")
+    ps, ys = psi[order], force[order]
+    cum = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones_like(ps), ps, ps * ps)]
+    chosen_lo = np.full(centre.size, np.nan)
+    chosen_hi = np.full(centre.size, np.nan)
+    for r in WIDEN:
+        todo = np.isnan(chosen_lo)
+        if not np.any(todo):
+            break
+        lo = np.maximum(centre + start * r * h, half_lo)
+        hi = np.minimum(centre + (start + width) * r * h, half_hi)
+        a, b = np.searchsorted(ps, lo), np.searchsorted(ps, hi)
+        s0, s1, s2 = (c[b] - c[a] for c in cum)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            spread = np.sqrt(np.maximum(s2 / s0 - (s1 / s0) ** 2, 0.0))
+        ok = todo & (s0 >= 3) & (spread >= 0.1 * (hi - lo))
+        chosen_lo[ok], chosen_hi[ok] = lo[ok], hi[ok]
+    if np.any(np.isnan(chosen_lo)):
+        raise HysidInputError(
+            f"{source}: too few samples for {n_points} points per branch (some phase windows hold fewer than 3 "
+            "distinct samples even when widened); use fewer points or a longer or faster-sampled record"
+        )
+    win, pos = _concatenated_ranges(np.searchsorted(ps, chosen_lo), np.searchsorted(ps, chosen_hi))
+    u, y = ps[pos] - centre[win], ys[pos]
+    n_win = centre.size
+    s0 = np.bincount(win, minlength=n_win).astype(float)
+    s1 = np.bincount(win, weights=u, minlength=n_win)
+    s2 = np.bincount(win, weights=u * u, minlength=n_win)
+    t0 = np.bincount(win, weights=y, minlength=n_win)
+    t1 = np.bincount(win, weights=u * y, minlength=n_win)
+    det = s0 * s2 - s1 * s1
+    value = (s2 * t0 - s1 * t1) / det
+    slope = (s0 * t1 - s1 * t0) / det
+    resid = y - value[win] - slope[win] * u
+    ss = np.bincount(win, weights=resid * resid, minlength=n_win)
+    dof = s0 - 2
+    sigma_raw = float(np.sqrt(np.median(ss / dof) / _chi2_median_ratio(float(np.median(dof)))))
+    overlap = pos.size / np.count_nonzero(np.bincount(pos))
+    return value, s2 / det, sigma_raw, float(overlap)
+
+
+def extract_loop(
+    t: np.ndarray,
+    x: np.ndarray,
+    force: np.ndarray,
+    *,
+    source: str,
+    n_points: int = 100,
+    nominal_freq_hz: float | None = None,
+    steady_window: tuple[float, float] | None = None,
+) -> ExtractedLoop:
+    """Extract one loop from a raw record (see the module docstring for the method).
+
+    ``t`` (s, strictly increasing), ``x`` (m), ``force`` (N); ``source`` names
+    the file in error messages; ``steady_window`` = (t0, t1) in s, else found
+    automatically.
+    """
+    t, x, force = (np.asarray(a, dtype=float) for a in (t, x, force))
+    f0 = _spectral_frequency(t, x, source)
+    if steady_window is None:
+        t_a, t_b = _auto_window(t, x, force, f0, source)
+    else:
+        t_a, t_b = steady_window
+        if not (t[0] - 1e-9 <= t_a < t_b <= t[-1] + 1e-9 * max(1.0, abs(t[-1]))):
+            raise HysidInputError(f"{source}: steady window [{t_a:g}, {t_b:g}] s is not inside the record [{t[0]:g}, {t[-1]:g}] s")
+    in_window = (t >= t_a) & (t <= t_b)
+    if (t_b - t_a) * f0 < 2 - CYCLE_SLACK or np.count_nonzero(in_window) < 8:
+        raise HysidInputError(f"{source}: fewer than 2 steady cycles ({(t_b - t_a) * f0:.2f} cycles at {f0:.6g} Hz in [{t_a:g}, {t_b:g}] s)")
+    freq = _refine_frequency(t[in_window], x[in_window], f0)
+    if nominal_freq_hz is not None and abs(freq / nominal_freq_hz - 1) > FREQ_TOLERANCE:
+        raise HysidInputError(
+            f"{source}: the data's frequency {freq:.6g} Hz disagrees with the manifest's {nominal_freq_hz:g} Hz "
+            f"by {100 * abs(freq / nominal_freq_hz - 1):.1f} % (more than {100 * FREQ_TOLERANCE:g} %)"
+        )
+    cycles = int(np.floor((t_b - t_a) * freq + CYCLE_SLACK))
+    while cycles >= 2 and t_a + cycles / freq > t[-1] + 0.5 * (t[-1] - t[0]) / (t.size - 1):
+        cycles -= 1
+    if cycles < 2:
+        raise HysidInputError(f"{source}: fewer than 2 steady whole cycles at {freq:.6g} Hz in [{t_a:g}, {t_b:g}] s")
+    span = (t >= t_a) & (t < t_a + cycles / freq)
+    ts, xs, fs = t[span], x[span], force[span]
+    w = 2 * np.pi * freq
+    design = _harmonic_design(w * (ts - t_a), HARMONICS)
+    cx, cf = np.linalg.lstsq(design, np.column_stack([xs, fs]), rcond=None)[0].T
+    x0 = float(np.hypot(cx[1], cx[2]))
+    phi = float(np.arctan2(cx[2], cx[1]))
+    phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
+    force_mean = _cycle_mean(t, force, t_a, t_a + cycles / freq)
+    values, var, sigma_raw, overlap = _branches(w * (ts - t_a) + phi, fs - force_mean, n_points, source)
+    grid = np.linspace(-x0, x0, n_points)
+    return ExtractedLoop(
+        freq_hz=freq,
+        x0=x0,
+        top=np.column_stack([grid, values[:n_points]]),
+        bottom=np.column_stack([grid, values[n_points:]]),
+        sigma=sigma_raw * float(np.sqrt(var.mean())),
+        sigma_raw=sigma_raw,
+        cycles=cycles,
+        phase_deg=float(phase),
+        force_amplitude=float(np.hypot(cf[1], cf[2])),
+        x_offset=float(cx[0]),
+        x_peak=float(np.abs(xs - cx[0]).max()),
+        force_mean=force_mean,
+        window_s=(float(ts[0]), float(ts[-1])),
+        samples_per_point=float(np.mean(1.0 / var)),
+        window_overlap=overlap,
+    )

@@ -1,0 +1,158 @@
+"""Every loop reduced to its harmonics, with their noise (the diagnosis' data).
+
+Referenced to the measured displacement x = X0 sin(wt) (Eq. 4.5), the force of
+a loop is F(wt) = a0 + sum_k [s_k sin(k wt) + c_k cos(k wt)] + higher orders.
+``s_k`` is the part in phase with the displacement (springs, inertia), ``c_k``
+the quadrature part (in phase with the velocity); only c1 dissipates energy,
+pi X0 c1 per cycle. Orders 0-7 are fitted by least squares to the samples of
+both branches. The same projection is applied to the model's force, so content
+above order 7 (a friction jump) aliases identically into data and model.
+
+With independent force noise of standard deviation sigma_j per sample, the
+coefficients of loop j have covariance sigma_j^2 (Phi^T Phi)^-1. With
+Phi = Q R (QR), ``Q^T f / sigma_j`` are the whitened coefficients: unit
+variance, independent, and ``||Q^T (model - data)||^2 / sigma_j^2`` is the
+loop's chi^2 on its 15 harmonic coefficients. :class:`HarmonicObjective` fits
+a model on them (the sum of squares is that chi^2 over all loops).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hysid_model.basis import design_matrix, harmonic_names
+from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
+from hysid_model.model import Model
+from hysid_model.objective import Objective
+
+MAX_ORDER = 7
+ROBUST_SCALE = 1.4826
+"""MAD -> standard deviation for Gaussian noise."""
+
+
+def estimate_sigma(loops: LoopSet) -> np.ndarray:
+    """Force-noise std of each loop from second differences along each branch.
+
+    d_i = F_{i+1} - 2 F_i + F_{i-1} has variance 6 sigma^2 for white noise and
+    hardly sees the smooth loop shape (nor a friction jump, which lies between
+    the branches); the median makes the few samples at the turning points,
+    where F(x) is steep, irrelevant.
+    """
+    d2 = np.concatenate([np.diff(loops.top[:, :, 1], 2, axis=1), np.diff(loops.bottom[:, :, 1], 2, axis=1)], axis=1)
+    sigma = ROBUST_SCALE * np.median(np.abs(d2), axis=1) / np.sqrt(6.0)
+    return np.maximum(sigma, 1e-12 * np.maximum(loops.peak_force, 1e-300))
+
+
+@dataclass
+class Harmonics:
+    """Harmonic coefficients ``coef`` (L, M) of every loop, named ``names``, with their noise."""
+
+    loops: LoopSet
+    names: list[str]
+    coef: np.ndarray
+    sigma: np.ndarray
+    sigma_known: np.ndarray
+    q: np.ndarray
+    r: np.ndarray
+
+    @classmethod
+    def from_loops(cls, loops: LoopSet, max_order: int = MAX_ORDER) -> "Harmonics":
+        """Reduce ``loops``; sigma is the loop set's where known, else :func:`estimate_sigma`."""
+        names = harmonic_names(max_order)
+        if loops.n_samples * 2 <= len(names):
+            raise HysidInputError(f"{loops.name}: {loops.n_samples} samples per branch are too few for harmonics up to order {max_order}")
+        phi = design_matrix(names, loops.phases(), loops.n_samples)
+        q, r = np.linalg.qr(phi)
+        known = np.isfinite(loops.sigma) & (loops.sigma > 0)
+        sigma = np.where(known, loops.sigma, estimate_sigma(loops))
+        coef = np.linalg.solve(r, np.einsum("lnm,ln->lm", q, loops.forces())[..., None])[..., 0]
+        return cls(loops=loops, names=names, coef=coef, sigma=sigma, sigma_known=known, q=q, r=r)
+
+    @property
+    def n_coefficients(self) -> int:
+        return int(self.coef.size)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """``(L, M, M)``: sigma^2 (R^T R)^-1."""
+        r_inv = np.linalg.inv(self.r)
+        return self.sigma[:, None, None] ** 2 * np.einsum("lij,lkj->lik", r_inv, r_inv)
+
+    @property
+    def stderr(self) -> np.ndarray:
+        return np.sqrt(np.einsum("lii->li", self.covariance))
+
+    def whiten(self, force: np.ndarray) -> np.ndarray:
+        """Whitened harmonic coordinates Q^T f / sigma of forces ``(..., L, 2n)`` -> ``(..., L, M)``."""
+        return np.einsum("lnm,...ln->...lm", self.q, force) / self.sigma[:, None]
+
+    def project(self, force: np.ndarray) -> np.ndarray:
+        """Harmonic coefficients of forces ``(..., L, 2n)`` sampled like the loops -> ``(..., L, M)``."""
+        qf = np.einsum("lnm,...ln->...lm", self.q, force)
+        return np.linalg.solve(self.r, qf[..., None])[..., 0]
+
+    def orders(self) -> np.ndarray:
+        """Harmonic order of every coefficient, ``(M,)``."""
+        return np.array([0 if n == "dc" else int(n[1:]) for n in self.names])
+
+    def energy_per_cycle(self, coef: np.ndarray) -> np.ndarray:
+        """Energy dissipated per cycle, the loop area pi X0 c1 (J), from coefficients ``(..., L, M)``."""
+        return np.pi * self.loops.x0 * coef[..., self.names.index("c1")]
+
+    def subset(self, index: np.ndarray) -> "Harmonics":
+        idx = np.asarray(index, dtype=int)
+        return Harmonics(
+            loops=self.loops.subset(idx), names=self.names, coef=self.coef[idx], sigma=self.sigma[idx],
+            sigma_known=self.sigma_known[idx], q=self.q[idx], r=self.r[idx],
+        )
+
+
+class HarmonicObjective:
+    """Chi^2 of a model on the whitened harmonic coefficients of all loops; lower is better.
+
+    Same contract as :class:`hysid_model.objective.Objective` (``__call__`` on a
+    population, ``weighted_residuals``, ``jacobian``, ``bounds``), so the
+    optimizers and the polish step run on it unchanged.
+    """
+
+    def __init__(self, harmonics: Harmonics, model: Model) -> None:
+        self.harmonics = harmonics
+        self.model = model
+        self.objective = Objective(harmonics.loops, model, weights="thesis")
+        self.target = harmonics.whiten(harmonics.loops.forces())
+        self.evaluations = 0
+
+    @property
+    def bounds(self) -> np.ndarray:
+        return self.model.bounds
+
+    @property
+    def dim(self) -> int:
+        return self.model.dim
+
+    def whitened(self, pop: np.ndarray) -> np.ndarray:
+        """Whitened residual coefficients (model - data), ``(P, L, M)``."""
+        return self.harmonics.whiten(self.objective.predict(pop)) - self.target
+
+    def __call__(self, pop: np.ndarray) -> np.ndarray:
+        pop = np.atleast_2d(np.asarray(pop, dtype=float))
+        self.evaluations += pop.shape[0]
+        with np.errstate(all="ignore"):
+            chi2 = np.sum(self.whitened(pop) ** 2, axis=(1, 2))
+        return np.where(np.isfinite(chi2), chi2, np.inf)
+
+    def weighted_residuals(self, theta: np.ndarray) -> np.ndarray:
+        """Flat whitened residuals; their sum of squares is the chi^2."""
+        self.evaluations += 1
+        return self.whitened(np.asarray(theta, dtype=float).reshape(1, -1))[0].reshape(-1)
+
+    def jacobian(self, theta: np.ndarray, weighted: bool = True) -> np.ndarray:
+        """d(whitened residuals)/d(theta), ``(L*M, D)`` (``weighted`` is accepted for the Objective contract)."""
+        jac = self.objective.jacobian(theta, weighted=False)
+        self.evaluations += 2 * self.dim
+        n = self.harmonics.loops.n_samples * 2
+        per_loop = jac.reshape(self.harmonics.loops.n_loops, n, self.dim)
+        return (np.einsum("lnm,lnd->lmd", self.harmonics.q, per_loop) / self.harmonics.sigma[:, None, None]).reshape(-1, self.dim)

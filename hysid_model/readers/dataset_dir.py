@@ -1,0 +1,224 @@
+"""A dataset directory's description: ``dataset.toml`` and ``manifest.csv``.
+
+``dataset.toml`` (all keys optional)::
+
+    name = "beam-sample-2"
+    meq_kg = 0.040              # equivalent mass (thesis Meq); 0 or absent = unknown (fitted)
+    sample_rate_hz = 10000      # for .lvm exports without a time column
+    displacement_unit = "mm"    # units of .lvm channels: m, mm, um, cm, in / N, kN, mN, lbf, kip
+    force_unit = "N"
+    displacement_channel = "Displacement"   # .lvm channel by name, or by number (1 = first channel)
+    force_channel = 2
+    description = "..."
+
+    [bounds]                    # search-space overrides, stored in LoopSet.meta["bounds"]
+    xi0 = [0.0, 0.1]
+
+    [[tests]]                   # per record: the steady (constant-amplitude) window in s
+    file = "run1.csv"
+    steady_t0_s = 8
+    steady_t1_s = 20
+
+``manifest.csv`` lists one record per row under the header ``file,frequency_hz``
+(further columns are allowed and ignored), in the order the loops are numbered.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hysid_model.errors import HysidInputError
+
+CONFIG_NAME = "dataset.toml"
+MANIFEST_NAME = "manifest.csv"
+MANIFEST_COLUMNS = ("file", "frequency_hz")
+DISPLACEMENT_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "cm": 1e-2, "in": 0.0254}
+FORCE_UNITS = {"N": 1.0, "kN": 1e3, "mN": 1e-3, "lbf": 4.4482216152605, "kip": 4448.2216152605}
+
+
+@dataclass
+class DatasetConfig:
+    """What ``dataset.toml`` says (defaults when the file is absent)."""
+
+    directory: Path
+    name: str
+    meq_kg: float | None = None
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    sample_rate_hz: float | None = None
+    displacement_unit: str | None = None
+    force_unit: str | None = None
+    displacement_channel: str | int | None = None
+    force_channel: str | int | None = None
+    steady: dict[str, tuple[float, float]] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def meta(self) -> dict[str, Any]:
+        """Dataset-level entries of ``LoopSet.meta``."""
+        out: dict[str, Any] = dict(self.info)
+        if self.bounds:
+            out["bounds"] = dict(self.bounds)
+        return out
+
+
+@dataclass
+class ManifestRow:
+    file: str
+    frequency_hz: float
+    line: int
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _positive(doc: dict[str, Any], key: str, where: str) -> float | None:
+    if key not in doc:
+        return None
+    value = doc[key]
+    if not (_is_number(value) and value > 0):
+        raise HysidInputError(f"{where}: {key} must be a positive number, got {value!r}")
+    return float(value)
+
+
+def _mass(doc: dict[str, Any], where: str) -> float | None:
+    """``meq_kg``: absent or 0 = unknown (None); negative or not a number is an error."""
+    value = doc.get("meq_kg", 0.0)
+    if not _is_number(value) or value < 0:
+        raise HysidInputError(f"{where}: meq_kg must be a mass in kg >= 0 (0 = unknown), got {value!r}")
+    return float(value) if value > 0 else None
+
+
+def _unit(doc: dict[str, Any], key: str, table: dict[str, float], where: str) -> str | None:
+    if key not in doc:
+        return None
+    value = doc[key]
+    if value not in table:
+        raise HysidInputError(f"{where}: {key} {value!r} is not one of {', '.join(table)}")
+    return str(value)
+
+
+def _channel(doc: dict[str, Any], key: str, where: str) -> str | int | None:
+    if key not in doc:
+        return None
+    value = doc[key]
+    if isinstance(value, str) and value.strip():
+        return value
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
+        return value
+    raise HysidInputError(f"{where}: {key} must be a channel name or a channel number >= 1, got {value!r}")
+
+
+def _bounds(doc: dict[str, Any], where: str) -> dict[str, tuple[float, float]]:
+    table = doc.get("bounds", {})
+    if not isinstance(table, dict):
+        raise HysidInputError(f"{where}: [bounds] must be a table of name = [lower, upper]")
+    out = {}
+    for name, pair in table.items():
+        if not (isinstance(pair, list) and len(pair) == 2 and all(_is_number(v) for v in pair) and pair[0] < pair[1]):
+            raise HysidInputError(f"{where}: bounds.{name} must be [lower, upper] with lower < upper, got {pair!r}")
+        out[name] = (float(pair[0]), float(pair[1]))
+    return out
+
+
+def _steady_windows(doc: dict[str, Any], where: str) -> dict[str, tuple[float, float]]:
+    tests = doc.get("tests", [])
+    if not isinstance(tests, list) or not all(isinstance(entry, dict) for entry in tests):
+        raise HysidInputError(f"{where}: tests must be an array of tables ([[tests]])")
+    out: dict[str, tuple[float, float]] = {}
+    for k, entry in enumerate(tests, start=1):
+        name = entry.get("file")
+        if not isinstance(name, str) or not name:
+            raise HysidInputError(f"{where}: [[tests]] entry {k} has no file name")
+        given = [key for key in ("steady_t0_s", "steady_t1_s") if key in entry]
+        if not given:
+            continue
+        t0, t1 = entry.get("steady_t0_s"), entry.get("steady_t1_s")
+        if len(given) != 2 or not (_is_number(t0) and _is_number(t1) and 0 <= t0 < t1):
+            raise HysidInputError(f"{where}: [[tests]] {name}: steady_t0_s and steady_t1_s must both be given with 0 <= t0 < t1, got {t0!r}, {t1!r}")
+        out[name] = (float(t0), float(t1))
+    return out
+
+
+def read_config(directory: Path) -> DatasetConfig:
+    """Read ``directory/dataset.toml``; without one, name = the directory's name and nothing else is known."""
+    path = directory / CONFIG_NAME
+    if not path.is_file():
+        return DatasetConfig(directory=directory, name=directory.resolve().name)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise HysidInputError(f"{path}: invalid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise HysidInputError(f"{path}: not UTF-8 text") from None
+    where = str(path)
+    name = doc.get("name", directory.resolve().name)
+    if not isinstance(name, str) or not name.strip():
+        raise HysidInputError(f"{where}: name must be a non-empty string, got {name!r}")
+    info: dict[str, Any] = {"source": str(directory)}
+    if isinstance(doc.get("description"), str):
+        info["description"] = doc["description"]
+    if isinstance(doc.get("true_params"), dict):
+        info["true_params"] = {k: float(v) for k, v in doc["true_params"].items() if _is_number(v)}
+    return DatasetConfig(
+        directory=directory,
+        name=name,
+        meq_kg=_mass(doc, where),
+        bounds=_bounds(doc, where),
+        sample_rate_hz=_positive(doc, "sample_rate_hz", where),
+        displacement_unit=_unit(doc, "displacement_unit", DISPLACEMENT_UNITS, where),
+        force_unit=_unit(doc, "force_unit", FORCE_UNITS, where),
+        displacement_channel=_channel(doc, "displacement_channel", where),
+        force_channel=_channel(doc, "force_channel", where),
+        steady=_steady_windows(doc, where),
+        info=info,
+    )
+
+
+def read_manifest(path: Path) -> list[ManifestRow]:
+    """Rows of ``manifest.csv`` (header ``file,frequency_hz``), checked for duplicates and bad frequencies."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise HysidInputError(f"{path}: not UTF-8 text") from None
+    lines = [(k, line) for k, line in enumerate(text.splitlines(), start=1) if line.strip()]
+    if not lines:
+        raise HysidInputError(f"{path}: the file is empty (expected the header 'file,frequency_hz' and one row per record)")
+    header = [c.strip() for c in next(csv.reader([lines[0][1]]))]
+    if not all(c in header for c in MANIFEST_COLUMNS):
+        raise HysidInputError(f"{path}: the first line must be the header 'file,frequency_hz' (found {lines[0][1].strip()!r})")
+    i_file, i_freq = header.index("file"), header.index("frequency_hz")
+    rows: list[ManifestRow] = []
+    seen: dict[str, int] = {}
+    for number, line in lines[1:]:
+        cells = [c.strip() for c in next(csv.reader([line]))]
+        if len(cells) <= max(i_file, i_freq):
+            raise HysidInputError(f"{path}: line {number}: expected {len(header)} columns ({', '.join(header)}), got {len(cells)}")
+        name, freq_text = cells[i_file], cells[i_freq]
+        try:
+            freq = float(freq_text)
+        except ValueError:
+            freq = math.nan
+        if not (math.isfinite(freq) and freq > 0):
+            raise HysidInputError(f"{path}: line {number}: frequency_hz {freq_text!r} is not a positive number")
+        if not name:
+            raise HysidInputError(f"{path}: line {number}: empty file name")
+        if name in seen:
+            raise HysidInputError(f"{path}: line {number}: {name!r} is listed twice (also on line {seen[name]})")
+        seen[name] = number
+        rows.append(ManifestRow(name, freq, number))
+    if not rows:
+        raise HysidInputError(f"{path}: lists no records (only the header)")
+    return rows
+
+
+def listed_file(path: Path, row: ManifestRow) -> Path:
+    """The record a manifest row names, which must exist next to the manifest."""
+    target = path.parent / row.file
+    if not target.is_file():
+        raise HysidInputError(f"{path}: line {row.line}: listed file {row.file!r} does not exist in {path.parent}")
+    return target

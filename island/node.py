@@ -1,0 +1,357 @@
+"""The island node: one ask/tell optimizer, cooperating with other islands through a transport.
+
+The node holds no optimizer logic. It drives :func:`island.run.run` (ask ->
+evaluate -> tell) and uses its hooks:
+
+* after every iteration the history row goes to the coordinator (in batches,
+  every ``history_every_s``; iteration, best fitness, evaluations, wall time);
+* every ``migration.interval`` iterations (the *epoch*) it publishes its ``k``
+  best candidates and takes what its in-neighbours (:mod:`island.migration`)
+  sent: each message is validated (:mod:`island.protocol`), every migrant's
+  fitness is **re-evaluated locally** (the claimed value is never used), and
+  the optimizer's migrant policy decides what to replace;
+* a late joiner takes the coordinator's current global best the same way;
+* it stops at the coordinator's stop order or when its own budget is spent.
+
+Two transports carry the bytes: :class:`ZenohTransport` (one process per
+island, key space ``hysid/<campaign>/...``) and :class:`MemoryTransport`
+(islands as threads of one process, in lock step at every epoch so that a
+single-node campaign is reproducible).
+"""
+
+from __future__ import annotations
+
+import secrets
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+import zenoh
+
+from hysid_model.errors import HysidInputError
+from hysid_model.objective import Objective
+from island.migration import in_neighbours
+from island.population import PopulationOptimizer
+from island.protocol import (
+    ALGORITHMS,
+    STAT_NAMES,
+    Best,
+    CampaignConfig,
+    History,
+    MessageRejected,
+    Migrants,
+    check_name,
+    decode_best,
+    decode_migrants,
+    decode_stop,
+    encode_history,
+    encode_migrants,
+)
+from island.run import HistoryRow, run
+
+MAX_INBOX = 4096
+"""Migrant messages an island keeps between two epochs; older ones are dropped first."""
+
+
+def key_prefix(campaign: str) -> str:
+    return f"hysid/{check_name('--campaign', campaign)}"
+
+
+class Transport(Protocol):
+    """How an island's messages travel (bytes in, bytes out)."""
+
+    def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
+        """Publish this island's migrants; return ``(sender, message)`` received since the last call."""
+
+    def publish_history(self, payload: bytes) -> None: ...
+
+    def members(self) -> list[str]:
+        """Islands currently alive in the campaign."""
+
+    def stop_requested(self) -> bool: ...
+
+    def global_best(self) -> bytes | None:
+        """The coordinator's current best message, if there is one (asked once, when the island starts)."""
+
+
+class IslandNode:
+    """One island of a campaign (see the module docstring)."""
+
+    def __init__(
+        self,
+        island: str,
+        algo: str,
+        seed: int,
+        config: CampaignConfig,
+        objective: Objective,
+        *,
+        history_every_s: float = 0.25,
+    ) -> None:
+        self.island = check_name("--id", island)
+        if algo not in ALGORITHMS:
+            raise HysidInputError(f"--algo {algo!r}: unknown algorithm; choose one of {', '.join(ALGORITHMS)}")
+        self.algo = algo
+        self.seed = seed
+        self.config = config
+        self.objective = objective
+        self.optimizer: PopulationOptimizer = ALGORITHMS[algo](objective.bounds, seed, **config.options.get(algo, {}))
+        self.run_id = secrets.token_hex(6)
+        self.history_every_s = history_every_s
+        self.stats = dict.fromkeys(STAT_NAMES, 0)
+        self.rows: list[tuple[int, float, int, float]] = []
+        self.migrant_evaluations = 0
+        self.stop_reason = ""
+        self._published = 0
+        self._last_flush = 0.0
+        self._snapshot: tuple[np.ndarray, float] = (objective.bounds.mean(axis=1), np.inf)
+        self._best_in: Best | None = None
+        self._transport: Transport | None = None
+
+    # --- the loop ---------------------------------------------------------------
+    def run(self, transport: Transport) -> list[tuple[int, float, int, float]]:
+        """Optimize until done or stopped; returns the rows ``(iteration, best, evaluations, wall s)``."""
+        self._transport = transport
+        self._best_in = self._decode_best(transport.global_best())
+        try:
+            run(self.optimizer, self.objective, callback=self._record, should_stop=transport.stop_requested, migrate=self._migrate)
+            self.stop_reason = "stopped by the coordinator" if transport.stop_requested() else "own budget spent"
+        finally:
+            self._flush(final=True)
+        return list(self.rows)
+
+    def _record(self, row: HistoryRow) -> None:
+        self.rows.append((row.iteration, row.best_fitness, row.evaluations + self.migrant_evaluations, row.wall_s))
+        x, f = self.optimizer.best(1)
+        self._snapshot = (x[0].copy(), float(f[0]))
+        if time.monotonic() - self._last_flush >= self.history_every_s:
+            self._flush()
+
+    def _migrate(self, optimizer: PopulationOptimizer) -> None:
+        assert self._transport is not None
+        if self._best_in is not None:
+            self._take([self._best_in.x[None, :]])
+            self._best_in = None
+        mig = self.config.migration
+        if mig.interval == 0 or optimizer.iteration % mig.interval:
+            return
+        epoch = optimizer.iteration // mig.interval
+        x, f = optimizer.best(mig.k)
+        outgoing = encode_migrants(Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, x, f, time.time()))
+        received = self._transport.exchange(epoch, outgoing)
+        self.stats["sent"] += 1
+        senders = in_neighbours(
+            mig.topology, self._transport.members(), self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k
+        )
+        batches = []
+        for sender, data in received:
+            try:
+                m = decode_migrants(data, self.config.name, self.objective.bounds, sender)
+            except MessageRejected:
+                self.stats["rejected"] += 1
+                continue
+            if m.island in senders:
+                batches.append(m.x)
+        self._take(batches)
+
+    def _take(self, batches: list[np.ndarray]) -> None:
+        """Re-evaluate migrants here (never trusting their claimed fitness) and offer them to the optimizer."""
+        if not batches:
+            return
+        x = np.vstack(batches)
+        f = self.objective(x)
+        self.migrant_evaluations += x.shape[0]
+        self.stats["received"] += x.shape[0]
+        self.stats["taken"] += self.optimizer.inject(x, f)
+
+    def _decode_best(self, data: bytes | None) -> Best | None:
+        if data is None:
+            return None
+        try:
+            return decode_best(data, self.config.name, self.objective.bounds)
+        except MessageRejected:
+            self.stats["rejected"] += 1
+            return None
+
+    # --- history ---------------------------------------------------------------------
+    def history_message(self, since: int = -1, final: bool = False) -> bytes:
+        """This island's rows after iteration ``since``, its best so far and its counters."""
+        rows = [r for r in list(self.rows) if r[0] > since]
+        x, f = self._snapshot
+        return encode_history(History(
+            self.config.name, self.island, self.run_id, self.algo, self.seed, np.array(rows, dtype=float).reshape(-1, 4),
+            x, f, dict(self.stats), final,
+        ))
+
+    def _flush(self, final: bool = False) -> None:
+        assert self._transport is not None
+        last = self.rows[self._published - 1][0] if self._published else -1
+        if self._published == len(self.rows) and not final:
+            return
+        self._transport.publish_history(self.history_message(since=last, final=final))
+        self._published = len(self.rows)
+        self._last_flush = time.monotonic()
+
+
+# --- transports ----------------------------------------------------------------------------
+class ZenohTransport:
+    """An island's Zenoh entities under ``hysid/<campaign>/``.
+
+    Declares the liveliness token ``members/<id>``, publishes on
+    ``migrants/<id>`` and ``history/<id>``, subscribes to ``migrants/*``,
+    ``control`` and the members' tokens, and answers ``history/<id>?run=R;since=N``
+    with the rows the coordinator is missing (after a coordinator restart).
+    """
+
+    def __init__(self, session: zenoh.Session, node: IslandNode) -> None:
+        self.session = session
+        self.node = node
+        prefix = key_prefix(node.config.name)
+        self.prefix = prefix
+        self._inbox: deque[tuple[str, bytes]] = deque(maxlen=MAX_INBOX)
+        self._members: set[str] = set()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._migrants = session.declare_publisher(f"{prefix}/migrants/{node.island}")
+        self._history = session.declare_publisher(f"{prefix}/history/{node.island}", congestion_control=zenoh.CongestionControl.BLOCK)
+        self._entities = [
+            session.liveliness().declare_subscriber(f"{prefix}/members/*", self._on_member, history=True),
+            session.declare_subscriber(f"{prefix}/migrants/*", self._on_migrants),
+            session.declare_subscriber(f"{prefix}/control", self._on_control),
+            session.declare_queryable(f"{prefix}/history/{node.island}", self._on_history_query),
+        ]
+        self._token = session.liveliness().declare_token(f"{prefix}/members/{node.island}")
+
+    def _on_member(self, sample: zenoh.Sample) -> None:
+        island = str(sample.key_expr).rsplit("/", 1)[-1]
+        with self._lock:
+            if sample.kind == zenoh.SampleKind.PUT:
+                self._members.add(island)
+            else:
+                self._members.discard(island)
+
+    def _on_migrants(self, sample: zenoh.Sample) -> None:
+        self._inbox.append((str(sample.key_expr).rsplit("/", 1)[-1], sample.payload.to_bytes()))
+
+    def _on_control(self, sample: zenoh.Sample) -> None:
+        try:
+            decode_stop(sample.payload.to_bytes(), self.node.config.name)
+        except MessageRejected:
+            self.node.stats["rejected"] += 1
+            return
+        self._stop.set()
+
+    def _on_history_query(self, query: zenoh.Query) -> None:
+        params = query.parameters
+        try:
+            since = int(params.get("since") or -1) if params.get("run") == self.node.run_id else -1
+        except ValueError:
+            since = -1
+        query.reply(query.key_expr, self.node.history_message(since=since))
+
+    # --- Transport ---
+    def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
+        self._migrants.put(payload)
+        received = []
+        while self._inbox:
+            received.append(self._inbox.popleft())
+        return received
+
+    def publish_history(self, payload: bytes) -> None:
+        self._history.put(payload)
+
+    def members(self) -> list[str]:
+        with self._lock:
+            return sorted(self._members | {self.node.island})
+
+    def stop_requested(self) -> bool:
+        return self._stop.is_set()
+
+    def global_best(self) -> bytes | None:
+        for reply in self.session.get(f"{self.prefix}/best", timeout=2.0):
+            if reply.ok is not None:
+                return reply.ok.payload.to_bytes()
+        return None
+
+    def close(self) -> None:
+        """Leave the campaign: the token goes last, after the final history was sent."""
+        for entity in self._entities + [self._migrants, self._history]:
+            entity.undeclare()
+        self._token.undeclare()
+
+
+def fetch_config(session: zenoh.Session, campaign: str, wait_s: float) -> bytes:
+    """The coordinator's ``config`` message, asking until one answers or ``wait_s`` passes."""
+    key = f"{key_prefix(campaign)}/config"
+    deadline = time.monotonic() + wait_s
+    while True:
+        for reply in session.get(key, timeout=min(2.0, max(wait_s, 0.1))):
+            if reply.ok is not None:
+                return reply.ok.payload.to_bytes()
+        if time.monotonic() >= deadline:
+            raise HysidInputError(f"no coordinator answered on {key} within {wait_s:g} s (is `hysid coordinator --campaign {campaign}` running and reachable?)")
+        time.sleep(0.2)
+
+
+class MemoryBus:
+    """In-process migration between island threads, in lock step per epoch.
+
+    At epoch ``e`` every island posts its migrants and waits until each island
+    still running has posted for ``e`` (or finished), so the exchange does not
+    depend on thread timing and a seeded single-node campaign is reproducible.
+    """
+
+    def __init__(self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], None], stop: threading.Event) -> None:
+        self.prefix = key_prefix(campaign)
+        self.islands = sorted(islands)
+        self.deliver = deliver
+        """Receives every publication as ``(key, message)``, as the coordinator's subscribers would."""
+        self.stop = stop
+        self._active = set(islands)
+        self._posts: dict[int, dict[str, bytes]] = {}
+        self._cond = threading.Condition()
+
+    def transport(self, island: str) -> "MemoryTransport":
+        return MemoryTransport(self, island)
+
+    def exchange(self, island: str, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
+        self.deliver(f"{self.prefix}/migrants/{island}", payload)
+        with self._cond:
+            posts = self._posts.setdefault(epoch, {})
+            posts[island] = payload
+            self._cond.notify_all()
+            self._cond.wait_for(lambda: self._active <= set(posts) or self.stop.is_set())
+            return [(sender, data) for sender, data in sorted(posts.items()) if sender != island]
+
+    def leave(self, island: str) -> None:
+        with self._cond:
+            self._active.discard(island)
+            self._cond.notify_all()
+
+
+class MemoryTransport:
+    """One island's view of a :class:`MemoryBus`."""
+
+    def __init__(self, bus: MemoryBus, island: str) -> None:
+        self.bus = bus
+        self.island = island
+
+    def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
+        return self.bus.exchange(self.island, epoch, payload)
+
+    def publish_history(self, payload: bytes) -> None:
+        self.bus.deliver(f"{self.bus.prefix}/history/{self.island}", payload)
+
+    def members(self) -> list[str]:
+        return list(self.bus.islands)
+
+    def stop_requested(self) -> bool:
+        return self.bus.stop.is_set()
+
+    def global_best(self) -> bytes | None:
+        return None
+
+    def close(self) -> None:
+        self.bus.leave(self.island)

@@ -1,0 +1,281 @@
+"""What the thesis' GA and PSO share, in ask/tell form: batches, redraws, migrants, history, checkpoints.
+
+Both programs of Appendix A evaluate candidates in a ``try``/``catch``: a
+candidate whose fitness cannot be computed ("Couldn't calculate. Generating new
+chromosome") is replaced by a uniform random one (Eq. 3.2) and evaluated
+again, until every candidate of the batch has a fitness. Here a batch is asked
+for as a whole; after ``tell`` the rows with non-finite fitness are redrawn
+and asked for again, and only a complete batch moves the algorithm on. The
+program retries forever; ``redraw_limit`` caps the rounds per batch so that a
+model that cannot be computed anywhere still ends (its leftovers keep fitness
+inf and sort last).
+
+A subclass supplies the batches (``_next_batch``), what a complete batch does
+(``_finish``), the migrant policy (``_take``), its known candidates
+(``_known``) and its own state; everything else lives here.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hysid_model.errors import HysidInputError
+from island.addpop import addpop_size
+from island.optimizer import AskTell
+from island.rng import new_rng, rng_from_state, rng_state, uniform_population
+
+MIGRANT_POLICIES = ("replace_worst",)
+"""``replace_worst``: each migrant replaces the current worst member if it is better than it."""
+
+
+def check_bounds(bounds: np.ndarray) -> np.ndarray:
+    """``(D, 2)`` finite bounds with lower < upper, as a float array."""
+    b = np.array(bounds, dtype=float)
+    if b.ndim != 2 or b.shape[1] != 2 or b.shape[0] < 1:
+        raise HysidInputError(f"bounds must be a (D, 2) array of [lower, upper] rows, got shape {b.shape}")
+    if not np.all(np.isfinite(b)) or np.any(b[:, 0] >= b[:, 1]):
+        raise HysidInputError(f"bounds must be finite with lower < upper in every row, got {b.tolist()}")
+    return b
+
+
+def check_int(algorithm: str, name: str, value: Any, minimum: int) -> int:
+    """An integer option of at least ``minimum``, else a one-line error naming the option."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise HysidInputError(f"{algorithm} option {name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_float(algorithm: str, name: str, value: Any, minimum: float, maximum: float = np.inf) -> float:
+    """A finite number in ``[minimum, maximum]``, else a one-line error naming the option."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise HysidInputError(f"{algorithm} option {name} must be a number, got {value!r}")
+    if not (np.isfinite(value) and minimum <= value <= maximum):
+        raise HysidInputError(f"{algorithm} option {name} must be in [{minimum:g}, {maximum:g}], got {value!r}")
+    return float(value)
+
+
+def check_choice(algorithm: str, name: str, value: Any, choices: tuple[str, ...]) -> str:
+    """One of ``choices``, else a one-line error naming the option."""
+    if value not in choices:
+        raise HysidInputError(f"{algorithm} option {name} must be one of {', '.join(choices)}, got {value!r}")
+    return str(value)
+
+
+@dataclass
+class Batch:
+    """Candidates of one step: ``f`` is NaN until told; ``todo`` rows are the ones asked for."""
+
+    kind: str
+    x: np.ndarray
+    f: np.ndarray
+    todo: np.ndarray
+    rounds: int = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "x": self.x.tolist(), "f": self.f.tolist(), "todo": self.todo.tolist(), "rounds": self.rounds}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], dim: int) -> "Batch":
+        return cls(
+            kind=d["kind"],
+            x=np.array(d["x"], dtype=float).reshape(-1, dim),
+            f=np.array(d["f"], dtype=float),
+            todo=np.array(d["todo"], dtype=np.intp),
+            rounds=int(d["rounds"]),
+        )
+
+
+class PopulationOptimizer(AskTell):
+    """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring)."""
+
+    def __init__(
+        self,
+        bounds: np.ndarray,
+        seed: int,
+        *,
+        iterations: int,
+        addpop_amount: float,
+        addpop_level: int,
+        migrant_policy: str,
+        redraw_limit: int,
+    ) -> None:
+        self.bounds = check_bounds(bounds)
+        self.seed = check_int(self.name, "seed", seed, 0)
+        self.iterations = check_int(self.name, "iterations", iterations, 0)
+        self.addpop_amount = check_float(self.name, "addpop_amount", addpop_amount, 0.0)
+        self.addpop_level = check_int(self.name, "addpop_level", addpop_level, 0)
+        self.migrant_policy = check_choice(self.name, "migrant_policy", migrant_policy, MIGRANT_POLICIES)
+        self.redraw_limit = check_int(self.name, "redraw_limit", redraw_limit, 0)
+        self.rng = new_rng(self.seed)
+        self.history: list[float] = []
+        """Best fitness after each iteration; index 0 = after the initial population (the thesis' ``fhv``)."""
+        self._evaluations = 0
+        self._iteration = 0
+        self._batch: Batch | None = None
+
+    # --- subclass hooks ---------------------------------------------------------
+    @abstractmethod
+    def _next_batch(self) -> tuple[str, np.ndarray]:
+        """Kind and candidates of the next step."""
+
+    @abstractmethod
+    def _finish(self, kind: str, x: np.ndarray, f: np.ndarray) -> None:
+        """Use a completely evaluated batch (non-finite fitness already redrawn or set to inf)."""
+
+    @abstractmethod
+    def _take(self, x: np.ndarray, f: float) -> bool:
+        """Apply the migrant policy to one valid migrant; True if it was taken."""
+
+    @abstractmethod
+    def _known(self) -> tuple[np.ndarray, np.ndarray]:
+        """All candidates the optimizer keeps, with fitness (any order)."""
+
+    @abstractmethod
+    def _settings(self) -> dict[str, Any]:
+        """The constructor's keyword options."""
+
+    @abstractmethod
+    def _state(self) -> dict[str, Any]:
+        """The subclass' own state as plain data."""
+
+    @abstractmethod
+    def _load(self, state: dict[str, Any]) -> None:
+        """Restore what ``_state`` saved."""
+
+    # --- ask/tell -----------------------------------------------------------------
+    @property
+    def dim(self) -> int:
+        return self.bounds.shape[0]
+
+    @property
+    def addpop_number(self) -> int:
+        """Size of the additional population per iteration (Eq. 5.1)."""
+        return addpop_size(self.dim, self.addpop_level)
+
+    @property
+    def evaluations(self) -> int:
+        """Candidates told so far (redrawn ones included)."""
+        return self._evaluations
+
+    @property
+    def iteration(self) -> int:
+        return self._iteration
+
+    @property
+    def done(self) -> bool:
+        return bool(self.history) and self._iteration >= self.iterations
+
+    def ask(self) -> np.ndarray:
+        """The candidates to evaluate next; asking again before ``tell`` returns the same ones."""
+        if self.done:
+            raise RuntimeError(f"{self.name}: the iteration budget is spent; nothing to ask")
+        if self._batch is None:
+            kind, x = self._next_batch()
+            self._batch = Batch(kind, x, np.full(x.shape[0], np.nan), np.arange(x.shape[0]))
+        return self._batch.x[self._batch.todo]
+
+    def tell(self, x: np.ndarray, f: np.ndarray) -> None:
+        batch = self._batch
+        if batch is None:
+            raise RuntimeError(f"{self.name}: tell() without a pending ask()")
+        x = np.asarray(x, dtype=float)
+        f = np.asarray(f, dtype=float).reshape(-1)
+        if not np.array_equal(x, batch.x[batch.todo]) or f.size != batch.todo.size:
+            raise ValueError(f"{self.name}: tell() needs the {batch.todo.size} candidates of the last ask() and one fitness each")
+        self._evaluations += f.size
+        batch.f[batch.todo] = f
+        bad = ~np.isfinite(f)
+        if bad.any() and batch.rounds < self.redraw_limit:
+            batch.todo = batch.todo[bad]
+            batch.x[batch.todo] = uniform_population(self.rng, self.bounds, batch.todo.size)
+            batch.rounds += 1
+            return
+        self._batch = None
+        self._finish(batch.kind, batch.x, np.where(np.isfinite(batch.f), batch.f, np.inf))
+
+    def _complete_iteration(self, best_fitness: float) -> None:
+        self._iteration += 1
+        self.history.append(float(best_fitness))
+
+    # --- migrants and results -------------------------------------------------------
+    def inject(self, x: np.ndarray, f: np.ndarray) -> int:
+        """Offer migrants with locally evaluated fitness; returns how many the policy took.
+
+        Rows that are non-finite or outside the bounds are refused. Before the
+        initial population is evaluated there is nobody to replace: none is taken.
+        """
+        x = np.asarray(x, dtype=float)
+        f = np.asarray(f, dtype=float).reshape(-1)
+        if x.ndim == 1:
+            x = x.reshape(1, -1)
+        if x.ndim != 2 or x.shape[1] != self.dim or x.shape[0] != f.size:
+            raise HysidInputError(
+                f"migrants must be a (k, {self.dim}) array with k fitness values, got shape {x.shape} and {f.size} values"
+            )
+        valid = (
+            np.all(np.isfinite(x), axis=1)
+            & np.isfinite(f)
+            & np.all((x >= self.bounds[:, 0]) & (x <= self.bounds[:, 1]), axis=1)
+        )
+        if not self.history:
+            return 0
+        return sum(self._take(xi.copy(), float(fi)) for xi, fi in zip(x[valid], f[valid]))
+
+    def best(self, k: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """The ``k`` best known candidates and their fitness, best first (empty before the initial population)."""
+        if not self.history:
+            return np.empty((0, self.dim)), np.empty(0)
+        x, f = self._known()
+        order = np.argsort(f, kind="stable")[:k]
+        return x[order].copy(), f[order].copy()
+
+    # --- checkpoints -------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "algorithm": self.name,
+            "bounds": self.bounds.tolist(),
+            "seed": self.seed,
+            "settings": self._settings(),
+            "rng": rng_state(self.rng),
+            "evaluations": self._evaluations,
+            "iteration": self._iteration,
+            "history": list(self.history),
+            "batch": None if self._batch is None else self._batch.as_dict(),
+            "own": self._state(),
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any]) -> "PopulationOptimizer":
+        if not isinstance(state, dict) or state.get("algorithm") != cls.name:
+            found = state.get("algorithm") if isinstance(state, dict) else type(state).__name__
+            raise HysidInputError(f"checkpoint holds a {found!r} state, not {cls.name}")
+        try:
+            opt = cls(np.array(state["bounds"], dtype=float), state["seed"], **state["settings"])
+            opt.rng = rng_from_state(state["rng"])
+            opt._evaluations = int(state["evaluations"])
+            opt._iteration = int(state["iteration"])
+            opt.history = [float(v) for v in state["history"]]
+            opt._batch = None if state["batch"] is None else Batch.from_dict(state["batch"], opt.dim)
+            opt._load(state["own"])
+        except HysidInputError:
+            raise
+        except (KeyError, TypeError, ValueError) as exc:
+            raise HysidInputError(f"checkpoint: malformed {cls.name} state ({type(exc).__name__}: {exc})") from exc
+        return opt
+
+
+def array_or_none(a: np.ndarray | None) -> list | None:
+    """An optional array as nested lists for ``state_dict`` (floats round-trip msgpack exactly)."""
+    return None if a is None else a.tolist()
+
+
+def load_array(data: list | None, dim: int | None = None) -> np.ndarray | None:
+    """Inverse of :func:`array_or_none` (``dim`` reshapes a 2-D array, also when it is empty)."""
+    if data is None:
+        return None
+    a = np.array(data, dtype=float)
+    return a if dim is None else a.reshape(-1, dim)

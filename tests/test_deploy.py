@@ -1,0 +1,362 @@
+"""The Zenoh configurations of deploy/zenoh and deploy/tls/make-certs.sh, used for real.
+
+Every config is opened as a real Zenoh session on 127.0.0.1 (free ports only),
+with only its endpoints, certificate and credential paths pointed at test files;
+everything else (mode, lease, TLS, authentication, access control) is the file's.
+Each wait is bounded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import queue
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+import zenoh
+
+pytestmark = pytest.mark.timeout(60)
+
+DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
+ZENOH_DIR = DEPLOY / "zenoh"
+MAKE_CERTS = DEPLOY / "tls" / "make-certs.sh"
+CREDENTIALS = ZENOH_DIR / "credentials.example.txt"
+FLAVOURS = ("", "-tls", "-usrpwd", "-secure")
+CAMPAIGN = "hysid/demo"
+WAIT = 5.0
+REFUSED_AFTER_MS = 1500
+
+TLS_FILES = {
+    "root_ca_certificate": "ca.pem",
+    "listen_certificate": "coordinator/cert.pem",
+    "listen_private_key": "coordinator/key.pem",
+    "connect_certificate": "islands/island-1/cert.pem",
+    "connect_private_key": "islands/island-1/key.pem",
+}
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def setting(config: zenoh.Config, key: str):
+    return json.loads(config.get_json(key))
+
+
+def put_setting(config: zenoh.Config, key: str, value) -> None:
+    config.insert_json5(key, json.dumps(value))
+
+
+def uses_tls(path: Path) -> bool:
+    return "tls" in (setting(zenoh.Config.from_file(path), "transport/link/protocols") or [])
+
+
+def localized(path: Path, port: int, certs: Path | None = None, credentials: Path = CREDENTIALS) -> zenoh.Config:
+    """The config of `path` with its endpoint moved to 127.0.0.1:port and its file paths to test files."""
+    config = zenoh.Config.from_file(path)
+    endpoints_key = "listen/endpoints" if setting(config, "mode") == "router" else "connect/endpoints"
+    protocol = setting(config, endpoints_key)[0].split("/")[0]
+    put_setting(config, endpoints_key, [f"{protocol}/127.0.0.1:{port}"])
+    for key, name in TLS_FILES.items():
+        if setting(config, f"transport/link/tls/{key}") is not None:
+            assert certs is not None, f"{path.name} needs certificates"
+            put_setting(config, f"transport/link/tls/{key}", str(certs / name))
+    if setting(config, "transport/auth/usrpwd/dictionary_file") is not None:
+        put_setting(config, "transport/auth/usrpwd/dictionary_file", str(credentials))
+    return config
+
+
+def refused_quickly(config: zenoh.Config) -> zenoh.Config:
+    """Stop retrying after REFUSED_AFTER_MS instead of the file's 60 s (islands wait for a late coordinator)."""
+    put_setting(config, "connect/timeout_ms", REFUSED_AFTER_MS)
+    return config
+
+
+@contextlib.contextmanager
+def session(config: zenoh.Config) -> Iterator[zenoh.Session]:
+    opened = zenoh.open(config)
+    try:
+        yield opened
+    finally:
+        opened.close()
+
+
+def cannot_connect(config: zenoh.Config) -> bool:
+    try:
+        zenoh.open(refused_quickly(config)).close()
+    except zenoh.ZError:
+        return True
+    return False
+
+
+def make_certs(outdir: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["bash", str(MAKE_CERTS), "-o", str(outdir), *args], capture_output=True, text=True, timeout=60)
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """CA, coordinator certificate for 127.0.0.1/localhost, client certificates island-1 and island-2."""
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")
+    outdir = tmp_path_factory.mktemp("certs")
+    done = make_certs(outdir, "-s", "127.0.0.1", "-s", "localhost", "island-1", "island-2")
+    assert done.returncode == 0, done.stderr
+    return outdir
+
+
+def collector(received: list) -> Callable[[zenoh.Sample], None]:
+    return lambda sample: received.append((str(sample.key_expr), sample.payload.to_bytes()))
+
+
+def wait_until(predicate: Callable[[], bool], timeout: float = WAIT) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return predicate()
+
+
+def put_until_received(sender: zenoh.Session, key: str, payload: bytes, received: list) -> bool:
+    """Put until the receiver got it: subscriptions reach a new client asynchronously."""
+    deadline = time.monotonic() + WAIT
+    while time.monotonic() < deadline:
+        sender.put(key, payload)
+        if wait_until(lambda: (key, payload) in received, 0.2):
+            return True
+    return False
+
+
+def replies(asker: zenoh.Session, selector: str, timeout: float = WAIT) -> list[bytes]:
+    return [reply.ok.payload.to_bytes() for reply in asker.get(selector, timeout=timeout) if reply.ok is not None]
+
+
+def pair(flavour: str) -> tuple[Path, Path]:
+    return ZENOH_DIR / f"coordinator{flavour}.json5", ZENOH_DIR / f"island{flavour}.json5"
+
+
+def test_every_config_file_is_one_of_the_tested_pairs() -> None:
+    shipped = {path.name for path in ZENOH_DIR.glob("*.json5")}
+    tested = {path.name for flavour in FLAVOURS for path in pair(flavour)}
+    assert shipped == tested
+
+
+@pytest.mark.parametrize("flavour", FLAVOURS)
+def test_config_pair_opens_real_sessions_and_exchanges(flavour: str, request: pytest.FixtureRequest) -> None:
+    coordinator_file, island_file = pair(flavour)
+    for path, mode in ((coordinator_file, "router"), (island_file, "client")):
+        config = zenoh.Config.from_file(path)
+        assert setting(config, "mode") == mode
+        assert setting(config, "scouting/multicast/enabled") is False
+        assert setting(config, "transport/link/tx/lease") == 2000
+    tls_certs = request.getfixturevalue("certs") if uses_tls(coordinator_file) else None
+    port = free_port()
+    with session(localized(coordinator_file, port, tls_certs)) as coordinator:
+        received: list = []
+        subscriber = coordinator.declare_subscriber(f"{CAMPAIGN}/migrants/*", collector(received))
+        queryable = coordinator.declare_queryable(f"{CAMPAIGN}/config", lambda query: query.reply(query.key_expr, b"loop set"))
+        with session(localized(island_file, port, tls_certs)) as island:
+            assert island.info.routers_zid() == [coordinator.zid()]
+            assert put_until_received(island, f"{CAMPAIGN}/migrants/island-1", b"migrant", received)
+            assert replies(island, f"{CAMPAIGN}/config") == [b"loop set"]
+        subscriber.undeclare()
+        queryable.undeclare()
+
+
+def test_tls_island_without_client_certificate_is_refused(certs: Path) -> None:
+    coordinator_file, island_file = pair("-tls")
+    port = free_port()
+    with session(localized(coordinator_file, port, certs)):
+        no_certificate = localized(island_file, port, certs)
+        put_setting(no_certificate, "transport/link/tls/enable_mtls", False)
+        put_setting(no_certificate, "transport/link/tls/connect_certificate", None)
+        put_setting(no_certificate, "transport/link/tls/connect_private_key", None)
+        assert cannot_connect(no_certificate)
+        assert not cannot_connect(localized(island_file, port, certs))
+
+
+def test_tls_island_with_certificate_of_another_ca_is_refused(certs: Path, tmp_path: Path) -> None:
+    other = tmp_path / "other-ca"
+    assert make_certs(other, "island-1").returncode == 0
+    coordinator_file, island_file = pair("-tls")
+    port = free_port()
+    with session(localized(coordinator_file, port, certs)):
+        foreign = localized(island_file, port, certs)
+        put_setting(foreign, "transport/link/tls/connect_certificate", str(other / "islands/island-1/cert.pem"))
+        put_setting(foreign, "transport/link/tls/connect_private_key", str(other / "islands/island-1/key.pem"))
+        assert cannot_connect(foreign)
+
+
+def test_tls_island_refuses_coordinator_whose_certificate_lacks_the_address(tmp_path: Path) -> None:
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")
+    wrong_name = tmp_path / "certs"
+    assert make_certs(wrong_name, "-s", "coordinator.invalid", "island-1").returncode == 0
+    coordinator_file, island_file = pair("-tls")
+    port = free_port()
+    with session(localized(coordinator_file, port, wrong_name)):
+        assert cannot_connect(localized(island_file, port, wrong_name))
+
+
+@pytest.mark.parametrize(
+    ("user", "password"),
+    [("island-1", "change-me-island-2"), ("island-9", "change-me-island-1"), (None, None)],
+    ids=["wrong-password", "unknown-user", "no-credentials"],
+)
+def test_usrpwd_wrong_credentials_are_refused(user: str | None, password: str | None) -> None:
+    coordinator_file, island_file = pair("-usrpwd")
+    port = free_port()
+    with session(localized(coordinator_file, port)):
+        island = localized(island_file, port)
+        put_setting(island, "transport/auth/usrpwd/user", user)
+        put_setting(island, "transport/auth/usrpwd/password", password)
+        assert cannot_connect(island)
+        put_setting(island, "transport/auth/usrpwd/user", "island-2")
+        put_setting(island, "transport/auth/usrpwd/password", "change-me-island-2")
+        assert not cannot_connect(island)
+
+
+def secure_island(port: int, certs: Path, credentials: Path, user: str, password: str) -> zenoh.Config:
+    config = localized(pair("-secure")[1], port, certs, credentials)
+    put_setting(config, "transport/auth/usrpwd/user", user)
+    put_setting(config, "transport/auth/usrpwd/password", password)
+    return config
+
+
+def test_acl_confines_islands_to_their_campaign(certs: Path) -> None:
+    port = free_port()
+    with session(localized(pair("-secure")[0], port, certs)) as coordinator:
+        seen: list = []
+        members: list = []
+        keep = [
+            coordinator.declare_subscriber("**", collector(seen)),
+            coordinator.liveliness().declare_subscriber("**", lambda sample: members.append(str(sample.key_expr))),
+            coordinator.declare_queryable(f"{CAMPAIGN}/config", lambda query: query.reply(query.key_expr, b"loop set")),
+            coordinator.declare_queryable("hysid/other/config", lambda query: query.reply(query.key_expr, b"other")),
+        ]
+        with session(secure_island(port, certs, CREDENTIALS, "island-1", "change-me-island-1")) as island:
+            heard: list = []
+            keep += [island.declare_subscriber(f"{CAMPAIGN}/{key}", collector(heard)) for key in ("best", "control")]
+            assert put_until_received(island, f"{CAMPAIGN}/migrants/island-1", b"first", seen)
+            denied = [
+                f"{CAMPAIGN}/control",
+                f"{CAMPAIGN}/best",
+                "hysid/other/migrants/island-1",
+                "elsewhere/island-1",
+            ]
+            for key in denied:
+                island.put(key, b"denied")
+            island.put(f"{CAMPAIGN}/history/island-1", b"last")
+            # one session, one reliable link: "last" arrives after anything sent before it
+            assert wait_until(lambda: (f"{CAMPAIGN}/history/island-1", b"last") in seen)
+            assert not [key for key, payload in seen if payload == b"denied"]
+
+            keep.append(island.liveliness().declare_token("hysid/other/members/island-1"))
+            keep.append(island.liveliness().declare_token(f"{CAMPAIGN}/members/island-1"))
+            assert wait_until(lambda: f"{CAMPAIGN}/members/island-1" in members)
+            assert "hysid/other/members/island-1" not in members
+
+            assert replies(island, f"{CAMPAIGN}/config") == [b"loop set"]
+            assert replies(island, "hysid/other/config", timeout=2.0) == []
+
+            for key in (f"{CAMPAIGN}/history/island-1", "hysid/other/history/island-1"):
+                keep.append(island.declare_queryable(key, lambda query: query.reply(query.key_expr, b"rows")))
+            assert wait_until(lambda: replies(coordinator, f"{CAMPAIGN}/history/island-1?since=3", 0.5) == [b"rows"])
+            assert replies(coordinator, "hysid/other/history/island-1", timeout=1.0) == []
+
+            assert put_until_received(coordinator, f"{CAMPAIGN}/best", b"best", heard)
+            coordinator.put(f"{CAMPAIGN}/control", b"stop")
+            assert wait_until(lambda: (f"{CAMPAIGN}/control", b"stop") in heard)
+        for entity in keep:
+            entity.undeclare()
+
+
+def test_acl_denies_everything_to_an_authenticated_user_not_listed(certs: Path, tmp_path: Path) -> None:
+    credentials = tmp_path / "credentials.txt"
+    credentials.write_text(CREDENTIALS.read_text() + "guest:guest-password\n")
+    port = free_port()
+    with session(localized(pair("-secure")[0], port, certs, credentials)) as coordinator:
+        seen: list = []
+        subscriber = coordinator.declare_subscriber("**", collector(seen))
+        queryable = coordinator.declare_queryable(f"{CAMPAIGN}/config", lambda query: query.reply(query.key_expr, b"loop set"))
+        with session(secure_island(port, certs, credentials, "guest", "guest-password")) as guest:
+            assert guest.info.routers_zid() == [coordinator.zid()]
+            assert not put_until_received(guest, f"{CAMPAIGN}/migrants/guest", b"guest", seen)
+            assert replies(guest, f"{CAMPAIGN}/config", timeout=2.0) == []
+        with session(secure_island(port, certs, credentials, "island-2", "change-me-island-2")) as island:
+            assert put_until_received(island, f"{CAMPAIGN}/migrants/island-2", b"island", seen)
+        subscriber.undeclare()
+        queryable.undeclare()
+
+
+FROZEN_ISLAND = """
+import json, sys, time, zenoh
+config = zenoh.Config.from_file(sys.argv[1])
+config.insert_json5("connect/endpoints", json.dumps([sys.argv[2]]))
+island = zenoh.open(config)
+token = island.liveliness().declare_token(sys.argv[3])
+print("member", flush=True)
+time.sleep(120)
+"""
+
+
+def test_short_lease_notices_a_frozen_island_before_zenoh_default_lease() -> None:
+    """lease 2000 ms: a stopped (SIGSTOP) island's membership ends well before the 10 s default."""
+    coordinator_file, island_file = pair("")
+    port = free_port()
+    member = f"{CAMPAIGN}/members/island-7"
+    with session(localized(coordinator_file, port)) as coordinator:
+        events: queue.Queue = queue.Queue()
+        subscriber = coordinator.liveliness().declare_subscriber(member, lambda sample: events.put(sample.kind))
+        child = subprocess.Popen(
+            [sys.executable, "-c", FROZEN_ISLAND, str(island_file), f"tcp/127.0.0.1:{port}", member],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            assert events.get(timeout=WAIT + 5) == zenoh.SampleKind.PUT
+            child.send_signal(signal.SIGSTOP)
+            assert events.get(timeout=8.0) == zenoh.SampleKind.DELETE
+        finally:
+            child.kill()
+            child.wait(timeout=10)
+            child.stdout.close()
+        subscriber.undeclare()
+
+
+def test_make_certs_reuses_the_ca_to_add_an_island_later(certs: Path, tmp_path: Path) -> None:
+    outdir = tmp_path / "certs"
+    shutil.copytree(certs, outdir)
+    ca_before = hashlib.sha256((outdir / "ca.pem").read_bytes()).hexdigest()
+    done = make_certs(outdir, "island-3")
+    assert done.returncode == 0, done.stderr
+    assert hashlib.sha256((outdir / "ca.pem").read_bytes()).hexdigest() == ca_before
+    text = subprocess.run(
+        ["openssl", "x509", "-in", str(outdir / "islands/island-3/cert.pem"), "-noout", "-subject", "-ext", "extendedKeyUsage"],
+        capture_output=True, text=True, check=True, timeout=30,
+    ).stdout
+    assert "CN = island-3" in text and "TLS Web Client Authentication" in text
+    coordinator_text = subprocess.run(
+        ["openssl", "x509", "-in", str(outdir / "coordinator/cert.pem"), "-noout", "-ext", "subjectAltName"],
+        capture_output=True, text=True, check=True, timeout=30,
+    ).stdout
+    assert "IP Address:127.0.0.1" in coordinator_text and "DNS:localhost" in coordinator_text
+
+
+@pytest.mark.parametrize("args", [["-o"], ["-d", "soon", "island-1"], ["bad id!"], ["-x"]])
+def test_make_certs_rejects_bad_arguments_with_one_line(args: list[str], tmp_path: Path) -> None:
+    done = subprocess.run(["bash", str(MAKE_CERTS), *args], capture_output=True, text=True, timeout=30, cwd=tmp_path)
+    assert done.returncode == 2
+    assert done.stderr.startswith("make-certs.sh: error: ") and done.stderr.count("\n") == 1
+    assert not (tmp_path / "hysid-certs").exists()

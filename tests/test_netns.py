@@ -1,0 +1,191 @@
+"""A multi-host campaign on one machine: hosts are Linux network namespaces.
+
+The coordinator's namespace holds a bridge with the address SUBNET.1; every
+other namespace is a host with one veth into that bridge and the address
+SUBNET.(10+k). The namespaces have no default route: traffic goes only between
+their own addresses. Needs root and iproute2 (``ip``); skipped otherwise.
+Namespaces are always deleted, also those left by a killed earlier run.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import pytest
+
+pytestmark = pytest.mark.timeout(60)
+
+SUBNET = "169.254.147"
+"""Link-local /24 used only inside the test's namespaces."""
+PREFIX = "hysidt"
+PORT = 7447
+
+
+def ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=20, check=check)
+
+
+def remove_stale_namespaces() -> None:
+    """Delete namespaces of earlier runs whose process is gone (killed before its cleanup)."""
+    for line in ip("netns", "list", check=False).stdout.splitlines():
+        match = re.match(rf"({PREFIX}(\d+)-\S+)", line)
+        if match and not os.path.exists(f"/proc/{match.group(2)}"):
+            ip("netns", "del", match.group(1), check=False)
+
+
+@dataclass
+class Lab:
+    """Network namespaces joined by a bridge in the coordinator's namespace."""
+
+    hosts: int
+    tag: str = field(default_factory=lambda: f"{PREFIX}{os.getpid()}")
+    made: list[str] = field(default_factory=list)
+
+    @property
+    def hub(self) -> str:
+        return f"{self.tag}-c"
+
+    def host(self, k: int) -> str:
+        return f"{self.tag}-h{k}"
+
+    hub_address = f"{SUBNET}.1"
+
+    @staticmethod
+    def host_address(k: int) -> str:
+        return f"{SUBNET}.{10 + k}"
+
+    def _add(self, name: str) -> None:
+        ip("netns", "add", name)
+        self.made.append(name)
+        ip("-n", name, "link", "set", "lo", "up")
+
+    def build(self) -> None:
+        self._add(self.hub)
+        ip("-n", self.hub, "link", "add", "br0", "type", "bridge")
+        ip("-n", self.hub, "addr", "add", f"{self.hub_address}/24", "dev", "br0")
+        ip("-n", self.hub, "link", "set", "br0", "up")
+        for k in range(1, self.hosts + 1):
+            self._add(self.host(k))
+            port = f"veth{k}"
+            ip("-n", self.hub, "link", "add", port, "type", "veth", "peer", "name", "eth0", "netns", self.host(k))
+            ip("-n", self.hub, "link", "set", port, "master", "br0", "up")
+            ip("-n", self.host(k), "addr", "add", f"{self.host_address(k)}/24", "dev", "eth0")
+            ip("-n", self.host(k), "link", "set", "eth0", "up")
+
+    def destroy(self) -> None:
+        for name in reversed(self.made):
+            ip("netns", "del", name, check=False)
+        self.made.clear()
+
+    def namespaces(self) -> list[str]:
+        return [self.hub, *(self.host(k) for k in range(1, self.hosts + 1))]
+
+    def command(self, namespace: str, *argv: str) -> list[str]:
+        return ["ip", "netns", "exec", namespace, *argv]
+
+
+def lab_or_skip(hosts: int) -> Iterator[Lab]:
+    if os.geteuid() != 0:
+        pytest.skip("network namespaces need root")
+    if shutil.which("ip") is None:
+        pytest.skip("iproute2 'ip' is not installed")
+    remove_stale_namespaces()
+    lab = Lab(hosts)
+    try:
+        try:
+            lab.build()
+        except subprocess.CalledProcessError as exc:
+            pytest.skip(f"cannot create network namespaces here: {' '.join(exc.cmd)}: {exc.stderr.strip()}")
+        yield lab
+    finally:
+        lab.destroy()
+
+
+@pytest.fixture
+def lab() -> Iterator[Lab]:
+    yield from lab_or_skip(hosts=2)
+
+
+def test_lab_namespaces_reach_each_other_and_nothing_else(lab: Lab) -> None:
+    for namespace in lab.namespaces():
+        assert ip("-n", namespace, "route", "show", "default").stdout.strip() == ""
+    for k in (1, 2):
+        routes = ip("-n", lab.host(k), "-4", "route", "show").stdout
+        assert routes.split()[0] == f"{SUBNET}.0/24", routes
+
+
+ROUTER = """
+import json, sys, time, zenoh
+endpoint, expected = sys.argv[1], set(sys.argv[2:])
+config = zenoh.Config()
+config.insert_json5("mode", '"router"')
+config.insert_json5("scouting/multicast/enabled", "false")
+config.insert_json5("listen/endpoints", json.dumps([endpoint]))
+router = zenoh.open(config)
+got, remotes = {}, set()
+def heard(sample):
+    sender = str(sample.key_expr).rsplit("/", 1)[1]
+    got[sender] = sample.payload.to_bytes().decode()
+    remotes.update(link.dst for link in router.info.links())
+    router.put(f"hysid/netns/ack/{sender}", b"ack")
+subscriber = router.declare_subscriber("hysid/netns/hello/*", heard)
+print("ready", flush=True)
+deadline = time.monotonic() + 30
+while set(got) != expected and time.monotonic() < deadline:
+    time.sleep(0.05)
+print(json.dumps({"got": got, "remotes": sorted(remotes)}), flush=True)
+time.sleep(0.5)
+router.close()
+"""
+
+PEER = """
+import json, sys, time, threading, zenoh
+endpoint, name = sys.argv[1], sys.argv[2]
+config = zenoh.Config()
+config.insert_json5("mode", '"peer"')
+config.insert_json5("scouting/multicast/enabled", "false")
+config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+config.insert_json5("connect/timeout_ms", "20000")
+peer = zenoh.open(config)
+acked = threading.Event()
+subscriber = peer.declare_subscriber(f"hysid/netns/ack/{name}", lambda sample: acked.set())
+deadline = time.monotonic() + 30
+while not acked.is_set() and time.monotonic() < deadline:
+    peer.put(f"hysid/netns/hello/{name}", f"hello from {name}")
+    acked.wait(0.2)
+peer.close()
+sys.exit(0 if acked.is_set() else 1)
+"""
+
+
+def test_zenoh_router_and_peers_in_separate_namespaces_exchange(lab: Lab) -> None:
+    endpoint = f"tcp/{lab.hub_address}:{PORT}"
+    names = ["h1", "h2"]
+    router = subprocess.Popen(
+        lab.command(lab.hub, sys.executable, "-c", ROUTER, endpoint, *names),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    peers = []
+    try:
+        assert router.stdout.readline().strip() == "ready", router.stderr.read()
+        peers = [
+            subprocess.Popen(lab.command(lab.host(k), sys.executable, "-c", PEER, endpoint, name), stderr=subprocess.PIPE, text=True)
+            for k, name in enumerate(names, start=1)
+        ]
+        for peer in peers:
+            assert peer.wait(timeout=40) == 0, peer.stderr.read()
+        report = json.loads(router.stdout.readline())
+        assert router.wait(timeout=10) == 0, router.stderr.read()
+    finally:
+        for process in (router, *peers):
+            process.kill()
+            process.wait(timeout=10)
+    assert report["got"] == {name: f"hello from {name}" for name in names}
+    assert {remote.split(":")[0] for remote in report["remotes"]} == {f"tcp/{lab.host_address(k)}" for k in (1, 2)}

@@ -1,0 +1,79 @@
+"""The fit report: Markdown, strict JSON and PNG figures in a real directory."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from coordinator.fit import fit
+from coordinator.report import jsondoc, write_report
+from hysid_model.synth import synth_loops
+
+FIGURES = ("convergence.png", "loops.png", "residuals.png", "half_power.png")
+SMALL_GA = {"initial_population": 600, "population": 100, "iterations": 6}
+
+
+@pytest.fixture(scope="module")
+def report_dir(tmp_path_factory):
+    result = fit(synth_loops(20.0, seed=2), algo="ga", runs=2, seed=5, options=SMALL_GA)
+    out = tmp_path_factory.mktemp("report")
+    path = write_report(result, out)
+    return out, path, result
+
+
+def test_report_files_are_written(report_dir):
+    out, path, result = report_dir
+    assert path == out / "report.md"
+    assert result.report == str(path)
+    text = path.read_text()
+    for name in FIGURES:
+        png = out / name
+        assert png.stat().st_size > 20_000, name
+        assert f"]({name})" in text, name
+        height, width = imread(png).shape[:2]
+        assert width >= 4.5 * 150 and height >= 2.5 * 150, (name, width, height)  # >= 150 dpi at print size
+    assert (out / "result.json").exists()
+    assert "[`result.json`](result.json)" in text
+
+
+def test_report_tells_parameters_amplitudes_half_power_and_runs(report_dir):
+    _, path, result = report_dir
+    text = path.read_text()
+    for heading in ("## Parameters", "## Damping ratio and natural frequency at each amplitude",
+                    "## Half-power cross-check of the damping (Eq. 2.7)", "## Runs", "## Model vs trial loops", "## Residuals"):
+        assert heading in text
+    for name in result.model.names:
+        assert f"| `{name}` |" in text
+    assert "Cramer-Rao" in text  # noisy Synth set: sigma known, ML weights by default
+    assert len(re.findall(r"^\| (\*\*)?run \d", text, flags=re.M)) == 2
+    rows = re.findall(r"^\| (0\.5|1|1\.5) \| 40 \|", text, flags=re.M)
+    assert rows == ["0.5", "1", "1.5"]
+
+
+def test_result_json_is_strict_and_complete(report_dir):
+    out, _, result = report_dir
+    doc = json.loads((out / "result.json").read_text(), parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+    assert set(doc["params"]) == set(result.model.names) == set(doc["stderr"])
+    assert doc["report"] == str(out / "report.md")
+    assert len(doc["runs"]) == 2 and [r["seed"] for r in doc["runs"]] == [5, 6]
+    assert doc["fitness"] == min(r["fitness"] for r in doc["runs"])
+    assert len(doc["history"]) == SMALL_GA["iterations"] + 1
+
+
+def test_jsondoc_turns_numpy_and_nan_into_plain_json():
+    text = jsondoc.dumps({"a": np.float64(np.nan), "b": np.arange(3), "c": (np.int64(2), float("inf")), "d": np.bool_(True)})
+    assert json.loads(text) == {"a": None, "b": [0, 1, 2], "c": [2, None], "d": True}
+
+
+def test_report_without_a_resonance_in_the_sweep(tmp_path):
+    loops = synth_loops(0.0)
+    low = loops.subset(np.flatnonzero(loops.freq_hz < 29.0))
+    result = fit(low, algo="ga", options=SMALL_GA, polish=False)
+    assert not any(hp.ok for hp in result.half_power)
+    text = write_report(result, tmp_path / "r").read_text()
+    assert "n/a: resonance peak at the edge of the frequency sweep" in text
+    assert (tmp_path / "r" / "half_power.png").stat().st_size > 20_000
