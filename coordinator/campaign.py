@@ -21,8 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from coordinator.fit import FitResult
-from coordinator.server import Coordinator, Progress, ZenohLink
+from coordinator.server import CampaignResult, Coordinator, Progress, ZenohLink
 from coordinator.zenoh_session import open_session, session_config
 from hysid_model.errors import HysidInputError
 from island.node import IslandNode, MemoryBus
@@ -172,12 +171,16 @@ def run_campaign(
     progress_stream: TextIO | None = None,
     quiet: bool = False,
     polish: bool = True,
-) -> FitResult:
-    """Run the islands (processes over Zenoh, else threads) to a stop rule; the polished result."""
+    endpoint: str | None = None,
+) -> CampaignResult:
+    """Run the islands (processes over Zenoh, else threads) to a stop rule; the polished result.
+
+    The coordinator listens on ``endpoint`` (default: a free loopback port).
+    """
     on_progress = None if quiet else ProgressPrinter(progress_stream)
     session = None
     if not single_node:
-        endpoint = f"tcp/127.0.0.1:{free_port()}"
+        endpoint = endpoint or f"tcp/127.0.0.1:{free_port()}"
         try:
             session = open_session(session_config("router", listen=[endpoint]), f"listen {endpoint}")
         except HysidInputError as exc:

@@ -20,9 +20,8 @@ import typer
 
 from coordinator.campaign import ProgressPrinter, island_specs, run_campaign
 from coordinator.cli_fit import default_out, summary_text
-from coordinator.fit import FitResult
-from coordinator.report import jsondoc, write_report
-from coordinator.server import Coordinator, StopRules, ZenohLink, new_config, resume
+from coordinator.report import jsondoc
+from coordinator.server import CampaignResult, Coordinator, StopRules, ZenohLink, new_config, resume
 from coordinator.store import Store
 from coordinator.zenoh_session import DEFAULT_ENDPOINT, open_session, session_config
 from hysid_model.datasets import load_dataset
@@ -80,20 +79,20 @@ def open_store(db: Optional[Path], out: Path) -> Store:
     return Store(path)
 
 
-def finish(result: FitResult, out: Path, json_out: bool) -> None:
+def finish(result: CampaignResult, out: Path, json_out: bool) -> None:
     """Write the ``hysid fit`` report and print the JSON document or the summary."""
-    write_report(result, out)
+    result.write_report(out)
     if json_out:
         print(jsondoc.dumps(result.as_dict()))
         return
-    print(summary_text(result))
-    m = result.extra["migrations"]
-    print(f"campaign {result.settings['campaign']}: stopped because {result.settings['stop_reason']}")
+    print(summary_text(result.fit))
+    m = result.migrations
+    print(f"campaign {result.fit.settings['campaign']}: stopped because {result.fit.settings['stop_reason']}")
     print(
         f"migrations: {m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
         f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected"
     )
-    for isl in result.extra["islands"]:
+    for isl in result.islands:
         print(
             f"  {isl['island']:<12} {isl['algo'].upper():<4} seed {isl['seed']:<4} {isl['status']:<6} best {isl['best_fitness']:.4g} "
             f"after {isl['iterations']} iterations, {isl['evaluations']:,} evaluations"
@@ -139,6 +138,7 @@ def register(app: typer.Typer) -> None:
             loops, name="campaign", model=model, weights=weights, algos=algo_list,
             options=algorithm_options(population, initial, iterations),
             migration=Migration(interval=interval, k=migrants, topology=topology, random_k=random_k), seed=seed,
+            min_islands=islands,
         )
         rules = StopRules(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
         out_dir = out if out is not None else default_out("campaign")
@@ -159,6 +159,7 @@ def register(app: typer.Typer) -> None:
         campaign: str = CAMPAIGN,
         db: Optional[Path] = DB,
         resume_db: bool = typer.Option(False, "--resume", help="Carry on the campaign stored in --db after a crash."),
+        min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
         algos: str = ALGOS,
         topology: str = TOPOLOGY,
         interval: int = INTERVAL,
@@ -203,6 +204,7 @@ def register(app: typer.Typer) -> None:
                     loops, name=campaign, model=model, weights=weights, algos=algo_list,
                     options=algorithm_options(population, initial, iterations),
                     migration=Migration(interval=interval, k=migrants, topology=topology, random_k=random_k), seed=seed,
+                    min_islands=min_islands,
                 )
                 coordinator = Coordinator(store, config, loops, rules, dataset=dataset or "synth")
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)

@@ -7,16 +7,20 @@ import sys
 from pathlib import Path
 from typing import Optional, TextIO
 
-import numpy as np
 import typer
 
 from coordinator.fit import FitResult, fit
 from coordinator.report import jsondoc, write_report
-from coordinator.report.markdown import loops_description
-from coordinator.reproduce import parse_seeds, reproduce_thesis, write_reproduction
+from coordinator.report.markdown import loops_description, quality_text
+from coordinator.reproduce import SETTINGS, parse_seeds, reproduce_thesis, write_reproduction
+from coordinator.thesis_tables import ALGOS, NOISE_LEVELS
 from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError
 from island.run import HistoryRow
+
+
+ROWS_PER_RUN = 18 + 1
+"""History rows of a run with the thesis' settings: the initial population, then 18 iterations (section 5.1)."""
 
 
 class ProgressBar:
@@ -55,9 +59,21 @@ def default_out(kind: str) -> Path:
     return out
 
 
+def out_dir(out: Path | None, kind: str) -> Path:
+    """The report directory: ``--out`` if given (it must not be a file), else :func:`default_out`."""
+    if out is None:
+        return default_out(kind)
+    if out.exists() and not out.is_dir():
+        raise HysidInputError(f"--out {out}: exists and is not a directory")
+    return out
+
+
 def _text_table(headers: list[str], rows: list[list[str]]) -> str:
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(headers)]
-    line = lambda cells: "  " + "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
+
+    def line(cells: list[str]) -> str:
+        return "  " + "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
+
     return "\n".join([line(headers)] + [line(r) for r in rows])
 
 
@@ -73,6 +89,7 @@ def summary_text(result: FitResult) -> str:
         f"hysid fit {result.loops.name}: {loops_description(result)}",
         f"model {result.model.spec} ({', '.join(result.model.names)}); {algo} x {len(result.runs)} run(s){polish}; {result.weights} weights",
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
+        f"fit quality: {quality_text(result)}",
         "",
     ]
     se = result.stderr
@@ -86,7 +103,7 @@ def summary_text(result: FitResult) -> str:
     lines += [_text_table(headers, rows), f"  (standard errors: {result.stderr_method})", ""]
     rows = []
     for a, hp in zip(result.amplitudes, result.half_power):
-        half = f"{hp.xi:.5f} +- {hp.resolution:.1g}" if hp.ok else f"n/a ({hp.note})"
+        half = f"{hp.xi:.5f} (grid resolution {hp.resolution:.2g})" if hp.ok else f"n/a ({hp.note})"
         rows.append([
             f"{a.x0 * 1e3:.4g}",
             f"{a.values['fn_hz']:.4f}",
@@ -124,8 +141,9 @@ def register(app: typer.Typer) -> None:
         """Identify the model's parameters from DATASET in this process (no network)."""
         if runs < 1:
             raise HysidInputError(f"--runs {runs}: the number of runs must be at least 1")
+        target = out_dir(out, "fit")
         loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed)
-        progress = ProgressBar(runs * 19, "fitting")
+        progress = ProgressBar(runs * ROWS_PER_RUN, "fitting")
 
         def show(i: int, row: HistoryRow) -> None:
             progress.step(f"run {i + 1}/{runs}, iteration {row.iteration}, best {row.best_fitness:.4g}")
@@ -134,7 +152,7 @@ def register(app: typer.Typer) -> None:
             result = fit(loops, model=model, algo=algo, runs=runs, seed=seed, weights=weights, polish=polish, progress=show)
         finally:
             progress.close()
-        write_report(result, out if out is not None else default_out("fit"))
+        write_report(result, target)
         if json_out:
             print(jsondoc.dumps(result.as_dict()))
         else:
@@ -153,12 +171,13 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Section 5.2.1 again: Tables 5.5-5.13 and Figs. 5.2-5.13 next to the thesis' numbers."""
         noise_seeds = parse_seeds(seeds_noise, runs)
-        progress = ProgressBar(len(noise_seeds) * 16, "reproducing")
+        target = out_dir(out, "reproduce")
+        progress = ProgressBar(len(noise_seeds) * len(NOISE_LEVELS) * len(SETTINGS) * len(ALGOS), "reproducing")
         try:
             rep = reproduce_thesis(noise_seeds=noise_seeds, seed=seed, progress=progress.step)
         finally:
             progress.close()
-        report = write_reproduction(rep, out if out is not None else default_out("reproduce"))
+        report = write_reproduction(rep, target)
         if json_out:
             print(jsondoc.dumps({**rep.as_dict(), "report": str(report)}))
         else:

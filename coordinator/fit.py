@@ -14,7 +14,7 @@ damping (Eq. 2.7, Fig. 6.1).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
@@ -153,7 +153,6 @@ class FitResult:
     half_power: list[HalfPower]
     quality: dict[str, float | None]
     report: str | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
     def from_runs(cls, objective: Objective, runs: list[RunResult], settings: dict[str, Any]) -> "FitResult":
@@ -162,15 +161,15 @@ class FitResult:
             raise ValueError("a fit result needs at least one run")
         best = int(np.argmin([r.fitness for r in runs]))
         theta = runs[best].theta
+        loops, model = objective.loops, objective.model
         if objective.weights == "ml":
             cov = np.linalg.pinv(fisher_information(objective, theta))
-            method = "Cramer-Rao bound (ML weights, known noise sigma)"
+            method = "Cramer-Rao bound of the ML weights, noise sigma known"
         else:
             cov = covariance(objective, theta)
-            source = "known" if objective.loops.has_sigma else "residual"
-            method = f"sandwich covariance of the thesis-weighted least squares ({source} noise sigma)"
-        levels, _ = amplitude_levels(objective.loops.x0)
-        loops = objective.loops
+            source = "known" if loops.has_sigma else "estimated from the residuals"
+            method = f"sandwich covariance of the thesis-weighted least squares, noise sigma {source}"
+        levels, _ = amplitude_levels(loops.x0)
         force_amplitude = np.abs(first_harmonic(loops))
         relative = objective.residuals(theta) / force_amplitude[:, None]
         quality = {
@@ -178,16 +177,16 @@ class FitResult:
             "noise_sigma_pct": float(100.0 * np.sqrt(np.mean((loops.sigma / force_amplitude) ** 2))) if loops.has_sigma else None,
         }
         return cls(
-            loops=objective.loops,
-            model=objective.model,
+            loops=loops,
+            model=model,
             weights=objective.weights,
             runs=runs,
             settings=settings,
             best=best,
             covariance=cov,
             stderr_method=method,
-            amplitudes=derived_table(objective.model, theta, cov, levels, objective.loops.meq_kg),
-            half_power=half_power_by_amplitude(objective.loops),
+            amplitudes=derived_table(model, theta, cov, levels, loops.meq_kg),
+            half_power=half_power_by_amplitude(loops),
             quality=quality,
         )
 
@@ -244,7 +243,6 @@ class FitResult:
             "quality": self.quality,
             "runs": [r.as_dict(names) for r in self.runs],
             "report": self.report,
-            **self.extra,
         }
 
 

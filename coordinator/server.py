@@ -27,6 +27,7 @@ campaigns feed the same queue from island threads (:mod:`coordinator.campaign`).
 from __future__ import annotations
 
 import queue
+from pathlib import Path
 import threading
 import time
 from collections.abc import Callable
@@ -37,6 +38,7 @@ import numpy as np
 import zenoh
 
 from coordinator.fit import FitResult, RunResult, build_objective
+from coordinator.report import jsondoc, write_report
 from coordinator.store import IslandRecord, Store, StoredBest
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
@@ -95,6 +97,8 @@ def new_config(
     options: dict[str, dict[str, Any]] | None = None,
     migration: Migration | None = None,
     seed: int = 0,
+    min_islands: int = 1,
+    objective_kind: str = "closed_form",
 ) -> CampaignConfig:
     """A campaign configuration with the bounds and weights ``hysid fit`` would use on ``loops``."""
     objective = build_objective(loops, model, weights)
@@ -107,7 +111,29 @@ def new_config(
         options=dict(options or {}),
         migration=migration or Migration(),
         seed=seed,
+        min_islands=min_islands,
+        objective_kind=objective_kind,
     )
+
+
+@dataclass
+class CampaignResult:
+    """A campaign's :class:`FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
+
+    fit: FitResult
+    islands: list[dict[str, Any]]
+    migrations: dict[str, Any]
+    members: list[dict[str, Any]]
+
+    def as_dict(self) -> dict[str, Any]:
+        """The ``hysid fit --json`` document plus ``islands``, ``migrations`` and membership ``members``."""
+        return {**self.fit.as_dict(), "islands": self.islands, "migrations": self.migrations, "members": self.members}
+
+    def write_report(self, out_dir: Path) -> Path:
+        """The ``hysid fit`` report; its ``result.json`` holds the campaign document."""
+        report = write_report(self.fit, out_dir)
+        jsondoc.write(Path(out_dir) / "result.json", self.as_dict())
+        return report
 
 
 class Link(Protocol):
@@ -227,9 +253,9 @@ class Coordinator:
         member = self.members.get(island)
         if alive:
             event = "join" if member is None else ("back" if member.status != "alive" else "seen")
-            self.members[island] = Member("alive", member.run if member else "")
+            run = member.run if member else self._latest_run(island)
+            self.members[island] = Member("alive", run)
             self.store.member_event(self.name, island, event)
-            run = self.members[island].run
             link.request_history(island, run, self.store.last_iteration(self.name, island, run) if run else -1)
         elif member is not None and member.status == "alive":
             if self.islands.get((island, member.run), IslandView("")).final:
@@ -237,6 +263,12 @@ class Coordinator:
                 self.store.member_event(self.name, island, "left")
             else:
                 member.gone_at = time.monotonic()
+
+    def _latest_run(self, island: str) -> str:
+        """The island's run with the most iterations on record ("" if none): after a coordinator
+        restart, the run that is probably still going."""
+        runs = [(view.iteration, run) for (i, run), view in self.islands.items() if i == island]
+        return max(runs)[1] if runs else ""
 
     def _settle_departures(self) -> None:
         """Tokens gone without a final history for ``LEAVE_GRACE_S``: the island is lost."""
@@ -350,7 +382,7 @@ class Coordinator:
         return self.stop_reason
 
     # --- the result ----------------------------------------------------------------
-    def result(self, *, polish_best: bool = True) -> FitResult:
+    def result(self, *, polish_best: bool = True) -> "CampaignResult":
         """Every island run re-evaluated, the global best polished, standard errors: a :class:`FitResult`."""
         objective = replace(self.config, objective_kind="closed_form").objective(self.loops)
         records = self.store.islands(self.name)
@@ -390,8 +422,13 @@ class Coordinator:
             "stop_reason": self.stop_reason or self.store.stop_reason(self.name),
             "db": self.store.path,
         }
-        result = FitResult.from_runs(objective, runs, settings)
-        result.extra = {"islands": self.island_summaries(records, runs), "migrations": self.migration_summary(records), "members": self.store.members(self.name)}
+        result = CampaignResult(
+            FitResult.from_runs(objective, runs, settings),
+            islands=self.island_summaries(records, runs),
+            migrations=self.migration_summary(records),
+            members=[{"island": i, "event": e, "t": t} for i, e, t in self.store.members(self.name)],
+        )
+        self.store.set_result(self.name, jsondoc.dumps(result.as_dict()))
         return result
 
     def island_summaries(self, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:

@@ -122,12 +122,21 @@ class Store:
             raise HysidInputError(f"{self.path}: no campaign {name!r} to resume (stored: {', '.join(known) or 'none'})")
         return row[0], bytes(row[1]), row[2]
 
-    def set_status(self, name: str, status: str, reason: str | None = None, result: dict[str, Any] | None = None) -> None:
+    def set_status(self, name: str, status: str, reason: str | None = None) -> None:
         self.db.execute(
-            "UPDATE campaigns SET status = ?, stop_reason = ?, ended = ?, result = ? WHERE name = ?",
-            (status, reason, time.time() if status != "running" else None, None if result is None else json.dumps(result), name),
+            "UPDATE campaigns SET status = ?, stop_reason = ?, ended = ? WHERE name = ?",
+            (status, reason, time.time() if status != "running" else None, name),
         )
         self.db.commit()
+
+    def set_result(self, name: str, result_json: str) -> None:
+        """The final result document (the JSON of ``hysid campaign --json``)."""
+        self.db.execute("UPDATE campaigns SET result = ? WHERE name = ?", (result_json, name))
+        self.db.commit()
+
+    def result(self, name: str) -> dict[str, Any] | None:
+        row = self.db.execute("SELECT result FROM campaigns WHERE name = ?", (name,)).fetchone()
+        return None if row is None or row[0] is None else json.loads(row[0])
 
     def stop_reason(self, name: str) -> str | None:
         row = self.db.execute("SELECT stop_reason FROM campaigns WHERE name = ?", (name,)).fetchone()

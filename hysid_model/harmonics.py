@@ -115,14 +115,20 @@ class HarmonicObjective:
 
     Same contract as :class:`hysid_model.objective.Objective` (``__call__`` on a
     population, ``weighted_residuals``, ``jacobian``, ``bounds``), so the
-    optimizers and the polish step run on it unchanged.
+    optimizers and the polish step run on it unchanged. For a memoryless model
+    the features are whitened once, Q^T Phi / sigma, so a candidate costs
+    O(L x 15 x features); a model with memory is evaluated on the samples.
     """
+
+    JACOBIAN_STEP = 1e-6
+    """Central-difference step relative to max(|theta|, 1e-3 x the bound range), kept inside the bounds."""
 
     def __init__(self, harmonics: Harmonics, model: Model) -> None:
         self.harmonics = harmonics
         self.model = model
         self.objective = Objective(harmonics.loops, model, weights="thesis")
         self.target = harmonics.whiten(harmonics.loops.forces())
+        self.design = None if model.has_memory else np.einsum("lnm,lnf->lmf", harmonics.q, self.objective.phi) / harmonics.sigma[:, None, None]
         self.evaluations = 0
 
     @property
@@ -135,7 +141,12 @@ class HarmonicObjective:
 
     def whitened(self, pop: np.ndarray) -> np.ndarray:
         """Whitened residual coefficients (model - data), ``(P, L, M)``."""
-        return self.harmonics.whiten(self.objective.predict(pop)) - self.target
+        pop = np.atleast_2d(np.asarray(pop, dtype=float))
+        if self.design is None:
+            return self.harmonics.whiten(self.objective.predict(pop)) - self.target
+        coefs = self.model.coefficients(pop, self.objective.kin)
+        a = np.stack([coefs[name] for name in self.objective.features], axis=-1)
+        return np.einsum("plf,lmf->plm", a, self.design) - self.target
 
     def __call__(self, pop: np.ndarray) -> np.ndarray:
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
@@ -147,12 +158,20 @@ class HarmonicObjective:
     def weighted_residuals(self, theta: np.ndarray) -> np.ndarray:
         """Flat whitened residuals; their sum of squares is the chi^2."""
         self.evaluations += 1
-        return self.whitened(np.asarray(theta, dtype=float).reshape(1, -1))[0].reshape(-1)
+        return self.whitened(theta)[0].reshape(-1)
 
     def jacobian(self, theta: np.ndarray, weighted: bool = True) -> np.ndarray:
-        """d(whitened residuals)/d(theta), ``(L*M, D)`` (``weighted`` is accepted for the Objective contract)."""
-        jac = self.objective.jacobian(theta, weighted=False)
+        """d(whitened residuals)/d(theta), ``(L*M, D)``, by central differences (``weighted`` only mirrors the Objective's signature).
+
+        Parameters span many decades (a yield displacement of microns within
+        [1e-9, 1] m), so the step follows the value; probes never leave the bounds.
+        """
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        lower, upper = self.bounds[:, 0], self.bounds[:, 1]
+        h = self.JACOBIAN_STEP * np.maximum(np.abs(theta), 1e-3 * (upper - lower))
+        up = np.minimum(theta + h, upper)
+        down = np.maximum(theta - h, lower)
+        white = self.whitened(np.concatenate([np.where(np.eye(self.dim, dtype=bool), up, theta), np.where(np.eye(self.dim, dtype=bool), down, theta)]))
+        white = white.reshape(2 * self.dim, -1)
         self.evaluations += 2 * self.dim
-        n = self.harmonics.loops.n_samples * 2
-        per_loop = jac.reshape(self.harmonics.loops.n_loops, n, self.dim)
-        return (np.einsum("lnm,lnd->lmd", self.harmonics.q, per_loop) / self.harmonics.sigma[:, None, None]).reshape(-1, self.dim)
+        return ((white[: self.dim] - white[self.dim :]) / (up - down)[:, None]).T

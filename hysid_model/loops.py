@@ -24,7 +24,8 @@ class LoopSet:
     ``top`` and ``bottom`` have shape ``(L, n, 2)`` holding displacement (m) and
     force (N). ``sigma`` is each loop's force-noise standard deviation (N), NaN
     where unknown. ``meq_kg`` is the known equivalent mass, or None when unknown
-    (then it is fitted).
+    (then it is fitted). ``meta["per_loop"]``, when present, maps names to lists
+    with one entry per loop (kept aligned by :meth:`subset`).
     """
 
     name: str
@@ -116,8 +117,15 @@ class LoopSet:
             meq_kg=self.meq_kg,
             cycles=self.cycles[idx],
             labels=[self.labels[i] for i in idx],
-            meta=dict(self.meta),
+            meta=self._meta_subset(idx),
         )
+
+    def _meta_subset(self, idx: np.ndarray) -> dict[str, Any]:
+        """``meta`` for a subset: per-loop lists under ``meta["per_loop"]`` are sliced with the loops."""
+        meta = dict(self.meta)
+        if isinstance(meta.get("per_loop"), dict):
+            meta["per_loop"] = {key: [values[i] for i in idx] for key, values in meta["per_loop"].items()}
+        return meta
 
     def with_meq(self, meq_kg: float | None) -> "LoopSet":
         out = self.subset(np.arange(self.n_loops))

@@ -158,11 +158,11 @@ def simulate_raw(
     meq_kg: float | None,
     noise_n: float | np.ndarray,
     seed: int = 0,
-    samples_per_cycle: int = 128,
+    sample_rate_hz: float = 5000.0,
     cycles: int = 8,
     x_noise: float = 1e-4,
 ) -> list[RawRecord]:
-    """Raw steady-state records of any model: ``cycles`` periods sampled ``samples_per_cycle`` times each.
+    """Raw steady-state records of any model: ``cycles`` periods sampled at ``sample_rate_hz``.
 
     Each record starts at a random phase; the force gets Gaussian noise of std
     ``noise_n`` (N, scalar or per record), the displacement noise of std
@@ -177,7 +177,7 @@ def simulate_raw(
     records = []
     for f, a, sigma in zip(freq_hz, x0, noise):
         w = 2.0 * np.pi * f
-        t = np.arange(cycles * samples_per_cycle) / (samples_per_cycle * f)
+        t = np.arange(int(round(cycles * sample_rate_hz / f))) / sample_rate_hz
         phase = w * t + rng.uniform(0.0, 2.0 * np.pi)
         clean = model_force(model, theta, f, a, meq_kg, phase)
         x = a * np.sin(phase) + x_noise * a * rng.standard_normal(t.size)

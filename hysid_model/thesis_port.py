@@ -212,6 +212,8 @@ class ThesisObjective:
     loopsweights = maxFall / maxF_j (``loop_weights(loops, "thesis")`` holds
     the division by NOS too) and Xpk_j = max |x| over both branches of loop j.
     Parameters are the thesis chromosome [xi0, S_xi, w0, S_w]; Meq is known.
+    (The GA program took maxF before adding its synthetic noise; a loop set
+    holds the measured branches only, so maxF is taken from those, as hysid does.)
     """
 
     def __init__(self, loops: LoopSet, meq_kg: float, tspan: float = THESIS_TSPAN_S, dt: float = THESIS_DT_S) -> None:

@@ -41,6 +41,7 @@ from island.protocol import (
     Best,
     CampaignConfig,
     History,
+    START_TIMEOUT_S,
     MessageRejected,
     Migrants,
     check_name,
@@ -52,6 +53,8 @@ from island.protocol import (
 )
 from island.run import HistoryRow, run
 
+HISTORY_CHUNK = 20_000
+"""History rows per message (well under :data:`island.protocol.MAX_ROWS`)."""
 MAX_INBOX = 4096
 """Migrant messages an island keeps between two epochs; older ones are dropped first."""
 
@@ -75,6 +78,9 @@ class Transport(Protocol):
 
     def global_best(self) -> bytes | None:
         """The coordinator's current best message, if there is one (asked once, when the island starts)."""
+
+    def wait_for_members(self, n: int, timeout_s: float) -> None:
+        """Return once ``n`` islands are members (or after ``timeout_s``, or on a stop order)."""
 
 
 class IslandNode:
@@ -114,6 +120,7 @@ class IslandNode:
     def run(self, transport: Transport) -> list[tuple[int, float, int, float]]:
         """Optimize until done or stopped; returns the rows ``(iteration, best, evaluations, wall s)``."""
         self._transport = transport
+        transport.wait_for_members(self.config.min_islands, START_TIMEOUT_S)
         self._best_in = self._decode_best(transport.global_best())
         try:
             run(self.optimizer, self.objective, callback=self._record, should_stop=transport.stop_requested, migrate=self._migrate)
@@ -135,7 +142,7 @@ class IslandNode:
             self._take([self._best_in.x[None, :]])
             self._best_in = None
         mig = self.config.migration
-        if mig.interval == 0 or optimizer.iteration % mig.interval:
+        if mig.interval == 0 or optimizer.iteration == 0 or optimizer.iteration % mig.interval:
             return
         epoch = optimizer.iteration // mig.interval
         x, f = optimizer.best(mig.k)
@@ -176,21 +183,27 @@ class IslandNode:
             return None
 
     # --- history ---------------------------------------------------------------------
-    def history_message(self, since: int = -1, final: bool = False) -> bytes:
-        """This island's rows after iteration ``since``, its best so far and its counters."""
-        rows = [r for r in list(self.rows) if r[0] > since]
+    def history_messages(self, since: int = -1, final: bool = False) -> list[bytes]:
+        """This island's rows after iteration ``since`` (in chunks of :data:`HISTORY_CHUNK`), each
+        with its best so far and its counters; ``final`` marks the last one as its goodbye."""
+        rows = np.array([r for r in list(self.rows) if r[0] > since], dtype=float).reshape(-1, 4)
         x, f = self._snapshot
-        return encode_history(History(
-            self.config.name, self.island, self.run_id, self.algo, self.seed, np.array(rows, dtype=float).reshape(-1, 4),
-            x, f, dict(self.stats), final,
-        ))
+        chunks = [rows[i : i + HISTORY_CHUNK] for i in range(0, rows.shape[0], HISTORY_CHUNK)] or [rows]
+        return [
+            encode_history(History(
+                self.config.name, self.island, self.run_id, self.algo, self.seed, chunk, x, f, dict(self.stats),
+                final and i == len(chunks) - 1,
+            ))
+            for i, chunk in enumerate(chunks)
+        ]
 
     def _flush(self, final: bool = False) -> None:
         assert self._transport is not None
         last = self.rows[self._published - 1][0] if self._published else -1
         if self._published == len(self.rows) and not final:
             return
-        self._transport.publish_history(self.history_message(since=last, final=final))
+        for message in self.history_messages(since=last, final=final):
+            self._transport.publish_history(message)
         self._published = len(self.rows)
         self._last_flush = time.monotonic()
 
@@ -249,7 +262,8 @@ class ZenohTransport:
             since = int(params.get("since") or -1) if params.get("run") == self.node.run_id else -1
         except ValueError:
             since = -1
-        query.reply(query.key_expr, self.node.history_message(since=since))
+        for message in self.node.history_messages(since=since):
+            query.reply(query.key_expr, message)
 
     # --- Transport ---
     def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
@@ -274,6 +288,11 @@ class ZenohTransport:
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
         return None
+
+    def wait_for_members(self, n: int, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while len(self.members()) < n and time.monotonic() < deadline and not self._stop.is_set():
+            time.sleep(0.05)
 
     def close(self) -> None:
         """Leave the campaign: the token goes last, after the final history was sent."""
@@ -352,6 +371,9 @@ class MemoryTransport:
 
     def global_best(self) -> bytes | None:
         return None
+
+    def wait_for_members(self, n: int, timeout_s: float) -> None:
+        """Every island of the bus exists from the start."""
 
     def close(self) -> None:
         self.bus.leave(self.island)

@@ -51,6 +51,7 @@ MAX_BYTES = {
     "stop": 4 << 10,
 }
 """Largest accepted encoded size of each message type, in bytes."""
+START_TIMEOUT_S = 60.0
 MAX_MIGRANTS = 256
 MAX_ROWS = 100_000
 MAX_DIM = 256
@@ -211,6 +212,9 @@ class CampaignConfig:
     migration: Migration = field(default_factory=Migration)
     seed: int = 0
     objective_kind: str = "closed_form"
+    min_islands: int = 1
+    """Islands wait (up to :data:`START_TIMEOUT_S`) until this many are members before they start,
+    so that islands launched together also search together."""
 
     def __post_init__(self) -> None:
         check_name("campaign", self.name)
@@ -227,6 +231,8 @@ class CampaignConfig:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise HysidInputError(f"seed must be an integer >= 0, got {self.seed!r}")
         self.bounds = {str(k): (float(v[0]), float(v[1])) for k, v in self.bounds.items()}
+        if isinstance(self.min_islands, bool) or not isinstance(self.min_islands, int) or self.min_islands < 1:
+            raise HysidInputError(f"min_islands must be an integer >= 1, got {self.min_islands!r}")
         if self.objective_kind not in OBJECTIVES:
             raise HysidInputError(f"objective must be one of {', '.join(OBJECTIVES)}, got {self.objective_kind!r}")
         if self.objective_kind == "thesis_port" and (self.model != "thesis" or self.weights != "thesis"):
@@ -257,6 +263,7 @@ class CampaignConfig:
             "migration": {"interval": self.migration.interval, "k": self.migration.k, "topology": self.migration.topology, "random_k": self.migration.random_k},
             "seed": self.seed,
             "objective": self.objective_kind,
+            "min_islands": self.min_islands,
         }
 
     @classmethod
@@ -266,6 +273,7 @@ class CampaignConfig:
             return cls(
                 name=d["name"], model=d["model"], weights=d["weights"], bounds=bounds,
                 algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"], objective_kind=d["objective"],
+                min_islands=d["min_islands"],
             )
         except HysidInputError:
             raise

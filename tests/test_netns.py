@@ -13,10 +13,12 @@ import json
 import os
 import re
 import shutil
+import sqlite3
 import subprocess
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import pytest
 
@@ -189,3 +191,103 @@ def test_zenoh_router_and_peers_in_separate_namespaces_exchange(lab: Lab) -> Non
             process.wait(timeout=10)
     assert report["got"] == {name: f"hello from {name}" for name in names}
     assert {remote.split(":")[0] for remote in report["remotes"]} == {f"tcp/{lab.host_address(k)}" for k in (1, 2)}
+
+
+DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
+HYSID = [sys.executable, "-m", "coordinator.cli"]
+ISLANDS = ("h1", "h2")
+ITERATIONS = 4
+SMALL_CAMPAIGN = ["--iterations", str(ITERATIONS), "--population", "30", "--initial", "60", "--interval", "2", "--no-polish"]
+
+
+def zenoh_file(tmp_path: Path, name: str, settings: dict[str, object]) -> Path:
+    """deploy/zenoh/NAME with SETTINGS (key path -> value) changed, as an operator edits it, saved in tmp_path."""
+    import zenoh
+
+    config = zenoh.Config.from_file(DEPLOY / "zenoh" / name)
+    for key, value in settings.items():
+        config.insert_json5(key, json.dumps(value))
+    edited = tmp_path / name
+    edited.write_text(str(config))
+    return edited
+
+
+def run_campaign(lab: Lab, tmp_path: Path, campaign: str, coordinator_config: Path, island_configs: dict[str, Path], protocol: str) -> Path:
+    """The coordinator in the hub namespace, island h<k> in namespace h<k>; returns the report directory."""
+    out = tmp_path / "out"
+    coordinator = subprocess.Popen(
+        lab.command(
+            lab.hub, *HYSID, "coordinator", "--config", str(coordinator_config), "--listen", f"{protocol}/{lab.hub_address}:{PORT}",
+            "--campaign", campaign, "--min-islands", str(len(ISLANDS)), "--time-limit", "40", "--out", str(out), "--quiet",
+            *SMALL_CAMPAIGN, "synth",
+        ),
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+    )
+    islands = []
+    try:
+        islands = [
+            subprocess.Popen(
+                lab.command(
+                    lab.host(k), *HYSID, "island", "--config", str(island_configs[name]), "--connect", f"{protocol}/{lab.hub_address}:{PORT}",
+                    "--campaign", campaign, "--id", name, "--wait", "20", "--quiet",
+                ),
+                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+            )
+            for k, name in enumerate(ISLANDS, start=1)
+        ]
+        for island in islands:
+            assert island.wait(timeout=50) == 0, island.stderr.read()
+        assert coordinator.wait(timeout=20) == 0, coordinator.stderr.read()
+    finally:
+        for process in (coordinator, *islands):
+            process.kill()
+            process.wait(timeout=10)
+            process.stderr.close()
+    return out
+
+
+def check_every_island_took_part(out: Path, campaign: str) -> None:
+    result = json.loads((out / "result.json").read_text())
+    assert {island["island"] for island in result["islands"]} == set(ISLANDS)
+    assert all(island["final"] and island["iterations"] == ITERATIONS for island in result["islands"])
+    assert {event["island"] for event in result["members"] if event["event"] == "join"} == set(ISLANDS)
+    with sqlite3.connect(out / "campaign.sqlite") as db:
+        rows = db.execute("SELECT island, COUNT(*), MAX(iteration) FROM history WHERE campaign = ? GROUP BY island", (campaign,)).fetchall()
+    assert sorted(rows) == [(name, ITERATIONS + 1, ITERATIONS) for name in ISLANDS]
+
+
+def test_campaign_across_namespaces_over_tcp(lab: Lab, tmp_path: Path) -> None:
+    coordinator_config = DEPLOY / "zenoh" / "coordinator.json5"
+    island_config = DEPLOY / "zenoh" / "island.json5"
+    out = run_campaign(lab, tmp_path, "netns", coordinator_config, dict.fromkeys(ISLANDS, island_config), "tcp")
+    check_every_island_took_part(out, "netns")
+
+
+def test_campaign_across_namespaces_with_tls_credentials_and_acl(lab: Lab, tmp_path: Path) -> None:
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")
+    certs = tmp_path / "certs"
+    subprocess.run(
+        ["bash", str(DEPLOY / "tls" / "make-certs.sh"), "-o", str(certs), "-s", lab.hub_address, *ISLANDS],
+        check=True, capture_output=True, timeout=60,
+    )
+    credentials = tmp_path / "credentials.txt"
+    credentials.write_text("island-1:pw-h1\nisland-2:pw-h2\n")
+    coordinator_config = zenoh_file(tmp_path, "coordinator-secure.json5", {
+        "transport/link/tls/root_ca_certificate": str(certs / "ca.pem"),
+        "transport/link/tls/listen_certificate": str(certs / "coordinator/cert.pem"),
+        "transport/link/tls/listen_private_key": str(certs / "coordinator/key.pem"),
+        "transport/auth/usrpwd/dictionary_file": str(credentials),
+    })
+    island_configs = {}
+    for k, name in enumerate(ISLANDS, start=1):
+        (tmp_path / name).mkdir()
+        island_configs[name] = zenoh_file(tmp_path / name, "island-secure.json5", {
+            "transport/link/tls/root_ca_certificate": str(certs / "ca.pem"),
+            "transport/link/tls/connect_certificate": str(certs / "islands" / name / "cert.pem"),
+            "transport/link/tls/connect_private_key": str(certs / "islands" / name / "key.pem"),
+            "transport/auth/usrpwd/user": f"island-{k}",
+            "transport/auth/usrpwd/password": f"pw-{name}",
+        })
+    out = run_campaign(lab, tmp_path, "demo", coordinator_config, island_configs, "tls")
+    check_every_island_took_part(out, "demo")

@@ -24,14 +24,23 @@ def random_population(obj: Objective, count: int, seed: int) -> np.ndarray:
     return low + span * rng.random((count, obj.dim))
 
 
-@pytest.mark.parametrize(("spec", "meq", "weights"), [("thesis", MEQ_KG, "thesis"), ("thesis", MEQ_KG, "ml"), ("baseline", None, "thesis")])
+@pytest.mark.parametrize(
+    ("spec", "meq", "weights"),
+    [
+        ("thesis", MEQ_KG, "thesis"),
+        ("thesis", MEQ_KG, "ml"),
+        ("baseline", None, "thesis"),
+        ("thesis+coulomb_friction", MEQ_KG, "thesis"),  # sgn correlates with c1: off-diagonal Gram terms
+        ("thesis+cubic_stiffness", MEQ_KG, "ml"),
+    ],
+)
 def test_gram_closed_form_equals_the_per_sample_sum(noisy, spec, meq, weights):
     """sum_j w_j sum_n (F_model - F_measured)^2 summed sample by sample equals the Gram form,
     for a population spanning more than one evaluation block."""
     obj = Objective(noisy, build_model(spec, meq_kg=meq), weights=weights)
     pop = np.vstack([random_population(obj, 150, seed=1), obj.bounds.mean(axis=1)])
-    if spec == "thesis":
-        pop[-1] = TRUTH
+    pop[-1] = [TRUE_PARAMS.get(name, x) for name, x in zip(obj.model.names, pop[-1])]
+    assert not obj.model.has_memory and len(obj.features) >= 2
     direct = np.array([np.sum(obj.loop_weight[:, None] * (obj.predict(p)[0] - obj.y) ** 2) for p in pop])
     np.testing.assert_allclose(obj(pop), direct, rtol=1e-10)
 
@@ -92,13 +101,15 @@ def test_non_finite_parameters_give_inf(noisy):
     assert np.all(np.isfinite(fitness[[0, 2, 5]]))
 
 
-def test_population_and_single_vector_calls_agree(noisy):
-    obj = Objective(noisy, build_model("thesis", meq_kg=MEQ_KG))
-    pop = random_population(obj, 200, seed=3)
+@pytest.mark.parametrize(("spec", "count"), [("thesis", 200), ("thesis+bouc_wen", 8)])
+def test_population_and_single_vector_calls_agree(noisy, spec, count):
+    loops = noisy if spec == "thesis" else noisy.subset(np.arange(0, 120, 15))
+    obj = Objective(loops, build_model(spec, meq_kg=MEQ_KG))
+    pop = random_population(obj, count, seed=3)
     fitness = obj(pop)
-    assert fitness.shape == (200,) and obj.evaluations == 200
-    singles = np.array([obj(p)[0] for p in pop[::37]])
-    assert obj.evaluations == 200 + singles.size
-    np.testing.assert_allclose(singles, fitness[::37], rtol=1e-13)
+    assert fitness.shape == (count,) and obj.evaluations == count
+    singles = np.array([obj(p)[0] for p in pop[::7]])
+    assert obj.evaluations == count + singles.size
+    np.testing.assert_allclose(singles, fitness[::7], rtol=1e-13)
     np.testing.assert_allclose(obj(pop[::-1])[::-1], fitness, rtol=1e-13)
-    assert obj(np.empty((0, 4))).shape == (0,)
+    assert obj(np.empty((0, obj.dim))).shape == (0,)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from matplotlib.image import imread
 
 from coordinator.fit import fit
 from coordinator.report import jsondoc, write_report
+from coordinator.report.figures import convergence_figure
 from hysid_model.synth import synth_loops
 
 FIGURES = ("convergence.png", "loops.png", "residuals.png", "half_power.png")
@@ -77,3 +79,11 @@ def test_report_without_a_resonance_in_the_sweep(tmp_path):
     text = write_report(result, tmp_path / "r").read_text()
     assert "n/a: resonance peak at the edge of the frequency sweep" in text
     assert (tmp_path / "r" / "half_power.png").stat().st_size > 20_000
+
+
+def test_convergence_figure_skips_runs_without_history(tmp_path):
+    """A campaign adds its global best as a run with no history; the figure still shows the others."""
+    result = fit(synth_loops(0.0), algo="ga", options=SMALL_GA, polish=False)
+    bare = replace(result.runs[0], label="global best", history=[])
+    path = convergence_figure(tmp_path / "c.png", [("", [result.runs[0], bare])], "best fitness")
+    assert path.stat().st_size > 20_000

@@ -103,3 +103,11 @@ def test_reproduce_bad_seeds_is_a_one_line_error(capsys):
     assert main(["reproduce", "thesis", "--runs", "3", "--seeds-noise", "1,2"]) == 2
     err = capsys.readouterr().err
     assert re.fullmatch(r"hysid: error: --seeds-noise .*\n", err)
+
+
+@pytest.mark.parametrize(("args", "name"), [(["--seeds", "5"], "--seeds"), (["--thesis-runs", "6"], "--thesis-runs")])
+def test_bench_accuracy_rejects_too_few_draws(capsys, args, name):
+    assert main(["bench", "accuracy", *args]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert re.fullmatch(rf"hysid: error: {name} [^\n]+\n", captured.err)

@@ -16,10 +16,8 @@ from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import Model, build_model
 from island.polish import polish
 
-MAX_NFEV = 200
-"""Residual evaluations per polish of a closed-form model."""
-MAX_NFEV_MEMORY = 40
-"""Residual evaluations per polish of a model with memory (each integrates in time)."""
+MAX_NFEV = 100
+"""Residual evaluations per polish."""
 
 
 @dataclass
@@ -35,8 +33,13 @@ class Fit:
     stderr: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
-        info = self.jacobian.T @ self.jacobian
-        self.stderr = np.sqrt(np.clip(np.diag(np.linalg.pinv(info)), 0.0, None))
+        """Standard errors from the Fisher information J^T J of the whitened residuals (the
+        Cramer-Rao bound), inflated by sqrt(chi^2 / dof) where the model misses the noise floor."""
+        scale = np.linalg.norm(self.jacobian, axis=0)
+        scale = np.where(scale > 0, scale, 1.0)
+        unit = self.jacobian / scale
+        cov = np.linalg.pinv(unit.T @ unit) / np.outer(scale, scale)
+        self.stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * max(1.0, self.whitened_rms)
 
     @property
     def model(self) -> Model:
@@ -136,11 +139,9 @@ def make_model(harmonics: Harmonics, start: str, effects: tuple[str, ...], bound
     return model
 
 
-def fit_from(harmonics: Harmonics, start: str, effects: tuple[str, ...], model: Model, starts: list[np.ndarray]) -> Fit:
+def fit_objective(objective: HarmonicObjective, start: str, effects: tuple[str, ...], starts: list[np.ndarray]) -> Fit:
     """Polish every start and keep the best (lowest chi^2)."""
-    objective = HarmonicObjective(harmonics, model)
-    nfev = MAX_NFEV_MEMORY if model.has_memory else MAX_NFEV
-    results = [polish(objective, s, max_nfev=nfev) for s in starts]
+    results = [polish(objective, s, max_nfev=MAX_NFEV) for s in starts]
     best = min(results, key=lambda r: r.fitness)
     return Fit(effects, start, objective, best.theta, objective.weighted_residuals(best.theta), objective.jacobian(best.theta))
 
@@ -153,4 +154,4 @@ def initial_fit(harmonics: Harmonics, start: str) -> tuple[Fit, dict[str, tuple[
     model = make_model(harmonics, start, (), bounds)
     values = {**{n: 0.0 for n in model.names}, **estimate}
     theta0 = np.clip(model.from_dict(values), model.bounds[:, 0], model.bounds[:, 1])
-    return fit_from(harmonics, start, (), model, [theta0]), bounds
+    return fit_objective(HarmonicObjective(harmonics, model), start, (), [theta0]), bounds

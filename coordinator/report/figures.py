@@ -50,7 +50,8 @@ def _mm(x0: float) -> str:
 def convergence_figure(path: Path, panels: Sequence[tuple[str, Sequence[RunResult]]], ylabel: str, title: str = "") -> Path:
     """Best fitness per iteration of every run (iteration 0 = initial population), log scale.
 
-    A star after the last iteration marks the fitness after the least-squares
+    Runs without a history (e.g. a campaign's global best) are left out. A
+    star after the last iteration marks the fitness after the least-squares
     polish; when that is far below the search (noiseless data) the axis keeps
     the search readable and the star sits on the bottom edge, labelled with its value.
     """
@@ -59,13 +60,17 @@ def convergence_figure(path: Path, panels: Sequence[tuple[str, Sequence[RunResul
     axes = fig.subplots(1, n, sharey=True, squeeze=False)[0]
     searched = [h["best_fitness"] for _, runs in panels for r in runs for h in r.history if 0 < h["best_fitness"] < np.inf]
     polished = [r.fitness for _, runs in panels for r in runs if r.polish is not None and 0 < r.fitness < r.search_fitness]
-    floor = min(searched) / 10.0 if searched else None
-    if floor is not None and polished and min(polished) > floor / 1e3:
-        floor = min(polished) / 3.0
+    floor = None
+    if searched:
+        lowest = min(searched)
+        if polished and min(polished) < lowest / 1e3:
+            floor = lowest / 10.0  # polish far below the search: keep the search readable, clip the stars
+        else:
+            floor = min([lowest] + polished) / 1.5
     for ax, (label, runs) in zip(axes, panels):
         last = 0
         clipped = []
-        for i, r in enumerate(runs):
+        for i, r in enumerate(r for r in runs if r.history):
             it = np.array([h["iteration"] for h in r.history], dtype=float)
             f = np.array([h["best_fitness"] for h in r.history], dtype=float)
             color = series_color(i)
@@ -95,7 +100,7 @@ def convergence_figure(path: Path, panels: Sequence[tuple[str, Sequence[RunResul
         if polished:
             handles.append(Line2D([], [], marker="*", markersize=8, color="0.3", linestyle="none"))
             labels.append("after polish")
-        ax.legend(handles, labels, loc="upper right", ncol=1 if len(labels) <= 5 else 2)
+        ax.legend(handles, labels, loc="best", ncol=1 if len(labels) <= 5 else 2)
     axes[0].set_ylabel(ylabel)
     if title:
         fig.suptitle(title)

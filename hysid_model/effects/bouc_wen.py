@@ -6,45 +6,56 @@ import numpy as np
 
 from hysid_model.params import Parameter
 from hysid_model.terms import Kinematics, ModalState, Term, Values
-from hysid_model.timedomain import periodic_steady_state
 
-STEPS_PER_CYCLE = 256
-"""RK4 steps per cycle; a multiple of 4 puts the velocity reversals on the grid."""
+BISECTIONS = 60
+"""Bisection steps for the orbit's peak state (to double precision)."""
 
 
 def _relax(rate: np.ndarray, length: np.ndarray) -> np.ndarray:
-    """(1 - exp(-rate length)) / rate, with its limit ``length`` at rate 0."""
+    """(1 - exp(-rate length)) / rate: z after ``length`` of travel from 0 under dz/dx = 1 - rate z (limit: length)."""
     safe = np.where(rate == 0.0, 1.0, rate)
     return np.where(rate == 0.0, length, -np.expm1(-safe * length) / safe)
 
 
 def _negative_run(rate: np.ndarray, depth: np.ndarray) -> np.ndarray:
-    """Displacement over which z climbs from -depth to 0 under dz/dx = 1 - rate z: log(1 + rate depth) / rate."""
+    """Travel over which z climbs from -depth to 0 under dz/dx = 1 - rate z: log(1 + rate depth) / rate."""
     safe = np.where(rate == 0.0, 1.0, rate)
     return np.where(rate == 0.0, depth, np.log1p(safe * depth) / safe)
 
 
-def loading_state_at_zero(x0: np.ndarray, gamma: np.ndarray, beta: np.ndarray) -> np.ndarray:
-    """z at x = 0 on the loading branch of the periodic orbit, exact for n = 1.
+def _loading(travel: np.ndarray, z_max: np.ndarray, run: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """z on the loading branch after ``travel`` = x + X0 from the reversal at -X0, where z = -z_max.
 
-    On loading dz/dx = 1 - (gamma + beta) z for z >= 0 and 1 - (gamma - beta) z
-    for z < 0, and the orbit is odd: it starts at x = -X0 from z = -z_max and
-    ends at X0 in z_max. z_max solves that by bisection (it lies in
-    [0, 1 / (gamma + beta)]); the integrator starts from the result.
+    Both pieces are computed everywhere; the one not taken may overflow (e.g.
+    exp(-a travel) for a < 0 far beyond the zero crossing): callers ignore
+    floating-point warnings.
+    """
+    climbing = -z_max * np.exp(-a * travel) + _relax(a, travel)
+    return np.where(travel < run, climbing, _relax(b, np.maximum(travel - run, 0.0)))
+
+
+def loading_orbit(x0: np.ndarray, gamma: np.ndarray, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Peak state z_max of the periodic orbit under x = X0 sin(wt), n = 1, and the travel at which z crosses 0.
+
+    On loading (x' > 0) Eq. 2.1b with A = 1, n = 1 reads dz/dx = 1 - b z with
+    b = gamma + beta for z >= 0 and 1 - a z with a = gamma - beta for z < 0; the
+    orbit is odd, so loading runs from z = -z_max at x = -X0 to z_max at X0.
+    z climbs to 0 over run = log(1 + a z_max) / a and then relaxes towards 1/b,
+    so z_max solves 1 - b z_max = exp(b run - 2 b X0); the left side minus the
+    right falls monotonically from 1 - exp(-2 b X0) > 0 at 0 to below 0 at 1/b,
+    and bisection finds the root.
     """
     a, b = gamma - beta, gamma + beta
     lo = np.zeros(np.broadcast(x0, a, b).shape)
-    hi = np.broadcast_to(np.minimum(1.0 / b, 2.0 * x0), lo.shape).copy()
-    for _ in range(60):
+    hi = np.broadcast_to(1.0 / b, lo.shape).copy()
+    with np.errstate(all="ignore"):
+        for _ in range(BISECTIONS):
+            z_max = 0.5 * (lo + hi)
+            above = 1.0 - b * z_max < np.exp(b * _negative_run(a, z_max) - 2.0 * b * x0)
+            hi = np.where(above, z_max, hi)
+            lo = np.where(above, lo, z_max)
         z_max = 0.5 * (lo + hi)
-        run = _negative_run(a, z_max)
-        end = np.where(run < 2.0 * x0, _relax(b, np.maximum(2.0 * x0 - run, 0.0)), -z_max * np.exp(-a * 2.0 * x0) + _relax(a, 2.0 * x0))
-        too_high = z_max > end
-        hi = np.where(too_high, z_max, hi)
-        lo = np.where(too_high, lo, z_max)
-    z_max = 0.5 * (lo + hi)
-    run = _negative_run(a, z_max)
-    return np.where(run < x0, _relax(b, np.maximum(x0 - run, 0.0)), -z_max * np.exp(-a * x0) + _relax(a, x0))
+        return z_max, _negative_run(a, z_max)
 
 
 class BoucWen(Term):
@@ -54,12 +65,18 @@ class BoucWen(Term):
     'fictitious displacement' driven by the velocity). Since k_bw and A trade
     off (only k_bw A is identifiable) A = 1, and n = 1. The shape is set by
     the yield displacement z_y = 1 / (gamma + beta) (|z| < z_y, the force
-    saturates at k_bw z_y) and r = (gamma - beta) / (gamma + beta) in [-1, 1]
-    (Fig. 2.6: r > 0 for beta - gamma < 0). The oscillator keeps its linear
+    saturates at k_bw z_y) and r = (gamma - beta) / (gamma + beta): Fig. 2.6
+    (a) is r > 0, (b) r = 0, (c) -1 < r < 0; r > 1 means beta < 0. At r = -1
+    (gamma = 0) the law loses its hysteresis (dz/dx is the same both ways) and
+    the orbit is ill-posed, so r >= -0.9. The oscillator keeps its linear
     spring, the alpha wn^2 x of Eq. 2.1a; k_bw is the (1 - alpha) wn^2 part times
-    the mass. Under x = X0 sin(wt) the state depends on the phase only (the law
-    is rate independent); :func:`periodic_steady_state` integrates it from the
-    exact n = 1 orbit state at phase 0.
+    the mass.
+
+    The law is rate independent, so under x = X0 sin(wt) the state is a
+    function of the phase only, and for n = 1 its periodic orbit is piecewise
+    exponential in x (:func:`loading_orbit`): the steady state is evaluated
+    exactly, where :func:`hysid_model.timedomain.periodic_steady_state` would
+    integrate Eq. 2.1b over cycles to the same orbit (the tests check both).
     """
 
     id = "bouc_wen"
@@ -73,30 +90,25 @@ class BoucWen(Term):
     params = (
         Parameter("bw_k", "N/m", 0.0, 1.0e9, "stiffness of the hysteretic spring ((1 - alpha) k)"),
         Parameter("bw_zy", "m", 1.0e-9, 1.0, "yield displacement 1 / (gamma + beta)"),
-        Parameter("bw_r", "1", -1.0, 1.0, "shape (gamma - beta) / (gamma + beta)"),
+        Parameter("bw_r", "1", -0.9, 3.0, "shape (gamma - beta) / (gamma + beta)"),
     )
 
     def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
-        """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes."""
+        """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes r."""
         x0 = float(np.median(kin.x0))
-        return [{"bw_zy": f * x0, "bw_r": r} for f in (0.03, 0.1, 0.3, 1.0) for r in (-0.5, 0.0, 0.5)]
+        return [{"bw_zy": f * x0, "bw_r": r} for f in (0.03, 0.1, 0.3, 1.0) for r in (-0.5, 0.5, 2.0)]
 
     def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
         gamma = (1.0 + v["bw_r"]) / (2.0 * v["bw_zy"])
         beta = (1.0 - v["bw_r"]) / (2.0 * v["bw_zy"])
-        n_pop = gamma.shape[0]
-        if phase.ndim == 2:
-            rows, inverse = np.unique(np.column_stack([kin.x0, phase]), axis=0, return_inverse=True)
-            x0, out_phase = rows[:, 0], rows[:, 1:]
-        else:
-            x0, out_phase, inverse = kin.x0, phase, np.arange(kin.x0.size)
-        amp = x0[None, :]
-
-        def rhs(theta: float, z: np.ndarray) -> np.ndarray:
-            c = np.cos(theta)
-            return amp * (c * (1.0 - beta * np.abs(z)) - gamma * abs(c) * z)
-
-        z0 = loading_state_at_zero(amp, gamma, beta)[None]
-        z = periodic_steady_state(rhs, z0, out_phase, steps_per_cycle=STEPS_PER_CYCLE, tol=1e-9)[0]
-        z = z[:, inverse.reshape(-1)] if phase.ndim == 2 else z
-        return v["bw_k"][:, :, None] * np.broadcast_to(z, (n_pop,) + z.shape[1:])
+        x0 = kin.x0[None, :]
+        amplitudes, which = np.unique(kin.x0, return_inverse=True)
+        z_max, run = (a[:, which.reshape(-1)] for a in loading_orbit(amplitudes[None, :], gamma, beta))
+        a, b = (gamma - beta)[:, :, None], (gamma + beta)[:, :, None]
+        z_max, run = z_max[:, :, None], run[:, :, None]
+        s = np.sin(phase)
+        loading = np.cos(phase) >= 0.0
+        with np.errstate(all="ignore"):
+            up = _loading(x0[:, :, None] * (1.0 + s), z_max, run, a, b)
+            down = -_loading(x0[:, :, None] * (1.0 - s), z_max, run, a, b)
+        return v["bw_k"][:, :, None] * np.where(loading, up, down)

@@ -40,7 +40,7 @@ def checked_series(source: str, t: np.ndarray, x: np.ndarray, force: np.ndarray,
     if np.any(step <= 0):
         k = int(np.flatnonzero(step <= 0)[0])
         raise HysidInputError(
-            f"{source}: line {first_line + k + 1}: {names[0]} does not increase ({data[k + 1, 0]!r} after {data[k, 0]!r}); "
+            f"{source}: line {first_line + k + 1}: {names[0]} does not increase ({float(data[k + 1, 0])!r} after {float(data[k, 0])!r}); "
             "time must be strictly increasing"
         )
     return TimeSeries(source, data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy())
@@ -95,6 +95,8 @@ def read_series(path: Path) -> TimeSeries:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             data = np.loadtxt(path, delimiter=",", skiprows=1, usecols=[header.index(c) for c in COLUMNS], ndmin=2, encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise HysidInputError(f"{path}: not UTF-8 text") from None
     except ValueError:
         raise _bad_line(path, header) from None
     if data.shape[0] == 0:

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,6 +57,8 @@ class DatasetConfig:
     force_channel: str | int | None = None
     steady: dict[str, tuple[float, float]] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
+    given: frozenset[str] = frozenset()
+    """Top-level keys present in ``dataset.toml`` (to tell "absent" from a default)."""
 
     def meta(self) -> dict[str, Any]:
         """Dataset-level entries of ``LoopSet.meta``."""
@@ -70,6 +73,17 @@ class ManifestRow:
     file: str
     frequency_hz: float
     line: int
+
+
+def frequency_in_name(stem: str) -> float | None:
+    """A nominal frequency written in a record's name (``SAMPLE2_05mm_436Hz``, ``0.25Hz30lb...``), else None."""
+    match = re.search(r"(?<![\d.])(\d+(?:\.\d+)?)\s*Hz", stem, re.IGNORECASE)
+    return float(match.group(1)) if match else None
+
+
+def natural_key(name: str) -> list[object]:
+    """Sort key that orders TRAC2 before TRAC10."""
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", name)]
 
 
 def _is_number(value: Any) -> bool:
@@ -148,7 +162,7 @@ def read_config(directory: Path) -> DatasetConfig:
     """Read ``directory/dataset.toml``; without one, name = the directory's name and nothing else is known."""
     path = directory / CONFIG_NAME
     if not path.is_file():
-        return DatasetConfig(directory=directory, name=directory.resolve().name)
+        return DatasetConfig(directory=directory, name=directory.resolve().name, info={"source": str(directory)})
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
@@ -176,6 +190,7 @@ def read_config(directory: Path) -> DatasetConfig:
         force_channel=_channel(doc, "force_channel", where),
         steady=_steady_windows(doc, where),
         info=info,
+        given=frozenset(doc),
     )
 
 

@@ -22,7 +22,6 @@ Two forms:
 from __future__ import annotations
 
 import io
-import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -92,10 +91,9 @@ def _read_headerless(path: Path, text: str, config: DatasetConfig) -> TimeSeries
     return checked_series(str(path), t, x, force, names=("time", "displacement", "force"), first_line=1)
 
 
-def _segments(path: Path, lines: list[str], sep: str) -> list[_Segment]:
-    """Split the text after the file header into segments (header rows, column names, data lines)."""
+def _segments(path: Path, lines: list[str], k: int, sep: str) -> list[_Segment]:
+    """Split the lines from ``k`` (after the file header) into segments: header rows, column names, data lines."""
     segments: list[_Segment] = []
-    k = 0
     while k < len(lines):
         if not lines[k].strip(sep + " \r"):
             k += 1
@@ -122,7 +120,7 @@ def _segments(path: Path, lines: list[str], sep: str) -> list[_Segment]:
 
 def _channel_columns(path: Path, seg: _Segment, x_columns: str) -> tuple[list[str], list[int]]:
     """Channel names and their column indices in the data lines."""
-    n_channels = int(seg.header.get("Channels", ["0"])[0] or 0)
+    n_channels = int(_header_number(path, "Channels", seg.header.get("Channels", ["0"])[0] or "0", "."))
     if seg.columns:
         idx = [i for i, name in enumerate(seg.columns) if name not in ("X_Value", "Comment")]
         return [seg.columns[i] for i in idx], idx
@@ -130,6 +128,13 @@ def _channel_columns(path: Path, seg: _Segment, x_columns: str) -> tuple[list[st
         raise HysidInputError(f"{path}: the segment header gives no channel count and there is no X_Value column line")
     names = [f"channel {i + 1}" for i in range(n_channels)]
     return names, ([2 * i + 1 for i in range(n_channels)] if x_columns == "Multi" else [i + 1 for i in range(n_channels)])
+
+
+def _header_number(path: Path, key: str, text: str, decimal: str) -> float:
+    try:
+        return float(text.replace(decimal, "."))
+    except ValueError:
+        raise HysidInputError(f"{path}: segment header {key} {text!r} is not a number") from None
 
 
 def _cell(seg: _Segment, key: str, channel: int, x_columns: str) -> str:
@@ -153,7 +158,7 @@ def _pick(path: Path, names: list[str], chosen: str | int | None, key: str, word
         return matches[0]
     matches = [i for i, n in enumerate(names) if any(w in n.lower() for w in words)]
     if len(matches) != 1:
-        found = "none" if not matches else f"{len(matches)}"
+        found = "no" if not matches else f"{len(matches)}"
         raise HysidInputError(
             f"{path}: {found} channel names contain {' or '.join(repr(w) for w in words)} (channels: {listing}); "
             f"set {key} (name or number) in dataset.toml"
@@ -177,16 +182,17 @@ def _read_standard(path: Path, text: str, config: DatasetConfig) -> TimeSeries:
     end = next((k for k, line in enumerate(lines) if line.startswith(END_OF_HEADER)), None)
     if end is None:
         raise HysidInputError(f"{path}: the file header has no closing {END_OF_HEADER}")
+    sep_line = next((line for line in lines[1:end] if line.startswith("Separator")), "Separator\tTab")
+    sep = sep_line[len("Separator") : len("Separator") + 1]
+    if sep not in ("\t", ",") or sep_line[len("Separator") + 1 :].split(sep)[0].strip() != {"\t": "Tab", ",": "Comma"}[sep]:
+        raise HysidInputError(f"{path}: unsupported Separator line {sep_line.strip()!r} (Tab or Comma)")
     file_header = {}
     for line in lines[1:end]:
-        parts = re.split(r"[\t,]", line.rstrip("\r"), maxsplit=1)
-        file_header[parts[0].strip()] = parts[1].strip(" \t,") if len(parts) > 1 else ""
-    sep = {"Tab": "\t", "Comma": ","}.get(file_header.get("Separator", "Tab"))
-    if sep is None:
-        raise HysidInputError(f"{path}: unsupported Separator {file_header.get('Separator')!r} (Tab or Comma)")
+        cells = line.rstrip("\r").split(sep)
+        file_header[cells[0].strip()] = cells[1].strip() if len(cells) > 1 else ""
     decimal = file_header.get("Decimal_Separator", ".")
     x_columns = file_header.get("X_Columns", "One")
-    segments = _segments(path, lines[end + 1 :], sep)
+    segments = _segments(path, lines, end + 1, sep)
     if not segments or not any(seg.lines for seg in segments):
         raise HysidInputError(f"{path}: no data rows after the headers")
     t_parts, x_parts, f_parts = [], [], []
@@ -211,7 +217,8 @@ def _read_standard(path: Path, text: str, config: DatasetConfig) -> TimeSeries:
         else:
             delta_text, start_text = _cell(seg, "Delta_X", i_x, x_columns), _cell(seg, "X0", i_x, x_columns)
             if delta_text:
-                delta, start = float(delta_text.replace(decimal, ".")), float(start_text.replace(decimal, ".") or 0.0)
+                delta = _header_number(path, "Delta_X", delta_text, decimal)
+                start = _header_number(path, "X0", start_text, decimal) if start_text else 0.0
             elif config.sample_rate_hz is not None:
                 delta, start = 1.0 / config.sample_rate_hz, (t_parts[-1][-1] + 1.0 / config.sample_rate_hz if t_parts else 0.0)
             else:

@@ -23,21 +23,15 @@ from scipy.io.matlab import MatReadError
 from hysid_model.errors import HysidInputError
 from hysid_model.extraction import FREQ_TOLERANCE, loop_from_branches
 from hysid_model.loops import LoopSet
-from hysid_model.readers.dataset_dir import MANIFEST_NAME, DatasetConfig, listed_file, read_manifest
+from hysid_model.readers.dataset_dir import MANIFEST_NAME, DatasetConfig, ManifestRow, frequency_in_name, natural_key
 
-NAME_PATTERN = re.compile(r"_(?P<amp>\d+)mm_(?P<freq>\d+(?:\.\d+)?)Hz$", re.IGNORECASE)
+AMPLITUDE_PATTERN = re.compile(r"_(\d+)mm_", re.IGNORECASE)
 
 
 def parse_loop_name(stem: str) -> tuple[float | None, float | None]:
     """(nominal X0 in m, frequency in Hz) from a name like ``SAMPLE2_05mm_436Hz``, None where absent."""
-    match = NAME_PATTERN.search(stem)
-    if match is None:
-        return None, None
-    return int(match.group("amp")) * 1e-4, float(match.group("freq"))
-
-
-def _natural_key(name: str) -> list[object]:
-    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", name)]
+    match = AMPLITUDE_PATTERN.search(stem)
+    return (int(match.group(1)) * 1e-4 if match else None), frequency_in_name(stem)
 
 
 def load_mat(path: Path) -> dict[str, np.ndarray]:
@@ -53,14 +47,22 @@ def load_mat(path: Path) -> dict[str, np.ndarray]:
 
 
 def _ef_vector(path: Path, variables: dict[str, np.ndarray]) -> np.ndarray:
-    ef = np.asarray(variables["ef"], dtype=float).reshape(-1)
+    try:
+        ef = np.asarray(variables["ef"], dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise HysidInputError(f"{path}: ef must be a numeric vector of frequencies in Hz") from None
     if ef.size == 0 or not np.all(np.isfinite(ef)) or np.any(ef <= 0):
         raise HysidInputError(f"{path}: ef must hold positive frequencies in Hz")
     return ef
 
 
-def read_mat_dataset(files: list[Path], config: DatasetConfig, n_points: int) -> LoopSet:
-    """Loops from ``.mat`` files (``files`` may include one ``ef`` file), resampled on ``n_points``."""
+def read_mat_dataset(files: list[Path], config: DatasetConfig, n_points: int, manifest: list[ManifestRow] | None = None) -> LoopSet:
+    """Loops from ``.mat`` files, resampled on ``n_points`` per branch.
+
+    With ``manifest`` (rows of ``manifest.csv``) ``files`` are the listed loop
+    files in its order and frequencies; without, ``files`` may include one
+    ``ef`` vector file and are ordered by the name convention.
+    """
     directory = config.directory
     loops: dict[str, dict[str, np.ndarray]] = {}
     ef_files: list[tuple[Path, np.ndarray]] = []
@@ -68,32 +70,25 @@ def read_mat_dataset(files: list[Path], config: DatasetConfig, n_points: int) ->
         variables = load_mat(path)
         if "HexpT" in variables and "HexpB" in variables:
             loops[path.name] = variables
-        elif "ef" in variables:
+        elif "ef" in variables and manifest is None:
             ef_files.append((path, _ef_vector(path, variables)))
         else:
             found = ", ".join(sorted(variables)) or "none"
-            raise HysidInputError(f"{path}: no HexpT/HexpB loop (and no ef vector) in this .mat file (variables: {found})")
+            raise HysidInputError(f"{path}: no HexpT/HexpB loop in this .mat file (variables: {found})")
     if not loops:
         raise HysidInputError(f"{directory}: no .mat file holds a HexpT/HexpB loop")
     if len(ef_files) > 1:
         raise HysidInputError(f"{directory}: more than one ef vector file ({', '.join(p.name for p, _ in ef_files)}); keep one")
-    manifest = directory / MANIFEST_NAME
-    names: list[str]
-    if manifest.is_file():
-        rows = read_manifest(manifest)
-        for row in rows:
-            listed_file(manifest, row)
-            if row.file not in loops:
-                raise HysidInputError(f"{manifest}: line {row.line}: {row.file!r} is not a .mat file with HexpT/HexpB")
-        names = [row.file for row in rows]
-        freq = np.array([row.frequency_hz for row in rows])
-        freq_source = str(manifest)
+    if manifest is not None:
+        names = [row.file for row in manifest]
+        freq = np.array([row.frequency_hz for row in manifest])
+        freq_source = str(directory / MANIFEST_NAME)
     else:
         parsed = {name: parse_loop_name(Path(name).stem) for name in loops}
         if all(amp is not None for amp, _ in parsed.values()):
             names = sorted(loops, key=lambda n: (parsed[n][0], parsed[n][1], n))
         else:
-            names = sorted(loops, key=_natural_key)
+            names = sorted(loops, key=natural_key)
         if ef_files:
             ef_path, ef = ef_files[0]
             if ef.size != len(names):
@@ -113,8 +108,11 @@ def read_mat_dataset(files: list[Path], config: DatasetConfig, n_points: int) ->
         amp, name_freq = parse_loop_name(Path(name).stem)
         if name_freq is not None and abs(f / name_freq - 1) > FREQ_TOLERANCE:
             raise HysidInputError(f"{directory / name}: the name says {name_freq:g} Hz but {freq_source} gives {f:g} Hz (more than {100 * FREQ_TOLERANCE:g} % apart)")
-        variables = loops[name]
-        a, t, b = loop_from_branches(np.asarray(variables["HexpT"], dtype=float), np.asarray(variables["HexpB"], dtype=float), n_points, str(directory / name))
+        try:
+            branches = [np.asarray(loops[name][key], dtype=float) for key in ("HexpT", "HexpB")]
+        except (TypeError, ValueError):
+            raise HysidInputError(f"{directory / name}: HexpT and HexpB must be numeric N x 2 arrays (x, F)") from None
+        a, t, b = loop_from_branches(branches[0], branches[1], n_points, str(directory / name))
         x0.append(a)
         top.append(t)
         bottom.append(b)

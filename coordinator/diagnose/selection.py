@@ -1,0 +1,212 @@
+"""The diagnosis loop: score, name, add, refit, accept, until nothing is left to explain.
+
+From the start model (baseline or thesis) fitted to the loops' harmonics:
+
+1. score every library effect not in the model (:mod:`.scoring`); the ones
+   above the family-wise significance level (Bonferroni over all effects and
+   shapes) are contenders;
+2. refit the model plus each of the best few contenders (and of any contender
+   whose projected signature is nearly parallel to the best one's), from the
+   one-step estimate after a short line search along the strength;
+3. accept the refit with the lowest BIC if it lowers the BIC by at least
+   ``BIC_MARGIN``, its strength is significant (``MIN_Z`` standard errors) and
+   has the physical sign, none of its parameters sits on a bound, and it
+   removes at least ``MIN_SHARE`` of the chi^2 above the noise floor; every
+   other acceptable refit within ``BIC_MARGIN`` of it is named as confusable
+   with it (this data set cannot tell them apart);
+4. repeat until no contender is left or none is accepted.
+
+The result is ``adequate`` when the final residual is noise (:mod:`.naming`),
+else ``unexplained`` with a description of what is left.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from coordinator.diagnose.fitting import Fit, fit_objective, initial_fit, make_model
+from coordinator.diagnose.naming import adequacy, residual_signature
+from coordinator.diagnose.scoring import Candidate, score_candidates
+from hysid_model.effects import EFFECTS
+from hysid_model.errors import HysidInputError
+from hysid_model.harmonics import HarmonicObjective, Harmonics
+from hysid_model.loops import LoopSet
+from hysid_model.model import PRESETS
+
+SIGNIFICANCE = 1e-3
+"""Family-wise level of the score tests in one round."""
+BIC_MARGIN = 10.0
+"""BIC difference counted as decisive (Kass and Raftery's 'very strong'), for acceptance and for confusability."""
+MIN_Z = 3.0
+"""|strength| / standard error an accepted effect needs."""
+MIN_SHARE = 0.2
+"""Fraction of the excess chi^2 (chi^2 - dof) an accepted effect must remove."""
+TRIALS = 4
+"""Contenders refitted per round (plus those parallel to the best)."""
+PARALLEL = 0.9
+"""|cos| between projected signatures above which two contenders are refitted together."""
+LINE_SEARCH = (0.25, 0.5, 1.0, 2.0, 4.0)
+"""Multiples of the one-step estimate tried before polishing."""
+MAX_STEPS = 6
+
+
+@dataclass
+class Step:
+    """One accepted effect."""
+
+    effect: str
+    confusable_with: list[str]
+    score: float
+    before: Fit
+    after: Fit
+    rejected: dict[str, str]
+    """Other contenders of this round and why they were not taken."""
+
+    @property
+    def params(self) -> dict[str, float]:
+        names = [p.name for p in EFFECTS[self.effect]().params]
+        return {n: v for n, v in self.after.params().items() if n in names}
+
+    @property
+    def errors(self) -> dict[str, float]:
+        return {n: v for n, v in self.after.errors().items() if n in self.params}
+
+
+@dataclass
+class Diagnosis:
+    harmonics: Harmonics
+    start: Fit
+    steps: list[Step]
+    final: Fit
+    status: str
+    unexplained: dict | None
+    not_identifiable: dict[str, list[str]]
+    rejected: dict[str, str]
+    """Contenders of the last round and why none was taken."""
+    last_scores: list[Candidate] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {
+            "dataset": self.harmonics.loops.name,
+            "start_model": self.start.spec,
+            "final_model": self.final.spec,
+            "steps": [
+                {
+                    "effect": s.effect,
+                    "confusable_with": s.confusable_with,
+                    "params": s.params,
+                    "stderr": s.errors,
+                    "score": s.score,
+                    "whitened_rms_before": s.before.whitened_rms,
+                    "whitened_rms_after": s.after.whitened_rms,
+                    "delta_bic": s.after.bic - s.before.bic,
+                    "rejected": s.rejected,
+                }
+                for s in self.steps
+            ],
+            "status": self.status,
+            "unexplained_signature": self.unexplained,
+            "not_identifiable": self.not_identifiable,
+            "rejected": self.rejected,
+            "final_params": self.final.params(),
+            "final_stderr": self.final.errors(),
+            "whitened_rms": self.final.whitened_rms,
+            "noise_sigma": "known" if np.all(self.harmonics.sigma_known) else "estimated from the data",
+        }
+
+
+def contenders(candidates: list[Candidate]) -> list[Candidate]:
+    """The candidates that pass the round's score test, best first, and the ones to refit."""
+    tests = sum(c.n_shapes for c in candidates)
+    threshold = chi2_dist.isf(SIGNIFICANCE / max(tests, 1), 1)
+    passing = [c for c in candidates if c.physical and c.identifiable and c.score > threshold]
+    if not passing:
+        return []
+    top = passing[0]
+    return [c for i, c in enumerate(passing) if i < TRIALS or abs(float(c.direction @ top.direction)) > PARALLEL]
+
+
+def refit(fit: Fit, harmonics: Harmonics, candidate: Candidate, bounds: dict[str, tuple[float, float]]) -> Fit:
+    """The current model plus ``candidate``, polished from the best two points (one for a model
+    with memory, whose evaluations cost more) of a line search along the one-step estimate of
+    each of its best shapes."""
+    effects = fit.effects + (candidate.effect,)
+    model = make_model(harmonics, fit.start, effects, bounds)
+    objective = HarmonicObjective(harmonics, model)
+    term = EFFECTS[candidate.effect]()
+    i = model.names.index(term.strength)
+    rows = []
+    for shape, one_step in candidate.starts:
+        base = model.from_dict({**{p.name: 0.0 for p in term.params}, **fit.params(), **shape})
+        line = np.repeat(base[None, :], len(LINE_SEARCH), axis=0)
+        line[:, i] = one_step * np.array(LINE_SEARCH)
+        rows.append(line)
+    rows = np.clip(np.concatenate(rows), model.bounds[:, 0], model.bounds[:, 1])
+    order = np.argsort(objective(rows))
+    return fit_objective(objective, fit.start, effects, [rows[j] for j in order[: 1 if model.has_memory else 2]])
+
+
+def judge(before: Fit, after: Fit, effect: str) -> str | None:
+    """Why ``after`` (``before`` plus ``effect``) is not accepted, or None."""
+    delta = after.bic - before.bic
+    if delta > -BIC_MARGIN:
+        return f"BIC changes by only {delta:+.1f}"
+    term = EFFECTS[effect]()
+    names = after.model.names
+    values, errors, bounds = after.theta, after.stderr, after.model.bounds
+    i = names.index(term.strength)
+    if bounds[i, 0] == 0.0 and values[i] <= 0.0:
+        return f"{term.strength} has the unphysical sign"
+    if abs(values[i]) < MIN_Z * errors[i]:
+        return f"{term.strength} = {values[i]:.4g} +- {errors[i]:.2g} is not significant"
+    for p in term.params:
+        j = names.index(p.name)
+        span = bounds[j, 1] - bounds[j, 0]
+        if p.name != term.strength and min(values[j] - bounds[j, 0], bounds[j, 1] - values[j]) <= 1e-6 * span:
+            return f"{p.name} runs into its bound ({values[j]:.4g})"
+    excess = before.chi2 - before.dof
+    if excess > 0 and before.chi2 - after.chi2 < MIN_SHARE * excess:
+        return f"removes only {100 * (before.chi2 - after.chi2) / excess:.0f}% of the chi^2 above the noise floor"
+    return None
+
+
+def diagnose(loops: LoopSet, start: str = "baseline", max_steps: int = MAX_STEPS) -> Diagnosis:
+    """Find which library effects the ``start`` model misses on ``loops`` (see the module docstring)."""
+    if start not in PRESETS:
+        raise HysidInputError(f"--model {start!r}: choose one of {', '.join(PRESETS)}")
+    harmonics = Harmonics.from_loops(loops)
+    fit, bounds = initial_fit(harmonics, start)
+    first = fit
+    steps: list[Step] = []
+    while True:
+        candidates = score_candidates(fit, harmonics, bounds)
+        not_identifiable = {c.effect: c.absorbed_by for c in candidates if not c.identifiable}
+        trials = contenders(candidates) if len(steps) < max_steps else []
+        refits = {c.effect: refit(fit, harmonics, c, bounds) for c in trials}
+        verdicts = {e: judge(fit, r, e) for e, r in refits.items()}
+        rejected = {e: v for e, v in verdicts.items() if v is not None}
+        accepted = sorted((r.bic, e) for e, r in refits.items() if verdicts[e] is None)
+        if not accepted:
+            break
+        best_bic, best = accepted[0]
+        confusable = [e for b, e in accepted[1:] if b - best_bic < BIC_MARGIN]
+        others = {e: v for e, v in verdicts.items() if e != best and e not in confusable}
+        reasons = {e: v or f"fits worse than {best} (BIC +{refits[e].bic - best_bic:.1f})" for e, v in others.items()}
+        score = next(c.score for c in trials if c.effect == best)
+        steps.append(Step(effect=best, confusable_with=confusable, score=score, before=fit, after=refits[best], rejected=reasons))
+        fit = refits[best]
+    check = adequacy(fit, harmonics)
+    return Diagnosis(
+        harmonics=harmonics,
+        start=first,
+        steps=steps,
+        final=fit,
+        status="adequate" if check.adequate else "unexplained",
+        unexplained=None if check.adequate else residual_signature(fit, harmonics),
+        not_identifiable=not_identifiable,
+        rejected=rejected,
+        last_scores=candidates,
+    )

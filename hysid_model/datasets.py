@@ -1,0 +1,242 @@
+"""One entry point from "a dataset" to a :class:`LoopSet`, and the dataset writer.
+
+``load_dataset(spec)`` accepts:
+
+* ``"synth"``: the thesis' Synth set (:func:`hysid_model.synth.synth_loops`);
+* a dataset directory holding ``manifest.csv`` (``file,frequency_hz``) and one
+  raw record per row (``.csv`` with ``time_s,displacement_m,force_n`` or
+  ``.lvm``), optionally ``dataset.toml``; loops are extracted with
+  :func:`hysid_model.extraction.extract_loop`;
+* a directory holding the tidy loops file ``loops.csv`` (what ``hysid synth``
+  writes), or a tidy loops file itself; a ``dataset.toml`` next to it
+  overrides the ``name``, ``meq_kg`` and ``bounds`` it sets;
+* a directory of the thesis' ``.mat`` loop files (with ``ef.mat`` or a
+  manifest), or one such file;
+* a directory of ``.lvm`` records without a manifest (frequencies then come
+  from the data alone), or one ``.lvm``/raw ``.csv`` record.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hysid_model.errors import HysidInputError
+from hysid_model.extraction import extract_loop
+from hysid_model.loops import LoopSet
+from hysid_model.readers.csv_series import TimeSeries, read_series, write_series
+from hysid_model.readers.dataset_dir import MANIFEST_NAME, DatasetConfig, frequency_in_name, listed_file, natural_key, read_config, read_manifest
+from hysid_model.readers.lvm import read_lvm
+from hysid_model.readers.matfile import read_mat_dataset
+from hysid_model.readers.tidy import is_tidy_file, read_loops, write_loops
+from hysid_model.synth import RawRecord, _check_noise, synth_loops
+
+TIDY_NAME = "loops.csv"
+DEFAULT_POINTS = 100
+RAW_SUFFIXES = (".csv", ".lvm")
+
+
+def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 0, n_points: int | None = None) -> LoopSet:
+    """Load the loops of ``spec`` (see the module docstring), with optional added noise.
+
+    ``n_points`` samples per branch (default 100, the thesis' ``interppts``);
+    a tidy loops file keeps its own and only checks it when one is given.
+    ``noise_pct`` adds Gaussian force noise of std noise_pct % of each loop's
+    peak force (the thesis' ``maxF*noiselevel/100*randn``, Appendix A) and
+    raises ``sigma`` accordingly (an unknown sigma stays unknown).
+    """
+    if n_points is not None and (isinstance(n_points, bool) or not isinstance(n_points, int) or n_points < 2):
+        raise HysidInputError(f"points per branch must be an integer >= 2, got {n_points!r}")
+    _check_noise(noise_pct)
+    if str(spec) == "synth":
+        return synth_loops(noise_pct, noise_seed, n_points or DEFAULT_POINTS)
+    path = Path(spec)
+    if not path.exists():
+        raise HysidInputError(f"{spec}: no such dataset (expected a dataset directory, a loops file, .mat/.lvm files or 'synth')")
+    loops = _load_dir(path, n_points) if path.is_dir() else _load_file(path, n_points)
+    return add_noise(loops, noise_pct, noise_seed)
+
+
+def add_noise(loops: LoopSet, noise_pct: float, seed: int) -> LoopSet:
+    """Thesis noise (Appendix A): F + maxF * noise_pct/100 * randn on every branch sample."""
+    _check_noise(noise_pct)
+    if noise_pct == 0:
+        return loops
+    rng = np.random.default_rng(seed)
+    added = loops.peak_force * noise_pct / 100.0
+    out = loops.subset(np.arange(loops.n_loops))
+    out.top = out.top.copy()
+    out.bottom = out.bottom.copy()
+    out.top[:, :, 1] += added[:, None] * rng.standard_normal(out.top.shape[:2])
+    out.bottom[:, :, 1] += added[:, None] * rng.standard_normal(out.bottom.shape[:2])
+    out.sigma = np.hypot(loops.sigma, added)
+    out.meta = dict(out.meta, added_noise_pct=noise_pct, added_noise_seed=seed)
+    return out
+
+
+def _tidy(path: Path, config: DatasetConfig, n_points: int | None) -> LoopSet:
+    loops = read_loops(path)
+    if n_points is not None and n_points != loops.n_samples:
+        raise HysidInputError(f"{path}: holds {loops.n_samples} points per branch, not the {n_points} asked for (extract again from the raw records)")
+    if "name" in config.given:
+        loops.name = config.name
+    if "meq_kg" in config.given:
+        loops.meq_kg = config.meq_kg
+    if "bounds" in config.given:
+        loops.meta["bounds"] = dict(config.bounds)
+    return loops
+
+
+def _load_file(path: Path, n_points: int | None) -> LoopSet:
+    config = read_config(path.parent)
+    suffix = path.suffix.lower()
+    if is_tidy_file(path):
+        return _tidy(path, config, n_points)
+    if suffix == ".mat":
+        return read_mat_dataset([path], config, n_points or DEFAULT_POINTS)
+    if suffix in RAW_SUFFIXES:
+        return extract_records([(path, frequency_in_name(path.stem))], config, n_points or DEFAULT_POINTS, f"raw-{suffix[1:]}")
+    raise HysidInputError(f"{path}: unknown dataset file type (expected a hysid loops file, .mat, .lvm or a raw .csv record)")
+
+
+def _load_dir(directory: Path, n_points: int | None) -> LoopSet:
+    config = read_config(directory)
+    manifest = directory / MANIFEST_NAME
+    tidy = directory / TIDY_NAME
+    if manifest.is_file() and tidy.is_file():
+        raise HysidInputError(f"{directory}: holds both {MANIFEST_NAME} (raw records) and {TIDY_NAME} (extracted loops); keep one")
+    if tidy.is_file():
+        return _tidy(tidy, config, n_points)
+    n = n_points or DEFAULT_POINTS
+    if manifest.is_file():
+        rows = read_manifest(manifest)
+        files = [listed_file(manifest, row) for row in rows]
+        suffixes = {f.suffix.lower() for f in files}
+        if suffixes == {".mat"}:
+            return read_mat_dataset(files, config, n, manifest=rows)
+        if not suffixes <= set(RAW_SUFFIXES):
+            raise HysidInputError(f"{manifest}: lists {', '.join(sorted(suffixes))} files; records must be all .csv/.lvm or all .mat")
+        unlisted = sorted(set(config.steady) - {row.file for row in rows})
+        if unlisted:
+            raise HysidInputError(f"{directory / 'dataset.toml'}: [[tests]] file {unlisted[0]!r} is not listed in {MANIFEST_NAME}")
+        return extract_records([(f, row.frequency_hz) for f, row in zip(files, rows)], config, n, "raw-" + "+".join(s[1:] for s in sorted(suffixes)))
+    mats = sorted(p for p in directory.iterdir() if p.suffix.lower() == ".mat" and p.is_file())
+    if mats:
+        return read_mat_dataset(mats, config, n)
+    lvms = sorted((p for p in directory.iterdir() if p.suffix.lower() == ".lvm" and p.is_file()), key=lambda p: natural_key(p.name))
+    if lvms:
+        return extract_records([(p, frequency_in_name(p.stem)) for p in lvms], config, n, "raw-lvm")
+    raise HysidInputError(
+        f"{directory}: no dataset here (expected {MANIFEST_NAME} with raw records, {TIDY_NAME}, .mat loop files or .lvm records)"
+    )
+
+
+def _read_record(path: Path, config: DatasetConfig) -> TimeSeries:
+    if path.stat().st_size == 0:
+        raise HysidInputError(f"{path}: the file is empty")
+    return read_lvm(path, config) if path.suffix.lower() == ".lvm" else read_series(path)
+
+
+def extract_records(records: list[tuple[Path, float | None]], config: DatasetConfig, n_points: int, fmt: str) -> LoopSet:
+    """Extract one loop per raw record ((path, nominal frequency or None)); see :mod:`hysid_model.extraction`."""
+    extracted = []
+    for path, nominal in records:
+        series = _read_record(path, config)
+        extracted.append(extract_loop(
+            series.t, series.x, series.force, source=str(path), n_points=n_points,
+            nominal_freq_hz=nominal, steady_window=config.steady.get(path.name),
+        ))
+    per_loop: dict[str, list[Any]] = {"file": [p.name for p, _ in records], "nominal_frequency_hz": [math.nan if f is None else f for _, f in records]}
+    for key in extracted[0].meta():
+        per_loop[key] = [e.meta()[key] for e in extracted]
+    meta = config.meta()
+    meta.update({"format": fmt, "per_loop": per_loop})
+    return LoopSet(
+        name=config.name,
+        freq_hz=np.array([e.freq_hz for e in extracted]),
+        x0=np.array([e.x0 for e in extracted]),
+        top=np.stack([e.top for e in extracted]),
+        bottom=np.stack([e.bottom for e in extracted]),
+        sigma=np.array([e.sigma for e in extracted]),
+        meq_kg=config.meq_kg,
+        cycles=np.array([e.cycles for e in extracted]),
+        labels=[p.stem for p, _ in records],
+        meta=meta,
+    )
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value)) if math.isfinite(value) else ("nan" if math.isnan(value) else ("inf" if value > 0 else "-inf"))
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} to TOML")
+
+
+def _write_toml(path: Path, top: dict[str, Any], tables: dict[str, dict[str, Any]]) -> None:
+    lines = [f"{key} = {_toml_value(value)}" for key, value in top.items() if value is not None]
+    for name, table in tables.items():
+        if table:
+            lines += ["", f"[{name}]"] + [f"{key} = {_toml_value(value)}" for key, value in table.items()]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def _fresh_directory(out_dir: Path) -> None:
+    if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
+        raise HysidInputError(f"{out_dir}: already exists and is not an empty directory; choose a new one (nothing was written)")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise HysidInputError(f"{out_dir}: cannot create the directory ({exc.strerror})") from None
+
+
+def write_dataset(
+    out_dir: str | Path,
+    data: LoopSet | list[RawRecord],
+    *,
+    name: str | None = None,
+    meq_kg: float | None = None,
+    bounds: dict[str, tuple[float, float]] | None = None,
+    true_params: dict[str, float] | None = None,
+    description: str | None = None,
+) -> Path:
+    """Write a dataset directory that :func:`load_dataset` reads back.
+
+    A :class:`LoopSet` becomes ``loops.csv`` (tidy, exact round trip; its own
+    name, mass and meta). Raw records become one ``<label>.csv`` each
+    (``time_s,displacement_m,force_n``), ``manifest.csv`` and ``dataset.toml``
+    (``name``, ``meq_kg``, ``sample_rate_hz``, ``[bounds]``, ``[true_params]``).
+    The directory must be new or empty, so nothing stored is overwritten.
+    """
+    out = Path(out_dir)
+    if isinstance(data, LoopSet):
+        _fresh_directory(out)
+        write_loops(data, out / TIDY_NAME)
+        return out
+    if not data:
+        raise HysidInputError("write_dataset: no records to write")
+    _fresh_directory(out)
+    rows = ["file,frequency_hz"]
+    for rec in data:
+        filename = f"{rec.label}.csv"
+        write_series(out / filename, rec.t, rec.x, rec.force)
+        rows.append(f"{filename},{rec.freq_hz!r}")
+    (out / MANIFEST_NAME).write_text("\n".join(rows) + "\n", encoding="utf-8")
+    dt = np.diff(data[0].t)
+    _write_toml(
+        out / "dataset.toml",
+        {"name": name or out.resolve().name, "meq_kg": 0.0 if meq_kg is None else float(meq_kg),
+         "sample_rate_hz": float(1.0 / dt.mean()), "description": description},
+        {"bounds": {k: list(v) for k, v in (bounds or {}).items()}, "true_params": dict(true_params or {})},
+    )
+    return out

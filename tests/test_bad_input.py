@@ -1,0 +1,209 @@
+"""Bad input gives one HysidInputError line naming the file and the problem (exit status 2 through the CLI)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+
+from coordinator.cli import main
+from hysid_model.datasets import load_dataset
+from hysid_model.errors import HysidInputError
+from hysid_model.extraction import extract_loop
+from hysid_model.synth import synth_loops
+
+FREQ = 10.0
+HEADER = "time_s,displacement_m,force_n"
+
+
+def rows(cycles: float = 6.0, fs: float = 2000.0, freq: float = FREQ) -> list[str]:
+    t = np.arange(int(cycles / freq * fs)) / fs
+    theta = 2 * np.pi * freq * t
+    x, force = 1e-3 * np.sin(theta), 50 * np.sin(theta + 0.3)
+    return [f"{a!r},{b!r},{c!r}" for a, b, c in zip(t.tolist(), x.tolist(), force.tolist())]
+
+
+def dataset(tmp_path: Path, body: list[str] | None = None, header: str = HEADER, manifest: str | None = None, toml: str | None = None) -> Path:
+    """A one-record dataset directory whose parts can be spoiled."""
+    d = tmp_path / "ds"
+    d.mkdir()
+    (d / "run.csv").write_text("\n".join([header] + (rows() if body is None else body)) + "\n")
+    (d / "manifest.csv").write_text(f"file,frequency_hz\nrun.csv,{FREQ}\n" if manifest is None else manifest)
+    if toml is not None:
+        (d / "dataset.toml").write_text(toml)
+    return d
+
+
+def error_of(spec, **kwargs) -> str:
+    with pytest.raises(HysidInputError) as info:
+        load_dataset(spec, **kwargs)
+    message = str(info.value)
+    assert "\n" not in message
+    return message
+
+
+def cli_error(args: list[str], capsys) -> str:
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hysid: error: ") and "Traceback" not in err and err.count("\n") == 1
+    return err
+
+
+def test_missing_or_misspelled_column(tmp_path, capsys):
+    d = dataset(tmp_path, header="time_s,displacement_m,force")
+    message = error_of(d)
+    assert "run.csv" in message and "missing column 'force_n' (found 'force')" in message
+    assert "expected columns time_s, displacement_m, force_n, found: time_s, displacement_m, force" in message
+    assert "force_n" in cli_error(["loops", str(d)], capsys)
+
+
+def test_nan_and_inf_name_column_and_line(tmp_path):
+    body = rows()
+    body[2] = "0.001,0.0,nan"
+    assert "run.csv: line 4: force_n is nan" in error_of(dataset(tmp_path, body))
+    body[2] = "0.001,inf,1.0"
+    d2 = tmp_path / "two"
+    d2.mkdir()
+    assert "line 4: displacement_m is inf" in error_of(dataset(d2, body))
+
+
+def test_text_in_a_number_column_and_ragged_rows(tmp_path):
+    body = rows()
+    body[5] = "0.0025,abc,1.0"
+    assert "run.csv: line 7: displacement_m 'abc' is not a number" in error_of(dataset(tmp_path, body))
+    body[5] = "0.0025,1.0"
+    d2 = tmp_path / "two"
+    d2.mkdir()
+    assert "line 7: 2 values for the 3 columns" in error_of(dataset(d2, body))
+
+
+def test_time_must_increase(tmp_path):
+    body = rows()
+    body[10], body[11] = body[11], body[10]
+    assert "run.csv: line 13: time_s does not increase (0.005 after 0.0055)" in error_of(dataset(tmp_path, body))
+
+
+def test_fewer_than_two_steady_cycles(tmp_path):
+    assert "fewer than 2 steady cycles" in error_of(dataset(tmp_path, rows(cycles=1.6)))
+    toml = '[[tests]]\nfile = "run.csv"\nsteady_t0_s = 0.1\nsteady_t1_s = 0.25\n'
+    d2 = tmp_path / "two"
+    d2.mkdir()
+    assert "run.csv: fewer than 2 steady cycles (1.50 cycles" in error_of(dataset(d2, toml=toml))
+
+
+def test_manifest_frequency_disagreeing_with_the_data(tmp_path, capsys):
+    d = dataset(tmp_path, manifest="file,frequency_hz\nrun.csv,10.5\n")
+    message = error_of(d)
+    assert "run.csv: the data's frequency 10 Hz disagrees with the manifest's 10.5 Hz by 4.8 %" in message
+    assert "disagrees" in cli_error(["loops", str(d)], capsys)
+
+
+@pytest.mark.parametrize("value", ["-0.04", '"heavy"', "true", "nan"])
+def test_negative_or_non_numeric_mass(tmp_path, capsys, value):
+    d = dataset(tmp_path, toml=f"meq_kg = {value}\n")
+    assert "dataset.toml: meq_kg must be a mass in kg >= 0 (0 = unknown)" in error_of(d)
+    assert "meq_kg" in cli_error(["loops", str(d)], capsys)
+
+
+def test_listed_file_missing(tmp_path):
+    d = dataset(tmp_path, manifest=f"file,frequency_hz\nrun.csv,{FREQ}\nrun2.csv,{FREQ}\n")
+    assert "manifest.csv: line 3: listed file 'run2.csv' does not exist" in error_of(d)
+
+
+def test_empty_files(tmp_path):
+    d = dataset(tmp_path)
+    (d / "run.csv").write_text("")
+    assert "run.csv: the file is empty" in error_of(d)
+    (d / "run.csv").write_text(HEADER + "\n")
+    assert "run.csv: the header is there but there are no data rows" in error_of(d)
+    (d / "manifest.csv").write_text("")
+    assert "manifest.csv: the file is empty" in error_of(d)
+
+
+def test_manifest_without_header_or_with_duplicates(tmp_path):
+    d = dataset(tmp_path, manifest=f"run.csv,{FREQ}\n")
+    assert "manifest.csv: the first line must be the header 'file,frequency_hz' (found 'run.csv,10.0')" in error_of(d)
+    (d / "manifest.csv").write_text(f"file,frequency_hz\nrun.csv,{FREQ}\nrun.csv,{FREQ}\n")
+    assert "manifest.csv: line 3: 'run.csv' is listed twice (also on line 2)" in error_of(d)
+    (d / "manifest.csv").write_text("file,frequency_hz\nrun.csv,fast\n")
+    assert "line 2: frequency_hz 'fast' is not a positive number" in error_of(d)
+
+
+def test_invalid_toml_and_bad_bounds(tmp_path):
+    d = dataset(tmp_path, toml="name = 'x\nmeq_kg = 1\n")
+    assert "dataset.toml: invalid TOML" in error_of(d)
+    (d / "dataset.toml").write_text("[bounds]\nxi0 = [0.1, 0.0]\n")
+    assert "dataset.toml: bounds.xi0 must be [lower, upper] with lower < upper" in error_of(d)
+    (d / "dataset.toml").write_text('[[tests]]\nfile = "other.csv"\nsteady_t0_s = 0\nsteady_t1_s = 1\n')
+    assert "dataset.toml: [[tests]] file 'other.csv' is not listed in manifest.csv" in error_of(d)
+
+
+def test_unknown_dataset_path(tmp_path, capsys):
+    missing = tmp_path / "nowhere"
+    assert f"{missing}: no such dataset" in error_of(missing)
+    assert "no such dataset" in cli_error(["loops", str(missing)], capsys)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert "no dataset here" in error_of(empty)
+
+
+def test_mat_without_loop_and_v73(tmp_path):
+    d = tmp_path / "mat"
+    d.mkdir()
+    loops = synth_loops(n_points=20)
+    scipy.io.savemat(d / "SAMPLE2_05mm_25Hz.mat", {"HexpT": loops.top[0], "HexpB": loops.bottom[0]})
+    scipy.io.savemat(d / "SAMPLE2_05mm_26Hz.mat", {"top": loops.top[1], "bottom": loops.bottom[1]})
+    assert "SAMPLE2_05mm_26Hz.mat: no HexpT/HexpB loop in this .mat file (variables: bottom, top)" in error_of(d)
+    (d / "SAMPLE2_05mm_26Hz.mat").unlink()
+    header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan 1 00:00:00 2024 HDF5 schema 1.00 ."
+    (d / "SAMPLE2_05mm_27Hz.mat").write_bytes(header.ljust(116, b" ") + b"\0" * 8 + b"\x00\x02IM" + b"\0" * 512)
+    assert "SAMPLE2_05mm_27Hz.mat: MATLAB v7.3 (HDF5) files are not supported" in error_of(d)
+    (d / "SAMPLE2_05mm_27Hz.mat").write_bytes(b"")
+    assert "SAMPLE2_05mm_27Hz.mat: the file is empty" in error_of(d)
+    (d / "SAMPLE2_05mm_27Hz.mat").unlink()
+    scipy.io.savemat(d / "ef.mat", {"ef": np.array([25.0, 26.0])})
+    assert "ef.mat: ef has 2 frequencies for 1 loop files" in error_of(d)
+
+
+def test_lvm_needs_sample_rate_and_channels(tmp_path):
+    d = tmp_path / "lvm"
+    d.mkdir()
+    t = np.arange(2000) / 2000.0
+    np.savetxt(d / "TRAC1.lvm", np.column_stack([np.sin(2 * np.pi * 10 * t), np.cos(2 * np.pi * 10 * t)]))
+    assert "TRAC1.lvm: a headerless .lvm has no time column; set sample_rate_hz in" in error_of(d)
+    (d / "TRAC1.lvm").write_text(
+        "LabVIEW Measurement\t\nSeparator\tTab\nX_Columns\tOne\n***End_of_Header***\t\n\nChannels\t2\t\t\n***End_of_Header***\t\t\t\n"
+        "X_Value\tVoltage\tVoltage_0\tComment\n" + "".join(f"{a}\t{np.sin(a)}\t{np.cos(a)}\n" for a in t)
+    )
+    assert "TRAC1.lvm: no channel names contain 'disp' or 'position' (channels: 'Voltage', 'Voltage_0'); set displacement_channel" in error_of(d)
+
+
+def test_sample_rate_locked_too_sparse_for_the_points(tmp_path):
+    t = np.arange(600) / 200.0  # 20 samples per cycle at 10 Hz, identical phases every cycle
+    theta = 2 * np.pi * FREQ * t
+    with pytest.raises(HysidInputError, match="run.csv: too few samples for 100 points per branch: the steady cycles hold only 20 distinct"):
+        extract_loop(t, np.sin(theta), np.cos(theta), source="run.csv")
+
+
+def test_manifest_and_loops_file_together_and_bad_tidy(tmp_path):
+    d = dataset(tmp_path)
+    (d / "loops.csv").write_text("# hysid-loops v1\n")
+    assert "holds both manifest.csv (raw records) and loops.csv (extracted loops); keep one" in error_of(d)
+    (d / "manifest.csv").unlink()
+    assert "loops.csv: header line '# name: ...' missing" in error_of(d)
+    (d / "loops.csv").write_text("# hysid-loops v9\n")
+    assert "unsupported loops file version 'hysid-loops v9'" in error_of(d)
+    (d / "loops.csv").write_text("# hysid-loops v1\n# name: x\n# meq_kg: -1\n# meta: {}\n")
+    assert "loops.csv: meq_kg must be a positive mass or 'unknown'" in error_of(d)
+
+
+def test_synth_never_overwrites(tmp_path, capsys):
+    out = tmp_path / "taken"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    assert "already exists and is not an empty directory" in cli_error(["synth", str(out)], capsys)
+    assert (out / "keep.txt").read_text() == "mine" and len(list(out.iterdir())) == 1
+    assert "noise must be a percentage from 0 to 100" in cli_error(["loops", "synth", "--noise", "150"], capsys)
+    assert "points per branch must be an integer >= 2" in cli_error(["loops", "synth", "--points", "1"], capsys)

@@ -1,0 +1,175 @@
+"""Campaigns end to end: ``hysid campaign`` (processes over Zenoh and --single-node),
+``hysid coordinator`` + ``hysid island`` by hand, the fallback, and CLI errors."""
+
+from __future__ import annotations
+
+import io
+import json
+import socket
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coordinator.campaign import free_port, island_specs, run_campaign
+from coordinator.cli import main
+from coordinator.server import Coordinator, StopRules, new_config
+from coordinator.store import Store
+from hysid_model.synth import TRUE_PARAMS, synth_loops
+from island.protocol import Migration
+
+SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
+FIT_KEYS = {"params", "stderr", "fitness", "evaluations", "history"}
+
+
+def hysid(*args: str) -> list[str]:
+    return [sys.executable, "-m", "coordinator.cli", *args]
+
+
+def history_iterations(db: Path) -> dict[str, list[int]]:
+    with sqlite3.connect(db) as con:
+        rows = con.execute("SELECT island, iteration FROM history ORDER BY island, run, iteration").fetchall()
+    out: dict[str, list[int]] = {}
+    for island, it in rows:
+        out.setdefault(island, []).append(it)
+    return out
+
+
+def events(db: Path) -> list[tuple[str, str]]:
+    with sqlite3.connect(db) as con:
+        return con.execute("SELECT island, event FROM members ORDER BY id").fetchall()
+
+
+def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["campaign", "--single-node", "--islands", "3", *SMALL, "--json", "--quiet", "--out", str(out)])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert FIT_KEYS | {"islands", "migrations"} <= set(doc)
+    for name, true in TRUE_PARAMS.items():  # noiseless data: the polished global best is the truth
+        assert doc["params"][name] == pytest.approx(true, rel=1e-6)
+    assert [i["island"] for i in doc["islands"]] == ["ga-0", "ga-2", "pso-1"]
+    assert all(i["status"] == "left" and i["iterations"] == 15 for i in doc["islands"])
+    assert doc["migrations"]["messages"] == 6  # 3 islands x migrations after iterations 5 and 10
+    assert doc["migrations"]["received"] == 12 and doc["migrations"]["rejected"] == 0
+    assert doc["evaluations"] == sum(i["evaluations"] for i in doc["islands"]) + doc["runs"][doc["best_run"]]["polish"]["evaluations"]
+    assert history_iterations(out / "campaign.sqlite") == {i: list(range(16)) for i in ("ga-0", "ga-2", "pso-1")}
+    assert json.loads((out / "result.json").read_text())["islands"] == doc["islands"]
+    assert (out / "report.md").is_file() and (out / "convergence.png").is_file()
+
+
+def test_campaign_of_island_processes_over_zenoh(tmp_path):
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        hysid("campaign", "--islands", "2", "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "200",
+              "--json", "--out", str(out)),
+        capture_output=True, text=True, timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert doc["fitness"] < 1e-20
+    assert {i["island"]: (i["algo"], i["status"]) for i in doc["islands"]} == {"pso-0": ("pso", "left"), "pso-1": ("pso", "left")}
+    assert doc["migrations"]["messages"] == 2 * 39  # after iterations 5, 10, ..., 195
+    assert doc["migrations"]["received"] > 0  # how many arrive in time is up to the network
+    assert "members 2" in proc.stderr and "migrations" in proc.stderr  # live progress
+    db = out / "campaign.sqlite"
+    assert history_iterations(db) == {"pso-0": list(range(201)), "pso-1": list(range(201))}
+    assert sorted(events(db)) == sorted([("pso-0", "join"), ("pso-1", "join"), ("pso-0", "left"), ("pso-1", "left")])
+
+
+def test_campaign_falls_back_to_one_process_when_zenoh_cannot_open(tmp_path):
+    loops = synth_loops(n_points=30)
+    sizes = {"ga": {"population": 10, "initial_population": 20, "iterations": 6}, "pso": {"swarm": 10, "initial_swarm": 20, "iterations": 6}}
+    config = new_config(loops, name="fb", options=sizes, migration=Migration(interval=2), min_islands=2)
+    store = Store(tmp_path / "c.sqlite")
+    stderr = io.StringIO()
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        endpoint = f"tcp/127.0.0.1:{busy.getsockname()[1]}"
+        result = run_campaign(Coordinator(store, config, loops, StopRules()), island_specs(2, ["ga", "pso"], 0), progress_stream=stderr, endpoint=endpoint)
+    message = stderr.getvalue().splitlines()[0]
+    assert message.startswith(f"hysid: cannot open Zenoh session (listen {endpoint}):")
+    assert message.endswith("running every island in this process instead (--single-node)")
+    assert [i["status"] for i in result.islands] == ["left", "left"]
+    assert result.migrations["messages"] == 4
+
+
+def wait_for(predicate, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.1)
+
+
+def island_rows(db: Path, island: str) -> int:
+    if not db.exists():
+        return 0
+    with sqlite3.connect(db) as con:
+        return con.execute("SELECT count(*) FROM history WHERE island = ?", (island,)).fetchone()[0]
+
+
+def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    db = tmp_path / "lj.sqlite"
+    coordinator = subprocess.Popen(
+        hysid("coordinator", "--listen", endpoint, "--campaign", "lj", "--db", str(db), "--out", str(tmp_path / "out"),
+              "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "100000", "--interval", "0",
+              "--budget", "60000", "--time-limit", "90", "--json", "--quiet"),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    first = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet"), stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for(lambda: island_rows(db, "early") > 50, 60, "the first island's history")
+        late = subprocess.run(
+            hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "late", "--seed", "99"),
+            capture_output=True, text=True, timeout=120,
+        )
+        assert late.returncode == 0, late.stderr
+        assert "island late (PSO, seed 99)" in late.stderr and "stopped by the coordinator" in late.stderr
+        out, err = coordinator.communicate(timeout=60)
+        assert coordinator.returncode == 0, err
+        assert first.wait(timeout=30) == 0
+    finally:
+        for p in (coordinator, first):
+            p.kill()
+            p.wait()
+    doc = json.loads(out)
+    islands = {i["island"]: i for i in doc["islands"]}
+    assert islands["late"]["received"] == 1 and islands["late"]["taken"] == 1  # the global best, taken in
+    assert islands["early"]["received"] == 0  # isolated islands: --interval 0
+    assert doc["settings"]["stop_reason"] == "budget of 60,000 evaluations spent"
+    assert doc["evaluations"] >= 60000
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["campaign", "--algos", "ga,cmaes"], "--algos 'ga,cmaes': give a comma-separated list of ga, pso"),
+        (["campaign", "--islands", "0"], "--islands 0: a campaign needs at least one island"),
+        (["campaign", "--topology", "star"], "topology must be one of ring, full, random, got 'star'"),
+        (["campaign", "--initial", "10"], "--initial 10: must be at least --population 200"),
+        (["coordinator", "--resume"], "--resume needs --db FILE"),
+        (["coordinator", "--campaign", "a/b"], "--campaign 'a/b' must be 1-64 characters"),
+        (["coordinator", "--listen", "localhost"], "--listen 'localhost': a Zenoh endpoint looks like tcp/127.0.0.1:7447"),
+        (["island", "--algo", "de"], "--algo 'de': unknown algorithm; choose one of ga, pso"),
+        (["island", "--connect", "tcp/127.0.0.1:1", "--wait", "0.5"], "cannot open Zenoh session (connect tcp/127.0.0.1:1)"),
+    ],
+)
+def test_bad_arguments_are_one_line_errors(argv, message, capsys, tmp_path):
+    assert main([*argv, "--out", str(tmp_path / "o")] if argv[0] != "island" else argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hysid: error: ") and message in err and err.count("\n") == 1
+
+
+def test_a_stored_campaign_is_never_overwritten(tmp_path, capsys):
+    db = tmp_path / "c.sqlite"
+    Store(db).create_campaign("default", "synth", b"cfg")
+    assert main(["coordinator", "--db", str(db), "--out", str(tmp_path / "o")]) == 2
+    assert "campaign 'default' already exists; use --resume" in capsys.readouterr().err
+    assert Store(db).campaign("default") == ("synth", b"cfg", "running")
