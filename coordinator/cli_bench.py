@@ -19,6 +19,7 @@ import typer
 
 from coordinator.bench import environment
 from coordinator.bench import accuracy as accuracy_bench
+from coordinator.bench import islands as islands_bench
 from coordinator.bench import objective as objective_bench
 
 bench_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None)
@@ -44,6 +45,7 @@ def add_bench(name: str, run: Callable[[], dict[str, Any]], to_text: Callable[[d
 
 add_bench("objective", objective_bench.run, objective_bench.to_text)
 bench_app.command("accuracy")(accuracy_bench.command)
+bench_app.command("islands")(islands_bench.command)
 
 
 def bench_names() -> list[str]:

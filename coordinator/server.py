@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import queue
 from pathlib import Path
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -204,7 +203,12 @@ class Coordinator:
         self.rejected = store.count("rejected", self.name)
         self.started = time.monotonic()
         self.stop_reason: str | None = None
-        self._lock = threading.Lock()
+        self.full_at: float | None = None
+        """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
+        self.best_trace: list[tuple[float, float, int]] = []
+        """``(time.monotonic(), fitness, total evaluations)`` at every improvement of the global best."""
+        self.member_events = 0
+        """Membership events recorded by this process (progress is shown at each)."""
 
     # --- state -------------------------------------------------------------------
     @property
@@ -255,14 +259,20 @@ class Coordinator:
             event = "join" if member is None else ("back" if member.status != "alive" else "seen")
             run = member.run if member else self._latest_run(island)
             self.members[island] = Member("alive", run)
-            self.store.member_event(self.name, island, event)
+            self._event(island, event)
+            if self.full_at is None and sum(m.status == "alive" for m in self.members.values()) >= self.config.min_islands:
+                self.full_at = time.monotonic()
             link.request_history(island, run, self.store.last_iteration(self.name, island, run) if run else -1)
         elif member is not None and member.status == "alive":
             if self.islands.get((island, member.run), IslandView("")).final:
                 member.status = "left"
-                self.store.member_event(self.name, island, "left")
+                self._event(island, "left")
             else:
                 member.gone_at = time.monotonic()
+
+    def _event(self, island: str, event: str) -> None:
+        self.store.member_event(self.name, island, event)
+        self.member_events += 1
 
     def _latest_run(self, island: str) -> str:
         """The island's run with the most iterations on record ("" if none): after a coordinator
@@ -276,7 +286,7 @@ class Coordinator:
         for island, member in self.members.items():
             if member.status == "alive" and member.gone_at is not None and now - member.gone_at >= LEAVE_GRACE_S:
                 member.status = "lost"
-                self.store.member_event(self.name, island, "lost")
+                self._event(island, "lost")
 
     def _history(self, h: Any) -> None:
         key = (h.island, h.run)
@@ -297,7 +307,7 @@ class Coordinator:
             member.run = h.run
             if h.final and member.status == "alive" and member.gone_at is not None:
                 member.status = "left"
-                self.store.member_event(self.name, h.island, "left")
+                self._event(h.island, "left")
         self._consider(h.island, h.best_x, h.best_f)
 
     def _migrants(self, link: Link, payload: bytes, sender: str) -> None:
@@ -316,6 +326,7 @@ class Coordinator:
         if not np.isfinite(f) or (self.best is not None and not f < self.best.fitness):
             return False
         self.best = StoredBest(island, np.array(x, dtype=float), f, self.evaluations)
+        self.best_trace.append((time.monotonic(), f, self.evaluations))
         self.store.set_best(self.name, self.best)
         self.best_message = self._best_message()
         return True
@@ -360,14 +371,17 @@ class Coordinator:
         extra_stop: Callable[[], str | None] | None = None,
         progress_every_s: float = 1.0,
     ) -> str:
-        """Run until a stop rule (or ``extra_stop()``) fires; announce the stop, collect final histories; returns the reason."""
-        last = 0.0
-        while self.stop_reason is None:
-            self.drain(link, timeout=0.05)
-            self.stop_reason = self.check_stop() or (extra_stop() if extra_stop is not None else None)
-            if on_progress is not None and time.monotonic() - last >= progress_every_s:
-                on_progress(self.progress())
-                last = time.monotonic()
+        """Run until a stop rule, ``extra_stop()`` or Ctrl-C; announce the stop, collect final histories; returns the reason."""
+        last, shown_events = 0.0, -1
+        try:
+            while self.stop_reason is None:
+                self.drain(link, timeout=0.05)
+                self.stop_reason = self.check_stop() or (extra_stop() if extra_stop is not None else None)
+                if on_progress is not None and (time.monotonic() - last >= progress_every_s or self.member_events != shown_events):
+                    on_progress(self.progress())
+                    last, shown_events = time.monotonic(), self.member_events
+        except KeyboardInterrupt:  # Ctrl-C (SIGINT) stops the campaign like a stop rule; a second one aborts
+            self.stop_reason = "interrupted"
         self.store.set_status(self.name, "stopping", self.stop_reason)
         message = encode_stop(self.name, self.stop_reason)
         deadline = time.monotonic() + STOP_GRACE_S

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hysid_model.basis import design_matrix
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
 from hysid_model.params import Parameter
@@ -134,6 +135,16 @@ class Model:
         for term in self.terms:
             coefs = term.measure(v, coefs, kin)
         return coefs
+
+    def force(self, pop: np.ndarray, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
+        """The measured steady-state force at any phases ``(L, N)``, ``(P, L, N)``; the first ``n_top``
+        samples of each loop (default N/2) are on the loading branch."""
+        n_top = phase.shape[-1] // 2 if n_top is None else n_top
+        coefs = self.coefficients(pop, kin)
+        names = list(coefs)
+        force = np.einsum("lnm,plm->pln", design_matrix(names, phase, n_top), np.stack([coefs[k] for k in names], axis=-1))
+        memory = self.memory_force(pop, kin, phase, n_top)
+        return force if memory is None else force + memory
 
     def memory_force(self, pop: np.ndarray, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray | None:
         """Force evaluated per sample at ``phase`` (L, N), ``(P, L, N)``, or None.

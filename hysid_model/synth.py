@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hysid_model.basis import design_matrix
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
@@ -136,14 +135,7 @@ def model_force(model: Model, theta: np.ndarray, freq_hz: float, x0: float, meq_
     order = np.concatenate([np.flatnonzero(np.cos(phase) >= 0.0), np.flatnonzero(np.cos(phase) < 0.0)])
     n_top = int(np.count_nonzero(np.cos(phase) >= 0.0))
     kin = Kinematics(x0=np.array([float(x0)]), omega=np.array([2.0 * np.pi * float(freq_hz)]), meq_kg=meq_kg)
-    pop = np.asarray(theta, dtype=float).reshape(1, -1)
-    coefs = model.coefficients(pop, kin)
-    sorted_phase = phase[order][None, :]
-    names = list(coefs)
-    force = design_matrix(names, sorted_phase, n_top)[0] @ np.array([coefs[n][0, 0] for n in names])
-    memory = model.memory_force(pop, kin, sorted_phase, n_top=n_top)
-    if memory is not None:
-        force = force + memory[0, 0]
+    force = model.force(np.asarray(theta, dtype=float).reshape(1, -1), kin, phase[order][None, :], n_top)[0, 0]
     out = np.empty_like(force)
     out[order] = force
     return out

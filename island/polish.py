@@ -49,18 +49,33 @@ def polish(objective: Any, theta0: np.ndarray, *, max_nfev: int | None = None) -
     if not np.isfinite(f0):
         return PolishResult(start, np.inf, 1, False, "the objective cannot be computed at the start point")
     probes_per_jacobian = 2 * start.size
-    result = least_squares(
-        objective.weighted_residuals,
-        start,
-        jac=objective.jacobian,
-        bounds=(bounds[:, 0], bounds[:, 1]),
-        method="trf",
-        x_scale="jac",
-        ftol=TOLERANCE,
-        xtol=TOLERANCE,
-        gtol=TOLERANCE,
-        max_nfev=max_nfev,
-    )
+    calls = {"residuals": 0}
+
+    def residuals(theta: np.ndarray) -> np.ndarray:
+        calls["residuals"] += 1
+        return objective.weighted_residuals(theta)
+
+    def jacobian(theta: np.ndarray) -> np.ndarray:
+        # A probe that leaves the computable region (e.g. a memory term that
+        # diverges) carries no slope information: treat it as flat.
+        jac = objective.jacobian(theta)
+        return np.where(np.isfinite(jac), jac, 0.0)
+
+    try:
+        result = least_squares(
+            residuals,
+            start,
+            jac=jacobian,
+            bounds=(bounds[:, 0], bounds[:, 1]),
+            method="trf",
+            x_scale="jac",
+            ftol=TOLERANCE,
+            xtol=TOLERANCE,
+            gtol=TOLERANCE,
+            max_nfev=max_nfev,
+        )
+    except ValueError as exc:
+        return PolishResult(start, f0, 1 + calls["residuals"], False, f"least squares stopped: {exc}")
     evaluations = 1 + int(result.nfev) + probes_per_jacobian * int(result.njev or 0)
     fitness = float(result.fun @ result.fun)
     if not fitness <= f0:

@@ -80,7 +80,7 @@ def residual_signature(fit: Fit, harmonics: Harmonics) -> dict:
     per_loop = np.sum(e**2, axis=1) - e.shape[1] * fit.dof / fit.n
     trends = {}
     for label, values in (("amplitude", harmonics.loops.x0), ("frequency", harmonics.loops.freq_hz)):
-        if np.unique(values).size > 2:
+        if np.unique(values).size > 2 and np.ptp(per_loop) > 0:
             rho = float(spearmanr(values, per_loop).statistic)
             trends[label] = rho
             if abs(rho) >= TREND:

@@ -232,7 +232,7 @@ def write_report(diagnosis: Diagnosis, out_dir: Path | str, dataset: str, cross_
         "coefficients, with whatever the current model can absorb projected out, against the whitened residual "
         f"(Bonferroni level {SIGNIFICANCE:g}). The best few are refitted; one is accepted when the BIC improves by at "
         f"least {BIC_MARGIN:g}, its strength is {MIN_Z:g} standard errors from zero with the physical sign, no parameter "
-        f"ends on a bound, and it removes at least {100 * MIN_SHARE:.0f}% of the chi^2 above the noise floor. Effects "
+        f"is pushed against a bound, and it removes at least {100 * MIN_SHARE:.0f}% of the chi^2 above the noise floor. Effects "
         "fitting within the BIC margin of the accepted one are named as confusable.",
         "",
         "## Reproduce",

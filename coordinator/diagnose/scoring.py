@@ -56,8 +56,8 @@ def effects_in(fit: Fit) -> tuple[str, ...]:
     return PRESETS[fit.start] + fit.effects
 
 
-def signature(fit: Fit, harmonics: Harmonics, effect: str, bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, list[dict[str, float]], str, bool]:
-    """d(whitened residual)/d(strength) at strength 0, ``(n_shapes, N)``, the shapes, the strength name and its sign constraint."""
+def signature(fit: Fit, harmonics: Harmonics, effect: str, bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, list[dict[str, float]], bool]:
+    """d(whitened residual)/d(strength) at strength 0, ``(n_shapes, N)``, the shapes, and whether the strength is one-sided (>= 0)."""
     model = make_model(harmonics, fit.start, fit.effects + (effect,), bounds)
     term = EFFECTS[effect]()
     objective = HarmonicObjective(harmonics, model)
@@ -74,7 +74,7 @@ def signature(fit: Fit, harmonics: Harmonics, effect: str, bounds: dict[str, tup
         down[strength] -= h
         rows += [up, down]
     white = objective.whitened(np.array(rows)).reshape(len(shapes), 2, -1)
-    return (white[:, 0] - white[:, 1]) / (2.0 * h), shapes, term.strength, lo == 0.0
+    return (white[:, 0] - white[:, 1]) / (2.0 * h), shapes, lo == 0.0
 
 
 def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]]) -> list[Candidate]:
@@ -85,7 +85,7 @@ def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[flo
     for effect in EFFECTS:
         if effect in effects_in(fit):
             continue
-        g, shapes, _, one_sided = signature(fit, harmonics, effect, bounds)
+        g, shapes, one_sided = signature(fit, harmonics, effect, bounds)
         g_perp = g - (g @ q) @ q.T
         norm2 = np.sum(g_perp**2, axis=1)
         ratio = np.sqrt(norm2 / np.maximum(np.sum(g**2, axis=1), 1e-300))

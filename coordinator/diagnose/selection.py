@@ -10,7 +10,7 @@ From the start model (baseline or thesis) fitted to the loops' harmonics:
    one-step estimate after a short line search along the strength;
 3. accept the refit with the lowest BIC if it lowers the BIC by at least
    ``BIC_MARGIN``, its strength is significant (``MIN_Z`` standard errors) and
-   has the physical sign, none of its parameters sits on a bound, and it
+   has the physical sign, no parameter is pushed against a bound (:func:`binding`), and it
    removes at least ``MIN_SHARE`` of the chi^2 above the noise floor; every
    other acceptable refit within ``BIC_MARGIN`` of it is named as confusable
    with it (this data set cannot tell them apart);
@@ -149,6 +149,27 @@ def refit(fit: Fit, harmonics: Harmonics, candidate: Candidate, bounds: dict[str
     return fit_objective(objective, fit.start, effects, [rows[j] for j in order[: 1 if model.has_memory else 2]])
 
 
+def binding(fit: Fit, j: int) -> bool:
+    """True if parameter ``j`` sits on a bound that the data push against (the fit wants out of the range).
+
+    One-parameter score test at the bound: the chi^2 gradient 2 J^T e along
+    parameter j, with the others free, gives LM = (J^T e)_j^2 [(J^T J)^-1]_jj;
+    the bound binds if that points outward and exceeds MIN_Z^2. A weakly
+    determined shape that merely wanders onto its bound does not bind.
+    """
+    lower, upper = fit.model.bounds[j]
+    value = fit.theta[j]
+    if min(value - lower, upper - value) > 1e-6 * (upper - lower):
+        return False
+    scale = np.linalg.norm(fit.jacobian, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    unit = fit.jacobian / scale
+    gradient = (unit.T @ fit.residual)[j]
+    lm = gradient**2 * np.linalg.pinv(unit.T @ unit)[j, j]
+    outward = gradient > 0 if value - lower <= upper - value else gradient < 0
+    return bool(outward and lm > MIN_Z**2)
+
+
 def judge(before: Fit, after: Fit, effect: str) -> str | None:
     """Why ``after`` (``before`` plus ``effect``) is not accepted, or None."""
     delta = after.bic - before.bic
@@ -163,10 +184,8 @@ def judge(before: Fit, after: Fit, effect: str) -> str | None:
     if abs(values[i]) < MIN_Z * errors[i]:
         return f"{term.strength} = {values[i]:.4g} +- {errors[i]:.2g} is not significant"
     for p in term.params:
-        j = names.index(p.name)
-        span = bounds[j, 1] - bounds[j, 0]
-        if p.name != term.strength and min(values[j] - bounds[j, 0], bounds[j, 1] - values[j]) <= 1e-6 * span:
-            return f"{p.name} runs into its bound ({values[j]:.4g})"
+        if p.name != term.strength and binding(after, names.index(p.name)):
+            return f"{p.name} is pushed against its bound ({values[names.index(p.name)]:.4g}): the effect degenerates here"
     excess = before.chi2 - before.dof
     if excess > 0 and before.chi2 - after.chi2 < MIN_SHARE * excess:
         return f"removes only {100 * (before.chi2 - after.chi2) / excess:.0f}% of the chi^2 above the noise floor"
