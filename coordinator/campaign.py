@@ -88,7 +88,7 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
     stop = threading.Event()
     inbox = coordinator.inbox
     bus = MemoryBus(coordinator.name, [s.id for s in specs], lambda key, data: inbox.put(("msg", key, data)), stop)
-    nodes = [IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops), history_every_s=0.0) for s in specs]
+    nodes = [IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops)) for s in specs]
     errors: list[BaseException] = []
 
     def work(node: IslandNode) -> None:

@@ -27,10 +27,10 @@ campaigns feed the same queue from island threads (:mod:`coordinator.campaign`).
 from __future__ import annotations
 
 import queue
-from pathlib import Path
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -48,6 +48,7 @@ from island.protocol import (
     NAME_PATTERN,
     Best,
     CampaignConfig,
+    History,
     MessageRejected,
     Migration,
     decode_config,
@@ -205,8 +206,8 @@ class Coordinator:
         self.stop_reason: str | None = None
         self.full_at: float | None = None
         """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
-        self.best_trace: list[tuple[float, float, int]] = []
-        """``(time.monotonic(), fitness, total evaluations)`` at every improvement of the global best."""
+        self.best_trace: list[tuple[float, float, int, np.ndarray]] = []
+        """``(time.monotonic(), fitness, total evaluations, x)`` at every improvement of the global best."""
         self.member_events = 0
         """Membership events recorded by this process (progress is shown at each)."""
 
@@ -240,7 +241,7 @@ class Coordinator:
         kind, _, sender = key[len(key_prefix(self.name)) + 1 :].partition("/")
         try:
             if kind == "history":
-                self._history(decode_history(payload, self.name, self.objective.bounds, sender))
+                self._history(link, decode_history(payload, self.name, self.objective.bounds, sender))
             elif kind == "migrants":
                 self._migrants(link, payload, sender)
             else:
@@ -288,7 +289,7 @@ class Coordinator:
                 member.status = "lost"
                 self._event(island, "lost")
 
-    def _history(self, h: Any) -> None:
+    def _history(self, link: Link, h: History) -> None:
         key = (h.island, h.run)
         self.store.add_history(self.name, h.island, h.run, h.rows)
         iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
@@ -308,28 +309,27 @@ class Coordinator:
             if h.final and member.status == "alive" and member.gone_at is not None:
                 member.status = "left"
                 self._event(h.island, "left")
-        self._consider(h.island, h.best_x, h.best_f)
+        self._consider(link, h.island, h.best_x, h.best_f)
 
     def _migrants(self, link: Link, payload: bytes, sender: str) -> None:
         m = decode_migrants(payload, self.name, self.objective.bounds, sender)
         self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at)
         self.migrations += 1
         i = int(np.argmin(m.claimed))
-        if self._consider(m.island, m.x[i], float(m.claimed[i])):
-            link.publish_best(self.best_message or b"")
+        self._consider(link, m.island, m.x[i], float(m.claimed[i]))
 
-    def _consider(self, island: str, x: np.ndarray, claimed: float) -> bool:
-        """Re-evaluate a candidate that claims to beat the global best; True if it really does."""
+    def _consider(self, link: Link, island: str, x: np.ndarray, claimed: float) -> None:
+        """Re-evaluate a candidate that claims to beat the global best; if it really does, it is the new best."""
         if self.best is not None and not claimed < self.best.fitness:
-            return False
+            return
         f = float(self.objective(x[None, :])[0])
         if not np.isfinite(f) or (self.best is not None and not f < self.best.fitness):
-            return False
+            return
         self.best = StoredBest(island, np.array(x, dtype=float), f, self.evaluations)
-        self.best_trace.append((time.monotonic(), f, self.evaluations))
+        self.best_trace.append((time.monotonic(), f, self.evaluations, self.best.x))
         self.store.set_best(self.name, self.best)
         self.best_message = self._best_message()
-        return True
+        link.publish_best(self.best_message)
 
     # --- the loop -----------------------------------------------------------------
     def check_stop(self) -> str | None:
@@ -342,7 +342,7 @@ class Coordinator:
             return f"no improvement in {r.stall:,} evaluations"
         if r.time_limit_s is not None and time.monotonic() - self.started >= r.time_limit_s:
             return f"time limit of {r.time_limit_s:g} s"
-        if self.members and all(m.status != "alive" for m in self.members.values()) and all(v.final for v in self.islands.values()):
+        if self.islands and all(v.final for v in self.islands.values()) and all(m.status != "alive" for m in self.members.values()):
             return "every island finished"
         return None
 
@@ -397,7 +397,7 @@ class Coordinator:
 
     # --- the result ----------------------------------------------------------------
     def result(self, *, polish_best: bool = True) -> "CampaignResult":
-        """Every island run re-evaluated, the global best polished, standard errors: a :class:`FitResult`."""
+        """Every island run re-evaluated, the global best polished, standard errors: the ``hysid fit`` result and more."""
         objective = replace(self.config, objective_kind="closed_form").objective(self.loops)
         records = self.store.islands(self.name)
         history: dict[tuple[str, str], list[dict[str, float]]] = {}

@@ -9,9 +9,10 @@ counters), ``migrations`` (every migrant message seen), ``rejected`` (every
 message that failed validation, with the reason) and ``best`` (the global
 best, as re-evaluated by the coordinator).
 
-The journal is WAL with ``synchronous=FULL``; the coordinator commits after
-each batch of messages it handles, so a crash of the coordinator loses nothing
-it has acknowledged and ``--resume`` carries on from the file.
+The journal is WAL with ``synchronous=NORMAL``; the coordinator commits after
+each batch of messages it handles, so a crash (or kill) of the coordinator
+process loses nothing it has committed and ``--resume`` carries on from the
+file (only a power loss of the machine may drop the last commits).
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ class Store:
         try:
             self.db = sqlite3.connect(self.path, check_same_thread=False)
             self.db.execute("PRAGMA journal_mode=WAL")
-            self.db.execute("PRAGMA synchronous=FULL")
+            self.db.execute("PRAGMA synchronous=NORMAL")
             self.db.executescript(SCHEMA)
         except sqlite3.DatabaseError as exc:
             raise HysidInputError(f"{self.path}: not a usable campaign database ({exc})") from None

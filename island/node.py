@@ -33,6 +33,7 @@ import zenoh
 
 from hysid_model.errors import HysidInputError
 from hysid_model.objective import Objective
+from hysid_model.thesis_port import ThesisObjective
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
@@ -92,7 +93,7 @@ class IslandNode:
         algo: str,
         seed: int,
         config: CampaignConfig,
-        objective: Objective,
+        objective: Objective | ThesisObjective,
         *,
         history_every_s: float = 0.25,
     ) -> None:
@@ -226,7 +227,8 @@ class ZenohTransport:
         self._inbox: deque[tuple[str, bytes]] = deque(maxlen=MAX_INBOX)
         self._members: set[str] = set()
         self._lock = threading.Lock()
-        self._stop = threading.Event()
+        self._control: deque[bytes] = deque(maxlen=MAX_INBOX)
+        self._stopped = False
         self._migrants = session.declare_publisher(f"{prefix}/migrants/{node.island}")
         self._history = session.declare_publisher(f"{prefix}/history/{node.island}", congestion_control=zenoh.CongestionControl.BLOCK)
         self._entities = [
@@ -249,12 +251,7 @@ class ZenohTransport:
         self._inbox.append((str(sample.key_expr).rsplit("/", 1)[-1], sample.payload.to_bytes()))
 
     def _on_control(self, sample: zenoh.Sample) -> None:
-        try:
-            decode_stop(sample.payload.to_bytes(), self.node.config.name)
-        except MessageRejected:
-            self.node.stats["rejected"] += 1
-            return
-        self._stop.set()
+        self._control.append(sample.payload.to_bytes())
 
     def _on_history_query(self, query: zenoh.Query) -> None:
         params = query.parameters
@@ -281,7 +278,15 @@ class ZenohTransport:
             return sorted(self._members | {self.node.island})
 
     def stop_requested(self) -> bool:
-        return self._stop.is_set()
+        """Whether a valid stop order arrived (control messages are validated here, in the island's thread)."""
+        while self._control:
+            try:
+                decode_stop(self._control.popleft(), self.node.config.name)
+            except MessageRejected:
+                self.node.stats["rejected"] += 1
+                continue
+            self._stopped = True
+        return self._stopped
 
     def global_best(self) -> bytes | None:
         for reply in self.session.get(f"{self.prefix}/best", timeout=2.0):
@@ -291,7 +296,7 @@ class ZenohTransport:
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s
-        while len(self.members()) < n and time.monotonic() < deadline and not self._stop.is_set():
+        while len(self.members()) < n and time.monotonic() < deadline and not self.stop_requested():
             time.sleep(0.05)
 
     def close(self) -> None:
