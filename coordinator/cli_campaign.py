@@ -106,6 +106,7 @@ def register(app: typer.Typer) -> None:
     def campaign_command(
         dataset: Optional[str] = DATASET,
         islands: int = typer.Option(4, "--islands", help="Number of islands."),
+        campaign: str = typer.Option("campaign", "--campaign", help="Campaign name (in the database and the key space hysid/<name>/**)."),
         algos: str = ALGOS,
         topology: str = TOPOLOGY,
         interval: int = INTERVAL,
@@ -135,7 +136,7 @@ def register(app: typer.Typer) -> None:
         specs = island_specs(islands, algo_list, seed)
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
         config = new_config(
-            loops, name="campaign", model=model, weights=weights, algos=algo_list,
+            loops, name=check_name("--campaign", campaign), model=model, weights=weights, algos=algo_list,
             options=algorithm_options(population, initial, iterations),
             migration=Migration(interval=interval, k=migrants, topology=topology, random_k=random_k), seed=seed,
             min_islands=islands,

@@ -59,7 +59,7 @@ from island.protocol import (
     encode_stop,
 )
 
-LEAVE_GRACE_S = 0.5
+LEAVE_GRACE_S = 0.3
 """After a token disappears, how long a final history may still arrive to count as a graceful leave."""
 STOP_GRACE_S = 10.0
 """After the stop order, how long to wait for islands' final histories."""
@@ -421,12 +421,13 @@ class Coordinator:
                 search_fitness=global_best, wall_s=0.0,
             ))
         if not runs:
-            raise HysidInputError(f"campaign {self.name!r}: no island reported any result, so there is nothing to report")
+            raise HysidInputError(f"campaign {self.name!r}: no island reported any result ({self.stop_reason or 'not run'})")
         best = int(np.argmin([r.fitness for r in runs]))
         if polish_best:
             runs[best] = polished(objective, runs[best])
         settings = {
             "campaign": self.name,
+            "algo": "/".join(self.config.algos),
             "polish": polish_best,
             "algos": self.config.algos,
             "options": self.config.options,

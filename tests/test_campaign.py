@@ -12,7 +12,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from coordinator.campaign import free_port, island_specs, run_campaign
@@ -173,3 +172,18 @@ def test_a_stored_campaign_is_never_overwritten(tmp_path, capsys):
     assert main(["coordinator", "--db", str(db), "--out", str(tmp_path / "o")]) == 2
     assert "campaign 'default' already exists; use --resume" in capsys.readouterr().err
     assert Store(db).campaign("default") == ("synth", b"cfg", "running")
+
+
+@pytest.mark.parametrize(
+    "rule, reason",
+    [(["--target", "1e-6"], "target fitness 1e-06 reached"), (["--stall", "3000"], "no improvement in 3,000 evaluations")],
+)
+def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path, capsys):
+    argv = ["campaign", "--single-node", "--islands", "2", "--algos", "pso", "--population", "20", "--initial", "40",
+            "--iterations", "10000000", *rule, "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["settings"]["stop_reason"] == reason
+    assert all(i["status"] == "left" and i["final"] for i in doc["islands"])
+    if rule[0] == "--target":
+        assert doc["fitness"] <= 1e-6

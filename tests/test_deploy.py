@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import os
 import queue
 import shutil
 import signal
@@ -360,3 +361,77 @@ def test_make_certs_rejects_bad_arguments_with_one_line(args: list[str], tmp_pat
     assert done.returncode == 2
     assert done.stderr.startswith("make-certs.sh: error: ") and done.stderr.count("\n") == 1
     assert not (tmp_path / "hysid-certs").exists()
+
+
+MEMBERS = DEPLOY / "members.py"
+
+
+def members_cli(port: int, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(MEMBERS), "--connect", f"tcp/127.0.0.1:{port}", "--config", str(pair("")[1]), "--campaign", "demo", "--timeout", "2", *extra],
+        capture_output=True, text=True, timeout=30,
+    )
+
+
+def test_members_script_lists_the_campaign_members_only() -> None:
+    coordinator_file, island_file = pair("")
+    port = free_port()
+    with session(localized(coordinator_file, port)) as coordinator:
+        nobody = members_cli(port)
+        assert nobody.returncode == 1 and "no island is a member of campaign 'demo'" in nobody.stderr
+        with session(localized(island_file, port)) as island:
+            tokens = [
+                island.liveliness().declare_token(f"{CAMPAIGN}/members/island-3"),
+                coordinator.liveliness().declare_token(f"{CAMPAIGN}/members/island-1"),
+                island.liveliness().declare_token("hysid/other/members/island-4"),
+            ]
+            listed = members_cli(port)
+            assert (listed.returncode, listed.stdout) == (0, "island-1\nisland-3\n"), listed.stderr
+            for token in tokens:
+                token.undeclare()
+
+
+def test_members_script_reports_an_unreachable_coordinator_in_one_line() -> None:
+    done = members_cli(free_port())
+    assert done.returncode == 2
+    assert done.stderr.startswith("members.py: error: cannot open Zenoh session") and done.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("unit", ["hysid-coordinator.service", "hysid-island@.service"])
+def test_systemd_units_verify_cleanly(unit: str, tmp_path: Path) -> None:
+    if shutil.which("systemd-analyze") is None:
+        pytest.skip("systemd-analyze is not installed")
+    hysid = Path(sys.executable).with_name("hysid")
+    if not hysid.exists():
+        pytest.skip(f"no hysid console script next to {sys.executable}")
+    text = (DEPLOY / "systemd" / unit).read_text()
+    assert "/opt/hysid/venv/bin/hysid" in text
+    (tmp_path / unit).write_text(text.replace("/opt/hysid/venv/bin/hysid", str(hysid)))
+    done = subprocess.run(["systemd-analyze", "verify", str(tmp_path / unit)], capture_output=True, text=True, timeout=60)
+    assert (done.returncode, done.stderr) == (0, "")
+    assert "Restart=on-failure" in text and "NoNewPrivileges=yes" in text and "EnvironmentFile=/etc/hysid/" in text
+
+
+@pytest.mark.parametrize("script", ["slurm/hysid-campaign.sbatch", "local/run-campaign.sh", "tls/make-certs.sh"])
+def test_shell_scripts_parse(script: str) -> None:
+    done = subprocess.run(["bash", "-n", str(DEPLOY / script)], capture_output=True, text=True, timeout=30)
+    assert (done.returncode, done.stderr) == (0, "")
+
+
+def test_local_recipe_runs_a_campaign_of_separate_processes(tmp_path: Path) -> None:
+    hysid = Path(sys.executable).with_name("hysid")
+    if not hysid.exists():
+        pytest.skip(f"no hysid console script next to {sys.executable}")
+    out = tmp_path / "run"
+    done = subprocess.run(
+        ["bash", str(DEPLOY / "local" / "run-campaign.sh"), "-n", "2", "-p", str(free_port()), "-c", "rehearsal", "-o", str(out), "synth",
+         "--", "--time-limit", "4", "--iterations", "100000", "--population", "30", "--initial", "60", "--no-polish", "--quiet"],
+        capture_output=True, text=True, timeout=55, env={**os.environ, "HYSID": str(hysid)},
+    )
+    assert done.returncode == 0, done.stderr + (out / "coordinator.log").read_text()
+    result = json.loads((out / "report" / "result.json").read_text())
+    assert result["settings"]["campaign"] == "rehearsal"
+    assert {island["island"] for island in result["islands"]} == {"island-1", "island-2"}
+    assert {island["algo"] for island in result["islands"]} == {"ga", "pso"}
+    for k in (1, 2):
+        assert "stopped by the coordinator" in (out / f"island-{k}.log").read_text()
