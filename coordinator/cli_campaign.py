@@ -159,7 +159,7 @@ def register(app: typer.Typer) -> None:
         config_file: Optional[Path] = CONFIG,
         campaign: str = CAMPAIGN,
         db: Optional[Path] = DB,
-        resume_db: bool = typer.Option(False, "--resume", help="Carry on the campaign stored in --db after a crash."),
+        resume_db: bool = typer.Option(False, "--resume", help="Carry on the campaign stored in --db after a crash (its settings and loop set come from there)."),
         min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
         algos: str = ALGOS,
         topology: str = TOPOLOGY,

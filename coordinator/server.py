@@ -61,6 +61,8 @@ from island.protocol import (
 
 LEAVE_GRACE_S = 0.3
 """After a token disappears, how long a final history may still arrive to count as a graceful leave."""
+STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left", "lost": "lost"}
+"""A member's status after each recorded membership event."""
 STOP_GRACE_S = 10.0
 """After the stop order, how long to wait for islands' final histories."""
 
@@ -447,7 +449,9 @@ class Coordinator:
         return result
 
     def island_summaries(self, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
-        status = {i: m.status for i, m in self.members.items()}
+        """Each island run's record with its re-evaluated best and its membership status (as last recorded)."""
+        recorded = {island: STATUS_AFTER[event] for island, event, _ in self.store.members(self.name)}
+        status = recorded | {i: m.status for i, m in self.members.items()}
         return [
             {**rec.as_dict(), "best_fitness": run.search_fitness, "status": status.get(rec.island, "unknown")}
             for rec, run in zip(records, runs)

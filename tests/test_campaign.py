@@ -187,3 +187,16 @@ def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path,
     assert all(i["status"] == "left" and i["final"] for i in doc["islands"])
     if rule[0] == "--target":
         assert doc["fitness"] <= 1e-6
+
+
+def test_resuming_a_finished_campaign_reports_it_again_from_the_database(tmp_path, capsys):
+    db = tmp_path / "c.sqlite"
+    assert main(["campaign", "--single-node", "--islands", "2", *SMALL, "--db", str(db), "--json", "--quiet", "--out", str(tmp_path / "a")]) == 0
+    first = json.loads(capsys.readouterr().out)
+    argv = ["coordinator", "--resume", "--db", str(db), "--campaign", "campaign", "--listen", f"tcp/127.0.0.1:{free_port()}",
+            "--json", "--quiet", "--out", str(tmp_path / "b")]
+    assert main(argv) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["settings"]["stop_reason"] == "every island finished"
+    assert again["islands"] == first["islands"] and again["params"] == pytest.approx(first["params"], rel=1e-9)
+    assert again["dataset"]["true_params"] == TRUE_PARAMS  # the loop set's metadata travelled through the database

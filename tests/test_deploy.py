@@ -30,6 +30,7 @@ pytestmark = pytest.mark.timeout(60)
 DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
 ZENOH_DIR = DEPLOY / "zenoh"
 MAKE_CERTS = DEPLOY / "tls" / "make-certs.sh"
+MEMBERS = DEPLOY / "members.py"
 CREDENTIALS = ZENOH_DIR / "credentials.example.txt"
 FLAVOURS = ("", "-tls", "-usrpwd", "-secure")
 CAMPAIGN = "hysid/demo"
@@ -101,6 +102,11 @@ def cannot_connect(config: zenoh.Config) -> bool:
     return False
 
 
+def require_openssl() -> None:
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")
+
+
 def make_certs(outdir: Path, *args: str) -> subprocess.CompletedProcess:
     return subprocess.run(["bash", str(MAKE_CERTS), "-o", str(outdir), *args], capture_output=True, text=True, timeout=60)
 
@@ -108,8 +114,7 @@ def make_certs(outdir: Path, *args: str) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """CA, coordinator certificate for 127.0.0.1/localhost, client certificates island-1 and island-2."""
-    if shutil.which("openssl") is None:
-        pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")
+    require_openssl()
     outdir = tmp_path_factory.mktemp("certs")
     done = make_certs(outdir, "-s", "127.0.0.1", "-s", "localhost", "island-1", "island-2")
     assert done.returncode == 0, done.stderr
@@ -129,9 +134,9 @@ def wait_until(predicate: Callable[[], bool], timeout: float = WAIT) -> bool:
     return predicate()
 
 
-def put_until_received(sender: zenoh.Session, key: str, payload: bytes, received: list) -> bool:
+def put_until_received(sender: zenoh.Session, key: str, payload: bytes, received: list, timeout: float = WAIT) -> bool:
     """Put until the receiver got it: subscriptions reach a new client asynchronously."""
-    deadline = time.monotonic() + WAIT
+    deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         sender.put(key, payload)
         if wait_until(lambda: (key, payload) in received, 0.2):
@@ -200,8 +205,7 @@ def test_tls_island_with_certificate_of_another_ca_is_refused(certs: Path, tmp_p
 
 
 def test_tls_island_refuses_coordinator_whose_certificate_lacks_the_address(tmp_path: Path) -> None:
-    if shutil.which("openssl") is None:
-        pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")
+    require_openssl()
     wrong_name = tmp_path / "certs"
     assert make_certs(wrong_name, "-s", "coordinator.invalid", "island-1").returncode == 0
     coordinator_file, island_file = pair("-tls")
@@ -293,7 +297,7 @@ def test_acl_denies_everything_to_an_authenticated_user_not_listed(certs: Path, 
         queryable = coordinator.declare_queryable(f"{CAMPAIGN}/config", lambda query: query.reply(query.key_expr, b"loop set"))
         with session(secure_island(port, certs, credentials, "guest", "guest-password")) as guest:
             assert guest.info.routers_zid() == [coordinator.zid()]
-            assert not put_until_received(guest, f"{CAMPAIGN}/migrants/guest", b"guest", seen)
+            assert not put_until_received(guest, f"{CAMPAIGN}/migrants/guest", b"guest", seen, timeout=2.0)
             assert replies(guest, f"{CAMPAIGN}/config", timeout=2.0) == []
         with session(secure_island(port, certs, credentials, "island-2", "change-me-island-2")) as island:
             assert put_until_received(island, f"{CAMPAIGN}/migrants/island-2", b"island", seen)
@@ -363,12 +367,9 @@ def test_make_certs_rejects_bad_arguments_with_one_line(args: list[str], tmp_pat
     assert not (tmp_path / "hysid-certs").exists()
 
 
-MEMBERS = DEPLOY / "members.py"
-
-
-def members_cli(port: int, *extra: str) -> subprocess.CompletedProcess:
+def members_cli(port: int) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, str(MEMBERS), "--connect", f"tcp/127.0.0.1:{port}", "--config", str(pair("")[1]), "--campaign", "demo", "--timeout", "2", *extra],
+        [sys.executable, str(MEMBERS), "--connect", f"tcp/127.0.0.1:{port}", "--config", str(pair("")[1]), "--campaign", "demo", "--timeout", "2"],
         capture_output=True, text=True, timeout=30,
     )
 
