@@ -64,6 +64,9 @@ LEAVE_GRACE_S = 0.3
 STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left", "lost": "lost"}
 """A member's status after each recorded membership event."""
 STOP_GRACE_S = 10.0
+BACKFILL_EVERY_S = 2.0
+BACKFILL_ATTEMPTS = 5
+"""How often, and how many times without progress, to ask an island again for history rows still missing."""
 """After the stop order, how long to wait for islands' final histories."""
 
 
@@ -212,6 +215,11 @@ class Coordinator:
         """``(time.monotonic(), fitness, total evaluations, x)`` at every improvement of the global best."""
         self.member_events = 0
         """Membership events recorded by this process (progress is shown at each)."""
+        self.contiguous: dict[tuple[str, str], int] = {}
+        """Per island run, the last iteration k with 0..k all stored (rows beyond a gap are asked for again)."""
+        self.last_stored: dict[tuple[str, str], int] = {}
+        self._backfill: dict[tuple[str, str], tuple[float, int, int]] = {}
+        """Per island run: when rows were last asked for, from which iteration, how often without progress."""
 
     # --- state -------------------------------------------------------------------
     @property
@@ -265,7 +273,7 @@ class Coordinator:
             self._event(island, event)
             if self.full_at is None and sum(m.status == "alive" for m in self.members.values()) >= self.config.min_islands:
                 self.full_at = time.monotonic()
-            link.request_history(island, run, self.store.last_iteration(self.name, island, run) if run else -1)
+            link.request_history(island, run, self._contiguous((island, run)) if run else -1)
         elif member is not None and member.status == "alive":
             if self.islands.get((island, member.run), IslandView("")).final:
                 member.status = "left"
@@ -283,6 +291,30 @@ class Coordinator:
         runs = [(view.iteration, run) for (i, run), view in self.islands.items() if i == island]
         return max(runs)[1] if runs else ""
 
+    def _contiguous(self, key: tuple[str, str]) -> int:
+        if key not in self.contiguous:
+            self.contiguous[key] = self.store.contiguous_iterations(self.name, *key)
+            self.last_stored[key] = self.store.last_iteration(self.name, *key)
+        return self.contiguous[key]
+
+    def _check_gap(self, link: Link, key: tuple[str, str], first: int, last: int) -> None:
+        """Track the stored iterations of an island run after rows ``first..last`` arrived; while
+        some are missing (sent while this coordinator was down), ask the island for them again."""
+        if key in self.contiguous:
+            done, top = self.contiguous[key], self.last_stored[key]
+            if first <= done + 1:
+                self.contiguous[key] = self.store.contiguous_iterations(self.name, *key) if top > last else max(done, last)
+            self.last_stored[key] = max(top, last)
+        else:
+            self._contiguous(key)
+        done, now = self.contiguous[key], time.monotonic()
+        asked_at, asked_from, attempts = self._backfill.get(key, (-np.inf, -2, 0))
+        if done < self.last_stored[key] and now - asked_at >= BACKFILL_EVERY_S:
+            attempts = attempts + 1 if asked_from == done else 1
+            if attempts <= BACKFILL_ATTEMPTS:  # an island that cannot fill the gap is not asked forever
+                self._backfill[key] = (now, done, attempts)
+                link.request_history(key[0], key[1], done)
+
     def _settle_departures(self) -> None:
         """Tokens gone without a final history for ``LEAVE_GRACE_S``: the island is lost."""
         now = time.monotonic()
@@ -294,6 +326,8 @@ class Coordinator:
     def _history(self, link: Link, h: History) -> None:
         key = (h.island, h.run)
         self.store.add_history(self.name, h.island, h.run, h.rows)
+        if h.rows.size:
+            self._check_gap(link, key, int(h.rows[0, 0]), int(h.rows[-1, 0]))
         iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
         evaluations = int(h.rows[:, 2].max()) if h.rows.size else 0
         self.store.update_island(self.name, IslandRecord(

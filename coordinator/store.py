@@ -210,6 +210,19 @@ class Store:
     def total_evaluations(self, campaign: str) -> int:
         return int(self.db.execute("SELECT coalesce(sum(evaluations), 0) FROM islands WHERE campaign = ?", (campaign,)).fetchone()[0])
 
+    def contiguous_iterations(self, campaign: str, island: str, run: str) -> int:
+        """The largest k such that iterations 0..k of an island run are all stored (-1 if iteration 0 is not)."""
+        row = self.db.execute(
+            """SELECT min(h.iteration) FROM history h WHERE h.campaign = ? AND h.island = ? AND h.run = ? AND NOT EXISTS
+               (SELECT 1 FROM history g WHERE g.campaign = h.campaign AND g.island = h.island AND g.run = h.run
+                AND g.iteration = h.iteration + 1)""",
+            (campaign, island, run),
+        ).fetchone()
+        has_first = self.db.execute(
+            "SELECT 1 FROM history WHERE campaign = ? AND island = ? AND run = ? AND iteration = 0", (campaign, island, run)
+        ).fetchone()
+        return int(row[0]) if has_first and row[0] is not None else -1
+
     def last_iteration(self, campaign: str, island: str, run: str) -> int:
         """Highest stored iteration of an island run, -1 if none."""
         row = self.db.execute(

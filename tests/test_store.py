@@ -35,7 +35,20 @@ def test_history_rows_are_stored_once_per_island_run_and_iteration(tmp_path):
     assert store.add_history("c1", "ga-0", "r2", rows) == 2
     assert store.last_iteration("c1", "ga-0", "r1") == 2
     assert store.last_iteration("c1", "ga-0", "r3") == -1
+    assert store.contiguous_iterations("c1", "ga-0", "r1") == 2
     assert [r[2] for r in store.history("c1") if r[1] == "r1"] == [0, 1, 2]
+
+
+def test_contiguous_iterations_stop_at_the_first_gap(tmp_path):
+    store = Store(tmp_path / "c.sqlite")
+    row = lambda i: [i, 1.0, 10 * i, 0.1 * i]  # noqa: E731
+    store.add_history("c1", "a", "r", np.array([row(i) for i in (1, 2, 3)]))
+    assert store.contiguous_iterations("c1", "a", "r") == -1  # iteration 0 missing
+    store.add_history("c1", "a", "r", np.array([row(i) for i in (0, 7, 8)]))
+    assert store.contiguous_iterations("c1", "a", "r") == 3
+    store.add_history("c1", "a", "r", np.array([row(i) for i in (4, 5, 6)]))
+    assert store.contiguous_iterations("c1", "a", "r") == 8
+    assert store.contiguous_iterations("c1", "a", "other") == -1
 
 
 def test_island_counters_only_grow_and_the_best_vector_follows_the_best_fitness(tmp_path):
