@@ -378,7 +378,8 @@ class Coordinator:
             return f"no improvement in {r.stall:,} evaluations"
         if r.time_limit_s is not None and time.monotonic() - self.started >= r.time_limit_s:
             return f"time limit of {r.time_limit_s:g} s"
-        if self.islands and all(v.final for v in self.islands.values()) and all(m.status != "alive" for m in self.members.values()):
+        finished = self.islands and all(v.final for v in self.islands.values()) and all(m.status != "alive" for m in self.members.values())
+        if finished and len({island for island, _ in self.islands} | set(self.members)) >= self.config.min_islands:
             return "every island finished"
         return None
 

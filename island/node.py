@@ -226,6 +226,8 @@ class ZenohTransport:
         self.prefix = prefix
         self._inbox: deque[tuple[str, bytes]] = deque(maxlen=MAX_INBOX)
         self._members: set[str] = set()
+        self._joined: set[str] = {node.island}
+        """Every island seen since this one started, including those that have left since."""
         self._lock = threading.Lock()
         self._control: deque[bytes] = deque(maxlen=MAX_INBOX)
         self._stopped = False
@@ -244,6 +246,7 @@ class ZenohTransport:
         with self._lock:
             if sample.kind == zenoh.SampleKind.PUT:
                 self._members.add(island)
+                self._joined.add(island)
             else:
                 self._members.discard(island)
 
@@ -277,6 +280,10 @@ class ZenohTransport:
         with self._lock:
             return sorted(self._members | {self.node.island})
 
+    def _joined_count(self) -> int:
+        with self._lock:
+            return len(self._joined)
+
     def stop_requested(self) -> bool:
         """Whether a valid stop order arrived (control messages are validated here, in the island's thread)."""
         while self._control:
@@ -295,8 +302,9 @@ class ZenohTransport:
         return None
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
+        """Counts islands that have joined, even if they already left: a fast island may finish before a slow one starts."""
         deadline = time.monotonic() + timeout_s
-        while len(self.members()) < n and time.monotonic() < deadline and not self.stop_requested():
+        while self._joined_count() < n and time.monotonic() < deadline and not self.stop_requested():
             time.sleep(0.05)
 
     def close(self) -> None:

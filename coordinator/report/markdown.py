@@ -10,7 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from coordinator.fit import DERIVED_UNITS, FitResult
-from coordinator.report import figures, jsondoc
+from coordinator.report import jsondoc
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 
 MODEL_CURVE_POINTS = 1500
@@ -173,6 +173,8 @@ def write_report(result: FitResult, out_dir: Path | str) -> Path:
 
     Sets ``result.report`` so that the JSON names the report.
     """
+    from coordinator.report import figures  # matplotlib loads only when a report is drawn (fast CLI start for islands)
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     figs = write_figures(result, out_dir)
