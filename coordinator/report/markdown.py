@@ -68,6 +68,8 @@ def model_curves(result: FitResult) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def write_figures(result: FitResult, out_dir: Path) -> dict[str, Path]:
+    from coordinator.report import figures  # matplotlib loads only when a report is drawn (fast CLI start for islands)
+
     loops = result.loops
     obj = result.objective()
     predicted = obj.predict(result.theta)[0]
@@ -90,6 +92,7 @@ def write_figures(result: FitResult, out_dir: Path) -> dict[str, Path]:
 
 def quality_text(result: FitResult) -> str:
     """RMS residual against the force amplitude, next to the known noise level if there is one."""
+
     q = result.quality
     text = f"RMS residual {q['rms_residual_pct']:.3g} % of each loop's force amplitude |F1|"
     if q["noise_sigma_pct"] is not None:
@@ -173,8 +176,6 @@ def write_report(result: FitResult, out_dir: Path | str) -> Path:
 
     Sets ``result.report`` so that the JSON names the report.
     """
-    from coordinator.report import figures  # matplotlib loads only when a report is drawn (fast CLI start for islands)
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     figs = write_figures(result, out_dir)
