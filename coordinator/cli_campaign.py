@@ -85,9 +85,9 @@ def finish(result: CampaignResult, out: Path, json_out: bool) -> None:
     if json_out:
         print(jsondoc.dumps(result.as_dict()))
         return
-    print(summary_text(result.fit))
+    print(summary_text(result.fit, "hysid campaign"))
     m = result.migrations
-    print(f"campaign {result.fit.settings['campaign']}: stopped because {result.fit.settings['stop_reason']}")
+    print(f"campaign {result.fit.settings['campaign']!r}: stopped because {result.fit.settings['stop_reason']}")
     print(
         f"migrations: {m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
         f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected"

@@ -77,8 +77,8 @@ def _text_table(headers: list[str], rows: list[list[str]]) -> str:
     return "\n".join([line(headers)] + [line(r) for r in rows])
 
 
-def summary_text(result: FitResult) -> str:
-    """What a user reads after ``hysid fit``: what was fitted, how well, and where the report is."""
+def summary_text(result: FitResult, command: str = "hysid fit") -> str:
+    """What a user reads after ``hysid fit`` (or ``command``): what was fitted, how well, and where the report is."""
     s = result.settings
     best = result.runs[result.best]
     true = result.loops.meta.get("true_params") or {}
@@ -86,8 +86,8 @@ def summary_text(result: FitResult) -> str:
     polish = " + least-squares polish" if s.get("polish") else ""
     wall = sum(r.wall_s for r in result.runs)
     lines = [
-        f"hysid fit {result.loops.name}: {loops_description(result)}",
-        f"model {result.model.spec} ({', '.join(result.model.names)}); {algo} x {len(result.runs)} run(s){polish}; {result.weights} weights",
+        f"{command} {result.loops.name}: {loops_description(result)}",
+        f"model {result.model.spec} ({', '.join(result.model.names)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
         f"fit quality: {quality_text(result)}",
         "",
