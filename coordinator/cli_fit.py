@@ -100,7 +100,13 @@ def summary_text(result: FitResult, command: str = "hysid fit") -> str:
         if true:
             row.append(f"{true[p.name]:.7g}" if p.name in true else "")
         rows.append(row)
-    lines += [_text_table(headers, rows), f"  (standard errors: {result.stderr_method})", ""]
+    lines += [_text_table(headers, rows), f"  (standard errors: {result.stderr_method})"]
+    if result.at_bounds:
+        lines.append(
+            f"  warning: {', '.join(result.at_bounds)} ended on a bound of the search space, so the optimum may lie "
+            "beyond it and its standard error means little; widen the bounds ([bounds] in dataset.toml)"
+        )
+    lines.append("")
     rows = []
     for a, hp in zip(result.amplitudes, result.half_power):
         half = f"{hp.xi:.5f} (grid resolution {hp.resolution:.2g})" if hp.ok else f"n/a ({hp.note})"

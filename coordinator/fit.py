@@ -210,6 +210,15 @@ class FitResult:
     def stderr(self) -> dict[str, float]:
         return self.model.as_dict(np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)))
 
+    @property
+    def at_bounds(self) -> list[str]:
+        """Parameters that ended on a bound of the search space (the optimum may lie beyond it)."""
+        return [
+            p.name
+            for p, v in zip(self.model.parameters, self.theta)
+            if min(v - p.lower, p.upper - v) <= 1e-6 * (p.upper - p.lower)
+        ]
+
     def objective(self) -> Objective:
         """A fresh objective of this fit (same loops, model and weights)."""
         return Objective(self.loops, self.model, weights=self.weights)
@@ -226,6 +235,7 @@ class FitResult:
             "history": self.runs[self.best].history,
             "units": {p.name: p.unit for p in self.model.parameters},
             "bounds": {p.name: [p.lower, p.upper] for p in self.model.parameters},
+            "at_bounds": self.at_bounds,
             "derived": [a.as_dict() for a in self.amplitudes],
             "half_power": [
                 {**hp.as_dict(), "xi_fit": a.values["xi"]} for hp, a in zip(self.half_power, self.amplitudes)
