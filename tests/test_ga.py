@@ -8,25 +8,17 @@ import pytest
 from scipy.stats import truncnorm
 
 from hysid_model.errors import HysidInputError
-from hysid_model.model import build_model
-from hysid_model.objective import Objective
-from hysid_model.synth import MEQ_KG, TRUE_PARAMS, synth_loops
+from hysid_model.synth import TRUE_PARAMS
 from island.ga import GA, blx_crossover, gaussian_mutation, mutation_count, rank_probabilities, select_couples
 from island.polish import polish
+from island.run import run
 
 SMALL = dict(initial_population=200, population=40, iterations=6)
 
 
-@pytest.fixture(scope="module")
-def synth():
-    model = build_model("thesis", MEQ_KG)
-    return model, Objective(synth_loops(0), model)
-
-
 def drive(opt, objective):
-    while not opt.done:
-        x = opt.ask()
-        opt.tell(x, objective(x))
+    """Run ``opt`` to the end of its budget with the island loop (ask, evaluate, tell)."""
+    run(opt, objective)
     return opt
 
 

@@ -6,21 +6,13 @@ import msgpack
 import numpy as np
 import pytest
 
-from hysid_model.model import build_model
-from hysid_model.objective import Objective
-from hysid_model.synth import MEQ_KG, TRUE_PARAMS, synth_loops
+from hysid_model.synth import TRUE_PARAMS
 from island.ga import GA
 from island.pso import PSO
 from island.run import HistoryRow, run
 
 GA_SMALL = dict(initial_population=200, population=40, iterations=5)
 PSO_SMALL = dict(initial_swarm=200, swarm=30, iterations=5)
-
-
-@pytest.fixture(scope="module")
-def synth():
-    model = build_model("thesis", MEQ_KG)
-    return model, Objective(synth_loops(0), model)
 
 
 @pytest.mark.parametrize("make", [lambda b: GA(b, 1, **GA_SMALL), lambda b: PSO(b, 1, **PSO_SMALL)])
