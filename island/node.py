@@ -58,6 +58,11 @@ HISTORY_CHUNK = 20_000
 """History rows per message (well under :data:`island.protocol.MAX_ROWS`)."""
 MAX_INBOX = 4096
 """Migrant messages an island keeps between two epochs; older ones are dropped first."""
+JOIN_GRACE_S = 5.0
+"""How long migrants from a sender that is not (yet) a member wait for its liveliness token.
+
+Zenoh does not order a new member's token before its first publications, so a
+joiner's first migrants can arrive before the island knows it is a member."""
 
 
 def key_prefix(campaign: str) -> str:
@@ -116,6 +121,8 @@ class IslandNode:
         self._snapshot: tuple[np.ndarray, float] = (objective.bounds.mean(axis=1), np.inf)
         self._best_in: Best | None = None
         self._transport: Transport | None = None
+        self._unknown_senders: deque[tuple[float, Migrants]] = deque(maxlen=MAX_INBOX)
+        """Valid migrants from senders not yet members, with when they arrived (see :data:`JOIN_GRACE_S`)."""
 
     # --- the loop ---------------------------------------------------------------
     def run(self, transport: Transport) -> list[tuple[int, float, int, float]]:
@@ -150,18 +157,22 @@ class IslandNode:
         outgoing = encode_migrants(Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, x, f, time.time()))
         received = self._transport.exchange(epoch, outgoing)
         self.stats["sent"] += 1
-        senders = in_neighbours(
-            mig.topology, self._transport.members(), self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k
-        )
-        batches = []
+        members = self._transport.members()
+        senders = in_neighbours(mig.topology, members, self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k)
+        now = time.monotonic()
+        arrived = list(self._unknown_senders)
+        self._unknown_senders.clear()
         for sender, data in received:
             try:
-                m = decode_migrants(data, self.config.name, self.objective.bounds, sender)
+                arrived.append((now, decode_migrants(data, self.config.name, self.objective.bounds, sender)))
             except MessageRejected:
                 self.stats["rejected"] += 1
-                continue
+        batches = []
+        for at, m in arrived:
             if m.island in senders:
                 batches.append(m.x)
+            elif m.island not in members and now - at < JOIN_GRACE_S:
+                self._unknown_senders.append((at, m))
         self._take(batches)
 
     def _take(self, batches: list[np.ndarray]) -> None:

@@ -193,3 +193,47 @@ def test_zenoh_island_fetches_config_reports_history_backfills_and_stops(router)
         for e in entities:
             e.undeclare()
         client.close()
+
+
+def test_migrants_sent_before_the_senders_token_arrives_wait_for_it_and_strangers_are_never_taken(router):
+    """Zenoh does not order a joiner's liveliness token before its first puts (the race CI once hit)."""
+    endpoint, rsession = router
+    cfg = CampaignConfig(name="c1", options={"pso": {"swarm": 10, "initial_swarm": 10, "iterations": 100_000}},
+                         migration=Migration(interval=1, k=1, topology="full"))
+    config_message = encode_config(cfg, LOOPS)
+    queryable = rsession.declare_queryable("hysid/c1/config", lambda q: q.reply(q.key_expr, config_message))
+    client = open_session(session_config("client", connect=[endpoint]), endpoint)
+    _, loops = decode_config(fetch_config(client, "c1", 5.0), "c1")
+    node = IslandNode("pso-1", "pso", 5, cfg, cfg.objective(loops), history_every_s=0.05)
+    truth = node.objective.model.from_dict(TRUE_PARAMS)
+    transport = ZenohTransport(client, node)
+    worker = threading.Thread(target=lambda: (node.run(transport), transport.close()))
+    worker.start()
+    sender = open_session(session_config("client", connect=[endpoint]), endpoint)
+    token = None
+    try:
+        while len(node.rows) < 5:
+            time.sleep(0.01)
+        stranger = encode_migrants(Migrants("c1", "stranger", "s", 1, truth[None, :], np.array([0.0]), 0.0))
+        sender.put("hysid/c1/migrants/stranger", stranger)  # never becomes a member
+        late = encode_migrants(Migrants("c1", "late", "l", 1, truth[None, :], np.array([0.0]), 0.0))
+        sender.put("hysid/c1/migrants/late", late)
+        rows = len(node.rows)
+        while len(node.rows) < rows + 20:  # several epochs pass before the token is declared
+            time.sleep(0.01)
+        assert node.stats["received"] == 0
+        token = sender.liveliness().declare_token("hysid/c1/members/late")
+        deadline = time.monotonic() + 10
+        while node.stats["received"] == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert node.stats["received"] == 1 and node.stats["taken"] == 1
+        assert node.optimizer.best(1)[1][0] == node.objective(truth[None, :])[0]
+    finally:
+        if token is not None:
+            token.undeclare()
+        rsession.put("hysid/c1/control", encode_stop("c1", "enough"))
+        worker.join(20)
+        queryable.undeclare()
+        sender.close()
+        client.close()
+    assert node.stats["received"] == 1  # the stranger's migrant expired unused
