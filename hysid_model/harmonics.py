@@ -26,7 +26,7 @@ from hysid_model.basis import design_matrix, harmonic_names
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from hysid_model.objective import Objective
+from hysid_model.objective import ModelSpace, Objective
 
 MAX_ORDER = 7
 ROBUST_SCALE = 1.4826
@@ -110,7 +110,7 @@ class Harmonics:
         )
 
 
-class HarmonicObjective:
+class HarmonicObjective(ModelSpace):
     """Chi^2 of a model on the whitened harmonic coefficients of all loops; lower is better.
 
     Same contract as :class:`hysid_model.objective.Objective` (``__call__`` on a
@@ -130,14 +130,6 @@ class HarmonicObjective:
         self.target = harmonics.whiten(harmonics.loops.forces())
         self.design = None if model.has_memory else np.einsum("lnm,lnf->lmf", harmonics.q, self.objective.phi) / harmonics.sigma[:, None, None]
         self.evaluations = 0
-
-    @property
-    def bounds(self) -> np.ndarray:
-        return self.model.bounds
-
-    @property
-    def dim(self) -> int:
-        return self.model.dim
 
     def whitened(self, pop: np.ndarray) -> np.ndarray:
         """Whitened residual coefficients (model - data), ``(P, L, M)``."""

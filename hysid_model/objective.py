@@ -53,7 +53,22 @@ def loop_weights(loops: LoopSet, scheme: str) -> np.ndarray:
     raise HysidInputError(f"unknown weights {scheme!r}; choose one of {', '.join(WEIGHTS)}")
 
 
-class Objective:
+class ModelSpace:
+    """An objective over a model's parameters: the search space (``bounds``, ``dim``) is the model's."""
+
+    model: Model
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """``(dim, 2)`` lower and upper bounds of the model's parameters."""
+        return self.model.bounds
+
+    @property
+    def dim(self) -> int:
+        return self.model.dim
+
+
+class Objective(ModelSpace):
     """Weighted sum of squared force errors over all loops; lower is better."""
 
     def __init__(self, loops: LoopSet, model: Model, weights: str = "thesis") -> None:
@@ -77,14 +92,6 @@ class Objective:
             self._block_rows = max(1, MEMORY_BLOCK_ELEMENTS // (loops.n_loops * 2 * loops.n_samples))
         else:
             self._block_rows = max(1, BLOCK_ELEMENTS // loops.n_loops)
-
-    @property
-    def bounds(self) -> np.ndarray:
-        return self.model.bounds
-
-    @property
-    def dim(self) -> int:
-        return self.model.dim
 
     def _coefficients(self, pop: np.ndarray) -> list[np.ndarray]:
         coefs = self.model.coefficients(pop, self.kin)

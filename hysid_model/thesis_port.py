@@ -28,7 +28,7 @@ import numpy as np
 
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
-from hysid_model.objective import loop_weights
+from hysid_model.objective import ModelSpace, loop_weights
 
 THESIS_TSPAN_S = 0.4
 """``tspan=.4*ones(1,120)`` of the GA and PSO programs."""
@@ -205,7 +205,7 @@ def centercurveloop(hexp_to: np.ndarray, hexp_bo: np.ndarray) -> tuple[np.ndarra
     return hexp_to - shift, hexp_bo - shift
 
 
-class ThesisObjective:
+class ThesisObjective(ModelSpace):
     """The GA's fitness loop (Appendix A) with the interface of :class:`~hysid_model.objective.Objective`.
 
     fitness(p) = sum_j loopsweights(j) * erreval(loop j, p) / NOS_j, with
@@ -225,14 +225,6 @@ class ThesisObjective:
         self.loop_weight = loop_weights(loops, "thesis")
         self.xpk = np.maximum(np.abs(loops.top[:, :, 0]).max(axis=1), np.abs(loops.bottom[:, :, 0]).max(axis=1))
         self.evaluations = 0
-
-    @property
-    def bounds(self) -> np.ndarray:
-        return self.model.bounds
-
-    @property
-    def dim(self) -> int:
-        return self.model.dim
 
     def points(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Kept samples and model force of every loop, each ``(L, 2n)`` ordered like ``LoopSet.forces()``."""
