@@ -15,7 +15,7 @@ if [ "$#" -gt 0 ]; then
   benches=("$@")
 else
   python="$(dirname "$(command -v hysid)")/python"
-  names="$("${python}" -c 'from coordinator.cli_bench import bench_names; print("\n".join(bench_names()))')"
+  names="$("${python}" -c 'from hysid.cli.bench import bench_names; print("\n".join(bench_names()))')"
   mapfile -t benches <<<"${names}"
 fi
 mkdir -p bench/results

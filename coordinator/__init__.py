@@ -1,1 +1,2 @@
-"""coordinator: campaigns (loop set service, membership, SQLite histories) and the ``hysid`` CLI."""
+"""coordinator: the campaign coordinator (loop set service, membership, stop rules), its SQLite store,
+its links to the islands, and the launcher of a campaign on one machine."""

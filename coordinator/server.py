@@ -14,14 +14,16 @@ lands in one queue and is handled by one thread, which owns the SQLite store
   it (a claimed fitness is never trusted) and publishes it for late joiners;
 * after a restart (``--resume``) asks every live island for the history rows
   it missed;
-* stops on a total evaluation budget, a target fitness, a stall (evaluations
-  without improvement), a time limit or when every island has finished; then
-  polishes the global best (section 3.1's calculus-based refinement), derives
-  standard errors and builds the same :class:`coordinator.fit.FitResult` as
-  ``hysid fit``.
+* stops by the rules of :class:`island.termination.Termination` (a total
+  evaluation budget, a target fitness, a stall, a time limit) or when every
+  island has finished; then re-evaluates every island's best and polishes the
+  global best (section 3.1's calculus-based refinement):
+  :meth:`Coordinator.outcome` is the raw material of the report that
+  :mod:`hysid.campaign` builds, the same as ``hysid fit``'s.
 
-:func:`serve_zenoh` wires a coordinator to a Zenoh session; single-node
-campaigns feed the same queue from island threads (:mod:`coordinator.campaign`).
+:class:`coordinator.links.ZenohLink` wires a coordinator to a Zenoh session;
+single-node campaigns feed the same queue from island threads
+(:mod:`coordinator.launch`).
 """
 
 from __future__ import annotations
@@ -30,115 +32,42 @@ import queue
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-import zenoh
 
-from coordinator.fit import FitResult, RunResult, build_objective
-from coordinator.report import jsondoc, write_report
 from coordinator.store import IslandRecord, Store, StoredBest
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.objective import Objective
+from island.config import CampaignConfig, decode_config, encode_config
 from island.node import key_prefix
-from island.polish import polish
-from island.protocol import (
-    NAME_PATTERN,
-    Best,
-    CampaignConfig,
-    History,
-    MessageRejected,
-    Migration,
-    decode_config,
-    decode_history,
-    decode_migrants,
-    encode_best,
-    encode_config,
-    encode_stop,
-)
+from island.protocol import NAME_PATTERN, Best, History, MessageRejected, decode_history, decode_migrants, encode_best, encode_stop
+from island.run import RunResult, polish_run
+from island.termination import Termination
 
 LEAVE_GRACE_S = 0.3
 """After a token disappears, how long a final history may still arrive to count as a graceful leave."""
 STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left", "lost": "lost"}
 """A member's status after each recorded membership event."""
 STOP_GRACE_S = 10.0
+"""After the stop order, how long to wait for islands' final histories."""
 BACKFILL_EVERY_S = 2.0
 BACKFILL_ATTEMPTS = 5
 """How often, and how many times without progress, to ask an island again for history rows still missing."""
-"""After the stop order, how long to wait for islands' final histories."""
 
 
 @dataclass
-class StopRules:
-    """When the campaign ends (any rule that is set); ``stall`` counts evaluations without improvement."""
+class CampaignOutcome:
+    """What a finished campaign leaves: the objective, every island run (best re-evaluated, the global
+    best polished), the settings, and the islands, migrations and membership events as stored."""
 
-    budget: int | None = None
-    target: float | None = None
-    stall: int | None = None
-    time_limit_s: float | None = None
-
-    def __post_init__(self) -> None:
-        for name, value in (("--budget", self.budget), ("--stall", self.stall)):
-            if value is not None and value < 1:
-                raise HysidInputError(f"{name} {value}: must be a positive number of evaluations")
-        if self.target is not None and not (np.isfinite(self.target) and self.target >= 0):
-            raise HysidInputError(f"--target {self.target}: must be a finite fitness >= 0")
-        if self.time_limit_s is not None and not self.time_limit_s > 0:
-            raise HysidInputError(f"--time-limit {self.time_limit_s}: must be a positive number of seconds")
-
-    def as_dict(self) -> dict[str, Any]:
-        return {"budget": self.budget, "target": self.target, "stall": self.stall, "time_limit_s": self.time_limit_s}
-
-
-def new_config(
-    loops: LoopSet,
-    *,
-    name: str,
-    model: str = "thesis",
-    weights: str | None = None,
-    algos: list[str] | None = None,
-    options: dict[str, dict[str, Any]] | None = None,
-    migration: Migration | None = None,
-    seed: int = 0,
-    min_islands: int = 1,
-    objective_kind: str = "closed_form",
-) -> CampaignConfig:
-    """A campaign configuration with the bounds and weights ``hysid fit`` would use on ``loops``."""
-    objective = build_objective(loops, model, weights)
-    return CampaignConfig(
-        name=name,
-        model=model,
-        weights=objective.weights,
-        bounds={n: (float(lo), float(hi)) for n, (lo, hi) in zip(objective.model.names, objective.bounds)},
-        algos=list(algos or ["ga", "pso"]),
-        options=dict(options or {}),
-        migration=migration or Migration(),
-        seed=seed,
-        min_islands=min_islands,
-        objective_kind=objective_kind,
-    )
-
-
-@dataclass
-class CampaignResult:
-    """A campaign's :class:`FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
-
-    fit: FitResult
+    objective: Objective
+    runs: list[RunResult]
+    settings: dict[str, Any]
     islands: list[dict[str, Any]]
     migrations: dict[str, Any]
     members: list[dict[str, Any]]
-
-    def as_dict(self) -> dict[str, Any]:
-        """The ``hysid fit --json`` document plus ``islands``, ``migrations`` and membership ``members``."""
-        return {**self.fit.as_dict(), "islands": self.islands, "migrations": self.migrations, "members": self.members}
-
-    def write_report(self, out_dir: Path) -> Path:
-        """The ``hysid fit`` report; its ``result.json`` holds the campaign document."""
-        report = write_report(self.fit, out_dir)
-        jsondoc.write(Path(out_dir) / "result.json", self.as_dict())
-        return report
 
 
 class Link(Protocol):
@@ -171,7 +100,9 @@ class IslandView:
 
 
 @dataclass
-class Progress:
+class CampaignProgress:
+    """A snapshot of a running campaign, for a live view."""
+
     elapsed_s: float
     evaluations: int
     best: float
@@ -184,13 +115,15 @@ class Progress:
 class Coordinator:
     """One campaign's coordinator state machine (see the module docstring)."""
 
-    def __init__(self, store: Store, config: CampaignConfig, loops: LoopSet, rules: StopRules, *, dataset: str = "", resume: bool = False) -> None:
+    def __init__(
+        self, store: Store, config: CampaignConfig, loops: LoopSet, termination: Termination | None = None, *, dataset: str = "", resume: bool = False
+    ) -> None:
         self.store = store
         self.config = config
         self.name = config.name
         self.loops = loops
         self.objective = config.objective(loops)
-        self.rules = rules
+        self.termination = termination or Termination()
         self.config_message = encode_config(config, loops)
         if not resume:
             store.create_campaign(self.name, dataset, self.config_message)
@@ -226,8 +159,8 @@ class Coordinator:
     def evaluations(self) -> int:
         return int(sum(self.run_evaluations.values()))
 
-    def progress(self) -> Progress:
-        return Progress(
+    def progress(self) -> CampaignProgress:
+        return CampaignProgress(
             elapsed_s=time.monotonic() - self.started,
             evaluations=self.evaluations,
             best=np.inf if self.best is None else self.best.fitness,
@@ -369,15 +302,15 @@ class Coordinator:
 
     # --- the loop -----------------------------------------------------------------
     def check_stop(self) -> str | None:
-        r = self.rules
-        if r.budget is not None and self.evaluations >= r.budget:
-            return f"budget of {r.budget:,} evaluations spent"
-        if r.target is not None and self.best is not None and self.best.fitness <= r.target:
-            return f"target fitness {r.target:g} reached"
-        if r.stall is not None and self.best is not None and self.evaluations - self.best.evaluations >= r.stall:
-            return f"no improvement in {r.stall:,} evaluations"
-        if r.time_limit_s is not None and time.monotonic() - self.started >= r.time_limit_s:
-            return f"time limit of {r.time_limit_s:g} s"
+        best = self.best
+        reason = self.termination.reason(
+            evaluations=self.evaluations,
+            best=np.inf if best is None else best.fitness,
+            best_at=0 if best is None else best.evaluations,
+            elapsed_s=time.monotonic() - self.started,
+        )
+        if reason:
+            return reason
         finished = self.islands and all(v.final for v in self.islands.values()) and all(m.status != "alive" for m in self.members.values())
         if finished and len({island for island, _ in self.islands} | set(self.members)) >= self.config.min_islands:
             return "every island finished"
@@ -403,7 +336,7 @@ class Coordinator:
     def serve(
         self,
         link: Link,
-        on_progress: Callable[[Progress], None] | None = None,
+        on_progress: Callable[[CampaignProgress], None] | None = None,
         *,
         extra_stop: Callable[[], str | None] | None = None,
         progress_every_s: float = 1.0,
@@ -432,9 +365,9 @@ class Coordinator:
             on_progress(self.progress())
         return self.stop_reason
 
-    # --- the result ----------------------------------------------------------------
-    def result(self, *, polish_best: bool = True) -> "CampaignResult":
-        """Every island run re-evaluated, the global best polished, standard errors: the ``hysid fit`` result and more."""
+    # --- the outcome ----------------------------------------------------------------
+    def outcome(self, *, polish_best: bool = True) -> CampaignOutcome:
+        """Every island run with its best re-evaluated here, the global best polished (as ``hysid fit`` does)."""
         objective = replace(self.config, objective_kind="closed_form").objective(self.loops)
         records = self.store.islands(self.name)
         history: dict[tuple[str, str], list[dict[str, float]]] = {}
@@ -461,27 +394,27 @@ class Coordinator:
             raise HysidInputError(f"campaign {self.name!r}: no island reported any result ({self.stop_reason or 'not run'})")
         best = int(np.argmin([r.fitness for r in runs]))
         if polish_best:
-            runs[best] = polished(objective, runs[best])
+            runs[best] = polish_run(objective, runs[best])
         settings = {
             "campaign": self.name,
             "algo": "/".join(self.config.algos),
             "polish": polish_best,
             "algos": self.config.algos,
             "options": self.config.options,
-            "migration": self.config.as_dict()["migration"],
+            "migration": self.config.migration.as_dict(),
             "seed": self.config.seed,
-            "stop_rules": self.rules.as_dict(),
+            "stop_rules": self.termination.as_dict(),
             "stop_reason": self.stop_reason or self.store.stop_reason(self.name),
             "db": self.store.path,
         }
-        result = CampaignResult(
-            FitResult.from_runs(objective, runs, settings),
+        return CampaignOutcome(
+            objective=objective,
+            runs=runs,
+            settings=settings,
             islands=self.island_summaries(records, runs),
             migrations=self.migration_summary(records),
             members=[{"island": i, "event": e, "t": t} for i, e, t in self.store.members(self.name)],
         )
-        self.store.set_result(self.name, jsondoc.dumps(result.as_dict()))
-        return result
 
     def island_summaries(self, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
         """Each island run's record with its re-evaluated best and its membership status (as last recorded)."""
@@ -494,7 +427,7 @@ class Coordinator:
 
     def migration_summary(self, records: list[IslandRecord]) -> dict[str, Any]:
         return {
-            **self.config.as_dict()["migration"],
+            **self.config.migration.as_dict(),
             "messages": self.store.count("migrations", self.name),
             "received": sum(r.received for r in records),
             "taken": sum(r.taken for r in records),
@@ -503,75 +436,8 @@ class Coordinator:
         }
 
 
-def polished(objective: Objective, run: RunResult) -> RunResult:
-    """``run`` refined by the least-squares polish (section 3.1), as ``hysid fit`` does."""
-    p = polish(objective, run.theta)
-    run.polish = {"fitness": float(p.fitness), "evaluations": int(p.evaluations), "success": bool(p.success), "message": str(p.message)}
-    if p.fitness <= run.fitness:
-        run.theta, run.fitness = np.asarray(p.theta, dtype=float), float(p.fitness)
-    run.evaluations += int(p.evaluations)
-    return run
-
-
-def resume(store: Store, name: str, rules: StopRules) -> Coordinator:
+def resume(store: Store, name: str, termination: Termination | None = None) -> Coordinator:
     """The coordinator of a stored campaign, with its history, islands and best as they were."""
     _, message, _ = store.campaign(name)
     config, loops = decode_config(message, name)
-    return Coordinator(store, config, loops, rules, resume=True)
-
-
-# --- Zenoh ---------------------------------------------------------------------------
-class ZenohLink:
-    """The coordinator's Zenoh entities under ``hysid/<campaign>/``: queryables ``config`` and
-    ``best``, subscribers to ``history/*`` and ``migrants/*``, the members' liveliness
-    tokens, publications on ``control`` and ``best``."""
-
-    def __init__(self, session: zenoh.Session, coordinator: Coordinator) -> None:
-        self.session = session
-        self.coordinator = coordinator
-        prefix = key_prefix(coordinator.name)
-        self.prefix = prefix
-        inbox = coordinator.inbox
-
-        def on_sample(sample: zenoh.Sample) -> None:
-            inbox.put(("msg", str(sample.key_expr), sample.payload.to_bytes()))
-
-        def on_member(sample: zenoh.Sample) -> None:
-            inbox.put(("member", str(sample.key_expr).rsplit("/", 1)[-1], sample.kind == zenoh.SampleKind.PUT))
-
-        def on_config(query: zenoh.Query) -> None:
-            query.reply(query.key_expr, coordinator.config_message)
-
-        def on_best(query: zenoh.Query) -> None:
-            message = coordinator.best_message
-            if message is not None:
-                query.reply(query.key_expr, message)
-
-        self._control = session.declare_publisher(f"{prefix}/control", congestion_control=zenoh.CongestionControl.BLOCK)
-        self._best = session.declare_publisher(f"{prefix}/best")
-        self._entities = [
-            session.declare_queryable(f"{prefix}/config", on_config),
-            session.declare_queryable(f"{prefix}/best", on_best),
-            session.declare_subscriber(f"{prefix}/history/*", on_sample),
-            session.declare_subscriber(f"{prefix}/migrants/*", on_sample),
-            session.liveliness().declare_subscriber(f"{prefix}/members/*", on_member, history=True),
-        ]
-
-    def announce_stop(self, message: bytes) -> None:
-        self._control.put(message)
-
-    def publish_best(self, message: bytes) -> None:
-        self._best.put(message)
-
-    def request_history(self, island: str, run: str, since: int) -> None:
-        inbox = self.coordinator.inbox
-
-        def on_reply(reply: zenoh.Reply) -> None:
-            if reply.ok is not None:
-                inbox.put(("msg", str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
-
-        self.session.get(f"{self.prefix}/history/{island}?run={run};since={since}", on_reply, timeout=5.0)
-
-    def close(self) -> None:
-        for entity in self._entities + [self._control, self._best]:
-            entity.undeclare()
+    return Coordinator(store, config, loops, termination, resume=True)

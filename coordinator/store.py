@@ -90,11 +90,13 @@ class Store:
     def __init__(self, path: Path | str) -> None:
         self.path = str(path)
         try:
+            if self.path != ":memory:":
+                Path(self.path).parent.mkdir(parents=True, exist_ok=True)
             self.db = sqlite3.connect(self.path, check_same_thread=False)
             self.db.execute("PRAGMA journal_mode=WAL")
             self.db.execute("PRAGMA synchronous=NORMAL")
             self.db.executescript(SCHEMA)
-        except sqlite3.DatabaseError as exc:
+        except (sqlite3.DatabaseError, OSError) as exc:
             raise HysidInputError(f"{self.path}: not a usable campaign database ({exc})") from None
 
     def close(self) -> None:
@@ -105,10 +107,13 @@ class Store:
         self.db.commit()
 
     # --- campaigns --------------------------------------------------------------
+    def has_campaign(self, name: str) -> bool:
+        return self.db.execute("SELECT 1 FROM campaigns WHERE name = ?", (name,)).fetchone() is not None
+
     def create_campaign(self, name: str, dataset: str, config: bytes) -> None:
         """Register a new campaign; an existing one is never overwritten."""
-        if self.db.execute("SELECT 1 FROM campaigns WHERE name = ?", (name,)).fetchone():
-            raise HysidInputError(f"{self.path}: campaign {name!r} already exists; use --resume to carry on, or another --campaign or --db")
+        if self.has_campaign(name):
+            raise HysidInputError(f"{self.path}: campaign {name!r} already exists; resume it, or choose another campaign name or database")
         self.db.execute(
             "INSERT INTO campaigns (name, dataset, config, created, status) VALUES (?, ?, ?, ?, 'running')",
             (name, dataset, config, time.time()),

@@ -16,9 +16,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from coordinator.zenoh_session import open_session, session_config
 from hysid_model.errors import HysidInputError
 from island.node import key_prefix
+from island.session import open_session, session_config
 
 
 def live_members(connect: list[str], config_file: Path | None, campaign: str, timeout_s: float) -> list[str]:

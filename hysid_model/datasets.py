@@ -33,7 +33,7 @@ from hysid_model.readers.dataset_dir import MANIFEST_NAME, DatasetConfig, freque
 from hysid_model.readers.lvm import read_lvm
 from hysid_model.readers.matfile import read_mat_dataset
 from hysid_model.readers.tidy import is_tidy_file, read_loops, write_loops
-from hysid_model.synth import RawRecord, _check_noise, synth_loops
+from hysid_model.synth import RawRecord, check_noise, synth_loops
 
 TIDY_NAME = "loops.csv"
 DEFAULT_POINTS = 100
@@ -50,8 +50,8 @@ def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 
     raises ``sigma`` accordingly (an unknown sigma stays unknown).
     """
     if n_points is not None and (isinstance(n_points, bool) or not isinstance(n_points, int) or n_points < 2):
-        raise HysidInputError(f"points per branch must be an integer >= 2, got {n_points!r}")
-    _check_noise(noise_pct)
+        raise HysidInputError("points per branch must be an integer >= 2", param="n_points", value=n_points)
+    check_noise(noise_pct)
     if str(spec) == "synth":
         return synth_loops(noise_pct, noise_seed, n_points or DEFAULT_POINTS)
     path = Path(spec)
@@ -63,7 +63,7 @@ def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 
 
 def add_noise(loops: LoopSet, noise_pct: float, seed: int) -> LoopSet:
     """Thesis noise (Appendix A): F + maxF * noise_pct/100 * randn on every branch sample."""
-    _check_noise(noise_pct)
+    check_noise(noise_pct)
     if noise_pct == 0:
         return loops
     rng = np.random.default_rng(seed)

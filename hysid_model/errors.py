@@ -1,12 +1,45 @@
-"""The one error type that user-facing commands turn into a one-line message."""
+"""The error and warning types of hysid's user-facing API.
+
+Library code speaks Python: an error names the file, the Python parameter or
+the message field that is wrong, never a command-line flag. An error about a
+parameter carries it (``param``, ``value``) so that the command line can name
+its own flag instead (``hysid.cli.options.FLAGS``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+_UNSET: Any = object()
 
 
 class HysidInputError(ValueError):
-    """Bad input (a file, an argument or a message): the text names what is wrong.
+    """Bad input (a file, an argument or a message): one line that names what is wrong.
 
-    The message is a single line meant for the user, e.g.
-    ``data/run1.csv: column 'force_n' missing (found: time_s, displacement_m, force)``.
+    ``HysidInputError("data/run1.csv: column 'force_n' missing")`` names a file;
+    ``HysidInputError("must be at least 1", param="runs", value=0)`` reads
+    ``runs=0: must be at least 1`` in Python and ``--runs 0: must be at least 1``
+    on the command line.
     """
 
-    def __init__(self, message: str) -> None:
-        super().__init__(" ".join(str(message).split()))
+    def __init__(self, message: str, *, param: str | None = None, value: Any = _UNSET) -> None:
+        self.detail = " ".join(str(message).split())
+        self.param = param
+        self.value = value
+        super().__init__(self.detail if param is None else f"{self.subject()}: {self.detail}")
+
+    @property
+    def has_value(self) -> bool:
+        return self.value is not _UNSET
+
+    def subject(self, name: str | None = None) -> str:
+        """``param=value`` (or ``name value`` when a flag ``name`` stands for the parameter)."""
+        name = name or self.param or ""
+        if not self.has_value:
+            return name
+        value = repr(self.value) if isinstance(self.value, str) else str(self.value)
+        return f"{name} {value}" if name.startswith("-") else f"{name}={value}"
+
+
+class HysidWarning(UserWarning):
+    """Something suspicious that does not stop the work (distortion, a unit slip, a fallback)."""

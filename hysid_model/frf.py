@@ -54,7 +54,7 @@ def compliance(loops: LoopSet) -> np.ndarray:
     return loops.x0 / np.abs(first_harmonic(loops))
 
 
-def model_compliance(model: Model, theta: np.ndarray, x0: float, freq_hz: np.ndarray, meq_kg: float | None) -> np.ndarray:
+def model_compliance(model: Model, theta: np.ndarray, x0: float, freq_hz: np.ndarray) -> np.ndarray:
     """Compliance |X0 / F1| (m/N) the model predicts at amplitude ``x0`` and frequencies ``freq_hz``.
 
     The model's steady-state force (every feature, memory terms included) is
@@ -63,7 +63,7 @@ def model_compliance(model: Model, theta: np.ndarray, x0: float, freq_hz: np.nda
     amplitude m X0 sqrt((wn^2 - w^2)^2 + (2 xi wn w)^2).
     """
     freq_hz = np.asarray(freq_hz, dtype=float).reshape(-1)
-    kin = Kinematics(x0=np.full(freq_hz.size, float(x0)), omega=2.0 * np.pi * freq_hz, meq_kg=meq_kg)
+    kin = Kinematics(x0=np.full(freq_hz.size, float(x0)), omega=2.0 * np.pi * freq_hz)
     pop = np.asarray(theta, dtype=float).reshape(1, -1)
     n = MODEL_CYCLE_SAMPLES // 2
     loading = np.mod(np.linspace(-0.5 * np.pi, 0.5 * np.pi, n, endpoint=False), 2.0 * np.pi)

@@ -105,6 +105,27 @@ class LoopSet:
         """Measured force at every sample, shape ``(L, 2n)``: top branch, then bottom."""
         return np.concatenate([self.top[:, :, 1], self.bottom[:, :, 1]], axis=1)
 
+    def rows(self) -> list[dict[str, Any]]:
+        """One dict per loop: label, frequency, X0, peak force, noise sigma, cycles (+ phase and
+        displacement distortion when extracted from raw records); ``hysid loops --json``."""
+        per_loop = self.meta.get("per_loop", {})
+        out = []
+        for j in range(self.n_loops):
+            sigma = float(self.sigma[j])
+            row: dict[str, Any] = {
+                "label": self.labels[j],
+                "frequency_hz": float(self.freq_hz[j]),
+                "x0_m": float(self.x0[j]),
+                "peak_force_n": float(self.peak_force[j]),
+                "sigma_n": sigma if np.isfinite(sigma) else None,
+                "cycles": int(self.cycles[j]),
+            }
+            for key in ("phase_deg", "x_distortion"):
+                if key in per_loop:
+                    row[key] = float(per_loop[key][j])
+            out.append(row)
+        return out
+
     def subset(self, index: np.ndarray | list[int]) -> "LoopSet":
         idx = np.asarray(index, dtype=int)
         return LoopSet(

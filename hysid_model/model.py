@@ -7,14 +7,14 @@ of :data:`hysid_model.effects.EFFECTS` can be appended, ``thesis+<effect id>``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from hysid_model.basis import design_matrix
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
-from hysid_model.params import Parameter
+from hysid_model.params import Parameter, on_bounds
 from hysid_model.terms import (
     AmplitudeDependentDamping,
     AmplitudeDependentFrequency,
@@ -46,30 +46,53 @@ PRESETS: dict[str, tuple[str, ...]] = {
 }
 
 
-@dataclass
 class Model:
-    """Terms plus the parameter bounds in force (defaults overridable per dataset)."""
+    """An ordered list of terms and the parameters in force: bounds, and values where fixed.
 
-    terms: list[Term]
-    spec: str = ""
+    Like lmfit's ``Parameters``: every parameter of every term is either
+    searched within its bounds or fixed at a known value (``vary=False``), so
+    the known equivalent mass is the fixed parameter ``meq``. The search space
+    (``names``, ``dim``, ``bounds``, and the vectors ``theta`` every method
+    takes) holds the free parameters only. Models compose with ``+`` (a term of
+    :mod:`hysid_model.effects` or another model) and never change in place:
+    :meth:`with_bounds`, :meth:`fix` and :meth:`vary` return new models.
+    """
 
-    def __post_init__(self) -> None:
+    def __init__(self, terms: Sequence[Term], spec: str = "", overrides: Mapping[str, Parameter] | None = None) -> None:
+        self.terms = list(terms)
+        if not any(isinstance(t, Oscillator) for t in self.terms):
+            raise HysidInputError("a model needs the oscillator term (start from a preset: baseline or thesis)")
         names = [p.name for t in self.terms for p in t.params]
         if len(set(names)) != len(names):
-            raise HysidInputError(f"model {self.spec!r}: two terms define the same parameter ({', '.join(names)})")
+            raise HysidInputError(f"model {spec!r}: two terms define the same parameter ({', '.join(names)})")
         params = [p for t in self.terms for p in t.params]
         rank = {name: i for i, name in enumerate(PARAMETER_ORDER)}
         order = sorted(range(len(params)), key=lambda i: (rank.get(params[i].name, len(rank)), i))
-        self._params: list[Parameter] = [params[i] for i in order]
+        self._overrides = {k: v for k, v in (overrides or {}).items() if k in names}
+        self._all: list[Parameter] = [self._overrides.get(params[i].name, params[i]) for i in order]
+        self._params = [p for p in self._all if p.vary]
+        self._fixed = {p.name: float(p.value) for p in self._all if not p.vary}  # type: ignore[arg-type]
+        self.spec = spec or spec_of(self.terms)
         self._sensors = [t for t in self.terms if isinstance(t, MeasurementTerm)]
-        probe_kin = Kinematics(x0=np.ones(1), omega=np.ones(1), meq_kg=1.0)
+        probe_kin = Kinematics(x0=np.ones(1), omega=np.ones(1))
         v, state = self.modal_state(self.bounds.mean(axis=1)[None, :], probe_kin)
         self._filters_sgn = bool(self._sensors) and "sgn" in self._force_coefficients(v, state, probe_kin)
 
     # --- parameters -------------------------------------------------------
     @property
     def parameters(self) -> list[Parameter]:
+        """The free parameters, in the order of a parameter vector ``theta``."""
         return list(self._params)
+
+    @property
+    def all_parameters(self) -> list[Parameter]:
+        """Every parameter, free and fixed, in model order."""
+        return list(self._all)
+
+    @property
+    def fixed(self) -> dict[str, float]:
+        """Fixed parameters and their values."""
+        return dict(self._fixed)
 
     @property
     def names(self) -> list[str]:
@@ -81,8 +104,8 @@ class Model:
 
     @property
     def bounds(self) -> np.ndarray:
-        """``(D, 2)`` array of lower and upper bounds."""
-        return np.array([[p.lower, p.upper] for p in self._params], dtype=float)
+        """``(D, 2)`` array of lower and upper bounds of the free parameters."""
+        return np.array([[p.lower, p.upper] for p in self._params], dtype=float).reshape(-1, 2)
 
     @property
     def has_memory(self) -> bool:
@@ -90,23 +113,78 @@ class Model:
         measurement chain filtering the sign-of-velocity feature."""
         return self._filters_sgn or any(t.memory for t in self.terms)
 
-    def set_bounds(self, bounds: dict[str, tuple[float, float]]) -> None:
-        unknown = sorted(set(bounds) - set(self.names))
-        if unknown:
-            raise HysidInputError(f"bounds given for unknown parameter(s) {', '.join(unknown)}; model has {', '.join(self.names)}")
-        self._params = [p.with_bounds(*bounds[p.name]) if p.name in bounds else p for p in self._params]
+    def _changed(self, changes: Mapping[str, Parameter]) -> "Model":
+        return Model(self.terms, self.spec, {**self._overrides, **changes})
+
+    def _parameter(self, name: str, what: str) -> Parameter:
+        for p in self._all:
+            if p.name == name:
+                return p
+        raise HysidInputError(f"{what} given for unknown parameter {name!r}; model {self.spec} has {', '.join(p.name for p in self._all)}")
+
+    def with_bounds(self, bounds: Mapping[str, tuple[float, float]]) -> "Model":
+        """This model with other search bounds, ``{name: (lower, upper)}``."""
+        changes = {}
+        for name, pair in bounds.items():
+            p = self._parameter(name, "bounds")
+            try:
+                lower, upper = (float(b) for b in pair)
+            except (TypeError, ValueError):
+                raise HysidInputError("bounds must be a pair of numbers (lower, upper)", param=f"bounds[{name!r}]", value=pair) from None
+            changes[name] = p.with_bounds(lower, upper)
+        return self._changed(changes)
+
+    def fix(self, values: Mapping[str, float] | None = None, **kwargs: float) -> "Model":
+        """This model with parameters fixed at known values (``model.fix(meq=0.04)``)."""
+        changes = {}
+        for name, value in {**(values or {}), **kwargs}.items():
+            p = self._parameter(name, "a fixed value")
+            try:
+                changes[name] = p.fixed_at(float(value))
+            except (TypeError, ValueError):
+                raise HysidInputError("a fixed value must be a number", param=name, value=value) from None
+        return self._changed(changes)
+
+    def vary(self, *names: str) -> "Model":
+        """This model with fixed parameters searched again (within their bounds)."""
+        return self._changed({name: self._parameter(name, "vary").varied() for name in names})
+
+    def at_bounds(self, theta: np.ndarray) -> list[str]:
+        """Free parameters of ``theta`` that sit on a bound of the search space (the optimum may lie beyond it)."""
+        return [name for name, hit in zip(self.names, on_bounds(self.bounds, theta)) if hit]
+
+    def __add__(self, other: "Term | Model") -> "Model":
+        """This model plus an effect term (or another model's terms): ``thesis + coulomb_friction``."""
+        if isinstance(other, Model):
+            added, overrides = [t for t in other.terms if not isinstance(t, Oscillator)], other._overrides
+        elif isinstance(other, Term) and not isinstance(other, Oscillator):
+            added, overrides = [other], {}
+        else:
+            return NotImplemented
+        ids = [t.id for t in self.terms]
+        for term in added:
+            if term.id in ids:
+                raise HysidInputError(f"model {self.spec!r}: effect {term.id!r} is already in the model")
+            ids.append(term.id)
+        spec = "+".join([self.spec] + [t.id for t in added])
+        return Model(self.terms + added, spec, {**self._overrides, **overrides})
 
     def values(self, pop: np.ndarray) -> Values:
-        """Split a ``(P, D)`` population into named ``(P, 1)`` columns."""
+        """Split a ``(P, D)`` population into named ``(P, 1)`` columns, fixed parameters included."""
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
         if pop.shape[1] != self.dim:
-            raise ValueError(f"expected {self.dim} parameters ({', '.join(self.names)}), got {pop.shape[1]}")
-        return {name: pop[:, i : i + 1] for i, name in enumerate(self.names)}
+            raise HysidInputError(f"model {self.spec}: expected {self.dim} parameter values ({', '.join(self.names)}), got {pop.shape[1]}")
+        out = {name: pop[:, i : i + 1] for i, name in enumerate(self.names)}
+        for name, value in self._fixed.items():
+            out[name] = np.broadcast_to(np.float64(value), (pop.shape[0], 1))
+        return out
 
     def as_dict(self, theta: np.ndarray) -> dict[str, float]:
+        """Free parameter values by name."""
         return {name: float(x) for name, x in zip(self.names, np.asarray(theta, dtype=float).reshape(-1))}
 
-    def from_dict(self, values: dict[str, float]) -> np.ndarray:
+    def from_dict(self, values: Mapping[str, float]) -> np.ndarray:
+        """The parameter vector of ``values`` (free parameters; entries for fixed ones are ignored)."""
         missing = [n for n in self.names if n not in values]
         if missing:
             raise HysidInputError(f"values missing for parameter(s) {', '.join(missing)}")
@@ -115,7 +193,7 @@ class Model:
     # --- evaluation -------------------------------------------------------
     def modal_state(self, pop: np.ndarray, kin: Kinematics) -> tuple[Values, ModalState]:
         v = self.values(pop)
-        shape = (v[self.names[0]].shape[0], kin.x0.size)
+        shape = (v["xi0"].shape[0], kin.x0.size)
         state = ModalState(xi=np.zeros(shape), wn=np.zeros(shape), m=np.zeros(shape))
         for term in self.terms:
             term.modal(v, state, kin)
@@ -194,26 +272,46 @@ class Model:
         waves = np.exp(1j * phase[..., None] * CHAIN_ORDERS)
         return out + np.einsum("plk,lnk->pln", (gain - 1.0) * amplitude * lag, waves).real
 
-    def modal(self, theta: np.ndarray, x0: np.ndarray | float, meq_kg: float | None) -> ModalState:
+    def modal(self, theta: np.ndarray, x0: np.ndarray | float) -> ModalState:
         """xi, wn and m at amplitude(s) ``x0`` for one parameter vector (as listed under Table 5.3)."""
         x0 = np.atleast_1d(np.asarray(x0, dtype=float))
-        kin = Kinematics(x0=x0, omega=np.ones_like(x0), meq_kg=meq_kg)
+        kin = Kinematics(x0=x0, omega=np.ones_like(x0))
         _, state = self.modal_state(np.asarray(theta, dtype=float).reshape(1, -1), kin)
         return ModalState(xi=state.xi[0], wn=state.wn[0], m=state.m[0])
 
     def describe(self) -> str:
+        """Every term with its parameters: unit, bounds, or the fixed value."""
         lines = [f"model {self.spec}:"]
+        params = {p.name: p for p in self._all}
         for t in self.terms:
-            plist = ", ".join(f"{p.name} [{p.unit}]" for p in t.params) or "no parameters"
-            lines.append(f"  {t.id}: {plist}")
+            shown = []
+            for p in (params[q.name] for q in t.params):
+                where = f"in [{p.lower:g}, {p.upper:g}]" if p.vary else f"fixed at {p.value:g}"
+                shown.append(f"{p.name} [{p.unit}] {where}")
+            lines.append(f"  {t.id}: {', '.join(shown) or 'no parameters'}")
         return "\n".join(lines)
 
+    def __repr__(self) -> str:
+        fixed = "".join(f", {k}={v:g} fixed" for k, v in self.fixed.items())
+        return f"Model({self.spec!r}: {', '.join(self.names)}{fixed})"
 
-def build_model(spec: str = "thesis", meq_kg: float | None = None, fit_mass: bool = False) -> Model:
-    """Build a model from ``baseline``/``thesis`` plus ``+effect`` ids.
 
-    The mass is fitted when ``meq_kg`` is None (unknown) or ``fit_mass`` is set.
+def spec_of(terms: Sequence[Term]) -> str:
+    """The model string of ``terms``: a preset, then ``+effect`` for every other term."""
+    ids = [t.id for t in terms if not isinstance(t, Oscillator)]
+    preset = "thesis" if all(i in ids for i in PRESETS["thesis"]) else "baseline"
+    return "+".join([preset] + [i for i in ids if i not in PRESETS[preset]])
+
+
+def build_model(spec: str = "thesis") -> Model:
+    """Build a model from ``baseline``/``thesis`` plus ``+effect`` ids (``thesis+coulomb_friction``).
+
+    Every parameter is free, the equivalent mass ``meq`` too; fix what is known
+    with :meth:`Model.fix` (:func:`hysid_model.problem.prepare_model` fixes a
+    dataset's known mass).
     """
+    if not isinstance(spec, str):
+        raise HysidInputError("a model is a string such as 'thesis+coulomb_friction' or a hysid Model", param="model", value=spec)
     parts = [p.strip() for p in spec.split("+") if p.strip()]
     if not parts or parts[0] not in PRESETS:
         raise HysidInputError(f"model {spec!r}: must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)")
@@ -224,9 +322,13 @@ def build_model(spec: str = "thesis", meq_kg: float | None = None, fit_mass: boo
         if part in effect_ids:
             raise HysidInputError(f"model {spec!r}: effect {part!r} is already in the model")
         effect_ids.append(part)
-    terms: list[Term] = [Oscillator(fit_mass=fit_mass or meq_kg is None)]
-    terms += [EFFECTS[e]() for e in effect_ids]
-    return Model(terms=terms, spec=spec)
+    terms: list[Term] = [Oscillator()] + [EFFECTS[e]() for e in effect_ids]
+    return Model(terms, "+".join(parts))
+
+
+def as_model(model: "str | Model") -> Model:
+    """A :class:`Model` from a model string or a model."""
+    return model if isinstance(model, Model) else build_model(model)
 
 
 def to_physical(state: ModalState) -> dict[str, np.ndarray]:

@@ -47,10 +47,11 @@ def loop_weights(loops: LoopSet, scheme: str) -> np.ndarray:
             bad = [loops.labels[j] for j in np.flatnonzero(~(np.isfinite(loops.sigma) & (loops.sigma > 0)))]
             raise HysidInputError(
                 f"{loops.name}: maximum-likelihood weights need each loop's noise sigma; "
-                f"{len(bad)} loop(s) have none (first: {bad[0]}); use --weights thesis"
+                f"{len(bad)} loop(s) have none (first: {bad[0]}); use the thesis weights",
+                param="weights", value="ml",
             )
         return 1.0 / loops.sigma**2
-    raise HysidInputError(f"unknown weights {scheme!r}; choose one of {', '.join(WEIGHTS)}")
+    raise HysidInputError(f"unknown weights; choose one of {', '.join(WEIGHTS)}", param="weights", value=scheme)
 
 
 class ModelSpace:
@@ -75,7 +76,7 @@ class Objective(ModelSpace):
         self.loops = loops
         self.model = model
         self.weights = weights
-        self.kin = Kinematics(x0=loops.x0, omega=loops.omega, meq_kg=loops.meq_kg)
+        self.kin = Kinematics(x0=loops.x0, omega=loops.omega)
         self.phase = loops.phases()
         self.y = loops.forces()
         self.loop_weight = loop_weights(loops, weights)

@@ -49,14 +49,15 @@ def _labels(freq: np.ndarray, x0: np.ndarray) -> list[str]:
     return [f"SYNTH_{a * 1e4:02.0f}mm_{f:g}Hz" for f, a in zip(freq, x0)]
 
 
-def _check_noise(noise_pct: float) -> None:
-    if not (np.isfinite(noise_pct) and 0.0 <= noise_pct <= 100.0):
-        raise HysidInputError(f"noise must be a percentage from 0 to 100, got {noise_pct}")
+def check_noise(noise_pct: float) -> None:
+    """Added noise is a percentage of each loop's peak force, from 0 to 100."""
+    if not (isinstance(noise_pct, (int, float)) and np.isfinite(noise_pct) and 0.0 <= noise_pct <= 100.0):
+        raise HysidInputError("noise must be a percentage from 0 to 100", param="noise_pct", value=noise_pct)
 
 
 def synth_loops(noise_pct: float = 0.0, seed: int = 0, n_points: int = 100, params: dict[str, float] | None = None) -> LoopSet:
     """The Synth set as branch data: ``n_points`` per branch, evenly spaced in x (``reinterpolate``)."""
-    _check_noise(noise_pct)
+    check_noise(noise_pct)
     params = TRUE_PARAMS if params is None else params
     freq, x0 = _grid()
     rng = np.random.default_rng(seed)
@@ -110,7 +111,7 @@ def synth_raw(
     params: dict[str, float] | None = None,
 ) -> list[RawRecord]:
     """The Synth set as raw time series over several cycles (thesis grid: 1e-4 s over 0.4 s)."""
-    _check_noise(noise_pct)
+    check_noise(noise_pct)
     params = TRUE_PARAMS if params is None else params
     freq, x0 = _grid()
     rng = np.random.default_rng(seed)
@@ -124,7 +125,7 @@ def synth_raw(
     return records
 
 
-def model_force(model: Model, theta: np.ndarray, freq_hz: float, x0: float, meq_kg: float | None, phase: np.ndarray) -> np.ndarray:
+def model_force(model: Model, theta: np.ndarray, freq_hz: float, x0: float, phase: np.ndarray) -> np.ndarray:
     """Steady-state force of ``model`` at ``theta`` under x = X0 sin(phase), phase = w t (Eq. 4.5).
 
     Samples with cos(phase) >= 0 are on the loading branch (x' >= 0); the model
@@ -134,7 +135,7 @@ def model_force(model: Model, theta: np.ndarray, freq_hz: float, x0: float, meq_
     phase = np.asarray(phase, dtype=float).reshape(-1)
     order = np.concatenate([np.flatnonzero(np.cos(phase) >= 0.0), np.flatnonzero(np.cos(phase) < 0.0)])
     n_top = int(np.count_nonzero(np.cos(phase) >= 0.0))
-    kin = Kinematics(x0=np.array([float(x0)]), omega=np.array([2.0 * np.pi * float(freq_hz)]), meq_kg=meq_kg)
+    kin = Kinematics(x0=np.array([float(x0)]), omega=np.array([2.0 * np.pi * float(freq_hz)]))
     force = model.force(np.asarray(theta, dtype=float).reshape(1, -1), kin, phase[order][None, :], n_top)[0, 0]
     out = np.empty_like(force)
     out[order] = force
@@ -147,7 +148,6 @@ def simulate_raw(
     freq_hz: np.ndarray,
     x0: np.ndarray,
     *,
-    meq_kg: float | None,
     noise_n: float | np.ndarray,
     seed: int = 0,
     sample_rate_hz: float = 5000.0,
@@ -171,7 +171,7 @@ def simulate_raw(
         w = 2.0 * np.pi * f
         t = np.arange(int(round(cycles * sample_rate_hz / f))) / sample_rate_hz
         phase = w * t + rng.uniform(0.0, 2.0 * np.pi)
-        clean = model_force(model, theta, f, a, meq_kg, phase)
+        clean = model_force(model, theta, f, a, phase)
         x = a * np.sin(phase) + x_noise * a * rng.standard_normal(t.size)
         label = f"SIM_{a * 1e3:.4g}mm_{f:g}Hz"
         records.append(RawRecord(label, float(f), float(a), t, x, clean + sigma * rng.standard_normal(t.size), float(sigma)))

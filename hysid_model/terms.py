@@ -12,7 +12,8 @@ stages, always vectorized over a population ``P`` and the loops ``L``:
 3. ``measure``: transform the force as the measurement chain sees it.
 
 Terms with memory (internal state, e.g. Bouc-Wen) instead return their force at
-the sample phases from :func:`hysid_model.timedomain.periodic_steady_state`.
+the sample phases (:meth:`Term.time_force`), from their periodic steady state
+under the prescribed motion.
 Elements of the measurement chain (charge amplifier, channel delay) are
 :class:`MeasurementTerm`: a delay times a gain per harmonic order, applied
 exactly to harmonic features here and per sample to the rest by the model.
@@ -43,7 +44,6 @@ class Kinematics:
 
     x0: np.ndarray
     omega: np.ndarray
-    meq_kg: float | None
 
 
 @dataclass
@@ -152,32 +152,23 @@ class Oscillator(Term):
     """Linear 1-DOF oscillator with equivalent viscous damping, Eq. 4.4.
 
     Under x = X0 sin(wt) its steady-state force is closed form (Eq. 4.6):
-    F = m X0 [(wn^2 - w^2) sin(wt) + 2 xi wn w cos(wt)]. The mass is the known
-    equivalent mass Meq unless the term fits it (parameter ``meq``).
+    F = m X0 [(wn^2 - w^2) sin(wt) + 2 xi wn w cos(wt)]. The equivalent mass
+    ``meq`` is a parameter like the others: fixed where the specimen's mass is
+    known (:meth:`hysid_model.model.Model.fix`), fitted otherwise.
     """
 
     id = "oscillator"
     explanation = "Mass, viscous damping ratio xi and natural frequency wn of the equivalent 1-DOF system (Eq. 4.4-4.6)."
-
-    def __init__(self, fit_mass: bool = False, mass_bounds: tuple[float, float] = (1e-3, 10.0)) -> None:
-        params = [
-            Parameter("xi0", "1", 0.0, 0.1, "damping ratio (at zero amplitude)"),
-            Parameter("w0", "rad/s", 100.0, 500.0, "natural frequency (at zero amplitude)"),
-        ]
-        if fit_mass:
-            params.append(Parameter("meq", "kg", *mass_bounds, "equivalent mass"))
-        self.params = tuple(params)
-        self.fit_mass = fit_mass
+    params = (
+        Parameter("xi0", "1", 0.0, 0.1, "damping ratio (at zero amplitude)"),
+        Parameter("w0", "rad/s", 100.0, 500.0, "natural frequency (at zero amplitude)"),
+        Parameter("meq", "kg", 1e-3, 10.0, "equivalent mass"),
+    )
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.xi = state.xi + v["xi0"]
         state.wn = state.wn + v["w0"]
-        if self.fit_mass:
-            state.m = state.m + v["meq"]
-        else:
-            if kin.meq_kg is None:
-                raise ValueError("the equivalent mass is unknown: build the oscillator with fit_mass=True")
-            state.m = state.m + kin.meq_kg
+        state.m = state.m + v["meq"]
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         w = kin.omega

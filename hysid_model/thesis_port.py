@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
-from hysid_model.model import build_model
+from hysid_model.model import Model
 from hysid_model.objective import ModelSpace, loop_weights
 
 THESIS_TSPAN_S = 0.4
@@ -211,17 +212,20 @@ class ThesisObjective(ModelSpace):
     fitness(p) = sum_j loopsweights(j) * erreval(loop j, p) / NOS_j, with
     loopsweights = maxFall / maxF_j (``loop_weights(loops, "thesis")`` holds
     the division by NOS too) and Xpk_j = max |x| over both branches of loop j.
-    Parameters are the thesis chromosome [xi0, S_xi, w0, S_w]; Meq is known.
+    Parameters are the thesis chromosome [xi0, S_xi, w0, S_w] of ``model`` (the
+    thesis model, its bounds in force), whose Meq is fixed (known).
     (The GA program took maxF before adding its synthetic noise; a loop set
     holds the measured branches only, so maxF is taken from those, as hysid does.)
     """
 
-    def __init__(self, loops: LoopSet, meq_kg: float, tspan: float = THESIS_TSPAN_S, dt: float = THESIS_DT_S) -> None:
+    def __init__(self, loops: LoopSet, model: Model, tspan: float = THESIS_TSPAN_S, dt: float = THESIS_DT_S) -> None:
+        if model.names != ["xi0", "S_xi", "w0", "S_w"] or "meq" not in model.fixed:
+            raise HysidInputError(f"the thesis' erreval takes the thesis model with a known mass, not {model!r}")
         self.loops = loops
-        self.meq_kg = float(meq_kg)
+        self.model = model
+        self.meq_kg = model.fixed["meq"]
         self.tspan = float(tspan)
         self.dt = float(dt)
-        self.model = build_model("thesis", meq_kg=self.meq_kg)
         self.loop_weight = loop_weights(loops, "thesis")
         self.xpk = np.maximum(np.abs(loops.top[:, :, 0]).max(axis=1), np.abs(loops.bottom[:, :, 0]).max(axis=1))
         self.evaluations = 0
@@ -254,6 +258,6 @@ class ThesisObjective(ModelSpace):
         """Fitness of each row of a ``(P, 4)`` population (or one ``(4,)`` vector), one by one."""
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
         if pop.shape[1] != self.dim:
-            raise ValueError(f"expected {self.dim} parameters ({', '.join(self.model.names)}), got {pop.shape[1]}")
+            raise HysidInputError(f"expected {self.dim} parameters ({', '.join(self.model.names)}), got {pop.shape[1]}")
         self.evaluations += pop.shape[0]
         return np.array([self.fitness(p) for p in pop])

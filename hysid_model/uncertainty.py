@@ -6,6 +6,11 @@ of the model force at every sample; the Cramer-Rao bound is I^-1. With the
 thesis' (non-ML) loop weights W the least-squares estimator's covariance is the
 sandwich (J^T W J)^-1 J^T W Sigma W J (J^T W J)^-1. Where sigma is unknown it is
 estimated from the residuals of each loop at the given parameters.
+
+:func:`jacobian_covariance` is the one place a covariance is formed from a
+Jacobian of whitened residuals, (J^T J)^-1 with the columns scaled first so
+that parameters of very different magnitude (a yield displacement of microns
+next to a stiffness of 10^6 N/m) do not ruin the inverse.
 """
 
 from __future__ import annotations
@@ -13,6 +18,14 @@ from __future__ import annotations
 import numpy as np
 
 from hysid_model.objective import Objective
+
+
+def jacobian_covariance(jac: np.ndarray) -> np.ndarray:
+    """(J^T J)^-1 of a whitened-residual Jacobian ``(N, D)``, column-scaled (pseudo-inverse where singular)."""
+    scale = np.linalg.norm(jac, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    unit = jac / scale
+    return np.linalg.pinv(unit.T @ unit) / np.outer(scale, scale)
 
 
 def noise_sigma(obj: Objective, theta: np.ndarray) -> np.ndarray:

@@ -20,10 +20,41 @@ always after the receiver has re-evaluated its fitness.
 from __future__ import annotations
 
 import zlib
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from island.protocol import TOPOLOGIES
+from hysid_model.errors import HysidInputError
+from island.protocol import MAX_MIGRANTS
+
+TOPOLOGIES = ("ring", "full", "random")
+"""Migration topologies (who takes migrants from whom)."""
+
+
+@dataclass(frozen=True)
+class Migration:
+    """How islands share partial solutions: every ``interval`` iterations (0 = isolated
+    islands) each sends its ``k`` best along ``topology``; ``random`` picks ``random_k``
+    neighbours anew at every migration."""
+
+    interval: int = 10
+    k: int = 2
+    topology: str = "ring"
+    random_k: int = 2
+
+    def __post_init__(self) -> None:
+        if isinstance(self.interval, bool) or not isinstance(self.interval, int) or self.interval < 0:
+            raise HysidInputError("must be an integer >= 0 (0 = isolated islands)", param="interval", value=self.interval)
+        for name in ("k", "random_k"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_MIGRANTS:
+                raise HysidInputError(f"must be an integer from 1 to {MAX_MIGRANTS}", param=name, value=value)
+        if self.topology not in TOPOLOGIES:
+            raise HysidInputError(f"topology must be one of {', '.join(TOPOLOGIES)}, got {self.topology!r}")
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"interval": self.interval, "k": self.k, "topology": self.topology, "random_k": self.random_k}
 
 
 def in_neighbours(topology: str, members: list[str], me: str, *, epoch: int, seed: int, random_k: int) -> set[str]:
@@ -40,4 +71,4 @@ def in_neighbours(topology: str, members: list[str], me: str, *, epoch: int, see
         rng = np.random.default_rng([seed, zlib.crc32(me.encode()), epoch])
         pick = rng.choice(len(others), size=min(random_k, len(others)), replace=False)
         return {others[i] for i in pick}
-    raise ValueError(f"unknown topology {topology!r}; choose one of {', '.join(TOPOLOGIES)}")
+    raise HysidInputError(f"topology must be one of {', '.join(TOPOLOGIES)}, got {topology!r}")

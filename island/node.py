@@ -34,15 +34,14 @@ import zenoh
 from hysid_model.errors import HysidInputError
 from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
+from island.algorithms import make_optimizer
+from island.config import CampaignConfig
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
-    ALGORITHMS,
     STAT_NAMES,
     Best,
-    CampaignConfig,
     History,
-    START_TIMEOUT_S,
     MessageRejected,
     Migrants,
     check_name,
@@ -54,6 +53,8 @@ from island.protocol import (
 )
 from island.run import HistoryRow, run
 
+START_TIMEOUT_S = 60.0
+"""Longest wait for ``min_islands`` members before an island starts anyway."""
 HISTORY_CHUNK = 20_000
 """History rows per message (well under :data:`island.protocol.MAX_ROWS`)."""
 MAX_INBOX = 4096
@@ -66,7 +67,7 @@ joiner's first migrants can arrive before the island knows it is a member."""
 
 
 def key_prefix(campaign: str) -> str:
-    return f"hysid/{check_name('--campaign', campaign)}"
+    return f"hysid/{check_name('campaign', campaign)}"
 
 
 class Transport(Protocol):
@@ -102,14 +103,12 @@ class IslandNode:
         *,
         history_every_s: float = 0.25,
     ) -> None:
-        self.island = check_name("--id", island)
-        if algo not in ALGORITHMS:
-            raise HysidInputError(f"--algo {algo!r}: unknown algorithm; choose one of {', '.join(ALGORITHMS)}")
+        self.island = check_name("island", island)
+        self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.options.get(algo))
         self.algo = algo
         self.seed = seed
         self.config = config
         self.objective = objective
-        self.optimizer: PopulationOptimizer = ALGORITHMS[algo](objective.bounds, seed, **config.options.get(algo, {}))
         self.run_id = secrets.token_hex(6)
         self.history_every_s = history_every_s
         self.stats = dict.fromkeys(STAT_NAMES, 0)
@@ -334,7 +333,7 @@ def fetch_config(session: zenoh.Session, campaign: str, wait_s: float) -> bytes:
             if reply.ok is not None:
                 return reply.ok.payload.to_bytes()
         if time.monotonic() >= deadline:
-            raise HysidInputError(f"no coordinator answered on {key} within {wait_s:g} s (is `hysid coordinator --campaign {campaign}` running and reachable?)")
+            raise HysidInputError(f"no coordinator answered on {key} within {wait_s:g} s (is the coordinator of campaign {campaign!r} running and reachable?)")
         time.sleep(0.2)
 
 

@@ -19,12 +19,16 @@ bytes>}``. Decoding never trusts a sender: size limits are checked before
 unpacking, then every field's type, every shape against the campaign's
 dimension, finiteness and the search bounds. A bad message raises
 :class:`MessageRejected` whose ``reason`` is one of :data:`REASONS`.
+
+This is the wire format only: it depends on msgpack, numpy and the loop set,
+not on models, objectives or optimizers (the campaign settings inside
+``config`` are checked by :class:`island.config.CampaignConfig`).
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import msgpack
@@ -32,16 +36,12 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
-from hysid_model.model import build_model
-from hysid_model.objective import WEIGHTS, Objective
-from hysid_model.thesis_port import ThesisObjective
-from island.ga import GA
-from island.optimizer import AskTell
-from island.pso import PSO
 
 PROTOCOL_VERSION = 1
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 """Campaign and island names: usable as one Zenoh key chunk (no ``/ * $ ? #``)."""
+ALGO_PATTERN = re.compile(r"[a-z][a-z0-9_]{0,15}\Z")
+"""An island's algorithm label (``ga``, ``pso``) as it travels in its history."""
 
 MAX_BYTES = {
     "config": 256 << 20,
@@ -51,16 +51,9 @@ MAX_BYTES = {
     "stop": 4 << 10,
 }
 """Largest accepted encoded size of each message type, in bytes."""
-START_TIMEOUT_S = 60.0
 MAX_MIGRANTS = 256
 MAX_ROWS = 100_000
 MAX_DIM = 256
-ALGORITHMS: dict[str, type[AskTell]] = {"ga": GA, "pso": PSO}
-"""The island algorithms (the thesis' GA and PSO, section 5.1) by name."""
-TOPOLOGIES = ("ring", "full", "random")
-OBJECTIVES = ("closed_form", "thesis_port")
-"""``closed_form``: the vectorized objective of Eq. 3.3 (:class:`~hysid_model.objective.Objective`);
-``thesis_port``: the thesis' own loop-by-loop ``erreval`` (the expensive objective of the benchmarks)."""
 REASONS = ("oversized", "undecodable", "schema", "version", "campaign", "sender", "shape", "not_finite", "out_of_bounds")
 
 
@@ -72,10 +65,10 @@ class MessageRejected(HysidInputError):
         super().__init__(f"rejected message ({reason}): {detail}")
 
 
-def check_name(what: str, value: Any) -> str:
-    """A campaign or island name usable as a Zenoh key chunk, else :class:`HysidInputError`."""
+def check_name(param: str, value: Any) -> str:
+    """A campaign or island name usable as a Zenoh key chunk, else :class:`HysidInputError` naming ``param``."""
     if not isinstance(value, str) or not NAME_PATTERN.match(value):
-        raise HysidInputError(f"{what} {value!r} must be 1-64 characters of letters, digits, '_', '.', '-' (starting with a letter or digit)")
+        raise HysidInputError("must be 1-64 characters of letters, digits, '_', '.', '-' (starting with a letter or digit)", param=param, value=value)
     return value
 
 
@@ -172,115 +165,6 @@ def _in_bounds(x: np.ndarray, bounds: np.ndarray) -> None:
 
 
 # --- campaign configuration ---------------------------------------------------------
-@dataclass
-class Migration:
-    """How islands share partial solutions: every ``interval`` iterations (0 = isolated
-    islands) each sends its ``k`` best along ``topology``; ``random`` picks ``random_k``
-    neighbours anew at every migration."""
-
-    interval: int = 10
-    k: int = 2
-    topology: str = "ring"
-    random_k: int = 2
-
-    def __post_init__(self) -> None:
-        if isinstance(self.interval, bool) or not isinstance(self.interval, int) or self.interval < 0:
-            raise HysidInputError(f"migration interval must be an integer >= 0 (0 = isolated islands), got {self.interval!r}")
-        for name in ("k", "random_k"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_MIGRANTS:
-                raise HysidInputError(f"migration {name} must be an integer from 1 to {MAX_MIGRANTS}, got {value!r}")
-        if self.topology not in TOPOLOGIES:
-            raise HysidInputError(f"topology must be one of {', '.join(TOPOLOGIES)}, got {self.topology!r}")
-
-
-@dataclass
-class CampaignConfig:
-    """Everything an island needs besides the loops: model, weights, bounds, algorithms, migration.
-
-    ``options[algo]`` are keyword options of that algorithm's constructor (e.g.
-    population size and iterations); ``algos`` is the mix islands are assigned
-    from when they are not told their algorithm.
-    """
-
-    name: str
-    model: str = "thesis"
-    weights: str = "thesis"
-    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
-    algos: list[str] = field(default_factory=lambda: ["ga", "pso"])
-    options: dict[str, dict[str, Any]] = field(default_factory=dict)
-    migration: Migration = field(default_factory=Migration)
-    seed: int = 0
-    objective_kind: str = "closed_form"
-    min_islands: int = 1
-    """Islands wait (up to :data:`START_TIMEOUT_S`) until this many are members before they start,
-    so that islands launched together also search together."""
-
-    def __post_init__(self) -> None:
-        check_name("campaign", self.name)
-        if self.weights not in WEIGHTS:
-            raise HysidInputError(f"weights must be one of {', '.join(WEIGHTS)}, got {self.weights!r}")
-        if not self.algos or any(a not in ALGORITHMS for a in self.algos):
-            raise HysidInputError(f"algorithms must be a non-empty list of {', '.join(ALGORITHMS)}, got {self.algos!r}")
-        unknown = sorted(set(self.options) - set(ALGORITHMS))
-        if unknown:
-            raise HysidInputError(f"options given for unknown algorithm(s) {', '.join(unknown)}")
-        for algo, opts in self.options.items():
-            if not isinstance(opts, dict) or not all(isinstance(k, str) and isinstance(v, (int, float, str, bool)) for k, v in opts.items()):
-                raise HysidInputError(f"{algo} options must map names to numbers, strings or booleans")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise HysidInputError(f"seed must be an integer >= 0, got {self.seed!r}")
-        self.bounds = {str(k): (float(v[0]), float(v[1])) for k, v in self.bounds.items()}
-        if isinstance(self.min_islands, bool) or not isinstance(self.min_islands, int) or self.min_islands < 1:
-            raise HysidInputError(f"min_islands must be an integer >= 1, got {self.min_islands!r}")
-        if self.objective_kind not in OBJECTIVES:
-            raise HysidInputError(f"objective must be one of {', '.join(OBJECTIVES)}, got {self.objective_kind!r}")
-        if self.objective_kind == "thesis_port" and (self.model != "thesis" or self.weights != "thesis"):
-            raise HysidInputError("the thesis_port objective is the thesis model with the thesis weights only")
-
-    def objective(self, loops: LoopSet) -> Objective | ThesisObjective:
-        """The campaign objective (Eq. 3.3 with the configured weights) on ``loops``."""
-        if self.objective_kind == "thesis_port":
-            if loops.meq_kg is None:
-                raise HysidInputError(f"{loops.name}: the thesis_port objective needs a known equivalent mass")
-            return ThesisObjective(loops, loops.meq_kg)
-        model = build_model(self.model, meq_kg=loops.meq_kg)
-        model.set_bounds(self.bounds)
-        return Objective(loops, model, weights=self.weights)
-
-    def algo_for(self, seed: int) -> str:
-        """The algorithm of an island that was not told one: the mix, cycled by seed."""
-        return self.algos[seed % len(self.algos)]
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "name": self.name,
-            "model": self.model,
-            "weights": self.weights,
-            "bounds": {k: list(v) for k, v in self.bounds.items()},
-            "algos": list(self.algos),
-            "options": {k: dict(v) for k, v in self.options.items()},
-            "migration": {"interval": self.migration.interval, "k": self.migration.k, "topology": self.migration.topology, "random_k": self.migration.random_k},
-            "seed": self.seed,
-            "objective": self.objective_kind,
-            "min_islands": self.min_islands,
-        }
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "CampaignConfig":
-        try:
-            bounds = {k: (v[0], v[1]) for k, v in d["bounds"].items()}
-            return cls(
-                name=d["name"], model=d["model"], weights=d["weights"], bounds=bounds,
-                algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"], objective_kind=d["objective"],
-                min_islands=d["min_islands"],
-            )
-        except HysidInputError:
-            raise
-        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
-            raise HysidInputError(f"campaign configuration is malformed ({type(exc).__name__}: {exc})") from None
-
-
 def _packable(value: Any) -> bool:
     try:
         msgpack.packb(value, use_bin_type=True)
@@ -289,7 +173,8 @@ def _packable(value: Any) -> bool:
     return True
 
 
-def encode_config(config: CampaignConfig, loops: LoopSet) -> bytes:
+def encode_config(campaign: str, config: dict[str, Any], loops: LoopSet) -> bytes:
+    """The ``config`` message: the campaign's settings (plain data) and its loop set."""
     wire_loops = {
         "name": loops.name,
         "freq_hz": pack_array(loops.freq_hz),
@@ -302,18 +187,17 @@ def encode_config(config: CampaignConfig, loops: LoopSet) -> bytes:
         "labels": list(loops.labels),
         "meta": {k: v for k, v in loops.meta.items() if _packable(v)},
     }
-    return _pack("config", config.name, {"config": config.as_dict(), "loops": wire_loops})
+    return _pack("config", campaign, {"config": config, "loops": wire_loops})
 
 
-def decode_config(data: bytes, campaign: str) -> tuple[CampaignConfig, LoopSet]:
-    """The campaign configuration and loop set; the loop set is checked like a loaded file."""
+def decode_config(data: bytes, campaign: str) -> tuple[dict[str, Any], LoopSet]:
+    """The campaign settings (a map, checked by :class:`island.config.CampaignConfig`) and the loop
+    set, which is checked like a loaded file."""
     msg = _unpack(data, "config", campaign)
     wire = _get(msg, "loops", dict)
+    config = _get(msg, "config", dict)
     n_max = MAX_BYTES["config"] // 8
     try:
-        config = CampaignConfig.from_dict(_get(msg, "config", dict))
-        if config.name != campaign:
-            raise MessageRejected("campaign", f"configuration names campaign {config.name!r}")
         loops = LoopSet(
             name=_get(wire, "name", str),
             freq_hz=_array(wire, "freq_hz", (None,), n_max),
@@ -329,7 +213,7 @@ def decode_config(data: bytes, campaign: str) -> tuple[CampaignConfig, LoopSet]:
     except MessageRejected:
         raise
     except (HysidInputError, TypeError, ValueError, OverflowError) as exc:
-        raise MessageRejected("schema", f"configuration or loop set invalid: {exc}") from None
+        raise MessageRejected("schema", f"loop set invalid: {exc}") from None
     return config, loops
 
 
@@ -414,8 +298,8 @@ def decode_history(data: bytes, campaign: str, bounds: np.ndarray, sender: str |
     if sender is not None and island != sender:
         raise MessageRejected("sender", f"message from key of {sender!r} claims island {island!r}")
     algo = _get(msg, "algo", str)
-    if algo not in ALGORITHMS:
-        raise MessageRejected("schema", f"unknown algorithm {algo[:20]!r}")
+    if not ALGO_PATTERN.match(algo):
+        raise MessageRejected("schema", f"algorithm label {algo[:20]!r} is not a short lower-case name")
     rows = _array(msg, "rows", (None, 4), 4 * MAX_ROWS)
     _finite(rows[:, [0, 2, 3]], "history iteration, evaluations or wall time")
     _finite(rows[:, 1], "history best fitness", allow_inf=True)

@@ -1,7 +1,7 @@
 """The thesis' PSO (section 3.2, Figs. 3.11/3.12, PSO program of Appendix A) as an ask/tell optimizer.
 
-Iteration 0 draws ``initial_swarm`` positions uniformly in the bounds
-(Eq. 3.2), evaluates them and keeps the best ``swarm`` as the particles, with
+Iteration 0 draws ``initial_population`` positions uniformly in the bounds
+(Eq. 3.2), evaluates them and keeps the best ``population`` (the swarm) as the particles, with
 P = x, zero velocity and Pg the best P. Each iteration moves every particle
 with Clerc's constriction (Eq. 3.8, 3.9),
 
@@ -17,9 +17,9 @@ updated from it.
   returns one particle; the thesis budget is 6000 + 18 x (500 + 15) = 15270;
 * ``synchronous=True`` (Fig. 3.11): the whole swarm moves per ``ask`` with the
   Pg of the previous iteration;
-* ``topology="ring"``: P_g of particle i is the best P of itself and its left
+* ``neighbourhood="ring"``: P_g of particle i is the best P of itself and its left
   and right neighbours (wrap-around, Fig. 3.10a). The thesis only ran the
-  global topology; with a ring, a better additional candidate becomes the
+  global neighbourhood; with a ring, a better additional candidate becomes the
   personal best of the best particle, so that it reaches the swarm.
 
 Reconstructed from the text (lines missing from the listing's extraction): the
@@ -41,7 +41,8 @@ from island.addpop import additional_population
 from island.population import PopulationOptimizer, array_or_none, check_choice, check_float, check_int, load_array
 from island.rng import uniform_population
 
-TOPOLOGIES = ("global", "ring")
+NEIGHBOURHOODS = ("global", "ring")
+"""Whose best a particle follows: the swarm's (the thesis) or its ring neighbours' (Fig. 3.10a)."""
 
 
 def constriction(phi1: float, phi2: float) -> float:
@@ -73,13 +74,13 @@ class PSO(PopulationOptimizer):
         bounds: np.ndarray,
         seed: int,
         *,
-        initial_swarm: int = 6000,
-        swarm: int = 500,
+        initial_population: int = 6000,
+        population: int = 500,
         iterations: int = 18,
         phi1: float = 2.05,
         phi2: float = 2.05,
         synchronous: bool = False,
-        topology: str = "global",
+        neighbourhood: str = "global",
         addpop_amount: float = 0.2,
         addpop_level: int = 4,
         migrant_policy: str = "replace_worst",
@@ -94,15 +95,15 @@ class PSO(PopulationOptimizer):
             migrant_policy=migrant_policy,
             redraw_limit=redraw_limit,
         )
-        self.swarm = check_int(self.name, "swarm", swarm, 1)
-        self.initial_swarm = check_int(self.name, "initial_swarm", initial_swarm, self.swarm)
+        self.population = check_int(self.name, "population", population, 1)
+        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population)
         self.phi1 = check_float(self.name, "phi1", phi1, 0.0)
         self.phi2 = check_float(self.name, "phi2", phi2, 0.0)
         self.K = constriction(self.phi1, self.phi2)
         if not isinstance(synchronous, (bool, np.bool_)):
             raise HysidInputError(f"PSO option synchronous must be true or false, got {synchronous!r}")
         self.synchronous = bool(synchronous)
-        self.topology = check_choice(self.name, "topology", topology, TOPOLOGIES)
+        self.neighbourhood = check_choice(self.name, "neighbourhood", neighbourhood, NEIGHBOURHOODS)
         self.x: np.ndarray | None = None
         """Particle positions ``(S, D)``; None before the initial swarm is evaluated."""
         self.v: np.ndarray | None = None
@@ -117,13 +118,13 @@ class PSO(PopulationOptimizer):
 
     def _settings(self) -> dict[str, Any]:
         return {
-            "initial_swarm": self.initial_swarm,
-            "swarm": self.swarm,
+            "initial_population": self.initial_population,
+            "population": self.population,
             "iterations": self.iterations,
             "phi1": self.phi1,
             "phi2": self.phi2,
             "synchronous": self.synchronous,
-            "topology": self.topology,
+            "neighbourhood": self.neighbourhood,
             "addpop_amount": self.addpop_amount,
             "addpop_level": self.addpop_level,
             "migrant_policy": self.migrant_policy,
@@ -133,13 +134,13 @@ class PSO(PopulationOptimizer):
     # --- moves ---------------------------------------------------------------------
     def _movers(self) -> slice:
         """The particles of the next move: all (synchronous) or the next one (asynchronous)."""
-        return slice(0, self.swarm) if self.synchronous else slice(self._particle, self._particle + 1)
+        return slice(0, self.population) if self.synchronous else slice(self._particle, self._particle + 1)
 
     def _social(self, movers: slice) -> np.ndarray:
         """The P_g the movers follow: the global best, or each one's ring-neighbourhood best P."""
-        if self.topology == "global":
+        if self.neighbourhood == "global":
             return self.Pg
-        ring = (np.arange(movers.start, movers.stop)[:, None] + np.array([-1, 0, 1])) % self.swarm
+        ring = (np.arange(movers.start, movers.stop)[:, None] + np.array([-1, 0, 1])) % self.population
         return self.P[ring[np.arange(ring.shape[0]), np.argmin(self.Pf[ring], axis=1)]]
 
     def _move(self, movers: slice) -> np.ndarray:
@@ -152,7 +153,7 @@ class PSO(PopulationOptimizer):
 
     def _next_batch(self) -> tuple[str, np.ndarray]:
         if self.P is None:
-            return "initial", uniform_population(self.rng, self.bounds, self.initial_swarm)
+            return "initial", uniform_population(self.rng, self.bounds, self.initial_population)
         if self._moved:
             return "addpop", additional_population(self.Pg, self.bounds, self.rng, amount=self.addpop_amount, level=self.addpop_level)
         return "move", self._move(self._movers())
@@ -160,7 +161,7 @@ class PSO(PopulationOptimizer):
     # --- results -------------------------------------------------------------------
     def _finish(self, kind: str, x: np.ndarray, f: np.ndarray) -> None:
         if kind == "initial":
-            keep = np.argsort(f, kind="stable")[: self.swarm]
+            keep = np.argsort(f, kind="stable")[: self.population]
             self.x, self.P, self.Pf = x[keep], x[keep].copy(), f[keep]
             self.v = np.zeros_like(self.x)
             self.Pg, self.Pgf = self.P[0].copy(), float(self.Pf[0])
@@ -169,7 +170,7 @@ class PSO(PopulationOptimizer):
             j = int(np.argmin(f))
             if f[j] < self.Pgf:
                 self.Pg, self.Pgf = x[j].copy(), float(f[j])
-                if self.topology == "ring":
+                if self.neighbourhood == "ring":
                     b = int(np.argmin(self.Pf))
                     self.P[b], self.Pf[b] = self.Pg, self.Pgf
             self._moved = False
@@ -187,7 +188,7 @@ class PSO(PopulationOptimizer):
             j = better[np.argmin(f[better])]
             if f[j] < self.Pgf:
                 self.Pg, self.Pgf = x[j].copy(), float(f[j])
-        self._particle = movers.stop % self.swarm
+        self._particle = movers.stop % self.population
         if self._particle == 0:
             if self.addpop_number:
                 self._moved = True

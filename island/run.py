@@ -1,4 +1,4 @@
-"""The ask/tell loop that drives one optimizer against an objective, with hooks for the island node.
+"""One optimization run: the ask/tell loop, its record, and the polish that ends it.
 
     rows = run(optimizer, objective, callback=print_row, should_stop=stop_event.is_set, migrate=exchange)
 
@@ -6,7 +6,12 @@ After every completed iteration (iteration 0 = the initial population) a
 :class:`HistoryRow` is recorded and handed to ``callback``; then, unless the
 budget is spent, ``migrate(optimizer)`` may publish the best and ``inject``
 received migrants. ``should_stop()`` is asked before every ``ask`` and ends
-the run early, leaving the optimizer resumable (``state_dict``).
+the run early, leaving the optimizer resumable (``state_dict``); a
+:class:`~island.termination.Termination` ends it by its rules.
+
+:func:`optimize` is a whole single-node run: a seeded GA/PSO run, then the
+least-squares polish of :mod:`island.polish`, recorded as a :class:`RunResult`
+(:func:`polish_run` polishes any run the same way, e.g. a campaign's best).
 """
 
 from __future__ import annotations
@@ -18,7 +23,10 @@ from typing import Any
 
 import numpy as np
 
+from island.algorithms import make_optimizer
+from island.polish import polish
 from island.population import PopulationOptimizer
+from island.termination import Termination
 
 
 @dataclass
@@ -41,16 +49,23 @@ def run(
     callback: Callable[[HistoryRow], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
     migrate: Callable[[PopulationOptimizer], None] | None = None,
+    termination: Termination | None = None,
 ) -> list[HistoryRow]:
-    """Ask, evaluate, tell until the optimizer is done or ``should_stop()``; returns the rows of this run.
+    """Ask, evaluate, tell until the optimizer is done, ``should_stop()`` or a ``termination`` rule;
+    returns the rows of this run.
 
     A resumed optimizer continues where it stopped (a pending batch is asked again).
     """
     start = time.perf_counter()
     rows: list[HistoryRow] = []
     recorded = len(optimizer.history)
+    best, best_at = np.inf, 0
     while not optimizer.done:
         if should_stop is not None and should_stop():
+            break
+        if termination is not None and rows and termination.reason(
+            evaluations=optimizer.evaluations, best=best, best_at=best_at, elapsed_s=time.perf_counter() - start
+        ):
             break
         x = optimizer.ask()
         optimizer.tell(x, objective(x))
@@ -59,8 +74,87 @@ def run(
         recorded = len(optimizer.history)
         row = HistoryRow(optimizer.iteration, optimizer.history[-1], optimizer.evaluations, time.perf_counter() - start)
         rows.append(row)
+        if row.best_fitness < best:
+            best, best_at = row.best_fitness, row.evaluations
         if callback is not None:
             callback(row)
         if migrate is not None and not optimizer.done:
             migrate(optimizer)
     return rows
+
+
+@dataclass
+class RunResult:
+    """One optimization: the search (GA/PSO) and, if done, its polish."""
+
+    label: str
+    algo: str
+    seed: int
+    theta: np.ndarray
+    fitness: float
+    evaluations: int
+    history: list[dict[str, float]]
+    search_theta: np.ndarray
+    search_fitness: float
+    wall_s: float
+    polish: dict[str, Any] | None = None
+
+    def as_dict(self, names: list[str]) -> dict[str, Any]:
+        return {
+            "label": self.label,
+            "algo": self.algo,
+            "seed": self.seed,
+            "params": dict(zip(names, map(float, self.theta))),
+            "fitness": float(self.fitness),
+            "evaluations": int(self.evaluations),
+            "search_params": dict(zip(names, map(float, self.search_theta))),
+            "search_fitness": float(self.search_fitness),
+            "polish": self.polish,
+            "wall_s": float(self.wall_s),
+            "history": self.history,
+        }
+
+
+def polish_run(objective: Any, result: RunResult) -> RunResult:
+    """``result`` refined by the least-squares polish (section 3.1): its theta where that is no worse, the cost counted."""
+    p = polish(objective, result.theta)
+    result.polish = {"fitness": float(p.fitness), "evaluations": int(p.evaluations), "success": bool(p.success), "message": str(p.message)}
+    if p.fitness <= result.fitness:
+        result.theta, result.fitness = np.asarray(p.theta, dtype=float), float(p.fitness)
+    result.evaluations += int(p.evaluations)
+    return result
+
+
+def optimize(
+    objective: Any,
+    algo: str,
+    seed: int,
+    *,
+    polish: bool = True,
+    label: str = "",
+    options: dict[str, Any] | None = None,
+    termination: Termination | None = None,
+    callback: Callable[[HistoryRow], None] | None = None,
+) -> RunResult:
+    """One GA/PSO run on ``objective`` (thesis settings unless ``options`` override them), then an optional polish."""
+    optimizer = make_optimizer(algo, objective.bounds, seed, options)
+    start = time.perf_counter()
+    before = objective.evaluations
+    rows = run(optimizer, objective, callback=callback, termination=termination)
+    x, f = optimizer.best(1)
+    result = RunResult(
+        label=label or f"{algo.upper()} seed {seed}",
+        algo=algo,
+        seed=seed,
+        theta=np.asarray(x[0], dtype=float),
+        fitness=float(f[0]),
+        evaluations=objective.evaluations - before,
+        history=[row.as_dict() for row in rows],
+        search_theta=np.asarray(x[0], dtype=float),
+        search_fitness=float(f[0]),
+        wall_s=0.0,
+    )
+    if polish:
+        polish_run(objective, result)
+    result.wall_s = time.perf_counter() - start
+    return result

@@ -1,5 +1,6 @@
 # Sourced by main.sh and test.sh: make .venv (once) and install hysid into it.
-# Usage: . scripts/venv.sh [extras]   e.g. ". scripts/venv.sh test"
+# Usage: . scripts/venv.sh EXTRAS   e.g. ". scripts/venv.sh test", or ". scripts/venv.sh \"\"" for none
+# (always pass an argument: without one, bash hands the caller's arguments to this script).
 set -euo pipefail
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 python="${PYTHON:-python3}"

@@ -10,5 +10,5 @@ from hysid_model.synth import MEQ_KG, synth_loops
 @pytest.fixture(scope="module")
 def synth():
     """The thesis model and its objective on the noiseless Synth set."""
-    model = build_model("thesis", MEQ_KG)
+    model = build_model("thesis").fix(meq=MEQ_KG)
     return model, Objective(synth_loops(0), model)

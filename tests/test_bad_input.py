@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from coordinator.cli import main
+from hysid.cli import main
 from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError
 from hysid_model.extraction import extract_loop

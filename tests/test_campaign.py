@@ -3,45 +3,26 @@
 
 from __future__ import annotations
 
-import io
 import json
 import signal
 import socket
-import sqlite3
 import subprocess
-import sys
-import time
-from pathlib import Path
 
 import pytest
 
-from coordinator.campaign import free_port, island_specs, run_campaign
-from coordinator.cli import main
-from coordinator.server import Coordinator, StopRules, new_config
+from coordinator.launch import free_port, island_specs, run_campaign
+from coordinator.server import Coordinator
 from coordinator.store import Store
+from hysid.cli import main
+from hysid_model.errors import HysidWarning
 from hysid_model.synth import TRUE_PARAMS, synth_loops
-from island.protocol import Migration
+from island.config import CampaignConfig
+from island.migration import Migration
+from support import events, history_iterations, hysid, rows_of, wait_for
+
 
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
 FIT_KEYS = {"params", "stderr", "fitness", "evaluations", "history"}
-
-
-def hysid(*args: str) -> list[str]:
-    return [sys.executable, "-m", "coordinator.cli", *args]
-
-
-def history_iterations(db: Path) -> dict[str, list[int]]:
-    with sqlite3.connect(db) as con:
-        rows = con.execute("SELECT island, iteration FROM history ORDER BY island, run, iteration").fetchall()
-    out: dict[str, list[int]] = {}
-    for island, it in rows:
-        out.setdefault(island, []).append(it)
-    return out
-
-
-def events(db: Path) -> list[tuple[str, str]]:
-    with sqlite3.connect(db) as con:
-        return con.execute("SELECT island, event FROM members ORDER BY id").fetchall()
 
 
 def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations(tmp_path, capsys):
@@ -62,6 +43,7 @@ def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations
     assert (out / "report.md").is_file() and (out / "convergence.png").is_file()
 
 
+@pytest.mark.slow
 def test_campaign_of_island_processes_over_zenoh(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run(
@@ -83,43 +65,22 @@ def test_campaign_of_island_processes_over_zenoh(tmp_path):
 
 def test_campaign_falls_back_to_one_process_when_zenoh_cannot_open(tmp_path):
     loops = synth_loops(n_points=30)
-    sizes = {"ga": {"population": 10, "initial_population": 20, "iterations": 6}, "pso": {"swarm": 10, "initial_swarm": 20, "iterations": 6}}
-    config = new_config(loops, name="fb", options=sizes, migration=Migration(interval=2), min_islands=2)
+    sizes = {"ga": {"population": 10, "initial_population": 20, "iterations": 6}, "pso": {"population": 10, "initial_population": 20, "iterations": 6}}
+    config = CampaignConfig.create(loops, name="fb", options=sizes, migration=Migration(interval=2), min_islands=2)
     store = Store(tmp_path / "c.sqlite")
-    stderr = io.StringIO()
-    with socket.socket() as busy:
+    with socket.socket() as busy, pytest.warns(HysidWarning) as caught:
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         endpoint = f"tcp/127.0.0.1:{busy.getsockname()[1]}"
-        result = run_campaign(Coordinator(store, config, loops, StopRules()), island_specs(2, ["ga", "pso"], 0), progress_stream=stderr, endpoint=endpoint)
-    message = stderr.getvalue().splitlines()[0]
-    assert message.startswith(f"hysid: cannot open Zenoh session (listen {endpoint}):")
-    assert message.endswith("running every island in this process instead (--single-node)")
+        result = run_campaign(Coordinator(store, config, loops), island_specs(2, ["ga", "pso"], 0), endpoint=endpoint)
+    message = str(caught[0].message)
+    assert message.startswith(f"cannot open Zenoh session (listen {endpoint}):")
+    assert message.endswith("running every island in this process instead (single node)")
     assert [i["status"] for i in result.islands] == ["left", "left"]
     assert result.migrations["messages"] == 4
 
 
-def wait_for(predicate, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.1)
-
-
-def island_rows(db: Path, island: str) -> int:
-    """History rows of an island in a database the coordinator is writing (0 until its tables exist)."""
-    if not db.exists():
-        return 0
-    with sqlite3.connect(db) as con:
-        try:
-            return con.execute("SELECT count(*) FROM history WHERE island = ?", (island,)).fetchone()[0]
-        except sqlite3.OperationalError as exc:
-            if "no such table" in str(exc):
-                return 0
-            raise
-
-
+@pytest.mark.slow
 def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     db = tmp_path / "lj.sqlite"
@@ -132,9 +93,9 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     early = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet"), stderr=subprocess.PIPE, text=True)
     late = None
     try:
-        wait_for(lambda: island_rows(db, "early") > 50, 60, "the first island's history")
+        wait_for(lambda: rows_of(db, "early") > 50, 60, "the first island's history")
         late = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "late", "--seed", "99"), stderr=subprocess.PIPE, text=True)
-        wait_for(lambda: island_rows(db, "late") > 50, 60, "the late island's history")
+        wait_for(lambda: rows_of(db, "late") > 50, 60, "the late island's history")
         coordinator.send_signal(signal.SIGINT)  # Ctrl-C: stop the campaign and report
         out, err = coordinator.communicate(timeout=60)
         assert coordinator.returncode == 0, err
@@ -161,7 +122,7 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
         (["campaign", "--topology", "star"], "topology must be one of ring, full, random, got 'star'"),
         (["campaign", "--initial", "10"], "--initial 10: must be at least --population 200"),
         (["coordinator", "--resume"], "--resume needs --db FILE"),
-        (["coordinator", "--campaign", "a/b"], "--campaign 'a/b' must be 1-64 characters"),
+        (["coordinator", "--campaign", "a/b"], "--campaign 'a/b': must be 1-64 characters"),
         (["coordinator", "--listen", "localhost"], "--listen 'localhost': a Zenoh endpoint looks like tcp/127.0.0.1:7447"),
         (["island", "--algo", "de"], "--algo 'de': unknown algorithm; choose one of ga, pso"),
         (["island", "--connect", "tcp/127.0.0.1:1", "--wait", "0.5"], "cannot open Zenoh session (connect tcp/127.0.0.1:1)"),
@@ -181,6 +142,7 @@ def test_a_stored_campaign_is_never_overwritten(tmp_path, capsys):
     assert Store(db).campaign("default") == ("synth", b"cfg", "running")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "rule, reason",
     [(["--target", "1e-6"], "target fitness 1e-06 reached"), (["--stall", "3000"], "no improvement in 3,000 evaluations")],
@@ -196,6 +158,7 @@ def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path,
         assert doc["fitness"] <= 1e-6
 
 
+@pytest.mark.slow
 def test_resuming_a_finished_campaign_reports_it_again_from_the_database(tmp_path, capsys):
     db = tmp_path / "c.sqlite"
     assert main(["campaign", "--single-node", "--islands", "2", *SMALL, "--db", str(db), "--json", "--quiet", "--out", str(tmp_path / "a")]) == 0

@@ -419,6 +419,7 @@ def test_shell_scripts_parse(script: str) -> None:
     assert (done.returncode, done.stderr) == (0, "")
 
 
+@pytest.mark.slow
 def test_local_recipe_runs_a_campaign_of_separate_processes(tmp_path: Path) -> None:
     hysid = Path(sys.executable).with_name("hysid")
     if not hysid.exists():

@@ -16,9 +16,9 @@ import json
 import numpy as np
 import pytest
 
-from coordinator.cli import main
-from coordinator.diagnose.fitting import initial_fit
-from coordinator.diagnose.selection import diagnose
+from hysid.cli import main
+from hysid.diagnose.fitting import initial_fit
+from hysid.diagnose.selection import diagnose
 from hysid_model.datasets import write_dataset
 from hysid_model.effects import EFFECTS
 from hysid_model.extraction import extract_loop
@@ -64,12 +64,12 @@ def grid(freqs: np.ndarray = FREQS) -> tuple[np.ndarray, np.ndarray]:
 
 def peak_forces(model: Model, theta: np.ndarray, freqs: np.ndarray) -> np.ndarray:
     f, a = grid(freqs)
-    return np.array([np.abs(model_force(model, theta, fi, ai, MEQ, np.linspace(0, 2 * np.pi, 256))).max() for fi, ai in zip(f, a)])
+    return np.array([np.abs(model_force(model, theta, fi, ai, np.linspace(0, 2 * np.pi, 256))).max() for fi, ai in zip(f, a)])
 
 
 def raw_records(model: Model, theta: np.ndarray, seed: int, freqs: np.ndarray = FREQS):
     f, a = grid(freqs)
-    return simulate_raw(model, theta, f, a, meq_kg=MEQ, noise_n=NOISE_PCT / 100 * peak_forces(model, theta, freqs), seed=seed)
+    return simulate_raw(model, theta, f, a, noise_n=NOISE_PCT / 100 * peak_forces(model, theta, freqs), seed=seed)
 
 
 def extracted(records, meq_kg: float | None = MEQ) -> LoopSet:
@@ -89,7 +89,7 @@ def hidden(model: Model, theta: np.ndarray, seed: int, freqs: np.ndarray = FREQS
 @pytest.fixture(scope="module")
 def branch_sigma() -> np.ndarray:
     """The extracted loops' noise per branch sample (what 2 % raw noise becomes after extraction)."""
-    model = build_model("baseline", meq_kg=MEQ)
+    model = build_model("baseline").fix(meq=MEQ)
     return hidden(model, model.from_dict(BASE), 0).sigma
 
 
@@ -98,14 +98,14 @@ def residual_energy(model: Model, theta: np.ndarray, sigma: np.ndarray, freqs: n
     f, a = grid(freqs)
     x = np.linspace(-1.0, 1.0, POINTS)
     phase = np.concatenate([np.arcsin(x), np.pi - np.arcsin(x)])
-    force = np.stack([model_force(model, theta, fi, ai, MEQ, phase) for fi, ai in zip(f, a)])
+    force = np.stack([model_force(model, theta, fi, ai, phase) for fi, ai in zip(f, a)])
     branch = lambda part: np.stack([np.column_stack([x * ai, fi]) for ai, fi in zip(a, part)])
     clean = LoopSet(name="clean", freq_hz=f, x0=a, top=branch(force[:, :POINTS]), bottom=branch(force[:, POINTS:]), sigma=sigma, meq_kg=MEQ)
     return initial_fit(Harmonics.from_loops(clean), "baseline")[0].chi2
 
 
 def with_effects(effects: dict[str, float]) -> tuple[Model, np.ndarray]:
-    model = build_model("+".join(("baseline",) + tuple(effects)), meq_kg=MEQ)
+    model = build_model("+".join(("baseline",) + tuple(effects))).fix(meq=MEQ)
     values = dict(BASE)
     for effect, strength in effects.items():
         values.update(SHAPES.get(effect, {}))
@@ -130,6 +130,7 @@ def is_named_alone(result, effect: str) -> bool:
     return len(result.steps) == 1 and effect in [result.steps[0].effect] + result.steps[0].confusable_with
 
 
+@pytest.mark.slow
 def test_thesis_story_amplitude_dependent_frequency_and_damping_from_the_baseline():
     """Section 4.3: the Synth set (Table 5.3, S_xi and S_w) with 1 % noise, diagnosed from the baseline."""
     picks = np.arange(0, 120)[np.arange(120) % 40 % 3 == 0]
@@ -145,6 +146,7 @@ def test_thesis_story_amplitude_dependent_frequency_and_damping_from_the_baselin
     assert sum(outcomes) >= REQUIRED, outcomes
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect", sorted(EFFECTS))
 def test_each_hidden_effect_is_named(effect, branch_sigma):
     strength = calibrated(effect, branch_sigma)
@@ -168,7 +170,7 @@ def test_transducer_mass_is_not_identifiable_when_the_mass_is_fitted(branch_sigm
 
 
 def test_control_without_hidden_effect_adds_nothing():
-    model = build_model("baseline", meq_kg=MEQ)
+    model = build_model("baseline").fix(meq=MEQ)
     theta = model.from_dict(BASE)
     outcomes = []
     for seed in SEEDS:
@@ -177,6 +179,7 @@ def test_control_without_hidden_effect_adds_nothing():
     assert sum(outcomes) >= REQUIRED, outcomes
 
 
+@pytest.mark.slow
 def test_two_hidden_effects_are_both_named(branch_sigma):
     pair = {"cubic_stiffness": calibrated("cubic_stiffness", branch_sigma), "hysteretic_damping": calibrated("hysteretic_damping", branch_sigma)}
     model, theta = with_effects(pair)
@@ -188,7 +191,7 @@ def test_two_hidden_effects_are_both_named(branch_sigma):
 
 
 def test_effect_outside_the_library_is_unexplained_and_not_named(branch_sigma):
-    model = Model([Oscillator(), QuadraticStiffness()], spec="baseline+quadratic_stiffness")
+    model = Model([Oscillator(), QuadraticStiffness()], spec="baseline+quadratic_stiffness").fix(meq=MEQ)
     k2 = 1e5
     for _ in range(3):
         k2 *= np.sqrt(ENERGY / residual_energy(model, model.from_dict({**BASE, "k2": k2}), branch_sigma))
@@ -201,6 +204,7 @@ def test_effect_outside_the_library_is_unexplained_and_not_named(branch_sigma):
     assert sum(outcomes) >= REQUIRED, outcomes
 
 
+@pytest.mark.slow
 def test_too_narrow_a_band_names_both_confusable_effects(branch_sigma):
     """Over 10-12 Hz, well below resonance, the in-phase force is the spring's, so the quadrature force of a
     constant loss factor (Eq. 2.3) and of the amplifier's phase lead ~ 1/w (Eq. 4.2) differ only in a slight

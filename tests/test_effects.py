@@ -10,7 +10,7 @@ from hysid_model.harmonics import HarmonicObjective, Harmonics, estimate_sigma
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS, model_force, simulate_raw, synth_loops, thesis_force
-from hysid_model.timedomain import periodic_steady_state
+from timedomain_reference import periodic_steady_state
 from island.polish import polish
 
 LIBRARY = {
@@ -26,7 +26,7 @@ def loops(n_points: int = 48, every: int = 13):
 
 
 def predict(spec: str, values: dict[str, float], data) -> np.ndarray:
-    model = build_model(spec, meq_kg=MEQ_KG)
+    model = build_model(spec).fix(meq=MEQ_KG)
     return Objective(data, model).predict(model.from_dict(values))[0]
 
 
@@ -56,7 +56,7 @@ def test_each_effect_is_a_model_term_that_vanishes_at_zero_strength(effect):
 
 
 def test_thesis_plus_effect_builds_and_fits_through_the_objective():
-    model = build_model("thesis+coulomb_friction", meq_kg=MEQ_KG)
+    model = build_model("thesis+coulomb_friction").fix(meq=MEQ_KG)
     assert model.names == ["xi0", "S_xi", "w0", "S_w", "F_d"]
     objective = Objective(synth_loops(0.0, 0, 32), model)
     assert objective(model.from_dict({**TRUE_PARAMS, "F_d": 0.0}))[0] == pytest.approx(0.0, abs=1e-20)
@@ -129,10 +129,10 @@ def test_channel_delay_shifts_the_whole_force():
     delay = 4e-4
     values = {**BASE, "F_d": 0.05}
     delayed = predict("baseline+coulomb_friction+channel_delay", {**values, "delay_s": delay}, data)
-    model = build_model("baseline+coulomb_friction", meq_kg=MEQ_KG)
+    model = build_model("baseline+coulomb_friction").fix(meq=MEQ_KG)
     theta = model.from_dict(values)
     phase = data.phases()
-    shifted = np.stack([model_force(model, theta, f, a, MEQ_KG, p - 2 * np.pi * f * delay) for f, a, p in zip(data.freq_hz, data.x0, phase)])
+    shifted = np.stack([model_force(model, theta, f, a, p - 2 * np.pi * f * delay) for f, a, p in zip(data.freq_hz, data.x0, phase)])
     np.testing.assert_allclose(delayed, shifted, atol=1e-12)
 
 
@@ -166,12 +166,12 @@ def test_bouc_wen_through_the_charge_amplifier_matches_spectral_filtering():
     data = loops(every=50)
     values = {**BASE, "bw_k": 50.0, "bw_zy": 2e-4, "bw_r": 0.5, "f_c": 5.0}
     filtered = predict("baseline+bouc_wen+charge_amplifier_highpass", values, data) - predict("baseline+charge_amplifier_highpass", values | {"bw_k": 0.0}, data)
-    model = build_model("baseline+bouc_wen", meq_kg=MEQ_KG)
+    model = build_model("baseline+bouc_wen").fix(meq=MEQ_KG)
     theta = model.from_dict({k: v for k, v in values.items() if k != "f_c"})
     theta_off = model.from_dict({k: v for k, v in values.items() if k != "f_c"} | {"bw_k": 0.0})
     grid = np.linspace(0, 2 * np.pi, 8192, endpoint=False)
     for j, (f, a) in enumerate(zip(data.freq_hz, data.x0)):
-        u = model_force(model, theta, f, a, MEQ_KG, grid) - model_force(model, theta_off, f, a, MEQ_KG, grid)
+        u = model_force(model, theta, f, a, grid) - model_force(model, theta_off, f, a, grid)
         spectrum = np.fft.rfft(u)
         k = np.arange(spectrum.size)
         gain = 1j * k * f / (1j * k * f + values["f_c"])
@@ -181,8 +181,8 @@ def test_bouc_wen_through_the_charge_amplifier_matches_spectral_filtering():
 
 
 def test_simulate_raw_reproduces_the_thesis_force_eq_4_10():
-    model = build_model("thesis", meq_kg=MEQ_KG)
-    records = simulate_raw(model, model.from_dict(TRUE_PARAMS), np.array([29.0, 31.0]), np.array([1e-3, 1.5e-3]), meq_kg=MEQ_KG, noise_n=0.0, x_noise=0.0, seed=3)
+    model = build_model("thesis").fix(meq=MEQ_KG)
+    records = simulate_raw(model, model.from_dict(TRUE_PARAMS), np.array([29.0, 31.0]), np.array([1e-3, 1.5e-3]), noise_n=0.0, x_noise=0.0, seed=3)
     for rec in records:
         w = 2 * np.pi * rec.freq_hz
         c, s = np.linalg.lstsq(np.column_stack([np.cos(w * rec.t), np.sin(w * rec.t)]), rec.x, rcond=None)[0]
@@ -222,7 +222,7 @@ def test_estimate_sigma_from_second_differences():
 def test_harmonic_objective_polishes_to_the_thesis_parameters():
     data = synth_loops(0.0, 0, 32).subset(np.arange(0, 120, 3))
     data.sigma[:] = 1e-3 * data.peak_force
-    model = build_model("thesis", meq_kg=MEQ_KG)
+    model = build_model("thesis").fix(meq=MEQ_KG)
     objective = HarmonicObjective(Harmonics.from_loops(data), model)
     truth = model.from_dict(TRUE_PARAMS)
     assert objective(truth)[0] == pytest.approx(0.0, abs=1e-16)

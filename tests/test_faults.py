@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import json
 import signal
-import sqlite3
 import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -21,19 +19,19 @@ import numpy as np
 import pytest
 import zenoh
 
-from coordinator.campaign import free_port
-from coordinator.zenoh_session import open_session, session_config
+from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS
-from island.protocol import MAX_BYTES, Migrants, decode_config, encode_migrants, pack_array
+from island.config import decode_config
+from island.protocol import MAX_BYTES, Migrants, encode_migrants, pack_array
+from island.session import open_session, session_config
+from support import events, hysid, query, rows_of, wait_for
+
+pytestmark = pytest.mark.slow  # processes, kills and restarts: the full suite runs these
 
 ENDLESS = ["--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "10000000", "--interval", "5", "--quiet"]
 BOUNDS = np.array([[0.0, 0.1], [-10.0, 10.0], [100.0, 500.0], [-1e4, 1e4]])  # Table 5.4 (the Synth set's bounds)
 TRUTH = np.array([TRUE_PARAMS[n] for n in ("xi0", "S_xi", "w0", "S_w")])
-
-
-def hysid(*args: str) -> list[str]:
-    return [sys.executable, "-m", "coordinator.cli", *args]
 
 
 @pytest.fixture
@@ -52,38 +50,6 @@ def spawn() -> Iterator[Callable[..., subprocess.Popen]]:
             p.send_signal(signal.SIGCONT)
             p.kill()
         p.communicate(timeout=30)
-
-
-def query(db: Path, sql: str, *params) -> list[tuple]:
-    """Read the coordinator's database while it writes ([] until its tables exist)."""
-    if not db.exists():
-        return []
-    with sqlite3.connect(db, timeout=10) as con:
-        try:
-            return con.execute(sql, params).fetchall()
-        except sqlite3.OperationalError as exc:
-            if "no such table" in str(exc):
-                return []
-            raise
-
-
-def rows_of(db: Path, island: str) -> int:
-    found = query(db, "SELECT count(*) FROM history WHERE island = ?", island)
-    return found[0][0] if found else 0
-
-
-def events(db: Path, island: str) -> list[str]:
-    return [e for (e,) in query(db, "SELECT event FROM members WHERE island = ? ORDER BY id", island)]
-
-
-def wait_for(predicate: Callable[[], bool], timeout: float, what: str, step: float = 0.05) -> float:
-    """Seconds until ``predicate()`` held; fails after ``timeout``."""
-    start = time.monotonic()
-    while not predicate():
-        if time.monotonic() - start > timeout:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(step)
-    return time.monotonic() - start
 
 
 def finished(p: subprocess.Popen, timeout: float = 90) -> dict:

@@ -10,9 +10,10 @@ import re
 import numpy as np
 import pytest
 
-from coordinator import thesis_tables as tt
-from coordinator.cli import main
-from coordinator.fit import build_objective, fit
+from hysid import thesis_tables as tt
+from hysid.cli import main
+from hysid.fit import fit
+from hysid_model.problem import build_objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from hysid_model.uncertainty import cramer_rao_stderr, standard_errors
 
@@ -150,13 +151,9 @@ def test_bad_arguments_are_one_line_errors(tmp_path, capsys, args, names):
 
 
 def test_a_parameter_pinned_on_a_bound_is_flagged():
-    from coordinator.cli_fit import summary_text
-    from coordinator.fit import fit
-    from hysid_model.synth import synth_loops
-
     loops = synth_loops(0.0)
     loops.meta["bounds"] = {"w0": (100.0, 150.0)}  # the truth, 189.1 rad/s, lies outside
     result = fit(loops, model="baseline", algo="ga", runs=1, seed=0, polish=True, options={"initial_population": 300, "population": 60, "iterations": 3})
     assert "w0" in result.at_bounds
-    assert "w0 ended on a bound" in summary_text(result)
-    assert result.as_dict()["at_bounds"] == result.at_bounds
+    assert "w0 ended on a bound" in result.summary()
+    assert result.to_dict()["at_bounds"] == result.at_bounds

@@ -38,12 +38,12 @@ def test_first_harmonic_is_the_force_amplitude_of_eq_4_10(clean):
 
 
 def test_model_compliance_matches_the_loops(clean):
-    model = build_model("thesis", meq_kg=MEQ_KG)
+    model = build_model("thesis").fix(meq=MEQ_KG)
     theta = model.from_dict(TRUE_PARAMS)
     comp = compliance(clean)
     for level in (0.5e-3, 1.0e-3, 1.5e-3):
         m = np.isclose(clean.x0, level)
-        np.testing.assert_allclose(model_compliance(model, theta, level, clean.freq_hz[m], MEQ_KG), comp[m], rtol=1e-9)
+        np.testing.assert_allclose(model_compliance(model, theta, level, clean.freq_hz[m]), comp[m], rtol=1e-9)
 
 
 def test_half_power_recovers_the_true_damping_at_each_amplitude(clean):

@@ -11,15 +11,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
 from island.ga import GA, blx_crossover, gaussian_mutation, mutation_count, rank_probabilities, select_couples
 from island.polish import polish
-from island.run import run
-
-SMALL = dict(initial_population=200, population=40, iterations=6)
-
-
-def drive(opt, objective):
-    """Run ``opt`` to the end of its budget with the island loop (ask, evaluate, tell)."""
-    run(opt, objective)
-    return opt
+from support import GA_SMALL as SMALL, drive
 
 
 def test_rank_probabilities_are_eq_3_5():

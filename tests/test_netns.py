@@ -30,7 +30,7 @@ SUBNET = "169.254.147"
 PREFIX = "hysidt"
 PORT = 7447
 DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
-HYSID = [sys.executable, "-m", "coordinator.cli"]
+HYSID = [sys.executable, "-m", "hysid"]
 ISLANDS = ("h1", "h2")
 TIME_LIMIT_S = 8
 TIME_BOXED_CAMPAIGN = [
@@ -258,6 +258,7 @@ def check_every_island_took_part(out: Path, campaign: str) -> None:
     assert sorted(rows) == [(name, islands[name]["iterations"] + 1, islands[name]["iterations"]) for name in ISLANDS]
 
 
+@pytest.mark.slow
 def test_campaign_across_namespaces_over_tcp(lab: Lab, tmp_path: Path) -> None:
     coordinator_config = DEPLOY / "zenoh" / "coordinator.json5"
     island_config = DEPLOY / "zenoh" / "island.json5"
@@ -265,6 +266,7 @@ def test_campaign_across_namespaces_over_tcp(lab: Lab, tmp_path: Path) -> None:
     check_every_island_took_part(out, "netns")
 
 
+@pytest.mark.slow
 def test_campaign_across_namespaces_with_tls_credentials_and_acl(lab: Lab, tmp_path: Path) -> None:
     if shutil.which("openssl") is None:
         pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")

@@ -10,24 +10,17 @@ import numpy as np
 import pytest
 import zenoh
 
-from coordinator.campaign import free_port
-from coordinator.zenoh_session import open_session, session_config
+from coordinator.launch import free_port
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS, synth_loops
+from island.config import CampaignConfig, decode_config, encode_config
+from island.migration import Migration
 from island.node import IslandNode, MemoryBus, ZenohTransport, fetch_config
-from island.protocol import (
-    CampaignConfig,
-    Migrants,
-    Migration,
-    decode_config,
-    decode_history,
-    encode_config,
-    encode_migrants,
-    encode_stop,
-)
+from island.protocol import Migrants, decode_history, encode_migrants, encode_stop
+from island.session import open_session, session_config
 
 LOOPS = synth_loops(n_points=30)
-SIZES = {"ga": {"population": 20, "initial_population": 40, "iterations": 12}, "pso": {"swarm": 20, "initial_swarm": 40, "iterations": 12}}
+SIZES = {"ga": {"population": 20, "initial_population": 40, "iterations": 12}, "pso": {"population": 20, "initial_population": 40, "iterations": 12}}
 
 
 def config(topology: str = "ring", interval: int = 2, k: int = 2, name: str = "c1") -> CampaignConfig:
@@ -127,9 +120,9 @@ def test_malformed_migrants_are_counted_and_skipped():
 
 def test_an_unknown_algorithm_or_bad_island_name_is_an_input_error():
     cfg = config()
-    with pytest.raises(HysidInputError, match="--algo 'de'"):
+    with pytest.raises(HysidInputError, match="algo='de'"):
         IslandNode("a", "de", 0, cfg, cfg.objective(LOOPS))
-    with pytest.raises(HysidInputError, match="--id"):
+    with pytest.raises(HysidInputError, match="island='a/b'"):
         IslandNode("a/b", "ga", 0, cfg, cfg.objective(LOOPS))
 
 
@@ -154,7 +147,7 @@ def test_fetch_config_names_the_campaign_when_nobody_answers(router):
 
 def test_zenoh_island_fetches_config_reports_history_backfills_and_stops(router):
     endpoint, rsession = router
-    cfg = CampaignConfig(name="c1", options={"pso": {"swarm": 10, "initial_swarm": 10, "iterations": 100_000}}, migration=Migration(interval=0))
+    cfg = CampaignConfig(name="c1", options={"pso": {"population": 10, "initial_population": 10, "iterations": 100_000}}, migration=Migration(interval=0))
     arrived: queue.Queue = queue.Queue()
     members: list[tuple[str, bool]] = []
     config_message = encode_config(cfg, LOOPS)
@@ -198,7 +191,7 @@ def test_zenoh_island_fetches_config_reports_history_backfills_and_stops(router)
 def test_migrants_sent_before_the_senders_token_arrives_wait_for_it_and_strangers_are_never_taken(router):
     """Zenoh does not order a joiner's liveliness token before its first puts (the race CI once hit)."""
     endpoint, rsession = router
-    cfg = CampaignConfig(name="c1", options={"pso": {"swarm": 10, "initial_swarm": 10, "iterations": 100_000}},
+    cfg = CampaignConfig(name="c1", options={"pso": {"population": 10, "initial_population": 10, "iterations": 100_000}},
                          migration=Migration(interval=1, k=1, topology="full"))
     config_message = encode_config(cfg, LOOPS)
     queryable = rsession.declare_queryable("hysid/c1/config", lambda q: q.reply(q.key_expr, config_message))

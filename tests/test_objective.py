@@ -37,7 +37,8 @@ def random_population(obj: Objective, count: int, seed: int) -> np.ndarray:
 def test_gram_closed_form_equals_the_per_sample_sum(noisy, spec, meq, weights):
     """sum_j w_j sum_n (F_model - F_measured)^2 summed sample by sample equals the Gram form,
     for a population spanning more than one evaluation block."""
-    obj = Objective(noisy, build_model(spec, meq_kg=meq), weights=weights)
+    model = build_model(spec) if meq is None else build_model(spec).fix(meq=meq)
+    obj = Objective(noisy, model, weights=weights)
     pop = np.vstack([random_population(obj, 150, seed=1), obj.bounds.mean(axis=1)])
     pop[-1] = [TRUE_PARAMS.get(name, x) for name, x in zip(obj.model.names, pop[-1])]
     assert not obj.model.has_memory and len(obj.features) >= 2
@@ -48,9 +49,9 @@ def test_gram_closed_form_equals_the_per_sample_sum(noisy, spec, meq, weights):
 def test_weights(noisy):
     n = noisy.n_samples
     peak = np.maximum(np.abs(noisy.top[:, :, 1]).max(axis=1), np.abs(noisy.bottom[:, :, 1]).max(axis=1))
-    thesis = Objective(noisy, build_model("thesis", meq_kg=MEQ_KG))
+    thesis = Objective(noisy, build_model("thesis").fix(meq=MEQ_KG))
     np.testing.assert_allclose(thesis.loop_weight, peak.max() / peak / (2 * n), rtol=1e-15)
-    ml = Objective(noisy, build_model("thesis", meq_kg=MEQ_KG), weights="ml")
+    ml = Objective(noisy, build_model("thesis").fix(meq=MEQ_KG), weights="ml")
     np.testing.assert_allclose(ml.loop_weight, 1.0 / noisy.sigma**2, rtol=1e-15)
     # at the truth the ML objective is a chi-square with 2n degrees of freedom per loop
     chi2 = ml(TRUTH)[0]
@@ -61,16 +62,16 @@ def test_weights(noisy):
 def test_ml_weights_without_sigma_name_the_fix():
     clean = synth_loops(0.0)
     with pytest.raises(HysidInputError) as info:
-        Objective(clean, build_model("thesis", meq_kg=MEQ_KG), weights="ml")
+        Objective(clean, build_model("thesis").fix(meq=MEQ_KG), weights="ml")
     message = str(info.value)
-    assert "sigma" in message and "--weights thesis" in message and clean.name in message
+    assert "sigma" in message and "use the thesis weights" in message and clean.name in message
     assert "\n" not in message
     with pytest.raises(HysidInputError, match="unknown weights"):
-        Objective(clean, build_model("thesis", meq_kg=MEQ_KG), weights="l1")
+        Objective(clean, build_model("thesis").fix(meq=MEQ_KG), weights="l1")
 
 
 def test_jacobian_matches_finite_differences(noisy):
-    obj = Objective(noisy, build_model("thesis", meq_kg=MEQ_KG))
+    obj = Objective(noisy, build_model("thesis").fix(meq=MEQ_KG))
     theta = TRUTH * np.array([1.1, 0.9, 1.001, 1.05])
     jac = obj.jacobian(theta)
     assert jac.shape == (2 * noisy.n_samples * noisy.n_loops, 4)
@@ -91,7 +92,7 @@ def test_jacobian_matches_finite_differences(noisy):
 
 
 def test_non_finite_parameters_give_inf(noisy):
-    obj = Objective(noisy, build_model("thesis", meq_kg=MEQ_KG))
+    obj = Objective(noisy, build_model("thesis").fix(meq=MEQ_KG))
     pop = random_population(obj, 6, seed=2)
     pop[1, 0] = np.nan
     pop[3, 2] = np.inf
@@ -104,7 +105,7 @@ def test_non_finite_parameters_give_inf(noisy):
 @pytest.mark.parametrize(("spec", "count"), [("thesis", 200), ("thesis+bouc_wen", 8)])
 def test_population_and_single_vector_calls_agree(noisy, spec, count):
     loops = noisy if spec == "thesis" else noisy.subset(np.arange(0, 120, 15))
-    obj = Objective(loops, build_model(spec, meq_kg=MEQ_KG))
+    obj = Objective(loops, build_model(spec).fix(meq=MEQ_KG))
     pop = random_population(obj, count, seed=3)
     fitness = obj(pop)
     assert fitness.shape == (count,) and obj.evaluations == count

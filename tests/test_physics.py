@@ -11,7 +11,7 @@ from hysid_model.model import build_model
 from hysid_model.objective import Objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS, synth_loops, thesis_force
 from hysid_model.thesis_port import ThesisObjective
-from hysid_model.timedomain import SteadyStateError, periodic_steady_state
+from timedomain_reference import SteadyStateError, periodic_steady_state
 
 NAMES = ("xi0", "S_xi", "w0", "S_w")
 TRUTH = np.array([TRUE_PARAMS[k] for k in NAMES])
@@ -59,7 +59,7 @@ def test_closed_form_force_drives_eq_4_4_into_the_prescribed_motion(freq_hz, x0)
 
     loops = synth_loops(0.0)
     j = int(np.flatnonzero((loops.freq_hz == freq_hz) & np.isclose(loops.x0, x0))[0])
-    obj = Objective(loops, build_model("thesis", meq_kg=MEQ_KG))
+    obj = Objective(loops, build_model("thesis").fix(meq=MEQ_KG))
     predicted = obj.predict(TRUTH)[0, j]
     phase = loops.phases()[j]
     t_samples = np.mod(phase, 2 * np.pi) / w
@@ -101,7 +101,7 @@ def test_closed_form_force_by_rk4_periodic_steady_state():
 
 def test_objective_is_zero_at_the_true_parameters():
     loops = synth_loops(0.0)
-    obj = Objective(loops, build_model("thesis", meq_kg=MEQ_KG))
+    obj = Objective(loops, build_model("thesis").fix(meq=MEQ_KG))
     scale = np.sum(obj.loop_weight * np.sum(obj.y**2, axis=1))
     assert obj(TRUTH)[0] <= 1e-26 * scale
     assert np.max(np.abs(obj.residuals(TRUTH))) <= 1e-12 * np.abs(obj.y).max()
@@ -113,8 +113,8 @@ def test_objective_agrees_with_the_thesis_erreval():
     reach (at most one per branch end), which carry about 5 % of the error, so hysid is summed over
     the same kept samples."""
     loops = synth_loops(0.0)
-    obj = Objective(loops, build_model("thesis", meq_kg=MEQ_KG))
-    port = ThesisObjective(loops, MEQ_KG)
+    obj = Objective(loops, build_model("thesis").fix(meq=MEQ_KG))
+    port = ThesisObjective(loops, obj.model)
     rng = np.random.default_rng(11)
     low, span = obj.bounds[:, 0], obj.bounds[:, 1] - obj.bounds[:, 0]
     pop = np.vstack([

@@ -29,9 +29,7 @@ class CountingObjective(Objective):
 
 
 def synth_objective(noise_pct=0.0, bounds=None):
-    model = build_model("thesis", MEQ_KG)
-    if bounds:
-        model.set_bounds(bounds)
+    model = build_model("thesis").fix(meq=MEQ_KG).with_bounds(bounds or {})
     return model, CountingObjective(synth_loops(noise_pct, seed=4), model)
 
 

@@ -8,22 +8,19 @@ import pytest
 
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
-from island.migration import in_neighbours
+from island.config import CampaignConfig, decode_config, encode_config
+from island.migration import Migration, in_neighbours
 from island.protocol import (
     MAX_BYTES,
     Best,
-    CampaignConfig,
     History,
     MessageRejected,
     Migrants,
-    Migration,
     decode_best,
-    decode_config,
     decode_history,
     decode_migrants,
     decode_stop,
     encode_best,
-    encode_config,
     encode_history,
     encode_migrants,
     encode_stop,
@@ -136,7 +133,7 @@ def test_history_allows_an_infinite_best_but_not_nan_or_fractional_counts():
 def test_config_round_trip_carries_the_loop_set_and_settings():
     loops = synth_loops(noise_pct=1.0, seed=3, n_points=20)
     config = CampaignConfig(
-        name="c1", bounds={"xi0": (0.0, 0.1)}, algos=["pso"], options={"pso": {"swarm": 10, "iterations": 3}},
+        name="c1", bounds={"xi0": (0.0, 0.1)}, algos=["pso"], options={"pso": {"population": 10, "iterations": 3}},
         migration=Migration(interval=2, k=3, topology="random", random_k=1), seed=7,
     )
     got, got_loops = decode_config(encode_config(config, loops), "c1")

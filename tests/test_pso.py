@@ -9,16 +9,8 @@ import pytest
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
 from island.polish import polish
-from island.run import run
 from island.pso import PSO, bounded_move, constriction
-
-SMALL = dict(initial_swarm=200, swarm=30, iterations=5)
-
-
-def drive(opt, objective):
-    """Run ``opt`` to the end of its budget with the island loop (ask, evaluate, tell)."""
-    run(opt, objective)
-    return opt
+from support import PSO_SMALL as SMALL, drive
 
 
 def initialised(model, objective, **options):
@@ -50,12 +42,12 @@ def test_particles_stay_strictly_inside_and_zeroed_velocities_are_the_blocked_on
     model, objective = synth
     pso = initialised(model, objective)
     lower, upper = model.bounds[:, 0], model.bounds[:, 1]
-    for _ in range(3 * pso.swarm):
+    for _ in range(3 * pso.population):
         before = pso.x.copy()
         x = pso.ask()
         pso.tell(x, objective(x))
         if x.shape[0] == 1:
-            i = (pso._particle - 1) % pso.swarm
+            i = (pso._particle - 1) % pso.population
             blocked = pso.v[i] == 0
             assert np.array_equal(pso.x[i][blocked], before[i][blocked])
     assert np.all((pso.x > lower) & (pso.x < upper))
@@ -91,13 +83,13 @@ def test_sync_ask_moves_the_whole_swarm_with_last_iterations_pg(synth):
     assert pso.ask().shape == (15, 4)  # then the additional population around Pg
 
 
-@pytest.mark.parametrize("topology", ["global", "ring"])
-def test_social_attractor_is_global_best_or_ring_neighbourhood_best(synth, topology):
+@pytest.mark.parametrize("neighbourhood", ["global", "ring"])
+def test_social_attractor_is_global_best_or_ring_neighbourhood_best(synth, neighbourhood):
     model, objective = synth
-    pso = initialised(model, objective, synchronous=True, topology=topology)
+    pso = initialised(model, objective, synchronous=True, neighbourhood=neighbourhood)
     pso.Pf = pso.Pf[np.random.default_rng(0).permutation(30)]  # scatter the ranks over the ring
     start = pso.x.copy()
-    if topology == "ring":
+    if neighbourhood == "ring":
         ring = (np.arange(30)[:, None] + [-1, 0, 1]) % 30
         attractor = pso.P[ring[np.arange(30), np.argmin(pso.Pf[ring], axis=1)]]
     else:
@@ -120,7 +112,7 @@ def test_ask_sizes_and_thesis_budget(synth):
     assert pso.evaluations == 15270 and len(pso.history) == 19
 
 
-@pytest.mark.parametrize("options", [{}, {"synchronous": True}, {"topology": "ring"}])
+@pytest.mark.parametrize("options", [{}, {"synchronous": True}, {"neighbourhood": "ring"}])
 def test_elitism_and_pg_is_the_best_known(synth, options):
     model, objective = synth
     pso = drive(PSO(model.bounds, 3, **SMALL, **options), objective)
@@ -131,10 +123,10 @@ def test_elitism_and_pg_is_the_best_known(synth, options):
     assert not np.array_equal(x[0], x[1])
 
 
-@pytest.mark.parametrize("topology", ["global", "ring"])
-def test_additional_population_updates_pg_and_with_a_ring_the_best_particle(synth, topology):
+@pytest.mark.parametrize("neighbourhood", ["global", "ring"])
+def test_additional_population_updates_pg_and_with_a_ring_the_best_particle(synth, neighbourhood):
     model, objective = synth
-    pso = initialised(model, objective, synchronous=True, topology=topology)
+    pso = initialised(model, objective, synchronous=True, neighbourhood=neighbourhood)
     x = pso.ask()
     pso.tell(x, objective(x))
     best_particle = int(np.argmin(pso.Pf))
@@ -144,7 +136,7 @@ def test_additional_population_updates_pg_and_with_a_ring_the_best_particle(synt
     pso.tell(extra, f)
     assert np.array_equal(pso.Pg, extra[4]) and pso.Pgf == -1.0 and pso.iteration == 1
     in_swarm = np.all(pso.P == extra[4], axis=1)
-    if topology == "ring":  # the neighbourhoods can only see it through a personal best
+    if neighbourhood == "ring":  # the neighbourhoods can only see it through a personal best
         assert np.flatnonzero(in_swarm).tolist() == [best_particle] and pso.Pf[best_particle] == -1.0
     else:  # the thesis' global PSO only moves Pg
         assert not in_swarm.any()
@@ -159,7 +151,7 @@ def test_seeded_determinism(synth):
     assert a.history != c.history
 
 
-@pytest.mark.parametrize("options", [{}, {"synchronous": True}, {"topology": "ring"}])
+@pytest.mark.parametrize("options", [{}, {"synchronous": True}, {"neighbourhood": "ring"}])
 @pytest.mark.parametrize("stop_after_asks", [1, 4, 17, 31])
 def test_checkpoint_round_trip_resumes_bit_for_bit(synth, options, stop_after_asks):
     model, objective = synth
@@ -179,7 +171,7 @@ def test_checkpoint_round_trip_resumes_bit_for_bit(synth, options, stop_after_as
 
 def test_uncomputable_particle_is_redrawn_before_the_next_one_moves():
     bounds = np.array([[0.0, 1.0], [0.0, 1.0]])
-    pso = PSO(bounds, 1, initial_swarm=50, swarm=10, iterations=2)
+    pso = PSO(bounds, 1, initial_population=50, population=10, iterations=2)
     x = pso.ask()
     pso.tell(x, np.sum(x**2, axis=1))
     first = pso.ask()
@@ -211,10 +203,10 @@ def test_inject_makes_a_migrant_the_worst_particles_position_and_personal_best(s
 
 def test_options_are_validated():
     bounds = np.array([[0.0, 1.0]])
-    with pytest.raises(HysidInputError, match="topology"):
-        PSO(bounds, 0, topology="star")
-    with pytest.raises(HysidInputError, match="initial_swarm"):
-        PSO(bounds, 0, initial_swarm=10, swarm=20)
+    with pytest.raises(HysidInputError, match="neighbourhood"):
+        PSO(bounds, 0, neighbourhood="star")
+    with pytest.raises(HysidInputError, match="initial_population"):
+        PSO(bounds, 0, initial_population=10, population=20)
     with pytest.raises(HysidInputError, match="synchronous"):
         PSO(bounds, 0, synchronous="yes")
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from coordinator.cli import main
+from hysid.cli import main
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.extraction import centre_branches, extract_loop
 from hysid_model.loops import LoopSet

@@ -10,20 +10,20 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from coordinator.fit import fit
-from coordinator.report import jsondoc, write_report
-from coordinator.report.figures import convergence_figure
+from hysid.fit import fit
+from hysid.report import jsondoc
+from hysid.report.figures import convergence_figure
 from hysid_model.synth import synth_loops
+from support import GA_SMALL as SMALL_GA
 
 FIGURES = ("convergence.png", "loops.png", "residuals.png", "half_power.png")
-SMALL_GA = {"initial_population": 600, "population": 100, "iterations": 6}
 
 
 @pytest.fixture(scope="module")
 def report_dir(tmp_path_factory):
     result = fit(synth_loops(20.0, seed=2), algo="ga", runs=2, seed=5, options=SMALL_GA)
     out = tmp_path_factory.mktemp("report")
-    path = write_report(result, out)
+    path = result.write_report(out)
     return out, path, result
 
 
@@ -76,7 +76,7 @@ def test_report_without_a_resonance_in_the_sweep(tmp_path):
     low = loops.subset(np.flatnonzero(loops.freq_hz < 29.0))
     result = fit(low, algo="ga", options=SMALL_GA, polish=False)
     assert not any(hp.ok for hp in result.half_power)
-    text = write_report(result, tmp_path / "r").read_text()
+    text = result.write_report(tmp_path / "r").read_text()
     assert "n/a: resonance peak at the edge of the frequency sweep" in text
     assert (tmp_path / "r" / "half_power.png").stat().st_size > 20_000
 

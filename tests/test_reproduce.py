@@ -8,9 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from coordinator import thesis_tables as tt
-from coordinator.cli import main
-from coordinator.reproduce import cramer_rao_bounds, parse_seeds
+from hysid import thesis_tables as tt
+from hysid.cli import main
+from hysid.reproduce import cramer_rao_bounds, parse_seeds
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
 
@@ -47,9 +47,9 @@ def test_parse_seeds():
     assert parse_seeds(None, 3) == [0, 1, 2]
     assert parse_seeds("7, 8", 2) == [7, 8]
     for text, runs in (("1,2", 3), ("a,b", 2), ("-1", 1)):
-        with pytest.raises(HysidInputError, match="--seeds-noise"):
+        with pytest.raises(HysidInputError, match="noise_seeds="):
             parse_seeds(text, runs)
-    with pytest.raises(HysidInputError, match="--runs"):
+    with pytest.raises(HysidInputError, match="runs=0"):
         parse_seeds(None, 0)
 
 
@@ -61,6 +61,7 @@ def reproduction(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_reproduce_writes_every_table(reproduction):
     text = (reproduction / "report.md").read_text()
     for n in range(5, 14):
@@ -79,6 +80,7 @@ def test_reproduce_writes_every_table(reproduction):
         assert f"]({name})" in text
 
 
+@pytest.mark.slow
 def test_reproduce_json_has_every_cell(reproduction):
     doc = json.loads((reproduction / "reproduction.json").read_text())
     assert doc["noise_seeds"] == [3, 4]

@@ -10,9 +10,7 @@ from hysid_model.synth import TRUE_PARAMS
 from island.ga import GA
 from island.pso import PSO
 from island.run import HistoryRow, run
-
-GA_SMALL = dict(initial_population=200, population=40, iterations=5)
-PSO_SMALL = dict(initial_swarm=200, swarm=30, iterations=5)
+from support import GA_SMALL, PSO_SMALL
 
 
 @pytest.mark.parametrize("make", [lambda b: GA(b, 1, **GA_SMALL), lambda b: PSO(b, 1, **PSO_SMALL)])

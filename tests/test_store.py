@@ -20,7 +20,7 @@ def record(run: str = "r1", iterations: int = 3, evaluations: int = 300, best: f
 def test_campaign_is_created_once_and_never_overwritten(tmp_path):
     store = Store(tmp_path / "c.sqlite")
     store.create_campaign("c1", "synth", b"config-bytes")
-    with pytest.raises(HysidInputError, match="already exists; use --resume"):
+    with pytest.raises(HysidInputError, match="already exists; resume it"):
         store.create_campaign("c1", "other", b"other")
     assert store.campaign("c1") == ("synth", b"config-bytes", "running")
     with pytest.raises(HysidInputError, match="no campaign 'c9' to resume.*c1"):

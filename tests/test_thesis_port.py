@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hysid_model.model import build_model
 from hysid_model.synth import FREQUENCIES_HZ, MEQ_KG, TRUE_PARAMS, synth_loops
 from hysid_model.thesis_port import (
     ThesisObjective,
@@ -187,7 +188,7 @@ def test_reinterpolate_and_centercurveloop():
 
 def test_thesis_objective_is_the_weighted_sum_of_erreval():
     loops = synth_loops(10.0, seed=2).subset(np.arange(0, 120, 17))
-    port = ThesisObjective(loops, MEQ_KG)
+    port = ThesisObjective(loops, build_model("thesis").fix(meq=MEQ_KG))
     max_f = np.maximum(np.abs(loops.top[:, :, 1]).max(axis=1), np.abs(loops.bottom[:, :, 1]).max(axis=1))
     nos = 2 * loops.n_samples
     weights = (max_f.max() / max_f) / nos  # loopsweights(j) / NOS of the GA program

@@ -75,8 +75,7 @@ class BoucWen(Term):
     The law is rate independent, so under x = X0 sin(wt) the state is a
     function of the phase only, and for n = 1 its periodic orbit is piecewise
     exponential in x (:func:`loading_orbit`): the steady state is evaluated
-    exactly, where :func:`hysid_model.timedomain.periodic_steady_state` would
-    integrate Eq. 2.1b over cycles to the same orbit (the tests check both).
+    exactly; the tests integrate Eq. 2.1b over cycles to the same orbit.
     """
 
     id = "bouc_wen"

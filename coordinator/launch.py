@@ -1,0 +1,164 @@
+"""The campaign launcher: a coordinator and N islands on this machine, to a stop rule.
+
+Islands run as separate processes (``hysid island``) connected over Zenoh to a
+coordinator in this process, listening on a free loopback port. With
+``single_node`` (or automatically, with a :class:`HysidWarning`, when Zenoh
+cannot open a session here) the islands are threads of this process
+exchanging migrants in memory (:class:`island.node.MemoryBus`); the
+coordinator, the database and the outcome are the same.
+"""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+from coordinator.links import MemoryLink, ZenohLink
+from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
+from hysid_model.errors import HysidInputError, HysidWarning
+from island.node import IslandNode, MemoryBus
+from island.session import open_session, session_config
+
+ISLAND_EXIT_WAIT_S = 15.0
+
+
+@dataclass(frozen=True)
+class IslandSpec:
+    id: str
+    algo: str
+    seed: int
+
+
+def island_specs(n: int, algos: list[str], seed: int) -> list[IslandSpec]:
+    """``n`` islands cycling through ``algos``, seeds ``seed .. seed+n-1``."""
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise HysidInputError("a campaign needs at least one island", param="islands", value=n)
+    return [IslandSpec(f"{algos[i % len(algos)]}-{i}", algos[i % len(algos)], seed + i) for i in range(n)]
+
+
+def free_port() -> int:
+    """A TCP port on loopback that nobody listens on right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progress: Callable[[CampaignProgress], None] | None = None) -> str:
+    """Every island as a thread of this process; returns the stop reason."""
+    stop = threading.Event()
+    inbox = coordinator.inbox
+    bus = MemoryBus(coordinator.name, [s.id for s in specs], lambda key, data: inbox.put(("msg", key, data)), stop)
+    nodes = [IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops)) for s in specs]
+    errors: list[BaseException] = []
+
+    def work(node: IslandNode) -> None:
+        transport = bus.transport(node.island)
+        try:
+            node.run(transport)
+        except BaseException as exc:  # re-raised in the main thread below
+            errors.append(exc)
+            stop.set()
+        finally:
+            transport.close()
+            inbox.put(("member", node.island, False))
+
+    for node in nodes:
+        inbox.put(("member", node.island, True))
+    threads = [threading.Thread(target=work, args=(node,), name=f"island-{node.island}", daemon=True) for node in nodes]
+    for t in threads:
+        t.start()
+    try:
+        reason = coordinator.serve(MemoryLink(stop), on_progress)
+    finally:
+        stop.set()
+        for t in threads:
+            t.join()
+    if errors:
+        raise errors[0]
+    return reason
+
+
+def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
+    return [
+        sys.executable, "-m", "hysid", "island", "--connect", endpoint, "--campaign", campaign,
+        "--algo", spec.algo, "--seed", str(spec.seed), "--id", spec.id, "--quiet",
+    ]
+
+
+def run_processes(
+    coordinator: Coordinator, specs: list[IslandSpec], endpoint: str, link: ZenohLink, on_progress: Callable[[CampaignProgress], None] | None = None
+) -> str:
+    """One ``hysid island`` process per spec, connected to ``endpoint``; returns the stop reason."""
+    with tempfile.TemporaryDirectory(prefix="hysid-islands-") as logs:
+        procs = []
+        for spec in specs:
+            log = open(Path(logs) / f"{spec.id}.log", "w+")
+            procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log), log))
+
+        def all_exited() -> str | None:
+            codes = [p.poll() for _, p, _ in procs]
+            if any(c is None for c in codes):
+                return None
+            failed = [f"{s.id} (exit {c}: {tail(log)})" for (s, _, log), c in zip(procs, codes) if c != 0]
+            return "every island process exited" + (f"; failed: {'; '.join(failed)}" if failed else "")
+
+        try:
+            reason = coordinator.serve(link, on_progress, extra_stop=all_exited)
+        finally:
+            deadline = time.monotonic() + ISLAND_EXIT_WAIT_S
+            for _, p, log in procs:
+                try:
+                    p.wait(timeout=max(deadline - time.monotonic(), 0.1))
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
+                log.close()
+    return reason
+
+
+def tail(log: TextIO) -> str:
+    log.flush()
+    log.seek(0)
+    lines = [line.strip() for line in log.read().splitlines() if line.strip()]
+    return lines[-1][:300] if lines else "no output"
+
+
+def run_campaign(
+    coordinator: Coordinator,
+    specs: list[IslandSpec],
+    *,
+    single_node: bool = False,
+    on_progress: Callable[[CampaignProgress], None] | None = None,
+    polish: bool = True,
+    endpoint: str | None = None,
+) -> CampaignOutcome:
+    """Run the islands (processes over Zenoh, else threads) to a stop rule; the polished outcome.
+
+    The coordinator listens on ``endpoint`` (default: a free loopback port).
+    """
+    session = None
+    if not single_node:
+        endpoint = endpoint or f"tcp/127.0.0.1:{free_port()}"
+        try:
+            session = open_session(session_config("router", listen=[endpoint]), f"listen {endpoint}")
+        except HysidInputError as exc:
+            warnings.warn(HysidWarning(f"{exc}; running every island in this process instead (single node)"), stacklevel=2)
+    if session is None:
+        run_single_node(coordinator, specs, on_progress=on_progress)
+    else:
+        link = ZenohLink(session, coordinator)
+        try:
+            run_processes(coordinator, specs, endpoint, link, on_progress)
+        finally:
+            link.close()
+            session.close()
+    return coordinator.outcome(polish_best=polish)

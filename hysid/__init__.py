@@ -1,0 +1,56 @@
+"""hysid: identify how a material or structure dissipates and stores energy from hysteresis loops.
+
+The front door for Python (the ``hysid`` command line does the same):
+
+    import hysid
+    loops = hysid.load("synth", noise_pct=10)              # or a dataset directory, a loops file, .mat/.lvm files
+    result = hysid.fit(loops, model="thesis", algo="pso")   # GA or PSO, then a least-squares polish
+    result.params, result.stderr                            # identified parameters, standard errors
+    print(result.summary())                                 # and result.to_dict(), result.write_report("out")
+    diagnosis = hysid.diagnose(loops)                       # which physical effect is the model missing?
+    campaign = hysid.campaign(loops, islands=4)             # cooperating GA/PSO islands over Zenoh
+
+Models are data: ``hysid.models.thesis + hysid.effects.coulomb_friction``, with
+``.fix(meq=...)`` for known values and ``.with_bounds({...})``. Bad input
+raises :class:`HysidInputError` with one line naming what is wrong; doubtful
+input warns with :class:`HysidWarning`.
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+from hysid import effects, models
+from hysid.campaign import CampaignResult, campaign
+from hysid.diagnose.selection import Diagnosis, diagnose
+from hysid.fit import FitResult, fit
+from hysid_model.datasets import load_dataset as load
+from hysid_model.errors import HysidInputError, HysidWarning
+from hysid_model.loops import LoopSet
+from hysid_model.model import Model
+from hysid_model.params import Parameter
+from island.migration import Migration
+from island.termination import Termination
+
+try:
+    __version__ = version("hysid")
+except PackageNotFoundError:  # running from a source tree that was never installed
+    __version__ = "0+unknown"
+
+__all__ = [
+    "CampaignResult",
+    "Diagnosis",
+    "FitResult",
+    "HysidInputError",
+    "HysidWarning",
+    "LoopSet",
+    "Migration",
+    "Model",
+    "Parameter",
+    "Termination",
+    "campaign",
+    "diagnose",
+    "effects",
+    "fit",
+    "load",
+    "models",
+    "__version__",
+]

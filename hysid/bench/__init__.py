@@ -1,0 +1,78 @@
+"""Benchmarks behind ``hysid bench <name>``: one module per bench, shared helpers here.
+
+A bench module ``hysid/bench/<name>.py`` exposes ``run(...) -> dict`` (the
+results, JSON-serializable; invalid arguments raise :class:`HysidInputError`)
+and ``to_text(result) -> str``, and is registered in :mod:`hysid.cli.bench`. Speed goals are stated as ratios measured in
+one run, so that they hold on any machine; :func:`environment` records the
+machine a result came from.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import platform
+import resource
+import socket
+import subprocess
+import sys
+from typing import Any
+
+import numpy as np
+
+SINGLE_THREAD_ENV = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+"""Thread limits for BLAS/OpenMP so that a measurement uses one core."""
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as info:
+            for line in info:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def environment() -> dict[str, Any]:
+    """When and where a bench ran: ``date``, ``machine`` (hostname, cpu model, cores), ``python``, ``numpy``."""
+    return {
+        "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        "machine": {
+            "hostname": socket.gethostname(),
+            "cpu_model": cpu_model(),
+            "cores": os.cpu_count(),
+            "cores_available": len(os.sched_getaffinity(0)),
+            "load_avg_1m": round(os.getloadavg()[0], 2),
+        },
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+    }
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory (MB) of this process and of its finished children, whichever is larger."""
+    kib = max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)
+    return kib / 1024.0
+
+
+def run_on_one_core(function: str, timeout_s: float = 600.0) -> Any:
+    """Call ``"package.module:function"`` (no arguments, JSON-serializable result) in a fresh
+    Python pinned to one CPU with BLAS/OpenMP limited to one thread, and return its result.
+
+    The pinning has to happen before numpy loads, hence the subprocess.
+    """
+    module, name = function.split(":")
+    cpu = max(os.sched_getaffinity(0))
+    code = (
+        f"import os, json, sys; os.sched_setaffinity(0, {{{cpu}}}); "
+        f"import {module} as m; json.dump(m.{name}(), sys.stdout)"
+    )
+    env = {**os.environ, **SINGLE_THREAD_ENV}
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=timeout_s)
+    if done.returncode != 0:
+        tail = done.stderr.strip().splitlines()[-1:] or ["(no output)"]
+        raise RuntimeError(f"one-core measurement {function} failed (exit {done.returncode}): {tail[0]}")
+    return json.loads(done.stdout)

@@ -1,0 +1,313 @@
+"""``hysid bench islands [speedup|migration|pygmo|latency|all]``: what the island model buys and costs.
+
+Each part is a ratio (or a rate) measured in one run on the Synth set (section 5.2):
+
+* **speedup**: on the expensive objective (the faithful port of the thesis'
+  ``erreval``, :class:`hysid_model.thesis_port.ThesisObjective`), time to a
+  target fitness of 1 PSO island process with swarm 2p against 2 PSO island
+  processes with p each (same total swarm and initial swarm, one-gene additional
+  population, migration every 2 iterations over Zenoh); target: ratio >= 1.7;
+* **migration**: at equal total evaluations (a campaign budget), islands that
+  migrate (ring) against isolated islands: success rate (search best below a
+  fitness threshold, before any polish) over at least 20 seeds; target:
+  migration wins;
+* **pygmo**: hysid's PSO islands over Zenoh against a pygmo archipelago of PSO
+  islands (``pygmo.pso`` with constriction and velocity memory, ring topology,
+  multiprocessing islands, migration after every 5 generations), same
+  objective, same number of islands, population and evaluation budget: time
+  to target and final parameter error. pygmo is an optional, bench-only
+  dependency (``pip install pygmo``); without it this part says so;
+* **latency**: migrant messages through a Zenoh router on loopback (two
+  client sessions, as two islands): messages and migrants per second, and the
+  one-way latency (median, 99th percentile), also in units of one GA iteration.
+
+Times run from the moment every island is a member (islands start together)
+to the coordinator's record of the global best reaching the target.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zenoh
+
+from coordinator.launch import free_port, island_specs, run_campaign
+from coordinator.server import Coordinator
+from coordinator.store import Store
+from hysid_model.errors import HysidInputError
+from hysid_model.problem import build_objective
+from hysid_model.synth import TRUE_PARAMS, synth_loops
+from island.config import CampaignConfig
+from island.ga import GA
+from island.migration import Migration
+from island.protocol import Migrants, decode_migrants, encode_migrants
+from island.run import run as run_optimizer
+from island.session import open_session, session_config
+from island.termination import Termination
+
+SPEEDUP_TARGET = 1.7
+PARTS = ("speedup", "migration", "pygmo", "latency")
+
+
+def campaign(
+    workdir: Path, name: str, algo: str, islands: int, options: dict[str, Any], migration: Migration, rules: Termination,
+    seed: int, *, objective_kind: str = "closed_form", single_node: bool = False,
+) -> Coordinator:
+    """One campaign on the noiseless Synth set (islands as processes over Zenoh, or threads); returns its finished coordinator."""
+    loops = synth_loops()
+    config = CampaignConfig.create(loops, name=name, algos=[algo], options={algo: options}, migration=migration, seed=seed,
+                                   min_islands=islands, objective_kind=objective_kind)
+    coordinator = Coordinator(Store(workdir / f"{name}.sqlite"), config, loops, rules)
+    run_campaign(coordinator, island_specs(islands, [algo], seed * 100), single_node=single_node, polish=False)
+    coordinator.store.close()
+    return coordinator
+
+
+def time_to(coordinator: Coordinator, target: float) -> float | None:
+    """Seconds from the islands' start to the global best reaching ``target`` (None if it never did)."""
+    assert coordinator.full_at is not None
+    return next((t - coordinator.full_at for t, f, _, _ in coordinator.best_trace if f <= target), None)
+
+
+def speedup(seeds: int = 5, population: int = 40, target: float = 1e-2) -> dict[str, Any]:
+    """Part (a): 1 PSO island of swarm 2p vs 2 PSO islands of p on the thesis' own objective."""
+    times: dict[int, list[float]] = {1: [], 2: []}
+    evaluations: dict[int, list[int]] = {1: [], 2: []}
+    per_island: dict[int, list[float]] = {1: [], 2: []}
+    """Evaluations per island recorded when the global best reached the target."""
+    with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
+        for seed in range(seeds):
+            for n in (1, 2):
+                p = population // n
+                options = {"population": p, "initial_population": 2 * p, "iterations": 100_000, "addpop_level": 1}
+                c = campaign(Path(tmp), f"speedup-{n}-{seed}", "pso", n, options, Migration(interval=2, k=2), Termination(target=target, time_limit_s=900),
+                             seed, objective_kind="thesis_port")
+                t = time_to(c, target)
+                if t is None:
+                    raise RuntimeError(f"speedup bench: {n} island(s), seed {seed} did not reach fitness {target:g} ({c.stop_reason})")
+                times[n].append(t)
+                evaluations[n].append(c.evaluations)
+                per_island[n].append(next(e for _, f, e, _ in c.best_trace if f <= target) / n)
+    ratio = float(np.median(times[1]) / np.median(times[2]))
+    return {
+        "objective": "thesis_port (ThesisObjective, loop by loop)", "algo": "pso", "population_total": population,
+        "target_fitness": target, "seeds": seeds, "time_1_island_s": times[1], "time_2_islands_s": times[2],
+        "evaluations_1_island": evaluations[1], "evaluations_2_islands": evaluations[2],
+        "work_ratio": float(np.median(per_island[1]) / np.median(per_island[2])),
+        "ratio": ratio, "ratio_target": SPEEDUP_TARGET, "ok": ratio >= SPEEDUP_TARGET,
+    }
+
+
+def migration(seeds: int = 20, islands: int = 4, population: int = 20, budget: int = 8_600, threshold: float = 1e-5) -> dict[str, Any]:
+    """Part (b): success rate with and without migration at equal total evaluations (in-process islands)."""
+    if seeds < 20:
+        raise HysidInputError("the success rate needs at least 20 seeds", param="seeds", value=seeds)
+    options = {"population": population, "initial_population": 2 * population, "iterations": 100_000}
+    finals: dict[str, list[float]] = {"migration": [], "isolated": []}
+    with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
+        for seed in range(seeds):
+            for label, interval in (("migration", 5), ("isolated", 0)):
+                c = campaign(Path(tmp), f"{label}-{seed}", "pso", islands, options, Migration(interval=interval, k=2),
+                             Termination(budget=budget), seed, single_node=True)
+                assert c.best is not None
+                finals[label].append(c.best.fitness)
+    rate = {k: float(np.mean(np.array(v) <= threshold)) for k, v in finals.items()}
+    return {
+        "algo": "pso", "islands": islands, "population": population, "budget_evaluations": budget, "threshold": threshold,
+        "seeds": seeds, "success_rate": rate, "median_final_fitness": {k: float(np.median(v)) for k, v in finals.items()},
+        "ok": rate["migration"] > rate["isolated"],
+    }
+
+
+def parameter_error(x: np.ndarray, names: list[str]) -> float:
+    """Largest relative error of a parameter vector against Table 5.3."""
+    truth = np.array([TRUE_PARAMS[n] for n in names])
+    return float(np.max(np.abs(np.asarray(x) - truth) / np.abs(truth)))
+
+
+def pygmo_archipelago(islands: int, population: int, generations: int, budget: int, target: float, seed: int) -> dict[str, Any]:
+    import pygmo as pg
+
+    objective = build_objective(synth_loops())
+
+    class Problem:
+        """The hysid objective as a pygmo user-defined problem."""
+
+        def __init__(self) -> None:
+            self.bounds = objective.bounds
+
+        def fitness(self, x: np.ndarray) -> list[float]:
+            return [float(objective(np.asarray(x)[None, :])[0])]
+
+        def get_bounds(self) -> tuple[list[float], list[float]]:
+            return list(self.bounds[:, 0]), list(self.bounds[:, 1])
+
+    pg.mp_island.init_pool(islands)  # worker processes started before the clock, as hysid's islands are
+    archi = pg.archipelago(n=islands, t=pg.ring(), algo=pg.pso(gen=generations, memory=True), prob=Problem(), pop_size=population, seed=seed)
+    start, reached = time.monotonic(), None
+    while True:
+        archi.evolve()
+        archi.wait_check()
+        best = float(np.min([f[0] for f in archi.get_champions_f()]))
+        fevals = sum(isl.get_population().problem.get_fevals() for isl in archi)
+        if reached is None and best <= target:
+            reached = time.monotonic() - start
+        if fevals >= budget:
+            break
+    champion = archi.get_champions_x()[int(np.argmin([f[0] for f in archi.get_champions_f()]))]
+    return {"time_to_target_s": reached, "final_fitness": best, "evaluations": int(fevals), "parameter_error": parameter_error(champion, objective.model.names)}
+
+
+def versus_pygmo(seeds: int = 3, islands: int = 4, population: int = 20, budget: int = 60_000, target: float = 1e-8) -> dict[str, Any]:
+    """Part (c): hysid PSO islands over Zenoh vs a pygmo archipelago of PSO islands."""
+    try:
+        import pygmo  # noqa: F401
+    except ImportError as exc:
+        return {"skipped": f"pygmo is not installed ({exc}); it is an optional bench-only dependency: pip install pygmo"}
+    out: dict[str, list[dict[str, Any]]] = {"hysid": [], "pygmo": []}
+    names = build_objective(synth_loops()).model.names
+    with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
+        for seed in range(seeds):
+            options = {"population": population, "initial_population": population, "iterations": 100_000}
+            c = campaign(Path(tmp), f"vs-pygmo-{seed}", "pso", islands, options, Migration(interval=5, k=2), Termination(budget=budget), seed)
+            _, f, evaluations, x = [entry for entry in c.best_trace if entry[2] <= budget][-1]  # the best within the budget
+            out["hysid"].append({"time_to_target_s": time_to(c, target), "final_fitness": f, "evaluations": evaluations,
+                                 "parameter_error": parameter_error(x, names)})
+            out["pygmo"].append(pygmo_archipelago(islands, population, 5, budget, target, seed))
+    summary = {}
+    for k, runs in out.items():
+        times = [r["time_to_target_s"] for r in runs]
+        summary[k] = {
+            "reached_target": sum(t is not None for t in times),
+            "median_time_to_target_s": float(np.median([t for t in times if t is not None])) if any(t is not None for t in times) else None,
+            "median_parameter_error": float(np.median([r["parameter_error"] for r in runs])),
+        }
+    both = summary["hysid"]["median_time_to_target_s"], summary["pygmo"]["median_time_to_target_s"]
+    return {
+        "islands": islands, "population": population, "budget_evaluations": budget, "target_fitness": target, "seeds": seeds,
+        "runs": out, "summary": summary,
+        "time_ratio_pygmo_over_hysid": both[1] / both[0] if None not in both else None,
+    }
+
+
+def ga_iteration_s(population: int = 500) -> float:
+    """Median wall time of one thesis GA iteration on the closed-form Synth objective."""
+    objective = build_objective(synth_loops())
+    ga = GA(objective.bounds, 0, population=population, initial_population=population, iterations=20)
+    rows = run_optimizer(ga, objective)
+    return float(np.median(np.diff([r.wall_s for r in rows])))
+
+
+def latency(messages: int = 5000, paced: int = 500, k: int = 2) -> dict[str, Any]:
+    """Part (d): migrant messages between two island sessions through a router on loopback.
+
+    A burst of ``messages`` gives the rate; then ``paced`` messages, one every 5 ms,
+    give the one-way latency of a migration on an idle link.
+    """
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    bounds = build_objective(synth_loops()).bounds
+    router = open_session(session_config("router", listen=[endpoint]), endpoint)
+    sender = open_session(session_config("client", connect=[endpoint]), endpoint)
+    receiver = open_session(session_config("client", connect=[endpoint]), endpoint)
+    delays: list[float] = []
+    arrived = threading.Semaphore(0)
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        m = decode_migrants(sample.payload.to_bytes(), "bench", bounds, "a")  # validated as an island would
+        delays.append(time.time() - m.sent_at)
+        arrived.release()
+
+    rng = np.random.default_rng(0)
+    x = bounds[:, 0] + rng.random((k, bounds.shape[0])) * (bounds[:, 1] - bounds[:, 0])
+
+    def send(i: int) -> None:
+        publisher.put(encode_migrants(Migrants("bench", "a", "r", i, x, np.arange(k, dtype=float), time.time())))
+
+    def wait_all(n: int) -> None:
+        for _ in range(n):
+            if not arrived.acquire(timeout=30):
+                raise RuntimeError(f"latency bench: only {len(delays)} messages arrived")
+
+    try:
+        subscriber = receiver.declare_subscriber("hysid/bench/migrants/a", on_sample)
+        publisher = sender.declare_publisher("hysid/bench/migrants/a", congestion_control=zenoh.CongestionControl.BLOCK)
+        time.sleep(0.5)  # let the subscription reach the router
+        start = time.perf_counter()
+        for i in range(messages):
+            send(i)
+        wait_all(messages)
+        elapsed = time.perf_counter() - start
+        delays.clear()
+        for i in range(paced):
+            send(i)
+            time.sleep(0.005)
+        wait_all(paced)
+        subscriber.undeclare()
+    finally:
+        for s in (receiver, sender, router):
+            s.close()
+    iteration = ga_iteration_s()
+    median = float(np.median(delays))
+    return {
+        "messages": messages, "migrants_per_message": k, "messages_per_s": messages / elapsed, "migrants_per_s": k * messages / elapsed,
+        "paced_messages": paced, "latency_median_ms": 1e3 * median, "latency_p99_ms": 1e3 * float(np.percentile(delays, 99)),
+        "ga_iteration_ms": 1e3 * iteration, "latency_in_ga_iterations": median / iteration,
+    }
+
+
+def run(parts: list[str] | tuple[str, ...] = PARTS) -> dict[str, Any]:
+    """Island model: 2-island speedup, migration vs isolation, hysid vs pygmo, migration latency."""
+    unknown = [p for p in parts if p not in PARTS]
+    if unknown:
+        raise HysidInputError(f"choose one of {', '.join(PARTS)} or all", param="part", value=unknown[0])
+    functions = {"speedup": speedup, "migration": migration, "pygmo": versus_pygmo, "latency": latency}
+    out: dict[str, Any] = {}
+    for part in parts:
+        start = time.perf_counter()
+        out[part] = {**functions[part](), "bench_s": time.perf_counter() - start}
+    return out
+
+
+def to_text(result: dict[str, Any]) -> str:
+    lines = []
+    if "speedup" in result:
+        r = result["speedup"]
+        lines.append(
+            f"speedup (thesis erreval objective, PSO, swarm {r['population_total']} in total, target {r['target_fitness']:g}): "
+            f"1 island {np.median(r['time_1_island_s']):.1f} s, 2 islands {np.median(r['time_2_islands_s']):.1f} s (medians of {r['seeds']}) "
+            f"-> ratio {r['ratio']:.2f} (target >= {r['ratio_target']}) {'OK' if r['ok'] else 'MISSED'}; "
+            f"evaluations per island to target: ratio {r['work_ratio']:.2f} (what the time ratio tends to on two idle cores)"
+        )
+    if "migration" in result:
+        r = result["migration"]
+        rate = r["success_rate"]
+        lines.append(
+            f"migration ({r['islands']} PSO islands, {r['budget_evaluations']:,} evaluations, success = fitness <= {r['threshold']:g}, {r['seeds']} seeds): "
+            f"with migration {100 * rate['migration']:.0f} %, isolated {100 * rate['isolated']:.0f} % {'OK' if r['ok'] else 'MISSED'}"
+        )
+    if "pygmo" in result:
+        r = result["pygmo"]
+        if "skipped" in r:
+            lines.append(f"pygmo: skipped: {r['skipped']}")
+        else:
+            for k, s in r["summary"].items():
+                t = s["median_time_to_target_s"]
+                lines.append(
+                    f"{k:>6}: reached {r['target_fitness']:g} in {s['reached_target']}/{r['seeds']} runs, median time "
+                    f"{'n/a' if t is None else f'{t:.2f} s'}, median parameter error {s['median_parameter_error']:.2e}"
+                )
+            ratio = r["time_ratio_pygmo_over_hysid"]
+            lines.append(f"pygmo / hysid time to target: {'n/a' if ratio is None else f'{ratio:.2f}'}")
+    if "latency" in result:
+        r = result["latency"]
+        lines.append(
+            f"latency: {r['messages_per_s']:,.0f} messages/s ({r['migrants_per_s']:,.0f} migrants/s), one-way median "
+            f"{r['latency_median_ms']:.2f} ms, p99 {r['latency_p99_ms']:.2f} ms = {r['latency_in_ga_iterations']:.2f} thesis GA iterations"
+        )
+    return "\n".join(lines)
+

@@ -1,0 +1,125 @@
+"""Campaigns: GA and PSO islands that share their best partial solutions (section 6.1, item 3).
+
+    result = hysid.campaign(loops, islands=4)            # island processes over Zenoh on loopback
+    result = hysid.campaign(loops, islands=4, single_node=True)   # island threads, migrating in memory
+
+The coordinator (:mod:`coordinator.server`) serves the loop set, records every
+island's history in SQLite and stops by its rules; :class:`CampaignResult` is
+the ``hysid fit`` result of its islands (the global best polished) plus the
+islands, migrations and membership events.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from coordinator.launch import island_specs, run_campaign
+from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
+from coordinator.store import Store
+from hysid.fit import FitResult
+from hysid.report import jsondoc, markdown, text
+from hysid_model.loops import LoopSet
+from hysid_model.model import Model
+from island.config import CampaignConfig
+from island.migration import Migration
+from island.protocol import check_name
+from island.termination import Termination
+
+
+@dataclass
+class CampaignResult:
+    """A campaign's :class:`~hysid.fit.FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
+
+    fit: FitResult
+    islands: list[dict[str, Any]]
+    migrations: dict[str, Any]
+    members: list[dict[str, Any]]
+
+    @classmethod
+    def from_outcome(cls, outcome: CampaignOutcome) -> "CampaignResult":
+        return cls(
+            FitResult.from_runs(outcome.objective, outcome.runs, outcome.settings),
+            islands=outcome.islands,
+            migrations=outcome.migrations,
+            members=outcome.members,
+        )
+
+    @property
+    def params(self) -> dict[str, float]:
+        return self.fit.params
+
+    @property
+    def stderr(self) -> dict[str, float]:
+        return self.fit.stderr
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``hysid fit --json`` document plus ``islands``, ``migrations`` and membership ``members``."""
+        return {**self.fit.to_dict(), "islands": self.islands, "migrations": self.migrations, "members": self.members}
+
+    def summary(self) -> str:
+        """The fit summary, why the campaign stopped, its migrations and every island."""
+        return text.campaign_summary(self)
+
+    def write_report(self, out_dir: str | Path) -> Path:
+        """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document."""
+        return markdown.write_fit_report(self.fit, out_dir, title="hysid campaign", document=self.to_dict())
+
+    def _repr_markdown_(self) -> str:
+        return markdown.fit_overview(self.fit)
+
+    def __repr__(self) -> str:
+        return f"<CampaignResult {self.fit.settings.get('campaign')!r}: {len(self.islands)} island run(s), fitness {self.fit.fitness:.6g}>"
+
+
+def finish(coordinator: Coordinator, outcome: CampaignOutcome) -> CampaignResult:
+    """The result of a stopped campaign, also kept in its database."""
+    result = CampaignResult.from_outcome(outcome)
+    coordinator.store.set_result(coordinator.name, jsondoc.dumps(result.to_dict()))
+    return result
+
+
+def campaign(
+    loops: LoopSet,
+    islands: int = 4,
+    *,
+    name: str = "campaign",
+    model: str | Model = "thesis",
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    weights: str | None = None,
+    algos: list[str] | tuple[str, ...] = ("ga", "pso"),
+    options: dict[str, dict[str, Any]] | None = None,
+    migration: Migration | None = None,
+    seed: int = 0,
+    termination: Termination | None = None,
+    single_node: bool = False,
+    db: str | Path = ":memory:",
+    dataset: str = "",
+    polish: bool = True,
+    progress: Callable[[CampaignProgress], None] | None = None,
+) -> CampaignResult:
+    """Run ``islands`` GA/PSO islands on ``loops`` to a stop rule and report the polished global best.
+
+    Islands are processes connected over Zenoh on loopback (threads of this
+    process with ``single_node``, or when Zenoh cannot open a session here, with
+    a warning); island i runs ``algos[i % len(algos)]`` with seed ``seed + i``.
+    ``options[algo]`` are each algorithm's settings (``population``,
+    ``initial_population``, ``iterations``, ...), ``migration`` how islands share
+    their best, ``termination`` the coordinator's stop rules. The campaign is
+    recorded in the SQLite file ``db`` (in memory by default).
+    """
+    check_name("name", name)
+    specs = island_specs(islands, list(algos), seed)
+    config = CampaignConfig.create(
+        loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
+        options=options, migration=migration, seed=seed, min_islands=islands,
+    )
+    store = Store(db)
+    try:
+        coordinator = Coordinator(store, config, loops, termination, dataset=dataset or loops.name)
+        return finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish))
+    finally:
+        store.close()

@@ -1,0 +1,103 @@
+"""The ``hysid`` command line (typer): the only part of hysid that speaks in flags and prints.
+
+Every command turns bad input into one line on stderr, ``hysid: error: ...``
+naming the flag or file, and exit status 2; it never prints a traceback for a
+user's mistake. Warnings of the library (:class:`HysidWarning`) print as
+``hysid: warning: ...`` and the command goes on.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from importlib.metadata import PackageNotFoundError, version
+from typing import Any, TextIO
+
+import typer
+
+from hysid.cli import bench, campaign, data, diagnose, fit
+from hysid.cli.options import error_line
+from hysid_model.effects import EFFECTS
+from hysid_model.errors import HysidInputError, HysidWarning
+from hysid_model.model import PRESETS, build_model
+
+app = typer.Typer(
+    name="hysid",
+    help="Identify damping, natural frequency and missing physics from hysteresis loops.",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+)
+
+
+def package_version() -> str:
+    try:
+        return version("hysid")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def show_version(value: bool) -> None:
+    if value:
+        print(f"hysid {package_version()}")
+        raise typer.Exit()
+
+
+@app.callback()
+def root(
+    _version: bool = typer.Option(False, "--version", callback=show_version, is_eager=True, help="Print hysid's version and exit."),
+) -> None:
+    """Identify damping, natural frequency and missing physics from hysteresis loops."""
+
+
+for module in (data, fit, bench, campaign, diagnose):
+    module.register(app)
+
+
+@app.command("models")
+def models_command() -> None:
+    """List the model presets and the effect library, with every parameter's unit and default bounds."""
+    for spec in PRESETS:
+        print(build_model(spec).describe())
+    print("effects (add with MODEL+EFFECT, e.g. thesis+coulomb_friction):")
+    for effect_id, term_type in sorted(EFFECTS.items()):
+        term = term_type()
+        plist = ", ".join(f"{p.name} [{p.unit}] in [{p.lower:g}, {p.upper:g}]" for p in term.params)
+        print(f"  {effect_id}: {plist}\n      {term.explanation}")
+
+
+def fail(message: str) -> None:
+    print(f"hysid: error: {' '.join(str(message).split())}", file=sys.stderr)
+
+
+def show_warning(message: Any, category: type[Warning], filename: str, lineno: int, file: TextIO | None = None, line: str | None = None) -> None:
+    """Library warnings as one line each; others as Python shows them."""
+    if issubclass(category, HysidWarning):
+        print(f"hysid: warning: {' '.join(str(message).split())}", file=sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line), file=sys.stderr, end="")
+
+
+def main(argv: list[str] | None = None) -> int:
+    command = typer.main.get_command(app)
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", HysidWarning)
+        warnings.showwarning = show_warning
+        try:
+            result = command.main(args=argv, prog_name="hysid", standalone_mode=False)
+        except typer.Exit as exc:
+            return int(exc.exit_code or 0)
+        except typer.TyperException as exc:
+            fail(exc.format_message())
+            return int(getattr(exc, "exit_code", 2) or 2)
+        except typer.Abort:
+            fail("aborted")
+            return 130
+        except HysidInputError as exc:
+            fail(error_line(exc))
+            return 2
+        except KeyboardInterrupt:
+            fail("interrupted")
+            return 130
+    return result if isinstance(result, int) else 0

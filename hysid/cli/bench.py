@@ -1,0 +1,65 @@
+"""CLI ``hysid bench <name> [--json]``: the benchmarks of ``hysid/bench/<name>.py``.
+
+To add a bench, write ``hysid/bench/<name>.py`` with ``run(...) -> dict``
+(JSON-serializable results; its docstring's first line is the command's help)
+and ``to_text(result) -> str``, then register it below. Every bench prints
+text, or with ``--json`` one JSON object that also carries ``date``,
+``machine``, ``python`` and ``numpy``; ``bench/run.sh`` runs them all and
+stores that JSON under ``bench/results/``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import typer
+
+from hysid.bench import accuracy, environment, islands, objective
+from hysid.report import jsondoc
+
+bench_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None)
+BENCH_JSON = typer.Option(False, "--json", help="Print one JSON object (with date and machine) instead of text.")
+
+
+@bench_app.callback()
+def bench_root() -> None:
+    """Benchmarks (speed as ratios measured in one run); --json for machine-readable results."""
+
+
+def emit(result: dict[str, Any], to_text: Callable[[dict[str, Any]], str], as_json: bool) -> None:
+    print(jsondoc.dumps({**result, **environment()}, indent=2) if as_json else to_text(result))
+
+
+@bench_app.command("objective", help=(objective.run.__doc__ or "").strip().splitlines()[0])
+def objective_command(as_json: bool = BENCH_JSON) -> None:
+    emit(objective.run(), objective.to_text, as_json)
+
+
+@bench_app.command("accuracy")
+def accuracy_command(
+    seeds: int = typer.Option(accuracy.DEFAULT_SEEDS, "--seeds", help="Noise draws per noise level for the Cramer-Rao target (at least 20)."),
+    thesis_runs: int = typer.Option(accuracy.THESIS_RUNS, "--thesis-runs", help="Thesis-faithful runs per algorithm and noise level (a multiple of 4)."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    """Accuracy on the Synth set: clean to 1e-6, RMS error vs the Cramer-Rao bound, thesis-faithful vs Table 5.13."""
+    emit(accuracy.run(seeds, thesis_runs), accuracy.to_text, as_json)
+
+
+@bench_app.command("islands")
+def islands_command(
+    part: str = typer.Argument("all", help="speedup, migration, pygmo, latency or all."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    """Island model: 2-island speedup, migration vs isolation, hysid vs pygmo, migration latency."""
+    emit(islands.run(islands.PARTS if part == "all" else [part]), islands.to_text, as_json)
+
+
+def bench_names() -> list[str]:
+    """Names of the registered benches (``bench/run.sh`` runs them all)."""
+    return [info.name or "" for info in bench_app.registered_commands]
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``hysid bench ...`` to the hysid app."""
+    app.add_typer(bench_app, name="bench")

@@ -1,0 +1,227 @@
+"""CLI commands of distributed campaigns: ``hysid campaign``, ``hysid coordinator`` and ``hysid island``.
+
+``campaign`` is the one-machine job (coordinator + N island processes on
+loopback, or ``--single-node``); ``coordinator`` and ``island`` are its two
+halves for clusters (see ``deploy/``), connected by Zenoh endpoints or a Zenoh
+configuration file.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import socket
+import sys
+import zlib
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from coordinator.links import ZenohLink
+from coordinator.server import CampaignProgress, Coordinator, resume
+from coordinator.store import Store
+from hysid.campaign import CampaignResult, campaign, finish
+from hysid.cli import options as o
+from hysid.report import jsondoc
+from hysid.report.text import campaign_progress_line
+from hysid_model.datasets import load_dataset
+from hysid_model.errors import HysidInputError
+from island.algorithms import check_algorithm
+from island.config import CampaignConfig, decode_config
+from island.migration import Migration
+from island.node import IslandNode, ZenohTransport, fetch_config
+from island.protocol import check_name
+from island.session import DEFAULT_ENDPOINT, open_session, session_config
+from island.termination import Termination
+
+
+def print_progress(p: CampaignProgress) -> None:
+    print(campaign_progress_line(p), file=sys.stderr, flush=True)
+
+
+def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) -> Path:
+    """The campaign database: ``--db`` or OUT/campaign.sqlite; a stored campaign is only ever resumed."""
+    path = db if db is not None else out / "campaign.sqlite"
+    if resuming:
+        if db is None:
+            raise HysidInputError("--resume needs --db FILE, the database of the coordinator to carry on")
+        if not db.is_file():
+            raise HysidInputError("no such file to resume", param="db", value=db)
+    elif path.is_file():
+        store = Store(path)
+        try:
+            if store.has_campaign(campaign_name):
+                raise HysidInputError(f"{path}: campaign {campaign_name!r} already exists; use --resume to carry on, or another --campaign or --db")
+        finally:
+            store.close()
+    return path
+
+
+def show(result: CampaignResult, out: Path, as_json: bool) -> None:
+    """Write the campaign's report and print the JSON document or the summary."""
+    result.write_report(out)
+    print(jsondoc.dumps(result.to_dict()) if as_json else result.summary())
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``campaign``, ``coordinator`` and ``island`` to the hysid app."""
+
+    @app.command("campaign")
+    def campaign_command(
+        dataset: Optional[str] = o.DATASET_OR_SYNTH,
+        islands: int = typer.Option(4, "--islands", help="Number of islands."),
+        name: str = typer.Option("campaign", "--campaign", help="Campaign name (in the database and the key space hysid/<name>/**)."),
+        algos: str = o.ALGOS,
+        topology: str = o.TOPOLOGY,
+        interval: int = o.INTERVAL,
+        migrants: int = o.MIGRANTS,
+        random_k: int = o.RANDOM_K,
+        population: int = o.POPULATION,
+        initial: int = o.INITIAL,
+        iterations: int = o.ITERATIONS,
+        seed: int = o.SEED,
+        model: str = o.MODEL,
+        weights: Optional[str] = o.WEIGHTS,
+        noise: float = o.NOISE,
+        noise_seed: int = o.NOISE_SEED,
+        budget: Optional[int] = o.BUDGET,
+        target: Optional[float] = o.TARGET,
+        stall: Optional[int] = o.STALL,
+        time_limit: Optional[float] = o.TIME_LIMIT,
+        single_node: bool = typer.Option(False, "--single-node", help="All islands in this process, migrating in memory (no network)."),
+        out: Optional[Path] = o.OUT,
+        db: Optional[Path] = o.DB,
+        as_json: bool = o.JSON,
+        polish: bool = o.POLISH,
+        quiet: bool = o.QUIET,
+    ) -> None:
+        """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
+        algo_list = o.parse_algos(algos)
+        sizes = o.island_sizes(population, initial, iterations)
+        migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
+        termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
+        check_name("campaign", name)
+        target_dir = o.report_dir(out, "campaign")
+        path = database(db, target_dir, name, resuming=False)
+        loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
+        result = campaign(
+            loops, islands, name=name, model=model, weights=weights, algos=algo_list, options=sizes, migration=migration,
+            seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
+            polish=polish, progress=None if quiet else print_progress,
+        )
+        show(result, target_dir, as_json)
+
+    @app.command("coordinator")
+    def coordinator_command(
+        dataset: Optional[str] = o.DATASET_OR_SYNTH,
+        listen: list[str] = typer.Option([], "--listen", help="Endpoint to listen on, repeatable (default tcp/127.0.0.1:7447)."),
+        connect: list[str] = typer.Option([], "--connect", help="Zenoh router to connect to as well, repeatable."),
+        config_file: Optional[Path] = o.CONFIG,
+        name: str = o.CAMPAIGN,
+        db: Optional[Path] = o.DB,
+        resume_db: bool = typer.Option(False, "--resume", help="Carry on the campaign stored in --db after a crash (its settings and loop set come from there)."),
+        min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
+        algos: str = o.ALGOS,
+        topology: str = o.TOPOLOGY,
+        interval: int = o.INTERVAL,
+        migrants: int = o.MIGRANTS,
+        random_k: int = o.RANDOM_K,
+        population: int = o.POPULATION,
+        initial: int = o.INITIAL,
+        iterations: int = o.ITERATIONS,
+        seed: int = o.SEED,
+        model: str = o.MODEL,
+        weights: Optional[str] = o.WEIGHTS,
+        noise: float = o.NOISE,
+        noise_seed: int = o.NOISE_SEED,
+        budget: Optional[int] = o.BUDGET,
+        target: Optional[float] = o.TARGET,
+        stall: Optional[int] = o.STALL,
+        time_limit: Optional[float] = o.TIME_LIMIT,
+        out: Optional[Path] = o.OUT,
+        as_json: bool = o.JSON,
+        polish: bool = o.POLISH,
+        quiet: bool = o.QUIET,
+    ) -> None:
+        """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
+        check_name("campaign", name)
+        termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
+        if resume_db and dataset is not None:
+            raise HysidInputError(f"--resume takes the loop set from {db}; drop DATASET {dataset!r}")
+        target_dir = o.report_dir(out, "coordinator")
+        store = Store(database(db, target_dir, name, resuming=resume_db))
+        try:
+            if resume_db:
+                coordinator = resume(store, name, termination)
+            else:
+                sizes = o.island_sizes(population, initial, iterations)
+                migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
+                loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
+                config = CampaignConfig.create(
+                    loops, name=name, model=model, weights=weights, algos=o.parse_algos(algos), options=sizes,
+                    migration=migration, seed=seed, min_islands=min_islands,
+                )
+                coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
+            zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
+            session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
+            link = ZenohLink(session, coordinator)
+            if not quiet:
+                print(f"coordinator of campaign {name!r} ready (database {store.path})", file=sys.stderr, flush=True)
+            try:
+                coordinator.serve(link, None if quiet else print_progress)
+            finally:
+                link.close()
+                session.close()
+            show(finish(coordinator, coordinator.outcome(polish_best=polish)), target_dir, as_json)
+        finally:
+            store.close()
+
+    @app.command("island")
+    def island_command(
+        connect: list[str] = typer.Option([], "--connect", help="Coordinator endpoint, repeatable (default tcp/127.0.0.1:7447)."),
+        config_file: Optional[Path] = o.CONFIG,
+        name: str = o.CAMPAIGN,
+        algo: Optional[str] = typer.Option(None, "--algo", help="ga or pso (default: from the campaign's mix, by seed)."),
+        seed: Optional[int] = typer.Option(None, "--seed", help="Optimizer seed (default: from the campaign seed and the island id)."),
+        island_id: Optional[str] = typer.Option(None, "--id", help="Island name, unique in the campaign (default: island-<host>-<pid>)."),
+        wait: float = typer.Option(30.0, "--wait", help="Seconds to wait for the coordinator."),
+        quiet: bool = typer.Option(False, "--quiet", help="Print nothing but errors."),
+    ) -> None:
+        """Join a campaign: fetch its loop set, optimize, migrate, report history until told to stop."""
+        check_name("campaign", name)
+        if algo is not None:
+            check_algorithm(algo)
+        if seed is not None and seed < 0:
+            raise HysidInputError("seeds must be non-negative", param="seed", value=seed)
+        island = check_name("island", island_id or default_island_id())
+        zconfig = session_config("client", connect=connect, config_file=config_file, connect_timeout_s=wait)
+        session = open_session(zconfig, f"connect {', '.join(connect) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
+        try:
+            config, loops = decode_config(fetch_config(session, name, wait), name)
+            seed_ = seed if seed is not None else config.seed + zlib.crc32(island.encode()) % (1 << 20)
+            algo_ = algo or config.algo_for(seed_)
+            node = IslandNode(island, algo_, seed_, config, config.objective(loops))
+            transport = ZenohTransport(session, node)
+            try:
+                node.run(transport)
+            finally:
+                transport.close()
+        finally:
+            session.close()
+        if not quiet:
+            rows = node.rows
+            best = rows[-1][1] if rows else float("inf")
+            s = node.stats
+            print(
+                f"island {node.island} ({algo_.upper()}, seed {seed_}): best {best:.6g} after {len(rows)} iterations, "
+                f"{rows[-1][2] if rows else 0:,} evaluations; {node.stop_reason}; migrant messages sent {s['sent']}, "
+                f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}",
+                file=sys.stderr,
+            )
+
+
+def default_island_id() -> str:
+    """``island-<host>-<pid>``, a valid key chunk."""
+    host = re.sub(r"[^A-Za-z0-9_.-]", "-", socket.gethostname())[:40].strip("-.") or "host"
+    return f"island-{host}-{os.getpid()}"

@@ -1,0 +1,48 @@
+"""CLI commands for data: ``hysid synth`` writes the Synth set, ``hysid loops`` lists a dataset's loops."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from hysid.cli import options as o
+from hysid.report.text import loops_table
+from hysid_model.datasets import load_dataset, write_dataset
+from hysid_model.synth import BOUNDS, MEQ_KG, TRUE_PARAMS, synth_loops, synth_raw
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``synth`` and ``loops`` to the hysid app."""
+
+    @app.command("synth")
+    def synth_command(
+        out_dir: Path = typer.Argument(..., help="New (or empty) directory to write the dataset to."),
+        noise: float = o.NOISE,
+        seed: int = typer.Option(0, "--seed", help="Noise seed."),
+        raw: bool = typer.Option(False, "--raw", help="Write raw time series (one CSV per loop, manifest.csv, dataset.toml) instead of branches."),
+    ) -> None:
+        """Write the thesis' Synth set (Tables 5.2-5.4, 120 loops) as a dataset directory."""
+        if raw:
+            records = synth_raw(noise, seed)
+            write_dataset(out_dir, records, name=f"synth-raw-{noise:g}pct-seed{seed}", meq_kg=MEQ_KG, bounds=BOUNDS,
+                          true_params=TRUE_PARAMS, description="Thesis Synth set (section 5.2) as raw time series")
+            print(f"wrote {len(records)} raw records, manifest.csv and dataset.toml to {out_dir}")
+        else:
+            loops = synth_loops(noise, seed)
+            write_dataset(out_dir, loops)
+            print(f"wrote {loops.n_loops} loops to {out_dir / 'loops.csv'}")
+
+    @app.command("loops")
+    def loops_command(
+        dataset: str = o.DATASET,
+        as_json: bool = typer.Option(False, "--json", help="Print a JSON list of objects (one per loop) instead of a table."),
+        noise: float = o.NOISE,
+        noise_seed: int = o.NOISE_SEED,
+        points: int | None = o.POINTS,
+    ) -> None:
+        """List a dataset's loops: label, frequency, X0, peak force, noise sigma, cycles used."""
+        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
+        rows = loops.rows()
+        print(json.dumps(rows, indent=1) if as_json else loops_table(loops, rows))

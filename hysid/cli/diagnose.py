@@ -1,0 +1,32 @@
+"""CLI command ``hysid diagnose``: which physical effect is the model missing?"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from hysid.cli import options as o
+from hysid.diagnose.selection import diagnose
+from hysid.report import jsondoc
+from hysid_model.datasets import load_dataset
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``hysid diagnose`` to the hysid app."""
+
+    @app.command("diagnose")
+    def diagnose_command(
+        dataset: str = o.DATASET,
+        model: str = o.START_MODEL,
+        out: Optional[Path] = o.OUT,
+        as_json: bool = o.JSON,
+        points: Optional[int] = o.POINTS,
+    ) -> None:
+        """Find which effects of the library the model misses, step by step, and write a report."""
+        target = o.report_dir(out, "diagnose")
+        loops = load_dataset(dataset, n_points=points)
+        result = diagnose(loops, model)
+        result.write_report(target, dataset)
+        print(jsondoc.dumps(result.to_dict(), indent=2) if as_json else result.summary())

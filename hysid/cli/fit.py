@@ -1,0 +1,100 @@
+"""CLI commands ``hysid fit`` (single node, no network) and ``hysid reproduce thesis``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional, TextIO
+
+import typer
+
+from hysid import thesis_tables as tt
+from hysid.cli import options as o
+from hysid.fit import fit
+from hysid.report import jsondoc
+from hysid.reproduce import SETTINGS, parse_seeds, reproduce_thesis
+from hysid_model.datasets import load_dataset
+from island.run import HistoryRow
+
+ROWS_PER_RUN = 18 + 1
+"""History rows of a run with the thesis' settings: the initial population, then 18 iterations (section 5.1)."""
+
+
+class ProgressBar:
+    """A one-line progress bar on a terminal's stderr; silent when stderr is not a terminal."""
+
+    def __init__(self, total: int, label: str, stream: TextIO | None = None) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        self.enabled = self.stream.isatty()
+        self.total = max(total, 1)
+        self.label = label
+        self.done = 0
+
+    def step(self, text: str) -> None:
+        self.done += 1
+        if not self.enabled:
+            return
+        width = 28
+        filled = int(width * min(self.done, self.total) / self.total)
+        self.stream.write(f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] {text}\x1b[K")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\r\x1b[K")
+            self.stream.flush()
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``fit`` and ``reproduce thesis`` to the hysid app."""
+
+    @app.command("fit")
+    def fit_command(
+        dataset: str = o.DATASET,
+        algo: str = o.ALGO,
+        model: str = o.MODEL,
+        runs: int = o.RUNS,
+        seed: int = o.SEED,
+        weights: Optional[str] = o.WEIGHTS,
+        out: Optional[Path] = o.OUT,
+        as_json: bool = o.JSON,
+        polish: bool = o.POLISH,
+        noise: float = o.NOISE,
+        noise_seed: int = o.NOISE_SEED,
+    ) -> None:
+        """Identify the model's parameters from DATASET in this process (no network)."""
+        target = o.report_dir(out, "fit")
+        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed)
+        progress = ProgressBar(max(runs, 1) * ROWS_PER_RUN, "fitting")
+
+        def show(i: int, row: HistoryRow) -> None:
+            progress.step(f"run {i + 1}/{runs}, iteration {row.iteration}, best {row.best_fitness:.4g}")
+
+        try:
+            result = fit(loops, model, algo=algo, runs=runs, seed=seed, weights=weights, polish=polish, progress=show)
+        finally:
+            progress.close()
+        result.write_report(target)
+        print(jsondoc.dumps(result.to_dict()) if as_json else result.summary())
+
+    reproduce = typer.Typer(help="Regenerate the thesis' published results.", no_args_is_help=True)
+    app.add_typer(reproduce, name="reproduce")
+
+    @reproduce.command("thesis")
+    def reproduce_thesis_command(
+        runs: int = typer.Option(4, "--runs", help="Runs per algorithm, noise level and setting (the thesis: 4)."),
+        out: Optional[Path] = o.OUT,
+        seeds_noise: Optional[str] = typer.Option(None, "--seeds-noise", help="Comma-separated noise seeds, one per run (default 0..RUNS-1)."),
+        seed: int = typer.Option(0, "--seed", help="Optimizer seed of the first run (run r uses SEED + r)."),
+        as_json: bool = typer.Option(False, "--json", help="Print one JSON object (tables and paths) on stdout."),
+    ) -> None:
+        """Section 5.2.1 again: Tables 5.5-5.13 and Figs. 5.2-5.13 next to the thesis' numbers."""
+        noise_seeds = parse_seeds(seeds_noise, runs)
+        target = o.report_dir(out, "reproduce")
+        progress = ProgressBar(len(noise_seeds) * len(tt.NOISE_LEVELS) * len(SETTINGS) * len(tt.ALGOS), "reproducing")
+        try:
+            rep = reproduce_thesis(noise_seeds=noise_seeds, seed=seed, progress=progress.step)
+        finally:
+            progress.close()
+        rep.write_report(target)
+        print(jsondoc.dumps(rep.to_dict()) if as_json else rep.summary())

@@ -1,0 +1,132 @@
+"""The command line's shared options: one definition (flag, default, help) per concept, and the output rules.
+
+Commands take their options from here, so ``--json`` means the same (one JSON
+object on stdout, bound to ``as_json``) and ``--out`` follows one policy
+everywhere (:func:`report_dir`). :data:`FLAGS` maps the Python parameter a
+library error names to the flag the user typed.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from hysid_model.errors import HysidInputError
+from hysid_model.model import PRESETS
+from island.algorithms import ALGORITHMS
+
+FLAGS = {
+    "model": "--model",
+    "algo": "--algo",
+    "algos": "--algos",
+    "runs": "--runs",
+    "seed": "--seed",
+    "weights": "--weights",
+    "noise_pct": "--noise",
+    "noise_seed": "--noise-seed",
+    "noise_seeds": "--seeds-noise",
+    "n_points": "--points",
+    "islands": "--islands",
+    "campaign": "--campaign",
+    "name": "--campaign",
+    "island": "--id",
+    "population": "--population",
+    "initial_population": "--initial",
+    "iterations": "--iterations",
+    "interval": "--interval",
+    "k": "--migrants",
+    "random_k": "--random-k",
+    "min_islands": "--min-islands",
+    "budget": "--budget",
+    "target": "--target",
+    "stall": "--stall",
+    "time_limit_s": "--time-limit",
+    "listen": "--listen",
+    "connect": "--connect",
+    "config_file": "--config",
+    "out": "--out",
+    "db": "--db",
+    "seeds": "--seeds",
+    "thesis_runs": "--thesis-runs",
+    "part": "PART",
+}
+"""Python parameter (as a :class:`HysidInputError` names it) -> command-line flag."""
+
+
+def error_line(exc: HysidInputError) -> str:
+    """A library error in the command line's words: the flag instead of the Python parameter."""
+    if exc.param in FLAGS:
+        return f"{exc.subject(FLAGS[exc.param])}: {exc.detail}"
+    return str(exc)
+
+
+DATASET_HELP = "Dataset directory, loops file, .mat or .lvm directory, or 'synth' (the thesis' Synth set)."
+DATASET = typer.Argument(..., help=DATASET_HELP)
+DATASET_OR_SYNTH = typer.Argument(None, help=DATASET_HELP + " Default: synth.")
+MODEL = typer.Option("thesis", "--model", help="thesis, baseline, or a preset with +effects (see 'hysid models').")
+START_MODEL = typer.Option("baseline", "--model", help=f"Start model: {' or '.join(PRESETS)}.")
+WEIGHTS = typer.Option(None, "--weights", help="thesis or ml (1/sigma^2); default: ml when every loop's noise sigma is known.")
+NOISE = typer.Option(0.0, "--noise", help="Gaussian force noise, % of each loop's peak force (as the thesis' Synth tests).")
+NOISE_SEED = typer.Option(0, "--noise-seed", help="Seed of that noise.")
+POINTS = typer.Option(None, "--points", help="Points per branch when loops are extracted from raw records (default 100; a loops file keeps its own).")
+ALGO = typer.Option("pso", "--algo", help="Optimizer: ga or pso (the thesis' settings, section 5.1).")
+RUNS = typer.Option(1, "--runs", help="Independent runs with seeds SEED..SEED+RUNS-1; the best is reported.")
+SEED = typer.Option(0, "--seed", help="Seed of the first run (island i of a campaign uses SEED + i).")
+POLISH = typer.Option(True, "--polish/--no-polish", help="Refine the best by bounded least squares.")
+OUT = typer.Option(None, "--out", help="Report directory, new or empty (default hysid-out/<command>-<time>).")
+JSON = typer.Option(False, "--json", help="Print one JSON object on stdout instead of the summary.")
+QUIET = typer.Option(False, "--quiet", help="No live progress on stderr.")
+ALGOS = typer.Option("ga,pso", "--algos", help="Comma-separated algorithm mix the islands cycle through (ga, pso).")
+POPULATION = typer.Option(200, "--population", help="GA population / PSO swarm of each island (the thesis: 500).")
+INITIAL = typer.Option(2000, "--initial", help="Initial random population / swarm of each island (the thesis: 6000).")
+ITERATIONS = typer.Option(60, "--iterations", help="Iterations of each island: its own budget (the thesis: 18).")
+TOPOLOGY = typer.Option("ring", "--topology", help="Who takes migrants from whom: ring, full or random.")
+INTERVAL = typer.Option(5, "--interval", help="Migrate every N iterations (0: isolated islands).")
+MIGRANTS = typer.Option(2, "--migrants", help="Best candidates each island sends per migration.")
+RANDOM_K = typer.Option(2, "--random-k", help="Neighbours of each island per migration with --topology random.")
+BUDGET = typer.Option(None, "--budget", help="Stop after this many evaluations over all islands.")
+TARGET = typer.Option(None, "--target", help="Stop once the global best fitness is at or below this.")
+STALL = typer.Option(None, "--stall", help="Stop after this many evaluations without improvement of the global best.")
+TIME_LIMIT = typer.Option(None, "--time-limit", help="Stop after this many seconds.")
+DB = typer.Option(None, "--db", help="Campaign database (SQLite; default OUT/campaign.sqlite).")
+CONFIG = typer.Option(None, "--config", help="Zenoh configuration file (JSON5); authoritative for mode, TLS, auth, ACL, lease.")
+CAMPAIGN = typer.Option("default", "--campaign", help="Campaign name: its key space is hysid/<name>/**.")
+
+
+def report_dir(out: Path | None, kind: str) -> Path:
+    """Where a command writes its report: ``--out`` if new or empty, else a new ``hysid-out/<kind>-<time>``.
+
+    Checked before any work, so that a run never ends in an error after its
+    work is done, and never overwrites an earlier report.
+    """
+    if out is None:
+        stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+        base = Path("hysid-out") / f"{kind}-{stamp}"
+        out, n = base, 1
+        while out.exists():
+            n += 1
+            out = base.with_name(f"{base.name}-{n}")
+        return out
+    if out.exists() and not out.is_dir():
+        raise HysidInputError("exists and is not a directory", param="out", value=out)
+    if out.exists() and any(out.iterdir()):
+        raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param="out", value=out)
+    return out
+
+
+def parse_algos(value: str) -> list[str]:
+    """``--algos ga,pso`` as a list (each checked by the library)."""
+    algos = [a.strip() for a in value.split(",") if a.strip()]
+    if not algos or any(a not in ALGORITHMS for a in algos):
+        raise HysidInputError(f"give a comma-separated list of {', '.join(ALGORITHMS)}", param="algos", value=value)
+    return algos
+
+
+def island_sizes(population: int, initial: int, iterations: int) -> dict[str, dict[str, Any]]:
+    """The per-island sizes of ``--population``, ``--initial``, ``--iterations`` for every algorithm."""
+    if initial < population:
+        raise HysidInputError(f"must be at least --population {population}", param="initial_population", value=initial)
+    return {algo: {"population": population, "initial_population": initial, "iterations": iterations} for algo in ALGORITHMS}

@@ -1,0 +1,10 @@
+"""The thresholds by which a diagnosis accepts an effect (judgment calls, stated in every report)."""
+
+SIGNIFICANCE = 1e-3
+"""Family-wise level of the score tests in one round."""
+BIC_MARGIN = 10.0
+"""BIC difference counted as decisive (Kass and Raftery's 'very strong'), for acceptance and for confusability."""
+MIN_Z = 3.0
+"""|strength| / standard error an accepted effect needs."""
+MIN_SHARE = 0.2
+"""Fraction of the excess chi^2 (chi^2 - dof) an accepted effect must remove."""

@@ -1,0 +1,273 @@
+"""The diagnosis loop: score, name, add, refit, accept, until nothing is left to explain.
+
+From the start model (baseline or thesis) fitted to the loops' harmonics:
+
+1. score every library effect not in the model (:mod:`.scoring`); the ones
+   above the family-wise significance level (Bonferroni over all effects and
+   shapes) are contenders;
+2. refit the model plus each of the best few contenders (and of any contender
+   whose projected signature is nearly parallel to the best one's), from the
+   one-step estimate after a short line search along the strength;
+3. accept the refit with the lowest BIC if it lowers the BIC by at least
+   ``BIC_MARGIN``, its strength is significant (``MIN_Z`` standard errors) and
+   has the physical sign, no parameter is pushed against a bound (:func:`binding`), and it
+   removes at least ``MIN_SHARE`` of the chi^2 above the noise floor; every
+   other acceptable refit within ``BIC_MARGIN`` of it is named as confusable
+   with it (this data set cannot tell them apart);
+4. repeat until no contender is left or none is accepted.
+
+The result is ``adequate`` when the final residual is noise (:mod:`.naming`),
+else ``unexplained`` with a description of what is left.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from hysid.diagnose.fitting import Fit, fit_objective, initial_fit, make_model
+from hysid.diagnose.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.diagnose.metrics import GapMetrics, gap_metrics
+from hysid.diagnose.naming import adequacy, residual_signature
+from hysid.diagnose.scoring import Candidate, score_candidates
+from hysid.report import diagnosis as diagnosis_report
+from hysid.report import text
+from hysid_model.effects import EFFECTS
+from hysid_model.errors import HysidInputError
+from hysid_model.harmonics import HarmonicObjective, Harmonics
+from hysid_model.loops import LoopSet
+from hysid_model.model import PRESETS
+from hysid_model.uncertainty import jacobian_covariance
+
+TRIALS = 4
+"""Contenders refitted per round (plus those parallel to the best)."""
+PARALLEL = 0.9
+"""|cos| between projected signatures above which two contenders are refitted together."""
+LINE_SEARCH = (0.25, 0.5, 1.0, 2.0, 4.0)
+"""Multiples of the one-step estimate tried before polishing."""
+MAX_STEPS = 6
+
+
+@dataclass
+class Step:
+    """One accepted effect."""
+
+    effect: str
+    confusable_with: list[str]
+    score: float
+    before: Fit
+    after: Fit
+    rejected: dict[str, str]
+    """Other contenders of this round and why they were not taken."""
+
+    @property
+    def params(self) -> dict[str, float]:
+        names = [p.name for p in EFFECTS[self.effect]().params]
+        return {n: v for n, v in self.after.params().items() if n in names}
+
+    @property
+    def errors(self) -> dict[str, float]:
+        return {n: v for n, v in self.after.errors().items() if n in self.params}
+
+
+@dataclass
+class Diagnosis:
+    """What :func:`diagnose` found: the start fit, every accepted step, the final fit and its gap to the data."""
+
+    harmonics: Harmonics
+    start: Fit
+    steps: list[Step]
+    final: Fit
+    status: str
+    unexplained: dict | None
+    not_identifiable: dict[str, list[str]]
+    rejected: dict[str, str]
+    """Contenders of the last round and why none was taken."""
+    gap: list[GapMetrics]
+    """The gap between model and data at the start and after every step."""
+    last_scores: list[Candidate] = field(default_factory=list)
+    report: str | None = None
+    """The report written last (:meth:`write_report`)."""
+
+    def fits(self) -> list[tuple[str, Fit]]:
+        """(label, fit) for the start and after every step."""
+        return [("start: " + self.start.spec, self.start)] + [("+ " + s.effect, s.after) for s in self.steps]
+
+    @property
+    def params(self) -> dict[str, float]:
+        """The final model's parameters."""
+        return self.final.params()
+
+    @property
+    def stderr(self) -> dict[str, float]:
+        """The final model's standard errors."""
+        return self.final.errors()
+
+    def summary(self) -> str:
+        """The gap after each step, the status and what cannot be identified, as text."""
+        return text.diagnosis_summary(self)
+
+    def write_report(self, out_dir: str | Path, dataset: str | None = None) -> Path:
+        """``diagnosis.md`` with its figures and ``diagnosis.json`` in ``out_dir``; returns the Markdown path.
+
+        ``dataset`` is how the reader reloads the data (default: the loop set's name).
+        """
+        return diagnosis_report.write_diagnosis_report(self, out_dir, dataset or self.harmonics.loops.name)
+
+    def _repr_markdown_(self) -> str:
+        return diagnosis_report.overview(self)
+
+    def __repr__(self) -> str:
+        return f"<Diagnosis of {self.harmonics.loops.name}: {self.start.spec} -> {self.final.spec}, {self.status}>"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document of ``hysid diagnose --json``."""
+        return {
+            "dataset": self.harmonics.loops.name,
+            "start_model": self.start.spec,
+            "final_model": self.final.spec,
+            "steps": [
+                {
+                    "effect": s.effect,
+                    "confusable_with": s.confusable_with,
+                    "params": s.params,
+                    "stderr": s.errors,
+                    "score": s.score,
+                    "whitened_rms_before": s.before.whitened_rms,
+                    "whitened_rms_after": s.after.whitened_rms,
+                    "delta_bic": s.after.bic - s.before.bic,
+                    "rejected": s.rejected,
+                }
+                for s in self.steps
+            ],
+            "status": self.status,
+            "unexplained_signature": self.unexplained,
+            "not_identifiable": self.not_identifiable,
+            "rejected": self.rejected,
+            "final_params": self.final.params(),
+            "final_stderr": self.final.errors(),
+            "whitened_rms": self.final.whitened_rms,
+            "noise_sigma": "known" if np.all(self.harmonics.sigma_known) else "estimated from the data",
+            "gap": [g.as_dict() for g in self.gap],
+        }
+
+
+def contenders(candidates: list[Candidate]) -> list[Candidate]:
+    """The candidates that pass the round's score test, best first, and the ones to refit."""
+    tests = sum(c.n_shapes for c in candidates)
+    threshold = chi2_dist.isf(SIGNIFICANCE / max(tests, 1), 1)
+    passing = [c for c in candidates if c.physical and c.identifiable and c.score > threshold]
+    if not passing:
+        return []
+    top = passing[0]
+    return [c for i, c in enumerate(passing) if i < TRIALS or abs(float(c.direction @ top.direction)) > PARALLEL]
+
+
+def refit(fit: Fit, harmonics: Harmonics, candidate: Candidate, bounds: dict[str, tuple[float, float]]) -> Fit:
+    """The current model plus ``candidate``, polished from the best two points (one for a model
+    with memory, whose evaluations cost more) of a line search along the one-step estimate of
+    each of its best shapes."""
+    effects = fit.effects + (candidate.effect,)
+    model = make_model(harmonics, fit.start, effects, bounds)
+    objective = HarmonicObjective(harmonics, model)
+    term = EFFECTS[candidate.effect]()
+    i = model.names.index(term.strength)
+    rows = []
+    for shape, one_step in candidate.starts:
+        base = model.from_dict({**{p.name: 0.0 for p in term.params}, **fit.params(), **shape})
+        line = np.repeat(base[None, :], len(LINE_SEARCH), axis=0)
+        line[:, i] = one_step * np.array(LINE_SEARCH)
+        rows.append(line)
+    rows = np.clip(np.concatenate(rows), model.bounds[:, 0], model.bounds[:, 1])
+    order = np.argsort(objective(rows))
+    return fit_objective(objective, fit.start, effects, [rows[j] for j in order[: 1 if model.has_memory else 2]])
+
+
+def binding(fit: Fit, j: int) -> bool:
+    """True if parameter ``j`` sits on a bound that the data push against (the fit wants out of the range).
+
+    One-parameter score test at the bound: the chi^2 gradient 2 J^T e along
+    parameter j, with the others free, gives LM = (J^T e)_j^2 [(J^T J)^-1]_jj;
+    the bound binds if that points outward and exceeds MIN_Z^2. A weakly
+    determined shape that merely wanders onto its bound does not bind.
+    """
+    name = fit.model.names[j]
+    if name not in fit.model.at_bounds(fit.theta):
+        return False
+    lower, upper = fit.model.bounds[j]
+    value = fit.theta[j]
+    gradient = (fit.jacobian.T @ fit.residual)[j]
+    lm = gradient**2 * jacobian_covariance(fit.jacobian)[j, j]
+    outward = gradient > 0 if value - lower <= upper - value else gradient < 0
+    return bool(outward and lm > MIN_Z**2)
+
+
+def judge(before: Fit, after: Fit, effect: str) -> str | None:
+    """Why ``after`` (``before`` plus ``effect``) is not accepted, or None."""
+    delta = after.bic - before.bic
+    if delta > -BIC_MARGIN:
+        return f"BIC changes by only {delta:+.1f}"
+    term = EFFECTS[effect]()
+    names = after.model.names
+    values, errors, bounds = after.theta, after.stderr, after.model.bounds
+    i = names.index(term.strength)
+    if bounds[i, 0] == 0.0 and values[i] <= 0.0:
+        return f"{term.strength} has the unphysical sign"
+    if abs(values[i]) < MIN_Z * errors[i]:
+        return f"{term.strength} = {values[i]:.4g} +- {errors[i]:.2g} is not significant"
+    for p in term.params:
+        if p.name != term.strength and binding(after, names.index(p.name)):
+            return f"{p.name} is pushed against its bound ({values[names.index(p.name)]:.4g}): the effect degenerates here"
+    excess = before.chi2 - before.dof
+    if excess > 0 and before.chi2 - after.chi2 < MIN_SHARE * excess:
+        return f"removes only {100 * (before.chi2 - after.chi2) / excess:.0f}% of the chi^2 above the noise floor"
+    return None
+
+
+def diagnose(loops: LoopSet, model: str = "baseline", *, max_steps: int = MAX_STEPS, cross_validate: bool = True) -> Diagnosis:
+    """Find which library effects the start ``model`` (a preset) misses on ``loops`` (see the module docstring).
+
+    ``cross_validate`` adds the leave-one-frequency-out gap of every step (a refit per frequency).
+    """
+    if model not in PRESETS:
+        raise HysidInputError(f"the start model must be one of {', '.join(PRESETS)}", param="model", value=model)
+    start = model
+    harmonics = Harmonics.from_loops(loops)
+    fit, bounds = initial_fit(harmonics, start)
+    first = fit
+    steps: list[Step] = []
+    while True:
+        candidates = score_candidates(fit, harmonics, bounds)
+        not_identifiable = {c.effect: c.absorbed_by for c in candidates if not c.identifiable}
+        trials = contenders(candidates) if len(steps) < max_steps else []
+        refits = {c.effect: refit(fit, harmonics, c, bounds) for c in trials}
+        verdicts = {e: judge(fit, r, e) for e, r in refits.items()}
+        rejected = {e: v for e, v in verdicts.items() if v is not None}
+        accepted = sorted((r.bic, e) for e, r in refits.items() if verdicts[e] is None)
+        if not accepted:
+            break
+        best_bic, best = accepted[0]
+        confusable = [e for b, e in accepted[1:] if b - best_bic < BIC_MARGIN]
+        others = {e: v for e, v in verdicts.items() if e != best and e not in confusable}
+        reasons = {e: v or f"fits worse than {best} (BIC +{refits[e].bic - best_bic:.1f})" for e, v in others.items()}
+        score = next(c.score for c in trials if c.effect == best)
+        steps.append(Step(effect=best, confusable_with=confusable, score=score, before=fit, after=refits[best], rejected=reasons))
+        fit = refits[best]
+    check = adequacy(fit, harmonics)
+    fits = [first] + [s.after for s in steps]
+    return Diagnosis(
+        harmonics=harmonics,
+        start=first,
+        steps=steps,
+        final=fit,
+        status="adequate" if check.adequate else "unexplained",
+        unexplained=None if check.adequate else residual_signature(fit, harmonics),
+        not_identifiable=not_identifiable,
+        rejected=rejected,
+        gap=[gap_metrics(f, harmonics, cross_validate) for f in fits],
+        last_scores=candidates,
+    )

@@ -1,0 +1,221 @@
+"""The single-node fit: GA or PSO runs on one loop set, a polish, and a result that reports itself.
+
+    result = hysid.fit(loops, model="thesis", algo="pso", runs=2)
+    print(result.summary())
+    result.write_report("out")
+
+One process, no network: each run is the thesis' GA or PSO (section 5.1)
+driven by :func:`island.run.optimize`, then (by default) a least-squares
+polish from its best candidate. :class:`FitResult` gathers the runs of one
+identification (a campaign builds the same object from its islands) and
+derives what a user reads: the best run's parameters with standard errors
+(Cramer-Rao bound for ML weights, sandwich covariance for the thesis weights),
+xi, fn and physical k, c, m at every amplitude (as listed under Table 5.3),
+and the half-power cross-check of the damping (Eq. 2.7, Fig. 6.1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hysid.report import markdown, text
+from hysid_model.errors import HysidInputError
+from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
+from hysid_model.loops import LoopSet
+from hysid_model.modal import AmplitudeResult, derived_table
+from hysid_model.model import Model
+from hysid_model.objective import Objective
+from hysid_model.problem import build_objective
+from hysid_model.uncertainty import covariance, fisher_information
+from island.algorithms import check_algorithm
+from island.run import HistoryRow, RunResult, optimize
+from island.termination import Termination
+
+RunCallback = Callable[[int, HistoryRow], None]
+"""Called with (run index, history row) after every iteration of a run."""
+
+
+@dataclass
+class FitResult:
+    """Everything one identification produced; build it with :meth:`from_runs`."""
+
+    loops: LoopSet
+    model: Model
+    weights: str
+    runs: list[RunResult]
+    settings: dict[str, Any]
+    best: int
+    covariance: np.ndarray
+    stderr_method: str
+    amplitudes: list[AmplitudeResult]
+    half_power: list[HalfPower]
+    quality: dict[str, float | None]
+    report: str | None = None
+    """The report written last (:meth:`write_report`), named in the JSON document."""
+
+    @classmethod
+    def from_runs(cls, objective: Objective, runs: list[RunResult], settings: dict[str, Any]) -> "FitResult":
+        """Pick the best run, and derive standard errors, per-amplitude quantities and the half-power check."""
+        if not runs:
+            raise HysidInputError("a fit result needs at least one run")
+        best = int(np.argmin([r.fitness for r in runs]))
+        theta = runs[best].theta
+        loops, model = objective.loops, objective.model
+        if objective.weights == "ml":
+            cov = np.linalg.pinv(fisher_information(objective, theta))
+            method = "Cramer-Rao bound of the ML weights, noise sigma known"
+        else:
+            cov = covariance(objective, theta)
+            source = "known" if loops.has_sigma else "estimated from the residuals"
+            method = f"sandwich covariance of the thesis-weighted least squares, noise sigma {source}"
+        levels, _ = amplitude_levels(loops.x0)
+        force_amplitude = np.abs(first_harmonic(loops))
+        relative = objective.residuals(theta) / force_amplitude[:, None]
+        quality = {
+            "rms_residual_pct": float(100.0 * np.sqrt(np.mean(relative**2))),
+            "noise_sigma_pct": float(100.0 * np.sqrt(np.mean((loops.sigma / force_amplitude) ** 2))) if loops.has_sigma else None,
+        }
+        return cls(
+            loops=loops,
+            model=model,
+            weights=objective.weights,
+            runs=runs,
+            settings=settings,
+            best=best,
+            covariance=cov,
+            stderr_method=method,
+            amplitudes=derived_table(model, theta, cov, levels),
+            half_power=half_power_by_amplitude(loops),
+            quality=quality,
+        )
+
+    @property
+    def theta(self) -> np.ndarray:
+        return self.runs[self.best].theta
+
+    @property
+    def fitness(self) -> float:
+        return float(self.runs[self.best].fitness)
+
+    @property
+    def evaluations(self) -> int:
+        return int(sum(r.evaluations for r in self.runs))
+
+    @property
+    def params(self) -> dict[str, float]:
+        """The identified parameters by name (free ones; :attr:`Model.fixed` holds the rest)."""
+        return self.model.as_dict(self.theta)
+
+    @property
+    def stderr(self) -> dict[str, float]:
+        """One standard error per parameter (see :attr:`stderr_method`)."""
+        return self.model.as_dict(np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)))
+
+    @property
+    def at_bounds(self) -> list[str]:
+        """Parameters that ended on a bound of the search space (the optimum may lie beyond it)."""
+        return self.model.at_bounds(self.theta)
+
+    def objective(self) -> Objective:
+        """A fresh objective of this fit (same loops, model and weights)."""
+        return Objective(self.loops, self.model, weights=self.weights)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document of ``hysid fit --json``."""
+        names = self.model.names
+        return {
+            "params": self.params,
+            "stderr": self.stderr,
+            "stderr_method": self.stderr_method,
+            "fitness": self.fitness,
+            "evaluations": self.evaluations,
+            "history": self.runs[self.best].history,
+            "units": {p.name: p.unit for p in self.model.parameters},
+            "bounds": {p.name: [p.lower, p.upper] for p in self.model.parameters},
+            "fixed": self.model.fixed,
+            "at_bounds": self.at_bounds,
+            "derived": [a.as_dict() for a in self.amplitudes],
+            "half_power": [
+                {**hp.as_dict(), "xi_fit": a.values["xi"]} for hp, a in zip(self.half_power, self.amplitudes)
+            ],
+            "dataset": {
+                "name": self.loops.name,
+                "loops": self.loops.n_loops,
+                "meq_kg": self.loops.meq_kg,
+                "true_params": self.loops.meta.get("true_params"),
+            },
+            "model": self.model.spec,
+            "weights": self.weights,
+            "settings": self.settings,
+            "best_run": self.best,
+            "quality": self.quality,
+            "runs": [r.as_dict(names) for r in self.runs],
+            "report": self.report,
+        }
+
+    def summary(self) -> str:
+        """What a user reads after a fit (like lmfit's ``fit_report()``): data, model, parameters, amplitudes."""
+        return text.fit_summary(self)
+
+    def write_report(self, out_dir: str | Path) -> Path:
+        """``report.md``, ``result.json`` and the PNG figures in ``out_dir``; returns the report's path."""
+        return markdown.write_fit_report(self, out_dir)
+
+    def _repr_markdown_(self) -> str:
+        return markdown.fit_overview(self)
+
+    def __repr__(self) -> str:
+        return f"<FitResult {self.model.spec} on {self.loops.name}: fitness {self.fitness:.6g}, {self.params}>"
+
+
+def fit(
+    loops: LoopSet,
+    model: str | Model = "thesis",
+    *,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    algo: str = "pso",
+    runs: int = 1,
+    seed: int = 0,
+    weights: str | None = None,
+    polish: bool = True,
+    options: dict[str, Any] | None = None,
+    termination: Termination | None = None,
+    progress: RunCallback | None = None,
+) -> FitResult:
+    """Identify ``model``'s parameters from ``loops``: ``runs`` independent runs (seeds ``seed .. seed+runs-1``); the best is the result.
+
+    ``model`` is a string (``"thesis+coulomb_friction"``) or a :class:`~hysid_model.model.Model`;
+    ``bounds`` (``{"w0": (10, 200)}``) and ``fixed`` (``{"meq": 0.2}``) override the dataset's and
+    the model's; ``options`` are the algorithm's settings (``population``, ``initial_population``,
+    ``iterations``, ...; the thesis' by default); ``termination`` may end runs early;
+    ``progress(run, row)`` is called after every iteration.
+    """
+    check_algorithm(algo)
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise HysidInputError("the number of runs must be at least 1", param="runs", value=runs)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise HysidInputError("seeds must be non-negative integers", param="seed", value=seed)
+    objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed)
+    results = []
+    for i in range(runs):
+        callback = None if progress is None else (lambda row, i=i: progress(i, row))
+        results.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options, termination=termination, callback=callback))
+    settings = {
+        "algo": algo,
+        "runs": runs,
+        "seeds": list(range(seed, seed + runs)),
+        "polish": polish,
+        "weights": objective.weights,
+        "model": objective.model.spec,
+        "options": dict(options or {}),
+        "bounds_from_dataset": sorted(n for n in (loops.meta.get("bounds") or {}) if n in objective.model.names),
+    }
+    if termination is not None:
+        settings["termination"] = termination.as_dict()
+    return FitResult.from_runs(objective, results, settings)

@@ -1,0 +1,151 @@
+"""The diagnosis report: ``diagnosis.md`` with its PNG figures and ``diagnosis.json``.
+
+It shows the gap between model and data shrink step by step (whitened RMS,
+loop NRMSE, energy per cycle, leave-one-frequency-out cross-validation), the
+residual over frequency x amplitude before and after, and loops.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hysid.diagnose.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.report import jsondoc
+from hysid.report.markdown import image, num, table, with_error
+from hysid.report.text import mass_text
+from hysid_model.effects import EFFECTS
+from hysid_model.frf import amplitude_levels
+
+if TYPE_CHECKING:
+    from hysid.diagnose.selection import Diagnosis
+
+
+def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
+    step = diagnosis.steps[i]
+    term = EFFECTS[step.effect]()
+    units = {p.name: p.unit for p in term.params}
+    rows = [[name, with_error(value, step.errors[name]), units[name]] for name, value in step.params.items()]
+    lines = [f"### Step {i + 1}: {step.effect}", "", term.explanation, "", table(["parameter", "value +- std. error", "unit"], rows), ""]
+    lines.append(
+        f"Score {num(step.score, 4)} (chi^2 the effect removes to first order); after refitting, the BIC changes by "
+        f"{num(step.after.bic - step.before.bic, 5)} and the whitened RMS falls from {num(step.before.whitened_rms, 4)} "
+        f"to {num(step.after.whitened_rms, 4)}."
+    )
+    if step.confusable_with:
+        lines += ["", f"**Confusable with** {', '.join(step.confusable_with)}: on this data set they fit within "
+                  f"{BIC_MARGIN:g} BIC of it, so the data cannot tell them apart (e.g. too narrow a band of frequencies or amplitudes)."]
+    if step.rejected:
+        lines += ["", "Other contenders this step: " + "; ".join(f"{e} ({why})" for e, why in step.rejected.items()) + "."]
+    return lines + [""]
+
+
+def _summary(diagnosis: "Diagnosis") -> str:
+    named = [s.effect + (f" (confusable with {', '.join(s.confusable_with)})" if s.confusable_with else "") for s in diagnosis.steps]
+    found = "The start model misses: " + ", ".join(named) + "." if named else "No library effect is missing from the start model."
+    if diagnosis.status == "adequate":
+        return f"{found} The final model {diagnosis.final.spec} leaves only noise (whitened RMS {num(diagnosis.final.whitened_rms, 3)})."
+    return (
+        f"{found} What the final model {diagnosis.final.spec} leaves is still not noise (whitened RMS "
+        f"{num(diagnosis.final.whitened_rms, 3)}), and no effect of the library explains it: "
+        f"{diagnosis.unexplained['description']}."
+    )
+
+
+def gap_rows(diagnosis: "Diagnosis") -> list[list[str]]:
+    fits = diagnosis.fits()
+    return [
+        [label, num(m.whitened_rms, 4), num(m.nrmse_pct, 3), num(m.energy_error_pct, 3), num(m.cv_whitened_rms, 4),
+         "" if i == 0 else num(fits[i][1].bic - fits[i - 1][1].bic, 5)]
+        for i, ((label, _), m) in enumerate(zip(fits, diagnosis.gap))
+    ]
+
+
+GAP_HEADERS = ["model", "whitened RMS", "loop NRMSE %", "energy/cycle error %", "LOFO-CV RMS", "delta BIC"]
+
+
+def overview(diagnosis: "Diagnosis") -> str:
+    """The status and the gap table, as Markdown (a notebook's view of a diagnosis)."""
+    return f"**Status: {diagnosis.status}.** {_summary(diagnosis)}\n\n{table(GAP_HEADERS, gap_rows(diagnosis))}"
+
+
+def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset: str) -> Path:
+    """Write ``diagnosis.md``, its figures and ``diagnosis.json`` into ``out_dir``; returns the Markdown path."""
+    from hysid.report import diagnosis_figures as figures  # matplotlib loads only when a report is drawn
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "diagnosis.md"
+    diagnosis.report = str(path)
+    fits = diagnosis.fits()
+    gap = figures.gap_figure(out / "gap.png", [label for label, _ in fits], diagnosis.gap)
+    maps = figures.residual_map_figure(out / "residual_map.png", diagnosis)
+    loops = figures.loops_figure(out / "loops.png", diagnosis)
+    h = diagnosis.harmonics
+    levels, _ = amplitude_levels(h.loops.x0)
+    mass = mass_text(diagnosis.final.model.fixed.get("meq"))
+    sigma = "known per loop" if np.all(h.sigma_known) else "estimated from the data (second differences along each branch)"
+    lines = [
+        f"# hysid diagnose: {h.loops.name}",
+        "",
+        f"{h.loops.n_loops} loops at {levels.size} amplitude(s) ({', '.join(f'{a * 1e3:.3g}' for a in levels)} mm), "
+        f"{h.loops.freq_hz.min():.4g}-{h.loops.freq_hz.max():.4g} Hz, {h.loops.n_samples} samples per branch; {mass}; "
+        f"force noise {sigma}. Each loop is reduced to its harmonics of orders 0-{int(h.orders().max())} "
+        f"({h.coef.shape[1]} coefficients, in phase and in quadrature with the measured displacement).",
+        "",
+        f"**Status: {diagnosis.status}.** {_summary(diagnosis)}",
+        "",
+        "## The gap, step by step",
+        "",
+        table(GAP_HEADERS, gap_rows(diagnosis)),
+        "",
+        "Whitened RMS: sqrt(chi^2/dof) on the harmonic coefficients, 1 = noise floor. Loop NRMSE: RMS force error over "
+        "peak-to-peak force, mean over loops. Energy: relative RMS error of the loop area pi X0 c1. LOFO-CV: whitened "
+        "RMS of each frequency's loops predicted by a fit without them.",
+        "",
+        image(gap, out, "The gap between model and data after each step"),
+        "",
+        "## Effects named",
+        "",
+    ]
+    for i in range(len(diagnosis.steps)):
+        lines += _effect_section(diagnosis, i)
+    if not diagnosis.steps:
+        lines += ["None.", ""]
+    lines += ["## What is left", ""]
+    if diagnosis.status == "adequate":
+        lines.append("The residual is consistent with the noise: its chi^2 and the chi^2 of every harmonic coefficient are within their noise range.")
+    else:
+        lines.append(f"**Unexplained**: {diagnosis.unexplained['description']}. No effect of the library accounts for it; it is not named.")
+    if diagnosis.rejected:
+        lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in diagnosis.rejected.items()) + "."]
+    for effect, absorbed in diagnosis.not_identifiable.items():
+        lines += ["", f"**{effect} cannot be identified with this setup**: whatever it does, the model already does with "
+                  f"{', '.join(absorbed)} (e.g. a transducer mass while the equivalent mass is fitted)."]
+    lines += [
+        "",
+        image(maps, out, "Residual per loop over frequency x amplitude, before and after"),
+        "",
+        "## Loops",
+        "",
+        image(loops, out, "Measured loops (points), start model (dashed) and final model (solid)"),
+        "",
+        "## Method",
+        "",
+        "Every effect of the library is scored by a Lagrange-multiplier (score) test: its derivative on all harmonic "
+        "coefficients, with whatever the current model can absorb projected out, against the whitened residual "
+        f"(Bonferroni level {SIGNIFICANCE:g}). The best few are refitted; one is accepted when the BIC improves by at "
+        f"least {BIC_MARGIN:g}, its strength is {MIN_Z:g} standard errors from zero with the physical sign, no parameter "
+        f"is pushed against a bound, and it removes at least {100 * MIN_SHARE:.0f}% of the chi^2 above the noise floor. Effects "
+        "fitting within the BIC margin of the accepted one are named as confusable.",
+        "",
+        "## Reproduce",
+        "",
+        f"    hysid diagnose {dataset} --model {diagnosis.start.start} --out {out}",
+        "",
+    ]
+    path.write_text("\n".join(lines))
+    jsondoc.write(out / "diagnosis.json", diagnosis.to_dict())
+    return path

@@ -1,0 +1,226 @@
+"""Markdown building blocks and the fit report (``report.md`` plus its PNG figures and ``result.json``).
+
+A campaign's report is a fit report too (its islands are the runs); the
+diagnosis and the reproduction have theirs in :mod:`hysid.report.diagnosis`
+and :mod:`hysid.report.reproduction`.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Sequence
+
+import numpy as np
+
+from hysid.report import jsondoc
+from hysid.report.text import at_bounds_warning, loops_description, quality_text
+from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
+from hysid_model.modal import DERIVED_UNITS
+
+if TYPE_CHECKING:
+    from hysid.fit import FitResult
+
+MODEL_CURVE_POINTS = 1500
+
+FITNESS_LABEL = {
+    "thesis": "best fitness: weighted MSE (N$^2$)",
+    "ml": r"best fitness: $\sum (r/\sigma)^2$",
+}
+FITNESS_MEANING = {
+    "thesis": "sum over loops of (maxF_all/maxF_j) x mean squared force error of loop j (Appendix A, N^2)",
+    "ml": "chi-square: sum of squared force errors divided by each loop's noise variance (maximum likelihood)",
+}
+
+
+def num(x: float | None, digits: int = 6) -> str:
+    """A number for a table: ``digits`` significant figures, 'n/a' for missing values."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "n/a"
+    return f"{x:.{digits}g}"
+
+
+def with_error(value: float, stderr: float) -> str:
+    """``value +- stderr``; just the value when it is fixed (zero standard error, e.g. a known mass)."""
+    return num(value, 6) if stderr == 0 else f"{num(value, 6)} +- {num(stderr, 2)}"
+
+
+def table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """A GitHub-flavoured Markdown table (first column left-aligned, the others right-aligned)."""
+    out = ["| " + " | ".join(headers) + " |", "|" + "|".join([":--"] + ["--:"] * (len(headers) - 1)) + "|"]
+    out += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(out)
+
+
+def image(path: Path, out_dir: Path, caption: str) -> str:
+    return f"![{caption}]({path.relative_to(out_dir).as_posix()})\n\n*{caption}*"
+
+
+def model_curves(result: "FitResult") -> list[tuple[np.ndarray, np.ndarray]]:
+    """The fitted model's compliance at each amplitude level over the measured band."""
+    loops = result.loops
+    levels, _ = amplitude_levels(loops.x0)
+    f = np.linspace(loops.freq_hz.min(), loops.freq_hz.max(), MODEL_CURVE_POINTS)
+    return [(f, model_compliance(result.model, result.theta, level, f)) for level in levels]
+
+
+def write_figures(result: "FitResult", out_dir: Path) -> dict[str, Path]:
+    from hysid.report import figures  # matplotlib loads only when a report is drawn (fast CLI start for islands)
+
+    loops = result.loops
+    obj = result.objective()
+    predicted = obj.predict(result.theta)[0]
+    algos = sorted({r.algo for r in result.runs})
+    panels = [(a.upper() if len(algos) > 1 else "", [r for r in result.runs if r.algo == a]) for a in algos]
+    return {
+        "convergence": figures.convergence_figure(out_dir / "convergence.png", panels, FITNESS_LABEL[result.weights]),
+        "loops": figures.loops_figure(out_dir / "loops.png", loops, predicted),
+        "residuals": figures.residuals_figure(out_dir / "residuals.png", loops, predicted - obj.y, np.abs(first_harmonic(loops))),
+        "half_power": figures.half_power_figure(
+            out_dir / "half_power.png",
+            loops,
+            compliance(loops),
+            result.half_power,
+            [a.values["xi"] for a in result.amplitudes],
+            model_curves(result),
+        ),
+    }
+
+
+def summary_lines(result: "FitResult") -> list[str]:
+    s = result.settings
+    runs = result.runs
+    best = runs[result.best]
+    algos = "/".join(sorted({r.algo.upper() for r in runs}))
+    polish = "then a least-squares polish" if s.get("polish") else "no polish"
+    return [
+        f"- **Data**: `{result.loops.name}`: {loops_description(result)}.",
+        f"- **Model**: `{result.model.spec}`, parameters {', '.join(result.model.names)}.",
+        f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; "
+        f"{result.weights} loop weights.",
+        f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
+        f"after {result.evaluations:,} evaluations in total.",
+        f"- **Fit quality**: {quality_text(result)}.",
+    ]
+
+
+def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+    true = result.loops.meta.get("true_params") or {}
+    headers = ["parameter", "value", "std. error", "unit", "bounds"]
+    if true:
+        headers += ["true", "error / std. error"]
+    rows = []
+    se = result.stderr
+    for p in result.model.parameters:
+        value = result.params[p.name]
+        row = [f"`{p.name}`", num(value, 7), num(se[p.name], 3), p.unit, f"[{p.lower:g}, {p.upper:g}]"]
+        if true:
+            t = true.get(p.name)
+            ratio = abs(value - t) / se[p.name] if t is not None and se[p.name] > 0 else float("nan")
+            row += [num(t, 7), num(ratio, 3)]
+        rows.append(row)
+    return headers, rows
+
+
+def amplitude_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+    columns = ("fn_hz", "xi", "k", "c", "m")
+    headers = ["X0 (mm)"] + [q if DERIVED_UNITS[q] == "1" else f"{q.split('_')[0]} ({DERIVED_UNITS[q]})" for q in columns]
+    rows = []
+    for a in result.amplitudes:
+        rows.append([num(a.x0 * 1e3, 4)] + [with_error(a.values[q], a.stderr[q]) for q in columns])
+    return headers, rows
+
+
+def half_power_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+    headers = ["X0 (mm)", "loops", "peak (Hz)", "f1 (Hz)", "f2 (Hz)", "xi half-power", "resolution", "xi fit", "difference"]
+    rows = []
+    for hp, a in zip(result.half_power, result.amplitudes):
+        xi_fit = a.values["xi"]
+        if hp.ok:
+            rows.append([
+                num(hp.x0 * 1e3, 4), str(hp.n_loops), num(hp.f_peak_hz, 6), num(hp.f1_hz, 6), num(hp.f2_hz, 6),
+                num(hp.xi, 4), num(hp.resolution, 2), num(xi_fit, 4), f"{num(hp.xi - xi_fit, 2)} ({num(100 * (hp.xi - xi_fit) / xi_fit, 2)} %)",
+            ])
+        else:
+            rows.append([num(hp.x0 * 1e3, 4), str(hp.n_loops), num(hp.f_peak_hz, 6), "n/a", "n/a", f"n/a: {hp.note}", "n/a", num(xi_fit, 4), "n/a"])
+    return headers, rows
+
+
+def run_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+    headers = ["run", "algorithm", "seed", "search fitness", "final fitness", "evaluations", "wall (s)"] + [f"`{n}`" for n in result.model.names]
+    rows = []
+    for i, r in enumerate(result.runs):
+        label = f"**{r.label}** (best)" if i == result.best else r.label
+        rows.append(
+            [label, r.algo.upper(), str(r.seed), num(r.search_fitness, 4), num(r.fitness, 4), f"{r.evaluations:,}", f"{r.wall_s:.2f}"]
+            + [num(v, 7) for v in r.theta]
+        )
+    return headers, rows
+
+
+def fit_overview(result: "FitResult") -> str:
+    """The summary and the parameter and amplitude tables, as Markdown (a notebook's view of a result)."""
+    p_head, p_rows = parameter_rows(result)
+    a_head, a_rows = amplitude_rows(result)
+    warning = at_bounds_warning(result)
+    parts = ["\n".join(summary_lines(result)), table(p_head, p_rows)] + ([f"**{warning}**"] if warning else [])
+    return "\n\n".join(parts + [table(a_head, a_rows)])
+
+
+def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "hysid fit", document: dict[str, Any] | None = None) -> Path:
+    """Write ``report.md``, ``result.json`` and the PNG figures into ``out_dir``; returns the report path.
+
+    Sets ``result.report`` so that the JSON names the report; ``document`` is
+    the JSON to write instead of the fit's own (a campaign's, which holds it).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    figs = write_figures(result, out_dir)
+    report = out_dir / "report.md"
+    result.report = str(report)
+    jsondoc.write(out_dir / "result.json", result.to_dict() if document is None else {**document, "report": str(report)})
+
+    p_head, p_rows = parameter_rows(result)
+    a_head, a_rows = amplitude_rows(result)
+    h_head, h_rows = half_power_rows(result)
+    r_head, r_rows = run_rows(result)
+    parts = [
+        f"# {title}: {result.loops.name}",
+        f"Written {dt.datetime.now().isoformat(timespec='seconds')}; all numbers also in [`result.json`](result.json).",
+        "\n".join(summary_lines(result)),
+        "## Parameters",
+        table(p_head, p_rows),
+        *([f"**{at_bounds_warning(result)}**"] if result.at_bounds else []),
+        f"Standard errors: {result.stderr_method}. "
+        "The model is xi(X0) = xi0 + S_xi X0 (Eq. 4.8), wn(X0) = w0 + S_w X0 (Eq. 4.9) in the force of Eq. 4.10 "
+        "when the model is `thesis`; `hysid models` lists every term.",
+        "## Damping ratio and natural frequency at each amplitude",
+        "As listed under the thesis' Table 5.3: the constant xi and fn = wn/2pi of the 1-DOF oscillator "
+        "(Eq. 4.6) at each excitation amplitude, and the physical stiffness k = m wn^2, damping "
+        "coefficient c = 2 m xi wn and mass m (Eq. 2.4). Uncertainties are one standard error (delta method).",
+        table(a_head, a_rows),
+        "## Half-power cross-check of the damping (Eq. 2.7)",
+        "Independently of the model: the compliance |X0/F1| of every loop (F1 = first harmonic of the measured "
+        "force) gives one frequency response per amplitude; its resonance peak and -3 dB points give "
+        "xi = (w2 - w1) / (2 w0) (Eq. 2.7, Fig. 6.1). The resolution is what the frequency spacing alone "
+        "guarantees; the estimate interpolates between frequencies and is much closer for a 1-DOF response.",
+        table(h_head, h_rows),
+        image(figs["half_power"], out_dir, "Compliance per amplitude: loops (dots) and fitted model (lines); "
+              "(b) the resonance with its peak and -3 dB points"),
+        "## Runs",
+        table(r_head, r_rows),
+        image(figs["convergence"], out_dir, "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "
+              "stars: after the least-squares polish"),
+        "## Model vs trial loops",
+        image(figs["loops"], out_dir, "Trial and model loops; rows: amplitudes, columns: frequencies across the band "
+              "(as Figs. 5.10-5.13)"),
+        "## Residuals",
+        "Residuals that are noise-like and at the noise level mean the model explains the loops; a pattern "
+        "repeated over loops (panel b) points to physics the model is missing.",
+        image(figs["residuals"], out_dir, "(a) RMS residual of each loop; (b) residual vs phase with binned means"),
+        "## Settings",
+        "\n".join(f"- `{key}`: {jsondoc.dumps(value)}" for key, value in result.settings.items()),
+    ]
+    report.write_text("\n\n".join(parts) + "\n")
+    return report

@@ -1,0 +1,201 @@
+"""Every plain-text summary hysid prints: fits, campaigns, diagnoses, loop tables, the reproduction, progress.
+
+The result objects' ``summary()`` methods and the command line both come
+here, so a notebook and a terminal read the same words.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+from hysid import thesis_tables as tt
+from hysid_model.frf import amplitude_levels
+from hysid_model.loops import LoopSet
+
+if TYPE_CHECKING:
+    from coordinator.server import CampaignProgress
+    from hysid.campaign import CampaignResult
+    from hysid.diagnose.selection import Diagnosis
+    from hysid.fit import FitResult
+    from hysid.reproduce import Reproduction
+
+
+def text_table(headers: Sequence[str], rows: Sequence[Sequence[str]], indent: str = "  ") -> str:
+    """Columns padded to their widest cell; the first left-aligned, the others right-aligned."""
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(headers)]
+
+    def line(cells: Sequence[str]) -> str:
+        return indent + "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
+
+    return "\n".join([line(headers)] + [line(r) for r in rows])
+
+
+def mass_text(meq_kg: float | None) -> str:
+    """The equivalent mass as a reader wants it: known (in g below 1 kg, else in kg) or unknown (fitted)."""
+    if meq_kg is None:
+        return "Meq unknown (fitted)"
+    return f"Meq = {meq_kg * 1e3:.4g} g (known)" if meq_kg < 1.0 else f"Meq = {meq_kg:.4g} kg (known)"
+
+
+def loops_description(result: "FitResult") -> str:
+    loops = result.loops
+    levels, _ = amplitude_levels(loops.x0)
+    amps = ", ".join(f"{a * 1e3:.3g}" for a in levels)
+    return (
+        f"{loops.n_loops} loops at {levels.size} amplitude(s) X0 = {amps} mm, "
+        f"{loops.freq_hz.min():g}-{loops.freq_hz.max():g} Hz, {loops.n_samples} samples per branch; "
+        f"{mass_text(result.model.fixed.get('meq'))}"
+    )
+
+
+def quality_text(result: "FitResult") -> str:
+    """RMS residual against the force amplitude, next to the known noise level if there is one."""
+    q = result.quality
+    out = f"RMS residual {q['rms_residual_pct']:.3g} % of each loop's force amplitude |F1|"
+    if q["noise_sigma_pct"] is not None:
+        out += f" (known noise sigma: {q['noise_sigma_pct']:.3g} %)"
+    return out
+
+
+def at_bounds_warning(result: "FitResult") -> str | None:
+    if not result.at_bounds:
+        return None
+    return (
+        f"warning: {', '.join(result.at_bounds)} ended on a bound of the search space, so the optimum may lie "
+        "beyond it and its standard error means little; widen the bounds ([bounds] in dataset.toml)"
+    )
+
+
+def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
+    """What a user reads after ``hysid fit`` (or ``command``): what was fitted, how well, and where the report is."""
+    s = result.settings
+    best = result.runs[result.best]
+    true = result.loops.meta.get("true_params") or {}
+    algo = str(s.get("algo", best.algo)).upper()
+    polish = " + least-squares polish" if s.get("polish") else ""
+    wall = sum(r.wall_s for r in result.runs)
+    lines = [
+        f"{command} {result.loops.name}: {loops_description(result)}",
+        f"model {result.model.spec} ({', '.join(result.model.names)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
+        f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
+        f"fit quality: {quality_text(result)}",
+        "",
+    ]
+    se = result.stderr
+    headers = ["parameter", "value", "std. error", "unit"] + (["true"] if true else [])
+    rows = []
+    for p in result.model.parameters:
+        row = [p.name, f"{result.params[p.name]:.7g}", f"{se[p.name]:.2g}", p.unit]
+        if true:
+            row.append(f"{true[p.name]:.7g}" if p.name in true else "")
+        rows.append(row)
+    lines += [text_table(headers, rows), f"  (standard errors: {result.stderr_method})"]
+    warning = at_bounds_warning(result)
+    if warning:
+        lines.append(f"  {warning}")
+    lines.append("")
+    rows = []
+    for a, hp in zip(result.amplitudes, result.half_power):
+        half = f"{hp.xi:.5f} (grid resolution {hp.resolution:.2g})" if hp.ok else f"n/a ({hp.note})"
+        rows.append([
+            f"{a.x0 * 1e3:.4g}",
+            f"{a.values['fn_hz']:.4f}",
+            f"{a.values['xi']:.5f} +- {a.stderr['xi']:.1g}",
+            half,
+            f"{a.values['k']:.5g}",
+            f"{a.values['c']:.4g}",
+        ])
+    lines += [
+        text_table(["X0 (mm)", "fn (Hz)", "xi (fit)", "xi half-power (Eq. 2.7)", "k (N/m)", "c (N s/m)"], rows),
+        "",
+    ]
+    if result.report:
+        lines.append(f"report: {result.report} (figures and result.json alongside)")
+    return "\n".join(lines)
+
+
+def campaign_summary(result: "CampaignResult") -> str:
+    """The fit summary of a campaign, then why it stopped, its migrations and every island."""
+    fit = result.fit
+    m = result.migrations
+    lines = [
+        fit_summary(fit, "hysid campaign"),
+        f"campaign {fit.settings['campaign']!r}: stopped because {fit.settings['stop_reason']}",
+        f"migrations: {m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
+        f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected",
+    ]
+    for isl in result.islands:
+        lines.append(
+            f"  {isl['island']:<12} {isl['algo'].upper():<4} seed {isl['seed']:<4} {isl['status']:<6} best {isl['best_fitness']:.4g} "
+            f"after {isl['iterations']} iterations, {isl['evaluations']:,} evaluations"
+        )
+    return "\n".join(lines)
+
+
+def campaign_progress_line(p: "CampaignProgress") -> str:
+    """One line of live progress: members, evaluations, global best, migrations, each island's best."""
+    alive = sum(s == "alive" for s in p.members.values())
+    gone = ", ".join(f"{i} {s}" for i, s in sorted(p.members.items()) if s != "alive")
+    islands = "  ".join(f"{i}:{v.best:.3g}@{v.iteration}" for i, v in sorted(p.islands.items()))
+    return (
+        f"[{p.elapsed_s:6.1f} s] members {alive}{f' ({gone})' if gone else ''} | evaluations {p.evaluations:,} | "
+        f"best {p.best:.4g} | migrations {p.migrations}{f' | rejected {p.rejected}' if p.rejected else ''} | {islands}"
+    )
+
+
+def diagnosis_summary(diagnosis: "Diagnosis") -> str:
+    """The gap after each step, the status, and what cannot be identified."""
+    doc = diagnosis.to_dict()
+    lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"]
+    gap = doc["gap"]
+    lines.append(f"  {'start':<40} whitened RMS {gap[0]['whitened_rms']:10.4g}")
+    for step, after in zip(doc["steps"], gap[1:]):
+        also = f" (confusable with {', '.join(step['confusable_with'])})" if step["confusable_with"] else ""
+        lines.append(f"  + {step['effect'] + also:<38} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
+    if doc["status"] == "adequate":
+        lines.append(f"status: adequate, the final model {doc['final_model']} leaves only noise")
+    else:
+        lines.append(f"status: unexplained, {doc['unexplained_signature']['description']}")
+    for effect, absorbed in doc["not_identifiable"].items():
+        lines.append(f"not identifiable here: {effect} (absorbed by {', '.join(absorbed)})")
+    if diagnosis.report:
+        lines.append(f"report: {diagnosis.report}")
+    return "\n".join(lines)
+
+
+def loops_table(loops: LoopSet, rows: list[dict[str, Any]]) -> str:
+    """``hysid loops``: one row per loop (label, frequency, X0, peak force, noise, cycles, phase, distortion)."""
+    columns = [("label", "label", "{}"), ("frequency_hz", "freq_Hz", "{:.6g}"), ("x0_m", "X0_mm", "{:.4f}"),
+               ("peak_force_n", "Fpk_N", "{:.5g}"), ("sigma_n", "sigma_N", "{:.3g}"), ("cycles", "cycles", "{:d}")]
+    if "phase_deg" in rows[0]:
+        columns += [("phase_deg", "phase_deg", "{:.2f}"), ("x_distortion", "x_thd_%", "{:.2f}")]
+    scale = {"x0_m": 1e3, "x_distortion": 100.0}
+    cells = []
+    for row in rows:
+        line = []
+        for key, _, fmt in columns:
+            value = row[key]
+            line.append("-" if value is None else fmt.format(value * scale[key] if key in scale else value))
+        cells.append(line)
+    mass = "unknown (fitted)" if loops.meq_kg is None else f"{loops.meq_kg:g} kg"
+    head = f"{loops.name}: {loops.n_loops} loops, {loops.n_samples} points per branch, meq = {mass}"
+    return head + "\n" + text_table([title for _, title, _ in columns], cells, indent="")
+
+
+def reproduction_summary(rep: "Reproduction") -> str:
+    """Table 5.13 side by side, for the terminal."""
+    lines = [f"Table 5.13, |mean - actual| over {rep.n_runs} run(s) (noise seeds {', '.join(map(str, rep.noise_seeds))}):"]
+    head = f"  {'parameter':<9} {'source':<16}" + "".join(f"{f'{n}% ' + a.upper():>11}" for n in tt.NOISE_LEVELS for a in tt.ALGOS)
+    lines.append(head)
+    for i, p in enumerate(tt.PARAMS):
+        row = f"  {p:<9} {'published':<16}" + "".join(f"{tt.TABLE_5_13[p][(a, n)]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS)
+        lines.append(row)
+        for s in rep.settings:
+            row = f"  {'':<9} {s.label:<16}" + "".join(
+                f"{rep.stats((s.key, a, n))['error'][i]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS
+            )
+            lines.append(row)
+    if rep.report:
+        lines += ["", f"report: {rep.report}"]
+    return "\n".join(lines)

@@ -1,0 +1,73 @@
+"""The identification problem: loops, a model with its bounds and fixed values, loop weights -> an objective.
+
+The one place where a model meets a loop set (``hysid fit``, campaigns and
+their islands, the diagnosis and the benches all come here):
+
+* the model is a string (``"thesis+coulomb_friction"``) or a
+  :class:`~hysid_model.model.Model`;
+* a mass the dataset knows (``LoopSet.meq_kg``, from ``dataset.toml``) becomes
+  the fixed parameter ``meq``, unless the caller fixes or bounds ``meq`` itself
+  (bounds mean: fit it);
+* the dataset's own bounds (``[bounds]`` of ``dataset.toml``, Table 5.4 for the
+  Synth set) replace the model's defaults, and the caller's ``bounds`` and
+  ``fixed`` values come last;
+* the loop weights of Eq. 3.3 are the thesis' (Appendix A) or maximum
+  likelihood (1/sigma^2), by default ML when every loop's noise is known.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
+from hysid_model.model import Model, as_model
+from hysid_model.objective import WEIGHTS, Objective
+from hysid_model.thesis_port import ThesisObjective
+
+OBJECTIVES = ("closed_form", "thesis_port")
+"""``closed_form``: the vectorized objective of Eq. 3.3 (:class:`~hysid_model.objective.Objective`);
+``thesis_port``: the thesis' own loop-by-loop ``erreval`` (the expensive objective of the benchmarks)."""
+
+Bounds = Mapping[str, tuple[float, float]]
+
+
+def resolve_weights(loops: LoopSet, weights: str | None) -> str:
+    """The loop weights to use: as asked, else ML (1/sigma^2) when every loop's sigma is known, else the thesis'."""
+    if weights is None:
+        return "ml" if loops.has_sigma else "thesis"
+    if weights not in WEIGHTS:
+        raise HysidInputError(f"unknown weights; choose one of {', '.join(WEIGHTS)}", param="weights", value=weights)
+    return weights
+
+
+def prepare_model(loops: LoopSet, model: str | Model = "thesis", *, bounds: Bounds | None = None, fixed: Mapping[str, float] | None = None) -> Model:
+    """``model`` ready for ``loops``: the known mass fixed, dataset bounds, then the caller's bounds and fixed values."""
+    m = as_model(model)
+    bounds, fixed = dict(bounds or {}), dict(fixed or {})
+    if loops.meq_kg is not None and "meq" in m.names and "meq" not in bounds and "meq" not in fixed:
+        m = m.fix(meq=loops.meq_kg)
+    given = loops.meta.get("bounds") or {}
+    m = m.with_bounds({name: tuple(b) for name, b in given.items() if name in m.names})
+    return m.with_bounds(bounds).vary(*(n for n in bounds if n in m.fixed and n not in fixed)).fix(fixed)
+
+
+def build_objective(
+    loops: LoopSet,
+    model: str | Model = "thesis",
+    weights: str | None = None,
+    *,
+    bounds: Bounds | None = None,
+    fixed: Mapping[str, float] | None = None,
+    kind: str = "closed_form",
+) -> Objective | ThesisObjective:
+    """The objective of Eq. 3.3 for ``model`` on ``loops`` (see the module docstring)."""
+    if kind not in OBJECTIVES:
+        raise HysidInputError(f"choose one of {', '.join(OBJECTIVES)}", param="objective", value=kind)
+    m = prepare_model(loops, model, bounds=bounds, fixed=fixed)
+    resolved = resolve_weights(loops, weights)
+    if kind == "thesis_port":
+        if m.spec != "thesis" or resolved != "thesis" or "meq" not in m.fixed:
+            raise HysidInputError(f"{loops.name}: the thesis_port objective is the thesis model with the thesis weights and a known mass")
+        return ThesisObjective(loops, m)
+    return Objective(loops, m, weights=resolved)

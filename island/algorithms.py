@@ -1,0 +1,32 @@
+"""The island algorithms by name: the thesis' GA and PSO (section 5.1).
+
+Both take the same size options, so a campaign can give every island the same
+sizes whatever its algorithm: ``initial_population`` (the random start,
+Eq. 3.2), ``population`` (the GA's mu, the PSO's swarm) and ``iterations``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from hysid_model.errors import HysidInputError
+from island.ga import GA
+from island.population import PopulationOptimizer
+from island.pso import PSO
+
+ALGORITHMS: dict[str, type[PopulationOptimizer]] = {"ga": GA, "pso": PSO}
+"""The thesis' optimizers (section 5.1) by name."""
+
+
+def check_algorithm(algo: Any, param: str = "algo") -> str:
+    """``algo`` if it names an algorithm of :data:`ALGORITHMS`, else a :class:`HysidInputError`."""
+    if algo not in ALGORITHMS:
+        raise HysidInputError(f"unknown algorithm; choose one of {', '.join(ALGORITHMS)}", param=param, value=algo)
+    return str(algo)
+
+
+def make_optimizer(algo: str, bounds: np.ndarray, seed: int, options: dict[str, Any] | None = None) -> PopulationOptimizer:
+    """A seeded optimizer of ``algo`` on ``bounds`` with keyword ``options`` (thesis settings where not given)."""
+    return ALGORITHMS[check_algorithm(algo)](bounds, seed, **(options or {}))

@@ -1,0 +1,175 @@
+"""A campaign's configuration: everything an island needs besides the loops.
+
+The coordinator serves it with the loop set in the ``config`` message
+(:mod:`island.protocol`); every island builds the same objective from it
+(:func:`hysid_model.problem.build_objective`): the model string, the loop
+weights, the bounds of every free parameter and the fixed values (the known
+mass), so coordinator and islands search the same space.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
+from hysid_model.model import Model
+from hysid_model.objective import WEIGHTS, Objective
+from hysid_model.problem import OBJECTIVES, build_objective, prepare_model, resolve_weights
+from hysid_model.thesis_port import ThesisObjective
+from island.algorithms import ALGORITHMS, check_algorithm, make_optimizer
+from island.migration import Migration
+from island.protocol import MessageRejected, check_name
+from island.protocol import decode_config as unpack_config
+from island.protocol import encode_config as pack_config
+
+
+def _plain_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+@dataclass
+class CampaignConfig:
+    """Model, weights, bounds, fixed values, algorithms and migration of one campaign.
+
+    ``options[algo]`` are keyword options of that algorithm's constructor (e.g.
+    population size and iterations); ``algos`` is the mix islands are assigned
+    from when they are not told their algorithm.
+    """
+
+    name: str
+    model: str = "thesis"
+    weights: str = "thesis"
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    fixed: dict[str, float] = field(default_factory=dict)
+    algos: list[str] = field(default_factory=lambda: ["ga", "pso"])
+    options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    migration: Migration = field(default_factory=Migration)
+    seed: int = 0
+    objective_kind: str = "closed_form"
+    min_islands: int = 1
+    """Islands wait (up to :data:`island.node.START_TIMEOUT_S`) until this many are members before
+    they start, so that islands launched together also search together."""
+
+    def __post_init__(self) -> None:
+        check_name("campaign", self.name)
+        if self.weights not in WEIGHTS:
+            raise HysidInputError(f"must be one of {', '.join(WEIGHTS)}", param="weights", value=self.weights)
+        if not self.algos:
+            raise HysidInputError(f"give a non-empty list of {', '.join(ALGORITHMS)}", param="algos", value=self.algos)
+        for algo in self.algos:
+            check_algorithm(algo, "algos")
+        unknown = sorted(set(self.options) - set(ALGORITHMS))
+        if unknown:
+            raise HysidInputError(f"options given for unknown algorithm(s) {', '.join(map(str, unknown))}")
+        for algo, opts in self.options.items():
+            if not isinstance(opts, dict) or not all(isinstance(k, str) and isinstance(v, (int, float, str, bool)) for k, v in opts.items()):
+                raise HysidInputError(f"{algo} options must map names to numbers, strings or booleans")
+        for algo in self.algos:  # every island's settings are checked here, before any island starts
+            make_optimizer(algo, np.array([[0.0, 1.0]]), 0, self.options.get(algo))
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise HysidInputError("must be an integer >= 0", param="seed", value=self.seed)
+        try:
+            self.bounds = {str(k): (float(v[0]), float(v[1])) for k, v in self.bounds.items()}
+        except (TypeError, ValueError, IndexError, KeyError):
+            raise HysidInputError("bounds must map parameter names to (lower, upper)", param="bounds", value=self.bounds) from None
+        if not all(_plain_number(v) for v in self.fixed.values()):
+            raise HysidInputError("fixed values must be numbers", param="fixed", value=self.fixed)
+        self.fixed = {str(k): float(v) for k, v in self.fixed.items()}
+        if isinstance(self.min_islands, bool) or not isinstance(self.min_islands, int) or self.min_islands < 1:
+            raise HysidInputError("must be an integer >= 1", param="min_islands", value=self.min_islands)
+        if self.objective_kind not in OBJECTIVES:
+            raise HysidInputError(f"must be one of {', '.join(OBJECTIVES)}", param="objective", value=self.objective_kind)
+        if self.objective_kind == "thesis_port" and (self.model != "thesis" or self.weights != "thesis"):
+            raise HysidInputError("the thesis_port objective is the thesis model with the thesis weights only")
+
+    @classmethod
+    def create(
+        cls,
+        loops: LoopSet,
+        *,
+        name: str,
+        model: str | Model = "thesis",
+        weights: str | None = None,
+        bounds: Mapping[str, tuple[float, float]] | None = None,
+        fixed: Mapping[str, float] | None = None,
+        algos: list[str] | None = None,
+        options: dict[str, dict[str, Any]] | None = None,
+        migration: Migration | None = None,
+        seed: int = 0,
+        min_islands: int = 1,
+        objective_kind: str = "closed_form",
+    ) -> "CampaignConfig":
+        """The configuration of a campaign on ``loops``: the bounds and fixed values ``hysid fit`` would use."""
+        m = prepare_model(loops, model, bounds=bounds, fixed=fixed)
+        return cls(
+            name=name,
+            model=m.spec,
+            weights=resolve_weights(loops, weights),
+            bounds={p.name: (p.lower, p.upper) for p in m.parameters},
+            fixed=m.fixed,
+            algos=list(algos or ["ga", "pso"]),
+            options=dict(options or {}),
+            migration=migration or Migration(),
+            seed=seed,
+            min_islands=min_islands,
+            objective_kind=objective_kind,
+        )
+
+    def objective(self, loops: LoopSet) -> Objective | ThesisObjective:
+        """The campaign objective (Eq. 3.3 with the configured weights) on ``loops``."""
+        return build_objective(loops, self.model, weights=self.weights, bounds=self.bounds, fixed=self.fixed, kind=self.objective_kind)
+
+    def algo_for(self, seed: int) -> str:
+        """The algorithm of an island that was not told one: the mix, cycled by seed."""
+        return self.algos[seed % len(self.algos)]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "model": self.model,
+            "weights": self.weights,
+            "bounds": {k: list(v) for k, v in self.bounds.items()},
+            "fixed": dict(self.fixed),
+            "algos": list(self.algos),
+            "options": {k: dict(v) for k, v in self.options.items()},
+            "migration": self.migration.as_dict(),
+            "seed": self.seed,
+            "objective": self.objective_kind,
+            "min_islands": self.min_islands,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "CampaignConfig":
+        try:
+            bounds = {k: (v[0], v[1]) for k, v in d["bounds"].items()}
+            return cls(
+                name=d["name"], model=d["model"], weights=d["weights"], bounds=bounds, fixed=dict(d["fixed"]),
+                algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"],
+                objective_kind=d["objective"], min_islands=d["min_islands"],
+            )
+        except HysidInputError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise HysidInputError(f"campaign configuration is malformed ({type(exc).__name__}: {exc})") from None
+
+
+def encode_config(config: CampaignConfig, loops: LoopSet) -> bytes:
+    """The ``config`` message of a campaign."""
+    return pack_config(config.name, config.as_dict(), loops)
+
+
+def decode_config(data: bytes, campaign: str) -> tuple[CampaignConfig, LoopSet]:
+    """A ``config`` message as configuration and loop set; anything invalid is a :class:`MessageRejected`."""
+    settings, loops = unpack_config(data, campaign)
+    try:
+        config = CampaignConfig.from_dict(settings)
+    except HysidInputError as exc:
+        raise MessageRejected("schema", f"configuration invalid: {exc}") from None
+    if config.name != campaign:
+        raise MessageRejected("campaign", f"configuration names campaign {config.name!r}")
+    return config, loops

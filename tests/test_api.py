@@ -1,0 +1,126 @@
+"""The Python front door (``import hysid``): load, fit, diagnose, campaign, result objects, models as data,
+errors in Python's words, and the one-way flow between the packages."""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hysid
+from hysid_model.objective import Objective
+from hysid_model.synth import MEQ_KG, TRUE_PARAMS
+from support import GA_SMALL as SMALL
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def loops():
+    return hysid.load("synth", noise_pct=5.0, noise_seed=2)
+
+
+def test_fit_returns_a_result_that_reports_itself(loops, tmp_path, capsys):
+    result = hysid.fit(loops, "thesis", bounds={"w0": (150.0, 250.0)}, algo="ga", seed=1, options=SMALL)
+    assert list(result.params) == ["xi0", "S_xi", "w0", "S_w"] and list(result.stderr) == list(result.params)
+    for name, truth in TRUE_PARAMS.items():  # 5 % noise: within 5 standard errors of the truth
+        assert abs(result.params[name] - truth) < 5 * result.stderr[name], name
+    assert result.model.bounds[2].tolist() == [150.0, 250.0] and result.model.fixed == {"meq": MEQ_KG}
+    doc = json.loads(json.dumps(result.to_dict()))
+    assert doc["params"] == result.params and doc["fixed"] == {"meq": MEQ_KG}
+    text = result.summary()
+    assert "parameter" in text and "w0" in text and "Meq = 40 g (known)" in text
+    path = result.write_report(tmp_path / "r")
+    assert path == tmp_path / "r" / "report.md" and path.is_file() and result.report == str(path)
+    markdown = result._repr_markdown_()
+    assert "| `w0` |" in markdown and "X0 (mm)" in markdown
+    assert capsys.readouterr() == ("", "")  # library code never prints
+
+
+def test_models_compose_and_a_known_value_is_one_fixed_parameter(loops):
+    model = hysid.models.thesis + hysid.effects.coulomb_friction
+    assert model.spec == "thesis+coulomb_friction" and model.names[-1] == "F_d"
+    assert hysid.models.thesis.spec == "thesis"  # presets never change in place
+    fixed = hysid.fit(loops, "baseline", fixed={"meq": 0.05}, algo="ga", options=SMALL, polish=False)
+    assert fixed.model.fixed == {"meq": 0.05} and "meq" not in fixed.params
+    fitted = hysid.fit(loops, "baseline", bounds={"meq": (0.01, 0.1)}, algo="ga", options=SMALL, polish=False)
+    assert "meq" in fitted.params and fitted.model.fixed == {}
+    unknown = hysid.fit(loops.with_meq(None), hysid.models.baseline, algo="ga", options=SMALL, polish=False)
+    assert "meq" in unknown.params
+
+
+def test_diagnosis_and_campaign_report_themselves_like_a_fit(loops, tmp_path, capsys):
+    subset = loops.subset(np.arange(0, loops.n_loops, 4))
+    diagnosis = hysid.diagnose(subset, "baseline", cross_validate=False)
+    assert [s.effect for s in diagnosis.steps][:1] == ["amplitude_dependent_frequency"]
+    assert set(diagnosis.params) == set(diagnosis.stderr) and "status" in diagnosis.to_dict()
+    assert diagnosis.write_report(tmp_path / "d") == tmp_path / "d" / "diagnosis.md"
+    assert "whitened RMS" in diagnosis.summary() and "**Status:" in diagnosis._repr_markdown_()
+    sizes = {"population": 20, "initial_population": 40, "iterations": 10}
+    campaign = hysid.campaign(subset, islands=2, single_node=True, options={"ga": sizes, "pso": sizes}, migration=hysid.Migration(interval=5))
+    doc = campaign.to_dict()
+    assert [i["island"] for i in doc["islands"]] == ["ga-0", "pso-1"] and doc["params"] == campaign.params
+    assert campaign.write_report(tmp_path / "c").read_text().startswith("# hysid campaign:")
+    assert "stopped because every island finished" in campaign.summary() and "| `w0` |" in campaign._repr_markdown_()
+    assert capsys.readouterr() == ("", "")
+
+
+@pytest.mark.parametrize(
+    "call, words",
+    [
+        (lambda lp: hysid.fit(lp, runs=0), "runs=0: "),
+        (lambda lp: hysid.fit(lp, algo="de"), "algo='de': "),
+        (lambda lp: hysid.fit(lp, weights="l2"), "weights='l2': "),
+        (lambda lp: hysid.fit(lp, "thesis+warp_drive"), "unknown effect 'warp_drive'"),
+        (lambda lp: hysid.fit(lp, bounds={"omega": (1.0, 2.0)}), "unknown parameter 'omega'"),
+        (lambda lp: hysid.diagnose(lp, "quadratic"), "model='quadratic': "),
+        (lambda lp: hysid.campaign(lp, islands=0), "islands=0: "),
+        (lambda lp: hysid.campaign(lp, options={"ga": {"population": 0}}), "population"),
+        (lambda lp: hysid.load("synth", n_points=1), "n_points=1: "),
+        (lambda lp: hysid.load("synth", noise_pct=-5), "noise_pct=-5: "),
+        (lambda lp: Objective(lp, hysid.models.thesis)(np.zeros((1, 2))), "expected 5 parameter values"),
+    ],
+)
+def test_library_errors_name_python_parameters_not_flags(loops, call, words):
+    with pytest.raises(hysid.HysidInputError) as info:
+        call(loops)
+    message = str(info.value)
+    assert words in message and "--" not in message and "\n" not in message
+
+
+def test_the_example_script_runs(tmp_path):
+    done = subprocess.run([sys.executable, str(ROOT / "examples" / "quickstart.py"), "synth", str(tmp_path)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "status: adequate" in done.stdout and "stopped because every island finished" in done.stdout
+    assert (tmp_path / "fit" / "report.md").is_file() and (tmp_path / "campaign" / "report.md").is_file()
+
+
+def imports_of(package: str) -> dict[str, set[str]]:
+    """Each module of ``package`` and the top-level packages (and hysid modules) it imports."""
+    out = {}
+    for path in (ROOT / package).rglob("*.py"):
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                found.add(node.module)
+            elif isinstance(node, ast.Import):
+                found.update(alias.name for alias in node.names)
+        out[str(path.relative_to(ROOT))] = found
+    return out
+
+
+def test_data_flows_one_way_between_the_packages():
+    """files -> loops -> objective (hysid_model) -> optimizer, island (island) -> coordinator -> report (hysid)."""
+    above = {"hysid_model": ("island", "coordinator", "hysid"), "island": ("coordinator", "hysid"), "coordinator": ("hysid",)}
+    for package, forbidden in above.items():
+        for module, imported in imports_of(package).items():
+            bad = sorted(m for m in imported if m.split(".")[0] in forbidden)
+            assert not bad, f"{module} imports {bad}"
+    wire = imports_of("island")["island/protocol.py"]
+    assert {m for m in wire if m.split(".")[0] in ("hysid_model", "island")} == {"hysid_model.errors", "hysid_model.loops"}
