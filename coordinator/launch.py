@@ -25,10 +25,13 @@ from typing import TextIO
 from coordinator.links import MemoryLink, ZenohLink
 from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
-from island.node import IslandNode, MemoryBus
+from island.node import IslandNode, MemoryBus, MemoryTransport
+from island.protocol import MAX_MEMBERS
 from island.session import open_session, session_config
 
 ISLAND_EXIT_WAIT_S = 15.0
+MEMORY_WAIT_S = 5.0
+"""How long an island thread waits for room in the coordinator's inbox before its message is dropped."""
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,8 @@ def island_specs(n: int, algos: list[str], seed: int) -> list[IslandSpec]:
     """``n`` islands cycling through ``algos``, seeds ``seed .. seed+n-1``."""
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise HysidInputError("a campaign needs at least one island", param="islands", value=n)
+    if n > MAX_MEMBERS:
+        raise HysidInputError(f"a campaign admits at most {MAX_MEMBERS} islands", param="islands", value=n)
     return [IslandSpec(f"{algos[i % len(algos)]}-{i}", algos[i % len(algos)], seed + i) for i in range(n)]
 
 
@@ -53,15 +58,17 @@ def free_port() -> int:
 
 
 def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progress: Callable[[CampaignProgress], None] | None = None) -> str:
-    """Every island as a thread of this process; returns the stop reason."""
+    """Every island as a thread of this process, admitted by the coordinator; returns the stop reason."""
     stop = threading.Event()
-    inbox = coordinator.inbox
-    bus = MemoryBus(coordinator.name, [s.id for s in specs], lambda key, data: inbox.put(("msg", key, data)), stop)
+    bus = MemoryBus(
+        coordinator.name, [s.id for s in specs], lambda key, data: coordinator.receive(key, data, wait_s=MEMORY_WAIT_S), stop,
+        admit=lambda island, algo, seed: coordinator.admit(island, algo, seed),
+    )
     nodes = [IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops)) for s in specs]
+    transports = [bus.transport(node.island, node.algo, node.seed) for node in nodes]
     errors: list[BaseException] = []
 
-    def work(node: IslandNode) -> None:
-        transport = bus.transport(node.island)
+    def work(node: IslandNode, transport: MemoryTransport) -> None:
         try:
             node.run(transport)
         except BaseException as exc:  # re-raised in the main thread below
@@ -69,11 +76,11 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
             stop.set()
         finally:
             transport.close()
-            inbox.put(("member", node.island, False))
+            coordinator.member(node.island, False, wait_s=None)
 
     for node in nodes:
-        inbox.put(("member", node.island, True))
-    threads = [threading.Thread(target=work, args=(node,), name=f"island-{node.island}", daemon=True) for node in nodes]
+        coordinator.member(node.island, True, wait_s=None)
+    threads = [threading.Thread(target=work, args=pair, name=f"island-{pair[0].island}", daemon=True) for pair in zip(nodes, transports)]
     for t in threads:
         t.start()
     try:

@@ -16,22 +16,30 @@ from island.node import key_prefix
 
 
 class ZenohLink:
-    """The coordinator's Zenoh entities under ``hysid/<campaign>/``: queryables ``config`` and
-    ``best``, subscribers to ``history/*`` and ``migrants/*``, the members' liveliness
-    tokens, publications on ``control`` and ``best``."""
+    """The coordinator's Zenoh entities under ``hysid/<campaign>/``: queryables ``config``,
+    ``best`` and ``join/*``, subscribers to ``history/*`` and ``migrants/*``, the members'
+    liveliness tokens, publications on ``control`` and ``best``.
+
+    The callbacks only queue what arrives (:meth:`Coordinator.receive` and its
+    siblings, bounded, with back-pressure); the coordinator's thread handles it.
+    """
 
     def __init__(self, session: zenoh.Session, coordinator: Coordinator) -> None:
         self.session = session
         self.coordinator = coordinator
         prefix = key_prefix(coordinator.name)
         self.prefix = prefix
-        inbox = coordinator.inbox
 
         def on_sample(sample: zenoh.Sample) -> None:
-            inbox.put(("msg", str(sample.key_expr), sample.payload.to_bytes()))
+            coordinator.receive(str(sample.key_expr), sample.payload.to_bytes())
 
         def on_member(sample: zenoh.Sample) -> None:
-            inbox.put(("member", str(sample.key_expr).rsplit("/", 1)[-1], sample.kind == zenoh.SampleKind.PUT))
+            coordinator.member(str(sample.key_expr).rsplit("/", 1)[-1], sample.kind == zenoh.SampleKind.PUT)
+
+        def on_join(query: zenoh.Query) -> None:
+            key = query.key_expr
+            payload = b"" if query.payload is None else query.payload.to_bytes()
+            coordinator.join_request(str(key).rsplit("/", 1)[-1], payload, lambda answer: query.reply(key, answer))
 
         def on_config(query: zenoh.Query) -> None:
             query.reply(query.key_expr, coordinator.config_message)
@@ -46,23 +54,24 @@ class ZenohLink:
         self._entities = [
             session.declare_queryable(f"{prefix}/config", on_config),
             session.declare_queryable(f"{prefix}/best", on_best),
+            session.declare_queryable(f"{prefix}/join/*", on_join),
             session.declare_subscriber(f"{prefix}/history/*", on_sample),
             session.declare_subscriber(f"{prefix}/migrants/*", on_sample),
             session.liveliness().declare_subscriber(f"{prefix}/members/*", on_member, history=True),
         ]
 
-    def announce_stop(self, message: bytes) -> None:
+    def publish_control(self, message: bytes, stop: bool) -> None:
         self._control.put(message)
 
     def publish_best(self, message: bytes) -> None:
         self._best.put(message)
 
     def request_history(self, island: str, run: str, since: int) -> None:
-        inbox = self.coordinator.inbox
+        coordinator = self.coordinator
 
         def on_reply(reply: zenoh.Reply) -> None:
             if reply.ok is not None:
-                inbox.put(("msg", str(reply.ok.key_expr), reply.ok.payload.to_bytes()))
+                coordinator.receive(str(reply.ok.key_expr), reply.ok.payload.to_bytes())
 
         self.session.get(f"{self.prefix}/history/{island}?run={run};since={since}", on_reply, timeout=5.0)
 
@@ -77,8 +86,10 @@ class MemoryLink:
     def __init__(self, stop: threading.Event) -> None:
         self.stop = stop
 
-    def announce_stop(self, message: bytes) -> None:
-        self.stop.set()
+    def publish_control(self, message: bytes, stop: bool) -> None:
+        """In one process the islands are the bus' members; only the stop order matters."""
+        if stop:
+            self.stop.set()
 
     def publish_best(self, message: bytes) -> None:
         """Islands in one process are all running from the start: nobody joins late."""

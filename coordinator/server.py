@@ -1,53 +1,97 @@
-"""The campaign coordinator: serves the loop set, tracks islands, records everything, decides when to stop.
+"""The campaign coordinator: admits islands, records everything, decides when to stop.
 
-All incoming traffic (island histories and migrants, membership changes)
-lands in one queue and is handled by one thread, which owns the SQLite store
-(:mod:`coordinator.store`) and commits after every batch. The coordinator
+All incoming traffic (join requests, island histories and migrants,
+membership changes) lands in one bounded, fair inbox (:mod:`coordinator.inbox`)
+and is handled by one thread, which owns the SQLite store
+(:mod:`coordinator.store`). The coordinator
 
 * serves ``config`` (campaign configuration + loop set) and ``best``;
+* admits islands (the join handshake): each island run gets a run id and a key,
+  stored before the island gets them; only an island that joined may speak:
+  its history and migrants must carry its run's tag, a replayed message is
+  dropped, and counters it could not have reached (more evaluations than its
+  algorithm, its iterations and the migrants it may take allow) are rejected.
+  A liveliness token of an island that never joined makes nobody a member;
 * records joins, graceful leaves (a final history, then the token goes) and
   losses (the token goes without a final history: crash, kill, or a frozen
-  process whose Zenoh lease expired);
+  process whose Zenoh lease expired; or a joined island whose token never
+  shows);
 * stores every history row and migrant message, and every rejected message
-  with its reason;
-* keeps the global best, **re-evaluating** any candidate that claims to beat
-  it (a claimed fitness is never trusted) and publishes it for late joiners;
-* after a restart (``--resume``) asks every live island for the history rows
-  it missed;
+  with its reason (a flood as counted summaries);
+* keeps the global best, **re-evaluating** every candidate it receives (a
+  claimed fitness is never trusted, neither to take nor to skip one) and
+  publishes it for late joiners;
+* commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
+  whatever the load, and after each commit publishes the sealed ``control``
+  message: the roster, how far each island's history is committed (an island
+  waits for that before it leaves) and, at the end, the stop order;
+* after a restart (``--resume``) knows every run that joined and asks every
+  live island for the history rows it missed;
 * stops by the rules of :class:`island.termination.Termination` (a total
-  evaluation budget, a target fitness, a stall, a time limit) or when every
-  island has finished; then re-evaluates every island's best and polishes the
+  evaluation budget, a target fitness, a stall, a time limit), when every
+  island has finished, or when no island has been alive for
+  :data:`ORPHAN_S`; then re-evaluates every island's best and polishes the
   global best (section 3.1's calculus-based refinement):
   :meth:`Coordinator.outcome` is the raw material of the report that
-  :mod:`hysid.campaign` builds, the same as ``hysid fit``'s.
+  :mod:`hysid.campaign` builds, the same as ``hysid fit``'s. A database that
+  cannot be written stops the campaign cleanly (:class:`StoreError`): the
+  islands are told to stop and the campaign is marked ``interrupted``.
 
 :class:`coordinator.links.ZenohLink` wires a coordinator to a Zenoh session;
-single-node campaigns feed the same queue from island threads
+single-node campaigns feed the same inbox from island threads
 (:mod:`coordinator.launch`).
 """
 
 from __future__ import annotations
 
-import queue
+import secrets
+import sqlite3
 import time
+from collections import Counter, OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 import numpy as np
 
-from coordinator.store import IslandRecord, Store, StoredBest
+from coordinator.inbox import Inbox
+from coordinator.store import IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.objective import Objective
+from island.algorithms import ALGORITHMS, make_optimizer
 from island.config import CampaignConfig, decode_config, encode_config
 from island.node import key_prefix
-from island.protocol import NAME_PATTERN, Best, History, MessageRejected, decode_history, decode_migrants, encode_best, encode_stop
+from island.population import PopulationOptimizer
+from island.protocol import (
+    KEY_BYTES,
+    MAX_MEMBERS,
+    NAME_PATTERN,
+    Best,
+    Control,
+    Credentials,
+    History,
+    MemberState,
+    MessageRejected,
+    Migrants,
+    ReplayGuard,
+    check_replay,
+    decode_history,
+    decode_join,
+    decode_migrants,
+    encode_best,
+    encode_control,
+    encode_joined,
+)
 from island.run import RunResult, polish_run
 from island.termination import Termination
 
 LEAVE_GRACE_S = 0.3
 """After a token disappears, how long a final history may still arrive to count as a graceful leave."""
+TOKEN_WAIT_S = 10.0
+"""A joined island whose liveliness token has not shown within this is lost."""
+ORPHAN_S = 30.0
+"""Once islands have joined, a campaign with none alive for this long ends."""
 STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left", "lost": "lost"}
 """A member's status after each recorded membership event."""
 STOP_GRACE_S = 10.0
@@ -55,6 +99,18 @@ STOP_GRACE_S = 10.0
 BACKFILL_EVERY_S = 2.0
 BACKFILL_ATTEMPTS = 5
 """How often, and how many times without progress, to ask an island again for history rows still missing."""
+COMMIT_EVERY_S = 0.5
+COMMIT_ROWS = 20_000
+"""The coordinator commits at least this often, and after this many history rows: what a kill can lose."""
+PASS_S = 0.2
+"""Longest stretch of message handling between two checks of the stop rules and progress."""
+CONTROL_EVERY_S = 1.0
+"""The control message goes out after commits that changed something, and at least this often."""
+REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
+"""Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
+FITNESS_TOLERANCE = 1e-6
+"""Relative slack when a claimed best fitness is compared with the coordinator's re-evaluation."""
+EVALUATED_CACHE = 4096
 
 
 @dataclass
@@ -73,7 +129,8 @@ class CampaignOutcome:
 class Link(Protocol):
     """What the coordinator sends out (Zenoh publications, or in-process for single-node campaigns)."""
 
-    def announce_stop(self, message: bytes) -> None: ...
+    def publish_control(self, message: bytes, stop: bool) -> None:
+        """The sealed roster and stop order (``stop``: it carries the stop order)."""
 
     def publish_best(self, message: bytes) -> None: ...
 
@@ -84,9 +141,23 @@ class Link(Protocol):
 @dataclass
 class Member:
     status: str = "alive"
-    """alive, left (said goodbye), lost (vanished: crash, kill, lease expired)"""
+    """alive, left (said goodbye), lost (vanished: crash, kill, lease expired, token never shown)"""
     run: str = ""
     gone_at: float | None = None
+    token: bool = False
+    """Its liveliness token was seen (since it joined or came back)."""
+    joined_at: float = 0.0
+    nonce: bytes = b""
+    """The join request that admitted this run (a repeated request gets the same credentials)."""
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """A run that joined: its key and what it said it runs."""
+
+    key: bytes
+    algo: str
+    seed: int
 
 
 @dataclass
@@ -112,6 +183,21 @@ class CampaignProgress:
     rejected: int
 
 
+class TokenBucket:
+    def __init__(self, rate: float, burst: int) -> None:
+        self.rate, self.burst = rate, burst
+        self.level, self.at = float(burst), time.monotonic()
+
+    def take(self) -> bool:
+        now = time.monotonic()
+        self.level = min(self.burst, self.level + (now - self.at) * self.rate)
+        self.at = now
+        if self.level >= 1.0:
+            self.level -= 1.0
+            return True
+        return False
+
+
 class Coordinator:
     """One campaign's coordinator state machine (see the module docstring)."""
 
@@ -121,6 +207,7 @@ class Coordinator:
         self.store = store
         self.config = config
         self.name = config.name
+        self.prefix = key_prefix(config.name)
         self.loops = loops
         self.objective = config.objective(loops)
         self.termination = termination or Termination()
@@ -129,8 +216,19 @@ class Coordinator:
             store.create_campaign(self.name, dataset, self.config_message)
         else:
             store.set_status(self.name, "running")
-        self.inbox: queue.Queue[tuple[Any, ...]] = queue.Queue()
+        self.resumed = resume
+        self.campaign_key = store.campaign_key(self.name, secrets.token_bytes(KEY_BYTES))
+        store.commit()
+        self.run_id = secrets.token_hex(6)
+        """This coordinator process, as the sender run of its control messages."""
+        self.inbox = Inbox()
         self.members: dict[str, Member] = {}
+        self.runs: dict[tuple[str, str], RunInfo] = {}
+        self.current: dict[str, str] = {}
+        """Each island's latest run."""
+        for island, run, key, algo, seed in store.runs(self.name):
+            self.runs[(island, run)] = RunInfo(key, algo, seed)
+            self.current[island] = run
         self.islands: dict[tuple[str, str], IslandView] = {}
         self.run_evaluations: dict[tuple[str, str], int] = {}
         for rec in store.islands(self.name):
@@ -144,6 +242,8 @@ class Coordinator:
         self.stop_reason: str | None = None
         self.full_at: float | None = None
         """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
+        self.idle_since: float | None = self.started if self.runs else None
+        """Since when no island has been alive, once some joined (None while one is)."""
         self.best_trace: list[tuple[float, float, int, np.ndarray]] = []
         """``(time.monotonic(), fitness, total evaluations, x)`` at every improvement of the global best."""
         self.member_events = 0
@@ -153,6 +253,16 @@ class Coordinator:
         self.last_stored: dict[tuple[str, str], int] = {}
         self._backfill: dict[tuple[str, str], tuple[float, int, int]] = {}
         """Per island run: when rows were last asked for, from which iteration, how often without progress."""
+        self._replays = ReplayGuard()
+        self._optimizers: dict[str, PopulationOptimizer] = {}
+        self._evaluated: OrderedDict[bytes, float] = OrderedDict()
+        self._rejected_log = TokenBucket(REJECTED_PER_S, REJECTED_BURST)
+        self._rejected_backlog: Counter[str] = Counter()
+        self._committed_at = time.monotonic()
+        self._rows_since_commit = 0
+        self._changed = True
+        self._control_at = -np.inf
+        self._control_seq = 0
 
     # --- state -------------------------------------------------------------------
     @property
@@ -174,55 +284,155 @@ class Coordinator:
         assert self.best is not None
         return encode_best(Best(self.name, self.best.island, self.best.x, self.best.fitness))
 
+    # --- what other threads call: into the inbox ------------------------------------------------
+    def _source(self, island: str) -> str:
+        """Inbox queue of a sender: its own once it joined, else the one all strangers share."""
+        return island if island in self.current else "?"
+
+    def receive(self, key: str, payload: bytes, wait_s: float | None = 1.0) -> bool:
+        """A publication (``hysid/<c>/<kind>/<sender>``) for the coordinator's thread; False if dropped."""
+        return self.inbox.put(self._source(key.rsplit("/", 1)[-1]), ("msg", key, payload), len(payload), wait_s)
+
+    def member(self, island: str, alive: bool, wait_s: float | None = 1.0) -> bool:
+        """A liveliness token of ``members/<island>`` appeared (``alive``) or went."""
+        return self.inbox.put("!" + self._source(island), ("member", island, alive), 0, wait_s)
+
+    def join_request(self, island: str, payload: bytes, reply: Callable[[bytes], None], wait_s: float | None = 1.0) -> bool:
+        """A join request on ``join/<island>``; ``reply`` sends the answer (called by the coordinator's thread)."""
+        return self.inbox.put("!" + self._source(island), ("join", island, payload, reply), len(payload), wait_s)
+
     # --- handling what arrives ----------------------------------------------------------
     def handle(self, link: Link, item: tuple[Any, ...]) -> None:
-        """One inbox item: ``("msg", key, payload)`` or ``("member", island, alive)``."""
-        if item[0] == "member":
-            self._member(link, item[1], item[2])
-            return
-        _, key, payload = item
-        kind, _, sender = key[len(key_prefix(self.name)) + 1 :].partition("/")
+        """One inbox item: ``("msg", key, payload)``, ``("member", island, alive)`` or ``("join", island, payload, reply)``.
+
+        Nothing a message holds can raise out of here: a rejected message is
+        recorded with its reason; only a database that cannot be written
+        (:class:`StoreError`) stops the coordinator.
+        """
+        key, size = f"{item[0]}/{item[1]}", 0
         try:
-            if kind == "history":
-                self._history(link, decode_history(payload, self.name, self.objective.bounds, sender))
-            elif kind == "migrants":
-                self._migrants(link, payload, sender)
+            if item[0] == "member":
+                key = f"members/{item[1]}"
+                self._member(link, item[1], item[2])
+            elif item[0] == "join":
+                key, size = f"join/{item[1]}", len(item[2])
+                self._join(item[1], item[2], item[3])
             else:
-                raise MessageRejected("schema", f"unexpected key {key[:100]}")
+                _, key, payload = item
+                size = len(payload)
+                kind, _, sender = key[len(self.prefix) + 1 :].partition("/") if key.startswith(self.prefix + "/") else ("", "", "")
+                if kind == "history":
+                    self._history(link, decode_history(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender))
+                elif kind == "migrants":
+                    self._migrants(link, decode_migrants(payload, self.name, self.objective.bounds, tag="run", key_for=self._key_for, sender=sender))
+                else:
+                    raise MessageRejected("schema", f"unexpected key {key[:100]}")
         except MessageRejected as exc:
-            self.store.add_rejected(self.name, key, exc.reason, str(exc), len(payload))
-            self.rejected += 1
+            self.reject(key, exc.reason, str(exc), size)
+        except StoreError:
+            raise
+        except (ValueError, TypeError, OverflowError, ArithmeticError, IndexError, KeyError) as exc:  # what the checks let through
+            self.reject(key, "schema", f"could not be handled ({type(exc).__name__}: {exc})", size)
+
+    def reject(self, key: str, reason: str, detail: str, size: int) -> None:
+        """Count a rejected message; record it, or (in a flood) count it in the next summary row."""
+        self.rejected += 1
+        if self._rejected_log.take():
+            self.store.add_rejected(self.name, key, reason, detail, size)
+        else:
+            self._rejected_backlog[reason] += 1
+
+    def _key_for(self, island: str, run: str) -> bytes | None:
+        info = self.runs.get((island, run))
+        return None if info is None else info.key
+
+    # --- joining and membership --------------------------------------------------------------
+    def _join(self, island: str, payload: bytes, reply: Callable[[bytes], None]) -> None:
+        request = decode_join(payload, self.name, sender=island)
+        try:
+            credentials = self.admit(request.island, request.algo, request.seed, request.nonce)
+        except HysidInputError as exc:
+            reply(encode_joined(self.name, request.nonce, refused=exc.detail))
+            return
+        reply(encode_joined(self.name, request.nonce, credentials))
+
+    def admit(self, island: str, algo: str, seed: int, nonce: bytes = b"") -> Credentials:
+        """The join handshake: a new run of ``island`` with its key, stored (and committed) before the
+        island gets it. Refused (:class:`HysidInputError`) while the id has a live run, for an unknown
+        algorithm, for a full campaign and once the campaign is stopping."""
+        member = self.members.get(island)
+        if member is not None and nonce and member.nonce == nonce:  # the same request again (its answer was lost)
+            return Credentials(island, member.run, self.runs[(island, member.run)].key, self.campaign_key)
+        if not NAME_PATTERN.match(island):
+            raise HysidInputError(f"island id {island[:64]!r} is not a valid name")
+        if algo not in ALGORITHMS:
+            raise HysidInputError(f"unknown algorithm {algo!r}; this campaign runs {', '.join(ALGORITHMS)}")
+        if self.stop_reason is not None:
+            raise HysidInputError(f"the campaign is stopping ({self.stop_reason})")
+        if member is not None and member.status == "alive":
+            raise HysidInputError(f"island id {island!r} is taken by a running island; give another --id")
+        if len(self.runs) >= MAX_MEMBERS:
+            raise HysidInputError(f"the campaign has admitted {MAX_MEMBERS} island runs, its limit")
+        credentials = Credentials.issue(island, self.campaign_key)
+        self.store.add_run(self.name, island, credentials.run, credentials.key, algo, seed)
+        self.runs[(island, credentials.run)] = RunInfo(credentials.key, algo, seed)
+        self.current[island] = credentials.run
+        self.members[island] = Member("alive", credentials.run, joined_at=time.monotonic(), nonce=nonce)
+        self._event(island, "join")
+        self.store.commit()
+        self._now_alive()
+        return credentials
+
+    def _now_alive(self) -> None:
+        alive = sum(m.status == "alive" for m in self.members.values())
+        if alive:
+            self.idle_since = None
+        if self.full_at is None and alive >= self.config.min_islands:
+            self.full_at = time.monotonic()
 
     def _member(self, link: Link, island: str, alive: bool) -> None:
         if not NAME_PATTERN.match(island):
-            self.store.add_rejected(self.name, f"members/{island}", "sender", "liveliness token with an invalid island name", 0)
-            self.rejected += 1
-            return
+            raise MessageRejected("sender", "liveliness token with an invalid island name")
+        run = self.current.get(island)
+        if run is None:
+            raise MessageRejected("unjoined", f"liveliness token of {island!r}, which never joined")
         member = self.members.get(island)
         if alive:
-            event = "join" if member is None else ("back" if member.status != "alive" else "seen")
-            run = member.run if member else self._latest_run(island)
-            self.members[island] = Member("alive", run)
-            self._event(island, event)
-            if self.full_at is None and sum(m.status == "alive" for m in self.members.values()) >= self.config.min_islands:
-                self.full_at = time.monotonic()
-            link.request_history(island, run, self._contiguous((island, run)) if run else -1)
+            if member is None:  # joined before this coordinator (re)started
+                self.members[island] = Member("alive", run, token=True, joined_at=time.monotonic())
+                self._event(island, "join")
+            elif member.status != "alive":
+                member.status, member.gone_at, member.token = "alive", None, True
+                self._event(island, "back")
+            else:
+                member.gone_at, member.token = None, True
+            self._now_alive()
+            link.request_history(island, run, self._contiguous((island, run)))
         elif member is not None and member.status == "alive":
             if self.islands.get((island, member.run), IslandView("")).final:
-                member.status = "left"
-                self._event(island, "left")
+                self._leave(island, member, "left")
             else:
                 member.gone_at = time.monotonic()
+
+    def _leave(self, island: str, member: Member, event: str) -> None:
+        member.status = event
+        self._event(island, event)
+        if not any(m.status == "alive" for m in self.members.values()):
+            self.idle_since = time.monotonic()
 
     def _event(self, island: str, event: str) -> None:
         self.store.member_event(self.name, island, event)
         self.member_events += 1
+        self._changed = True
 
-    def _latest_run(self, island: str) -> str:
-        """The island's run with the most iterations on record ("" if none): after a coordinator
-        restart, the run that is probably still going."""
-        runs = [(view.iteration, run) for (i, run), view in self.islands.items() if i == island]
-        return max(runs)[1] if runs else ""
+    def _settle_departures(self) -> None:
+        """Tokens gone without a final history for ``LEAVE_GRACE_S``, or never shown: the island is lost."""
+        now = time.monotonic()
+        for island, member in self.members.items():
+            vanished = member.gone_at is not None and now - member.gone_at >= LEAVE_GRACE_S
+            never_seen = not member.token and now - member.joined_at >= TOKEN_WAIT_S
+            if member.status == "alive" and (vanished or never_seen):
+                self._leave(island, member, "lost")
 
     def _contiguous(self, key: tuple[str, str]) -> int:
         if key not in self.contiguous:
@@ -248,50 +458,94 @@ class Coordinator:
                 self._backfill[key] = (now, done, attempts)
                 link.request_history(key[0], key[1], done)
 
-    def _settle_departures(self) -> None:
-        """Tokens gone without a final history for ``LEAVE_GRACE_S``: the island is lost."""
-        now = time.monotonic()
-        for island, member in self.members.items():
-            if member.status == "alive" and member.gone_at is not None and now - member.gone_at >= LEAVE_GRACE_S:
-                member.status = "lost"
-                self._event(island, "lost")
+    # --- history and migrants --------------------------------------------------------------
+    def _optimizer(self, algo: str) -> PopulationOptimizer:
+        """An (unused) optimizer with an island's settings: what its evaluation counts may be."""
+        if algo not in self._optimizers:
+            self._optimizers[algo] = make_optimizer(algo, self.objective.bounds, 0, self.config.options.get(algo))
+        return self._optimizers[algo]
+
+    def evaluation_bound(self, algo: str, iterations: np.ndarray) -> np.ndarray:
+        """The most evaluations an island run of ``algo`` can report after each of ``iterations``
+        (floats): its own batches (:meth:`PopulationOptimizer.evaluation_bound`) plus the migrants it
+        may take, ``k`` from each other island that joined per migration, plus the global best once."""
+        mig = self.config.migration
+        epochs = np.floor_divide(iterations, mig.interval) if mig.interval else np.zeros_like(iterations)
+        return self._optimizer(algo).evaluation_bound(iterations) + epochs * max(len(self.runs) - 1, 0) * mig.k + 1
+
+    def _plausible(self, h: History, info: RunInfo) -> None:
+        """:class:`MessageRejected` ("implausible") for counters the island cannot have reached."""
+        if (h.algo, h.seed) != (info.algo, info.seed):
+            raise MessageRejected("implausible", f"history of a {h.algo} run with seed {h.seed}; it joined as {info.algo} with seed {info.seed}")
+        opt = self._optimizer(info.algo)
+        if h.rows.size:
+            iterations = h.rows[:, 0]
+            if iterations[-1] > opt.iterations:
+                raise MessageRejected("implausible", f"iteration {iterations[-1]:.0f} beyond the island's budget of {opt.iterations}")
+            bound = self.evaluation_bound(info.algo, iterations)
+            if np.any(h.rows[:, 2] > bound):
+                i = int(np.argmax(h.rows[:, 2] > bound))
+                raise MessageRejected("implausible", f"{h.rows[i, 2]:.0f} evaluations after iteration {iterations[i]:.0f}, at most {bound[i]:.0f} possible")
+        reached = max(self.islands.get((h.island, h.run), IslandView("")).iteration, int(h.rows[-1, 0]) if h.rows.size else 0)
+        mig = self.config.migration
+        epochs = reached // mig.interval if mig.interval else 0
+        most = {"sent": epochs + 1, "received": epochs * max(len(self.runs) - 1, 0) * mig.k + 1}
+        if h.stats["sent"] > most["sent"] or h.stats["received"] > most["received"] or h.stats["taken"] > h.stats["received"]:
+            raise MessageRejected("implausible", f"migration counters {h.stats} after iteration {reached}")
+
+    def evaluate(self, x: np.ndarray) -> np.ndarray:
+        """The coordinator's own fitness of candidates ``x (k, D)`` (recently seen ones from a cache)."""
+        keys = [row.tobytes() for row in np.ascontiguousarray(x, dtype=float)]
+        todo = [i for i, k in enumerate(keys) if k not in self._evaluated]
+        if todo:
+            for i, f in zip(todo, self.objective(x[todo])):
+                self._evaluated[keys[i]] = float(f)
+        for k in keys:
+            self._evaluated.move_to_end(k)
+        while len(self._evaluated) > EVALUATED_CACHE:
+            self._evaluated.popitem(last=False)
+        return np.array([self._evaluated[k] for k in keys])
 
     def _history(self, link: Link, h: History) -> None:
         key = (h.island, h.run)
-        self.store.add_history(self.name, h.island, h.run, h.rows)
+        info = self.runs[key]
+        check_replay(self._replays, "history", h.island, h.run, h.seq)
+        self._plausible(h, info)
+        f = float(self.evaluate(h.best_x[None, :])[0])
+        floor = f * (1 - FITNESS_TOLERANCE)
+        if h.best_f < floor or (h.rows.size and np.min(h.rows[:, 1]) < floor):
+            raise MessageRejected("implausible", f"claims a best fitness below {f:.6g}, what its best vector really has")
+        self._rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
         if h.rows.size:
             self._check_gap(link, key, int(h.rows[0, 0]), int(h.rows[-1, 0]))
         iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
         evaluations = int(h.rows[:, 2].max()) if h.rows.size else 0
         self.store.update_island(self.name, IslandRecord(
-            h.island, h.run, h.algo, h.seed, iterations, evaluations, h.best_f, h.best_x,
+            h.island, h.run, h.algo, h.seed, iterations, evaluations, f, h.best_x,
             h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final,
         ))
         self.run_evaluations[key] = max(self.run_evaluations.get(key, 0), evaluations)
         view = self.islands.setdefault(key, IslandView(h.algo))
         view.iteration = max(view.iteration, iterations)
-        view.best = min(view.best, h.best_f)
+        view.best = min(view.best, f)
         view.final = view.final or h.final
+        self._changed = True
         member = self.members.get(h.island)
-        if member is not None:
-            member.run = h.run
-            if h.final and member.status == "alive" and member.gone_at is not None:
-                member.status = "left"
-                self._event(h.island, "left")
-        self._consider(link, h.island, h.best_x, h.best_f)
+        if member is not None and member.run == h.run and h.final and member.status == "alive" and member.gone_at is not None:
+            self._leave(h.island, member, "left")
+        self._consider(link, h.island, h.best_x, f)
 
-    def _migrants(self, link: Link, payload: bytes, sender: str) -> None:
-        m = decode_migrants(payload, self.name, self.objective.bounds, sender)
-        self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at)
+    def _migrants(self, link: Link, m: Migrants) -> None:
+        check_replay(self._replays, "migrants", m.island, m.run, m.seq)
+        if not self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at, m.seq):
+            raise MessageRejected("replay", f"migrant message {m.seq} of {m.island!r} run {m.run!r} is stored already")
         self.migrations += 1
-        i = int(np.argmin(m.claimed))
-        self._consider(link, m.island, m.x[i], float(m.claimed[i]))
+        f = self.evaluate(m.x)
+        i = int(np.argmin(f))
+        self._consider(link, m.island, m.x[i], float(f[i]))
 
-    def _consider(self, link: Link, island: str, x: np.ndarray, claimed: float) -> None:
-        """Re-evaluate a candidate that claims to beat the global best; if it really does, it is the new best."""
-        if self.best is not None and not claimed < self.best.fitness:
-            return
-        f = float(self.objective(x[None, :])[0])
+    def _consider(self, link: Link, island: str, x: np.ndarray, f: float) -> None:
+        """A candidate with the coordinator's own fitness ``f``: if it beats the global best, it is the new one."""
         if not np.isfinite(f) or (self.best is not None and not f < self.best.fitness):
             return
         self.best = StoredBest(island, np.array(x, dtype=float), f, self.evaluations)
@@ -299,6 +553,19 @@ class Coordinator:
         self.store.set_best(self.name, self.best)
         self.best_message = self._best_message()
         link.publish_best(self.best_message)
+
+    # --- control ---------------------------------------------------------------------------
+    def _alive(self, island: str, run: str) -> bool:
+        member = self.members.get(island)
+        return member is not None and member.status == "alive" and member.run == run
+
+    def control_message(self, stop: str = "") -> bytes:
+        """The sealed roster (every run that joined, alive or not, and how far its rows are committed)
+        and the stop order, tagged for every island with its latest run's key."""
+        members = tuple(MemberState(island, run, self._alive(island, run), self._contiguous((island, run))) for island, run in self.runs)
+        self._control_seq = max(self._control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
+        keys = {island: self.runs[(island, run)].key for island, run in self.current.items()}
+        return encode_control(Control(self.name, members, stop, self._control_seq), self.run_id, keys)
 
     # --- the loop -----------------------------------------------------------------
     def check_stop(self) -> str | None:
@@ -311,27 +578,52 @@ class Coordinator:
         )
         if reason:
             return reason
-        finished = self.islands and all(v.final for v in self.islands.values()) and all(m.status != "alive" for m in self.members.values())
-        if finished and len({island for island, _ in self.islands} | set(self.members)) >= self.config.min_islands:
+        alive = any(m.status == "alive" for m in self.members.values())
+        finished = bool(self.islands) and all(v.final for v in self.islands.values()) and not alive
+        enough = len({island for island, _ in self.islands} | set(self.members)) >= self.config.min_islands
+        if finished and (enough or self.resumed):
             return "every island finished"
+        if not alive and self.idle_since is not None and time.monotonic() - self.idle_since >= ORPHAN_S:
+            return f"no island alive for {ORPHAN_S:g} s"
         return None
 
-    def drain(self, link: Link, timeout: float) -> None:
-        """Handle what arrived (waiting up to ``timeout`` for the first item) and commit."""
-        try:
-            item = self.inbox.get(timeout=timeout)
-        except queue.Empty:
-            self._settle_departures()
-            self.store.commit()
-            return
-        while True:
-            self.handle(link, item)
-            try:
-                item = self.inbox.get_nowait()
-            except queue.Empty:
-                break
-        self._settle_departures()
+    def commit(self, link: Link, *, announce: bool = False) -> None:
+        """Commit (with the summary of rejects not recorded one by one), then publish the control
+        message if something changed, every :data:`CONTROL_EVERY_S`, or with ``announce``. Only
+        committed rows are ever reported to islands as stored."""
+        dropped = self.inbox.take_dropped()
+        if dropped:
+            self.rejected += sum(dropped.values())
+            self._rejected_backlog["overflow"] += sum(dropped.values())
+        for reason, n in self._rejected_backlog.items():
+            self.store.add_rejected(self.name, "*", reason, f"{n} rejected messages not recorded one by one (a flood)", 0, n)
+        self._rejected_backlog.clear()
         self.store.commit()
+        self._committed_at, self._rows_since_commit = time.monotonic(), 0
+        if self.runs and (announce or self._changed or self._committed_at - self._control_at >= CONTROL_EVERY_S):
+            link.publish_control(self.control_message(self.stop_reason or ""), self.stop_reason is not None)
+            self._control_at, self._changed = time.monotonic(), False
+
+    def pump(self, link: Link, seconds: float, first_wait: float = 0.05) -> int:
+        """Handle what arrives for up to ``seconds`` (waiting up to ``first_wait`` for the first item),
+        committing whenever :data:`COMMIT_EVERY_S` or :data:`COMMIT_ROWS` is reached, and at the end;
+        returns the items handled."""
+        deadline = time.monotonic() + seconds
+        handled = 0
+        wait = first_wait
+        while True:
+            item = self.inbox.get(timeout=wait)
+            if item is not None:
+                self.handle(link, item)
+                handled += 1
+            now = time.monotonic()
+            done = item is None or now >= deadline
+            if done or now - self._committed_at >= COMMIT_EVERY_S or self._rows_since_commit >= COMMIT_ROWS:
+                self._settle_departures()
+                self.commit(link)
+            if done:
+                return handled
+            wait = 0.0
 
     def serve(
         self,
@@ -341,29 +633,70 @@ class Coordinator:
         extra_stop: Callable[[], str | None] | None = None,
         progress_every_s: float = 1.0,
     ) -> str:
-        """Run until a stop rule, ``extra_stop()`` or Ctrl-C; announce the stop, collect final histories; returns the reason."""
+        """Run until a stop rule, ``extra_stop()`` or Ctrl-C; announce the stop, collect final histories; returns the reason.
+
+        A database that cannot be written ends the campaign: islands are told to
+        stop, the campaign is marked ``interrupted`` if the file lets us, and
+        :class:`StoreError` says what happened.
+        """
         last, shown_events = 0.0, -1
+        fault: StoreError | None = None
         try:
             while self.stop_reason is None:
-                self.drain(link, timeout=0.05)
+                self.pump(link, PASS_S)
                 self.stop_reason = self.check_stop() or (extra_stop() if extra_stop is not None else None)
                 if on_progress is not None and (time.monotonic() - last >= progress_every_s or self.member_events != shown_events):
                     on_progress(self.progress())
                     last, shown_events = time.monotonic(), self.member_events
         except KeyboardInterrupt:  # Ctrl-C (SIGINT) stops the campaign like a stop rule; a second one aborts
             self.stop_reason = "interrupted"
-        self.store.set_status(self.name, "stopping", self.stop_reason)
-        message = encode_stop(self.name, self.stop_reason)
-        deadline = time.monotonic() + STOP_GRACE_S
-        while time.monotonic() < deadline and any(m.status == "alive" for m in self.members.values()):
-            link.announce_stop(message)
-            for _ in range(10):
-                self.drain(link, timeout=0.05)
-        self.drain(link, timeout=LEAVE_GRACE_S)
+        except StoreError as exc:
+            fault, self.stop_reason = exc, "interrupted"
+        try:
+            if fault is None:
+                self.store.set_status(self.name, "stopping", self.stop_reason)
+                self._stop_islands(link, collect=True)
+        except StoreError as exc:
+            fault = exc
+        if fault is not None:
+            raise self._interrupted(link, fault)
         self.store.set_status(self.name, "stopped", self.stop_reason)
         if on_progress is not None:
             on_progress(self.progress())
         return self.stop_reason
+
+    def _stop_islands(self, link: Link, collect: bool) -> None:
+        """Announce the stop until every island left (at most :data:`STOP_GRACE_S`); with ``collect``,
+        keep storing their final histories and confirming them."""
+        deadline = time.monotonic() + STOP_GRACE_S
+        while time.monotonic() < deadline and any(m.status == "alive" for m in self.members.values()):
+            if collect:
+                self.commit(link, announce=True)
+                self.pump(link, 0.5)
+            else:
+                link.publish_control(self.control_message(self.stop_reason or "interrupted"), True)
+                time.sleep(0.5)
+                self._settle_departures()
+        if collect:
+            self.pump(link, LEAVE_GRACE_S, first_wait=LEAVE_GRACE_S)
+
+    def _interrupted(self, link: Link, fault: StoreError) -> StoreError:
+        """After a database fault: tell the islands to stop (reporting only rows really committed),
+        mark the campaign interrupted if the file lets us."""
+        self.store.rollback()
+        self.contiguous.clear()
+        self.last_stored.clear()
+        try:
+            if self.runs:
+                self._stop_islands(link, collect=False)
+        except sqlite3.Error:
+            pass  # the file cannot even be read: islands end on their own after their wait
+        try:
+            self.store.set_status(self.name, "interrupted", f"interrupted: {fault.detail}")
+            marked = "it is marked interrupted"
+        except StoreError:
+            marked = "it could not be marked interrupted"
+        return StoreError(f"campaign {self.name!r} stopped: {fault.detail}; what was committed before is kept and {marked} (--resume carries on)")
 
     # --- the outcome ----------------------------------------------------------------
     def outcome(self, *, polish_best: bool = True) -> CampaignOutcome:
@@ -437,7 +770,7 @@ class Coordinator:
 
 
 def resume(store: Store, name: str, termination: Termination | None = None) -> Coordinator:
-    """The coordinator of a stored campaign, with its history, islands and best as they were."""
+    """The coordinator of a stored campaign, with its history, islands, runs and best as they were."""
     _, message, _ = store.campaign(name)
     config, loops = decode_config(message, name)
     return Coordinator(store, config, loops, termination, resume=True)

@@ -17,16 +17,20 @@ file (only a power loss of the machine may drop the last commits).
 
 from __future__ import annotations
 
+import functools
 import json
 import sqlite3
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from hysid_model.errors import HysidInputError
+
+T = TypeVar("T")
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS campaigns (
@@ -45,14 +49,45 @@ CREATE TABLE IF NOT EXISTS islands (
     final INTEGER NOT NULL, PRIMARY KEY (campaign, island, run));
 CREATE TABLE IF NOT EXISTS migrations (
     id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL,
-    iteration INTEGER NOT NULL, n INTEGER NOT NULL, best_claimed REAL NOT NULL, sent_at REAL NOT NULL, t REAL NOT NULL);
+    iteration INTEGER NOT NULL, n INTEGER NOT NULL, best_claimed REAL NOT NULL, sent_at REAL NOT NULL, t REAL NOT NULL,
+    seq INTEGER);
 CREATE TABLE IF NOT EXISTS rejected (
     id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, key TEXT NOT NULL, reason TEXT NOT NULL,
-    detail TEXT NOT NULL, size INTEGER NOT NULL, t REAL NOT NULL);
+    detail TEXT NOT NULL, size INTEGER NOT NULL, t REAL NOT NULL, n INTEGER NOT NULL DEFAULT 1);
 CREATE TABLE IF NOT EXISTS best (
     campaign TEXT PRIMARY KEY, island TEXT NOT NULL, x BLOB NOT NULL, fitness REAL NOT NULL,
     evaluations INTEGER NOT NULL, t REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS runs (
+    campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, key BLOB NOT NULL, algo TEXT NOT NULL,
+    seed INTEGER NOT NULL, joined REAL NOT NULL, PRIMARY KEY (campaign, island, run));
+CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL);
 """
+UPGRADES = {
+    "migrations": ("seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
+    "rejected": ("n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
+}
+"""Columns added since the first schema: a database written by an earlier hysid gets them on open."""
+INDEXES = "CREATE UNIQUE INDEX IF NOT EXISTS migration_once ON migrations (campaign, island, run, seq);"
+"""A migrant message (sender run and number) is stored once, also when it is replayed after a restart."""
+LOCK_WAIT_S = 10.0
+"""How long a write waits for another process' lock on the database before it fails."""
+
+
+class StoreError(HysidInputError):
+    """A campaign database that cannot be written (locked, full, read-only): one line naming the file."""
+
+
+def _writes(method: Callable[..., T]) -> Callable[..., T]:
+    """Turn SQLite's failures of a write into a :class:`StoreError` naming the file."""
+
+    @functools.wraps(method)
+    def guarded(self: "Store", *args: Any, **kwargs: Any) -> T:
+        try:
+            return method(self, *args, **kwargs)
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot write the campaign database {self.path}: {exc}") from None
+
+    return guarded
 
 
 @dataclass(frozen=True)
@@ -87,29 +122,48 @@ class IslandRecord:
 class Store:
     """A campaign database file (``":memory:"`` for a throw-away one)."""
 
-    def __init__(self, path: Path | str) -> None:
+    def __init__(self, path: Path | str, lock_wait_s: float = LOCK_WAIT_S) -> None:
+        """Open (or create) the database and check that it can be written, before any work starts."""
         self.path = str(path)
         try:
             if self.path != ":memory:":
                 Path(self.path).parent.mkdir(parents=True, exist_ok=True)
-            self.db = sqlite3.connect(self.path, check_same_thread=False)
+            self.db = sqlite3.connect(self.path, check_same_thread=False, timeout=lock_wait_s)
             self.db.execute("PRAGMA journal_mode=WAL")
             self.db.execute("PRAGMA synchronous=NORMAL")
             self.db.executescript(SCHEMA)
+            for table, (column, upgrade) in UPGRADES.items():
+                if column not in {row[1] for row in self.db.execute(f"PRAGMA table_info({table})")}:
+                    self.db.execute(upgrade)
+            self.db.executescript(INDEXES)
+            self.db.execute("BEGIN IMMEDIATE")  # the write lock: fails now if the file cannot be written
+            self.db.execute("ROLLBACK")
         except (sqlite3.DatabaseError, OSError) as exc:
             raise HysidInputError(f"{self.path}: not a usable campaign database ({exc})") from None
 
     def close(self) -> None:
-        self.db.commit()
-        self.db.close()
+        """Commit and close; a commit that fails here is reported, the file keeps what was committed."""
+        try:
+            self.commit()
+        finally:
+            self.db.close()
 
+    @_writes
     def commit(self) -> None:
         self.db.commit()
+
+    def rollback(self) -> None:
+        """Drop what was not committed (after a failed write)."""
+        try:
+            self.db.rollback()
+        except sqlite3.Error:
+            pass
 
     # --- campaigns --------------------------------------------------------------
     def has_campaign(self, name: str) -> bool:
         return self.db.execute("SELECT 1 FROM campaigns WHERE name = ?", (name,)).fetchone() is not None
 
+    @_writes
     def create_campaign(self, name: str, dataset: str, config: bytes) -> None:
         """Register a new campaign; an existing one is never overwritten."""
         if self.has_campaign(name):
@@ -128,6 +182,7 @@ class Store:
             raise HysidInputError(f"{self.path}: no campaign {name!r} to resume (stored: {', '.join(known) or 'none'})")
         return row[0], bytes(row[1]), row[2]
 
+    @_writes
     def set_status(self, name: str, status: str, reason: str | None = None) -> None:
         self.db.execute(
             "UPDATE campaigns SET status = ?, stop_reason = ?, ended = ? WHERE name = ?",
@@ -135,6 +190,7 @@ class Store:
         )
         self.db.commit()
 
+    @_writes
     def set_result(self, name: str, result_json: str) -> None:
         """The final result document (the JSON of ``hysid campaign --json``)."""
         self.db.execute("UPDATE campaigns SET result = ? WHERE name = ?", (result_json, name))
@@ -149,9 +205,11 @@ class Store:
         return None if row is None else row[0]
 
     # --- records as messages arrive (committed by the caller per batch) ------------------
+    @_writes
     def member_event(self, campaign: str, island: str, event: str) -> None:
         self.db.execute("INSERT INTO members (campaign, island, event, t) VALUES (?, ?, ?, ?)", (campaign, island, event, time.time()))
 
+    @_writes
     def add_history(self, campaign: str, island: str, run: str, rows: np.ndarray) -> int:
         """Store rows ``[iteration, best_fitness, evaluations, wall_s]``; returns how many were new."""
         now = time.time()
@@ -162,6 +220,7 @@ class Store:
         )
         return self.db.total_changes - before
 
+    @_writes
     def update_island(self, campaign: str, record: IslandRecord) -> None:
         """Upsert an island run's counters; iterations and evaluations only grow."""
         r = record
@@ -177,18 +236,43 @@ class Store:
              np.asarray(r.best_x, dtype="<f8").tobytes(), r.sent, r.received, r.taken, r.rejected, int(r.final)),
         )
 
-    def add_migration(self, campaign: str, island: str, run: str, iteration: int, n: int, best_claimed: float, sent_at: float) -> None:
+    @_writes
+    def add_migration(
+        self, campaign: str, island: str, run: str, iteration: int, n: int, best_claimed: float, sent_at: float, seq: int
+    ) -> bool:
+        """Record a migrant message; False if this sender run's message ``seq`` is already stored (a replay)."""
+        before = self.db.total_changes
         self.db.execute(
-            "INSERT INTO migrations (campaign, island, run, iteration, n, best_claimed, sent_at, t) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-            (campaign, island, run, iteration, n, best_claimed, sent_at, time.time()),
+            "INSERT OR IGNORE INTO migrations (campaign, island, run, iteration, n, best_claimed, sent_at, t, seq) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (campaign, island, run, iteration, n, best_claimed, sent_at, time.time(), seq),
+        )
+        return self.db.total_changes > before
+
+    @_writes
+    def add_rejected(self, campaign: str, key: str, reason: str, detail: str, size: int, n: int = 1) -> None:
+        """Record ``n`` rejected messages (n > 1: a summary of those not recorded one by one)."""
+        self.db.execute(
+            "INSERT INTO rejected (campaign, key, reason, detail, size, t, n) VALUES (?, ?, ?, ?, ?, ?, ?)",
+            (campaign, key[:200], reason, detail[:300], size, time.time(), n),
         )
 
-    def add_rejected(self, campaign: str, key: str, reason: str, detail: str, size: int) -> None:
-        self.db.execute(
-            "INSERT INTO rejected (campaign, key, reason, detail, size, t) VALUES (?, ?, ?, ?, ?, ?)",
-            (campaign, key[:200], reason, detail[:300], size, time.time()),
-        )
+    # --- who joined ---------------------------------------------------------------------
+    @_writes
+    def campaign_key(self, campaign: str, new: bytes) -> bytes:
+        """The campaign key every joined island shares: stored once (``new`` the first time)."""
+        self.db.execute("INSERT OR IGNORE INTO secrets VALUES (?, ?)", (campaign, new))
+        return bytes(self.db.execute("SELECT campaign_key FROM secrets WHERE campaign = ?", (campaign,)).fetchone()[0])
 
+    @_writes
+    def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int) -> None:
+        self.db.execute("INSERT INTO runs VALUES (?, ?, ?, ?, ?, ?, ?)", (campaign, island, run, key, algo, seed, time.time()))
+
+    def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int]]:
+        """Every run that joined: ``(island, run, key, algo, seed)`` in the order they joined."""
+        rows = self.db.execute("SELECT island, run, key, algo, seed FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
+        return [(i, r, bytes(k), a, s) for i, r, k, a, s in rows]
+
+    @_writes
     def set_best(self, campaign: str, best: StoredBest) -> None:
         self.db.execute(
             "INSERT OR REPLACE INTO best VALUES (?, ?, ?, ?, ?, ?)",
@@ -247,10 +331,12 @@ class Store:
         return self.db.execute("SELECT island, event, t FROM members WHERE campaign = ? ORDER BY id", (campaign,)).fetchall()
 
     def count(self, table: str, campaign: str) -> int:
+        """Rows of a table (for ``rejected``: messages, summaries counting ``n``)."""
         if table not in ("migrations", "rejected", "history", "members"):
             raise ValueError(f"no countable table {table!r}")
-        return int(self.db.execute(f"SELECT count(*) FROM {table} WHERE campaign = ?", (campaign,)).fetchone()[0])
+        what = "coalesce(sum(n), 0)" if table == "rejected" else "count(*)"
+        return int(self.db.execute(f"SELECT {what} FROM {table} WHERE campaign = ?", (campaign,)).fetchone()[0])
 
     def rejected_reasons(self, campaign: str) -> dict[str, int]:
-        rows = self.db.execute("SELECT reason, count(*) FROM rejected WHERE campaign = ? GROUP BY reason", (campaign,))
+        rows = self.db.execute("SELECT reason, sum(n) FROM rejected WHERE campaign = ? GROUP BY reason", (campaign,))
         return {r: int(n) for r, n in rows}

@@ -13,6 +13,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import math
+
 import numpy as np
 
 from hysid_model.errors import HysidInputError
@@ -23,13 +25,21 @@ from hysid_model.problem import OBJECTIVES, build_objective, prepare_model, reso
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import ALGORITHMS, check_algorithm, make_optimizer
 from island.migration import Migration
-from island.protocol import MessageRejected, check_name
+from island.protocol import INT64_MAX, MAX_MEMBERS, MessageRejected, check_name
 from island.protocol import decode_config as unpack_config
 from island.protocol import encode_config as pack_config
 
 
+MAX_SEED = 2**62
+"""Largest campaign seed (island seeds add up to 2**20 to it and are stored as SQLite integers)."""
+
+
 def _plain_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and abs(value) <= INT64_MAX
+
+
+def _option_value(value: Any) -> bool:
+    return isinstance(value, (str, bool)) and len(str(value)) <= 200 or _plain_number(value)
 
 
 @dataclass
@@ -67,21 +77,23 @@ class CampaignConfig:
         if unknown:
             raise HysidInputError(f"options given for unknown algorithm(s) {', '.join(map(str, unknown))}")
         for algo, opts in self.options.items():
-            if not isinstance(opts, dict) or not all(isinstance(k, str) and isinstance(v, (int, float, str, bool)) for k, v in opts.items()):
-                raise HysidInputError(f"{algo} options must map names to numbers, strings or booleans")
+            if not isinstance(opts, dict) or not all(isinstance(k, str) and _option_value(v) for k, v in opts.items()):
+                raise HysidInputError(f"{algo} options must map names to finite numbers, short strings or booleans")
         for algo in self.algos:  # every island's settings are checked here, before any island starts
             make_optimizer(algo, np.array([[0.0, 1.0]]), 0, self.options.get(algo))
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise HysidInputError("must be an integer >= 0", param="seed", value=self.seed)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed <= MAX_SEED:
+            raise HysidInputError("must be an integer from 0 to 2**62", param="seed", value=self.seed)
         try:
             self.bounds = {str(k): (float(v[0]), float(v[1])) for k, v in self.bounds.items()}
-        except (TypeError, ValueError, IndexError, KeyError):
+        except (TypeError, ValueError, IndexError, KeyError, OverflowError):
             raise HysidInputError("bounds must map parameter names to (lower, upper)", param="bounds", value=self.bounds) from None
+        if not all(math.isfinite(lo) and math.isfinite(hi) for lo, hi in self.bounds.values()):
+            raise HysidInputError("bounds must be finite numbers", param="bounds", value=self.bounds)
         if not all(_plain_number(v) for v in self.fixed.values()):
-            raise HysidInputError("fixed values must be numbers", param="fixed", value=self.fixed)
+            raise HysidInputError("fixed values must be finite numbers", param="fixed", value=self.fixed)
         self.fixed = {str(k): float(v) for k, v in self.fixed.items()}
-        if isinstance(self.min_islands, bool) or not isinstance(self.min_islands, int) or self.min_islands < 1:
-            raise HysidInputError("must be an integer >= 1", param="min_islands", value=self.min_islands)
+        if isinstance(self.min_islands, bool) or not isinstance(self.min_islands, int) or not 1 <= self.min_islands <= MAX_MEMBERS:
+            raise HysidInputError(f"must be an integer from 1 to {MAX_MEMBERS}", param="min_islands", value=self.min_islands)
         if self.objective_kind not in OBJECTIVES:
             raise HysidInputError(f"must be one of {', '.join(OBJECTIVES)}", param="objective", value=self.objective_kind)
         if self.objective_kind == "thesis_port" and (self.model != "thesis" or self.weights != "thesis"):
@@ -154,7 +166,7 @@ class CampaignConfig:
             )
         except HysidInputError:
             raise
-        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError) as exc:
             raise HysidInputError(f"campaign configuration is malformed ({type(exc).__name__}: {exc})") from None
 
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 from island.addpop import additional_population
-from island.population import PopulationOptimizer, array_or_none, check_float, check_int, load_array
+from island.population import MAX_POPULATION, PopulationOptimizer, array_or_none, check_float, check_int, load_array
 from island.rng import uniform_population
 
 __all__ = ["GA", "rank_probabilities", "select_couples", "blx_crossover", "gaussian_mutation", "mutation_count"]
@@ -153,10 +153,10 @@ class GA(PopulationOptimizer):
             migrant_policy=migrant_policy,
             redraw_limit=redraw_limit,
         )
-        self.population = check_int(self.name, "population", population, 2)
+        self.population = check_int(self.name, "population", population, 2, MAX_POPULATION)
         if self.population % 2:
             raise HysidInputError(f"GA option population must be even (mu/2 couples), got {population}")
-        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population)
+        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population, MAX_POPULATION)
         self.alpha_blx = check_float(self.name, "alpha_blx", alpha_blx, 0.0)
         self.mutation_rate = check_float(self.name, "mutation_rate", mutation_rate, 0.0, 1.0)
         self.mutation_amount = check_float(self.name, "mutation_amount", mutation_amount, 0.0)

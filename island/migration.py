@@ -28,6 +28,7 @@ import numpy as np
 from hysid_model.errors import HysidInputError
 from island.protocol import MAX_MIGRANTS
 
+MAX_INTERVAL = 10**9
 TOPOLOGIES = ("ring", "full", "random")
 """Migration topologies (who takes migrants from whom)."""
 
@@ -44,8 +45,8 @@ class Migration:
     random_k: int = 2
 
     def __post_init__(self) -> None:
-        if isinstance(self.interval, bool) or not isinstance(self.interval, int) or self.interval < 0:
-            raise HysidInputError("must be an integer >= 0 (0 = isolated islands)", param="interval", value=self.interval)
+        if isinstance(self.interval, bool) or not isinstance(self.interval, int) or not 0 <= self.interval <= MAX_INTERVAL:
+            raise HysidInputError(f"must be an integer from 0 (isolated islands) to {MAX_INTERVAL:,}", param="interval", value=self.interval)
         for name in ("k", "random_k"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_MIGRANTS:

@@ -3,15 +3,25 @@
 The node holds no optimizer logic. It drives :func:`island.run.run` (ask ->
 evaluate -> tell) and uses its hooks:
 
+* it joins the campaign first: the coordinator issues its run id and keys
+  (:class:`island.protocol.Credentials`), and every message it sends is sealed
+  with them;
 * after every iteration the history row goes to the coordinator (in batches,
   every ``history_every_s``; iteration, best fitness, evaluations, wall time);
 * every ``migration.interval`` iterations (the *epoch*) it publishes its ``k``
   best candidates and takes what its in-neighbours (:mod:`island.migration`)
-  sent: each message is validated (:mod:`island.protocol`), every migrant's
+  sent. Each message is validated as it arrives (:mod:`island.protocol`:
+  form, the campaign tag, replays), rejects are counted, and of each sender
+  only the newest message is kept: an epoch takes at most ``k`` migrants from
+  each in-neighbour, so a flood cannot starve the evolution. Every migrant's
   fitness is **re-evaluated locally** (the claimed value is never used), and
   the optimizer's migrant policy decides what to replace;
+* who is a member, and the stop order, come from the coordinator's sealed
+  ``control`` messages (a liveliness token alone makes nobody a member);
 * a late joiner takes the coordinator's current global best the same way;
-* it stops at the coordinator's stop order or when its own budget is spent.
+* it stops at the coordinator's stop order or when its own budget is spent,
+  then waits (bounded) until the coordinator confirms it has committed every
+  history row, serving the rows it asks for again (e.g. after a restart).
 
 Two transports carry the bytes: :class:`ZenohTransport` (one process per
 island, key space ``hysid/<campaign>/...``) and :class:`MemoryTransport`
@@ -21,10 +31,11 @@ single-node campaign is reproducible).
 
 from __future__ import annotations
 
+import re
 import secrets
 import threading
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from typing import Protocol
 
@@ -39,16 +50,26 @@ from island.config import CampaignConfig
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
+    MAX_COUNT,
+    MAX_MEMBERS,
     STAT_NAMES,
     Best,
+    Control,
+    Counter,
+    Credentials,
     History,
+    JoinRequest,
     MessageRejected,
     Migrants,
+    ReplayGuard,
     check_name,
+    check_replay,
     decode_best,
+    decode_control,
+    decode_joined,
     decode_migrants,
-    decode_stop,
     encode_history,
+    encode_join,
     encode_migrants,
 )
 from island.run import HistoryRow, run
@@ -57,13 +78,17 @@ START_TIMEOUT_S = 60.0
 """Longest wait for ``min_islands`` members before an island starts anyway."""
 HISTORY_CHUNK = 20_000
 """History rows per message (well under :data:`island.protocol.MAX_ROWS`)."""
-MAX_INBOX = 4096
-"""Migrant messages an island keeps between two epochs; older ones are dropped first."""
+MAX_SENDERS = 1024
+"""Senders whose newest migrant message an island keeps between two epochs."""
 JOIN_GRACE_S = 5.0
-"""How long migrants from a sender that is not (yet) a member wait for its liveliness token.
+"""How long migrants from a sender that is not (yet) a member wait for the roster to list it.
 
-Zenoh does not order a new member's token before its first publications, so a
-joiner's first migrants can arrive before the island knows it is a member."""
+Zenoh does not order the coordinator's roster before a joiner's first
+publications, so a joiner's first migrants can arrive before the island knows
+it is a member."""
+HISTORY_QUERIES_PER_S = 4.0
+"""History queries an island answers per second (the coordinator asks every 2 s at most)."""
+SINCE_PATTERN = re.compile(r"-?[0-9]{1,16}\Z")
 
 
 def key_prefix(campaign: str) -> str:
@@ -73,8 +98,12 @@ def key_prefix(campaign: str) -> str:
 class Transport(Protocol):
     """How an island's messages travel (bytes in, bytes out)."""
 
+    credentials: Credentials
+    """What the coordinator issued when the island joined."""
+
     def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
-        """Publish this island's migrants; return ``(sender, message)`` received since the last call."""
+        """Publish this island's migrants; return ``(sender, message)`` pairs the node should still
+        :meth:`IslandNode.receive` (a transport may hand them over as they arrive instead)."""
 
     def publish_history(self, payload: bytes) -> None: ...
 
@@ -87,7 +116,10 @@ class Transport(Protocol):
         """The coordinator's current best message, if there is one (asked once, when the island starts)."""
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
-        """Return once ``n`` islands are members (or after ``timeout_s``, or on a stop order)."""
+        """Return once ``n`` islands have joined (or after ``timeout_s``, or on a stop order)."""
+
+    def confirm(self, iteration: int) -> bool:
+        """Wait (bounded) until the coordinator has committed this run's rows up to ``iteration``."""
 
 
 class IslandNode:
@@ -109,31 +141,51 @@ class IslandNode:
         self.seed = seed
         self.config = config
         self.objective = objective
-        self.run_id = secrets.token_hex(6)
+        self.credentials: Credentials | None = None
         self.history_every_s = history_every_s
         self.stats = dict.fromkeys(STAT_NAMES, 0)
         self.rows: list[tuple[int, float, int, float]] = []
         self.migrant_evaluations = 0
         self.stop_reason = ""
+        self.finished = False
+        """The run is over (its last history message says so)."""
+        self.confirmed: bool | None = None
+        """Whether the coordinator confirmed every row at the end (None: not asked)."""
         self._published = 0
         self._last_flush = 0.0
         self._snapshot: tuple[np.ndarray, float] = (objective.bounds.mean(axis=1), np.inf)
         self._best_in: Best | None = None
         self._transport: Transport | None = None
-        self._unknown_senders: deque[tuple[float, Migrants]] = deque(maxlen=MAX_INBOX)
-        """Valid migrants from senders not yet members, with when they arrived (see :data:`JOIN_GRACE_S`)."""
+        self._seq = Counter()
+        self._lock = threading.Lock()
+        self._replays = ReplayGuard()
+        self._latest: OrderedDict[str, tuple[float, Migrants]] = OrderedDict()
+        """Each sender's newest valid migrant message and when it arrived (see :data:`JOIN_GRACE_S`)."""
+        self._taken: dict[str, tuple[str, int]] = {}
+        """Per sender, the (run, seq) of the message last taken in."""
+
+    @property
+    def run_id(self) -> str:
+        return "" if self.credentials is None else self.credentials.run
+
+    def count_rejected(self) -> None:
+        with self._lock:
+            self.stats["rejected"] += 1
 
     # --- the loop ---------------------------------------------------------------
     def run(self, transport: Transport) -> list[tuple[int, float, int, float]]:
         """Optimize until done or stopped; returns the rows ``(iteration, best, evaluations, wall s)``."""
         self._transport = transport
+        self.credentials = transport.credentials
         transport.wait_for_members(self.config.min_islands, START_TIMEOUT_S)
         self._best_in = self._decode_best(transport.global_best())
         try:
             run(self.optimizer, self.objective, callback=self._record, should_stop=transport.stop_requested, migrate=self._migrate)
             self.stop_reason = "stopped by the coordinator" if transport.stop_requested() else "own budget spent"
         finally:
+            self.finished = True
             self._flush(final=True)
+        self.confirmed = transport.confirm(self.rows[-1][0] if self.rows else -1)
         return list(self.rows)
 
     def _record(self, row: HistoryRow) -> None:
@@ -143,8 +195,32 @@ class IslandNode:
         if time.monotonic() - self._last_flush >= self.history_every_s:
             self._flush()
 
+    # --- migrants -----------------------------------------------------------------
+    def receive(self, sender: str, data: bytes) -> None:
+        """A migrant message as it arrives (from any thread): validated against the campaign key and
+        for replays, counted if rejected, else kept as ``sender``'s newest."""
+        assert self.credentials is not None
+        if sender == self.island:
+            return  # our own publication, back through the subscription to every island's migrants
+        campaign_key = self.credentials.campaign_key
+        try:
+            m = decode_migrants(data, self.config.name, self.objective.bounds, tag="campaign", key_for=lambda s, r: campaign_key, sender=sender)
+            check_replay(self._replays, "migrants", m.island, m.run, m.seq)
+        except MessageRejected:
+            self.count_rejected()
+            return
+        members = set(self._transport.members()) if self._transport is not None else set()
+        with self._lock:
+            if m.island not in self._latest and len(self._latest) >= MAX_SENDERS:
+                strangers = [s for s in self._latest if s not in members]
+                if not strangers and m.island not in members:
+                    return  # no room for yet another stranger
+                del self._latest[strangers[0] if strangers else next(iter(self._latest))]
+            self._latest.pop(m.island, None)
+            self._latest[m.island] = (time.monotonic(), m)
+
     def _migrate(self, optimizer: PopulationOptimizer) -> None:
-        assert self._transport is not None
+        assert self._transport is not None and self.credentials is not None
         if self._best_in is not None:
             self._take([self._best_in.x[None, :]])
             self._best_in = None
@@ -153,26 +229,31 @@ class IslandNode:
             return
         epoch = optimizer.iteration // mig.interval
         x, f = optimizer.best(mig.k)
-        outgoing = encode_migrants(Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, x, f, time.time()))
-        received = self._transport.exchange(epoch, outgoing)
-        self.stats["sent"] += 1
+        outgoing = encode_migrants(
+            Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, x, f, time.time(), self._seq()), self.credentials
+        )
+        for sender, data in self._transport.exchange(epoch, outgoing):
+            self.receive(sender, data)
+        with self._lock:
+            self.stats["sent"] += 1
         members = self._transport.members()
         senders = in_neighbours(mig.topology, members, self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k)
+        self._take(self._intake(senders, set(members), mig.k))
+
+    def _intake(self, senders: set[str], members: set[str], k: int) -> list[np.ndarray]:
+        """The newest untaken message of each in-neighbour (at most ``k`` migrants from each); migrants
+        of non-members older than :data:`JOIN_GRACE_S` are forgotten."""
         now = time.monotonic()
-        arrived = list(self._unknown_senders)
-        self._unknown_senders.clear()
-        for sender, data in received:
-            try:
-                arrived.append((now, decode_migrants(data, self.config.name, self.objective.bounds, sender)))
-            except MessageRejected:
-                self.stats["rejected"] += 1
         batches = []
-        for at, m in arrived:
-            if m.island in senders:
-                batches.append(m.x)
-            elif m.island not in members and now - at < JOIN_GRACE_S:
-                self._unknown_senders.append((at, m))
-        self._take(batches)
+        with self._lock:
+            for sender, (at, m) in list(self._latest.items()):
+                if sender in senders:
+                    if self._taken.get(sender) != (m.run, m.seq):
+                        batches.append(m.x[:k])
+                        self._taken[sender] = (m.run, m.seq)
+                elif sender not in members and now - at >= JOIN_GRACE_S:
+                    del self._latest[sender]
+        return batches
 
     def _take(self, batches: list[np.ndarray]) -> None:
         """Re-evaluate migrants here (never trusting their claimed fitness) and offer them to the optimizer."""
@@ -181,8 +262,10 @@ class IslandNode:
         x = np.vstack(batches)
         f = self.objective(x)
         self.migrant_evaluations += x.shape[0]
-        self.stats["received"] += x.shape[0]
-        self.stats["taken"] += self.optimizer.inject(x, f)
+        taken = self.optimizer.inject(x, f)
+        with self._lock:
+            self.stats["received"] += x.shape[0]
+            self.stats["taken"] += taken
 
     def _decode_best(self, data: bytes | None) -> Best | None:
         if data is None:
@@ -190,29 +273,35 @@ class IslandNode:
         try:
             return decode_best(data, self.config.name, self.objective.bounds)
         except MessageRejected:
-            self.stats["rejected"] += 1
+            self.count_rejected()
             return None
 
     # --- history ---------------------------------------------------------------------
     def history_messages(self, since: int = -1, final: bool = False) -> list[bytes]:
         """This island's rows after iteration ``since`` (in chunks of :data:`HISTORY_CHUNK`), each
         with its best so far and its counters; ``final`` marks the last one as its goodbye."""
+        assert self.credentials is not None
         rows = np.array([r for r in list(self.rows) if r[0] > since], dtype=float).reshape(-1, 4)
         x, f = self._snapshot
+        with self._lock:
+            stats = dict(self.stats)
         chunks = [rows[i : i + HISTORY_CHUNK] for i in range(0, rows.shape[0], HISTORY_CHUNK)] or [rows]
         return [
             encode_history(History(
-                self.config.name, self.island, self.run_id, self.algo, self.seed, chunk, x, f, dict(self.stats),
-                final and i == len(chunks) - 1,
-            ))
+                self.config.name, self.island, self.run_id, self.algo, self.seed, chunk, x, f, stats,
+                final and i == len(chunks) - 1, self._seq(),
+            ), self.credentials)
             for i, chunk in enumerate(chunks)
         ]
 
     def _flush(self, final: bool = False) -> None:
         assert self._transport is not None
-        last = self.rows[self._published - 1][0] if self._published else -1
-        if self._published == len(self.rows) and not final:
-            return
+        published = self._published
+        if published == len(self.rows):
+            if not final:
+                return
+            published = max(published - 1, 0)  # the goodbye carries the last row again
+        last = self.rows[published - 1][0] if published else -1
         for message in self.history_messages(since=last, final=final):
             self._transport.publish_history(message)
         self._published = len(self.rows)
@@ -220,90 +309,119 @@ class IslandNode:
 
 
 # --- transports ----------------------------------------------------------------------------
+def join(session: zenoh.Session, node: IslandNode, wait_s: float) -> Credentials:
+    """The join handshake: ask ``join/<id>`` (until a coordinator answers or ``wait_s`` passes) for
+    this island's credentials. A refusal (e.g. the id is taken) is a :class:`HysidInputError`."""
+    key = f"{key_prefix(node.config.name)}/join/{node.island}"
+    nonce = secrets.token_bytes(16)
+    request = encode_join(JoinRequest(node.config.name, node.island, node.algo, node.seed, nonce))
+    deadline = time.monotonic() + wait_s
+    while True:
+        for reply in session.get(key, payload=request, timeout=min(5.0, max(wait_s, 0.5))):
+            if reply.ok is None:
+                continue
+            try:
+                return decode_joined(reply.ok.payload.to_bytes(), node.config.name, node.island, nonce)
+            except MessageRejected:
+                node.count_rejected()
+        if time.monotonic() >= deadline:
+            raise HysidInputError(f"no coordinator admitted island {node.island!r} on {key} within {wait_s:g} s")
+        time.sleep(0.2)
+
+
 class ZenohTransport:
     """An island's Zenoh entities under ``hysid/<campaign>/``.
 
-    Declares the liveliness token ``members/<id>``, publishes on
-    ``migrants/<id>`` and ``history/<id>``, subscribes to ``migrants/*``,
-    ``control`` and the members' tokens, and answers ``history/<id>?run=R;since=N``
-    with the rows the coordinator is missing (after a coordinator restart).
+    Joins through ``join/<id>``, then publishes on ``migrants/<id>`` and
+    ``history/<id>``, subscribes to ``migrants/*`` and ``control``, answers
+    ``history/<id>?run=R;since=N`` with the rows the coordinator is missing
+    (after a coordinator restart), and declares the liveliness token
+    ``members/<id>`` (last: it tells the coordinator the island is up).
+    ``wait_s`` bounds the join and the final wait for the coordinator's
+    confirmation.
     """
 
-    def __init__(self, session: zenoh.Session, node: IslandNode) -> None:
+    def __init__(self, session: zenoh.Session, node: IslandNode, wait_s: float = 30.0) -> None:
         self.session = session
         self.node = node
+        self.wait_s = wait_s
         prefix = key_prefix(node.config.name)
         self.prefix = prefix
-        self._inbox: deque[tuple[str, bytes]] = deque(maxlen=MAX_INBOX)
-        self._members: set[str] = set()
-        self._joined: set[str] = {node.island}
-        """Every island seen since this one started, including those that have left since."""
-        self._lock = threading.Lock()
-        self._control: deque[bytes] = deque(maxlen=MAX_INBOX)
-        self._stopped = False
+        self.credentials = join(session, node, wait_s)
+        node.credentials = self.credentials
+        self._cond = threading.Condition()
+        self._control_seq = -1
+        self._roster: dict[tuple[str, str], tuple[bool, int]] = {}
+        """(island, run) -> (alive, stored) as the coordinator's last control message said."""
+        self._stop = ""
+        self._queries: deque[float] = deque(maxlen=int(HISTORY_QUERIES_PER_S))
         self._migrants = session.declare_publisher(f"{prefix}/migrants/{node.island}")
         self._history = session.declare_publisher(f"{prefix}/history/{node.island}", congestion_control=zenoh.CongestionControl.BLOCK)
         self._entities = [
-            session.liveliness().declare_subscriber(f"{prefix}/members/*", self._on_member, history=True),
             session.declare_subscriber(f"{prefix}/migrants/*", self._on_migrants),
             session.declare_subscriber(f"{prefix}/control", self._on_control),
             session.declare_queryable(f"{prefix}/history/{node.island}", self._on_history_query),
         ]
         self._token = session.liveliness().declare_token(f"{prefix}/members/{node.island}")
 
-    def _on_member(self, sample: zenoh.Sample) -> None:
-        island = str(sample.key_expr).rsplit("/", 1)[-1]
-        with self._lock:
-            if sample.kind == zenoh.SampleKind.PUT:
-                self._members.add(island)
-                self._joined.add(island)
-            else:
-                self._members.discard(island)
-
     def _on_migrants(self, sample: zenoh.Sample) -> None:
-        self._inbox.append((str(sample.key_expr).rsplit("/", 1)[-1], sample.payload.to_bytes()))
+        self.node.receive(str(sample.key_expr).rsplit("/", 1)[-1], sample.payload.to_bytes())
 
     def _on_control(self, sample: zenoh.Sample) -> None:
-        self._control.append(sample.payload.to_bytes())
+        try:
+            control = decode_control(sample.payload.to_bytes(), self.node.config.name, self.credentials)
+        except MessageRejected:
+            self.node.count_rejected()
+            return
+        self.apply(control)
+
+    def apply(self, control: Control) -> None:
+        """Take a (validated) control message: the newest one wins, an older one is a replay."""
+        with self._cond:
+            if control.seq <= self._control_seq:
+                self.node.count_rejected()
+                return
+            self._control_seq = control.seq
+            self._roster = {(m.island, m.run): (m.alive, m.stored) for m in control.members}
+            self._stop = self._stop or control.stop
+            self._cond.notify_all()
 
     def _on_history_query(self, query: zenoh.Query) -> None:
+        now = time.monotonic()
         params = query.parameters
-        try:
-            since = int(params.get("since") or -1) if params.get("run") == self.node.run_id else -1
-        except ValueError:
-            since = -1
-        for message in self.node.history_messages(since=since):
+        run, since = params.get("run"), params.get("since") or "-1"
+        if len(self._queries) == self._queries.maxlen and now - self._queries[0] < 1.0:
+            self.node.count_rejected()  # more history queries than the coordinator ever sends
+            return
+        if not SINCE_PATTERN.match(since) or not -1 <= int(since) <= MAX_COUNT:
+            self.node.count_rejected()
+            return
+        self._queries.append(now)
+        since_i = int(since) if run == self.node.run_id else -1
+        for message in self.node.history_messages(since=since_i, final=self.node.finished):
             query.reply(query.key_expr, message)
 
     # --- Transport ---
     def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
+        """Migrants arrive through :meth:`_on_migrants` as they come; nothing is left to hand over."""
         self._migrants.put(payload)
-        received = []
-        while self._inbox:
-            received.append(self._inbox.popleft())
-        return received
+        return []
 
     def publish_history(self, payload: bytes) -> None:
         self._history.put(payload)
 
     def members(self) -> list[str]:
-        with self._lock:
-            return sorted(self._members | {self.node.island})
+        with self._cond:
+            alive = {island for (island, _), (up, _) in self._roster.items() if up}
+        return sorted(alive | {self.node.island})
 
     def _joined_count(self) -> int:
-        with self._lock:
-            return len(self._joined)
+        """Islands the roster lists, including those that have left: a fast island may finish before a slow one starts."""
+        return len({island for island, _ in self._roster} | {self.node.island})
 
     def stop_requested(self) -> bool:
-        """Whether a valid stop order arrived (control messages are validated here, in the island's thread)."""
-        while self._control:
-            try:
-                decode_stop(self._control.popleft(), self.node.config.name)
-            except MessageRejected:
-                self.node.stats["rejected"] += 1
-                continue
-            self._stopped = True
-        return self._stopped
+        with self._cond:
+            return bool(self._stop)
 
     def global_best(self) -> bytes | None:
         for reply in self.session.get(f"{self.prefix}/best", timeout=2.0):
@@ -312,10 +430,14 @@ class ZenohTransport:
         return None
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
-        """Counts islands that have joined, even if they already left: a fast island may finish before a slow one starts."""
-        deadline = time.monotonic() + timeout_s
-        while self._joined_count() < n and time.monotonic() < deadline and not self.stop_requested():
-            time.sleep(0.05)
+        with self._cond:
+            self._cond.wait_for(lambda: self._joined_count() >= n or bool(self._stop), timeout=timeout_s)
+
+    def confirm(self, iteration: int) -> bool:
+        """Wait up to ``wait_s`` for a control message saying rows up to ``iteration`` are committed."""
+        me = (self.node.island, self.node.run_id)
+        with self._cond:
+            return self._cond.wait_for(lambda: self._roster.get(me, (False, -1))[1] >= iteration, timeout=self.wait_s)
 
     def close(self) -> None:
         """Leave the campaign: the token goes last, after the final history was sent."""
@@ -337,26 +459,38 @@ def fetch_config(session: zenoh.Session, campaign: str, wait_s: float) -> bytes:
         time.sleep(0.2)
 
 
+Admit = Callable[[str, str, int], Credentials]
+"""``admit(island, algo, seed)``: the join handshake of an in-process island."""
+
+
 class MemoryBus:
     """In-process migration between island threads, in lock step per epoch.
 
     At epoch ``e`` every island posts its migrants and waits until each island
     still running has posted for ``e`` (or finished), so the exchange does not
     depend on thread timing and a seeded single-node campaign is reproducible.
+    ``admit`` issues each island's credentials (the coordinator's, in a
+    single-node campaign; by default the bus' own).
     """
 
-    def __init__(self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], None], stop: threading.Event) -> None:
+    def __init__(
+        self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], None], stop: threading.Event, admit: Admit | None = None
+    ) -> None:
         self.prefix = key_prefix(campaign)
         self.islands = sorted(islands)
+        if len(self.islands) > MAX_MEMBERS:
+            raise HysidInputError(f"at most {MAX_MEMBERS} islands", param="islands", value=len(self.islands))
         self.deliver = deliver
         """Receives every publication as ``(key, message)``, as the coordinator's subscribers would."""
         self.stop = stop
+        campaign_key = secrets.token_bytes(32)
+        self.admit = admit or (lambda island, algo, seed: Credentials.issue(island, campaign_key))
         self._active = set(islands)
         self._posts: dict[int, dict[str, bytes]] = {}
         self._cond = threading.Condition()
 
-    def transport(self, island: str) -> "MemoryTransport":
-        return MemoryTransport(self, island)
+    def transport(self, island: str, algo: str = "", seed: int = 0) -> "MemoryTransport":
+        return MemoryTransport(self, island, self.admit(island, algo, seed))
 
     def exchange(self, island: str, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
         self.deliver(f"{self.prefix}/migrants/{island}", payload)
@@ -376,9 +510,10 @@ class MemoryBus:
 class MemoryTransport:
     """One island's view of a :class:`MemoryBus`."""
 
-    def __init__(self, bus: MemoryBus, island: str) -> None:
+    def __init__(self, bus: MemoryBus, island: str, credentials: Credentials) -> None:
         self.bus = bus
         self.island = island
+        self.credentials = credentials
 
     def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
         return self.bus.exchange(self.island, epoch, payload)
@@ -397,6 +532,10 @@ class MemoryTransport:
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
         """Every island of the bus exists from the start."""
+
+    def confirm(self, iteration: int) -> bool:
+        """The coordinator is in this process: what was delivered is in its queue."""
+        return True
 
     def close(self) -> None:
         self.bus.leave(self.island)

@@ -42,10 +42,19 @@ def check_bounds(bounds: np.ndarray) -> np.ndarray:
     return b
 
 
-def check_int(algorithm: str, name: str, value: Any, minimum: int) -> int:
-    """An integer option of at least ``minimum``, else a one-line error naming the option."""
+MAX_POPULATION = 1_000_000
+"""Largest initial population or swarm (the thesis: 6000): a million candidates are evaluated in one
+vectorized call within a few GB of memory."""
+MAX_ITERATIONS = 2**53
+"""Largest iteration budget (iterations travel as exact float64 counts)."""
+
+
+def check_int(algorithm: str, name: str, value: Any, minimum: int, maximum: int = 2**62) -> int:
+    """An integer option in ``[minimum, maximum]``, else a one-line error naming the option."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise HysidInputError(f"{algorithm} option {name} must be an integer >= {minimum}, got {value!r}")
+    if value > maximum:
+        raise HysidInputError(f"{algorithm} option {name} must be at most {maximum:,}, got {value!r}")
     return int(value)
 
 
@@ -105,11 +114,11 @@ class PopulationOptimizer(AskTell):
     ) -> None:
         self.bounds = check_bounds(bounds)
         self.seed = check_int(self.name, "seed", seed, 0)
-        self.iterations = check_int(self.name, "iterations", iterations, 0)
+        self.iterations = check_int(self.name, "iterations", iterations, 0, MAX_ITERATIONS)
         self.addpop_amount = check_float(self.name, "addpop_amount", addpop_amount, 0.0)
-        self.addpop_level = check_int(self.name, "addpop_level", addpop_level, 0)
+        self.addpop_level = check_int(self.name, "addpop_level", addpop_level, 0, 1000)
         self.migrant_policy = check_choice(self.name, "migrant_policy", migrant_policy, MIGRANT_POLICIES)
-        self.redraw_limit = check_int(self.name, "redraw_limit", redraw_limit, 0)
+        self.redraw_limit = check_int(self.name, "redraw_limit", redraw_limit, 0, 10_000)
         self.rng = new_rng(self.seed)
         self.history: list[float] = []
         """Best fitness after each iteration; index 0 = after the initial population (the thesis' ``fhv``)."""
@@ -164,6 +173,13 @@ class PopulationOptimizer(AskTell):
     @property
     def iteration(self) -> int:
         return self._iteration
+
+    def evaluation_bound(self, iteration: Any) -> Any:
+        """The most candidates ``tell`` can have counted by the end of ``iteration`` (a number or an
+        array): the initial population, then a population plus the additional population per
+        iteration, each batch told at most ``1 + redraw_limit`` times (a claim above it is impossible)."""
+        per_iteration = self.population + self.addpop_number  # type: ignore[attr-defined]
+        return (self.initial_population + iteration * per_iteration) * (1 + self.redraw_limit)  # type: ignore[attr-defined]
 
     @property
     def done(self) -> bool:

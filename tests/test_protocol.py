@@ -1,4 +1,4 @@
-"""Campaign messages: round trips and strict rejection of bad input (island/protocol.py)."""
+"""Campaign messages: round trips, strict rejection of bad input, tags and replays (island/protocol.py)."""
 
 from __future__ import annotations
 
@@ -11,24 +11,45 @@ from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
 from island.migration import Migration, in_neighbours
 from island.protocol import (
+    INT64_MAX,
     MAX_BYTES,
     Best,
+    Control,
+    Credentials,
     History,
+    JoinRequest,
+    MemberState,
     MessageRejected,
     Migrants,
+    ReplayGuard,
+    check_replay,
     decode_best,
+    decode_control,
     decode_history,
+    decode_join,
+    decode_joined,
     decode_migrants,
-    decode_stop,
     encode_best,
+    encode_control,
     encode_history,
+    encode_join,
+    encode_joined,
     encode_migrants,
-    encode_stop,
     pack_array,
+    seal,
 )
 
 BOUNDS = np.array([[0.0, 0.1], [-10.0, 10.0], [100.0, 500.0], [-1e4, 1e4]])
 X = np.array([[0.0042, -0.4, 189.1239, -1256.64], [0.01, 1.0, 200.0, 0.0]])
+CAMPAIGN_KEY = bytes(range(32))
+GA0 = Credentials("ga-0", "r1", b"k" * 32, CAMPAIGN_KEY)
+PSO1 = Credentials("pso-1", "r9", b"p" * 32, CAMPAIGN_KEY)
+RUN_KEYS = {("ga-0", "r1"): GA0.key, ("pso-1", "r9"): PSO1.key}
+
+
+def run_key(sender: str, run: str) -> bytes | None:
+    """The coordinator's view: only runs that joined have a key."""
+    return RUN_KEYS.get((sender, run))
 
 
 def migrants(**change) -> Migrants:
@@ -37,24 +58,40 @@ def migrants(**change) -> Migrants:
     return Migrants(**fields)
 
 
+ENVELOPE = ("v", "type", "campaign", "island", "run", "seq")
+
+
 def raw(msg_type: str = "migrants", **fields) -> bytes:
-    base = {"v": 1, "type": msg_type, "campaign": "c1", "island": "ga-0", "run": "r1", "iteration": 3,
+    """A migrant message of ga-0, correctly tagged, with any envelope or body field replaced (``...``: left out)."""
+    base = {"v": 2, "type": msg_type, "campaign": "c1", "island": "ga-0", "run": "r1", "seq": 0, "iteration": 3,
             "x": pack_array(X), "claimed": pack_array(np.array([0.1, 0.2])), "sent_at": 0.0}
     base.update(fields)
-    return msgpack.packb({k: v for k, v in base.items() if v is not ...}, use_bin_type=True)
+    body = {k: v for k, v in base.items() if k not in ENVELOPE and v is not ...}
+    packed_body = msgpack.packb(body, use_bin_type=True)
+    sealed = msgpack.unpackb(seal("migrants", "c1", "ga-0", "r1", 0, body, {"campaign": CAMPAIGN_KEY}))
+    envelope = {**sealed, "body": packed_body}
+    for k in ENVELOPE:
+        name = "sender" if k == "island" else k
+        if base[k] is ...:
+            envelope.pop(name)
+        else:
+            envelope[name] = base[k]
+    return msgpack.packb(envelope, use_bin_type=True)
 
 
 def reason(data: bytes, **kw) -> str:
     with pytest.raises(MessageRejected) as info:
-        decode_migrants(data, "c1", BOUNDS, **kw)
+        decode_migrants(data, "c1", BOUNDS, tag="campaign", key_for=lambda s, r: CAMPAIGN_KEY, **kw)
     return info.value.reason
 
 
 def test_migrants_round_trip_keeps_vectors_and_claims():
-    m = decode_migrants(encode_migrants(migrants()), "c1", BOUNDS, sender="ga-0")
+    m = decode_migrants(encode_migrants(migrants(seq=7), GA0), "c1", BOUNDS, tag="campaign", key_for=lambda s, r: CAMPAIGN_KEY, sender="ga-0")
     np.testing.assert_array_equal(m.x, X)
     np.testing.assert_array_equal(m.claimed, [1e-6, 2e-3])
-    assert (m.island, m.run, m.iteration, m.sent_at) == ("ga-0", "r1", 10, 1.5)
+    assert (m.island, m.run, m.iteration, m.sent_at, m.seq) == ("ga-0", "r1", 10, 1.5, 7)
+    by_coordinator = decode_migrants(encode_migrants(migrants(), GA0), "c1", BOUNDS, tag="run", key_for=run_key, sender="ga-0")
+    np.testing.assert_array_equal(by_coordinator.x, X)
 
 
 @pytest.mark.parametrize(
@@ -63,7 +100,7 @@ def test_migrants_round_trip_keeps_vectors_and_claims():
         (b"\xc1\x00\x01", "undecodable"),
         (b"", "undecodable"),
         (msgpack.packb([1, 2, 3]), "schema"),
-        (raw(v=2), "version"),
+        (raw(v=1), "version"),
         (raw(campaign="other"), "campaign"),
         (raw(msg_type="history"), "schema"),
         (raw(island="no/slash"), "schema"),
@@ -82,8 +119,23 @@ def test_migrants_round_trip_keeps_vectors_and_claims():
         (raw(x=pack_array(np.array([[0.2, 0.0, 200.0, 0.0]])), claimed=pack_array(np.array([0.0]))), "out_of_bounds"),
         (raw(x=pack_array(np.array([[0.05, 0.0, 99.0, 0.0]])), claimed=pack_array(np.array([0.0]))), "out_of_bounds"),
         (b"\x00" * (MAX_BYTES["migrants"] + 1), "oversized"),
-        (msgpack.packb({"v": 1, "type": "migrants", "campaign": "c1", "x": msgpack.ExtType(5, b"xx")}), "schema"),
+        (raw(x=msgpack.ExtType(5, b"xx")), "schema"),
         (msgpack.packb({1: 2}), "undecodable"),
+        # hostile values that once crashed every receiver
+        (raw(x={"shape": [2**62, 4], "data": b""}), "shape"),
+        (raw(x={"shape": [2**32, 2**32], "data": b""}), "shape"),
+        (raw(x={"shape": [2, 4] * 1000, "data": b""}), "shape"),
+        (raw(sent_at=float("nan")), "not_finite"),
+        (raw(sent_at=float("inf")), "not_finite"),
+        (raw(sent_at=2**63), "schema"),
+        (raw(iteration=2**63), "schema"),
+        (raw(iteration=2**64 - 1), "schema"),
+        (raw(iteration=2**53 + 1), "schema"),
+        (raw(claimed=pack_array(np.array([1e300, np.nan]))), "not_finite"),
+        (raw(x=pack_array(np.array([[1e300, 0.0, 200.0, 0.0]])), claimed=pack_array(np.array([0.0]))), "out_of_bounds"),
+        (raw(seq=-1), "schema"),
+        (raw(seq=2**64 - 1), "schema"),
+        (raw(run="a" * 65), "schema"),
     ],
 )
 def test_bad_migrant_messages_are_rejected_with_a_reason(data, expected):
@@ -91,17 +143,44 @@ def test_bad_migrant_messages_are_rejected_with_a_reason(data, expected):
 
 
 def test_migrants_sent_under_another_islands_key_are_rejected():
-    assert reason(encode_migrants(migrants()), sender="pso-1") == "sender"
+    assert reason(encode_migrants(migrants(), GA0), sender="pso-1") == "sender"
+
+
+def test_a_sender_is_bound_to_its_run_key_and_the_campaign_key():
+    """The coordinator takes a message only with the tag of a run that joined; islands only with the campaign tag."""
+    def by_coordinator(data: bytes) -> str:
+        with pytest.raises(MessageRejected) as info:
+            decode_migrants(data, "c1", BOUNDS, tag="run", key_for=run_key)
+        return info.value.reason
+
+    impostor = Credentials("ga-0", "r1", b"x" * 32, b"y" * 32)  # island ga-0's name and run, not its keys
+    assert by_coordinator(encode_migrants(migrants(), impostor)) == "forged"
+    assert reason(encode_migrants(migrants(), impostor)) == "forged"
+    assert by_coordinator(encode_migrants(migrants(island="stranger", run="s1"), Credentials("stranger", "s1", b"s" * 32, CAMPAIGN_KEY))) == "unjoined"
+    joined_elsewhere = Credentials("ga-0", "r1", GA0.key, b"z" * 32)  # right run key, wrong campaign key
+    assert reason(encode_migrants(migrants(), joined_elsewhere)) == "forged"
+    tampered = msgpack.unpackb(encode_migrants(migrants(), GA0))
+    tampered["seq"] = 99  # the number is under the tag: a replay cannot be renumbered
+    assert by_coordinator(msgpack.packb(tampered)) == "forged"
+
+
+def test_replays_are_dropped_also_out_of_order_within_the_window():
+    guard = ReplayGuard(window=8)
+    assert [guard.fresh(("m", "a", "r"), s) for s in (0, 2, 1, 2, 0)] == [True, True, True, False, False]
+    assert guard.fresh(("m", "b", "r"), 0) and guard.fresh(("m", "a", "r2"), 0)  # per sender run
+    assert guard.fresh(("m", "a", "r"), 100) and not guard.fresh(("m", "a", "r"), 90)  # older than the window
+    with pytest.raises(MessageRejected, match="replay"):
+        check_replay(guard, "m", "a", "r", 100)
 
 
 def test_too_many_migrants_is_oversized_before_anything_else_is_read():
     many = np.tile(X[:1], (300, 1))
-    assert reason(encode_migrants(migrants(x=many, claimed=np.zeros(300)))) == "oversized"
+    assert reason(encode_migrants(migrants(x=many, claimed=np.zeros(300)), GA0)) == "oversized"
 
 
 def test_rejection_is_a_one_line_hysid_input_error():
     with pytest.raises(HysidInputError) as info:
-        decode_migrants(raw(claimed=pack_array(np.array([np.nan, 1.0]))), "c1", BOUNDS)
+        decode_migrants(raw(claimed=pack_array(np.array([np.nan, 1.0]))), "c1", BOUNDS, tag="campaign", key_for=lambda s, r: CAMPAIGN_KEY)
     assert "\n" not in str(info.value) and "not_finite" in str(info.value)
 
 
@@ -115,19 +194,57 @@ def history(**change) -> History:
     return History(**fields)
 
 
+def history_of(h: History) -> History:
+    return decode_history(encode_history(h, PSO1), "c1", BOUNDS, key_for=run_key, sender="pso-1")
+
+
 def test_history_round_trip():
-    h = decode_history(encode_history(history()), "c1", BOUNDS, sender="pso-1")
+    h = history_of(history())
     np.testing.assert_array_equal(h.rows, [[0, 5.0, 100, 0.1], [1, 2.0, 200, 0.2]])
     assert (h.algo, h.seed, h.final, h.stats["received"]) == ("pso", 4, True, 2)
 
 
 def test_history_allows_an_infinite_best_but_not_nan_or_fractional_counts():
-    decode_history(encode_history(history(rows=np.array([[0, np.inf, 10, 0.0]]), best_f=np.inf)), "c1", BOUNDS)
+    history_of(history(rows=np.array([[0, np.inf, 10, 0.0]]), best_f=np.inf))
     for rows in ([[0, np.nan, 10, 0.0]], [[0, 1.0, 10.5, 0.0]], [[-1, 1.0, 10, 0.0]]):
         with pytest.raises(MessageRejected):
-            decode_history(encode_history(history(rows=np.array(rows))), "c1", BOUNDS)
+            history_of(history(rows=np.array(rows)))
     with pytest.raises(MessageRejected, match="out_of_bounds"):
-        decode_history(encode_history(history(best_x=np.array([1.0, 0, 200, 0]))), "c1", BOUNDS)
+        history_of(history(best_x=np.array([1.0, 0, 200, 0])))
+
+
+@pytest.mark.parametrize(
+    "change, expected",
+    [
+        ({"rows": np.array([[0, 5.0, 1e300, 0.1]])}, "schema"),  # a count no float64 holds exactly
+        ({"rows": np.array([[2.0**62, 5.0, 100, 0.1]])}, "schema"),
+        ({"rows": np.array([[0, 5.0, 100, np.inf]])}, "not_finite"),
+        ({"rows": np.array([[1, 5.0, 100, 0.1], [0, 6.0, 50, 0.0]])}, "implausible"),  # iterations must rise
+        ({"rows": np.array([[0, 5.0, 100, 0.1], [1, 6.0, 200, 0.2]])}, "implausible"),  # a best that worsens
+        ({"rows": np.array([[0, 5.0, 100, 0.1], [1, 4.0, 90, 0.2]])}, "implausible"),  # evaluations that fall
+        ({"best_f": float("nan")}, "not_finite"),
+        ({"best_f": -1.0}, "schema"),
+        ({"seed": 2**63}, "schema"),
+        ({"stats": {"sent": 2**63, "received": 0, "taken": 0, "rejected": 0}}, "schema"),
+        ({"stats": {"sent": 1, "received": 0, "taken": 0}}, "schema"),
+        ({"algo": "GA; DROP TABLE"}, "schema"),
+    ],
+)
+def test_hostile_history_values_are_rejected_not_raised(change, expected):
+    data = encode_history(history(**change), PSO1) if "stats" not in change and "seed" not in change else None
+    if data is None:  # values the encoder itself would refuse: build the body by hand
+        fields = {"algo": "pso", "seed": 4, "rows": pack_array(np.array([[0, 5.0, 100, 0.1]])), "best_x": pack_array(X[0]),
+                  "best_f": 2.0, "stats": {"sent": 1, "received": 2, "taken": 1, "rejected": 0}, "final": True, **change}
+        data = seal("history", "c1", "pso-1", "r9", 0, fields, {"run": PSO1.key})
+    with pytest.raises(MessageRejected) as info:
+        decode_history(data, "c1", BOUNDS, key_for=run_key, sender="pso-1")
+    assert info.value.reason == expected
+
+
+def test_history_of_a_run_that_never_joined_is_rejected():
+    with pytest.raises(MessageRejected, match="unjoined"):
+        decode_history(encode_history(history(island="ghost", run="g1"), Credentials("ghost", "g1", b"g" * 32, CAMPAIGN_KEY)),
+                       "c1", BOUNDS, key_for=run_key)
 
 
 def test_config_round_trip_carries_the_loop_set_and_settings():
@@ -177,9 +294,42 @@ def test_best_and_stop_round_trip_and_validate():
     assert b.fitness == 1e-9 and b.island == "ga-0"
     with pytest.raises(MessageRejected):
         decode_best(encode_best(Best("c1", "ga-0", X[0], np.nan)), "c1", BOUNDS)
-    assert decode_stop(encode_stop("c1", "budget spent"), "c1") == "budget spent"
+    control = Control("c1", (MemberState("ga-0", "r1", True, 41), MemberState("pso-1", "r9", False, -1)), "budget spent", 5)
+    message = encode_control(control, "coord", {"ga-0": GA0.key, "pso-1": PSO1.key})
+    assert decode_control(message, "c1", GA0) == control == decode_control(message, "c1", PSO1)
     with pytest.raises(MessageRejected):
-        decode_stop(encode_stop("c2", "budget spent"), "c1")
+        decode_control(message, "c2", GA0)
+    with pytest.raises(MessageRejected, match="forged"):  # a stop order only counts with this island's tag
+        decode_control(encode_control(control, "coord", {"ga-0": b"w" * 32}), "c1", GA0)
+    with pytest.raises(MessageRejected, match="forged"):
+        decode_control(encode_control(control, "coord", {"ga-0": GA0.key}), "c1", PSO1)
+
+
+def test_join_handshake_round_trip_and_refusal():
+    request = JoinRequest("c1", "ga-0", "ga", 3, b"n" * 16)
+    assert decode_join(encode_join(request), "c1", sender="ga-0") == request
+    with pytest.raises(MessageRejected, match="sender"):
+        decode_join(encode_join(request), "c1", sender="pso-1")
+    answer = encode_joined("c1", request.nonce, GA0)
+    assert decode_joined(answer, "c1", "ga-0", request.nonce) == GA0
+    with pytest.raises(MessageRejected, match="replay"):  # an answer to another request
+        decode_joined(answer, "c1", "ga-0", b"o" * 16)
+    with pytest.raises(HysidInputError, match="refused island 'ga-0': id taken"):
+        decode_joined(encode_joined("c1", request.nonce, refused="id taken"), "c1", "ga-0", request.nonce)
+
+
+def test_config_with_hostile_metadata_or_labels_is_rejected():
+    loops = synth_loops(n_points=10)
+    good = msgpack.unpackb(encode_config(CampaignConfig(name="c1"), loops))
+    nested: list = []
+    for _ in range(60):
+        nested = [nested]
+    for change in ({"meta": {"deep": nested}}, {"labels": [nested] * loops.n_loops}, {"meq_kg": float("nan")},
+                   {"meq_kg": 2**64 - 1}, {"cycles": [2**64 - 1] * loops.n_loops}, {"meta": {"x": float("inf")}}):
+        data = msgpack.unpackb(msgpack.packb(good))
+        data["loops"].update(change)
+        with pytest.raises(MessageRejected):
+            decode_config(msgpack.packb(data), "c1")
 
 
 def test_ring_takes_from_the_predecessor_and_survives_departures():

@@ -72,7 +72,7 @@ def test_everything_committed_survives_a_killed_process(tmp_path):
         store.add_history("c1", "ga-0", "r1", np.array([[i, 1.0 / (i + 1), 10 * i, 0.01 * i] for i in range(50)]))
         store.member_event("c1", "ga-0", "join")
         store.add_rejected("c1", "hysid/c1/migrants/x", "oversized", "too big", 10**6)
-        store.add_migration("c1", "ga-0", "r1", 5, 2, 0.1, 0.0)
+        store.add_migration("c1", "ga-0", "r1", 5, 2, 0.1, 0.0, 0)
         store.set_best("c1", StoredBest("ga-0", np.array([1.0, 2.0]), 0.02, 490))
         store.commit()
         store.add_history("c1", "ga-0", "r1", np.array([[99, 0.0, 0, 0.0]]))  # not committed

@@ -27,6 +27,7 @@ to the coordinator's record of the global best reaching the target.
 
 from __future__ import annotations
 
+import secrets
 import tempfile
 import threading
 import time
@@ -45,7 +46,7 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.ga import GA
 from island.migration import Migration
-from island.protocol import Migrants, decode_migrants, encode_migrants
+from island.protocol import Credentials, Migrants, decode_migrants, encode_migrants
 from island.run import run as run_optimizer
 from island.session import open_session, session_config
 from island.termination import Termination
@@ -216,9 +217,10 @@ def latency(messages: int = 5000, paced: int = 500, k: int = 2) -> dict[str, Any
     receiver = open_session(session_config("client", connect=[endpoint]), endpoint)
     delays: list[float] = []
     arrived = threading.Semaphore(0)
+    credentials = Credentials.issue("a", secrets.token_bytes(32))
 
     def on_sample(sample: zenoh.Sample) -> None:
-        m = decode_migrants(sample.payload.to_bytes(), "bench", bounds, "a")  # validated as an island would
+        m = decode_migrants(sample.payload.to_bytes(), "bench", bounds, tag="campaign", key_for=lambda s, r: credentials.campaign_key, sender="a")  # as an island would
         delays.append(time.time() - m.sent_at)
         arrived.release()
 
@@ -226,7 +228,7 @@ def latency(messages: int = 5000, paced: int = 500, k: int = 2) -> dict[str, Any
     x = bounds[:, 0] + rng.random((k, bounds.shape[0])) * (bounds[:, 1] - bounds[:, 0])
 
     def send(i: int) -> None:
-        publisher.put(encode_migrants(Migrants("bench", "a", "r", i, x, np.arange(k, dtype=float), time.time())))
+        publisher.put(encode_migrants(Migrants("bench", "a", credentials.run, i, x, np.arange(k, dtype=float), time.time(), i), credentials))
 
     def wait_all(n: int) -> None:
         for _ in range(n):

@@ -12,6 +12,7 @@ import os
 import re
 import socket
 import sys
+import warnings
 import zlib
 from pathlib import Path
 from typing import Optional
@@ -26,9 +27,9 @@ from hysid.cli import options as o
 from hysid.report import jsondoc
 from hysid.report.text import campaign_progress_line
 from hysid_model.datasets import load_dataset
-from hysid_model.errors import HysidInputError
+from hysid_model.errors import HysidInputError, HysidWarning
 from island.algorithms import check_algorithm
-from island.config import CampaignConfig, decode_config
+from island.config import MAX_SEED, CampaignConfig, decode_config
 from island.migration import Migration
 from island.node import IslandNode, ZenohTransport, fetch_config
 from island.protocol import check_name
@@ -36,22 +37,28 @@ from island.session import DEFAULT_ENDPOINT, open_session, session_config
 from island.termination import Termination
 
 
+MAX_WAIT_S = 86400.0
+
+
 def print_progress(p: CampaignProgress) -> None:
     print(campaign_progress_line(p), file=sys.stderr, flush=True)
 
 
 def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) -> Path:
-    """The campaign database: ``--db`` or OUT/campaign.sqlite; a stored campaign is only ever resumed."""
+    """The campaign database: ``--db`` or OUT/campaign.sqlite; a stored campaign is only ever resumed.
+    Whether it can be written is checked here, before any work."""
     path = db if db is not None else out / "campaign.sqlite"
     if resuming:
         if db is None:
             raise HysidInputError("--resume needs --db FILE, the database of the coordinator to carry on")
         if not db.is_file():
             raise HysidInputError("no such file to resume", param="db", value=db)
-    elif path.is_file():
-        store = Store(path)
+    elif db is not None and not db.exists():
+        o.check_writable(db.parent, "db")
+    if path.is_file():
+        store = Store(path)  # opening it checks that it can be written
         try:
-            if store.has_campaign(campaign_name):
+            if not resuming and store.has_campaign(campaign_name):
                 raise HysidInputError(f"{path}: campaign {campaign_name!r} already exists; use --resume to carry on, or another --campaign or --db")
         finally:
             store.close()
@@ -192,8 +199,10 @@ def register(app: typer.Typer) -> None:
         check_name("campaign", name)
         if algo is not None:
             check_algorithm(algo)
-        if seed is not None and seed < 0:
-            raise HysidInputError("seeds must be non-negative", param="seed", value=seed)
+        if seed is not None and not 0 <= seed <= MAX_SEED:
+            raise HysidInputError("seeds must be from 0 to 2**62", param="seed", value=seed)
+        if not 0 <= wait <= MAX_WAIT_S:  # also NaN
+            raise HysidInputError(f"must be from 0 to {MAX_WAIT_S:g} seconds", param="wait", value=wait)
         island = check_name("island", island_id or default_island_id())
         zconfig = session_config("client", connect=connect, config_file=config_file, connect_timeout_s=wait)
         session = open_session(zconfig, f"connect {', '.join(connect) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
@@ -202,13 +211,18 @@ def register(app: typer.Typer) -> None:
             seed_ = seed if seed is not None else config.seed + zlib.crc32(island.encode()) % (1 << 20)
             algo_ = algo or config.algo_for(seed_)
             node = IslandNode(island, algo_, seed_, config, config.objective(loops))
-            transport = ZenohTransport(session, node)
+            transport = ZenohTransport(session, node, wait)
             try:
                 node.run(transport)
             finally:
                 transport.close()
         finally:
             session.close()
+        if node.confirmed is False:
+            warnings.warn(HysidWarning(
+                f"island {node.island}: the coordinator did not confirm its history within {wait:g} s; rows sent since its last "
+                "confirmation may be missing from the campaign database"
+            ), stacklevel=1)
         if not quiet:
             rows = node.rows
             best = rows[-1][1] if rows else float("inf")

@@ -9,6 +9,7 @@ library error names to the flag the user typed.
 from __future__ import annotations
 
 import datetime as dt
+import os
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +50,7 @@ FLAGS = {
     "config_file": "--config",
     "out": "--out",
     "db": "--db",
+    "wait": "--wait",
     "seeds": "--seeds",
     "thesis_runs": "--thesis-runs",
     "part": "PART",
@@ -100,7 +102,8 @@ def report_dir(out: Path | None, kind: str) -> Path:
     """Where a command writes its report: ``--out`` if new or empty, else a new ``hysid-out/<kind>-<time>``.
 
     Checked before any work, so that a run never ends in an error after its
-    work is done, and never overwrites an earlier report.
+    work is done, and never overwrites an earlier report; a directory that
+    cannot be written (read-only or full file system) fails here too.
     """
     if out is None:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -109,12 +112,39 @@ def report_dir(out: Path | None, kind: str) -> Path:
         while out.exists():
             n += 1
             out = base.with_name(f"{base.name}-{n}")
-        return out
+        return check_writable(out, "out")
     if out.exists() and not out.is_dir():
         raise HysidInputError("exists and is not a directory", param="out", value=out)
     if out.exists() and any(out.iterdir()):
         raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param="out", value=out)
-    return out
+    return check_writable(out, "out")
+
+
+PROBE_BYTES = 64 << 10
+"""What :func:`check_writable` writes: a disk with less room left is as good as full."""
+
+
+def check_writable(directory: Path, param: str) -> Path:
+    """``directory`` if it can be created and written (a probe file is written and removed, and
+    directories made for it are removed again), else a one-line :class:`HysidInputError`."""
+    made = [p for p in [directory, *directory.parents] if not p.exists()]
+    probe = directory / f".hysid-probe-{os.getpid()}"
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        with open(probe, "wb") as f:
+            f.write(bytes(PROBE_BYTES))
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as exc:
+        raise HysidInputError(f"cannot write there ({exc.strerror or exc}); nothing was run", param=param, value=directory) from None
+    finally:
+        probe.unlink(missing_ok=True)
+        for p in made:
+            try:
+                p.rmdir()
+            except OSError:
+                break
+    return directory
 
 
 def parse_algos(value: str) -> list[str]:

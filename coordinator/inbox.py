@@ -1,0 +1,87 @@
+"""The coordinator's inbox: bounded, fair, with back-pressure.
+
+Everything that arrives (island messages, membership changes, join requests)
+waits here for the coordinator's one thread. The inbox holds one queue per
+*source* (an island that joined has its own; senders that never joined share
+one) and hands items out round-robin, so that a flooding source cannot starve
+the others. Its size is bounded in items per source, in sources and in bytes:
+a producer that finds its queue full waits up to ``wait_s`` (back-pressure:
+Zenoh's reader for that link pauses, a publisher with congestion control
+``BLOCK`` slows down) and then the item is dropped and counted. Honest islands
+lose nothing by a drop: the coordinator asks again for history rows it misses
+(:meth:`coordinator.server.Coordinator._check_gap`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import Counter, OrderedDict, deque
+from typing import Any
+
+PER_SOURCE = 4096
+"""Items one source may have waiting."""
+MAX_SOURCES = 8192
+MAX_BYTES = 256 << 20
+"""Payload bytes waiting in all."""
+
+
+class Inbox:
+    """See the module docstring; thread-safe."""
+
+    def __init__(self, per_source: int = PER_SOURCE, max_sources: int = MAX_SOURCES, max_bytes: int = MAX_BYTES) -> None:
+        self.per_source = per_source
+        self.max_sources = max_sources
+        self.max_bytes = max_bytes
+        self._queues: OrderedDict[str, deque[tuple[Any, int]]] = OrderedDict()
+        """Sources with items waiting, in the order they are served next."""
+        self._bytes = 0
+        self._dropped: Counter[str] = Counter()
+        self._cond = threading.Condition()
+
+    def _full(self, source: str, size: int) -> bool:
+        queue = self._queues.get(source)
+        if queue is None:
+            return len(self._queues) >= self.max_sources or self._bytes + size > self.max_bytes
+        return len(queue) >= self.per_source or (self._bytes + size > self.max_bytes and bool(queue))
+
+    def put(self, source: str, item: Any, size: int = 0, wait_s: float | None = 1.0) -> bool:
+        """Queue ``item`` (``size`` payload bytes) from ``source``; waits up to ``wait_s`` (None: as
+        long as it takes) while that source's queue is full, then drops it. False if dropped."""
+        deadline = None if wait_s is None else time.monotonic() + wait_s
+        with self._cond:
+            while self._full(source, size):
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    self._dropped[source] += 1
+                    return False
+                self._cond.wait(remaining)
+            self._queues.setdefault(source, deque()).append((item, size))
+            self._bytes += size
+            self._cond.notify_all()
+            return True
+
+    def get(self, timeout: float = 0.0) -> Any | None:
+        """The next item, taking one from each source in turn; None if nothing came within ``timeout``."""
+        with self._cond:
+            if not self._queues and not self._cond.wait_for(lambda: bool(self._queues), timeout=timeout):
+                return None
+            source, queue = next(iter(self._queues.items()))
+            item, size = queue.popleft()
+            del self._queues[source]
+            if queue:
+                self._queues[source] = queue  # to the back of the round
+            self._bytes -= size
+            self._cond.notify_all()
+            return item
+
+    def __len__(self) -> int:
+        with self._cond:
+            return sum(len(q) for q in self._queues.values())
+
+    def take_dropped(self) -> dict[str, int]:
+        """Items dropped per source since the last call."""
+        with self._cond:
+            dropped = dict(self._dropped)
+            self._dropped.clear()
+            return dropped
