@@ -96,6 +96,8 @@ STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left
 """A member's status after each recorded membership event."""
 STOP_GRACE_S = 10.0
 """After the stop order, how long to wait for islands' final histories."""
+FAULT_ANNOUNCEMENTS = 4
+"""After a database fault, how many times (every 0.5 s) the stop order goes out before the coordinator ends."""
 BACKFILL_EVERY_S = 2.0
 BACKFILL_ATTEMPTS = 5
 """How often, and how many times without progress, to ask an island again for history rows still missing."""
@@ -598,7 +600,7 @@ class Coordinator:
         for reason, n in self._rejected_backlog.items():
             self.store.add_rejected(self.name, "*", reason, f"{n} rejected messages not recorded one by one (a flood)", 0, n)
         self._rejected_backlog.clear()
-        self.store.commit()
+        self.store.commit(self.name)
         self._committed_at, self._rows_since_commit = time.monotonic(), 0
         if self.runs and (announce or self._changed or self._committed_at - self._control_at >= CONTROL_EVERY_S):
             link.publish_control(self.control_message(self.stop_reason or ""), self.stop_reason is not None)
@@ -655,7 +657,7 @@ class Coordinator:
         try:
             if fault is None:
                 self.store.set_status(self.name, "stopping", self.stop_reason)
-                self._stop_islands(link, collect=True)
+                self._stop_islands(link)
         except StoreError as exc:
             fault = exc
         if fault is not None:
@@ -665,20 +667,14 @@ class Coordinator:
             on_progress(self.progress())
         return self.stop_reason
 
-    def _stop_islands(self, link: Link, collect: bool) -> None:
-        """Announce the stop until every island left (at most :data:`STOP_GRACE_S`); with ``collect``,
-        keep storing their final histories and confirming them."""
+    def _stop_islands(self, link: Link) -> None:
+        """Announce the stop until every island left (at most :data:`STOP_GRACE_S`), storing their
+        final histories and confirming them."""
         deadline = time.monotonic() + STOP_GRACE_S
         while time.monotonic() < deadline and any(m.status == "alive" for m in self.members.values()):
-            if collect:
-                self.commit(link, announce=True)
-                self.pump(link, 0.5)
-            else:
-                link.publish_control(self.control_message(self.stop_reason or "interrupted"), True)
-                time.sleep(0.5)
-                self._settle_departures()
-        if collect:
-            self.pump(link, LEAVE_GRACE_S, first_wait=LEAVE_GRACE_S)
+            self.commit(link, announce=True)
+            self.pump(link, 0.5)
+        self.pump(link, LEAVE_GRACE_S, first_wait=LEAVE_GRACE_S)
 
     def _interrupted(self, link: Link, fault: StoreError) -> StoreError:
         """After a database fault: tell the islands to stop (reporting only rows really committed),
@@ -687,8 +683,10 @@ class Coordinator:
         self.contiguous.clear()
         self.last_stored.clear()
         try:
-            if self.runs:
-                self._stop_islands(link, collect=False)
+            for _ in range(FAULT_ANNOUNCEMENTS):
+                if self.runs:
+                    link.publish_control(self.control_message(f"interrupted: {fault.detail}"), True)
+                time.sleep(0.5)
         except sqlite3.Error:
             pass  # the file cannot even be read: islands end on their own after their wait
         try:

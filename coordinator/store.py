@@ -35,7 +35,7 @@ T = TypeVar("T")
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS campaigns (
     name TEXT PRIMARY KEY, dataset TEXT NOT NULL, config BLOB NOT NULL, created REAL NOT NULL,
-    status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT);
+    status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT, committed REAL);
 CREATE TABLE IF NOT EXISTS members (
     id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, event TEXT NOT NULL, t REAL NOT NULL);
 CREATE TABLE IF NOT EXISTS history (
@@ -63,6 +63,7 @@ CREATE TABLE IF NOT EXISTS runs (
 CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL);
 """
 UPGRADES = {
+    "campaigns": ("committed", "ALTER TABLE campaigns ADD COLUMN committed REAL"),
     "migrations": ("seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
     "rejected": ("n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
 }
@@ -149,7 +150,11 @@ class Store:
             self.db.close()
 
     @_writes
-    def commit(self) -> None:
+    def commit(self, campaign: str | None = None) -> None:
+        """Commit; with ``campaign``, stamp its ``committed`` time first (how old the last commit is
+        tells what a kill right now would lose)."""
+        if campaign is not None:
+            self.db.execute("UPDATE campaigns SET committed = ? WHERE name = ?", (time.time(), campaign))
         self.db.commit()
 
     def rollback(self) -> None:

@@ -309,23 +309,27 @@ class IslandNode:
 
 
 # --- transports ----------------------------------------------------------------------------
-def join(session: zenoh.Session, node: IslandNode, wait_s: float) -> Credentials:
+def join(
+    session: zenoh.Session, campaign: str, island: str, algo: str, seed: int, wait_s: float, on_reject: Callable[[], None] | None = None
+) -> Credentials:
     """The join handshake: ask ``join/<id>`` (until a coordinator answers or ``wait_s`` passes) for
-    this island's credentials. A refusal (e.g. the id is taken) is a :class:`HysidInputError`."""
-    key = f"{key_prefix(node.config.name)}/join/{node.island}"
+    the island's credentials; ``on_reject`` counts answers that fail validation. A refusal (e.g.
+    the id is taken) is a :class:`HysidInputError`."""
+    key = f"{key_prefix(campaign)}/join/{island}"
     nonce = secrets.token_bytes(16)
-    request = encode_join(JoinRequest(node.config.name, node.island, node.algo, node.seed, nonce))
+    request = encode_join(JoinRequest(campaign, island, algo, seed, nonce))
     deadline = time.monotonic() + wait_s
     while True:
         for reply in session.get(key, payload=request, timeout=min(5.0, max(wait_s, 0.5))):
             if reply.ok is None:
                 continue
             try:
-                return decode_joined(reply.ok.payload.to_bytes(), node.config.name, node.island, nonce)
+                return decode_joined(reply.ok.payload.to_bytes(), campaign, island, nonce)
             except MessageRejected:
-                node.count_rejected()
+                if on_reject is not None:
+                    on_reject()
         if time.monotonic() >= deadline:
-            raise HysidInputError(f"no coordinator admitted island {node.island!r} on {key} within {wait_s:g} s")
+            raise HysidInputError(f"no coordinator admitted island {island!r} on {key} within {wait_s:g} s")
         time.sleep(0.2)
 
 
@@ -347,7 +351,7 @@ class ZenohTransport:
         self.wait_s = wait_s
         prefix = key_prefix(node.config.name)
         self.prefix = prefix
-        self.credentials = join(session, node, wait_s)
+        self.credentials = join(session, node.config.name, node.island, node.algo, node.seed, wait_s, node.count_rejected)
         node.credentials = self.credentials
         self._cond = threading.Condition()
         self._control_seq = -1

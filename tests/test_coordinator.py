@@ -1,0 +1,288 @@
+"""The coordinator in one process (coordinator/server.py, inbox.py) on a real SQLite file: who may speak,
+what it may claim, replays, re-evaluation, commits under load, stop rules with a backlog, resumed ends.
+
+Messages go in through the same entry points the Zenoh link uses (``receive``, ``member``,
+``join_request``); a :class:`MemoryLink` takes what the coordinator sends out.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from coordinator.inbox import Inbox
+from coordinator.links import MemoryLink
+from coordinator.server import COMMIT_ROWS, Coordinator, resume
+from coordinator.store import Store
+from hysid_model.synth import TRUE_PARAMS, synth_loops
+from island.config import CampaignConfig
+from island.migration import Migration
+from island.protocol import (
+    Credentials,
+    History,
+    JoinRequest,
+    Migrants,
+    decode_control,
+    decode_joined,
+    encode_history,
+    encode_join,
+    encode_migrants,
+)
+from island.termination import Termination
+
+LOOPS = synth_loops(n_points=30)
+SIZES = {a: {"population": 10, "initial_population": 20, "iterations": 50} for a in ("ga", "pso")}
+STATS = {"sent": 0, "received": 0, "taken": 0, "rejected": 0}
+
+
+def make(tmp_path, termination: Termination | None = None, min_islands: int = 1, iterations: int = 50) -> Coordinator:
+    sizes = {a: {**o, "iterations": iterations} for a, o in SIZES.items()}
+    config = CampaignConfig.create(LOOPS, name="c1", options=sizes, migration=Migration(interval=5, k=2), min_islands=min_islands)
+    return Coordinator(Store(tmp_path / "c.sqlite"), config, LOOPS, termination)
+
+
+@pytest.fixture
+def link() -> MemoryLink:
+    return MemoryLink(threading.Event())
+
+
+def truth(c: Coordinator) -> np.ndarray:
+    return c.objective.model.from_dict(TRUE_PARAMS)
+
+
+def history(c: Credentials, rows, best_x: np.ndarray, best_f: float, *, seq: int = 0, final: bool = False,
+            algo: str = "pso", seed: int = 1, stats: dict | None = None) -> bytes:
+    return encode_history(History("c1", c.island, c.run, algo, seed, np.array(rows, dtype=float).reshape(-1, 4), best_x, best_f,
+                                  stats or STATS, final, seq), c)
+
+
+def honest_rows(c: Coordinator, n: int) -> list[list[float]]:
+    """Rows a PSO island of SIZES really reports: 20 + 10 iterations x (10 + 15) evaluations."""
+    return [[i, 10.0 / (i + 1), 20 + 25 * i, 0.01 * i] for i in range(n)]
+
+
+def deliver(c: Coordinator, link: MemoryLink, kind: str, sender: str, payload: bytes) -> None:
+    assert c.receive(f"hysid/c1/{kind}/{sender}", payload)
+    c.pump(link, 5.0)
+
+
+def reasons(c: Coordinator) -> dict[str, int]:
+    return c.store.rejected_reasons("c1")
+
+
+def test_history_of_an_island_that_never_joined_is_rejected_and_spends_no_budget(tmp_path, link):
+    c = make(tmp_path, Termination(budget=100_000))
+    ghost = Credentials.issue("ghost", c.campaign_key)  # even with the campaign key: its run never joined
+    x = truth(c)
+    deliver(c, link, "history", "ghost", history(ghost, [[0, 1.0, 2**52, 0.1]], x, 0.0))
+    deliver(c, link, "history", "ghost", history(ghost, [[0, 1.0, 2**52, 0.1]], x, 0.0, final=False, seq=1))
+    assert reasons(c) == {"unjoined": 2}
+    assert c.evaluations == 0 and c.check_stop() is None and c.best is None and not c.islands
+
+
+def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link):
+    c = make(tmp_path, Termination(budget=100_000))
+    island = c.admit("pso-1", "pso", 1)
+    x = c.objective.bounds.mean(axis=1)
+    f = float(c.objective(x[None, :])[0])
+    most = int(c.evaluation_bound("pso", np.array([3.0]))[0])  # (20 + 3 x 25) x (1 + 100 redraws) + the global best
+    bad = [
+        history(island, [[3, f, 2**52, 0.1]], x, f, seq=1),  # 2**52 evaluations after 3 iterations
+        history(island, [[3, f, most + 1, 0.1]], x, f, seq=2),
+        history(island, [[51, f, 100, 0.1]], x, f, seq=3),  # beyond its budget of 50 iterations
+        history(island, [[3, f, 50, 0.1]], x, f, seq=4, algo="ga"),  # joined as pso
+        history(island, [[3, f, 50, 0.1]], x, f / 2, seq=5),  # a best better than its vector's
+        history(island, [[3, f, 50, 0.1]], x, f, seq=6, stats={"sent": 9, "received": 0, "taken": 0, "rejected": 0}),
+    ]
+    for payload in bad:
+        deliver(c, link, "history", "pso-1", payload)
+    assert reasons(c) == {"implausible": 6} and c.evaluations == 0
+    deliver(c, link, "history", "pso-1", history(island, [[i, 2 * f, 20 + 25 * i, 0.0] for i in range(4)], x, f, seq=7))
+    assert c.evaluations == 95 and c.check_stop() is None and reasons(c) == {"implausible": 6}
+    deliver(c, link, "history", "pso-1", history(island, [[i, 2 * f, 20 + 25 * i, 0.0] for i in range(4)], x, f, seq=7))
+    assert reasons(c)["replay"] == 1
+
+
+def test_a_liveliness_token_alone_makes_nobody_a_member(tmp_path, link):
+    c = make(tmp_path)
+    c.member("ghost", True)
+    c.member("bad name/with slash", True)
+    c.pump(link, 1.0)
+    assert c.members == {} and reasons(c) == {"unjoined": 1, "sender": 1}
+    island = c.admit("pso-1", "pso", 1)
+    c.member("pso-1", True)
+    x = truth(c)
+    deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 3), x, float(c.objective(x[None, :])[0]), final=True))
+    c.member("pso-1", False)
+    c.pump(link, 1.0)
+    assert c.members["pso-1"].status == "left" and c.check_stop() == "every island finished"
+
+
+def test_a_joined_island_whose_token_never_shows_is_lost(tmp_path, link, monkeypatch):
+    monkeypatch.setattr("coordinator.server.TOKEN_WAIT_S", 0.0)
+    c = make(tmp_path)
+    c.admit("pso-1", "pso", 1)
+    c.pump(link, 0.1)
+    assert c.members["pso-1"].status == "lost" and c.store.members("c1")[-1][:2] == ("pso-1", "lost")
+
+
+def test_migrants_under_another_islands_id_are_rejected(tmp_path, link):
+    c = make(tmp_path)
+    a, b = c.admit("a", "pso", 1), c.admit("b", "pso", 2)
+    x = truth(c)[None, :]
+    as_a_with_b_keys = Credentials("a", a.run, b.key, b.campaign_key)
+    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 5, x, np.zeros(1), 0.0), as_a_with_b_keys))
+    deliver(c, link, "migrants", "b", encode_migrants(Migrants("c1", "a", a.run, 5, x, np.zeros(1), 0.0), as_a_with_b_keys))
+    deliver(c, link, "migrants", "b", encode_migrants(Migrants("c1", "b", a.run, 5, x, np.zeros(1), 0.0), Credentials("b", a.run, b.key, b.campaign_key)))
+    assert reasons(c) == {"forged": 1, "sender": 1, "unjoined": 1}
+    assert c.migrations == 0 and c.best is None
+
+
+def test_a_replayed_migrant_message_is_stored_once_also_after_a_restart(tmp_path, link):
+    c = make(tmp_path)
+    a = c.admit("a", "pso", 1)
+    message = encode_migrants(Migrants("c1", "a", a.run, 5, truth(c)[None, :], np.zeros(1), 0.0, seq=3), a)
+    deliver(c, link, "migrants", "a", message)
+    deliver(c, link, "migrants", "a", message)
+    assert c.migrations == 1 and reasons(c) == {"replay": 1}
+    c.store.close()
+    again = resume(Store(tmp_path / "c.sqlite"), "c1")
+    deliver(again, link, "migrants", "a", message)  # the resumed coordinator still knows the run's key
+    assert again.store.count("migrations", "c1") == 1 and reasons(again) == {"replay": 2}
+
+
+def test_the_coordinator_re_evaluates_every_candidate_whatever_it_claims(tmp_path, link):
+    c = make(tmp_path)
+    a = c.admit("a", "pso", 1)
+    x = truth(c)
+    bad = c.objective.bounds[:, 1]
+    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 5, bad[None, :], np.zeros(1), 0.0, seq=0), a))
+    assert c.best is not None and c.best.fitness == c.objective(bad[None, :])[0]  # its own fitness, not the claimed 0
+    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 10, x[None, :], np.array([1e9]), 0.0, seq=1), a))
+    assert c.best.fitness == c.objective(x[None, :])[0] < 1e-20  # better than it claimed: still taken
+    np.testing.assert_array_equal(c.best.x, x)
+
+
+def test_joining_is_refused_while_the_id_is_alive_and_a_repeated_request_gets_the_same_run(tmp_path, link):
+    c = make(tmp_path)
+    answers: list[bytes] = []
+    request = JoinRequest("c1", "pso-1", "pso", 1, b"n" * 16)
+    for _ in range(2):
+        c.join_request("pso-1", encode_join(request), answers.append)
+    other = JoinRequest("c1", "pso-1", "pso", 1, b"o" * 16)
+    c.join_request("pso-1", encode_join(other), answers.append)
+    c.join_request("pso-1", b"\xc1 not a join request", answers.append)
+    c.pump(link, 1.0)
+    first, second = (decode_joined(a, "c1", "pso-1", request.nonce) for a in answers[:2])
+    assert first == second and len(c.runs) == 1
+    with pytest.raises(Exception, match="taken by a running island"):
+        decode_joined(answers[2], "c1", "pso-1", other.nonce)
+    assert len(answers) == 3 and reasons(c) == {"undecodable": 1}
+    control = decode_control(c.control_message(), "c1", first)
+    assert [(m.island, m.run, m.alive) for m in control.members] == [("pso-1", first.run, True)]
+
+
+def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link):
+    """A burst bigger than COMMIT_ROWS is committed in steps, not only once the queue is empty."""
+    c = make(tmp_path, iterations=10**6)
+    island = c.admit("pso-1", "pso", 1)
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    per_message = 2000
+    messages = 3 * COMMIT_ROWS // per_message
+    for m in range(messages):
+        rows = [[i, 1.0, 20 + 25 * i, 0.0] for i in range(m * per_message, (m + 1) * per_message)]
+        assert c.receive("hysid/c1/history/pso-1", history(island, rows, x, max(f, 0.0), seq=m))
+    committed: list[int] = []
+    commit = c.store.commit
+
+    def observed_commit(campaign=None):
+        commit(campaign)
+        with sqlite3.connect(tmp_path / "c.sqlite") as reader:  # what another process sees
+            committed.append(reader.execute("SELECT count(*) FROM history").fetchone()[0])
+
+    c.store.commit = observed_commit
+    c.pump(link, 600.0)
+    assert committed[-1] == messages * per_message
+    steps = np.diff([0, *committed])
+    assert len(committed) >= 3 and steps.max() <= COMMIT_ROWS + per_message  # never more than one window at risk
+
+
+def test_stop_rules_and_progress_are_checked_while_a_backlog_of_32_islands_waits(tmp_path, link):
+    c = make(tmp_path, Termination(budget=400_000), iterations=10**6)
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    islands = [c.admit(f"pso-{i}", "pso", i) for i in range(32)]
+    for cred in islands:
+        c.member(cred.island, False)  # their tokens went: the stop does not wait for goodbyes
+    for m in range(200):  # 6400 messages; the budget is spent after about 1600 of them
+        for i, cred in enumerate(islands):
+            rows = [[it, 1.0, 20 + 25 * it, 0.0] for it in range(m * 10, m * 10 + 10)]
+            c.receive(f"hysid/c1/history/{cred.island}", history(cred, rows, x, f, seq=m, seed=i))
+    shown: list[tuple[int, int]] = []
+    reason = c.serve(link, lambda p: shown.append((p.evaluations, len(c.inbox))), progress_every_s=0.0)
+    assert reason == "budget of 400,000 evaluations spent"
+    assert len(shown) >= 2
+    waiting_at_stop = next(queued for evaluations, queued in shown if evaluations >= 400_000)
+    assert waiting_at_stop > 1000  # stopped with most of the backlog queued, instead of draining it first
+
+
+def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_report(tmp_path, link):
+    c = make(tmp_path, min_islands=4)  # fewer joined than the islands it once waited for
+    x = truth(c)
+    for i in range(2):
+        cred = c.admit(f"pso-{i}", "pso", i)
+        deliver(c, link, "history", cred.island, history(cred, honest_rows(c, 5), x, float(c.objective(x[None, :])[0]), final=True, seed=i))
+    c.store.close()  # the coordinator died; nobody is left
+    again = resume(Store(tmp_path / "c.sqlite"), "c1")
+    started = time.monotonic()
+    assert again.serve(MemoryLink(threading.Event())) == "every island finished"
+    assert time.monotonic() - started < 5.0
+    outcome = again.outcome(polish_best=False)
+    assert {i["island"] for i in outcome.islands} == {"pso-0", "pso-1"}
+    assert again.store.campaign("c1")[2] == "stopped"
+
+
+def test_a_resumed_campaign_nobody_comes_back_to_ends_after_the_orphan_wait(tmp_path, link, monkeypatch):
+    monkeypatch.setattr("coordinator.server.ORPHAN_S", 0.2)
+    c = make(tmp_path)
+    c.admit("pso-0", "pso", 0)  # joined, never finished
+    c.store.close()
+    again = resume(Store(tmp_path / "c.sqlite"), "c1")
+    assert again.serve(MemoryLink(threading.Event())) == "no island alive for 0.2 s"
+
+
+def test_the_inbox_serves_sources_in_turn_and_bounds_each():
+    inbox = Inbox(per_source=3, max_sources=2, max_bytes=100)
+    assert all(inbox.put("flood", i, 1, wait_s=0) for i in range(3))
+    assert not inbox.put("flood", 3, 1, wait_s=0.01)  # full: dropped after the wait, counted
+    assert inbox.put("honest", "h", 1, wait_s=0)
+    assert not inbox.put("third", "t", 1, wait_s=0)  # no room for a third source
+    assert not inbox.put("honest", "big", 200, wait_s=0)  # more bytes than allowed
+    assert [inbox.get() for _ in range(5)] == [0, "h", 1, 2, None]
+    assert inbox.take_dropped() == {"flood": 1, "third": 1, "honest": 1}
+
+
+def test_a_database_locked_by_another_process_stops_the_campaign_cleanly(tmp_path, link):
+    c = make(tmp_path)
+    c.store.db.execute("PRAGMA busy_timeout = 200")
+    island = c.admit("pso-1", "pso", 1)
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 3), x, f))
+    other = sqlite3.connect(tmp_path / "c.sqlite", isolation_level=None, check_same_thread=False)
+    other.execute("BEGIN IMMEDIATE")  # someone holds the write lock
+    c.receive("hysid/c1/history/pso-1", history(island, honest_rows(c, 6), x, f, seq=1))
+    release = threading.Timer(1.5, lambda: other.execute("COMMIT"))
+    release.start()
+    with pytest.raises(Exception, match=r"campaign 'c1' stopped: cannot write the campaign database .*database is locked.*it is marked interrupted"):
+        c.serve(link)
+    release.join()
+    assert link.stop.is_set()
+    with sqlite3.connect(tmp_path / "c.sqlite") as reader:
+        assert reader.execute("SELECT status FROM campaigns").fetchone()[0] == "interrupted"
+        assert reader.execute("SELECT count(*) FROM history").fetchone()[0] == 3  # what was committed is kept
