@@ -69,3 +69,38 @@ def wait_for(predicate: Callable[[], bool], timeout: float, what: str, step: flo
             raise AssertionError(f"timed out after {timeout} s waiting for {what}")
         time.sleep(step)
     return time.monotonic() - start
+
+
+class Peer:
+    """A hand-driven island over Zenoh, for broken or hostile ones: it joins like an island (unless
+    ``joined=False``), then sends whatever a test wants under any key of the campaign."""
+
+    def __init__(self, endpoint: str, campaign: str, island: str, *, joined: bool = True, algo: str = "pso", seed: int = 0) -> None:
+        from island.node import join
+        from island.protocol import Counter
+        from island.session import open_session, session_config
+
+        self.campaign, self.island = campaign, island
+        self.session = open_session(session_config("client", connect=[endpoint]), endpoint)
+        self.credentials = join(self.session, campaign, island, algo, seed, 30.0) if joined else None
+        self.seq = Counter()
+        self.entities: list = []
+
+    def put(self, kind: str, payload: bytes, key_island: str | None = None) -> None:
+        """Publish on ``hysid/<campaign>/<kind>/<island>`` (``kind`` alone when it has no island part)."""
+        island = key_island or self.island
+        self.session.put(f"hysid/{self.campaign}/{kind}/{island}" if kind in ("migrants", "history", "join") else f"hysid/{self.campaign}/{kind}", payload)
+
+    def publisher(self, kind: str, key_island: str | None = None):
+        """A publisher that blocks rather than drops (every message of a flood arrives)."""
+        import zenoh
+
+        return self.session.declare_publisher(f"hysid/{self.campaign}/{kind}/{key_island or self.island}", congestion_control=zenoh.CongestionControl.BLOCK)
+
+    def token(self, island: str | None = None) -> None:
+        self.entities.append(self.session.liveliness().declare_token(f"hysid/{self.campaign}/members/{island or self.island}"))
+
+    def close(self) -> None:
+        for entity in self.entities:
+            entity.undeclare()
+        self.session.close()

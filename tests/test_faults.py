@@ -17,15 +17,14 @@ from pathlib import Path
 import msgpack
 import numpy as np
 import pytest
-import zenoh
 
 from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config
-from island.protocol import MAX_BYTES, Migrants, encode_migrants, pack_array
+from island.protocol import MAX_BYTES, Migrants, encode_migrants, pack_array, seal
 from island.session import open_session, session_config
-from support import events, hysid, query, rows_of, wait_for
+from support import Peer, events, hysid, query, rows_of, wait_for
 
 pytestmark = pytest.mark.slow  # processes, kills and restarts: the full suite runs these
 
@@ -130,27 +129,31 @@ def test_a_killed_coordinator_resumes_from_sqlite_without_losing_history(spawn, 
     assert all(p.wait(30) == 0 for p in islands)
 
 
-def bad_messages(n: int) -> list[tuple[str, bytes, str]]:
-    """``n`` bad migrant messages (key suffix, payload, expected reason), cycling through kinds."""
-    good = {"v": 1, "type": "migrants", "campaign": "flood", "island": "evil", "run": "r", "iteration": 1,
-            "x": pack_array(TRUTH[None, :]), "claimed": pack_array(np.zeros(1)), "sent_at": 0.0}
+def bad_messages(n: int, evil: Peer) -> list[tuple[str, bytes, str]]:
+    """``n`` bad migrant messages of a joined but broken island (key suffix, payload, expected
+    reason), cycling through kinds; sealed with its own keys, so that each reaches the check it fails."""
+    cred = evil.credentials
+    good = {"iteration": 1, "x": pack_array(TRUTH[None, :]), "claimed": pack_array(np.zeros(1)), "sent_at": 0.0}
+    keys = {"run": cred.key, "campaign": cred.campaign_key}
 
-    def variant(**change) -> bytes:
-        return msgpack.packb({**good, **change}, use_bin_type=True)
+    def variant(envelope: dict | None = None, **change) -> bytes:
+        body = {k: v for k, v in {**good, **change}.items() if v is not ...}
+        sealed = msgpack.unpackb(seal("migrants", "flood", "evil", cred.run, evil.seq(), body, keys))
+        return msgpack.packb({**sealed, **(envelope or {})}, use_bin_type=True)
 
     kinds = [
-        (b"\xc1garbage", "undecodable"),
-        (b"\x00" * (MAX_BYTES["migrants"] + 10), "oversized"),
-        (variant(x="not an array"), "schema"),
-        (msgpack.packb({k: v for k, v in good.items() if k != "claimed"}), "schema"),
-        (variant(x=pack_array(np.array([[np.nan, 0.0, 200.0, 0.0]]))), "not_finite"),
-        (variant(x=pack_array(np.array([[0.5, 0.0, 200.0, 0.0]]))), "out_of_bounds"),
-        (variant(x=pack_array(np.zeros((1, 7)))), "shape"),
-        (variant(campaign="other"), "campaign"),
-        (variant(v=99), "version"),
-        (variant(island="someone-else"), "sender"),
+        (lambda: b"\xc1garbage", "undecodable"),
+        (lambda: b"\x00" * (MAX_BYTES["migrants"] + 10), "oversized"),
+        (lambda: variant(x="not an array"), "schema"),
+        (lambda: variant(claimed=...), "schema"),
+        (lambda: variant(x=pack_array(np.array([[np.nan, 0.0, 200.0, 0.0]]))), "not_finite"),
+        (lambda: variant(x=pack_array(np.array([[0.5, 0.0, 200.0, 0.0]]))), "out_of_bounds"),
+        (lambda: variant(x=pack_array(np.zeros((1, 7)))), "shape"),
+        (lambda: variant({"campaign": "other"}), "campaign"),
+        (lambda: variant({"v": 99}), "version"),
+        (lambda: variant({"sender": "someone-else"}), "sender"),
     ]
-    return [("evil", *kinds[i % len(kinds)]) for i in range(n)]
+    return [("evil", kinds[i % len(kinds)][0](), kinds[i % len(kinds)][1]) for i in range(n)]
 
 
 def test_a_thousand_bad_migrant_messages_are_each_rejected_and_counted(spawn, tmp_path):
@@ -158,10 +161,10 @@ def test_a_thousand_bad_migrant_messages_are_each_rejected_and_counted(spawn, tm
     coord = coordinator(spawn, endpoint, "flood", db, "--time-limit", "120")
     target = island(spawn, endpoint, "flood", "target")
     wait_for(lambda: rows_of(db, "target") > 20, 60, "the island's history")
-    messages = bad_messages(1000)
-    session = open_session(session_config("client", connect=[endpoint]), endpoint)
+    evil = Peer(endpoint, "flood", "evil")  # joined: a broken island, not an outsider
+    messages = bad_messages(1000, evil)
     try:
-        publisher = session.declare_publisher("hysid/flood/migrants/evil", congestion_control=zenoh.CongestionControl.BLOCK)
+        publisher = evil.publisher("migrants")
         for _, payload, _ in messages:
             publisher.put(payload)
         wait_for(lambda: query(db, "SELECT count(*) FROM rejected")[0][0] >= 1000, 60, "the coordinator to reject all")
@@ -169,7 +172,7 @@ def test_a_thousand_bad_migrant_messages_are_each_rejected_and_counted(spawn, tm
         rows = rows_of(db, "target")
         wait_for(lambda: rows_of(db, "target") > rows + 20, 30, "the island to keep going")
     finally:
-        session.close()
+        evil.close()
     assert target.poll() is None and coord.poll() is None
     expected: dict[str, int] = {}
     for _, _, reason in messages:
@@ -180,8 +183,9 @@ def test_a_thousand_bad_migrant_messages_are_each_rejected_and_counted(spawn, tm
     assert finished(coord)["migrations"]["rejected_reasons"] == expected
 
 
-def forged(x: np.ndarray, claimed: float) -> bytes:
-    return encode_migrants(Migrants("forge", "forger", "f", 1, x[None, :], np.array([claimed]), 0.0))
+def forged(forger: Peer, x: np.ndarray, claimed: float) -> bytes:
+    seq = forger.seq()
+    return encode_migrants(Migrants("forge", "forger", forger.credentials.run, 1, x[None, :], np.array([claimed]), 0.0, seq), forger.credentials)
 
 
 def test_a_forged_migrant_claiming_fitness_zero_becomes_the_best_only_if_it_earns_it(spawn, tmp_path):
@@ -192,12 +196,12 @@ def test_a_forged_migrant_claiming_fitness_zero_becomes_the_best_only_if_it_earn
     config, loops = decode_config(Store(db).campaign("forge")[1], "forge")
     objective = config.objective(loops)  # the coordinator's own objective
     bad = BOUNDS[:, 1].copy()
-    session = open_session(session_config("client", connect=[endpoint]), endpoint)
-    token = session.liveliness().declare_token("hysid/forge/members/forger")  # a member: the island takes from it
+    forger = Peer(endpoint, "forge", "forger")  # joined: a member the island takes from
+    forger.token()
     try:
-        publisher = session.declare_publisher("hysid/forge/migrants/forger", congestion_control=zenoh.CongestionControl.BLOCK)
+        publisher = forger.publisher("migrants")
         for _ in range(40):
-            publisher.put(forged(bad, 0.0))
+            publisher.put(forged(forger, bad, 0.0))
         wait_for(lambda: query(db, "SELECT count(*) FROM migrations WHERE island = 'forger'")[0][0] == 40, 20, "all forgeries seen")
         wait_for(lambda: query(db, "SELECT max(received) FROM islands WHERE island = 'target'")[0][0] > 0, 20, "the island to re-evaluate some")
         (best_x, best_f), = query(db, "SELECT x, fitness FROM best")
@@ -206,15 +210,14 @@ def test_a_forged_migrant_claiming_fitness_zero_becomes_the_best_only_if_it_earn
         assert best_f == pytest.approx(objective(x[None, :])[0], rel=1e-12)  # the coordinator's own evaluation
         assert query(db, "SELECT max(taken), min(best_fitness) > 0 FROM islands WHERE island = 'target'")[0] == (0, 1)
         for _ in range(5):  # the truth (fitness ~1e-30, beyond what the young island has found) under the same lie
-            publisher.put(forged(TRUTH, 0.0))
+            publisher.put(forged(forger, TRUTH, 0.0))
         wait_for(lambda: query(db, "SELECT island FROM best")[0][0] == "forger", 20, "the earned best")
         wait_for(lambda: query(db, "SELECT max(taken) FROM islands WHERE island = 'target'")[0][0] > 0, 20, "the island to take it")
         (best_x, best_f), = query(db, "SELECT x, fitness FROM best")
         np.testing.assert_array_equal(np.frombuffer(best_x, dtype="<f8"), TRUTH)
         assert best_f == objective(TRUTH[None, :])[0]
     finally:
-        token.undeclare()
-        session.close()
+        forger.close()
     assert target.poll() is None
     coord.send_signal(signal.SIGINT)
     doc = finished(coord)

@@ -1,0 +1,213 @@
+"""Hostile and broken messages for every key of a campaign's key space, generated from a seed.
+
+Each generated message is invalid by construction: it carries at least one
+defect that some check must catch (the message alone decides which: its
+envelope, its tag, its sender, its body, its plausibility, or a replay). The
+defects include the shapes and values that once crashed every receiver
+(``[2**62, 4]`` arrays, NaN times, integers of 2**63 and more, 1e300 counts)
+and messages tagged correctly by a joined but broken island, so that the body
+checks are reached too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import msgpack
+import numpy as np
+
+from island.protocol import MAX_BYTES, Credentials, pack_array, seal
+
+HOSTILE_INTS = [-1, 2**53 + 1, 2**62, 2**63, 2**64 - 1, -(2**63)]
+HOSTILE_FLOATS = [float("nan"), float("inf"), -float("inf"), 1e300, -1e300]
+HOSTILE_VALUES = [None, True, "7", b"\x00" * 9, [1, 2], {"a": 1}, msgpack.ExtType(5, b"x"), *HOSTILE_INTS, *HOSTILE_FLOATS]
+HOSTILE_SHAPES = [[2**62, 4], [2**32, 2**32], [4, 2**62], [-1, 4], [1.5, 4], [1], [1, 4, 1], [2] * 64, "4x4", [True, 4]]
+
+
+def nested(depth: int) -> list:
+    """Lists in lists (msgpack packs up to 511 levels)."""
+    value: list = []
+    for _ in range(min(depth, 500)):
+        value = [value]
+    return value
+
+
+def deep_bytes(depth: int) -> bytes:
+    """A msgpack document nested ``depth`` levels deep, beyond what a packer would write."""
+    return b"\x91" * depth + b"\x90"
+
+
+@dataclass
+class Hostile:
+    """Generates invalid messages for campaign ``campaign`` whose search space has ``bounds``.
+
+    ``broken`` is a joined island that misbehaves (its tags are valid);
+    ``honest`` are messages really sent by an island, replayed as they are.
+    """
+
+    rng: np.random.Generator
+    campaign: str
+    bounds: np.ndarray
+    broken: Credentials
+    seq: Callable[[], int]
+
+    def _x(self, k: int = 1) -> np.ndarray:
+        lo, hi = self.bounds[:, 0], self.bounds[:, 1]
+        return lo + self.rng.random((k, lo.size)) * (hi - lo)
+
+    def _pick(self, options: list):
+        return options[int(self.rng.integers(len(options)))]
+
+    def _seal(self, kind: str, fields: dict, keys: dict[str, bytes] | None = None, sender: str | None = None, run: str | None = None) -> bytes:
+        c = self.broken
+        tags = keys if keys is not None else {"run": c.key, "campaign": c.campaign_key}
+        return seal(kind, self.campaign, sender or c.island, run or c.run, self.seq(), fields, tags)
+
+    # --- bodies with one defect each ---------------------------------------------------------
+    def migrant_body(self) -> dict:
+        good = {"iteration": 5, "x": pack_array(self._x(2)), "claimed": pack_array(np.zeros(2)), "sent_at": 1.0}
+        field = self._pick(["iteration", "x", "claimed", "sent_at", "missing", "nesting"])
+        if field == "missing":
+            del good[self._pick(list(good))]
+        elif field == "nesting":
+            good["x"] = nested(int(self.rng.integers(20, 500)))
+        elif field == "x":
+            spoiled = self._x(2)
+            spoiled[int(self.rng.integers(2)), int(self.rng.integers(spoiled.shape[1]))] = self._pick(HOSTILE_FLOATS)
+            good["x"] = self._pick([
+                {"shape": self._pick(HOSTILE_SHAPES), "data": b""},
+                {"shape": [2, self.bounds.shape[0]], "data": b"\x00" * 7},
+                pack_array(spoiled), pack_array(self.bounds[:, 1] + 1.0), self._pick(HOSTILE_VALUES),
+            ])
+        elif field == "claimed":
+            good["claimed"] = self._pick([pack_array(np.array([self._pick(HOSTILE_FLOATS[:3]), -1.0])), pack_array(np.zeros(3)), self._pick(HOSTILE_VALUES)])
+        elif field == "iteration":
+            good[field] = self._pick([*HOSTILE_INTS, *HOSTILE_FLOATS, None, "x", [1]])
+        else:  # any finite number is a valid (if odd) send time
+            good[field] = self._pick([*HOSTILE_FLOATS[:3], 2**63, 2**64 - 1, None, "x", [1]])
+        return good
+
+    def history_body(self, algo: str, seed: int, implausible: float) -> dict:
+        good = {"algo": algo, "seed": seed, "rows": pack_array(np.array([[0, 5.0, 20, 0.1], [1, 4.0, 45, 0.2]])),
+                "best_x": pack_array(self._x(1)[0]), "best_f": 1e9, "stats": {"sent": 0, "received": 0, "taken": 0, "rejected": 0},
+                "final": False}
+        field = self._pick(["rows", "best_x", "best_f", "stats", "seed", "algo", "final", "missing", "implausible"])
+        if field == "missing":
+            del good[self._pick(list(good))]
+        elif field == "implausible":
+            good["rows"] = pack_array(np.array([[1, 5.0, self._pick([implausible, 2.0**52, 2.0**53]), 0.1]]))
+        elif field == "rows":
+            col, bad_value = self._pick([
+                *((c, v) for c in (0, 2) for v in (1e300, float("nan"), -1.0, 0.5, 2.0**62, float("inf"))),
+                (1, float("nan")), (1, -1.0), (1, 1e300), (3, float("nan")), (3, -1.0), (3, float("inf")),
+            ])
+            rows = np.array([[0, 5.0, 20, 0.1], [1, 4.0, 45, 0.2]])
+            rows[1, col] = bad_value
+            good["rows"] = self._pick([pack_array(rows), {"shape": self._pick(HOSTILE_SHAPES), "data": b""}, pack_array(rows[::-1].copy())])
+        elif field == "best_x":
+            good["best_x"] = self._pick([pack_array(self.bounds[:, 0] - 1.0), {"shape": [2**62], "data": b""}, pack_array(np.full(self.bounds.shape[0], np.nan))])
+        elif field == "best_f":
+            good["best_f"] = self._pick([float("nan"), -1.0, "1", None])
+        elif field == "stats":
+            good["stats"] = self._pick([{"sent": 2**63}, {**good["stats"], "taken": -1}, {**good["stats"], "received": 2**64 - 1}, [1, 2], None])
+        elif field == "seed":
+            good["seed"] = self._pick([2**63, -1, 2**64 - 1, 1.5])
+        elif field == "algo":
+            good["algo"] = self._pick(["GA", "a" * 17, "de", "", 3])
+        else:
+            good["final"] = self._pick([1, "yes", None])
+        return good
+
+    # --- whole messages ----------------------------------------------------------------------
+    def envelope_defect(self, kind: str, fields: dict) -> bytes:
+        """A message whose envelope, tag or sender is wrong (the body may be fine)."""
+        valid = msgpack.unpackb(self._seal(kind, fields))
+        defect = self._pick(["garbage", "truncated", "oversized", "flip", "field", "tag", "unjoined", "sender", "nesting", "signed-garbage"])
+        if defect == "garbage":
+            return self.rng.bytes(int(self.rng.integers(0, 300)))
+        if defect == "truncated":
+            data = msgpack.packb(valid)
+            return data[: int(self.rng.integers(0, len(data)))]
+        if defect == "oversized":
+            return b"\x00" * (MAX_BYTES[kind] + 1)
+        if defect == "flip":
+            body = bytearray(valid["body"])
+            body[int(self.rng.integers(len(body)))] ^= 1 << int(self.rng.integers(8))
+            return msgpack.packb({**valid, "body": bytes(body)})
+        if defect == "field":
+            key = self._pick(["v", "type", "campaign", "sender", "run", "seq", "body", "tags"])
+            return msgpack.packb({**valid, key: self._pick(HOSTILE_VALUES + ["x" * 300, "no/slash"])})
+        if defect == "tag":
+            return msgpack.packb({**valid, "tags": self._pick([{}, {"run": b"\x00" * 32, "campaign": b"\x00" * 32}, {"run": b"x"}, {str(i): b"" for i in range(5000)}])})
+        if defect == "unjoined":  # neither its run key nor the campaign key are genuine
+            ghost = Credentials(f"ghost-{int(self.rng.integers(1000))}", "deadbeef0000", b"g" * 32, b"h" * 32)
+            return self._seal_as(ghost, kind, fields)
+        if defect == "sender":
+            return msgpack.packb({**valid, "sender": "someone-else"})
+        if defect == "nesting":
+            return deep_bytes(int(self.rng.integers(100, 100_000)))
+        return self._seal(kind, {}, None) if self.rng.random() < 0.5 else msgpack.packb({**valid, "body": b"\xc1\xc1"})
+
+    def _seal_as(self, c: Credentials, kind: str, fields: dict) -> bytes:
+        return seal(kind, self.campaign, c.island, c.run, self.seq(), fields, {"run": c.key, "campaign": c.campaign_key})
+
+    def migrants(self) -> bytes:
+        if self.rng.random() < 0.5:
+            return self.envelope_defect("migrants", {"iteration": 5, "x": pack_array(self._x(2)), "claimed": pack_array(np.zeros(2)), "sent_at": 1.0})
+        return self._seal("migrants", self.migrant_body())
+
+    def history(self, algo: str, seed: int, implausible: float) -> bytes:
+        if self.rng.random() < 0.4:
+            return self.envelope_defect("history", self.history_body(algo, seed, implausible))
+        return self._seal("history", self.history_body(algo, seed, implausible), {"run": self.broken.key})
+
+    def join(self, island: str) -> bytes:
+        """A join request that is malformed (a well-formed one would be admitted: anyone may join)."""
+        good = {"v": 2, "type": "join", "campaign": self.campaign, "island": island, "algo": "pso", "seed": 1, "nonce": b"n" * 16}
+        field = self._pick(["island", "algo", "seed", "nonce", "v", "campaign", "garbage"])
+        if field == "garbage":
+            return self.rng.bytes(int(self.rng.integers(0, 100)))
+        good[field] = self._pick({
+            "island": ["someone-else", "", "x" * 65, 7], "algo": ["GA", 3, "x" * 20], "seed": [2**63, -1, 2**64 - 1, "1"],
+            "nonce": [b"short", "n" * 16, None], "v": [1, 3, "2"], "campaign": ["other", 2],
+        }[field])
+        return msgpack.packb(good, use_bin_type=True)
+
+    def control(self, target: Credentials) -> bytes:
+        """A control message a target island must refuse: forged, or malformed under its own tag."""
+        members = [["a", "r1", True, 3]]
+        defect = self._pick(["forged", "members", "stop", "envelope"])
+        if defect == "forged":
+            return seal("control", self.campaign, "coordinator", "c0", self.seq(), {"members": members, "stop": "forged stop"}, {target.island: b"f" * 32})
+        if defect == "envelope":
+            return self.rng.bytes(int(self.rng.integers(0, 200)))
+        fields = {"members": members, "stop": ""}
+        if defect == "members":
+            fields["members"] = self._pick([[["a", "r1", True, 2**63]], [["a/b", "r1", True, 1]], [[1, 2, 3]], "x", [["a", "r1", "yes", 1]], [members[0]] * 5000])
+        else:
+            fields["stop"] = "s" * 1000
+        return seal("control", self.campaign, "coordinator", "c0", self.seq(), fields, {target.island: target.key})
+
+    def history_query(self) -> str:
+        """Selector parameters of a history query that an island must refuse."""
+        return self._pick(["since=abc", "since=" + "9" * 40, "since=-7", "since=1e300", "since=nan", "run=x;since=" + "1" * 17, "since=2.5"])
+
+
+def stream(h: Hostile, n: int, algo: str, seed: int, implausible: float, islands: list[str]) -> Iterator[tuple[str, str, bytes]]:
+    """``n`` hostile messages for the coordinator as ``(entry, key or island, payload)``; entry is
+    ``msg`` (a publication), ``member`` (a liveliness token of a name that never joined, payload
+    empty) or ``join`` (a join request)."""
+    prefix = f"hysid/{h.campaign}"
+    for _ in range(n):
+        r = h.rng.random()
+        if r < 0.4:
+            yield "msg", f"{prefix}/migrants/{h.broken.island}", h.migrants()
+        elif r < 0.8:
+            yield "msg", f"{prefix}/history/{h.broken.island}", h.history(algo, seed, implausible)
+        elif r < 0.85:
+            yield "msg", f"{prefix}/{h._pick(['config', 'best', 'control', 'members', 'join', 'other/x'])}/{h.broken.island}", h.migrants()
+        elif r < 0.93:
+            yield "join", h._pick(islands + ["someone"]), h.join(h._pick(islands + ["someone"]))
+        else:
+            yield "member", h._pick([f"ghost-{int(h.rng.integers(10**6))}", "x" * 70, "no.such-island"]), b""

@@ -1,0 +1,118 @@
+"""More than 10,000 generated hostile messages (tests/hostile.py) against a running campaign in one process:
+the coordinator's receive paths (publications under every key, liveliness tokens, join requests) and the
+islands' migrant path. Nothing raises, every message is rejected and counted, and the campaign ends as it
+would have without them (the single-node campaign is reproducible, so "the right answer" is the same answer).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from coordinator.launch import island_specs, run_single_node
+from coordinator.server import Coordinator
+from coordinator.store import Store
+from hysid_model.synth import TRUE_PARAMS, synth_loops
+from island.config import CampaignConfig
+from island.migration import Migration
+from island.node import IslandNode, MemoryBus
+from island.protocol import Counter, Credentials, JoinRequest, decode_joined, encode_join
+from hostile import Hostile, stream
+
+pytestmark = pytest.mark.slow  # a few seconds of messages
+
+LOOPS = synth_loops(n_points=30)
+SIZES = {a: {"population": 20, "initial_population": 40, "iterations": 150} for a in ("ga", "pso")}
+COORDINATOR_MESSAGES = 8000
+ISLAND_MESSAGES = 2500
+
+
+def config() -> CampaignConfig:
+    return CampaignConfig.create(LOOPS, name="fz", options=SIZES, migration=Migration(interval=5, k=2, topology="ring"), seed=4, min_islands=3)
+
+
+def campaign(tmp_path, name: str, fuzz=None) -> Coordinator:
+    c = Coordinator(Store(tmp_path / f"{name}.sqlite"), config(), LOOPS)
+    fuzzer = threading.Thread(target=fuzz, args=(c,)) if fuzz else None
+    if fuzzer:
+        fuzzer.start()
+    run_single_node(c, island_specs(3, ["ga", "pso"], 4))
+    if fuzzer:
+        fuzzer.join(60)
+    return c
+
+
+def test_ten_thousand_hostile_messages_leave_coordinator_and_islands_running_with_the_right_answer(tmp_path):
+    reference = campaign(tmp_path, "reference")
+    sent: dict[str, int] = {}
+
+    def fuzz(c: Coordinator) -> None:
+        answers: list[bytes] = []
+        nonce = b"b" * 16
+        c.join_request("broken", encode_join(JoinRequest("fz", "broken", "pso", 7, nonce)), answers.append, wait_s=None)
+        while not answers:
+            threading.Event().wait(0.01)
+        broken = decode_joined(answers[0], "fz", "broken", nonce)  # a joined island that sends nothing but junk
+        c.member("broken", True, wait_s=None)
+        try:
+            hostile = Hostile(np.random.default_rng(12), "fz", c.objective.bounds, broken, Counter(10**6))
+            implausible = float(c.evaluation_bound("pso", np.array([1.0]))[0] + 1e6)
+            for entry, where, payload in stream(hostile, COORDINATOR_MESSAGES, "pso", 7, implausible, ["ga-0", "pso-1", "ga-2", "broken"]):
+                if entry == "msg":
+                    c.receive(where, payload, wait_s=None)
+                elif entry == "member":
+                    c.member(where, True, wait_s=None)
+                else:
+                    c.join_request(where, payload, lambda answer: sent.__setitem__("answered", sent.get("answered", 0) + 1), wait_s=None)
+                sent[entry] = sent.get(entry, 0) + 1
+            sent["done"] = 1
+        finally:
+            c.member("broken", False, wait_s=None)  # leaves without a goodbye: lost
+
+    fuzzed = campaign(tmp_path, "fuzzed", fuzz)
+    assert sent.get("done") == 1 and sum(sent[k] for k in ("msg", "member", "join")) == COORDINATOR_MESSAGES
+    assert len(fuzzed.inbox) == 0  # every message was handled before the campaign ended
+    assert fuzzed.rejected == COORDINATOR_MESSAGES and "answered" not in sent  # all rejected, no bad join answered
+    reasons = fuzzed.store.rejected_reasons("fz")
+    assert sum(reasons.values()) == COORDINATOR_MESSAGES
+    assert {"undecodable", "schema", "forged", "unjoined", "sender", "shape", "not_finite", "out_of_bounds", "implausible", "oversized"} <= set(reasons)
+    assert fuzzed.stop_reason == reference.stop_reason == "every island finished"
+    assert fuzzed.best.fitness == reference.best.fitness  # the same search, message for message
+    polished = fuzzed.outcome().runs
+    best = min(polished, key=lambda r: r.fitness)
+    assert best.fitness < 1e-20  # and the right answer: the truth of the noiseless Synth set
+    np.testing.assert_allclose(best.theta, fuzzed.objective.model.from_dict(TRUE_PARAMS), rtol=1e-6)
+    got = {(r.island, r.iterations, r.evaluations, r.best_fitness) for r in fuzzed.store.islands("fz")}
+    assert got == {(r.island, r.iterations, r.evaluations, r.best_fitness) for r in reference.store.islands("fz")}
+
+
+def test_hostile_migrants_on_an_islands_receive_path_change_nothing():
+    cfg = config()
+
+    def run(fuzz: bool) -> dict[str, IslandNode]:
+        stop = threading.Event()
+        bus = MemoryBus("fz", ["a", "b"], lambda key, data: None, stop)
+        nodes = {i: IslandNode(i, algo, seed, cfg, cfg.objective(LOOPS)) for i, algo, seed in (("a", "ga", 1), ("b", "pso", 2))}
+        transports = {i: bus.transport(i, n.algo, n.seed) for i, n in nodes.items()}
+        for i, n in nodes.items():
+            n.credentials = transports[i].credentials
+        threads = [threading.Thread(target=lambda n=n, t=transports[i]: (n.run(t), t.close())) for i, n in nodes.items()]
+        if fuzz:
+            broken = Credentials.issue("broken", transports["a"].credentials.campaign_key)
+            hostile = Hostile(np.random.default_rng(5), "fz", nodes["a"].objective.bounds, broken, Counter())
+            for k in range(ISLAND_MESSAGES):
+                me, other = ("a", "b") if k % 2 else ("b", "a")
+                nodes[me].receive(hostile._pick(["broken", "broken", "ghost", other]), hostile.migrants())
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(60)
+        return nodes
+
+    reference, fuzzed = run(False), run(True)
+    assert sum(n.stats["rejected"] for n in fuzzed.values()) == ISLAND_MESSAGES
+    for i in "ab":
+        assert [r[:3] for r in fuzzed[i].rows] == [r[:3] for r in reference[i].rows]  # all but wall time
+        assert fuzzed[i].stats["received"] == reference[i].stats["received"] and fuzzed[i].stats["taken"] == reference[i].stats["taken"]
