@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -17,12 +18,14 @@ from pathlib import Path
 import msgpack
 import numpy as np
 import pytest
+import zenoh
 
 from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config
-from island.protocol import MAX_BYTES, Migrants, encode_migrants, pack_array, seal
+from island.node import IslandNode, ZenohTransport, fetch_config
+from island.protocol import MAX_BYTES, Credentials, History, Migrants, encode_history, encode_migrants, pack_array, seal
 from island.session import open_session, session_config
 from support import Peer, events, hysid, query, rows_of, wait_for
 
@@ -243,3 +246,188 @@ def test_two_campaigns_on_one_network_do_not_cross_talk(spawn, tmp_path):
         assert query(db, "SELECT count(*) FROM rejected")[0][0] == 0
         assert events(db, "same-name") == ["join", "left"]
     assert doc_a["dataset"]["name"] != doc_b["dataset"]["name"]
+
+
+# --- attacks, durability and the end of a campaign (issue: hardening) --------------------------------
+def migrations_are_unique(db: Path) -> bool:
+    return query(db, "SELECT count(*) = count(DISTINCT island || '/' || run || '/' || seq) FROM migrations")[0][0] == 1
+
+
+def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
+    """Forged history of an invented island (2**52 evaluations, never final), a fake liveliness token,
+    migrants under another island's id, replays of real messages and a decoy flood that would rewire
+    the ring: the campaign still ends because its islands finished, with their own numbers only."""
+    endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "st.sqlite"
+    coord = spawn("coordinator", "--listen", endpoint, "--campaign", "steer", "--db", str(db), "--out", str(tmp_path / "out"), "--json",
+                  "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "1500", "--interval", "5",
+                  "--min-islands", "2", "--budget", "100000000", "--quiet")
+    islands = {name: island(spawn, endpoint, "steer", name) for name in ("a", "c")}
+    outsider = Peer(endpoint, "steer", "ghost", joined=False)
+    mallory = Peer(endpoint, "steer", "mallory")  # joined: an island that lies
+    captured: list[bytes] = []
+    outsider.entities.append(outsider.session.declare_subscriber("hysid/steer/migrants/a", lambda s: captured.append(s.payload.to_bytes())))
+    try:
+        wait_for(lambda: rows_of(db, "a") > 10 and len(captured) >= 3, 60, "island a's history and migrants")
+        ghost = Credentials.issue("ghost", b"k" * 32)
+        outsider.put("history", encode_history(History("steer", "ghost", ghost.run, "pso", 0, np.array([[0, 0.0, 2.0**52, 1.0]]), TRUTH, 0.0,
+                                                       dict.fromkeys(("sent", "received", "taken", "rejected"), 0)), ghost))
+        outsider.token("ghost")  # a member only by its token: never joined
+        outsider.token("b")  # the decoy sorts between a and c: the ring would make it c's predecessor
+        decoy = outsider.publisher("migrants", "b")
+        for i in range(300):
+            decoy.put(encode_migrants(Migrants("steer", "b", "r", 5, TRUTH[None, :], np.zeros(1), 0.0, i), Credentials("b", "r", b"x" * 32, b"y" * 32)))
+        a_run = query(db, "SELECT run FROM islands WHERE island = 'a'")[0][0]
+        mallory.put("migrants", encode_migrants(Migrants("steer", "a", a_run, 5, TRUTH[None, :], np.zeros(1), 0.0, 10**6),
+                                                Credentials("a", a_run, mallory.credentials.key, mallory.credentials.campaign_key)), key_island="a")
+        replays = outsider.publisher("migrants", "a")
+        for message in captured[:3] * 30:
+            replays.put(message)
+        doc = finished(coord, timeout=120)
+    finally:
+        outsider.close()
+        mallory.close()
+    assert doc["settings"]["stop_reason"] == "every island finished"
+    assert {i["island"] for i in doc["islands"]} == {"a", "c"} and doc["evaluations"] < 10**6
+    reasons = doc["migrations"]["rejected_reasons"]
+    assert reasons["unjoined"] >= 300 + 3 and reasons["forged"] >= 1 and reasons["replay"] >= 87  # the first three may be the originals
+    assert migrations_are_unique(db) and not query(db, "SELECT 1 FROM migrations WHERE island IN ('b', 'ghost', 'mallory')")
+    assert {e for e, in query(db, "SELECT DISTINCT island FROM members")} == {"a", "c", "mallory"}
+    a_doc, c_doc = (next(i for i in doc["islands"] if i["island"] == name) for name in ("a", "c"))
+    assert c_doc["rejected"] >= 300  # the decoy's flood, counted by the island it meant to cut off
+    assert 0 < c_doc["received"] <= 2 * a_doc["sent"] + 1  # c kept taking from its real predecessor a, and only from a
+    assert all(p.wait(30) == 0 for p in islands.values())
+
+
+def test_a_killed_coordinator_loses_at_most_its_commit_window(spawn, tmp_path):
+    """A steady stream of history rows; SIGKILL; what was committed is at most COMMIT_EVERY_S old."""
+    from coordinator.server import COMMIT_EVERY_S
+
+    endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "kl.sqlite"
+    coord = coordinator(spawn, endpoint, "loss", db)
+    feeder = Peer(endpoint, "loss", "feeder")  # joined as pso with seed 0, population 20 + 15 per iteration
+    config, loops = decode_config(Store(db).campaign("loss")[1], "loss")
+    x = config.objective(loops).bounds.mean(axis=1)
+    f = float(config.objective(loops)(x[None, :])[0])
+    stats = dict.fromkeys(("sent", "received", "taken", "rejected"), 0)
+    publisher = feeder.publisher("history")
+    sent: list[tuple[float, int]] = []  # (time sent, rows so far)
+    per_message, every_s = 10, 0.02
+    try:
+        it, start = 0, time.time()
+        while time.time() - start < 4.0 or not rows_of(db, "feeder"):
+            rows = np.array([[i, f, 40 + 35 * i, 0.0] for i in range(it, it + per_message)], dtype=float)
+            publisher.put(encode_history(History("loss", "feeder", feeder.credentials.run, "pso", 0, rows, x, f, stats, seq=feeder.seq()), feeder.credentials))
+            it += per_message
+            sent.append((time.time(), it))
+            time.sleep(every_s)
+        killed_at = time.time()
+        coord.send_signal(signal.SIGKILL)
+        coord.communicate(timeout=30)
+    finally:
+        feeder.close()
+    stored = rows_of(db, "feeder")
+    committed = query(db, "SELECT committed FROM campaigns")[0][0]
+    sent_before_kill = max(n for t, n in sent if t <= killed_at)
+    lost_rows, lost_s = sent_before_kill - stored, killed_at - committed
+    print(f"kill loss: {lost_rows} rows ({lost_rows / per_message * every_s:.2f} s of the stream), last commit {lost_s:.2f} s before the kill")
+    assert history_contiguous(db, "feeder") == stored - 1  # what is stored has no hole
+    assert lost_s <= COMMIT_EVERY_S + 1.0, lost_s  # the commit window, plus scheduling slack on a loaded machine
+    assert lost_rows <= (COMMIT_EVERY_S + 1.0) / every_s * per_message, lost_rows
+
+
+def history_contiguous(db: Path, island: str) -> int:
+    its = [it for (it,) in query(db, "SELECT iteration FROM history WHERE island = ? ORDER BY iteration", island)]
+    return next((i - 1 for i, it in enumerate(its) if it != i), len(its) - 1)
+
+
+def test_rows_sent_while_the_coordinator_was_down_arrive_when_it_returns_and_the_campaign_ends(spawn, tmp_path):
+    """An island finishes while its coordinator is dead; it waits, the resumed coordinator fetches what it
+    missed, confirms, and, nothing being left to do, ends with its report."""
+    endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "down.sqlite"
+    first = spawn("coordinator", "--listen", endpoint, "--campaign", "down", "--db", str(db), "--out", str(tmp_path / "out1"),
+                  "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "1200", "--interval", "0", "--quiet")
+    session = open_session(session_config("client", connect=[endpoint]), endpoint)
+    config, loops = decode_config(fetch_config(session, "down", 30), "down")
+    node = IslandNode("solo", "pso", 3, config, config.objective(loops), history_every_s=0.05)
+    transport = ZenohTransport(session, node, wait_s=60)
+    worker = threading.Thread(target=lambda: (node.run(transport), transport.close()))
+    worker.start()
+    try:
+        wait_for(lambda: rows_of(db, "solo") > 10, 60, "the first rows")
+        first.send_signal(signal.SIGKILL)
+        first.communicate(timeout=30)
+        stored_before = rows_of(db, "solo")
+        wait_for(lambda: node.finished, 120, "the island to finish its budget with nobody listening")
+        assert len(node.rows) == 1201 > stored_before and worker.is_alive()  # it waits for a confirmation
+        second = spawn("coordinator", "--listen", endpoint, "--campaign", "down", "--db", str(db), "--resume", "--out", str(tmp_path / "out2"),
+                       "--json", "--quiet")
+        doc = finished(second, timeout=90)
+        worker.join(30)
+    finally:
+        session.close()
+    assert not worker.is_alive() and node.confirmed is True
+    assert history_contiguous(db, "solo") == 1200 == rows_of(db, "solo") - 1  # every row, none twice
+    assert doc["settings"]["stop_reason"] == "every island finished"
+    assert [i["final"] for i in doc["islands"]] == [True] and (tmp_path / "out2" / "report.md").is_file()
+
+
+def test_ten_thousand_hostile_messages_over_zenoh_leave_coordinator_and_islands_running_with_the_right_answer(spawn, tmp_path):
+    """tests/hostile.py over real Zenoh, under every key: publications (migrants, history and keys
+    nobody serves), join requests, liveliness tokens of names that never joined, control messages to
+    the islands and history queries to them. Each is rejected and counted where it lands; the
+    coordinator and both islands keep going, and the campaign ends with the right answer."""
+    from hostile import Hostile, stream
+
+    endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "zf.sqlite"
+    coord = coordinator(spawn, endpoint, "zf", db, "--min-islands", "2", "--time-limit", "300")
+    islands = {name: island(spawn, endpoint, "zf", name) for name in ("a", "b")}
+    wait_for(lambda: rows_of(db, "a") > 20 and rows_of(db, "b") > 20, 60, "both islands' history")
+    broken = Peer(endpoint, "zf", "broken")  # a joined island that sends nothing but junk
+    broken.token()
+    hostile = Hostile(np.random.default_rng(2026), "zf", BOUNDS, broken.credentials, broken.seq)
+    publishers: dict[str, object] = {}
+    to_coordinator = to_islands = 0
+    queries = {"a": 0, "b": 0}
+    tokens = 0
+    try:
+        implausible = 1e15
+        for entry, where, payload in stream(hostile, 8500, "pso", 0, implausible, ["a", "b", "broken"]):
+            if entry == "msg":
+                kind = where.split("/")[2]
+                if where not in publishers:
+                    publishers[where] = broken.session.declare_publisher(where, congestion_control=zenoh.CongestionControl.BLOCK)
+                publishers[where].put(payload)
+                to_coordinator += kind in ("migrants", "history")
+                to_islands += kind == "migrants"
+            elif entry == "join":
+                broken.session.get(f"hysid/zf/join/{where}", lambda reply: None, payload=payload, timeout=2.0)
+                to_coordinator += 1
+            else:
+                broken.token(f"ghost-{tokens}" if tokens % 3 else f"{'x' * 70}{tokens}")
+                tokens += 1
+                to_coordinator += 2  # its arrival and, at the end, its departure
+        controls = broken.session.declare_publisher("hysid/zf/control", congestion_control=zenoh.CongestionControl.BLOCK)
+        for k in range(1000):
+            controls.put(hostile.control(Credentials("ab"[k % 2], "r", b"k" * 32, b"c" * 32)))
+        for k in range(500):
+            target = "ab"[k % 2]
+            broken.session.get(f"hysid/zf/history/{target}?{hostile.history_query()}", lambda reply: None, timeout=2.0)
+            queries[target] += 1
+        assert 8500 + 1000 + 500 >= 10_000
+        for entity in broken.entities[1:]:  # the ghosts leave; the broken island's own token stays
+            entity.undeclare()
+        del broken.entities[1:]
+        recorded = lambda: query(db, "SELECT coalesce(sum(n), 0) FROM rejected")[0][0]  # noqa: E731
+        wait_for(lambda: recorded() >= to_coordinator, 120, f"the coordinator to count {to_coordinator} rejects")
+        rows = {name: rows_of(db, name) for name in islands}
+        wait_for(lambda: all(rows_of(db, n) > rows[n] + 20 for n in islands), 60, "both islands to keep going")
+        assert coord.poll() is None and all(p.poll() is None for p in islands.values())
+        coord.send_signal(signal.SIGINT)
+        doc = finished(coord)
+    finally:
+        broken.close()
+    assert doc["migrations"]["rejected"] == to_coordinator
+    assert doc["fitness"] < 1e-20 and all(doc["params"][k] == pytest.approx(v, rel=1e-6) for k, v in TRUE_PARAMS.items())
+    got = {i["island"]: i["rejected"] for i in doc["islands"]}
+    assert got == {name: to_islands + 1000 + queries[name] for name in ("a", "b")}  # every migrant and control message, its queries
+    assert all(p.wait(30) == 0 for p in islands.values())
