@@ -219,6 +219,10 @@ class Coordinator:
         else:
             store.set_status(self.name, "running")
         self.resumed = resume
+        try:
+            store.hold(len(self.config_message))
+        except OSError as exc:
+            raise StoreError(f"cannot reserve disk space next to the campaign database {store.path}: {exc.strerror or exc}") from None
         self.campaign_key = store.campaign_key(self.name, secrets.token_bytes(KEY_BYTES))
         store.commit()
         self.run_id = secrets.token_hex(6)
@@ -680,6 +684,7 @@ class Coordinator:
         """After a database fault: tell the islands to stop (reporting only rows really committed),
         mark the campaign interrupted if the file lets us."""
         self.store.rollback()
+        self.store.release_reserve()
         self.contiguous.clear()
         self.last_stored.clear()
         try:
@@ -692,8 +697,8 @@ class Coordinator:
         try:
             self.store.set_status(self.name, "interrupted", f"interrupted: {fault.detail}")
             marked = "it is marked interrupted"
-        except StoreError:
-            marked = "it could not be marked interrupted"
+        except StoreError as exc:
+            marked = f"it could not be marked interrupted ({exc.detail.rsplit(': ', 1)[-1]})"
         return StoreError(f"campaign {self.name!r} stopped: {fault.detail}; what was committed before is kept and {marked} (--resume carries on)")
 
     # --- the outcome ----------------------------------------------------------------

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import sqlite3
 import time
 from collections.abc import Callable
@@ -35,7 +36,7 @@ T = TypeVar("T")
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS campaigns (
     name TEXT PRIMARY KEY, dataset TEXT NOT NULL, config BLOB NOT NULL, created REAL NOT NULL,
-    status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT, committed REAL);
+    status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT);
 CREATE TABLE IF NOT EXISTS members (
     id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, event TEXT NOT NULL, t REAL NOT NULL);
 CREATE TABLE IF NOT EXISTS history (
@@ -61,9 +62,9 @@ CREATE TABLE IF NOT EXISTS runs (
     campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, key BLOB NOT NULL, algo TEXT NOT NULL,
     seed INTEGER NOT NULL, joined REAL NOT NULL, PRIMARY KEY (campaign, island, run));
 CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL);
+CREATE TABLE IF NOT EXISTS commits (campaign TEXT PRIMARY KEY, t REAL NOT NULL);
 """
 UPGRADES = {
-    "campaigns": ("committed", "ALTER TABLE campaigns ADD COLUMN committed REAL"),
     "migrations": ("seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
     "rejected": ("n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
 }
@@ -72,6 +73,10 @@ INDEXES = "CREATE UNIQUE INDEX IF NOT EXISTS migration_once ON migrations (campa
 """A migrant message (sender run and number) is stored once, also when it is replayed after a restart."""
 LOCK_WAIT_S = 10.0
 """How long a write waits for another process' lock on the database before it fails."""
+RESERVE_BYTES = 256 << 10
+"""Disk space held next to the database (``<db>-reserve``) and given back when the disk is full, so
+that the campaign can still be marked interrupted (plus twice its configuration message: SQLite
+rewrites the whole campaign row, loop set included, when its status changes)."""
 
 
 class StoreError(HysidInputError):
@@ -139,8 +144,23 @@ class Store:
             self.db.executescript(INDEXES)
             self.db.execute("BEGIN IMMEDIATE")  # the write lock: fails now if the file cannot be written
             self.db.execute("ROLLBACK")
+            self.reserve = None if self.path == ":memory:" else Path(f"{self.path}-reserve")
+            self.hold(0)
         except (sqlite3.DatabaseError, OSError) as exc:
             raise HysidInputError(f"{self.path}: not a usable campaign database ({exc})") from None
+
+    def hold(self, row_bytes: int) -> None:
+        """Hold :data:`RESERVE_BYTES` plus twice ``row_bytes`` of disk space in the reserve file."""
+        if self.reserve is not None:
+            with open(self.reserve, "wb") as f:
+                f.write(bytes(RESERVE_BYTES + 2 * row_bytes))
+                f.flush()
+                os.fsync(f.fileno())
+
+    def release_reserve(self) -> None:
+        """Give the reserved disk space back (when the disk is full: room for the last status)."""
+        if self.reserve is not None:
+            self.reserve.unlink(missing_ok=True)
 
     def close(self) -> None:
         """Commit and close; a commit that fails here is reported, the file keeps what was committed."""
@@ -148,13 +168,14 @@ class Store:
             self.commit()
         finally:
             self.db.close()
+            self.release_reserve()
 
     @_writes
     def commit(self, campaign: str | None = None) -> None:
-        """Commit; with ``campaign``, stamp its ``committed`` time first (how old the last commit is
+        """Commit; with ``campaign``, stamp the time in ``commits`` first (how old the last commit is
         tells what a kill right now would lose)."""
         if campaign is not None:
-            self.db.execute("UPDATE campaigns SET committed = ? WHERE name = ?", (time.time(), campaign))
+            self.db.execute("INSERT OR REPLACE INTO commits VALUES (?, ?)", (campaign, time.time()))
         self.db.commit()
 
     def rollback(self) -> None:

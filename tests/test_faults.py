@@ -326,7 +326,7 @@ def test_a_killed_coordinator_loses_at_most_its_commit_window(spawn, tmp_path):
     finally:
         feeder.close()
     stored = rows_of(db, "feeder")
-    committed = query(db, "SELECT committed FROM campaigns")[0][0]
+    committed = query(db, "SELECT t FROM commits")[0][0]
     sent_before_kill = max(n for t, n in sent if t <= killed_at)
     lost_rows, lost_s = sent_before_kill - stored, killed_at - committed
     print(f"kill loss: {lost_rows} rows ({lost_rows / per_message * every_s:.2f} s of the stream), last commit {lost_s:.2f} s before the kill")

@@ -97,6 +97,9 @@ def main(argv: list[str] | None = None) -> int:
         except HysidInputError as exc:
             fail(error_line(exc))
             return 2
+        except OSError as exc:  # the environment: a full disk, a file made read-only while the command ran
+            fail(f"{exc.strerror or type(exc).__name__}" + (f": {exc.filename}" if exc.filename else "") + " (what was written before is kept)")
+            return 2
         except KeyboardInterrupt:
             fail("interrupted")
             return 130

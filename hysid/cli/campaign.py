@@ -19,6 +19,7 @@ from typing import Optional
 
 import typer
 
+from coordinator.launch import island_specs
 from coordinator.links import ZenohLink
 from coordinator.server import CampaignProgress, Coordinator, resume
 from coordinator.store import Store
@@ -109,6 +110,8 @@ def register(app: typer.Typer) -> None:
         migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
         termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
         check_name("campaign", name)
+        island_specs(islands, algo_list, seed)  # every setting is checked before the report directory is made
+        CampaignConfig(name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands)
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
@@ -156,19 +159,19 @@ def register(app: typer.Typer) -> None:
         termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
         if resume_db and dataset is not None:
             raise HysidInputError(f"--resume takes the loop set from {db}; drop DATASET {dataset!r}")
+        if not resume_db:  # every setting is checked before the database or the report directory is made
+            sizes = o.island_sizes(population, initial, iterations)
+            migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
+            settings = dict(algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands)
+            CampaignConfig(name=name, **settings)
         target_dir = o.report_dir(out, "coordinator")
         store = Store(database(db, target_dir, name, resuming=resume_db))
         try:
             if resume_db:
                 coordinator = resume(store, name, termination)
             else:
-                sizes = o.island_sizes(population, initial, iterations)
-                migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
                 loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
-                config = CampaignConfig.create(
-                    loops, name=name, model=model, weights=weights, algos=o.parse_algos(algos), options=sizes,
-                    migration=migration, seed=seed, min_islands=min_islands,
-                )
+                config = CampaignConfig.create(loops, name=name, model=model, weights=weights, **settings)
                 coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
             session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")

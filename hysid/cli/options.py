@@ -138,12 +138,12 @@ def check_writable(directory: Path, param: str) -> Path:
     except OSError as exc:
         raise HysidInputError(f"cannot write there ({exc.strerror or exc}); nothing was run", param=param, value=directory) from None
     finally:
-        probe.unlink(missing_ok=True)
-        for p in made:
-            try:
+        try:
+            probe.unlink(missing_ok=True)
+            for p in made:
                 p.rmdir()
-            except OSError:
-                break
+        except OSError:
+            pass
     return directory
 
 
