@@ -13,6 +13,7 @@ import hashlib
 import json
 import os
 import queue
+import re
 import shutil
 import signal
 import socket
@@ -232,10 +233,12 @@ def test_usrpwd_wrong_credentials_are_refused(user: str | None, password: str | 
         assert not cannot_connect(island)
 
 
-def secure_island(port: int, certs: Path, credentials: Path, user: str, password: str) -> zenoh.Config:
+def secure_island(port: int, certs: Path, credentials: Path, user: str, password: str, certificate: str = "island-1") -> zenoh.Config:
     config = localized(pair("-secure")[1], port, certs, credentials)
     put_setting(config, "transport/auth/usrpwd/user", user)
     put_setting(config, "transport/auth/usrpwd/password", password)
+    put_setting(config, "transport/link/tls/connect_certificate", str(certs / "islands" / certificate / "cert.pem"))
+    put_setting(config, "transport/link/tls/connect_private_key", str(certs / "islands" / certificate / "key.pem"))
     return config
 
 
@@ -299,7 +302,7 @@ def test_acl_denies_everything_to_an_authenticated_user_not_listed(certs: Path, 
             assert guest.info.routers_zid() == [coordinator.zid()]
             assert not put_until_received(guest, f"{CAMPAIGN}/migrants/guest", b"guest", seen, timeout=2.0)
             assert replies(guest, f"{CAMPAIGN}/config", timeout=2.0) == []
-        with session(secure_island(port, certs, credentials, "island-2", "change-me-island-2")) as island:
+        with session(secure_island(port, certs, credentials, "island-2", "change-me-island-2", certificate="island-2")) as island:
             assert put_until_received(island, f"{CAMPAIGN}/migrants/island-2", b"island", seen)
         subscriber.undeclare()
         queryable.undeclare()
@@ -437,3 +440,167 @@ def test_local_recipe_runs_a_campaign_of_separate_processes(tmp_path: Path) -> N
     assert {island["algo"] for island in result["islands"]} == {"ga", "pso"}
     for k in (1, 2):
         assert "stopped by the coordinator" in (out / f"island-{k}.log").read_text()
+
+
+# --- the secure recipe: identities bound to keys, campaigns apart, listening where told, quiet logs ---------
+SECURE_CAMPAIGN = DEPLOY / "secure-campaign.py"
+
+
+def secure_campaign(outdir: Path, campaign: str, port: int, certs: Path, *islands: str) -> Path:
+    done = subprocess.run(
+        [sys.executable, str(SECURE_CAMPAIGN), "--campaign", campaign, "--listen", f"tls/127.0.0.1:{port}", "--connect", f"tls/127.0.0.1:{port}",
+         "--certs", str(certs), "-o", str(outdir), *islands],
+        capture_output=True, text=True, timeout=30,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "change-me" not in done.stdout and all(line.split(":")[1] not in done.stdout for line in (outdir / "credentials.txt").read_text().splitlines())
+    return outdir
+
+
+def island_as(outdir: Path, island: str, *, user_of: str | None = None) -> zenoh.Config:
+    """Island ``island``'s generated config; ``user_of``: with another island's user name and password instead."""
+    config = zenoh.Config.from_file(outdir / "islands" / f"{island}.json5")
+    if user_of is not None:
+        other = zenoh.Config.from_file(outdir / "islands" / f"{user_of}.json5")
+        for key in ("user", "password"):
+            put_setting(config, f"transport/auth/usrpwd/{key}", setting(other, f"transport/auth/usrpwd/{key}"))
+    return config
+
+
+def test_the_secure_recipe_binds_each_island_to_its_own_keys(certs: Path, tmp_path: Path) -> None:
+    """Island X (certificate CN=X and user X) may speak only as X: publish, join, serve and hold a token."""
+    port = free_port()
+    out = secure_campaign(tmp_path / "z", "demo", port, certs, "island-1", "island-2")
+    assert oct((out / "credentials.txt").stat().st_mode & 0o777) == "0o600" and oct(out.stat().st_mode & 0o777) == "0o700"
+    with session(zenoh.Config.from_file(out / "coordinator.json5")) as coordinator:
+        seen: list = []
+        members: list = []
+        keep = [
+            coordinator.declare_subscriber("**", collector(seen)),
+            coordinator.liveliness().declare_subscriber("**", lambda sample: members.append(str(sample.key_expr))),
+            coordinator.declare_queryable(f"{CAMPAIGN}/join/*", lambda query: query.reply(query.key_expr, b"joined")),
+        ]
+        with session(island_as(out, "island-1")) as island:
+            assert put_until_received(island, f"{CAMPAIGN}/migrants/island-1", b"own", seen)
+            for key in ("migrants/island-2", "history/island-2", "control", "best", "join/island-2"):
+                island.put(f"{CAMPAIGN}/{key}", b"as another")
+            island.put(f"{CAMPAIGN}/history/island-1", b"last")
+            assert wait_until(lambda: (f"{CAMPAIGN}/history/island-1", b"last") in seen)
+            assert not [key for key, payload in seen if payload == b"as another"]
+            assert replies(island, f"{CAMPAIGN}/join/island-1") == [b"joined"]
+            assert replies(island, f"{CAMPAIGN}/join/island-2", timeout=1.5) == []
+            keep.append(island.liveliness().declare_token(f"{CAMPAIGN}/members/island-2"))
+            keep.append(island.liveliness().declare_token(f"{CAMPAIGN}/members/island-1"))
+            assert wait_until(lambda: f"{CAMPAIGN}/members/island-1" in members)
+            assert f"{CAMPAIGN}/members/island-2" not in members
+        with session(island_as(out, "island-1", user_of="island-2")) as mixed:  # island-1's certificate, island-2's password
+            assert not put_until_received(mixed, f"{CAMPAIGN}/migrants/island-2", b"mixed", seen, timeout=1.5)
+            assert not put_until_received(mixed, f"{CAMPAIGN}/migrants/island-1", b"mixed", seen, timeout=1.5)
+            assert replies(mixed, f"{CAMPAIGN}/join/island-1", timeout=1.5) == replies(mixed, f"{CAMPAIGN}/join/island-2", timeout=1.5) == []
+        for entity in keep:
+            entity.undeclare()
+
+
+def test_campaigns_that_share_a_ca_and_island_names_stay_apart(certs: Path, tmp_path: Path) -> None:
+    """Same CA, same island names, two routers: an island of campaign A cannot join, read or write B."""
+    port_a, port_b = free_port(), free_port()
+    a = secure_campaign(tmp_path / "a", "alpha", port_a, certs, "island-1")
+    b = secure_campaign(tmp_path / "b", "beta", port_b, certs, "island-1")
+    with session(zenoh.Config.from_file(a / "coordinator.json5")), session(zenoh.Config.from_file(b / "coordinator.json5")) as router_b:
+        queryable = router_b.declare_queryable("hysid/beta/config", lambda query: query.reply(query.key_expr, b"beta's loop set"))
+        a_at_b = island_as(a, "island-1")
+        put_setting(a_at_b, "connect/endpoints", [f"tls/127.0.0.1:{port_b}"])
+        assert cannot_connect(a_at_b)  # its password is A's
+        with session(island_as(b, "island-1")) as b_island:
+            assert replies(b_island, "hysid/beta/config") == [b"beta's loop set"]
+        with session(island_as(a, "island-1")) as a_island:  # on its own router, B's key space is denied
+            assert replies(a_island, "hysid/beta/config", timeout=1.5) == []
+        queryable.undeclare()
+
+
+def test_shipped_recipes_listen_where_told_and_are_secure_by_default() -> None:
+    for path in ZENOH_DIR.glob("coordinator*.json5"):
+        endpoints = setting(zenoh.Config.from_file(path), "listen/endpoints")
+        assert all("127.0.0.1" in e for e in endpoints), (path.name, endpoints)
+    env = (DEPLOY / "systemd" / "coordinator.env.example").read_text()
+    assert "HYSID_LISTEN=tls/COORDINATOR-ADDRESS:7447" in env and "0.0.0.0:" not in env.split("HYSID_LISTEN=")[1].split("\n")[0]
+    assert "HYSID_CONNECT=tls/" in (DEPLOY / "systemd" / "island.env.example").read_text()
+    sbatch = (DEPLOY / "slurm" / "hysid-campaign.sbatch").read_text()
+    assert "security=${HYSID_SECURITY:-secure}" in sbatch and '--listen "$protocol/$coordinator_address:$port"' in sbatch
+    assert "0.0.0.0" not in sbatch.replace("would be every interface", "")
+    guide = (DEPLOY / "GUIDE.md").read_text()
+    assert "--listen tcp/0.0.0.0" not in guide and "--listen tls/0.0.0.0" not in guide
+
+
+def test_the_guides_debug_log_recipe_keeps_passwords_out_of_the_log(tmp_path: Path) -> None:
+    recipe = re.search(r"RUST_LOG=(\S+)", (DEPLOY / "GUIDE.md").read_text())
+    assert recipe is not None
+    coordinator_file, island_file = pair("-usrpwd")
+    port = free_port()
+    script = f"""
+import zenoh
+zenoh.try_init_log_from_env()
+router = zenoh.Config.from_file({str(coordinator_file)!r})
+router.insert_json5("listen/endpoints", '["tcp/127.0.0.1:{port}"]')
+router.insert_json5("transport/auth/usrpwd/dictionary_file", '"{CREDENTIALS}"')
+island = zenoh.Config.from_file({str(island_file)!r})
+island.insert_json5("connect/endpoints", '["tcp/127.0.0.1:{port}"]')
+r = zenoh.open(router)
+i = zenoh.open(island)
+i.put("hysid/demo/migrants/island-1", b"x")
+i.close()
+r.close()
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60, env={**os.environ, "RUST_LOG": recipe.group(1)})
+    assert done.returncode == 0, done.stderr[-2000:]
+    log = done.stdout + done.stderr
+    assert "DEBUG" in log and "usrpwd" in log.lower()  # the recipe does show authentication at work
+    assert not [line for line in CREDENTIALS.read_text().split() if line.split(":")[1] in log]
+
+
+@pytest.mark.slow
+def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_another_id(certs: Path, tmp_path: Path) -> None:
+    port = free_port()
+    out = secure_campaign(tmp_path / "z", "demo", port, certs, "island-1", "island-2")
+    hysid = [sys.executable, "-m", "hysid"]
+    coordinator = subprocess.Popen(
+        [*hysid, "coordinator", "--config", str(out / "coordinator.json5"), "--campaign", "demo", "--out", str(tmp_path / "report"),
+         "--min-islands", "2", "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "300", "--no-polish", "--quiet", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    island = lambda config, name: subprocess.Popen(  # noqa: E731
+        [*hysid, "island", "--config", str(config), "--campaign", "demo", "--id", name, "--wait", "10", "--quiet"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        impostor = island(out / "islands" / "island-1.json5", "island-2")  # island-1's identity, island-2's id
+        _, impostor_err = impostor.communicate(timeout=40)
+        islands = [island(out / "islands" / f"{name}.json5", name) for name in ("island-1", "island-2")]
+        for p in islands:
+            assert p.wait(timeout=60) == 0, p.stderr.read()
+        doc_text, err = coordinator.communicate(timeout=60)
+        assert coordinator.returncode == 0, err
+    finally:
+        for p in (coordinator, impostor, *islands) if "islands" in dir() else (coordinator,):
+            p.kill()
+    assert impostor.returncode == 2 and "no coordinator admitted island 'island-2'" in impostor_err and impostor_err.count("\n") == 1
+    doc = json.loads(doc_text)
+    assert {i["island"] for i in doc["islands"]} == {"island-1", "island-2"}
+    assert doc["settings"]["stop_reason"] == "every island finished" and doc["migrations"]["rejected"] == 0
+
+
+def test_the_threat_model_cites_tests_that_exist() -> None:
+    """Every `file.py::test` (or `::test` after it) of the guide's threat model names a test of that file."""
+    guide = (DEPLOY / "GUIDE.md").read_text()
+    model = guide[guide.index("## Threat model"):guide.index("## Troubleshooting")]
+    tests_dir = Path(__file__).resolve().parent
+    cited, current = [], None
+    for file, name in re.findall(r"`(?:(test_\w+\.py))?(?:::(test_\w+))?`", model):
+        current = file or current
+        if name:
+            cited.append((current, name))
+        elif file:
+            assert (tests_dir / file).is_file(), file
+    assert len(cited) >= 25
+    for file, name in cited:
+        assert re.search(rf"^def {name}\(", (tests_dir / file).read_text(), re.M), f"{file}::{name}"

@@ -268,6 +268,7 @@ def test_campaign_across_namespaces_over_tcp(lab: Lab, tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_campaign_across_namespaces_with_tls_credentials_and_acl(lab: Lab, tmp_path: Path) -> None:
+    """The multi-machine recipe of deploy/GUIDE.md: make-certs.sh, then secure-campaign.py, one identity per island."""
     if shutil.which("openssl") is None:
         pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")
     certs = tmp_path / "certs"
@@ -275,23 +276,12 @@ def test_campaign_across_namespaces_with_tls_credentials_and_acl(lab: Lab, tmp_p
         ["bash", str(DEPLOY / "tls" / "make-certs.sh"), "-o", str(certs), "-s", lab.hub_address, *ISLANDS],
         check=True, capture_output=True, timeout=60,
     )
-    credentials = tmp_path / "credentials.txt"
-    credentials.write_text("island-1:pw-h1\nisland-2:pw-h2\n")
-    coordinator_config = zenoh_file(tmp_path, "coordinator-secure.json5", {
-        "transport/link/tls/root_ca_certificate": str(certs / "ca.pem"),
-        "transport/link/tls/listen_certificate": str(certs / "coordinator/cert.pem"),
-        "transport/link/tls/listen_private_key": str(certs / "coordinator/key.pem"),
-        "transport/auth/usrpwd/dictionary_file": str(credentials),
-    })
-    island_configs = {}
-    for k, name in enumerate(ISLANDS, start=1):
-        (tmp_path / name).mkdir()
-        island_configs[name] = zenoh_file(tmp_path / name, "island-secure.json5", {
-            "transport/link/tls/root_ca_certificate": str(certs / "ca.pem"),
-            "transport/link/tls/connect_certificate": str(certs / "islands" / name / "cert.pem"),
-            "transport/link/tls/connect_private_key": str(certs / "islands" / name / "key.pem"),
-            "transport/auth/usrpwd/user": f"island-{k}",
-            "transport/auth/usrpwd/password": f"pw-{name}",
-        })
-    out = run_campaign(lab, tmp_path, "demo", coordinator_config, island_configs, "tls")
+    endpoint = f"tls/{lab.hub_address}:{PORT}"
+    subprocess.run(
+        [sys.executable, str(DEPLOY / "secure-campaign.py"), "--campaign", "demo", "--listen", endpoint, "--connect", endpoint,
+         "--certs", str(certs), "-o", str(tmp_path / "zenoh"), *ISLANDS],
+        check=True, capture_output=True, timeout=60,
+    )
+    island_configs = {name: tmp_path / "zenoh" / "islands" / f"{name}.json5" for name in ISLANDS}
+    out = run_campaign(lab, tmp_path, "demo", tmp_path / "zenoh" / "coordinator.json5", island_configs, "tls")
     check_every_island_took_part(out, "demo")
