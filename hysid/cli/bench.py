@@ -15,7 +15,7 @@ from typing import Any
 
 import typer
 
-from hysid.bench import accuracy, environment, islands, objective
+from hysid.bench import accuracy, coordinator, environment, islands, objective
 from hysid.report import jsondoc
 
 bench_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None)
@@ -53,6 +53,14 @@ def islands_command(
 ) -> None:
     """Island model: 2-island speedup, migration vs isolation, hysid vs pygmo, migration latency."""
     emit(islands.run(islands.PARTS if part == "all" else [part]), islands.to_text, as_json)
+
+
+@bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
+def coordinator_command(
+    seconds: float = typer.Option(10.0, "--seconds", help="Duration of the 32-island load."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    emit(coordinator.run(seconds), coordinator.to_text, as_json)
 
 
 def bench_names() -> list[str]:
