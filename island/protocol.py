@@ -351,7 +351,8 @@ class Counter:
 
 
 class ReplayGuard:
-    """Drops replays: remembers, per sender run, the numbers of the last ``window`` messages.
+    """Drops replays: remembers, per sender run, which of the last ``window`` message numbers it saw
+    (a bit mask: a few hundred bytes per run).
 
     A number seen before, or older than the window, is a replay. Messages may
     arrive out of order within the window (a history re-sent on request passes
@@ -359,27 +360,30 @@ class ReplayGuard:
     recently heard one is forgotten first.
     """
 
-    def __init__(self, window: int = 4096, runs: int = MAX_MEMBERS) -> None:
+    def __init__(self, window: int = 4096, runs: int = 2 * MAX_MEMBERS) -> None:
         self.window = window
         self.runs = runs
-        self._seen: OrderedDict[tuple[str, ...], tuple[int, set[int]]] = OrderedDict()
+        self._seen: OrderedDict[tuple[str, ...], tuple[int, int]] = OrderedDict()
+        """key -> (highest number, bit i set when number highest - i was seen)"""
         self._lock = threading.Lock()
 
     def fresh(self, key: tuple[str, ...], seq: int) -> bool:
         """True (and remembered) the first time ``seq`` comes from ``key``; False for a replay."""
         with self._lock:
-            high, seen = self._seen.pop(key, (-1, set()))
-            if seq <= high - self.window or seq in seen:
-                self._seen[key] = (high, seen)
-                return False
-            seen.add(seq)
+            high, seen = self._seen.pop(key, (-1, 0))
             if seq > high:
-                high = seq
-                seen = {s for s in seen if s > high - self.window}
+                shift = seq - high
+                seen = ((seen << shift) | 1) & ((1 << self.window) - 1) if shift < self.window else 1
+                high, fresh = seq, True
+            else:
+                age = high - seq
+                fresh = age < self.window and not (seen >> age) & 1
+                if fresh:
+                    seen |= 1 << age
             self._seen[key] = (high, seen)
             while len(self._seen) > self.runs:
                 self._seen.popitem(last=False)
-            return True
+            return fresh
 
 
 def check_replay(guard: ReplayGuard, kind: str, sender: str, run: str, seq: int) -> None:

@@ -100,9 +100,10 @@ def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link
     ]
     for payload in bad:
         deliver(c, link, "history", "pso-1", payload)
-    assert reasons(c) == {"implausible": 6} and c.evaluations == 0
+    deliver(c, link, "history", "pso-1", history(island, [[3, f, 2.0**62, 0.1]], x, f, seq=8))  # not even a count a float holds exactly
+    assert reasons(c) == {"implausible": 6, "schema": 1} and c.evaluations == 0
     deliver(c, link, "history", "pso-1", history(island, [[i, 2 * f, 20 + 25 * i, 0.0] for i in range(4)], x, f, seq=7))
-    assert c.evaluations == 95 and c.check_stop() is None and reasons(c) == {"implausible": 6}
+    assert c.evaluations == 95 and c.check_stop() is None and reasons(c) == {"implausible": 6, "schema": 1}
     deliver(c, link, "history", "pso-1", history(island, [[i, 2 * f, 20 + 25 * i, 0.0] for i in range(4)], x, f, seq=7))
     assert reasons(c)["replay"] == 1
 

@@ -145,6 +145,14 @@ def put_until_received(sender: zenoh.Session, key: str, payload: bytes, received
     return False
 
 
+def watching(router: zenoh.Session, seen: list, members: list) -> list:
+    """The router's view of everything put and every liveliness token (entities to undeclare)."""
+    return [
+        router.declare_subscriber("**", collector(seen)),
+        router.liveliness().declare_subscriber("**", lambda sample: members.append(str(sample.key_expr))),
+    ]
+
+
 def replies(asker: zenoh.Session, selector: str, timeout: float = WAIT) -> list[bytes]:
     return [reply.ok.payload.to_bytes() for reply in asker.get(selector, timeout=timeout) if reply.ok is not None]
 
@@ -247,9 +255,7 @@ def test_acl_confines_islands_to_their_campaign(certs: Path) -> None:
     with session(localized(pair("-secure")[0], port, certs)) as coordinator:
         seen: list = []
         members: list = []
-        keep = [
-            coordinator.declare_subscriber("**", collector(seen)),
-            coordinator.liveliness().declare_subscriber("**", lambda sample: members.append(str(sample.key_expr))),
+        keep = watching(coordinator, seen, members) + [
             coordinator.declare_queryable(f"{CAMPAIGN}/config", lambda query: query.reply(query.key_expr, b"loop set")),
             coordinator.declare_queryable("hysid/other/config", lambda query: query.reply(query.key_expr, b"other")),
         ]
@@ -475,9 +481,7 @@ def test_the_secure_recipe_binds_each_island_to_its_own_keys(certs: Path, tmp_pa
     with session(zenoh.Config.from_file(out / "coordinator.json5")) as coordinator:
         seen: list = []
         members: list = []
-        keep = [
-            coordinator.declare_subscriber("**", collector(seen)),
-            coordinator.liveliness().declare_subscriber("**", lambda sample: members.append(str(sample.key_expr))),
+        keep = watching(coordinator, seen, members) + [
             coordinator.declare_queryable(f"{CAMPAIGN}/join/*", lambda query: query.reply(query.key_expr, b"joined")),
         ]
         with session(island_as(out, "island-1")) as island:
