@@ -597,7 +597,7 @@ def decode_history(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: K
     _finite(rows[:, 1], "history best fitness", allow_inf=True)
     counts = rows[:, [0, 2]]
     if np.any(rows < 0) or np.any(counts != np.round(counts)) or np.any(counts > MAX_COUNT):
-        raise MessageRejected("schema", f"history rows need whole iterations and evaluations up to 2**53 and non-negative values")
+        raise MessageRejected("schema", "history rows need whole iterations and evaluations up to 2**53 and non-negative values")
     if np.any(np.diff(rows[:, 0]) <= 0) or np.any(np.diff(rows[:, 2]) < 0) or np.any(np.diff(rows[:, 1]) > 0):
         raise MessageRejected("implausible", "history rows must have rising iterations, evaluations that never fall and a best that never worsens")
     best_x = _array(msg, "best_x", (bounds.shape[0],), MAX_DIM)

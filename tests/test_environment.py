@@ -7,7 +7,6 @@ Read-only and full file systems are real tmpfs mounts (root only; skipped otherw
 
 from __future__ import annotations
 
-import json
 import os
 import sqlite3
 import subprocess
@@ -19,7 +18,7 @@ import pytest
 from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid.cli import main
-from support import hysid, query, rows_of, wait_for
+from support import hysid
 
 
 @pytest.fixture

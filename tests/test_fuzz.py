@@ -79,13 +79,15 @@ def test_ten_thousand_hostile_messages_leave_coordinator_and_islands_running_wit
     assert sum(reasons.values()) == COORDINATOR_MESSAGES
     assert {"undecodable", "schema", "forged", "unjoined", "sender", "shape", "not_finite", "out_of_bounds", "implausible", "oversized"} <= set(reasons)
     assert fuzzed.stop_reason == reference.stop_reason == "every island finished"
-    assert fuzzed.best.fitness == reference.best.fitness  # the same search, message for message
+    assert fuzzed.best.fitness == pytest.approx(reference.best.fitness, rel=1e-12)  # the same search, message for message
     polished = fuzzed.outcome().runs
     best = min(polished, key=lambda r: r.fitness)
     assert best.fitness < 1e-20  # and the right answer: the truth of the noiseless Synth set
     np.testing.assert_allclose(best.theta, fuzzed.objective.model.from_dict(TRUE_PARAMS), rtol=1e-6)
-    got = {(r.island, r.iterations, r.evaluations, r.best_fitness) for r in fuzzed.store.islands("fz")}
-    assert got == {(r.island, r.iterations, r.evaluations, r.best_fitness) for r in reference.store.islands("fz")}
+    got, want = ({r.island: r for r in c.store.islands("fz")} for c in (fuzzed, reference))
+    assert {i: (r.iterations, r.evaluations) for i, r in got.items()} == {i: (r.iterations, r.evaluations) for i, r in want.items()}
+    for island, r in got.items():  # re-evaluated in batches of other sizes: equal to the last bits or so
+        assert r.best_fitness == pytest.approx(want[island].best_fitness, rel=1e-12)
 
 
 def test_hostile_migrants_on_an_islands_receive_path_change_nothing():

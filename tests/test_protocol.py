@@ -11,7 +11,6 @@ from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
 from island.migration import Migration, in_neighbours
 from island.protocol import (
-    INT64_MAX,
     MAX_BYTES,
     Best,
     Control,
