@@ -90,6 +90,7 @@ def campaign(
     bounds: Mapping[str, tuple[float, float]] | None = None,
     fixed: Mapping[str, float] | None = None,
     weights: str | None = None,
+    displacement: str = "measured",
     algos: list[str] | tuple[str, ...] = ("ga", "pso"),
     options: dict[str, dict[str, Any]] | None = None,
     migration: Migration | None = None,
@@ -115,7 +116,7 @@ def campaign(
     specs = island_specs(islands, list(algos), seed)
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
-        options=options, migration=migration, seed=seed, min_islands=islands,
+        options=options, migration=migration, seed=seed, min_islands=islands, displacement=displacement,
     )
     store = Store(db)
     try:

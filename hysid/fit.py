@@ -183,6 +183,7 @@ def fit(
     runs: int = 1,
     seed: int = 0,
     weights: str | None = None,
+    displacement: str = "measured",
     polish: bool = True,
     options: dict[str, Any] | None = None,
     termination: Termination | None = None,
@@ -193,15 +194,16 @@ def fit(
     ``model`` is a string (``"thesis+coulomb_friction"``) or a :class:`~hysid_model.model.Model`;
     ``bounds`` (``{"w0": (10, 200)}``) and ``fixed`` (``{"meq": 0.2}``) override the dataset's and
     the model's; ``options`` are the algorithm's settings (``population``, ``initial_population``,
-    ``iterations``, ...; the thesis' by default); ``termination`` may end runs early;
-    ``progress(run, row)`` is called after every iteration.
+    ``iterations``, ...; the thesis' by default); ``displacement`` is ``"measured"`` (each loop's
+    measured waveform, where the loops carry it) or ``"sine"`` (Eq. 4.5); ``termination`` may end
+    runs early; ``progress(run, row)`` is called after every iteration.
     """
     check_algorithm(algo)
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise HysidInputError("the number of runs must be at least 1", param="runs", value=runs)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise HysidInputError("seeds must be non-negative integers", param="seed", value=seed)
-    objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed)
+    objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement)
     results = []
     for i in range(runs):
         callback = None if progress is None else (lambda row, i=i: progress(i, row))
@@ -212,6 +214,7 @@ def fit(
         "seeds": list(range(seed, seed + runs)),
         "polish": polish,
         "weights": objective.weights,
+        "displacement": "measured" if objective.loops.measured_displacement else "sine",
         "model": objective.model.spec,
         "options": dict(options or {}),
         "bounds_from_dataset": sorted(n for n in (loops.meta.get("bounds") or {}) if n in objective.model.names),

@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from hysid_model import waveform
 from hysid_model.basis import design_matrix
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
@@ -38,7 +39,7 @@ sign-of-velocity feature and memory forces (the delay is applied exactly). The
 neglected tail of a unit step is below 0.005 w_c/w for a high-pass at w_c."""
 
 _SQUARE_WAVE = np.where(CHAIN_ORDERS % 2 == 1, 4.0 / (np.pi * np.maximum(CHAIN_ORDERS, 1)) * (-1.0) ** ((CHAIN_ORDERS - 1) // 2), 0.0)
-"""Complex amplitudes of sgn(cos wt) = (4/pi) sum_k odd (-1)^((k-1)/2) cos(k wt) / k."""
+"""Complex amplitudes of sgn(cos wt) = (4/pi) sum_k odd (-1)^((k-1)/2) cos(k wt) / k (the ideal sine's sgn(x'))."""
 
 PRESETS: dict[str, tuple[str, ...]] = {
     "baseline": (),
@@ -176,7 +177,7 @@ class Model:
             raise HysidInputError(f"model {self.spec}: expected {self.dim} parameter values ({', '.join(self.names)}), got {pop.shape[1]}")
         out = {name: pop[:, i : i + 1] for i, name in enumerate(self.names)}
         for name, value in self._fixed.items():
-            out[name] = np.broadcast_to(np.float64(value), (pop.shape[0], 1))
+            out[name] = np.full((pop.shape[0], 1), value)
         return out
 
     def as_dict(self, theta: np.ndarray) -> dict[str, float]:
@@ -251,9 +252,9 @@ class Model:
         shifted = phase[None] - kin.omega[None, :, None] * delay
         out = np.zeros(shifted.shape)
         if sgn is not None:
-            cos = np.cos(shifted)
+            velocity = kin.displacement(shifted, 1)
             branch = np.where(np.arange(phase.shape[-1]) < n_top, 1.0, -1.0)
-            out += sgn[:, :, None] * np.where(np.abs(cos) < 1e-9, branch, np.sign(cos))
+            out += sgn[:, :, None] * np.where(np.abs(velocity) < 1e-9 * kin.x0[:, None], branch, np.sign(velocity))
         if memory_terms:
             out += sum(t.time_force(v, state, kin, shifted) for t in memory_terms)
         gain = np.ones((1, 1, CHAIN_ORDERS.size), dtype=complex)
@@ -263,7 +264,8 @@ class Model:
             return out
         amplitude = np.zeros((n_pop, phase.shape[0], CHAIN_ORDERS.size), dtype=complex)
         if sgn is not None:
-            amplitude += sgn[:, :, None] * _SQUARE_WAVE
+            square = _SQUARE_WAVE if kin.xh is None else waveform.velocity_sign_harmonics(kin.xh, CHAIN_ORDERS.size)
+            amplitude += sgn[:, :, None] * square
         if memory_terms:
             grid = np.broadcast_to(np.linspace(0.0, 2.0 * np.pi, 2 * CHAIN_ORDERS.size, endpoint=False), (phase.shape[0], 2 * CHAIN_ORDERS.size))
             spectrum = np.fft.rfft(sum(t.time_force(v, state, kin, grid) for t in memory_terms), axis=-1)[..., : CHAIN_ORDERS.size]

@@ -12,7 +12,10 @@ their islands, the diagnosis and the benches all come here):
   Synth set) replace the model's defaults, and the caller's ``bounds`` and
   ``fixed`` values come last;
 * the loop weights of Eq. 3.3 are the thesis' (Appendix A) or maximum
-  likelihood (1/sigma^2), by default ML when every loop's noise is known.
+  likelihood (1/sigma^2), by default ML when every loop's noise is known;
+* the displacement is each loop's measured waveform where the loops carry it
+  (``displacement="measured"``, the default) or the ideal sine of Eq. 4.5
+  (``"sine"``, as the thesis assumed).
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ from hysid_model.model import Model, as_model
 from hysid_model.objective import WEIGHTS, Objective
 from hysid_model.thesis_port import ThesisObjective
 
+DISPLACEMENTS = ("measured", "sine")
+"""How the model sees each loop's displacement: its measured harmonics, or the ideal sine X0 sin(wt) (Eq. 4.5)."""
 OBJECTIVES = ("closed_form", "thesis_port")
 """``closed_form``: the vectorized objective of Eq. 3.3 (:class:`~hysid_model.objective.Objective`);
 ``thesis_port``: the thesis' own loop-by-loop ``erreval`` (the expensive objective of the benchmarks)."""
@@ -39,6 +44,13 @@ def resolve_weights(loops: LoopSet, weights: str | None) -> str:
     if weights not in WEIGHTS:
         raise HysidInputError(f"unknown weights; choose one of {', '.join(WEIGHTS)}", param="weights", value=weights)
     return weights
+
+
+def displaced(loops: LoopSet, displacement: str) -> LoopSet:
+    """``loops`` with the displacement the model should see (see :data:`DISPLACEMENTS`)."""
+    if displacement not in DISPLACEMENTS:
+        raise HysidInputError(f"choose one of {', '.join(DISPLACEMENTS)}", param="displacement", value=displacement)
+    return loops.as_ideal_sine() if displacement == "sine" and loops.measured_displacement else loops
 
 
 def prepare_model(loops: LoopSet, model: str | Model = "thesis", *, bounds: Bounds | None = None, fixed: Mapping[str, float] | None = None) -> Model:
@@ -60,8 +72,10 @@ def build_objective(
     bounds: Bounds | None = None,
     fixed: Mapping[str, float] | None = None,
     kind: str = "closed_form",
+    displacement: str = "measured",
 ) -> Objective | ThesisObjective:
     """The objective of Eq. 3.3 for ``model`` on ``loops`` (see the module docstring)."""
+    loops = displaced(loops, displacement)
     if kind not in OBJECTIVES:
         raise HysidInputError(f"choose one of {', '.join(OBJECTIVES)}", param="objective", value=kind)
     m = prepare_model(loops, model, bounds=bounds, fixed=fixed)

@@ -19,7 +19,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
 from hysid_model.objective import WEIGHTS, Objective
-from hysid_model.problem import OBJECTIVES, build_objective, prepare_model, resolve_weights
+from hysid_model.problem import DISPLACEMENTS, OBJECTIVES, build_objective, prepare_model, resolve_weights
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import ALGORITHMS, check_algorithm, make_optimizer
 from island.migration import Migration
@@ -51,6 +51,8 @@ class CampaignConfig:
     migration: Migration = field(default_factory=Migration)
     seed: int = 0
     objective_kind: str = "closed_form"
+    displacement: str = "measured"
+    """The displacement the model sees: each loop's measured waveform, or the ideal sine (Eq. 4.5)."""
     min_islands: int = 1
     """Islands wait (up to :data:`island.node.START_TIMEOUT_S`) until this many are members before
     they start, so that islands launched together also search together."""
@@ -84,6 +86,8 @@ class CampaignConfig:
             raise HysidInputError("must be an integer >= 1", param="min_islands", value=self.min_islands)
         if self.objective_kind not in OBJECTIVES:
             raise HysidInputError(f"must be one of {', '.join(OBJECTIVES)}", param="objective", value=self.objective_kind)
+        if self.displacement not in DISPLACEMENTS:
+            raise HysidInputError(f"must be one of {', '.join(DISPLACEMENTS)}", param="displacement", value=self.displacement)
         if self.objective_kind == "thesis_port" and (self.model != "thesis" or self.weights != "thesis"):
             raise HysidInputError("the thesis_port objective is the thesis model with the thesis weights only")
 
@@ -103,6 +107,7 @@ class CampaignConfig:
         seed: int = 0,
         min_islands: int = 1,
         objective_kind: str = "closed_form",
+        displacement: str = "measured",
     ) -> "CampaignConfig":
         """The configuration of a campaign on ``loops``: the bounds and fixed values ``hysid fit`` would use."""
         m = prepare_model(loops, model, bounds=bounds, fixed=fixed)
@@ -118,11 +123,14 @@ class CampaignConfig:
             seed=seed,
             min_islands=min_islands,
             objective_kind=objective_kind,
+            displacement=displacement,
         )
 
     def objective(self, loops: LoopSet) -> Objective | ThesisObjective:
         """The campaign objective (Eq. 3.3 with the configured weights) on ``loops``."""
-        return build_objective(loops, self.model, weights=self.weights, bounds=self.bounds, fixed=self.fixed, kind=self.objective_kind)
+        return build_objective(
+            loops, self.model, weights=self.weights, bounds=self.bounds, fixed=self.fixed, kind=self.objective_kind, displacement=self.displacement
+        )
 
     def algo_for(self, seed: int) -> str:
         """The algorithm of an island that was not told one: the mix, cycled by seed."""
@@ -140,6 +148,7 @@ class CampaignConfig:
             "migration": self.migration.as_dict(),
             "seed": self.seed,
             "objective": self.objective_kind,
+            "displacement": self.displacement,
             "min_islands": self.min_islands,
         }
 
@@ -150,7 +159,7 @@ class CampaignConfig:
             return cls(
                 name=d["name"], model=d["model"], weights=d["weights"], bounds=bounds, fixed=dict(d["fixed"]),
                 algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"],
-                objective_kind=d["objective"], min_islands=d["min_islands"],
+                objective_kind=d["objective"], displacement=d["displacement"], min_islands=d["min_islands"],
             )
         except HysidInputError:
             raise

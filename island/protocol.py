@@ -5,8 +5,9 @@ they exchange five kinds of message under ``hysid/<campaign>/`` (see
 :mod:`island.node`). Each one is a msgpack map with the protocol version
 ``v``, its ``type`` and the ``campaign`` it belongs to:
 
-* ``config``: the campaign configuration and the extracted loop set, served by
-  the coordinator so that islands need no shared file system;
+* ``config``: the campaign configuration and the extracted loop set (with
+  each loop's measured displacement harmonics, as real/imaginary pairs),
+  served by the coordinator so that islands need no shared file system;
 * ``migrants``: an island's ``k`` best partial solutions with the fitness it
   *claims* for them; receivers always re-evaluate (the claim only orders);
 * ``history``: convergence rows ``[iteration, best fitness, evaluations, wall
@@ -186,6 +187,7 @@ def encode_config(campaign: str, config: dict[str, Any], loops: LoopSet) -> byte
         "cycles": [int(c) for c in loops.cycles],
         "labels": list(loops.labels),
         "meta": {k: v for k, v in loops.meta.items() if _packable(v)},
+        "x_harmonics": None if loops.x_harmonics is None else pack_array(np.stack([loops.x_harmonics.real, loops.x_harmonics.imag], axis=-1)),
     }
     return _pack("config", campaign, {"config": config, "loops": wire_loops})
 
@@ -198,6 +200,10 @@ def decode_config(data: bytes, campaign: str) -> tuple[dict[str, Any], LoopSet]:
     config = _get(msg, "config", dict)
     n_max = MAX_BYTES["config"] // 8
     try:
+        xh = None
+        if wire.get("x_harmonics") is not None:  # optional: absent or None is the ideal sine
+            pair = _array(wire, "x_harmonics", (None, None, 2), n_max)
+            xh = pair[..., 0] + 1j * pair[..., 1]
         loops = LoopSet(
             name=_get(wire, "name", str),
             freq_hz=_array(wire, "freq_hz", (None,), n_max),
@@ -209,6 +215,7 @@ def decode_config(data: bytes, campaign: str) -> tuple[dict[str, Any], LoopSet]:
             cycles=np.array(_get(wire, "cycles", list), dtype=int),
             labels=[str(s) for s in _get(wire, "labels", list)],
             meta=_get(wire, "meta", dict),
+            x_harmonics=xh,
         )
     except MessageRejected:
         raise

@@ -41,6 +41,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import PRESETS
+from hysid_model.problem import displaced
 from hysid_model.uncertainty import jacobian_covariance
 
 TRIALS = 4
@@ -228,15 +229,18 @@ def judge(before: Fit, after: Fit, effect: str) -> str | None:
     return None
 
 
-def diagnose(loops: LoopSet, model: str = "baseline", *, max_steps: int = MAX_STEPS, cross_validate: bool = True) -> Diagnosis:
+def diagnose(
+    loops: LoopSet, model: str = "baseline", *, displacement: str = "measured", max_steps: int = MAX_STEPS, cross_validate: bool = True
+) -> Diagnosis:
     """Find which library effects the start ``model`` (a preset) misses on ``loops`` (see the module docstring).
 
+    ``displacement``: each loop's measured waveform or the ideal sine (as :func:`hysid.fit`);
     ``cross_validate`` adds the leave-one-frequency-out gap of every step (a refit per frequency).
     """
     if model not in PRESETS:
         raise HysidInputError(f"the start model must be one of {', '.join(PRESETS)}", param="model", value=model)
     start = model
-    harmonics = Harmonics.from_loops(loops)
+    harmonics = Harmonics.from_loops(displaced(loops, displacement))
     fit, bounds = initial_fit(harmonics, start)
     first = fit
     steps: list[Step] = []

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from hysid_model import waveform
 from hysid_model.params import Parameter
 from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values
 
@@ -23,4 +24,8 @@ class CoulombFriction(Term):
     params = (Parameter("F_d", "N", 0.0, 1.0e6, "friction force magnitude mu N"),)
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        return {"sgn": v["F_d"]}
+        """F_d sgn(x'), less its cycle mean where the displacement's reversals are not half a cycle apart
+        (even harmonics): the model's force, like the extracted loops', has no mean."""
+        if kin.xh is None:
+            return {"sgn": v["F_d"]}
+        return {"sgn": v["F_d"], "dc": -v["F_d"] * waveform.velocity_sign_harmonics(kin.xh, 1)[:, 0].real}

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values
+import numpy as np
+
+from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values, linear_response
 
 
 class TransducerMass(Term):
@@ -25,4 +27,5 @@ class TransducerMass(Term):
     params = (Parameter("m_t", "kg", 0.0, 10.0, "transducer mass between the gauge and the specimen"),)
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        return {"s1": -v["m_t"] * kin.x0 * kin.omega**2}
+        """M x'': dynamic stiffness -M w^2 at each harmonic frequency."""
+        return linear_response(kin, lambda w: (-v["m_t"] * w**2, np.zeros((v["m_t"].shape[0], w.size))))

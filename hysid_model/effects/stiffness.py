@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values
+import numpy as np
+
+from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values, linear_response
 
 
 class HystereticDamping(Term):
@@ -24,7 +26,9 @@ class HystereticDamping(Term):
     params = (Parameter("eta", "1", 0.0, 2.0, "loss factor of the complex stiffness"),)
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        return {"c1": v["eta"] * state.m * state.wn**2 * kin.x0}
+        """i eta k at every harmonic frequency (the complex spring's loss part)."""
+        loss = v["eta"] * state.m * state.wn**2
+        return linear_response(kin, lambda w: (np.zeros_like(loss), loss))
 
 
 class CubicStiffness(Term):
@@ -32,7 +36,8 @@ class CubicStiffness(Term):
 
     x^3 = X0^3 (3 sin(wt) - sin(3 wt)) / 4: the stiffness grows (k3 > 0) or
     softens (k3 < 0) with the square of the amplitude, and a third harmonic in
-    phase with the displacement appears.
+    phase with the displacement appears. On a measured displacement with
+    harmonics up to K the force holds the harmonics of x^3 up to 3K.
     """
 
     id = "cubic_stiffness"
@@ -45,5 +50,13 @@ class CubicStiffness(Term):
     params = (Parameter("k3", "N/m^3", -1.0e16, 1.0e16, "cubic stiffness coefficient"),)
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        cube = v["k3"] * kin.x0**3
-        return {"s1": 0.75 * cube, "s3": -0.25 * cube}
+        """k3 times the harmonics of x^3 (on a measured displacement: of its cube, orders 1..3K)."""
+        if kin.xh is None:
+            cube = v["k3"] * kin.x0**3
+            return {"s1": 0.75 * cube, "s3": -0.25 * cube}
+        amp = kin.power_harmonics(3)
+        out: Coefficients = {}
+        for i in range(amp.shape[1]):
+            out[f"s{i + 1}"] = -v["k3"] * amp[:, i].imag
+            out[f"c{i + 1}"] = v["k3"] * amp[:, i].real
+        return out
