@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
+from typing import Optional
 
 import typer
 
 from hysid.cli import options as o
+from hysid.report import jsondoc
 from hysid.report.text import loops_table
 from hysid_model.datasets import load_dataset, write_dataset
+from hysid_model.survey import survey
 from hysid_model.synth import BOUNDS, MEQ_KG, TRUE_PARAMS, synth_loops, synth_raw
 
 
@@ -41,8 +43,17 @@ def register(app: typer.Typer) -> None:
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         points: int | None = o.POINTS,
+        out: Optional[Path] = typer.Option(None, "--out", help="Also write survey.png and loops.json to this new (or empty) directory."),
     ) -> None:
-        """List a dataset's loops: label, frequency, X0, peak force, noise sigma, cycles used."""
+        """List a dataset's loops and their equivalent-linear survey: frequency, X0, force, noise, cycles,
+        dynamic stiffness, equivalent damping, loss factor, energy per cycle, and fn, xi where the mass is known or estimated."""
+        target = None if out is None else o.report_dir(out, "loops")
         loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
-        rows = loops.rows()
-        print(json.dumps(rows, indent=1) if as_json else loops_table(loops, rows))
+        found = survey(loops)
+        rows = [{**row, **extra} for row, extra in zip(loops.rows(), found.rows())]
+        if target is not None:
+            from hysid.report import figures  # matplotlib loads only when a figure is drawn
+
+            figures.survey_figure(target / "survey.png", found)
+            jsondoc.write(target / "loops.json", {"dataset": loops.name, "mass": found.mass_source, "meq_kg": found.meq_kg, "loops": rows})
+        print(jsondoc.dumps(rows, indent=1) if as_json else loops_table(loops, rows, found))

@@ -7,10 +7,9 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 from matplotlib.colors import LogNorm
-from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
 from hysid.diagnose.metrics import GapMetrics, loop_whitened_rms
-from hysid.report.style import MODEL, PAGE_WIDTH_IN, TRIAL, new_figure, save, series_color, styled
+from hysid.report.style import MODEL, PAGE_WIDTH_IN, TRIAL, frequency_axis, new_figure, save, series_color, styled
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
@@ -55,11 +54,7 @@ def residual_map_figure(path: Path, diagnosis: "Diagnosis") -> Path:
         art = ax.scatter(h.loops.freq_hz, h.loops.x0 * 1e3, c=values, s=60, marker="s", cmap="viridis", norm=norm, edgecolors="none")
         ax.set_title(title, fontsize=7.5)
         ax.set_xlabel("frequency (Hz)")
-        if h.loops.freq_hz.max() > 4 * h.loops.freq_hz.min():
-            ax.set_xscale("log")
-            ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
-            ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
-            ax.xaxis.set_minor_formatter(NullFormatter())
+        frequency_axis(ax, h.loops.freq_hz.min(), h.loops.freq_hz.max())
     axes[0].set_ylabel("amplitude X0 (mm)")
     fig.colorbar(art, ax=axes, label="whitened RMS per loop (1 = noise)")
     return save(fig, path)

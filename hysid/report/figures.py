@@ -9,7 +9,9 @@
 * :func:`half_power_figure`: compliance FRF per amplitude with the half-power
   points of Eq. 2.7 (Figs. 2.8, 6.1), measured and model;
 * :func:`scatter_figure`: a parameter's results per noise level with its true
-  value dashed (Figs. 5.2-5.5).
+  value dashed (Figs. 5.2-5.5);
+* :func:`survey_figure`: the equivalent-linear survey of the loops against
+  frequency per amplitude (Figs. 4.6-4.8).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from hysid.report.style import (
     PEAK,
     TRIAL,
     TRUE,
+    frequency_axis,
     math_name,
     new_figure,
     save,
@@ -37,6 +40,7 @@ from hysid.report.style import (
 )
 from hysid_model.frf import HalfPower, amplitude_levels
 from hysid_model.loops import LoopSet
+from hysid_model.survey import Survey
 from island.run import RunResult
 
 MAX_LOOP_ROWS = 5
@@ -329,4 +333,42 @@ def scatter_figure(
         handles.append(Patch(color="0.85"))
         labels.append("true $\\pm$ Cramer-Rao bound")
     fig.legend(handles, labels, loc="outside lower center", ncol=len(labels))
+    return save(fig, path)
+
+
+@styled
+def survey_figure(path: Path, survey: Survey) -> Path:
+    """The equivalent-linear survey (Figs. 4.6-4.8): per amplitude level, against frequency, (a) the dynamic
+    and storage stiffness, (b) the equivalent viscous damping, (c) the loss factor and (d) the damping ratio
+    (or, without a mass, the energy dissipated per cycle)."""
+    loops = survey.loops
+    levels, index = amplitude_levels(loops.x0)
+    fig = new_figure(4.8)
+    (ax_k, ax_c), (ax_eta, ax_last) = fig.subplots(2, 2, sharex=True)
+    last, last_label = (survey.xi, r"damping ratio $\xi$") if survey.has_mass else (survey.energy_per_cycle, "energy per cycle (J)")
+    for k in range(levels.size):
+        m = np.flatnonzero(index == k)
+        m = m[np.argsort(loops.freq_hz[m], kind="stable")]
+        color, f = series_color(k), loops.freq_hz[m]
+        ax_k.plot(f, survey.k_dyn[m], marker="o", markersize=3, color=color)
+        if survey.has_mass:
+            ax_k.plot(f, survey.k_storage[m], marker="s", markersize=3, color=color, linestyle="--", markerfacecolor="none")
+        ax_c.plot(f, survey.c_eq[m], marker="o", markersize=3, color=color)
+        ax_eta.plot(f, survey.loss_factor[m], marker="o", markersize=3, color=color)
+        ax_last.plot(f, last[m], marker="o", markersize=3, color=color)
+    ax_k.axhline(0.0, color="0.3", linewidth=0.6)
+    ax_k.set_ylabel("stiffness (N/m)")
+    ax_k.set_title("(a) dynamic Re($F_1/X_1$)" + (", storage + $m\\omega^2$ (dashed)" if survey.has_mass else ""))
+    ax_c.set_ylabel("$c_{eq}$ (N s/m)")
+    ax_c.set_title("(b) equivalent viscous damping")
+    ax_eta.set_ylabel(r"loss factor $\eta$")
+    ax_eta.set_title("(c) loss factor")
+    ax_last.set_ylabel(last_label)
+    ax_last.set_title("(d) " + ("damping ratio per loop" if survey.has_mass else f"energy per cycle (mass {survey.mass_source.split(':')[0]})"))
+    for ax in (ax_eta, ax_last):
+        ax.set_xlabel("excitation frequency (Hz)")
+    for ax in (ax_k, ax_c, ax_eta, ax_last):
+        frequency_axis(ax, loops.freq_hz.min(), loops.freq_hz.max())
+    handles, labels = _level_handles(levels)
+    fig.legend(handles, labels, loc="outside upper center", ncol=len(labels))
     return save(fig, path)

@@ -12,7 +12,9 @@ from pathlib import Path
 from typing import Callable, ParamSpec, TypeVar
 
 import matplotlib as mpl
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
 DPI = 200
 PAGE_WIDTH_IN = 7.0
@@ -82,6 +84,15 @@ def styled(func: Callable[P, R]) -> Callable[P, R]:
             return func(*args, **kwargs)
 
     return wrapper
+
+
+def frequency_axis(ax: Axes, low: float, high: float) -> None:
+    """A frequency axis: logarithmic with plain 1-2-5 labels when the band spans more than a factor 4."""
+    if high > 4 * low:
+        ax.set_xscale("log")
+        ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 2.5, 5.0)))
+        ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
 
 
 def new_figure(height_in: float, width_in: float = PAGE_WIDTH_IN) -> Figure:

@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from hysid.diagnose.selection import Diagnosis
     from hysid.fit import FitResult
     from hysid.reproduce import Reproduction
+    from hysid_model.survey import Survey
 
 
 def text_table(headers: Sequence[str], rows: Sequence[Sequence[str]], indent: str = "  ") -> str:
@@ -49,6 +50,10 @@ def loops_description(result: "FitResult") -> str:
     )
 
 
+MISFIT = 3.0
+"""A residual beyond this many times the noise: the model does not describe the data."""
+
+
 def quality_text(result: "FitResult") -> str:
     """RMS residual against the force amplitude, next to the known noise level if there is one."""
     q = result.quality
@@ -58,13 +63,31 @@ def quality_text(result: "FitResult") -> str:
     return out
 
 
-def at_bounds_warning(result: "FitResult") -> str | None:
-    if not result.at_bounds:
-        return None
-    return (
-        f"warning: {', '.join(result.at_bounds)} ended on a bound of the search space, so the optimum may lie "
-        "beyond it and its standard error means little; widen the bounds ([bounds] in dataset.toml)"
-    )
+def fit_warnings(result: "FitResult") -> list[str]:
+    """What a reader must know before trusting the numbers: a model that misses the data, parameters on bounds."""
+    out = []
+    misfit = result.misfit
+    if misfit is not None and misfit > MISFIT:
+        out.append(
+            f"warning: the model does not describe these loops: the residual is {misfit:.3g} x the noise; a diagnosis "
+            "(hysid diagnose, or hysid.diagnose) tells what it is missing"
+        )
+    soft = {p.name for p in result.model.parameters if p.soft}
+    given = [n for n in result.at_bounds if n not in soft]
+    derived = [n for n in result.at_bounds if n in soft]
+    if given:
+        out.append(
+            f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
+            "beyond it and its standard error means little; widen that bound ([bounds] in dataset.toml, bounds=...) if the physics allows"
+        )
+    if derived:
+        widened = [w["param"] for w in result.settings.get("bounds_widened", [])]
+        times = max(widened.count(n) for n in derived)
+        out.append(
+            f"warning: {', '.join(derived)} ended on a bound derived from the data even after {times} widening(s): "
+            + ("the model cannot reach the data there" if misfit is not None and misfit > MISFIT else "its value and standard error mean little")
+        )
+    return out
 
 
 def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
@@ -86,14 +109,14 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     headers = ["parameter", "value", "std. error", "unit"] + (["true"] if true else [])
     rows = []
     for p in result.model.parameters:
-        row = [p.name, f"{result.params[p.name]:.7g}", f"{se[p.name]:.2g}", p.unit]
+        error = "not identifiable" if p.name in result.not_identifiable else f"{se[p.name]:.2g}"
+        row = [p.name, f"{result.params[p.name]:.7g}", error, p.unit]
         if true:
             row.append(f"{true[p.name]:.7g}" if p.name in true else "")
         rows.append(row)
     lines += [text_table(headers, rows), f"  (standard errors: {result.stderr_method})"]
-    warning = at_bounds_warning(result)
-    if warning:
-        lines.append(f"  {warning}")
+    lines += [f"  not identifiable: {name} {why}" for name, why in result.not_identifiable.items()]
+    lines += [f"  {warning}" for warning in fit_warnings(result)]
     lines.append("")
     rows = []
     for a, hp in zip(result.amplitudes, result.half_power):
@@ -164,12 +187,16 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     return "\n".join(lines)
 
 
-def loops_table(loops: LoopSet, rows: list[dict[str, Any]]) -> str:
-    """``hysid loops``: one row per loop (label, frequency, X0, peak force, noise, cycles, phase, distortion)."""
+def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | None" = None) -> str:
+    """``hysid loops``: one row per loop (label, frequency, X0, peak force, noise, cycles, phase, distortion,
+    and the equivalent-linear survey where given)."""
     columns = [("label", "label", "{}"), ("frequency_hz", "freq_Hz", "{:.6g}"), ("x0_m", "X0_mm", "{:.4f}"),
                ("peak_force_n", "Fpk_N", "{:.5g}"), ("sigma_n", "sigma_N", "{:.3g}"), ("cycles", "cycles", "{:d}")]
     if "phase_deg" in rows[0]:
         columns += [("phase_deg", "phase_deg", "{:.2f}"), ("x_distortion", "x_thd_%", "{:.2f}")]
+    if "k_dyn" in rows[0]:
+        columns += [("k_dyn", "k_dyn_N/m", "{:.4g}"), ("c_eq", "c_eq_Ns/m", "{:.4g}"), ("loss_factor", "eta", "{:.3g}"),
+                    ("energy_per_cycle", "E_cycle_J", "{:.4g}"), ("fn_hz", "fn_Hz", "{:.4g}"), ("xi", "xi", "{:.4g}")]
     scale = {"x0_m": 1e3, "x_distortion": 100.0}
     cells = []
     for row in rows:
@@ -180,6 +207,9 @@ def loops_table(loops: LoopSet, rows: list[dict[str, Any]]) -> str:
         cells.append(line)
     mass = "unknown (fitted)" if loops.meq_kg is None else f"{loops.meq_kg:g} kg"
     head = f"{loops.name}: {loops.n_loops} loops, {loops.n_samples} points per branch, meq = {mass}"
+    if survey is not None and survey.mass_source != "known":
+        found = f"{survey.meq_kg:.4g} kg, estimated from all loops (Re(F1/X1) = k - m w^2)" if survey.has_mass else survey.mass_source
+        head += f"; survey mass {found}"
     return head + "\n" + text_table([title for _, title, _ in columns], cells, indent="")
 
 
