@@ -89,7 +89,7 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
 
 def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
     return [
-        sys.executable, "-m", "hysid", "island", "--connect", endpoint, "--campaign", campaign,
+        sys.executable, "-m", "hysid_entry", "island", "--connect", endpoint, "--campaign", campaign,
         "--algo", spec.algo, "--seed", str(spec.seed), "--id", spec.id, "--quiet",
     ]
 

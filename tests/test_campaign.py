@@ -119,7 +119,7 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     [
         (["campaign", "--algos", "ga,cmaes"], "--algos 'ga,cmaes': give a comma-separated list of ga, pso"),
         (["campaign", "--islands", "0"], "--islands 0: a campaign needs at least one island"),
-        (["campaign", "--topology", "star"], "topology must be one of ring, full, random, got 'star'"),
+        (["campaign", "--topology", "star"], "--topology 'star': must be one of ring, full, random"),
         (["campaign", "--initial", "10"], "--initial 10: must be at least --population 200"),
         (["coordinator", "--resume"], "--resume needs --db FILE"),
         (["coordinator", "--campaign", "a/b"], "--campaign 'a/b': must be 1-64 characters"),

@@ -21,6 +21,9 @@ from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.model import PRESETS, build_model
 
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as shells report it."""
+
 app = typer.Typer(
     name="hysid",
     help="Identify damping, natural frequency and missing physics from hysteresis loops.",
@@ -93,11 +96,13 @@ def main(argv: list[str] | None = None) -> int:
             return int(getattr(exc, "exit_code", 2) or 2)
         except typer.Abort:
             fail("aborted")
-            return 130
+            return INTERRUPTED
         except HysidInputError as exc:
             fail(error_line(exc))
             return 2
         except KeyboardInterrupt:
             fail("interrupted")
-            return 130
+            return INTERRUPTED
+    if result == INTERRUPTED:  # typer's answer to Ctrl-C in a command (commands themselves return None)
+        fail("interrupted")
     return result if isinstance(result, int) else 0

@@ -150,24 +150,25 @@ def register(app: typer.Typer) -> None:
         if resume_db and dataset is not None:
             raise HysidInputError(f"--resume takes the loop set from {db}; drop DATASET {dataset!r}")
         target_dir = o.report_dir(out, "coordinator")
-        store = Store(database(db, target_dir, name, resuming=resume_db))
+        path = database(db, target_dir, name, resuming=resume_db)
+        if not resume_db:  # every argument is checked before the database is written or a session opened
+            sizes = o.island_sizes(population, initial, iterations)
+            migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
+            loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
+            config = CampaignConfig.create(
+                loops, name=name, model=model, weights=weights, algos=o.parse_algos(algos), options=sizes,
+                migration=migration, seed=seed, min_islands=min_islands,
+            )
+        store = Store(path)
         try:
             if resume_db:
                 coordinator = resume(store, name, termination)
             else:
-                sizes = o.island_sizes(population, initial, iterations)
-                migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
-                loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
-                config = CampaignConfig.create(
-                    loops, name=name, model=model, weights=weights, algos=o.parse_algos(algos), options=sizes,
-                    migration=migration, seed=seed, min_islands=min_islands,
-                )
                 coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
             session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
             link = ZenohLink(session, coordinator)
-            if not quiet:
-                print(f"coordinator of campaign {name!r} ready (database {store.path})", file=sys.stderr, flush=True)
+            print(f"coordinator of campaign {name!r} ready (database {store.path})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
             try:
                 coordinator.serve(link, None if quiet else print_progress)
             finally:
@@ -214,7 +215,7 @@ def register(app: typer.Typer) -> None:
             best = rows[-1][1] if rows else float("inf")
             s = node.stats
             print(
-                f"island {node.island} ({algo_.upper()}, seed {seed_}): best {best:.6g} after {len(rows)} iterations, "
+                f"island {node.island} ({algo_.upper()}, seed {seed_}): best {best:.6g} after {rows[-1][0] if rows else 0} iterations, "
                 f"{rows[-1][2] if rows else 0:,} evaluations; {node.stop_reason}; migrant messages sent {s['sent']}, "
                 f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}",
                 file=sys.stderr,

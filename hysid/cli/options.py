@@ -38,6 +38,7 @@ FLAGS = {
     "iterations": "--iterations",
     "interval": "--interval",
     "k": "--migrants",
+    "topology": "--topology",
     "random_k": "--random-k",
     "min_islands": "--min-islands",
     "budget": "--budget",
@@ -48,6 +49,7 @@ FLAGS = {
     "connect": "--connect",
     "config_file": "--config",
     "out": "--out",
+    "out_dir": "OUT_DIR",
     "db": "--db",
     "seeds": "--seeds",
     "thesis_runs": "--thesis-runs",
@@ -71,6 +73,7 @@ START_MODEL = typer.Option("baseline", "--model", help=f"Start model: {' or '.jo
 WEIGHTS = typer.Option(None, "--weights", help="thesis or ml (1/sigma^2); default: ml when every loop's noise sigma is known.")
 NOISE = typer.Option(0.0, "--noise", help="Gaussian force noise, % of each loop's peak force (as the thesis' Synth tests).")
 NOISE_SEED = typer.Option(0, "--noise-seed", help="Seed of that noise.")
+SYNTH_NOISE_SEED = typer.Option(0, "--noise-seed", "--seed", help="Seed of that noise (--seed, its old name, works too).")
 POINTS = typer.Option(None, "--points", help="Points per branch when loops are extracted from raw records (default 100; a loops file keeps its own).")
 ALGO = typer.Option("pso", "--algo", help="Optimizer: ga or pso (the thesis' settings, section 5.1).")
 RUNS = typer.Option(1, "--runs", help="Independent runs with seeds SEED..SEED+RUNS-1; the best is reported.")
@@ -96,11 +99,14 @@ CONFIG = typer.Option(None, "--config", help="Zenoh configuration file (JSON5); 
 CAMPAIGN = typer.Option("default", "--campaign", help="Campaign name: its key space is hysid/<name>/**.")
 
 
-def report_dir(out: Path | None, kind: str) -> Path:
-    """Where a command writes its report: ``--out`` if new or empty, else a new ``hysid-out/<kind>-<time>``.
+def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
+    """Where a command writes: ``out`` if new or empty, else (not given) a new ``hysid-out/<kind>-<time>``.
 
-    Checked before any work, so that a run never ends in an error after its
-    work is done, and never overwrites an earlier report.
+    Every command that writes a directory (``fit``, ``diagnose``, ``synth``,
+    ``campaign``, ``coordinator``, ``reproduce``, ``report``) checks it here
+    before any work, so that a run never ends in an error after its work is
+    done, and never overwrites an earlier report. ``param`` names the option
+    or argument in errors.
     """
     if out is None:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -111,9 +117,9 @@ def report_dir(out: Path | None, kind: str) -> Path:
             out = base.with_name(f"{base.name}-{n}")
         return out
     if out.exists() and not out.is_dir():
-        raise HysidInputError("exists and is not a directory", param="out", value=out)
+        raise HysidInputError("exists and is not a directory", param=param, value=out)
     if out.exists() and any(out.iterdir()):
-        raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param="out", value=out)
+        raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
     return out
 
 

@@ -38,13 +38,24 @@ def mass_text(meq_kg: float | None) -> str:
     return f"Meq = {meq_kg * 1e3:.4g} g (known)" if meq_kg < 1.0 else f"Meq = {meq_kg:.4g} kg (known)"
 
 
+def hz_text(f_hz: float) -> str:
+    """A frequency as a reader wants it: four significant digits (``0.25 Hz``, not ``0.250027 Hz``)."""
+    return f"{f_hz:.4g} Hz"
+
+
+def band_text(freq_hz: Sequence[float]) -> str:
+    """The frequency band of some loops: ``0.25-2 Hz``, or one frequency (``12 Hz``, not ``12-12 Hz``)."""
+    low, high = f"{min(freq_hz):.4g}", f"{max(freq_hz):.4g}"
+    return f"{low} Hz" if low == high else f"{low}-{high} Hz"
+
+
 def loops_description(result: "FitResult") -> str:
     loops = result.loops
     levels, _ = amplitude_levels(loops.x0)
     amps = ", ".join(f"{a * 1e3:.3g}" for a in levels)
     return (
         f"{loops.n_loops} loops at {levels.size} amplitude(s) X0 = {amps} mm, "
-        f"{loops.freq_hz.min():g}-{loops.freq_hz.max():g} Hz, {loops.n_samples} samples per branch; "
+        f"{band_text(loops.freq_hz)}, {loops.n_samples} samples per branch; "
         f"{mass_text(result.model.fixed.get('meq'))}"
     )
 
