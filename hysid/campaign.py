@@ -20,7 +20,7 @@ from coordinator.launch import island_specs, run_campaign
 from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
 from coordinator.store import Store
 from hysid.fit import FitResult
-from hysid.report import jsondoc, markdown, text
+from hysid.report import jsondoc, markdown, tables, text
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
 from island.config import CampaignConfig
@@ -58,6 +58,18 @@ class CampaignResult:
     def to_dict(self) -> dict[str, Any]:
         """The ``hysid fit --json`` document plus ``islands``, ``migrations`` and membership ``members``."""
         return {**self.fit.to_dict(), "islands": self.islands, "migrations": self.migrations, "members": self.members}
+
+    def tables(self) -> dict[str, list[dict[str, Any]]]:
+        """The fit's tables (``parameters``, ``amplitudes``) plus ``islands`` (one row per island run)."""
+        return {**self.fit.tables(), "islands": [dict(i) for i in self.islands]}
+
+    def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
+        """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
+        return tables.write_tables(self.tables(), out_dir)
+
+    def to_dataframes(self) -> dict[str, Any]:
+        """Each table of :meth:`tables` as a pandas DataFrame (needs pandas, an optional dependency)."""
+        return tables.data_frames(self.tables())
 
     def summary(self) -> str:
         """The fit summary, why the campaign stopped, its migrations and every island."""

@@ -21,9 +21,9 @@ import typer
 from coordinator.links import ZenohLink
 from coordinator.server import CampaignProgress, Coordinator, resume
 from coordinator.store import Store
-from hysid.campaign import CampaignResult, campaign, finish
+from hysid.campaign import campaign, finish
 from hysid.cli import options as o
-from hysid.report import jsondoc
+from hysid.cli.progress import Progress, campaign_reporter
 from hysid.report.text import campaign_progress_line
 from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError
@@ -58,12 +58,6 @@ def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) 
     return path
 
 
-def show(result: CampaignResult, out: Path, as_json: bool) -> None:
-    """Write the campaign's report and print the JSON document or the summary."""
-    result.write_report(out)
-    print(jsondoc.dumps(result.to_dict()) if as_json else result.summary())
-
-
 def register(app: typer.Typer) -> None:
     """Add ``campaign``, ``coordinator`` and ``island`` to the hysid app."""
 
@@ -95,6 +89,7 @@ def register(app: typer.Typer) -> None:
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
+        csv: bool = o.CSV,
     ) -> None:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
         algo_list = o.parse_algos(algos)
@@ -105,12 +100,13 @@ def register(app: typer.Typer) -> None:
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
-        result = campaign(
-            loops, islands, name=name, model=model, weights=weights, algos=algo_list, options=sizes, migration=migration,
-            seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
-            polish=polish, progress=None if quiet else print_progress,
-        )
-        show(result, target_dir, as_json)
+        with Progress("campaign", islands * iterations, enabled=not (quiet or as_json)) as bar:
+            result = campaign(
+                loops, islands, name=name, model=model, weights=weights, algos=algo_list, options=sizes, migration=migration,
+                seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
+                polish=polish, progress=campaign_reporter(bar, islands, iterations, termination),
+            )
+        o.show_result(result, target_dir, as_json, csv)
 
     @app.command("coordinator")
     def coordinator_command(
@@ -174,7 +170,7 @@ def register(app: typer.Typer) -> None:
             finally:
                 link.close()
                 session.close()
-            show(finish(coordinator, coordinator.outcome(polish_best=polish)), target_dir, as_json)
+            o.show_result(finish(coordinator, coordinator.outcome(polish_best=polish)), target_dir, as_json, csv=False)
         finally:
             store.close()
 

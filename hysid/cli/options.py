@@ -14,6 +14,7 @@ from typing import Any
 
 import typer
 
+from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
 from hysid_model.model import PRESETS
 from island.algorithms import ALGORITHMS
@@ -82,6 +83,7 @@ POLISH = typer.Option(True, "--polish/--no-polish", help="Refine the best by bou
 OUT = typer.Option(None, "--out", help="Report directory, new or empty (default hysid-out/<command>-<time>).")
 JSON = typer.Option(False, "--json", help="Print one JSON object on stdout instead of the summary.")
 QUIET = typer.Option(False, "--quiet", help="No live progress on stderr.")
+CSV = typer.Option(False, "--csv", help="Also write the result's tables as CSV files in the report directory (parameters.csv, amplitudes.csv, ...).")
 ALGOS = typer.Option("ga,pso", "--algos", help="Comma-separated algorithm mix the islands cycle through (ga, pso).")
 POPULATION = typer.Option(200, "--population", help="GA population / PSO swarm of each island (the thesis: 500).")
 INITIAL = typer.Option(2000, "--initial", help="Initial random population / swarm of each island (the thesis: 6000).")
@@ -121,6 +123,21 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
     if out.exists() and any(out.iterdir()):
         raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
     return out
+
+
+def show_result(result: Any, target: Path, as_json: bool, csv: bool, dataset: str | None = None) -> None:
+    """Write a result's report (and with ``csv`` its tables) to ``target``; print its JSON document or its summary."""
+    if dataset is None:
+        result.write_report(target)
+    else:
+        result.write_report(target, dataset)
+    tables = result.to_csv(target) if csv else {}
+    if as_json:
+        print(jsondoc.dumps(result.to_dict()))
+        return
+    print(result.summary())
+    if tables:
+        print(f"tables: {', '.join(str(p) for p in tables.values())}")
 
 
 def parse_algos(value: str) -> list[str]:
