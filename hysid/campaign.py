@@ -23,9 +23,10 @@ from hysid.fit import FitResult
 from hysid.report import jsondoc, markdown, tables, text
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from island.config import CampaignConfig
+from hysid_model.errors import HysidInputError
+from island.config import CampaignConfig, decode_config
 from island.migration import Migration
-from island.protocol import check_name
+from island.protocol import MessageRejected, check_name
 from island.termination import Termination
 
 
@@ -46,6 +47,34 @@ class CampaignResult:
             migrations=outcome.migrations,
             members=outcome.members,
         )
+
+    @classmethod
+    def from_database(cls, db: str | Path, name: str | None = None) -> "CampaignResult":
+        """The result of a stored campaign, finished or interrupted, rebuilt from its database alone.
+
+        The database (``db``) is only read: its campaign ``name`` (default: the
+        latest) is taken up in an in-memory copy, which re-evaluates every
+        island's best and polishes the global best as the campaign did. The loop
+        set and the settings come from the stored configuration message.
+        """
+        store = Store.snapshot(db)
+        try:
+            name = pick_campaign(store, name)
+            dataset, message, status = store.campaign(name)
+            reason, stored = store.stop_reason(name), store.result(name)
+            try:
+                config, loops = decode_config(message, name)
+            except MessageRejected as exc:
+                raise HysidInputError(f"{db}: campaign {name!r} has an unreadable configuration ({exc})") from None
+            settings = (stored or {}).get("settings", {})
+            termination = Termination(**settings["stop_rules"]) if "stop_rules" in settings else None
+            coordinator = Coordinator(store, config, loops, termination, dataset=dataset, resume=True)
+            coordinator.stop_reason = reason if status == "stopped" and reason else (
+                f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else "")
+            )
+            return cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
+        finally:
+            store.close()
 
     @property
     def params(self) -> dict[str, float]:
@@ -84,6 +113,18 @@ class CampaignResult:
 
     def __repr__(self) -> str:
         return f"<CampaignResult {self.fit.settings.get('campaign')!r}: {len(self.islands)} island run(s), fitness {self.fit.fitness:.6g}>"
+
+
+def pick_campaign(store: Store, name: str | None = None) -> str:
+    """``name`` if the database holds it, else (None) its latest campaign; a one-line error otherwise."""
+    names = [c["name"] for c in store.campaign_list()]
+    if name is None:
+        if not names:
+            raise HysidInputError(f"{store.path}: holds no campaign yet")
+        return names[-1]
+    if name not in names:
+        raise HysidInputError(f"{store.path}: no campaign {name!r} (stored: {', '.join(map(repr, names)) or 'none'})")
+    return name
 
 
 def finish(coordinator: Coordinator, outcome: CampaignOutcome) -> CampaignResult:

@@ -63,7 +63,7 @@ def diagnosis_tables(diagnosis: "Diagnosis") -> dict[str, Rows]:
          "confusable_with": " ".join(s.confusable_with), "whitened_rms_after": s.after.whitened_rms}
         for i, s in enumerate(diagnosis.steps) for name, value in s.params.items()
     ]
-    gap = [{"model": label, **g.as_dict()} for (label, _), g in zip(diagnosis.fits(), diagnosis.gap)]
+    gap = [{"step": label, **g.as_dict()} for (label, _), g in zip(diagnosis.fits(), diagnosis.gap)]
     final = diagnosis.final
     return {"parameters": parameter_rows(final.params(), final.errors(), final.model), "steps": steps, "gap": gap}
 
