@@ -34,6 +34,7 @@ def test_plain_lines_at_each_tenth_with_the_time_left():
     assert quiet.getvalue() == ""
 
 
+@pytest.mark.slow
 def test_fit_and_campaign_print_plain_progress_off_a_terminal_and_nothing_with_json(tmp_path, capsys):
     assert main(["fit", "synth", "--out", str(tmp_path / "f")]) == 0
     err = capsys.readouterr().err.splitlines()
