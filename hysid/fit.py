@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from hysid.identifiability import Identifiability, assess
-from hysid.report import markdown, text
+from hysid.report import markdown, tables, text
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
 from hysid_model.loops import LoopSet
@@ -173,6 +173,19 @@ class FitResult:
             "runs": [r.as_dict(names) for r in self.runs],
             "report": self.report,
         }
+
+    def tables(self) -> dict[str, list[dict[str, Any]]]:
+        """``parameters`` (value, standard error, unit, bounds, status) and ``amplitudes`` (fn, xi, k, c, m with
+        standard errors, and the half-power xi of Eq. 2.7) as lists of plain dicts."""
+        return tables.fit_tables(self)
+
+    def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
+        """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
+        return tables.write_tables(self.tables(), out_dir)
+
+    def to_dataframes(self) -> dict[str, Any]:
+        """Each table of :meth:`tables` as a pandas DataFrame (needs pandas, an optional dependency)."""
+        return tables.data_frames(self.tables())
 
     def summary(self) -> str:
         """What a user reads after a fit (like lmfit's ``fit_report()``): data, model, parameters, amplitudes."""

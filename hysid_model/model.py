@@ -344,13 +344,13 @@ def build_model(spec: str = "thesis") -> Model:
         raise HysidInputError("a model is a string such as 'thesis+coulomb_friction' or a hysid Model", param="model", value=spec)
     parts = [p.strip() for p in spec.split("+") if p.strip()]
     if not parts or parts[0] not in PRESETS:
-        raise HysidInputError(f"model {spec!r}: must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)")
+        raise HysidInputError(f"must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)", param="model", value=spec)
     effect_ids = list(PRESETS[parts[0]])
     for part in parts[1:]:
         if part not in EFFECTS:
-            raise HysidInputError(f"model {spec!r}: unknown effect {part!r}; known: {', '.join(sorted(EFFECTS))}")
+            raise HysidInputError(f"unknown effect {part!r}; known: {', '.join(sorted(EFFECTS))}", param="model", value=spec)
         if part in effect_ids:
-            raise HysidInputError(f"model {spec!r}: effect {part!r} is already in the model")
+            raise HysidInputError(f"effect {part!r} is already in the model", param="model", value=spec)
         effect_ids.append(part)
     terms: list[Term] = [Oscillator()] + [EFFECTS[e]() for e in effect_ids]
     return Model(terms, "+".join(parts))

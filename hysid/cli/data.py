@@ -22,17 +22,18 @@ def register(app: typer.Typer) -> None:
     def synth_command(
         out_dir: Path = typer.Argument(..., help="New (or empty) directory to write the dataset to."),
         noise: float = o.NOISE,
-        seed: int = typer.Option(0, "--seed", help="Noise seed."),
+        noise_seed: int = o.SYNTH_NOISE_SEED,
         raw: bool = typer.Option(False, "--raw", help="Write raw time series (one CSV per loop, manifest.csv, dataset.toml) instead of branches."),
     ) -> None:
         """Write the thesis' Synth set (Tables 5.2-5.4, 120 loops) as a dataset directory."""
+        out_dir = o.report_dir(out_dir, "synth", param="out_dir")
         if raw:
-            records = synth_raw(noise, seed)
-            write_dataset(out_dir, records, name=f"synth-raw-{noise:g}pct-seed{seed}", meq_kg=MEQ_KG, bounds=BOUNDS,
+            records = synth_raw(noise, noise_seed)
+            write_dataset(out_dir, records, name=f"synth-raw-{noise:g}pct-seed{noise_seed}", meq_kg=MEQ_KG, bounds=BOUNDS,
                           true_params=TRUE_PARAMS, description="Thesis Synth set (section 5.2) as raw time series")
             print(f"wrote {len(records)} raw records, manifest.csv and dataset.toml to {out_dir}")
         else:
-            loops = synth_loops(noise, seed)
+            loops = synth_loops(noise, noise_seed)
             write_dataset(out_dir, loops)
             print(f"wrote {loops.n_loops} loops to {out_dir / 'loops.csv'}")
 

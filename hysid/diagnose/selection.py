@@ -22,6 +22,7 @@ else ``unexplained`` with a description of what is left.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,7 +36,7 @@ from hysid.diagnose.metrics import GapMetrics, gap_metrics
 from hysid.diagnose.naming import adequacy, residual_signature
 from hysid.diagnose.scoring import Candidate, score_candidates
 from hysid.report import diagnosis as diagnosis_report
-from hysid.report import text
+from hysid.report import tables, text
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
@@ -107,6 +108,18 @@ class Diagnosis:
     def stderr(self) -> dict[str, float]:
         """The final model's standard errors."""
         return self.final.errors()
+
+    def tables(self) -> dict[str, list[dict[str, Any]]]:
+        """``parameters`` of the final model, ``steps`` (the effects named, with their parameters) and ``gap``."""
+        return tables.diagnosis_tables(self)
+
+    def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
+        """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
+        return tables.write_tables(self.tables(), out_dir)
+
+    def to_dataframes(self) -> dict[str, Any]:
+        """Each table of :meth:`tables` as a pandas DataFrame (needs pandas, an optional dependency)."""
+        return tables.data_frames(self.tables())
 
     def summary(self) -> str:
         """The gap after each step, the status and what cannot be identified, as text."""
@@ -230,25 +243,45 @@ def judge(before: Fit, after: Fit, effect: str) -> str | None:
 
 
 def diagnose(
-    loops: LoopSet, model: str = "baseline", *, displacement: str = "measured", max_steps: int = MAX_STEPS, cross_validate: bool = True
+    loops: LoopSet,
+    model: str = "baseline",
+    *,
+    displacement: str = "measured",
+    max_steps: int = MAX_STEPS,
+    cross_validate: bool = True,
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> Diagnosis:
     """Find which library effects the start ``model`` (a preset) misses on ``loops`` (see the module docstring).
 
     ``displacement``: each loop's measured waveform or the ideal sine (as :func:`hysid.fit`);
     ``cross_validate`` adds the leave-one-frequency-out gap of every step (a refit per frequency).
+    ``progress(done, total, what)`` is called after every fit; ``total`` is what is known so far (it
+    grows while effects are found). It does not change the result.
     """
     if model not in PRESETS:
         raise HysidInputError(f"the start model must be one of {', '.join(PRESETS)}", param="model", value=model)
+    count = [0, 2]  # fits done, fits known to come (the start fit, and the gap of the start model)
+
+    def done(what: str) -> None:
+        count[0] += 1
+        if progress is not None:
+            progress(count[0], count[1], what)
+
     start = model
     harmonics = Harmonics.from_loops(displaced(loops, displacement))
     fit, bounds = initial_fit(harmonics, start)
+    done(f"start model {start} fitted")
     first = fit
     steps: list[Step] = []
     while True:
         candidates = score_candidates(fit, harmonics, bounds)
         not_identifiable = {c.effect: c.absorbed_by for c in candidates if not c.identifiable}
         trials = contenders(candidates) if len(steps) < max_steps else []
-        refits = {c.effect: refit(fit, harmonics, c, bounds) for c in trials}
+        count[1] += len(trials)
+        refits = {}
+        for c in trials:
+            refits[c.effect] = refit(fit, harmonics, c, bounds)
+            done(f"step {len(steps) + 1}: refitted with {c.effect}")
         verdicts = {e: judge(fit, r, e) for e, r in refits.items()}
         rejected = {e: v for e, v in verdicts.items() if v is not None}
         accepted = sorted((r.bic, e) for e, r in refits.items() if verdicts[e] is None)
@@ -260,9 +293,16 @@ def diagnose(
         reasons = {e: v or f"fits worse than {best} (BIC +{refits[e].bic - best_bic:.1f})" for e, v in others.items()}
         score = next(c.score for c in trials if c.effect == best)
         steps.append(Step(effect=best, confusable_with=confusable, score=score, before=fit, after=refits[best], rejected=reasons))
+        count[1] += 1  # the gap after this step
         fit = refits[best]
     check = adequacy(fit, harmonics)
     fits = [first] + [s.after for s in steps]
+
+    def gap(f: Fit, i: int) -> GapMetrics:
+        metrics = gap_metrics(f, harmonics, cross_validate)
+        done(f"gap after {'the start' if i == 0 else f'step {i}'}")
+        return metrics
+
     return Diagnosis(
         harmonics=harmonics,
         start=first,
@@ -272,6 +312,6 @@ def diagnose(
         unexplained=None if check.adequate else residual_signature(fit, harmonics),
         not_identifiable=not_identifiable,
         rejected=rejected,
-        gap=[gap_metrics(f, harmonics, cross_validate) for f in fits],
+        gap=[gap(f, i) for i, f in enumerate(fits)],
         last_scores=candidates,
     )

@@ -15,7 +15,7 @@ import numpy as np
 from hysid.diagnose.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc
 from hysid.report.markdown import image, num, table, with_error
-from hysid.report.text import mass_text
+from hysid.report.text import band_text, mass_text
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 
@@ -91,7 +91,7 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         f"# hysid diagnose: {h.loops.name}",
         "",
         f"{h.loops.n_loops} loops at {levels.size} amplitude(s) ({', '.join(f'{a * 1e3:.3g}' for a in levels)} mm), "
-        f"{h.loops.freq_hz.min():.4g}-{h.loops.freq_hz.max():.4g} Hz, {h.loops.n_samples} samples per branch; {mass}; "
+        f"{band_text(h.loops.freq_hz)}, {h.loops.n_samples} samples per branch; {mass}; "
         f"force noise {sigma}. Each loop is reduced to its harmonics of orders 0-{int(h.orders().max())} "
         f"({h.coef.shape[1]} coefficients, in phase and in quadrature with the measured displacement).",
         "",
@@ -130,7 +130,8 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         "",
         "## Loops",
         "",
-        image(loops, out, "Measured loops (points), start model (dashed) and final model (solid)"),
+        image(loops, out, f"Measured loops (points), start model (dashed) and final model (solid); rows: amplitudes, "
+              f"columns: the loop the start model fits worst and the one at the median frequency"),
         "",
         "## Method",
         "",

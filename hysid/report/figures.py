@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
@@ -38,6 +39,7 @@ from hysid.report.style import (
     series_color,
     styled,
 )
+from hysid.report.text import hz_text
 from hysid_model.frf import HalfPower, amplitude_levels
 from hysid_model.loops import LoopSet
 from hysid_model.survey import Survey
@@ -121,6 +123,11 @@ def _closed(top: np.ndarray, bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray
 @styled
 def loops_figure(path: Path, loops: LoopSet, predicted: np.ndarray, columns: int = 4, title: str = "") -> Path:
     """Trial (dots) and model (line) loops: one row per amplitude, ``columns`` frequencies across the band."""
+    return save(draw_loops(loops, predicted, columns, title), path)
+
+
+def draw_loops(loops: LoopSet, predicted: np.ndarray, columns: int = 4, title: str = "") -> Figure:
+    """The figure of :func:`loops_figure` (drawn under its style); the legend sits below the panels, clear of the title."""
     levels, index = amplitude_levels(loops.x0)
     rows = np.unique(np.round(np.linspace(0, levels.size - 1, min(levels.size, MAX_LOOP_ROWS))).astype(int))
     n = loops.n_samples
@@ -142,7 +149,7 @@ def loops_figure(path: Path, loops: LoopSet, predicted: np.ndarray, columns: int
             xm, fm = _closed(model_top, model_bottom)
             ax.plot(xt * 1e3, ft, linestyle="none", marker=".", markersize=2.0, color=TRIAL)
             ax.plot(xm * 1e3, fm, color=MODEL, linewidth=1.1)
-            ax.set_title(f"{loops.freq_hz[j]:g} Hz", pad=2)
+            ax.set_title(hz_text(loops.freq_hz[j]), pad=2)
             if r == rows.size - 1:
                 ax.set_xlabel("displacement (mm)")
         axes[r, 0].set_ylabel(f"$X_0$ = {_mm(levels[k])}\nforce (N)")
@@ -150,10 +157,10 @@ def loops_figure(path: Path, loops: LoopSet, predicted: np.ndarray, columns: int
         Line2D([], [], linestyle="none", marker=".", markersize=6, color=TRIAL),
         Line2D([], [], color=MODEL),
     ]
-    fig.legend(handles, ["trial", "model"], loc="outside upper center", ncol=2)
+    fig.legend(handles, ["trial", "model"], loc="outside lower center", ncol=2)
     if title:
         fig.suptitle(title)
-    return save(fig, path)
+    return fig
 
 
 def _level_handles(levels: np.ndarray) -> tuple[list[Line2D], list[str]]:
@@ -259,6 +266,8 @@ def half_power_figure(
         ax2.plot([hp.f1_hz, hp.f2_hz], [level, level], color=color, linestyle="--", linewidth=0.9)
         ax2.plot([hp.f1_hz, hp.f2_hz], [level, level], linestyle="none", marker="D", markersize=4.5, color=HALF_POWER, markeredgecolor=color)
         ax2.plot([hp.f_peak_hz], [hp.peak_compliance * 1e3], linestyle="none", marker="v", markersize=6, color=PEAK, markeredgecolor=color)
+    if hi - lo < 1e-6 * max(abs(hi), 1e-12):  # one frequency: a window around it, not a singular axis
+        lo, hi = lo * 0.8, hi * 1.2
     ax2.set_xlim(lo, hi)
     in_view = (loops.freq_hz >= lo) & (loops.freq_hz <= hi)
     if np.any(in_view):
@@ -368,7 +377,7 @@ def survey_figure(path: Path, survey: Survey) -> Path:
     for ax in (ax_eta, ax_last):
         ax.set_xlabel("excitation frequency (Hz)")
     for ax in (ax_k, ax_c, ax_eta, ax_last):
-        frequency_axis(ax, loops.freq_hz.min(), loops.freq_hz.max())
+        frequency_axis(ax, loops.freq_hz)
     handles, labels = _level_handles(levels)
     fig.legend(handles, labels, loc="outside upper center", ncol=len(labels))
     return save(fig, path)

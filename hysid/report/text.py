@@ -6,8 +6,11 @@ here, so a notebook and a terminal read the same words.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from hysid import thesis_tables as tt
 from hysid_model.frf import amplitude_levels
@@ -20,6 +23,7 @@ if TYPE_CHECKING:
     from hysid.fit import FitResult
     from hysid.reproduce import Reproduction
     from hysid_model.survey import Survey
+    from hysid.watch import CampaignSnapshot
 
 
 def text_table(headers: Sequence[str], rows: Sequence[Sequence[str]], indent: str = "  ") -> str:
@@ -39,13 +43,24 @@ def mass_text(meq_kg: float | None) -> str:
     return f"Meq = {meq_kg * 1e3:.4g} g (known)" if meq_kg < 1.0 else f"Meq = {meq_kg:.4g} kg (known)"
 
 
+def hz_text(f_hz: float) -> str:
+    """A frequency as a reader wants it: four significant digits (``0.25 Hz``, not ``0.250027 Hz``)."""
+    return f"{f_hz:.4g} Hz"
+
+
+def band_text(freq_hz: Sequence[float]) -> str:
+    """The frequency band of some loops: ``0.25-2 Hz``, or one frequency (``12 Hz``, not ``12-12 Hz``)."""
+    low, high = f"{min(freq_hz):.4g}", f"{max(freq_hz):.4g}"
+    return f"{low} Hz" if low == high else f"{low}-{high} Hz"
+
+
 def loops_description(result: "FitResult") -> str:
     loops = result.loops
     levels, _ = amplitude_levels(loops.x0)
     amps = ", ".join(f"{a * 1e3:.3g}" for a in levels)
     return (
         f"{loops.n_loops} loops at {levels.size} amplitude(s) X0 = {amps} mm, "
-        f"{loops.freq_hz.min():g}-{loops.freq_hz.max():g} Hz, {loops.n_samples} samples per branch; "
+        f"{band_text(loops.freq_hz)}, {loops.n_samples} samples per branch; "
         f"{mass_text(result.model.fixed.get('meq'))}"
     )
 
@@ -165,6 +180,46 @@ def campaign_progress_line(p: "CampaignProgress") -> str:
         f"[{p.elapsed_s:6.1f} s] members {alive}{f' ({gone})' if gone else ''} | evaluations {p.evaluations:,} | "
         f"best {p.best:.4g} | migrations {p.migrations}{f' | rejected {p.rejected}' if p.rejected else ''} | {islands}"
     )
+
+
+SPARK = "▁▂▃▄▅▆▇█"
+
+
+def sparkline(values: Sequence[float]) -> str:
+    """A course of best fitness as one block per point, log scale, lowest = shortest block."""
+    v = np.log10(np.clip(np.asarray(values, dtype=float), 1e-300, None))
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return ""
+    span = float(v.max() - v.min())
+    if span < 1e-12:
+        return SPARK[0] * v.size
+    return "".join(SPARK[int(round((x - v.min()) / span * (len(SPARK) - 1)))] for x in v)
+
+
+def watch_text(snap: "CampaignSnapshot") -> str:
+    """The screen of ``hysid watch``: status, global best, one row per island run, membership."""
+    p = snap.progress
+    state = f"stopped ({snap.stop_reason})" if snap.status == "stopped" else snap.status
+    rejected = f" | rejected messages {p.rejected}" if p.rejected else ""
+    best = f"{p.best:.6g} from {snap.best_island}" if np.isfinite(p.best) else "none yet"
+    lines = [
+        f"campaign {snap.name!r} on {snap.dataset}: {state} after {p.elapsed_s:.1f} s",
+        f"global best {best} | evaluations {p.evaluations:,} | migrant messages {p.migrations}{rejected}",
+        "",
+    ]
+    several = {i["island"] for i in snap.islands if sum(j["island"] == i["island"] for j in snap.islands) > 1}
+    rows = [
+        [f"{i['island']}/{i['run']}" if i["island"] in several else i["island"], i["algo"].upper(), i["status"], str(i["iterations"]),
+         f"{i['evaluations']:,}", f"{i['best_fitness']:.4g}", str(i["messages"]), f"{i['received']}/{i['taken']}", sparkline(i["trend"])]
+        for i in snap.islands
+    ]
+    headers = ["island", "algo", "status", "iteration", "evaluations", "best", "sent", "received/taken", "best over iterations"]
+    lines.append(text_table(headers, rows) if rows else "  no island has reported yet")
+    counts = {s: sum(v == s for v in p.members.values()) for s in ("alive", "left", "lost")}
+    latest = ", ".join(f"{island} {event} {time.strftime('%H:%M:%S', time.localtime(t))}" for island, event, t in snap.events)
+    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left, {counts['lost']} lost" + (f"; latest: {latest}" if latest else "")]
+    return "\n".join(lines)
 
 
 def diagnosis_summary(diagnosis: "Diagnosis") -> str:
