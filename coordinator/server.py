@@ -19,7 +19,7 @@ lands in one queue and is handled by one thread, which owns the SQLite store
   island has finished; then re-evaluates every island's best and polishes the
   global best (section 3.1's calculus-based refinement):
   :meth:`Coordinator.outcome` is the raw material of the report that
-  :mod:`hysid.campaign` builds, the same as ``hysid fit``'s.
+  :mod:`hysid.campaigns` builds, the same as ``hysid fit``'s.
 
 :class:`coordinator.links.ZenohLink` wires a coordinator to a Zenoh session;
 single-node campaigns feed the same queue from island threads

@@ -24,9 +24,9 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from hysid import effects, models
-    from hysid.campaign import CampaignResult, campaign
-    from hysid.diagnose.selection import Diagnosis, diagnose
-    from hysid.fit import FitResult, fit
+    from hysid.campaigns import CampaignResult, campaign
+    from hysid.diagnosis.selection import Diagnosis, diagnose
+    from hysid.fitting import FitResult, fit
     from hysid_model.datasets import load_dataset as load
     from hysid_model.errors import HysidInputError, HysidWarning
     from hysid_model.loops import LoopSet
@@ -38,12 +38,12 @@ if TYPE_CHECKING:
 _EXPORTS = {
     "effects": ("hysid.effects", None),
     "models": ("hysid.models", None),
-    "CampaignResult": ("hysid.campaign", "CampaignResult"),
-    "campaign": ("hysid.campaign", "campaign"),
-    "Diagnosis": ("hysid.diagnose.selection", "Diagnosis"),
-    "diagnose": ("hysid.diagnose.selection", "diagnose"),
-    "FitResult": ("hysid.fit", "FitResult"),
-    "fit": ("hysid.fit", "fit"),
+    "CampaignResult": ("hysid.campaigns", "CampaignResult"),
+    "campaign": ("hysid.campaigns", "campaign"),
+    "Diagnosis": ("hysid.diagnosis.selection", "Diagnosis"),
+    "diagnose": ("hysid.diagnosis.selection", "diagnose"),
+    "FitResult": ("hysid.fitting", "FitResult"),
+    "fit": ("hysid.fitting", "fit"),
     "load": ("hysid_model.datasets", "load_dataset"),
     "HysidInputError": ("hysid_model.errors", "HysidInputError"),
     "HysidWarning": ("hysid_model.errors", "HysidWarning"),

@@ -18,7 +18,7 @@ import numpy as np
 
 from coordinator.server import STATUS_AFTER, CampaignProgress, IslandView
 from coordinator.store import Store
-from hysid.campaign import pick_campaign
+from hysid.campaigns import pick_campaign
 
 TREND_POINTS = 24
 """Iterations shown in each island's best-fitness trend."""

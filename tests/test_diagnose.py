@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from hysid.cli import main
-from hysid.diagnose.fitting import initial_fit
-from hysid.diagnose.selection import diagnose
+from hysid.diagnosis.fitting import initial_fit
+from hysid.diagnosis.selection import diagnose
 from hysid_model.datasets import write_dataset
 from hysid_model.effects import EFFECTS
 from hysid_model.extraction import extract_loop

@@ -20,7 +20,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 import hysid
 from coordinator.launch import free_port
 from hysid.cli import main
-from hysid.diagnose.naming import excess_words
+from hysid.diagnosis.naming import excess_words
 from hysid.report import diagnosis_figures, figures, style
 from hysid.report.style import RC
 from hysid.report.text import band_text, hz_text, mass_text

@@ -12,7 +12,7 @@ import pytest
 
 from hysid import thesis_tables as tt
 from hysid.cli import main
-from hysid.fit import fit
+from hysid.fitting import fit
 from hysid_model.problem import build_objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from hysid_model.uncertainty import cramer_rao_stderr, standard_errors

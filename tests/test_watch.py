@@ -11,7 +11,7 @@ import subprocess
 import pytest
 
 from hysid.cli import main
-from hysid.campaign import CampaignResult
+from hysid.campaigns import CampaignResult
 from support import hysid, rows_of, screen_of, wait_for
 
 SMALL = ["--population", "20", "--initial", "40"]

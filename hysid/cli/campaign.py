@@ -21,7 +21,7 @@ import typer
 from coordinator.links import ZenohLink
 from coordinator.server import CampaignProgress, Coordinator, resume
 from coordinator.store import Store
-from hysid.campaign import campaign, finish
+from hysid.campaigns import campaign, finish
 from hysid.cli import options as o
 from hysid.cli.progress import Progress, campaign_reporter
 from hysid.report.text import campaign_progress_line

@@ -8,7 +8,7 @@ from typing import Optional
 import typer
 
 from hysid.cli import options as o
-from hysid.diagnose.selection import diagnose
+from hysid.diagnosis.selection import diagnose
 from hysid.cli.progress import Progress
 from hysid_model.datasets import load_dataset
 

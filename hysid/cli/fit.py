@@ -10,7 +10,7 @@ import typer
 from hysid import thesis_tables as tt
 from hysid.cli import options as o
 from hysid.cli.progress import Progress
-from hysid.fit import fit
+from hysid.fitting import fit
 from hysid.report import jsondoc
 from hysid.reproduce import SETTINGS, parse_seeds, reproduce_thesis
 from hysid_model.datasets import load_dataset

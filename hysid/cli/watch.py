@@ -13,7 +13,7 @@ from rich.live import Live
 from rich.text import Text
 
 from coordinator.store import Store
-from hysid.campaign import CampaignResult
+from hysid.campaigns import CampaignResult
 from hysid.cli import options as o
 from hysid.report.text import campaign_progress_line, watch_text
 from hysid.watch import snapshot

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hysid.diagnose.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc
 from hysid.report.markdown import image, num, table, with_error
 from hysid.report.text import band_text, mass_text
@@ -20,7 +20,7 @@ from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
-    from hysid.diagnose.selection import Diagnosis
+    from hysid.diagnosis.selection import Diagnosis
 
 
 def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:

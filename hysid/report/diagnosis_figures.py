@@ -10,13 +10,13 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from hysid.diagnose.metrics import GapMetrics, loop_whitened_rms
+from hysid.diagnosis.metrics import GapMetrics, loop_whitened_rms
 from hysid.report.style import MODEL, PAGE_WIDTH_IN, TRIAL, frequency_axis, new_figure, save, series_color, styled
 from hysid.report.text import hz_text
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
-    from hysid.diagnose.selection import Diagnosis
+    from hysid.diagnosis.selection import Diagnosis
 
 START = "#999999"
 """The start model in loop plots (grey, dashed)."""

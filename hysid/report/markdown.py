@@ -20,7 +20,7 @@ from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_
 from hysid_model.modal import DERIVED_UNITS
 
 if TYPE_CHECKING:
-    from hysid.fit import FitResult
+    from hysid.fitting import FitResult
 
 MODEL_CURVE_POINTS = 1500
 

@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING, Any
 from hysid_model.errors import HysidInputError
 
 if TYPE_CHECKING:
-    from hysid.diagnose.selection import Diagnosis
-    from hysid.fit import FitResult
+    from hysid.diagnosis.selection import Diagnosis
+    from hysid.fitting import FitResult
 
 Rows = list[dict[str, Any]]
 

@@ -18,9 +18,9 @@ from hysid_model.loops import LoopSet
 
 if TYPE_CHECKING:
     from coordinator.server import CampaignProgress
-    from hysid.campaign import CampaignResult
-    from hysid.diagnose.selection import Diagnosis
-    from hysid.fit import FitResult
+    from hysid.campaigns import CampaignResult
+    from hysid.diagnosis.selection import Diagnosis
+    from hysid.fitting import FitResult
     from hysid.reproduce import Reproduction
     from hysid_model.survey import Survey
     from hysid.watch import CampaignSnapshot

@@ -19,7 +19,7 @@ from typing import Any
 from coordinator.launch import island_specs, run_campaign
 from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
 from coordinator.store import Store
-from hysid.fit import FitResult
+from hysid.fitting import FitResult
 from hysid.report import jsondoc, markdown, tables, text
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
@@ -32,7 +32,7 @@ from island.termination import Termination
 
 @dataclass
 class CampaignResult:
-    """A campaign's :class:`~hysid.fit.FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
+    """A campaign's :class:`~hysid.fitting.FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
 
     fit: FitResult
     islands: list[dict[str, Any]]

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import spearmanr
 
-from hysid.diagnose.fitting import Fit
+from hysid.diagnosis.fitting import Fit
 from hysid_model.harmonics import Harmonics
 
 ADEQUATE_ALPHA = 1e-3

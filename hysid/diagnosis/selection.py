@@ -30,11 +30,11 @@ from typing import Any
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
-from hysid.diagnose.fitting import Fit, fit_objective, initial_fit, make_model
-from hysid.diagnose.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
-from hysid.diagnose.metrics import GapMetrics, gap_metrics
-from hysid.diagnose.naming import adequacy, residual_signature
-from hysid.diagnose.scoring import Candidate, score_candidates
+from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model
+from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.diagnosis.metrics import GapMetrics, gap_metrics
+from hysid.diagnosis.naming import adequacy, residual_signature
+from hysid.diagnosis.scoring import Candidate, score_candidates
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid_model.effects import EFFECTS

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from hysid.diagnose.fitting import Fit
+from hysid.diagnosis.fitting import Fit
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from island.polish import polish
 
