@@ -74,7 +74,9 @@ class FitResult:
         else:
             source = "known" if loops.has_sigma else "estimated from the residuals"
             method = f"sandwich covariance of the thesis-weighted least squares, noise sigma {source}"
-        ident = assess(objective, theta, parameter_covariance)
+        ident = assess(
+            objective, theta, parameter_covariance, lambda m: Objective(objective.loops, m, weights=objective.weights), noise_unit(objective, theta)
+        )
         cov = ident.covariance
         levels, _ = amplitude_levels(loops.x0)
         force_amplitude = np.abs(first_harmonic(loops))
@@ -207,6 +209,13 @@ def parameter_covariance(objective: Objective, theta: np.ndarray) -> np.ndarray:
     if objective.weights == "ml":
         return np.linalg.pinv(fisher_information(objective, theta))
     return covariance(objective, theta)
+
+
+def noise_unit(objective: Objective, theta: np.ndarray) -> float:
+    """The objective's value of one unit of chi^2: 1 for ML weights, else the mean weighted residual at the optimum."""
+    if objective.weights == "ml":
+        return 1.0
+    return max(float(objective(theta[None, :])[0]) / max(objective.y.size - objective.dim, 1), 1e-300)
 
 
 def fit(

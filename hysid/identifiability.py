@@ -30,7 +30,6 @@ from typing import Any, Callable
 import numpy as np
 
 from hysid_model.model import Model
-from hysid_model.objective import Objective
 from island.polish import polish
 
 RANK_TOL = 1e-9
@@ -117,7 +116,11 @@ def partners(jac: np.ndarray, i: int, others: list[int], names: list[str]) -> li
     return [names[others[j]] for j in np.argsort(-np.abs(coef)) if big[j]]
 
 
-def profile_rise(objective: Objective, theta: np.ndarray, name: str, noise: float) -> float:
+Rebuild = Callable[[Model], Any]
+"""The same objective with another model (a parameter fixed): ``Objective`` or ``HarmonicObjective``."""
+
+
+def profile_rise(objective: Any, theta: np.ndarray, name: str, noise: float, rebuild: Rebuild) -> float:
     """Smallest rise of the objective (chi^2 units: / ``noise``) when ``name`` is moved to the profile points and the rest refitted."""
     model = objective.model
     i = model.names.index(name)
@@ -128,30 +131,29 @@ def profile_rise(objective: Objective, theta: np.ndarray, name: str, noise: floa
         target = value + step * ((hi - value) if step > 0 else (value - lo))
         if not lo <= target <= hi or target == value:
             continue
-        fixed = Objective(objective.loops, model.fix({name: target}), weights=objective.weights)
+        fixed = rebuild(model.fix({name: target}))
         start = np.delete(theta, i)
         best = polish(fixed, start, max_nfev=PROFILE_NFEV)
         rises.append((best.fitness - float(objective(theta[None, :])[0])) / noise)
     return min(rises) if rises else np.inf
 
 
-def assess(objective: Objective, theta: np.ndarray, covariance_of: Callable[[Objective, np.ndarray], np.ndarray]) -> Identifiability:
-    """Identifiability of ``objective``'s parameters at its optimum ``theta``; ``covariance_of(objective, theta)``
-    gives the covariance of an identifiable set (Cramer-Rao or sandwich, as the fit uses)."""
+def assess(objective: Any, theta: np.ndarray, covariance_of: Callable[[Any, np.ndarray], np.ndarray], rebuild: Rebuild, noise: float) -> Identifiability:
+    """Identifiability of ``objective``'s parameters at its optimum ``theta``. ``covariance_of(objective, theta)``
+    gives the covariance of an identifiable set (as the fit computes it), ``rebuild(model)`` the objective with
+    another model, and ``noise`` the objective's value of one unit of chi^2 (1 for ML weights and whitened fits)."""
     model = objective.model
     names = model.names
     jac = objective.jacobian(theta)
     found = suspects(jac, names, naming_priority(model))
-    fitness = float(objective(theta[None, :])[0])
-    noise = 1.0 if objective.weights == "ml" else max(fitness / max(objective.y.size - len(names), 1), 1e-300)
     named = {}
     for name, partners in found.items():
-        if profile_rise(objective, theta, name, noise) < FLAT:
+        if profile_rise(objective, theta, name, noise, rebuild) < FLAT:
             with_what = f" with {', '.join(partners)}" if partners else ""
             named[name] = f"trades off{with_what}: the data determine only their combination (flat profile)"
     cov = np.full((len(names), len(names)), np.nan)
     keep = [i for i, n in enumerate(names) if n not in named]
     if keep:
-        reduced = Objective(objective.loops, model.fix({n: float(theta[names.index(n)]) for n in named}), weights=objective.weights)
+        reduced = rebuild(model.fix({n: float(theta[names.index(n)]) for n in named})) if named else objective
         cov[np.ix_(keep, keep)] = covariance_of(reduced, theta[keep])
     return Identifiability(names=names, not_identifiable=named, covariance=cov)

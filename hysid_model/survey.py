@@ -5,7 +5,9 @@ mass. From each loop's first harmonics (force F1 against displacement X1,
 :func:`hysid_model.frf.first_harmonic`) and its area:
 
 * dynamic stiffness k_dyn = Re(F1 / X1) (N/m), in phase with the displacement;
-* energy dissipated per cycle E = the loop area (J), integrated over the branches;
+* energy dissipated per cycle E = the loop area (J), the closed integral of F dx:
+  pi sum_k k Im(F_k conj(X_k)) over the displacement's harmonics (pi X0 a_c for the
+  ideal sine; the force's other harmonics do no work);
 * equivalent viscous damping c_eq = E / (pi w X0^2) (N s/m): the dashpot that
   dissipates as much per cycle;
 * secant stiffness k_sec: the slope between the loop's two tips (N/m);
@@ -25,7 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import numpy as np
 
-from hysid_model.frf import amplitude_levels, first_harmonic
+from hysid_model.frf import amplitude_levels, first_harmonic, force_harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.terms import DataScale
 
@@ -103,12 +105,11 @@ def _line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
 
 
 def loop_area(loops: LoopSet) -> np.ndarray:
-    """Energy dissipated per cycle: the loop's area, integral of (F_loading - F_unloading) dx (J)."""
-    x = loops.top[:, :, 0]
-    gap = loops.top[:, :, 1] - loops.bottom[:, :, 1]
-    if not np.allclose(x, loops.bottom[:, :, 0]):  # branches on their own grids: integrate each
-        return np.trapezoid(loops.top[:, :, 1], x, axis=1) - np.trapezoid(loops.bottom[:, :, 1], loops.bottom[:, :, 0], axis=1)
-    return np.trapezoid(gap, x, axis=1)
+    """Energy dissipated per cycle (J): the loop's area, the closed integral of F dx over the displacement's harmonics."""
+    xh = loops.displacement_harmonics()
+    k = np.arange(1, xh.shape[1] + 1)
+    fk = -1j * force_harmonics(loops, xh.shape[1])  # F = Re sum F_k e^{ik theta}: F_k = a_c - i a_s
+    return np.pi * np.sum(k * np.imag(fk * np.conj(xh)), axis=1)
 
 
 def secant_stiffness(loops: LoopSet) -> np.ndarray:

@@ -30,11 +30,12 @@ from typing import Any
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
-from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
-from hysid.diagnosis.metrics import GapMetrics, gap_metrics
+from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
+from hysid.diagnosis.metrics import GapMetrics, References, gap_metrics, references
 from hysid.diagnosis.naming import adequacy, residual_signature
 from hysid.diagnosis.scoring import Candidate, score_candidates
+from hysid.identifiability import Identifiability, assess
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid_model.effects import EFFECTS
@@ -91,6 +92,10 @@ class Diagnosis:
     """Contenders of the last round and why none was taken."""
     gap: list[GapMetrics]
     """The gap between model and data at the start and after every step."""
+    references: References
+    """Model-free levels the gap is held against (linear per loop, repeatability)."""
+    identifiability: Identifiability
+    """What the data cannot determine of the final model, and its correlations."""
     last_scores: list[Candidate] = field(default_factory=list)
     report: str | None = None
     """The report written last (:meth:`write_report`)."""
@@ -106,8 +111,13 @@ class Diagnosis:
 
     @property
     def stderr(self) -> dict[str, float]:
-        """The final model's standard errors."""
-        return self.final.errors()
+        """The final model's standard errors (NaN where the data cannot determine a parameter)."""
+        return self.final.model.as_dict(self.identifiability.stderr * max(1.0, self.final.whitened_rms))
+
+    @property
+    def reaches(self) -> str:
+        """Which reference the final model reaches: noise floor, repeatability, linear per loop, or none."""
+        return self.references.reached(self.final.whitened_rms, self.status == "adequate")
 
     def tables(self) -> dict[str, list[dict[str, Any]]]:
         """``parameters`` of the final model, ``steps`` (the effects named, with their parameters) and ``gap``."""
@@ -160,11 +170,18 @@ class Diagnosis:
             ],
             "status": self.status,
             "unexplained_signature": self.unexplained,
-            "not_identifiable": self.not_identifiable,
+            "not_identifiable": sorted(self.not_identifiable) + list(self.identifiability.not_identifiable),
+            "not_identifiable_reasons": {
+                **{e: f"whatever it does, the model already does with {', '.join(a)}" for e, a in self.not_identifiable.items()},
+                **self.identifiability.not_identifiable,
+            },
+            "correlation": self.identifiability.correlation_dict(),
             "rejected": self.rejected,
             "final_params": self.final.params(),
-            "final_stderr": self.final.errors(),
+            "final_stderr": self.stderr,
             "whitened_rms": self.final.whitened_rms,
+            "references": self.references.as_dict(),
+            "reaches": self.reaches,
             "noise_sigma": "known" if np.all(self.harmonics.sigma_known) else "estimated from the data",
             "gap": [g.as_dict() for g in self.gap],
         }
@@ -269,7 +286,8 @@ def diagnose(
 
     start = model
     harmonics = Harmonics.from_loops(displaced(loops, displacement))
-    fit, bounds = initial_fit(harmonics, start)
+    fit = initial_fit(harmonics, start)
+    bounds = soft_bounds(fit.model)
     done(f"start model {start} fitted")
     first = fit
     steps: list[Step] = []
@@ -295,6 +313,7 @@ def diagnose(
         steps.append(Step(effect=best, confusable_with=confusable, score=score, before=fit, after=refits[best], rejected=reasons))
         count[1] += 1  # the gap after this step
         fit = refits[best]
+        bounds.update(soft_bounds(fit.model))
     check = adequacy(fit, harmonics)
     fits = [first] + [s.after for s in steps]
 
@@ -313,5 +332,15 @@ def diagnose(
         not_identifiable=not_identifiable,
         rejected=rejected,
         gap=[gap(f, i) for i, f in enumerate(fits)],
+        references=references(harmonics),
+        identifiability=final_identifiability(fit, harmonics),
         last_scores=candidates,
+    )
+
+
+def final_identifiability(fit: Fit, harmonics: Harmonics) -> Identifiability:
+    """Which parameters of the final fit the harmonics cannot determine (:mod:`hysid.identifiability`)."""
+    return assess(
+        fit.objective, fit.theta, lambda objective, theta: jacobian_covariance(objective.jacobian(theta)),
+        lambda model: HarmonicObjective(harmonics, model), noise=1.0,
     )

@@ -235,11 +235,30 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
         lines.append(f"status: adequate, the final model {doc['final_model']} leaves only noise")
     else:
         lines.append(f"status: unexplained, {doc['unexplained_signature']['description']}")
-    for effect, absorbed in doc["not_identifiable"].items():
-        lines.append(f"not identifiable here: {effect} (absorbed by {', '.join(absorbed)})")
+        lines.append(reference_text(doc))
+    for name in doc["not_identifiable"]:
+        lines.append(f"not identifiable here: {name} ({doc['not_identifiable_reasons'][name]})")
     if diagnosis.report:
         lines.append(f"report: {diagnosis.report}")
     return "\n".join(lines)
+
+
+REACHES = {
+    "noise floor": "the noise floor",
+    "repeatability": "the scatter between repeated tests (the data repeat no better)",
+    "linear per loop": "what a linear fit of each loop on its own reaches (what is left is the loops' own distortion)",
+    "none": "none of the references: not even what a linear fit of each loop on its own reaches",
+}
+
+
+def reference_text(doc: dict[str, Any]) -> str:
+    """Where the final model's gap stands against the model-free references."""
+    ref = doc["references"]
+    repeat = f", repeated tests {ref['repeatability']:.4g}" if ref["repeatability"] is not None else ", no repeated tests"
+    return (
+        f"the final model reaches {REACHES[doc['reaches']]}: whitened RMS {doc['whitened_rms']:.4g} against noise 1, "
+        f"linear per loop {ref['linear_per_loop']:.4g}{repeat}"
+    )
 
 
 def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | None" = None) -> str:
