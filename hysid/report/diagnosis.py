@@ -138,8 +138,8 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         "",
         "## Loops",
         "",
-        image(loops, out, f"Measured loops (points), start model (dashed) and final model (solid); rows: amplitudes, "
-              f"columns: the loop the start model fits worst and the one at the median frequency"),
+        image(loops, out, "Measured loops (points), start model (dashed) and final model (solid); rows: amplitudes, "
+              "columns: the loop the start model fits worst and the one at the median frequency"),
         "",
         "## Method",
         "",
