@@ -145,6 +145,28 @@ def test_fit_campaign_and_diagnose_take_their_bounds_by_one_rule():
     assert start == rule
 
 
+def test_bounds_and_known_values_from_the_command_line_are_hard(tmp_path, capsys):
+    """--bound is a given bound (kept, never widened, the report says so), --fix a known value, in fit and diagnose."""
+    from hysid_model.readers.tidy import write_loops
+
+    loops, _ = isolator(noise_pct=1.0)
+    write_loops(loops, tmp_path / "iso.loops")
+    fit_args = ["fit", str(tmp_path / "iso.loops"), "--algo", "ga", "--bound", "w0=100:500", "--fix", "S_xi=0", "--json"]
+    assert main([*fit_args, "--out", str(tmp_path / "fit")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["bounds"]["w0"] == [100.0, 500.0] and doc["fixed"]["S_xi"] == 0.0 and "S_xi" not in doc["params"]
+    assert "w0" in doc["at_bounds"] and "w0" not in doc["settings"]["bounds_from_data"]
+    assert "fixed S_xi = 0" in (tmp_path / "fit" / "report.md").read_text()
+    assert main(["diagnose", str(tmp_path / "iso.loops"), "--bound", "w0=100:500", "--json", "--out", str(tmp_path / "dx")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["final_bounds"]["w0"] == [100.0, 500.0] and "w0" not in doc["bounds_from_data"] and "xi0" in doc["bounds_from_data"]
+    for bad, says in [("w0=500:100", "--bound w0: lower bound 500"), ("w0", "give NAME=LOWER:UPPER"), ("nope=1:2", "unknown parameter 'nope'")]:
+        assert main(["fit", str(tmp_path / "iso.loops"), "--bound", bad, "--out", str(tmp_path / "x")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("hysid: error: ") and says in err and err.count("\n") == 1
+    assert not (tmp_path / "x").exists()
+
+
 # --- identifiability ---------------------------------------------------------------------------------
 def test_one_amplitude_leaves_the_amplitude_slopes_undetermined(tmp_path):
     loops = hysid.load("synth", noise_pct=5.0)

@@ -90,8 +90,12 @@ def register(app: typer.Typer) -> None:
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
         csv: bool = o.CSV,
+        bound: Optional[list[str]] = o.BOUND,
+        fix: Optional[list[str]] = o.FIX,
+        displacement: str = o.DISPLACEMENT,
     ) -> None:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
+        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         algo_list = o.parse_algos(algos)
         sizes = o.island_sizes(population, initial, iterations)
         migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
@@ -102,7 +106,8 @@ def register(app: typer.Typer) -> None:
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
         with Progress("campaign", islands * iterations, enabled=not (quiet or as_json)) as bar:
             result = campaign(
-                loops, islands, name=name, model=model, weights=weights, algos=algo_list, options=sizes, migration=migration,
+                loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
+                algos=algo_list, options=sizes, migration=migration,
                 seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
                 polish=polish, progress=campaign_reporter(bar, islands, iterations, termination),
             )
@@ -139,12 +144,18 @@ def register(app: typer.Typer) -> None:
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
+        bound: Optional[list[str]] = o.BOUND,
+        fix: Optional[list[str]] = o.FIX,
+        displacement: str = o.DISPLACEMENT,
     ) -> None:
         """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
         check_name("campaign", name)
+        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
         if resume_db and dataset is not None:
             raise HysidInputError(f"--resume takes the loop set from {db}; drop DATASET {dataset!r}")
+        if resume_db and (bounds or fixed):
+            raise HysidInputError(f"--resume takes the bounds and fixed values from {db}; drop --bound and --fix")
         target_dir = o.report_dir(out, "coordinator")
         path = database(db, target_dir, name, resuming=resume_db)
         if not resume_db:  # every argument is checked before the database is written or a session opened
@@ -152,8 +163,8 @@ def register(app: typer.Typer) -> None:
             migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
             loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
             config = CampaignConfig.create(
-                loops, name=name, model=model, weights=weights, algos=o.parse_algos(algos), options=sizes,
-                migration=migration, seed=seed, min_islands=min_islands,
+                loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
+                algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands,
             )
         store = Store(path)
         try:

@@ -24,10 +24,14 @@ def register(app: typer.Typer) -> None:
         as_json: bool = o.JSON,
         points: Optional[int] = o.POINTS,
         csv: bool = o.CSV,
+        quiet: bool = o.QUIET,
+        bound: Optional[list[str]] = o.BOUND,
+        displacement: str = o.DISPLACEMENT,
     ) -> None:
         """Find which effects of the library the model misses, step by step, and write a report."""
+        bounds = o.parse_bounds(bound)
         target = o.report_dir(out, "diagnose")
         loops = load_dataset(dataset, n_points=points)
-        with Progress("diagnosing", 2, enabled=not as_json) as progress:
-            result = diagnose(loops, model, progress=lambda done, total, what: progress.update(done, what, total))
+        with Progress("diagnosing", 2, enabled=not (quiet or as_json)) as progress:
+            result = diagnose(loops, model, bounds=bounds, displacement=displacement, progress=lambda done, total, what: progress.update(done, what, total))
         o.show_result(result, target, as_json, csv, dataset)

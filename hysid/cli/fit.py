@@ -37,16 +37,24 @@ def register(app: typer.Typer) -> None:
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         csv: bool = o.CSV,
+        quiet: bool = o.QUIET,
+        bound: Optional[list[str]] = o.BOUND,
+        fix: Optional[list[str]] = o.FIX,
+        displacement: str = o.DISPLACEMENT,
     ) -> None:
         """Identify the model's parameters from DATASET in this process (no network)."""
+        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         target = o.report_dir(out, "fit")
         loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed)
-        with Progress("fitting", max(runs, 1) * ROWS_PER_RUN, enabled=not as_json) as progress:
+        with Progress("fitting", max(runs, 1) * ROWS_PER_RUN, enabled=not (quiet or as_json)) as progress:
 
             def show(i: int, row: HistoryRow) -> None:
                 progress.update(i * ROWS_PER_RUN + row.iteration + 1, f"run {i + 1}/{runs}, best {row.best_fitness:.4g}")
 
-            result = fit(loops, model, algo=algo, runs=runs, seed=seed, weights=weights, polish=polish, progress=show)
+            result = fit(
+                loops, model, algo=algo, runs=runs, seed=seed, weights=weights, polish=polish, bounds=bounds, fixed=fixed,
+                displacement=displacement, progress=show,
+            )
         o.show_result(result, target, as_json, csv)
 
     reproduce = typer.Typer(help="Regenerate the thesis' published results.", no_args_is_help=True)

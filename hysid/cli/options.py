@@ -55,6 +55,9 @@ FLAGS = {
     "seeds": "--seeds",
     "thesis_runs": "--thesis-runs",
     "part": "PART",
+    "bound": "--bound",
+    "displacement": "--displacement",
+    "fix": "--fix",
 }
 """Python parameter (as a :class:`HysidInputError` names it) -> command-line flag."""
 
@@ -63,6 +66,8 @@ def error_line(exc: HysidInputError) -> str:
     """A library error in the command line's words: the flag instead of the Python parameter."""
     if exc.param in FLAGS:
         return f"{exc.subject(FLAGS[exc.param])}: {exc.detail}"
+    if exc.param and exc.param.startswith("bounds["):
+        return f"--bound {exc.param[8:-2]}: {exc.detail}"
     return str(exc)
 
 
@@ -99,6 +104,15 @@ TIME_LIMIT = typer.Option(None, "--time-limit", help="Stop after this many secon
 DB = typer.Option(None, "--db", help="Campaign database (SQLite; default OUT/campaign.sqlite).")
 CONFIG = typer.Option(None, "--config", help="Zenoh configuration file (JSON5); authoritative for mode, TLS, auth, ACL, lease.")
 CAMPAIGN = typer.Option("default", "--campaign", help="Campaign name: its key space is hysid/<name>/**.")
+BOUND = typer.Option(
+    None, "--bound", metavar="NAME=LO:HI",
+    help="A hard search bound (repeatable): kept as given, never widened; overrides the dataset's and the data-derived bound.",
+)
+DISPLACEMENT = typer.Option(
+    "measured", "--displacement",
+    help="measured: the model sees each loop's measured displacement harmonics; sine: the ideal X0 sin(wt) of Eq. 4.5 (as the thesis).",
+)
+FIX = typer.Option(None, "--fix", metavar="NAME=VALUE", help="A parameter known, not searched (repeatable), e.g. --fix meq=0.2.")
 
 
 def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
@@ -138,6 +152,35 @@ def show_result(result: Any, target: Path, as_json: bool, csv: bool, dataset: st
     print(result.summary())
     if tables:
         print(f"tables: {', '.join(str(p) for p in tables.values())}")
+
+
+def parse_bounds(values: list[str] | None) -> dict[str, tuple[float, float]]:
+    """``--bound w0=10:200 --bound S_w=-1e4:0`` as ``{"w0": (10.0, 200.0), ...}`` (names checked by the library)."""
+    bounds = {}
+    for value in values or []:
+        name, _, pair = value.partition("=")
+        lower, sep, upper = pair.partition(":")
+        try:
+            if not name.strip() or not sep:
+                raise ValueError
+            bounds[name.strip()] = (float(lower), float(upper))
+        except ValueError:
+            raise HysidInputError("give NAME=LOWER:UPPER, e.g. --bound w0=10:200", param="bound", value=value) from None
+    return bounds
+
+
+def parse_fixed(values: list[str] | None) -> dict[str, float]:
+    """``--fix meq=0.2`` as ``{"meq": 0.2}`` (names checked by the library)."""
+    fixed = {}
+    for value in values or []:
+        name, sep, number = value.partition("=")
+        try:
+            if not name.strip() or not sep:
+                raise ValueError
+            fixed[name.strip()] = float(number)
+        except ValueError:
+            raise HysidInputError("give NAME=VALUE, e.g. --fix meq=0.2", param="fix", value=value) from None
+    return fixed
 
 
 def parse_algos(value: str) -> list[str]:

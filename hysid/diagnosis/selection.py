@@ -22,8 +22,8 @@ else ``unexplained`` with a description of what is left.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -42,8 +42,8 @@ from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
-from hysid_model.model import PRESETS
-from hysid_model.problem import displaced
+from hysid_model.model import PRESETS, build_model
+from hysid_model.problem import dataset_bounds, displaced
 from hysid_model.uncertainty import jacobian_covariance
 
 TRIALS = 4
@@ -179,6 +179,9 @@ class Diagnosis:
             "rejected": self.rejected,
             "final_params": self.final.params(),
             "final_stderr": self.stderr,
+            "final_bounds": {p.name: [p.lower, p.upper] for p in self.final.model.parameters},
+            "final_fixed": self.final.model.fixed,
+            "bounds_from_data": sorted(p.name for p in self.final.model.parameters if p.soft),
             "whitened_rms": self.final.whitened_rms,
             "references": self.references.as_dict(),
             "reaches": self.reaches,
@@ -259,10 +262,21 @@ def judge(before: Fit, after: Fit, effect: str) -> str | None:
     return None
 
 
+def with_given_bounds(loops: LoopSet, start: str, bounds: Mapping[str, tuple[float, float]] | None) -> LoopSet:
+    """``loops`` whose given (hard) bounds are the dataset's and then ``bounds``, each checked against the
+    parameters of the start model and of every library effect."""
+    if not bounds:
+        return loops
+    build_model("+".join((start, *EFFECTS))).with_bounds(bounds)
+    given = {**dataset_bounds(loops), **{name: (float(lo), float(hi)) for name, (lo, hi) in bounds.items()}}
+    return replace(loops, meta={**loops.meta, "bounds": given})
+
+
 def diagnose(
     loops: LoopSet,
     model: str = "baseline",
     *,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
     displacement: str = "measured",
     max_steps: int = MAX_STEPS,
     cross_validate: bool = True,
@@ -270,6 +284,8 @@ def diagnose(
 ) -> Diagnosis:
     """Find which library effects the start ``model`` (a preset) misses on ``loops`` (see the module docstring).
 
+    ``bounds`` (``{"w0": (10, 200)}``, any parameter of the start model or of a library effect) are
+    hard, as the dataset's: every model the diagnosis fits keeps them (:func:`hysid_model.problem.prepare_model`).
     ``displacement``: each loop's measured waveform or the ideal sine (as :func:`hysid.fit`);
     ``cross_validate`` adds the leave-one-frequency-out gap of every step (a refit per frequency).
     ``progress(done, total, what)`` is called after every fit; ``total`` is what is known so far (it
@@ -285,7 +301,7 @@ def diagnose(
             progress(count[0], count[1], what)
 
     start = model
-    harmonics = Harmonics.from_loops(displaced(loops, displacement))
+    harmonics = Harmonics.from_loops(displaced(with_given_bounds(loops, start, bounds), displacement))
     fit = initial_fit(harmonics, start)
     bounds = soft_bounds(fit.model)
     done(f"start model {start} fitted")

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from hysid.report import jsondoc
-from hysid.report.text import fit_warnings, loops_description, quality_text
+from hysid.report.text import fit_warnings, fixed_text, loops_description, quality_text
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
 
@@ -96,7 +96,7 @@ def summary_lines(result: "FitResult") -> list[str]:
     polish = "then a least-squares polish" if s.get("polish") else "no polish"
     return [
         f"- **Data**: `{result.loops.name}`: {loops_description(result)}.",
-        f"- **Model**: `{result.model.spec}`, parameters {', '.join(result.model.names)}.",
+        f"- **Model**: `{result.model.spec}`, parameters {', '.join(result.model.names)}{fixed_text(result.model.fixed)}.",
         f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; "
         f"{result.weights} loop weights.",
         f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "

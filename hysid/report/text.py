@@ -65,6 +65,12 @@ def loops_description(result: "FitResult") -> str:
     )
 
 
+def fixed_text(fixed: dict[str, float]) -> str:
+    """The known parameters other than the mass (which the loop description gives), as ``; fixed S_xi = -0.4``."""
+    known = {k: v for k, v in fixed.items() if k != "meq"}
+    return "; fixed " + ", ".join(f"{k} = {v:.6g}" for k, v in known.items()) if known else ""
+
+
 MISFIT = 3.0
 """A residual beyond this many times the noise: the model does not describe the data."""
 
@@ -115,7 +121,7 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     wall = sum(r.wall_s for r in result.runs)
     lines = [
         f"{command} {result.loops.name}: {loops_description(result)}",
-        f"model {result.model.spec} ({', '.join(result.model.names)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
+        f"model {result.model.spec} ({', '.join(result.model.names)}{fixed_text(result.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
         f"fit quality: {quality_text(result)}",
         "",
@@ -246,7 +252,7 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
 REACHES = {
     "noise floor": "the noise floor",
     "repeatability": "the scatter between repeated tests (the data repeat no better)",
-    "linear per loop": "what a linear fit of each loop on its own reaches (what is left is the loops' own distortion)",
+    "linear per loop": "at least what a linear fit of each loop on its own reaches (no equivalent-linear description does better), not the noise floor",
     "none": "none of the references: not even what a linear fit of each loop on its own reaches",
 }
 
