@@ -149,7 +149,7 @@ def test_bounds_and_known_values_from_the_command_line_are_hard(tmp_path, capsys
     """--bound is a given bound (kept, never widened, the report says so), --fix a known value, in fit and diagnose."""
     from hysid_model.readers.tidy import write_loops
 
-    loops, _ = isolator(noise_pct=1.0)
+    loops, _ = isolator(noise_pct=1.0, freqs=np.linspace(6.0, 20.0, 4))
     write_loops(loops, tmp_path / "iso.loops")
     fit_args = ["fit", str(tmp_path / "iso.loops"), "--algo", "ga", "--bound", "w0=100:500", "--fix", "S_xi=0", "--json"]
     assert main([*fit_args, "--out", str(tmp_path / "fit")]) == 0
