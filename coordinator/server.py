@@ -33,7 +33,7 @@ and is handled by one thread, which owns the SQLite store
   :data:`ORPHAN_S`; then re-evaluates every island's best and polishes the
   global best (section 3.1's calculus-based refinement):
   :meth:`Coordinator.outcome` is the raw material of the report that
-  :mod:`hysid.campaign` builds, the same as ``hysid fit``'s. A database that
+  :mod:`hysid.campaigns` builds, the same as ``hysid fit``'s. A database that
   cannot be written stops the campaign cleanly (:class:`StoreError`): the
   islands are told to stop and the campaign is marked ``interrupted``.
 
@@ -58,6 +58,7 @@ from coordinator.inbox import Inbox
 from coordinator.store import IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
+from hysid_model.model import MAX_WIDENINGS
 from hysid_model.objective import Objective
 from island.algorithms import ALGORITHMS, make_optimizer
 from island.config import CampaignConfig, decode_config, encode_config
@@ -474,10 +475,11 @@ class Coordinator:
     def evaluation_bound(self, algo: str, iterations: np.ndarray) -> np.ndarray:
         """The most evaluations an island run of ``algo`` can report after each of ``iterations``
         (floats): its own batches (:meth:`PopulationOptimizer.evaluation_bound`) plus the migrants it
-        may take, ``k`` from each other island that joined per migration, plus the global best once."""
+        may take, ``k`` from each other island that joined per migration, plus the campaign's starting
+        point and the global best once each."""
         mig = self.config.migration
         epochs = np.floor_divide(iterations, mig.interval) if mig.interval else np.zeros_like(iterations)
-        return self._optimizer(algo).evaluation_bound(iterations) + epochs * max(len(self.runs) - 1, 0) * mig.k + 1
+        return self._optimizer(algo).evaluation_bound(iterations) + epochs * max(len(self.runs) - 1, 0) * mig.k + 2
 
     def _plausible(self, h: History, info: RunInfo) -> None:
         """:class:`MessageRejected` ("implausible") for counters the island cannot have reached."""
@@ -729,8 +731,17 @@ class Coordinator:
         if not runs:
             raise HysidInputError(f"campaign {self.name!r}: no island reported any result ({self.stop_reason or 'not run'})")
         best = int(np.argmin([r.fitness for r in runs]))
+        widened: list[dict[str, Any]] = []
         if polish_best:
             runs[best] = polish_run(objective, runs[best])
+            for _ in range(MAX_WIDENINGS):  # a best on a bound derived from the data: widen it and refit
+                wider, changed = objective.model.widen_at(runs[best].theta)
+                if not changed:
+                    break
+                old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
+                widened += [{"param": n, "from": old[n], "to": [float(b) for b in pair]} for n, pair in changed.items()]
+                objective = Objective(objective.loops, wider, weights=objective.weights)
+                runs[best] = polish_run(objective, runs[best])
         settings = {
             "campaign": self.name,
             "algo": "/".join(self.config.algos),
@@ -742,6 +753,8 @@ class Coordinator:
             "stop_rules": self.termination.as_dict(),
             "stop_reason": self.stop_reason or self.store.stop_reason(self.name),
             "db": self.store.path,
+            "bounds_from_data": list(self.config.soft),
+            "bounds_widened": widened,
         }
         return CampaignOutcome(
             objective=objective,

@@ -79,6 +79,15 @@ that the campaign can still be marked interrupted (plus twice its configuration 
 rewrites the whole campaign row, loop set included, when its status changes)."""
 
 
+def prepare(db: sqlite3.Connection) -> None:
+    """Create the tables, and add to a database of an earlier hysid the columns it lacks."""
+    db.executescript(SCHEMA)
+    for table, (column, upgrade) in UPGRADES.items():
+        if column not in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}:
+            db.execute(upgrade)
+    db.executescript(INDEXES)
+
+
 class StoreError(HysidInputError):
     """A campaign database that cannot be written (locked, full, read-only): one line naming the file."""
 
@@ -137,11 +146,7 @@ class Store:
             self.db = sqlite3.connect(self.path, check_same_thread=False, timeout=lock_wait_s)
             self.db.execute("PRAGMA journal_mode=WAL")
             self.db.execute("PRAGMA synchronous=NORMAL")
-            self.db.executescript(SCHEMA)
-            for table, (column, upgrade) in UPGRADES.items():
-                if column not in {row[1] for row in self.db.execute(f"PRAGMA table_info({table})")}:
-                    self.db.execute(upgrade)
-            self.db.executescript(INDEXES)
+            prepare(self.db)
             self.db.execute("BEGIN IMMEDIATE")  # the write lock: fails now if the file cannot be written
             self.db.execute("ROLLBACK")
             self.reserve = None if self.path == ":memory:" else Path(f"{self.path}-reserve")
@@ -156,6 +161,37 @@ class Store:
                 f.write(bytes(RESERVE_BYTES + 2 * row_bytes))
                 f.flush()
                 os.fsync(f.fileno())
+
+    @classmethod
+    def read_only(cls, path: Path | str) -> "Store":
+        """A campaign database opened for reading only (never written, never created), also while a
+        coordinator writes it: WAL lets readers see every committed batch without blocking the writer."""
+        path = Path(path)
+        if not path.is_file():
+            raise HysidInputError(f"{path}: no such campaign database")
+        try:
+            db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, check_same_thread=False, timeout=10.0)
+            db.execute("SELECT count(*) FROM campaigns").fetchone()
+        except sqlite3.DatabaseError as exc:
+            raise HysidInputError(f"{path}: not a campaign database ({exc})") from None
+        store = cls.__new__(cls)
+        store.path, store.db, store.reserve = str(path), db, None
+        return store
+
+    @classmethod
+    def snapshot(cls, path: Path | str) -> "Store":
+        """An in-memory copy of a campaign database, read (only) from the file at one committed moment:
+        a stored campaign can be taken up again in it without changing the file."""
+        source = cls.read_only(path)
+        copy = sqlite3.connect(":memory:", check_same_thread=False)
+        try:
+            source.db.backup(copy)
+        finally:
+            source.db.close()
+        prepare(copy)  # a database of an earlier hysid gets today's tables, in the copy only
+        store = cls.__new__(cls)
+        store.path, store.db, store.reserve = source.path, copy, None
+        return store
 
     def release_reserve(self) -> None:
         """Give the reserved disk space back (when the disk is full: room for the last status)."""
@@ -356,13 +392,28 @@ class Store:
         """Membership events ``(island, event, unix time)`` in order."""
         return self.db.execute("SELECT island, event, t FROM members WHERE campaign = ? ORDER BY id", (campaign,)).fetchall()
 
+    def campaign_list(self) -> list[dict[str, Any]]:
+        """Every stored campaign, oldest first: name, dataset, status, stop reason, created and ended (unix time)."""
+        rows = self.db.execute("SELECT name, dataset, status, stop_reason, created, ended FROM campaigns ORDER BY created")
+        return [dict(zip(("name", "dataset", "status", "stop_reason", "created", "ended"), r)) for r in rows]
+
+    def migrations_by_island(self, campaign: str) -> dict[str, int]:
+        """Migrant messages the coordinator saw from each island."""
+        rows = self.db.execute("SELECT island, count(*) FROM migrations WHERE campaign = ? GROUP BY island", (campaign,))
+        return {island: int(n) for island, n in rows}
+
     def count(self, table: str, campaign: str) -> int:
         """Rows of a table (for ``rejected``: messages, summaries counting ``n``)."""
         if table not in ("migrations", "rejected", "history", "members"):
             raise ValueError(f"no countable table {table!r}")
-        what = "coalesce(sum(n), 0)" if table == "rejected" else "count(*)"
+        what = "coalesce(sum(n), 0)" if table == "rejected" and self._counted_rejects() else "count(*)"
         return int(self.db.execute(f"SELECT {what} FROM {table} WHERE campaign = ?", (campaign,)).fetchone()[0])
 
+    def _counted_rejects(self) -> bool:
+        """Whether ``rejected`` has its ``n`` column (a file of an earlier hysid opened read-only has not)."""
+        return "n" in {row[1] for row in self.db.execute("PRAGMA table_info(rejected)")}
+
     def rejected_reasons(self, campaign: str) -> dict[str, int]:
-        rows = self.db.execute("SELECT reason, sum(n) FROM rejected WHERE campaign = ? GROUP BY reason", (campaign,))
+        n = "sum(n)" if self._counted_rejects() else "count(*)"
+        rows = self.db.execute(f"SELECT reason, {n} FROM rejected WHERE campaign = ? GROUP BY reason", (campaign,))
         return {r: int(n) for r, n in rows}

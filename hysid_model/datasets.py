@@ -166,7 +166,16 @@ def extract_records(records: list[tuple[Path, float | None]], config: DatasetCon
         cycles=np.array([e.cycles for e in extracted]),
         labels=[p.stem for p, _ in records],
         meta=meta,
+        x_harmonics=stack_harmonics([e.x_harmonics for e in extracted]),
     )
+
+
+def stack_harmonics(rows: list[np.ndarray]) -> np.ndarray:
+    """Per-loop displacement harmonics of different lengths as one ``(L, K)`` array (missing orders 0)."""
+    out = np.zeros((len(rows), max(r.size for r in rows)), dtype=complex)
+    for j, r in enumerate(rows):
+        out[j, : r.size] = r
+    return out
 
 
 def _toml_value(value: Any) -> str:

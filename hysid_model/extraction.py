@@ -13,22 +13,26 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
 2. steady window: given (``dataset.toml``) or found automatically (the
    amplitude plateau of a tapered sine, minus leading/trailing transient
    cycles, see :func:`_auto_window`); all whole cycles inside it are used;
-3. reference: x = X0 sin(theta) + x_offset with theta = w t + phi (Eq. 4.5),
-   by harmonic least squares over those whole cycles;
-4. branches: on the grid x_i = linspace(-X0, X0, n) (``reinterpolate``) the
-   loading branch sits at theta_i = arcsin(x_i / X0), the unloading branch at
-   pi - theta_i, exactly the phases :meth:`LoopSet.phases` gives the model.
-   Each branch value is a local-linear least-squares fit of the force against
-   theta over all cycles, in a phase window around theta_i. The windows are
-   disjoint (branch values have independent noise) unless a record has too
-   few distinct sample phases, and one-sided at the reversals, so loading and
-   unloading samples never mix and a friction jump at the reversal stays
-   sharp. A local-linear fit is unbiased for a linear trend; the curvature
-   bias is f'' h^2/24 inside (h ~ 2/(n-1) rad) and -f'' w^2/12 at the four
-   reversal samples (w = 4h), below 1e-4 and 6e-4 of the force amplitude for
-   n = 100. The displacement's harmonic distortion (rms of harmonics 2..3 over
-   the fundamental) is reported: the branches are placed at the phases of
-   x = X0 sin(theta), which is what the model assumes (Eq. 4.5);
+3. reference: x = X0 sin(theta) + harmonics + x_offset with theta = w t + phi
+   (the fundamental of Eq. 4.5), by harmonic least squares over those whole cycles;
+4. branches: on the grid x_i = linspace(x_min, x_max, n) (``reinterpolate``)
+   between the measured displacement's extremes, the loading branch sits at
+   the phase theta_i where the measured waveform passes x_i rising, the
+   unloading branch where it passes x_i falling (:mod:`hysid_model.waveform`;
+   for the ideal sine arcsin(x_i / X0) and pi - arcsin(x_i / X0)), exactly the
+   phases :meth:`LoopSet.phases` gives the model.
+   Each branch value is a local-quadratic least-squares fit of the force
+   against theta over all cycles, in a phase window around theta_i. The
+   windows are disjoint (branch values have independent noise) unless a
+   record has too few distinct sample phases, and one-sided at the reversals,
+   so loading and unloading samples never mix and a friction jump at the
+   reversal stays sharp. A local-quadratic fit is unbiased for a parabola, so
+   the force's curvature (large where a mass-dominated force carries the
+   shaker's displacement harmonics, amplified k^2 times) leaves no bias; what
+   remains is of order f^(4) h^4 inside and f^(3) w^3 at the four reversal
+   samples (w = 4h). The displacement's harmonics (orders 1-7) are kept with the loop,
+   so that the model sees the measured waveform, and their distortion (rms of
+   harmonics 2..7 over the fundamental) is reported;
 5. centring (cf. ``centercurveloop``): the grid is centred on the fitted
    displacement offset, and the force's time average over the whole cycles is
    removed (the mean, not the mid-range of ``centercurveloop``, so noise
@@ -45,14 +49,15 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+import warnings
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.optimize import minimize_scalar
 from scipy.special import gammaincinv
 
-from hysid_model.errors import HysidInputError
+from hysid_model import waveform
+from hysid_model.errors import HysidInputError, HysidWarning
 
 FREQ_TOLERANCE = 0.02
 """Largest relative difference between the nominal and the measured frequency."""
@@ -62,24 +67,35 @@ WAVEFORM_MIN_CYCLES = 5
 """Fewer steady cycles cannot tell a transient from cycle-to-cycle scatter; then only stage 1 applies."""
 WAVEFORM_TOLERANCE = 1e-3
 """A cycle whose samples differ from the median cycle by less than 0.1 % of the signal's std is steady whatever the noise."""
-HARMONICS = 3
-"""Harmonics of w t in the displacement fit (x of a real shaker is not a pure sine)."""
+X_HARMONICS = 7
+"""Harmonics of w t in the displacement (a real shaker's x is not a pure sine): fitted to refine the
+frequency, and kept for the model (:mod:`hysid_model.waveform`)."""
+SIGNIFICANT = 4.0
+"""A displacement harmonic smaller than this many standard errors is noise (set to 0)."""
+DISTORTION_FLOOR = 1e-5
+"""...and so is one below 10 ppm of the fundamental (rounding, and leakage from a frequency known to ~1e-6)."""
 END_WINDOW = 4.0
-"""One-sided window at a reversal, in interior window widths: a local-linear fit
+"""One-sided window at a reversal, in interior window widths: a local-quadratic fit
 at the edge of a window has 4x the variance of one at its centre, so a 4x wider
 window gives every branch value the same variance."""
 WIDEN = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 """Widening factors tried for a phase window that holds too few distinct samples."""
+DISTINCT = 1e-3
+"""Sample phases closer than this fraction of a window apart count as one (a rate locked to the excitation repeats them)."""
+SNAP = 1e-9
+"""Phases (rad) this close to a reversal are at the reversal (a record sampled exactly at its peaks)."""
 CYCLE_SLACK = 0.02
 """Fraction of a period by which the whole cycles may overrun a given window."""
 
 
 @dataclass
 class ExtractedLoop:
-    """One loop from a raw record; ``top``/``bottom`` are ``(n, 2)`` (x in m, F in N)."""
+    """One loop from a raw record; ``top``/``bottom`` are ``(n, 2)`` (x in m, F in N); ``x_harmonics``
+    ``(K,)`` the measured displacement's harmonics (:mod:`hysid_model.waveform`)."""
 
     freq_hz: float
     x0: float
+    x_harmonics: np.ndarray
     top: np.ndarray
     bottom: np.ndarray
     sigma: float
@@ -188,13 +204,13 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
 
 
 def _refine_frequency(t: np.ndarray, x: np.ndarray, f0: float) -> float:
-    """Frequency minimising the residual of x on ``HARMONICS`` harmonics of w t (variable projection)."""
+    """Frequency minimising the residual of x on ``X_HARMONICS`` harmonics of w t (variable projection)."""
     tc = t - 0.5 * (t[0] + t[-1])
     span = t[-1] - t[0]
     xx = float(x @ x)
 
     def rss(f: float) -> float:
-        design = _harmonic_design(2 * np.pi * f * tc, HARMONICS)
+        design = _harmonic_design(2 * np.pi * f * tc, X_HARMONICS)
         rhs = design.T @ x
         return xx - float(rhs @ np.linalg.solve(design.T @ design, rhs))
 
@@ -330,35 +346,37 @@ def _cycle_mean(t: np.ndarray, y: np.ndarray, t_a: float, t_b: float) -> float:
     return float(np.sum(0.5 * (vals[1:] + vals[:-1]) * np.diff(grid)) / (t_b - t_a))
 
 
-@lru_cache(maxsize=16)
-def _phase_windows(n_points: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
-    """Phase windows of the 2n branch samples, in ``[top(n), bottom(n)]`` order.
+def _phase_windows(theta: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """Phase windows of the 2n branch samples at phases ``theta`` (``[top(n), bottom(n)]`` order).
 
-    Returns (evaluation phase c, window start s, window width w, half-cycle
-    limits lo and hi, h): at widening factor r the window is
-    ``[c + s r h, c + (s + w) r h)`` clipped to ``[lo, hi)``, the sample's own
-    half cycle (loading [-pi/2, pi/2), unloading [pi/2, 3pi/2)). Interior
-    windows are centred (s = -1/2, w = 1); the four reversal samples get
-    one-sided windows of width ``END_WINDOW`` on their own branch's side. h is
-    the largest width for which the windows at r = 1 are disjoint.
+    ``lo`` and ``hi`` are the phases of the displacement's minimum and maximum
+    (-pi/2 and pi/2 for the ideal sine). Returns (evaluation phase c, window
+    start s, window width w, half-cycle limits lo and hi, h): at widening
+    factor r the window is ``[c + s r h, c + (s + w) r h)`` clipped to
+    ``[lo, hi)``, the sample's own half cycle (loading [lo, hi), unloading
+    [hi, lo + 2 pi)). Interior windows are centred (s = -1/2, w = 1); the four
+    reversal samples get one-sided windows of width ``END_WINDOW`` on their own
+    branch's side. h is the largest width for which the windows at r = 1 are
+    disjoint.
     """
-    theta = np.arcsin(np.linspace(-1.0, 1.0, n_points))
-    gaps = np.diff(theta)
+    n_points = theta.size // 2
+    gaps = np.concatenate([np.diff(theta[:n_points]), -np.diff(theta[n_points:])])
     if n_points == 2:
-        h = gaps[0] / (2 * END_WINDOW)
+        h = min(gaps) / (2 * END_WINDOW)
     else:
-        interior = gaps[1:-1].min() if n_points > 3 else np.inf
-        h = min(interior, gaps[0] / (END_WINDOW + 0.5))
-    centre = np.concatenate([theta, np.pi - theta])
+        edges = np.array([gaps[0], gaps[n_points - 2], gaps[n_points - 1], gaps[-1]])
+        inner = np.concatenate([gaps[1 : n_points - 2], gaps[n_points : 2 * n_points - 3]])
+        h = min(inner.min() if inner.size else np.inf, edges.min() / (END_WINDOW + 0.5))
     start = np.full(2 * n_points, -0.5)
     width = np.ones(2 * n_points)
-    forward = [0, 2 * n_points - 1]  # loading at x = -X0 (-pi/2), unloading at x = +X0 (pi/2)
-    backward = [n_points - 1, n_points]  # loading at x = +X0 (pi/2), unloading at x = -X0 (3pi/2)
+    forward = [0, 2 * n_points - 1]  # loading at the minimum, unloading at the maximum
+    backward = [n_points - 1, n_points]  # loading at the maximum, unloading at the minimum
     width[forward + backward] = END_WINDOW
     start[forward] = 0.0
     start[backward] = -END_WINDOW
-    lo = np.repeat([-0.5 * np.pi, 0.5 * np.pi], n_points)
-    return centre, start, width, lo, lo + np.pi, float(h)
+    low = np.repeat([lo, hi], n_points)
+    high = np.repeat([hi, lo + 2 * np.pi], n_points)
+    return theta, start, width, low, high, float(h)
 
 
 def _chi2_median_ratio(dof: float) -> float:
@@ -374,21 +392,29 @@ def _concatenated_ranges(first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarra
     return owner, position
 
 
-def _branches(theta: np.ndarray, force: np.ndarray, n_points: int, source: str) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Local-linear branch values at the 2n sample phases.
+def _branches(
+    theta: np.ndarray, force: np.ndarray, sample_phases: np.ndarray, reversal: tuple[float, float], source: str
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Local-quadratic branch values at the 2n ``sample_phases`` (top, then bottom); ``reversal`` = (lo, hi) phases.
 
     Returns (values, variance factors v, sigma_raw, overlap). Each window
-    starts at width factor 1 and is widened (``WIDEN``) until it holds >= 3
-    samples spread over >= 10 % of its width, so records whose samples fall on
+    starts at width factor 1 and is widened (``WIDEN``) until it holds samples at
+    >= 4 distinct phases spread over >= 10 % of its width, so records whose samples fall on
     few phases per cycle (an integer number of samples per period) still give
-    a local *linear* fit; widened windows overlap their neighbours, which
+    a local *quadratic* fit; widened windows overlap their neighbours, which
     ``overlap`` (mean number of windows per used sample, 1 = independent) reports.
     """
-    centre, start, width, half_lo, half_hi, h = _phase_windows(n_points)
-    psi = np.mod(theta + 0.5 * np.pi, 2 * np.pi) - 0.5 * np.pi
+    n_points = sample_phases.size // 2
+    centre, start, width, half_lo, half_hi, h = _phase_windows(sample_phases, *reversal)
+    lo_phase, hi_phase = reversal
+    psi = np.mod(theta - lo_phase, 2 * np.pi) + lo_phase
+    psi[np.abs(psi - (lo_phase + 2 * np.pi)) < SNAP] = lo_phase  # a sample at a reversal belongs to the branch it starts,
+    psi[np.abs(psi - hi_phase) < SNAP] = hi_phase  # whatever the last bits of its phase say
     order = np.argsort(psi, kind="stable")
     ps, ys = psi[order], force[order]
     cum = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones_like(ps), ps, ps * ps)]
+    new_phase = np.concatenate([[1.0], (np.diff(ps) > DISTINCT * h).astype(float)])  # a sample at a phase not seen before
+    cum_distinct = np.concatenate([[0.0], np.cumsum(new_phase)])
     chosen_lo = np.full(centre.size, np.nan)
     chosen_hi = np.full(centre.size, np.nan)
     for r in WIDEN:
@@ -399,9 +425,10 @@ def _branches(theta: np.ndarray, force: np.ndarray, n_points: int, source: str) 
         hi = np.minimum(centre + (start + width) * r * h, half_hi)
         a, b = np.searchsorted(ps, lo), np.searchsorted(ps, hi)
         s0, s1, s2 = (c[b] - c[a] for c in cum)
+        distinct = cum_distinct[b] - cum_distinct[a] + (a < b) * (1.0 - new_phase[np.minimum(a, ps.size - 1)])
         with np.errstate(divide="ignore", invalid="ignore"):
             spread = np.sqrt(np.maximum(s2 / s0 - (s1 / s0) ** 2, 0.0))
-        ok = todo & (s0 >= 3) & (spread >= 0.1 * (hi - lo))
+        ok = todo & (distinct >= 4) & (spread >= 0.1 * (hi - lo))
         chosen_lo[ok], chosen_hi[ok] = lo[ok], hi[ok]
     if np.any(np.isnan(chosen_lo)):
         distinct = np.unique(np.mod(np.round(ps * (1e6 / (2 * np.pi))), 1e6)).size
@@ -411,22 +438,42 @@ def _branches(theta: np.ndarray, force: np.ndarray, n_points: int, source: str) 
             "or a longer or faster-sampled record"
         )
     win, pos = _concatenated_ranges(np.searchsorted(ps, chosen_lo), np.searchsorted(ps, chosen_hi))
-    u, y = ps[pos] - centre[win], ys[pos]
     n_win = centre.size
-    s0 = np.bincount(win, minlength=n_win).astype(float)
-    s1 = np.bincount(win, weights=u, minlength=n_win)
-    s2 = np.bincount(win, weights=u * u, minlength=n_win)
-    t0 = np.bincount(win, weights=y, minlength=n_win)
-    t1 = np.bincount(win, weights=u * y, minlength=n_win)
-    det = s0 * s2 - s1 * s1
-    value = (s2 * t0 - s1 * t1) / det
-    slope = (s0 * t1 - s1 * t0) / det
-    resid = y - value[win] - slope[win] * u
+    u = (ps[pos] - centre[win]) / h  # in window widths: the normal equations stay well conditioned
+    y = ys[pos]
+    moments = [np.bincount(win, weights=u**p, minlength=n_win) for p in range(5)]
+    gram = np.stack([np.stack([moments[i + j] for j in range(3)], axis=-1) for i in range(3)], axis=-2)
+    rhs = np.stack([np.bincount(win, weights=y * u**p, minlength=n_win) for p in range(3)], axis=-1)
+    inverse = np.linalg.inv(gram)
+    coef = np.einsum("wij,wj->wi", inverse, rhs)
+    resid = y - coef[win, 0] - coef[win, 1] * u - coef[win, 2] * u * u
     ss = np.bincount(win, weights=resid * resid, minlength=n_win)
-    dof = s0 - 2
+    dof = moments[0] - 3
     sigma_raw = float(np.sqrt(np.median(ss / dof) / _chi2_median_ratio(float(np.median(dof)))))
     overlap = pos.size / np.count_nonzero(np.bincount(pos))
-    return value, s2 / det, sigma_raw, float(overlap)
+    return coef[:, 0], inverse[:, 0, 0], sigma_raw, float(overlap)
+
+
+def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float, source: str) -> np.ndarray:
+    """The displacement's harmonics referenced to its fundamental, ``(1, K)``: x = sum Re[X_k e^{ik theta}], theta = w t + phi.
+
+    ``cx`` holds [offset, a_1, b_1, a_2, b_2, ...] of x = sum a_k sin(k w t) + b_k cos(k w t);
+    X_k = (b_k - i a_k) e^{-i k phi}, so X_1 = -i X0. Harmonics within ``SIGNIFICANT`` standard
+    errors (``stderr``, of each coefficient) of zero, or below ``DISTORTION_FLOOR``, are noise and
+    set to 0, so a clean sine stays the ideal sine. A waveform that reverses more than twice per cycle (sub-loops) has no single
+    loading and unloading branch: it is taken as the ideal sine, with a warning.
+    """
+    k = np.arange(1, (cx.size - 1) // 2 + 1)
+    xh = ((cx[2::2] - 1j * cx[1::2]) * np.exp(-1j * k * phi))[None, :]
+    xh[0, 0] = -1j * x0
+    xh[0, 1:][np.abs(xh[0, 1:]) < max(SIGNIFICANT * stderr, DISTORTION_FLOOR * x0)] = 0.0
+    reverses = int(waveform.reversal_count(xh)[0])
+    if reverses != 2:
+        warnings.warn(HysidWarning(
+            f"{source}: the displacement reverses {reverses} times per cycle (sub-loops); the loop is placed on the ideal sine X0 sin(wt)"
+        ), stacklevel=3)
+        return waveform.ideal([x0])
+    return xh
 
 
 def extract_loop(
@@ -470,17 +517,24 @@ def extract_loop(
     span = (t >= t_a) & (t < t_a + cycles / freq)
     ts, xs, fs = t[span], x[span], force[span]
     w = 2 * np.pi * freq
-    design = _harmonic_design(w * (ts - t_a), HARMONICS)
+    design = _harmonic_design(w * (ts - t_a), X_HARMONICS)
     cx, cf = np.linalg.solve(design.T @ design, design.T @ np.column_stack([xs, fs])).T
     x0 = float(np.hypot(cx[1], cx[2]))
     phi = float(np.arctan2(cx[2], cx[1]))
     phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
     force_mean = _cycle_mean(t, force, t_a, t_a + cycles / freq)
-    values, var, sigma_raw, overlap = _branches(w * (ts - t_a) + phi, fs - force_mean, n_points, source)
-    grid = np.linspace(-x0, x0, n_points)
+    x_residual = xs - design @ cx
+    x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - design.shape[1], 1)))
+    xh = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
+    lo, hi = (float(r[0]) for r in waveform.reversals(xh))
+    x_min, x_max = (float(e[0]) for e in waveform.extremes(xh))
+    grid = np.linspace(x_min, x_max, n_points)
+    sample_phases = waveform.branch_phases(xh, grid[None], grid[None])[0]
+    values, var, sigma_raw, overlap = _branches(w * (ts - t_a) + phi, fs - force_mean, sample_phases, (lo, hi), source)
     return ExtractedLoop(
         freq_hz=freq,
         x0=x0,
+        x_harmonics=xh[0],
         top=np.column_stack([grid, values[:n_points]]),
         bottom=np.column_stack([grid, values[n_points:]]),
         sigma=sigma_raw * float(np.sqrt(var.mean())),
@@ -490,7 +544,7 @@ def extract_loop(
         force_amplitude=float(np.hypot(cf[1], cf[2])),
         x_offset=float(cx[0]),
         x_peak=float(np.abs(xs - cx[0]).max()),
-        x_distortion=float(np.hypot.reduce(cx[3:]) / x0),
+        x_distortion=float(waveform.thd(xh)[0]),
         force_mean=force_mean,
         window_s=(float(ts[0]), float(ts[-1])),
         samples_per_point=float(np.mean(1.0 / var)),

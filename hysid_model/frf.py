@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hysid_model.basis import design_matrix
+from hysid_model.basis import design_matrix, harmonic_names
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
 from hysid_model.terms import Kinematics
@@ -37,16 +37,21 @@ AMPLITUDE_RTOL = 0.05
 """Loops whose amplitudes X0 agree within this relative tolerance form one amplitude level."""
 
 
-def first_harmonic(loops: LoopSet) -> np.ndarray:
-    """Complex first harmonic F1 = a_s + i a_c of each loop's force (N), shape ``(L,)``.
+def force_harmonics(loops: LoopSet, max_order: int = 1) -> np.ndarray:
+    """Complex harmonics a_s + i a_c of each loop's force (N) at orders 1..``max_order``, shape ``(L, K)``.
 
-    Least squares of the force on [1, sin(wt), cos(wt)] over both branches, so a
-    constant offset and higher harmonics do not leak into F1.
+    Least squares of the force on [1, sin(k wt), cos(k wt)] over both branches, so a
+    constant offset does not leak into them.
     """
-    phi = design_matrix(["dc", "s1", "c1"], loops.phases(), loops.n_samples)
+    phi = design_matrix(harmonic_names(max_order), loops.phases(), loops.n_samples)
     y = loops.forces()
     coef = np.stack([np.linalg.lstsq(p, f, rcond=None)[0] for p, f in zip(phi, y)])
-    return coef[:, 1] + 1j * coef[:, 2]
+    return coef[:, 1::2] + 1j * coef[:, 2::2]
+
+
+def first_harmonic(loops: LoopSet) -> np.ndarray:
+    """Complex first harmonic F1 = a_s + i a_c of each loop's force (N), shape ``(L,)``."""
+    return force_harmonics(loops, 1)[:, 0]
 
 
 def compliance(loops: LoopSet) -> np.ndarray:

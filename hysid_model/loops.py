@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from hysid_model import waveform
 from hysid_model.errors import HysidInputError
 
 
@@ -24,8 +25,11 @@ class LoopSet:
     ``top`` and ``bottom`` have shape ``(L, n, 2)`` holding displacement (m) and
     force (N). ``sigma`` is each loop's force-noise standard deviation (N), NaN
     where unknown. ``meq_kg`` is the known equivalent mass, or None when unknown
-    (then it is fitted). ``meta["per_loop"]``, when present, maps names to lists
-    with one entry per loop (kept aligned by :meth:`subset`).
+    (then it is fitted). ``x_harmonics`` ``(L, K)`` complex is each loop's
+    measured displacement as harmonics of its fundamental
+    (:mod:`hysid_model.waveform`), None where the displacement is taken as the
+    ideal sine X0 sin(wt) of Eq. 4.5. ``meta["per_loop"]``, when present, maps
+    names to lists with one entry per loop (kept aligned by :meth:`subset`).
     """
 
     name: str
@@ -38,6 +42,7 @@ class LoopSet:
     cycles: np.ndarray | None = None
     labels: list[str] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
+    x_harmonics: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.freq_hz = np.asarray(self.freq_hz, dtype=float).reshape(-1)
@@ -68,6 +73,12 @@ class LoopSet:
             raise HysidInputError(f"{self.name}: every loop needs a positive amplitude X0")
         if self.meq_kg is not None and not (np.isfinite(self.meq_kg) and self.meq_kg > 0):
             raise HysidInputError(f"{self.name}: meq_kg must be a positive mass or unknown (None), got {self.meq_kg}")
+        if self.x_harmonics is not None:
+            self.x_harmonics = waveform.check(self.x_harmonics, self.name)
+            if self.x_harmonics.shape[0] != n_loops:
+                raise HysidInputError(f"{self.name}: displacement harmonics for {self.x_harmonics.shape[0]} loops, not {n_loops}")
+            if not np.allclose(np.abs(self.x_harmonics[:, 0]), self.x0, rtol=1e-9, atol=0.0):
+                raise HysidInputError(f"{self.name}: the displacement's fundamental amplitude differs from X0")
 
     @property
     def n_loops(self) -> int:
@@ -91,12 +102,25 @@ class LoopSet:
     def has_sigma(self) -> bool:
         return bool(np.all(np.isfinite(self.sigma)) and np.all(self.sigma > 0))
 
+    @property
+    def measured_displacement(self) -> bool:
+        """True when the loops carry their measured displacement harmonics (not the ideal sine)."""
+        return self.x_harmonics is not None
+
+    def displacement_harmonics(self) -> np.ndarray:
+        """``(L, K)`` displacement harmonics: the measured ones, else the ideal sine's (K = 1)."""
+        return waveform.ideal(self.x0) if self.x_harmonics is None else self.x_harmonics
+
     def phases(self) -> np.ndarray:
         """Phase wt of every sample, shape ``(L, 2n)``: top branch first, then bottom.
 
         With x = X0 sin(wt) (Eq. 4.5) the loading branch has cos(wt) >= 0 and
-        the unloading branch cos(wt) <= 0.
+        the unloading branch cos(wt) <= 0. With the measured displacement the
+        phase of a sample is where that waveform passes the sample's x on its
+        branch (:func:`hysid_model.waveform.branch_phases`).
         """
+        if self.x_harmonics is not None:
+            return waveform.branch_phases(self.x_harmonics, self.top[:, :, 0], self.bottom[:, :, 0])
         s_top = np.clip(self.top[:, :, 0] / self.x0[:, None], -1.0, 1.0)
         s_bot = np.clip(self.bottom[:, :, 0] / self.x0[:, None], -1.0, 1.0)
         return np.concatenate([np.arcsin(s_top), np.pi - np.arcsin(s_bot)], axis=1)
@@ -139,6 +163,7 @@ class LoopSet:
             cycles=self.cycles[idx],
             labels=[self.labels[i] for i in idx],
             meta=self._meta_subset(idx),
+            x_harmonics=None if self.x_harmonics is None else self.x_harmonics[idx],
         )
 
     def _meta_subset(self, idx: np.ndarray) -> dict[str, Any]:
@@ -147,6 +172,12 @@ class LoopSet:
         if isinstance(meta.get("per_loop"), dict):
             meta["per_loop"] = {key: [values[i] for i in idx] for key, values in meta["per_loop"].items()}
         return meta
+
+    def as_ideal_sine(self) -> "LoopSet":
+        """These loops with the displacement taken as the ideal sine X0 sin(wt) (the thesis' Eq. 4.5)."""
+        out = self.subset(np.arange(self.n_loops))
+        out.x_harmonics = None
+        return out
 
     def with_meq(self, meq_kg: float | None) -> "LoopSet":
         out = self.subset(np.arange(self.n_loops))

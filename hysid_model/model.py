@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from hysid_model import waveform
 from hysid_model.basis import design_matrix
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
@@ -28,6 +29,9 @@ from hysid_model.terms import (
     add_coefficient,
 )
 
+MAX_WIDENINGS = 3
+"""How often a fit widens the data-derived bounds its best ends on (:meth:`Model.widen_at`) and refits."""
+
 PARAMETER_ORDER = ("xi0", "S_xi", "w0", "S_w", "meq")
 """Parameters are ordered as the thesis' chromosome ``[xi0, S_xi, w0, S_w]`` (Appendix A),
 since the GA's single-point crossover depends on gene order; other terms' follow in term order."""
@@ -38,7 +42,7 @@ sign-of-velocity feature and memory forces (the delay is applied exactly). The
 neglected tail of a unit step is below 0.005 w_c/w for a high-pass at w_c."""
 
 _SQUARE_WAVE = np.where(CHAIN_ORDERS % 2 == 1, 4.0 / (np.pi * np.maximum(CHAIN_ORDERS, 1)) * (-1.0) ** ((CHAIN_ORDERS - 1) // 2), 0.0)
-"""Complex amplitudes of sgn(cos wt) = (4/pi) sum_k odd (-1)^((k-1)/2) cos(k wt) / k."""
+"""Complex amplitudes of sgn(cos wt) = (4/pi) sum_k odd (-1)^((k-1)/2) cos(k wt) / k (the ideal sine's sgn(x'))."""
 
 PRESETS: dict[str, tuple[str, ...]] = {
     "baseline": (),
@@ -122,8 +126,9 @@ class Model:
                 return p
         raise HysidInputError(f"{what} given for unknown parameter {name!r}; model {self.spec} has {', '.join(p.name for p in self._all)}")
 
-    def with_bounds(self, bounds: Mapping[str, tuple[float, float]]) -> "Model":
-        """This model with other search bounds, ``{name: (lower, upper)}``."""
+    def with_bounds(self, bounds: Mapping[str, tuple[float, float]], soft: bool = False) -> "Model":
+        """This model with other search bounds, ``{name: (lower, upper)}``; ``soft`` marks bounds derived
+        from the data, which a fit may widen (:meth:`widen_at`)."""
         changes = {}
         for name, pair in bounds.items():
             p = self._parameter(name, "bounds")
@@ -131,8 +136,25 @@ class Model:
                 lower, upper = (float(b) for b in pair)
             except (TypeError, ValueError):
                 raise HysidInputError("bounds must be a pair of numbers (lower, upper)", param=f"bounds[{name!r}]", value=pair) from None
-            changes[name] = p.with_bounds(lower, upper)
+            changes[name] = p.with_bounds(lower, upper, soft)
         return self._changed(changes)
+
+    def widen_at(self, theta: np.ndarray) -> tuple["Model", dict[str, tuple[float, float]]]:
+        """This model with every soft bound that ``theta`` sits on widened (:meth:`Parameter.widened`),
+        and the new bounds of the parameters widened (none: nothing to widen)."""
+        bounds = self.bounds
+        span = bounds[:, 1] - bounds[:, 0]
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        low = theta - bounds[:, 0] <= 1e-6 * span
+        high = bounds[:, 1] - theta <= 1e-6 * span
+        changes = {}
+        for p, lo, hi in zip(self._params, low, high):
+            if p.soft and (lo or hi):
+                wider = p.widened(bool(lo), bool(hi))
+                if (wider.lower, wider.upper) != (p.lower, p.upper):
+                    changes[p.name] = wider
+        widened = {name: (p.lower, p.upper) for name, p in changes.items()}
+        return (self._changed(changes), widened) if changes else (self, {})
 
     def fix(self, values: Mapping[str, float] | None = None, **kwargs: float) -> "Model":
         """This model with parameters fixed at known values (``model.fix(meq=0.04)``)."""
@@ -150,8 +172,15 @@ class Model:
         return self._changed({name: self._parameter(name, "vary").varied() for name in names})
 
     def at_bounds(self, theta: np.ndarray) -> list[str]:
-        """Free parameters of ``theta`` that sit on a bound of the search space (the optimum may lie beyond it)."""
-        return [name for name, hit in zip(self.names, on_bounds(self.bounds, theta)) if hit]
+        """Free parameters of ``theta`` that sit on a bound of the search space that is not a physical
+        limit (the optimum may lie beyond it; a friction force of 0 is an answer, not a search artifact)."""
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        out = []
+        for p, value, hit in zip(self._params, theta, on_bounds(self.bounds, theta)):
+            side = p.lower if value - p.lower <= p.upper - value else p.upper
+            if hit and side not in p.physical:
+                out.append(p.name)
+        return out
 
     def __add__(self, other: "Term | Model") -> "Model":
         """This model plus an effect term (or another model's terms): ``thesis + coulomb_friction``."""
@@ -176,7 +205,7 @@ class Model:
             raise HysidInputError(f"model {self.spec}: expected {self.dim} parameter values ({', '.join(self.names)}), got {pop.shape[1]}")
         out = {name: pop[:, i : i + 1] for i, name in enumerate(self.names)}
         for name, value in self._fixed.items():
-            out[name] = np.broadcast_to(np.float64(value), (pop.shape[0], 1))
+            out[name] = np.full((pop.shape[0], 1), value)
         return out
 
     def as_dict(self, theta: np.ndarray) -> dict[str, float]:
@@ -251,9 +280,9 @@ class Model:
         shifted = phase[None] - kin.omega[None, :, None] * delay
         out = np.zeros(shifted.shape)
         if sgn is not None:
-            cos = np.cos(shifted)
+            velocity = kin.displacement(shifted, 1)
             branch = np.where(np.arange(phase.shape[-1]) < n_top, 1.0, -1.0)
-            out += sgn[:, :, None] * np.where(np.abs(cos) < 1e-9, branch, np.sign(cos))
+            out += sgn[:, :, None] * np.where(np.abs(velocity) < 1e-9 * kin.x0[:, None], branch, np.sign(velocity))
         if memory_terms:
             out += sum(t.time_force(v, state, kin, shifted) for t in memory_terms)
         gain = np.ones((1, 1, CHAIN_ORDERS.size), dtype=complex)
@@ -263,7 +292,8 @@ class Model:
             return out
         amplitude = np.zeros((n_pop, phase.shape[0], CHAIN_ORDERS.size), dtype=complex)
         if sgn is not None:
-            amplitude += sgn[:, :, None] * _SQUARE_WAVE
+            square = _SQUARE_WAVE if kin.xh is None else waveform.velocity_sign_harmonics(kin.xh, CHAIN_ORDERS.size)
+            amplitude += sgn[:, :, None] * square
         if memory_terms:
             grid = np.broadcast_to(np.linspace(0.0, 2.0 * np.pi, 2 * CHAIN_ORDERS.size, endpoint=False), (phase.shape[0], 2 * CHAIN_ORDERS.size))
             spectrum = np.fft.rfft(sum(t.time_force(v, state, kin, grid) for t in memory_terms), axis=-1)[..., : CHAIN_ORDERS.size]
@@ -314,13 +344,13 @@ def build_model(spec: str = "thesis") -> Model:
         raise HysidInputError("a model is a string such as 'thesis+coulomb_friction' or a hysid Model", param="model", value=spec)
     parts = [p.strip() for p in spec.split("+") if p.strip()]
     if not parts or parts[0] not in PRESETS:
-        raise HysidInputError(f"model {spec!r}: must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)")
+        raise HysidInputError(f"must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)", param="model", value=spec)
     effect_ids = list(PRESETS[parts[0]])
     for part in parts[1:]:
         if part not in EFFECTS:
-            raise HysidInputError(f"model {spec!r}: unknown effect {part!r}; known: {', '.join(sorted(EFFECTS))}")
+            raise HysidInputError(f"unknown effect {part!r}; known: {', '.join(sorted(EFFECTS))}", param="model", value=spec)
         if part in effect_ids:
-            raise HysidInputError(f"model {spec!r}: effect {part!r} is already in the model")
+            raise HysidInputError(f"effect {part!r} is already in the model", param="model", value=spec)
         effect_ids.append(part)
     terms: list[Term] = [Oscillator()] + [EFFECTS[e]() for e in effect_ids]
     return Model(terms, "+".join(parts))

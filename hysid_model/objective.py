@@ -7,7 +7,10 @@ summed with a loop weight (Appendix A, ``erreval``/``loopsweights``):
 * ``thesis``: w_j = (maxF_all / maxF_j) / NOS_j, NOS_j = samples of loop j;
 * ``ml``: w_j = 1 / sigma_j^2 (maximum likelihood for Gaussian force noise).
 
-Because the force is linear in basis features with parameter-dependent
+The model sees each loop's displacement as the loop set holds it: the
+measured harmonics (:mod:`hysid_model.waveform`) where extraction found them,
+else the ideal sine of Eq. 4.5. Because the force is linear in basis features
+with parameter-dependent
 coefficients a (:mod:`hysid_model.basis`), each loop's sum of squares is exact
 in closed form, ||Phi a - y||^2 = (a - a*)^T G (a - a*) + r_min, with the Gram
 matrix G = Phi^T Phi, the least-squares coefficients a* and their residual
@@ -76,7 +79,7 @@ class Objective(ModelSpace):
         self.loops = loops
         self.model = model
         self.weights = weights
-        self.kin = Kinematics(x0=loops.x0, omega=loops.omega)
+        self.kin = Kinematics(x0=loops.x0, omega=loops.omega, xh=loops.x_harmonics)
         self.phase = loops.phases()
         self.y = loops.forces()
         self.loop_weight = loop_weights(loops, weights)

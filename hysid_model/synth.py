@@ -17,6 +17,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
 from hysid_model.terms import Kinematics
+from hysid_model.waveform import displacement
 
 FREQUENCIES_HZ = np.array([
     25, 26, 26.5, 27, 27.5, 28, 28.2, 28.4, 28.6, 28.8,
@@ -125,18 +126,20 @@ def synth_raw(
     return records
 
 
-def model_force(model: Model, theta: np.ndarray, freq_hz: float, x0: float, phase: np.ndarray) -> np.ndarray:
-    """Steady-state force of ``model`` at ``theta`` under x = X0 sin(phase), phase = w t (Eq. 4.5).
+def model_force(model: Model, theta: np.ndarray, freq_hz: float, x0: float, phase: np.ndarray, x_harmonics: np.ndarray | None = None) -> np.ndarray:
+    """Steady-state force of ``model`` at ``theta`` under x = X0 sin(phase), phase = w t (Eq. 4.5), or under
+    the displacement with harmonics ``x_harmonics`` ``(K,)`` (:mod:`hysid_model.waveform`, X_1 = -i X0).
 
-    Samples with cos(phase) >= 0 are on the loading branch (x' >= 0); the model
-    is evaluated on both branches as for a loop, and the result is returned in
-    the order of ``phase``.
+    Samples where the displacement rises (x' >= 0) are on the loading branch;
+    the model is evaluated on both branches as for a loop, and the result is
+    returned in the order of ``phase``.
     """
     phase = np.asarray(phase, dtype=float).reshape(-1)
-    order = np.concatenate([np.flatnonzero(np.cos(phase) >= 0.0), np.flatnonzero(np.cos(phase) < 0.0)])
-    n_top = int(np.count_nonzero(np.cos(phase) >= 0.0))
-    kin = Kinematics(x0=np.array([float(x0)]), omega=np.array([2.0 * np.pi * float(freq_hz)]))
-    force = model.force(np.asarray(theta, dtype=float).reshape(1, -1), kin, phase[order][None, :], n_top)[0, 0]
+    xh = None if x_harmonics is None else np.asarray(x_harmonics, dtype=complex).reshape(1, -1)
+    kin = Kinematics(x0=np.array([float(x0)]), omega=np.array([2.0 * np.pi * float(freq_hz)]), xh=xh)
+    rising = kin.displacement(phase[None, :], 1)[0] >= 0.0
+    order = np.concatenate([np.flatnonzero(rising), np.flatnonzero(~rising)])
+    force = model.force(np.asarray(theta, dtype=float).reshape(1, -1), kin, phase[order][None, :], int(np.count_nonzero(rising)))[0, 0]
     out = np.empty_like(force)
     out[order] = force
     return out
@@ -153,12 +156,15 @@ def simulate_raw(
     sample_rate_hz: float = 5000.0,
     cycles: int = 8,
     x_noise: float = 1e-4,
+    distortion: dict[int, complex] | None = None,
 ) -> list[RawRecord]:
     """Raw steady-state records of any model: ``cycles`` periods sampled at ``sample_rate_hz``.
 
     Each record starts at a random phase; the force gets Gaussian noise of std
     ``noise_n`` (N, scalar or per record), the displacement noise of std
-    ``x_noise`` times X0. For hidden-effect tests of ``hysid diagnose``.
+    ``x_noise`` times X0. ``distortion`` ``{k: r_k}`` adds displacement
+    harmonics X_k = r_k X_1 (a real r_k is r_k X0 sin(k wt)), as a shaker does.
+    For hidden-effect tests of ``hysid diagnose``.
     """
     freq_hz = np.asarray(freq_hz, dtype=float).reshape(-1)
     x0 = np.asarray(x0, dtype=float).reshape(-1)
@@ -171,8 +177,12 @@ def simulate_raw(
         w = 2.0 * np.pi * f
         t = np.arange(int(round(cycles * sample_rate_hz / f))) / sample_rate_hz
         phase = w * t + rng.uniform(0.0, 2.0 * np.pi)
-        clean = model_force(model, theta, f, a, phase)
-        x = a * np.sin(phase) + x_noise * a * rng.standard_normal(t.size)
+        xh = np.zeros(1 + max(distortion or {0: 0}), dtype=complex)
+        xh[0] = -1j * a
+        for k, r in (distortion or {}).items():
+            xh[k - 1] = r * xh[0]
+        clean = model_force(model, theta, f, a, phase, xh if distortion else None)
+        x = displacement(xh[None, :], phase[None, :])[0] + x_noise * a * rng.standard_normal(t.size)
         label = f"SIM_{a * 1e3:.4g}mm_{f:g}Hz"
         records.append(RawRecord(label, float(f), float(a), t, x, clean + sigma * rng.standard_normal(t.size), float(sigma)))
     return records

@@ -14,6 +14,11 @@ stages, always vectorized over a population ``P`` and the loops ``L``:
 Terms with memory (internal state, e.g. Bouc-Wen) instead return their force at
 the sample phases (:meth:`Term.time_force`), from their periodic steady state
 under the prescribed motion.
+
+Every term's force is the steady-state force less its mean over a cycle: the
+loops are centred (Appendix A ``centercurveloop``; extraction removes the
+force's cycle mean), so the model is too. Under the ideal sine no term has a
+mean; under a measured displacement with even harmonics some do.
 Elements of the measurement chain (charge amplifier, channel delay) are
 :class:`MeasurementTerm`: a delay times a gain per harmonic order, applied
 exactly to harmonic features here and per sample to the rest by the model.
@@ -25,10 +30,14 @@ this module holds the base classes and the thesis' own terms (Eq. 4.4-4.10).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from functools import cached_property
+from typing import Callable, ClassVar
+
+import math
 
 import numpy as np
 
+from hysid_model import waveform
 from hysid_model.params import Parameter
 
 Values = dict[str, np.ndarray]
@@ -40,10 +49,46 @@ Coefficients = dict[str, np.ndarray]
 
 @dataclass(frozen=True)
 class Kinematics:
-    """What the prescribed motion x = X0 sin(wt) of each loop gives a term (Eq. 4.5)."""
+    """What the prescribed motion of each loop gives a term: its fundamental amplitude X0, its
+    frequency w and, where measured, its displacement harmonics (:mod:`hysid_model.waveform`).
+
+    ``xh`` None is the thesis' x = X0 sin(wt) (Eq. 4.5).
+    """
 
     x0: np.ndarray
     omega: np.ndarray
+    xh: np.ndarray | None = None
+
+    @property
+    def harmonics(self) -> np.ndarray:
+        """``(L, K)`` complex displacement harmonics (K = 1 for the ideal sine)."""
+        return waveform.ideal(self.x0) if self.xh is None else self.xh
+
+    @property
+    def orders(self) -> np.ndarray:
+        """Harmonic orders k = 1..K of the displacement."""
+        return np.arange(1, 1 + (1 if self.xh is None else self.xh.shape[1]))
+
+    def displacement(self, phase: np.ndarray, derivative: int = 0) -> np.ndarray:
+        """d^n x / d(wt)^n at phases ``(L, N)`` or ``(P, L, N)``."""
+        if self.xh is None:
+            x0 = self.x0[:, None]
+            return x0 * (np.sin(phase), np.cos(phase), -np.sin(phase))[derivative]
+        return waveform.displacement(self.xh, phase, derivative)
+
+    @cached_property
+    def extremes(self) -> tuple[np.ndarray, np.ndarray]:
+        """(x_min, x_max) of each loop's displacement, ``(L,)`` each."""
+        return (-self.x0, self.x0) if self.xh is None else waveform.extremes(self.xh)
+
+    def power_harmonics(self, power: int) -> np.ndarray:
+        """Complex amplitudes of x^power at orders 1..power*K, ``(L, power*K)`` (x^power = sum Re[A_k e^{ik wt}] + mean)."""
+        xh = self.harmonics
+        top = power * xh.shape[1]
+        samples = 2 * top + 2
+        theta = np.broadcast_to(np.arange(samples) * (2 * np.pi / samples), (xh.shape[0], samples))
+        spectrum = np.fft.rfft(waveform.displacement(xh, theta) ** power, axis=1) * (2.0 / samples)
+        return spectrum[:, 1 : top + 1]
 
 
 @dataclass
@@ -53,6 +98,37 @@ class ModalState:
     xi: np.ndarray
     wn: np.ndarray
     m: np.ndarray
+
+
+@dataclass(frozen=True)
+class DataScale:
+    """The scale of a loop set, from its equivalent-linear survey (:mod:`hysid_model.survey`): what
+    each term's search bounds are generous around (:meth:`Term.data_bounds`). None: not known."""
+
+    stiffness: float
+    """Typical storage (or dynamic) stiffness magnitude, N/m."""
+    damping: float
+    """Typical equivalent viscous damping, N s/m."""
+    loss_factor: float
+    mass: float | None
+    wn: float | None
+    """Natural frequency (rad/s) at the smallest amplitude."""
+    xi: float | None
+    w_min: float
+    w_max: float
+    x_min: float
+    x_max: float
+    force: float
+    """Largest peak force, N."""
+
+    @property
+    def mass_scale(self) -> float:
+        """The mass, else the one that would put the resonance in the middle of the band."""
+        return self.mass if self.mass is not None else self.stiffness / (self.w_min * self.w_max)
+
+    @property
+    def wn_scale(self) -> float:
+        return self.wn if self.wn is not None else math.sqrt(self.w_min * self.w_max)
 
 
 def add_coefficient(coefs: Coefficients, name: str, value: np.ndarray) -> None:
@@ -79,6 +155,11 @@ class Term:
         """Values of the shape parameters worth testing on loops ``kin`` (default: none to choose)."""
         return [{}]
 
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Search bounds of this term's parameters that hold the data's ``scale`` with generous
+        margins (default: the parameters' own bounds)."""
+        return {}
+
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         """Stage 1: adjust ``state`` in place (default: nothing)."""
 
@@ -96,6 +177,29 @@ class Term:
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({', '.join(p.name for p in self.params)})"
+
+
+Stiffness = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""A linear term's dynamic stiffness S(w) = re + i im (N/m) at the frequencies ``w`` ``(L,)``, each ``(P, L)``."""
+
+
+def linear_response(kin: Kinematics, stiffness: Stiffness) -> Coefficients:
+    """Force coefficients of a linear term: F_k = S(k w) X_k at every harmonic order k of the displacement.
+
+    For the ideal sine (X_1 = -i X0) this is s1 = Re S(w) X0, c1 = Im S(w) X0:
+    Eq. 4.6 for the oscillator. Linear terms stay closed form per harmonic on
+    any measured displacement.
+    """
+    if kin.xh is None:
+        re, im = stiffness(kin.omega)
+        return {"s1": re * kin.x0, "c1": im * kin.x0}
+    out: Coefficients = {}
+    for i, k in enumerate(kin.orders):
+        re, im = stiffness(k * kin.omega)
+        a, b = kin.xh[:, i].real, kin.xh[:, i].imag
+        out[f"s{k}"] = -(re * b + im * a)
+        out[f"c{k}"] = re * a - im * b
+    return out
 
 
 def complex_amplitude(coefs: Coefficients, order: int) -> np.ndarray:
@@ -152,7 +256,8 @@ class Oscillator(Term):
     """Linear 1-DOF oscillator with equivalent viscous damping, Eq. 4.4.
 
     Under x = X0 sin(wt) its steady-state force is closed form (Eq. 4.6):
-    F = m X0 [(wn^2 - w^2) sin(wt) + 2 xi wn w cos(wt)]. The equivalent mass
+    F = m X0 [(wn^2 - w^2) sin(wt) + 2 xi wn w cos(wt)]; under a measured
+    displacement the same holds harmonic by harmonic (:func:`linear_response`). The equivalent mass
     ``meq`` is a parameter like the others: fixed where the specimen's mass is
     known (:meth:`hysid_model.model.Model.fix`), fitted otherwise.
     """
@@ -160,10 +265,20 @@ class Oscillator(Term):
     id = "oscillator"
     explanation = "Mass, viscous damping ratio xi and natural frequency wn of the equivalent 1-DOF system (Eq. 4.4-4.6)."
     params = (
-        Parameter("xi0", "1", 0.0, 0.1, "damping ratio (at zero amplitude)"),
-        Parameter("w0", "rad/s", 100.0, 500.0, "natural frequency (at zero amplitude)"),
-        Parameter("meq", "kg", 1e-3, 10.0, "equivalent mass"),
+        Parameter("xi0", "1", 0.0, 0.1, "damping ratio (at zero amplitude)", physical=(0.0, math.inf)),
+        Parameter("w0", "rad/s", 100.0, 500.0, "natural frequency (at zero amplitude)", physical=(0.0, math.inf)),
+        Parameter("meq", "kg", 1e-3, 10.0, "equivalent mass", physical=(0.0, math.inf)),
     )
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """A decade either side of the survey's natural frequency (or of the band), damping ratios up to
+        10 x the survey's (at least 2), two decades either side of its mass."""
+        xi = 10.0 * scale.xi if scale.xi is not None else 0.0
+        return {
+            "xi0": (0.0, max(2.0, xi)),
+            "w0": (scale.wn_scale / 10.0, 10.0 * scale.wn_scale) if scale.wn is not None else (scale.w_min / 10.0, 10.0 * scale.w_max),
+            "meq": (scale.mass_scale / 100.0, 100.0 * scale.mass_scale),
+        }
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.xi = state.xi + v["xi0"]
@@ -171,12 +286,9 @@ class Oscillator(Term):
         state.m = state.m + v["meq"]
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        w = kin.omega
-        scale = state.m * kin.x0
-        return {
-            "s1": scale * (state.wn**2 - w**2),
-            "c1": scale * (2.0 * state.xi * state.wn * w),
-        }
+        """m x'' + c x' + k x: S(w) = m (wn^2 - w^2 + 2 i xi wn w) at each harmonic frequency."""
+        m, wn, xi = state.m, state.wn, state.xi
+        return linear_response(kin, lambda w: (m * (wn**2 - w**2), m * (2.0 * xi * wn * w)))
 
 
 class AmplitudeDependentDamping(Term):
@@ -189,6 +301,11 @@ class AmplitudeDependentDamping(Term):
         "in the thesis the resonance peak sharpens as the amplitude grows (Fig. 4.7, 4.10)."
     )
     params = (Parameter("S_xi", "1/m", -10.0, 10.0, "slope of the damping ratio with amplitude"),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Slopes that change xi by up to 10 x its value (at least 0.1) over the largest amplitude."""
+        reach = 10.0 * max(scale.xi or 0.0, 0.01) / scale.x_max
+        return {"S_xi": (-reach, reach)}
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.xi = state.xi + v["S_xi"] * kin.x0
@@ -207,6 +324,11 @@ class AmplitudeDependentFrequency(Term):
         "support stiffness that softens with amplitude (Eq. 4.7, Fig. 4.6, 4.9)."
     )
     params = (Parameter("S_w", "rad/s/m", -10000.0, 10000.0, "slope of the natural frequency with amplitude"),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Slopes that move wn by up to 90 % over the largest amplitude (it stays positive)."""
+        reach = 0.9 * scale.wn_scale / scale.x_max
+        return {"S_w": (-reach, reach)}
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.wn = state.wn + v["S_w"] * kin.x0

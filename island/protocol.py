@@ -5,8 +5,9 @@ they exchange these messages under ``hysid/<campaign>/`` (see
 :mod:`island.node`). Each one is a msgpack map with the protocol version
 ``v``, its ``type`` and the ``campaign`` it belongs to:
 
-* ``config``: the campaign configuration and the extracted loop set, served by
-  the coordinator so that islands need no shared file system;
+* ``config``: the campaign configuration and the extracted loop set (with
+  each loop's measured displacement harmonics, as real/imaginary pairs),
+  served by the coordinator so that islands need no shared file system;
 * ``join`` / ``joined``: an island asks the coordinator to join and gets its
   :class:`Credentials`: a run id, a per-run key, and the campaign key that
   every joined island shares (the *join handshake*);
@@ -415,6 +416,7 @@ def encode_config(campaign: str, config: dict[str, Any], loops: LoopSet) -> byte
         "cycles": [int(c) for c in loops.cycles],
         "labels": list(loops.labels),
         "meta": {k: v for k, v in loops.meta.items() if _packable(v)},
+        "x_harmonics": None if loops.x_harmonics is None else pack_array(np.stack([loops.x_harmonics.real, loops.x_harmonics.imag], axis=-1)),
     }
     return _dumps({"v": PROTOCOL_VERSION, "type": "config", "campaign": campaign, "config": config, "loops": wire_loops})
 
@@ -437,6 +439,10 @@ def decode_config(data: bytes, campaign: str) -> tuple[dict[str, Any], LoopSet]:
     meta = _get(wire, "meta", dict)
     _plain(meta)
     try:
+        xh = None
+        if wire.get("x_harmonics") is not None:  # optional: absent or None is the ideal sine
+            pair = _array(wire, "x_harmonics", (None, None, 2), n_max)
+            xh = pair[..., 0] + 1j * pair[..., 1]
         loops = LoopSet(
             name=_text(wire, "name"),
             freq_hz=_array(wire, "freq_hz", (None,), n_max),
@@ -448,6 +454,7 @@ def decode_config(data: bytes, campaign: str) -> tuple[dict[str, Any], LoopSet]:
             cycles=np.array(cycles, dtype=np.int64),
             labels=list(labels),
             meta=meta,
+            x_harmonics=xh,
         )
     except MessageRejected:
         raise

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Kinematics, ModalState, Term, Values
+from hysid_model.terms import DataScale, Kinematics, ModalState, Term, Values
 
 BISECTIONS = 60
 """Bisection steps for the orbit's peak state (to double precision)."""
+MEAN_SAMPLES = 512
+"""Phases per cycle over which the orbit's mean is taken under a measured displacement."""
 
 
 def _relax(rate: np.ndarray, length: np.ndarray) -> np.ndarray:
@@ -87,10 +91,14 @@ class BoucWen(Term):
         "loops between a spring (z_y >> X0) and dry friction (z_y << X0)."
     )
     params = (
-        Parameter("bw_k", "N/m", 0.0, 1.0e9, "stiffness of the hysteretic spring ((1 - alpha) k)"),
-        Parameter("bw_zy", "m", 1.0e-9, 1.0, "yield displacement 1 / (gamma + beta)"),
-        Parameter("bw_r", "1", -0.9, 3.0, "shape (gamma - beta) / (gamma + beta)"),
+        Parameter("bw_k", "N/m", 0.0, 1.0e9, "stiffness of the hysteretic spring ((1 - alpha) k)", physical=(0.0, math.inf)),
+        Parameter("bw_zy", "m", 1.0e-9, 1.0, "yield displacement 1 / (gamma + beta)", physical=(0.0, math.inf)),
+        Parameter("bw_r", "1", -0.9, 3.0, "shape (gamma - beta) / (gamma + beta)", physical=(-0.9, math.inf)),
     )
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Hysteretic stiffness up to 10 x the survey's, yield from 1/1000 of the smallest to 10 x the largest amplitude."""
+        return {"bw_k": (0.0, 10.0 * scale.stiffness), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max)}
 
     def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
         """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes r."""
@@ -98,16 +106,27 @@ class BoucWen(Term):
         return [{"bw_zy": f * x0, "bw_r": r} for f in (0.03, 0.1, 0.3, 1.0) for r in (-0.5, 0.5, 2.0)]
 
     def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
+        """k_bw z on the periodic orbit; being rate independent, z depends only on the travel since the
+        last reversal, so the orbit of a sine with the same extremes holds for any measured displacement
+        whose branches are monotonic."""
         gamma = (1.0 + v["bw_r"]) / (2.0 * v["bw_zy"])
         beta = (1.0 - v["bw_r"]) / (2.0 * v["bw_zy"])
-        x0 = kin.x0[None, :]
-        amplitudes, which = np.unique(kin.x0, return_inverse=True)
-        z_max, run = (a[:, which.reshape(-1)] for a in loading_orbit(amplitudes[None, :], gamma, beta))
+        x_min, x_max = kin.extremes
+        half_span = 0.5 * (x_max - x_min)
+        spans, which = np.unique(half_span, return_inverse=True)
+        z_max, run = (a[:, which.reshape(-1)] for a in loading_orbit(spans[None, :], gamma, beta))
         a, b = (gamma - beta)[:, :, None], (gamma + beta)[:, :, None]
         z_max, run = z_max[:, :, None], run[:, :, None]
-        s = np.sin(phase)
-        loading = np.cos(phase) >= 0.0
-        with np.errstate(all="ignore"):
-            up = _loading(x0[:, :, None] * (1.0 + s), z_max, run, a, b)
-            down = -_loading(x0[:, :, None] * (1.0 - s), z_max, run, a, b)
-        return v["bw_k"][:, :, None] * np.where(loading, up, down)
+        def z(phase: np.ndarray) -> np.ndarray:
+            x = kin.displacement(phase)
+            loading = kin.displacement(phase, 1) >= 0.0
+            with np.errstate(all="ignore"):
+                up = _loading(x - x_min[:, None], z_max, run, a, b)
+                down = -_loading(x_max[:, None] - x, z_max, run, a, b)
+            return np.where(loading, up, down)
+
+        state_z = z(phase)
+        if kin.xh is not None:  # the orbit of an asymmetric waveform has a mean: removed, as from the loops
+            grid = np.broadcast_to(np.linspace(0.0, 2 * np.pi, MEAN_SAMPLES, endpoint=False), (kin.x0.size, MEAN_SAMPLES))
+            state_z = state_z - z(grid).mean(axis=-1, keepdims=True)
+        return v["bw_k"][:, :, None] * state_z

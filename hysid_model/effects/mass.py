@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values
+import math
+
+import numpy as np
+
+from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values, linear_response
 
 
 class TransducerMass(Term):
@@ -22,7 +26,12 @@ class TransducerMass(Term):
         "the specimen force plus M x'' (Eq. 2.13): an extra inertia force that grows with w^2. It cannot "
         "be told apart from the equivalent mass when that mass is fitted."
     )
-    params = (Parameter("m_t", "kg", 0.0, 10.0, "transducer mass between the gauge and the specimen"),)
+    params = (Parameter("m_t", "kg", 0.0, 10.0, "transducer mass between the gauge and the specimen", physical=(0.0, math.inf)),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Up to 10 x the equivalent mass (or the mass that would resonate in the band)."""
+        return {"m_t": (0.0, 10.0 * scale.mass_scale)}
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        return {"s1": -v["m_t"] * kin.x0 * kin.omega**2}
+        """M x'': dynamic stiffness -M w^2 at each harmonic frequency."""
+        return linear_response(kin, lambda w: (-v["m_t"] * w**2, np.zeros((v["m_t"].shape[0], w.size))))

@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values
+import math
+
+import numpy as np
+
+from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values, linear_response
 
 
 class HystereticDamping(Term):
@@ -21,10 +25,16 @@ class HystereticDamping(Term):
         "(Eq. 2.3), so the energy lost per cycle, pi eta k X0^2, does not change with frequency, "
         "unlike viscous damping which grows with it."
     )
-    params = (Parameter("eta", "1", 0.0, 2.0, "loss factor of the complex stiffness"),)
+    params = (Parameter("eta", "1", 0.0, 2.0, "loss factor of the complex stiffness", physical=(0.0, math.inf)),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Loss factors up to 10 x the survey's (at least 2)."""
+        return {"eta": (0.0, max(2.0, 10.0 * scale.loss_factor))}
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        return {"c1": v["eta"] * state.m * state.wn**2 * kin.x0}
+        """i eta k at every harmonic frequency (the complex spring's loss part)."""
+        loss = v["eta"] * state.m * state.wn**2
+        return linear_response(kin, lambda w: (np.zeros_like(loss), loss))
 
 
 class CubicStiffness(Term):
@@ -32,7 +42,8 @@ class CubicStiffness(Term):
 
     x^3 = X0^3 (3 sin(wt) - sin(3 wt)) / 4: the stiffness grows (k3 > 0) or
     softens (k3 < 0) with the square of the amplitude, and a third harmonic in
-    phase with the displacement appears.
+    phase with the displacement appears. On a measured displacement with
+    harmonics up to K the force holds the harmonics of x^3 up to 3K.
     """
 
     id = "cubic_stiffness"
@@ -44,6 +55,19 @@ class CubicStiffness(Term):
     )
     params = (Parameter("k3", "N/m^3", -1.0e16, 1.0e16, "cubic stiffness coefficient"),)
 
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Cubic stiffness that changes the stiffness by up to 10 x at the largest amplitude."""
+        reach = 10.0 * scale.stiffness / scale.x_max**2
+        return {"k3": (-reach, reach)}
+
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        cube = v["k3"] * kin.x0**3
-        return {"s1": 0.75 * cube, "s3": -0.25 * cube}
+        """k3 times the harmonics of x^3 (on a measured displacement: of its cube, orders 1..3K)."""
+        if kin.xh is None:
+            cube = v["k3"] * kin.x0**3
+            return {"s1": 0.75 * cube, "s3": -0.25 * cube}
+        amp = kin.power_harmonics(3)
+        out: Coefficients = {}
+        for i in range(amp.shape[1]):
+            out[f"s{i + 1}"] = -v["k3"] * amp[:, i].imag
+            out[f"c{i + 1}"] = v["k3"] * amp[:, i].real
+        return out

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values
+from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values, linear_response
 
 
 class ZenerThermoelastic(Term):
@@ -25,14 +27,24 @@ class ZenerThermoelastic(Term):
         "unrelaxed value across that frequency."
     )
     params = (
-        Parameter("zener_delta", "1", 0.0, 1.0, "relaxation strength Delta_r"),
-        Parameter("zener_tau", "s", 1.0e-6, 10.0, "thermal relaxation time tau_s"),
+        Parameter("zener_delta", "1", 0.0, 1.0, "relaxation strength Delta_r", physical=(0.0, 1.0)),
+        Parameter("zener_tau", "s", 1.0e-6, 10.0, "thermal relaxation time tau_s", physical=(0.0, math.inf)),
     )
 
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Relaxation times two decades beyond either end of the band."""
+        return {"zener_tau": (0.01 / scale.w_max, 100.0 / scale.w_min)}
+
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
-        wt = kin.omega * v["zener_tau"]
-        scale = v["zener_delta"] * state.m * state.wn**2 * kin.x0 / (1.0 + wt**2)
-        return {"s1": scale * wt**2, "c1": scale * wt}
+        """k Delta (w^2 tau^2 + i w tau) / (1 + w^2 tau^2) at every harmonic frequency w."""
+        strength = v["zener_delta"] * state.m * state.wn**2
+
+        def stiffness(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            wt = w * v["zener_tau"]
+            scale = strength / (1.0 + wt**2)
+            return scale * wt**2, scale * wt
+
+        return linear_response(kin, stiffness)
 
     def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
         """Relaxation times around the band: w tau from 1/3 at the top to 3 at the bottom frequency."""

@@ -6,6 +6,7 @@
     # name: synth-10pct-seed0
     # meq_kg: 0.04                      (or "unknown")
     # meta: {"bounds": {...}, ...}      (JSON; per-loop lists under "per_loop")
+    # x_harmonics: [[[re, im], ...], ...]  (optional: each loop's measured displacement harmonics, m)
     loop,label,frequency_hz,x0_m,sigma_n,cycles,branch,displacement_m,force_n
     0,SYNTH_05mm_25Hz,25.0,0.0005,nan,0,top,-0.0005,-0.0123...
 
@@ -56,6 +57,9 @@ def write_loops(loops: LoopSet, path: Path) -> None:
     out.write(f"{MAGIC}\n# name: {' '.join(loops.name.split())}\n")
     out.write(f"# meq_kg: {'unknown' if loops.meq_kg is None else repr(float(loops.meq_kg))}\n")
     out.write(f"# meta: {json.dumps(loops.meta, default=_jsonable, sort_keys=True)}\n")
+    if loops.x_harmonics is not None:
+        pairs = np.stack([loops.x_harmonics.real, loops.x_harmonics.imag], axis=-1)
+        out.write(f"# x_harmonics: {json.dumps(pairs.tolist())}\n")
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(COLUMNS)
     for j in range(loops.n_loops):
@@ -80,7 +84,20 @@ def _int(text: str, what: str, where: str) -> int:
         raise HysidInputError(f"{where}: {what} {text!r} is not an integer") from None
 
 
-def _header(lines: list[str], path: Path) -> tuple[str, float | None, dict[str, Any], int]:
+def _harmonics(text: str | None, path: Path) -> np.ndarray | None:
+    """The optional ``# x_harmonics:`` line as an (L, K) complex array."""
+    if text is None:
+        return None
+    try:
+        pairs = np.array(json.loads(text), dtype=float)
+    except (json.JSONDecodeError, ValueError, TypeError):
+        raise HysidInputError(f"{path}: the '# x_harmonics:' line must be a JSON array of [re, im] pairs per loop") from None
+    if pairs.ndim != 3 or pairs.shape[2] != 2:
+        raise HysidInputError(f"{path}: the '# x_harmonics:' line must be a JSON array of [re, im] pairs per loop")
+    return pairs[..., 0] + 1j * pairs[..., 1]
+
+
+def _header(lines: list[str], path: Path) -> tuple[str, float | None, dict[str, Any], np.ndarray | None, int]:
     fields: dict[str, str] = {}
     k = 1
     while k < len(lines) and lines[k].startswith("#"):
@@ -102,7 +119,7 @@ def _header(lines: list[str], path: Path) -> tuple[str, float | None, dict[str, 
         raise HysidInputError(f"{path}: the '# meta:' line must hold a JSON object")
     if isinstance(meta.get("bounds"), dict):
         meta["bounds"] = {name: tuple(pair) for name, pair in meta["bounds"].items()}
-    return fields["name"], meq, meta, k
+    return fields["name"], meq, meta, _harmonics(fields.get("x_harmonics"), path), k
 
 
 def read_loops(path: Path) -> LoopSet:
@@ -116,7 +133,7 @@ def read_loops(path: Path) -> LoopSet:
         raise HysidInputError(f"{path}: not a hysid loops file (the first line must be '{MAGIC}')")
     if lines[0].strip() != MAGIC:
         raise HysidInputError(f"{path}: unsupported loops file version {lines[0][2:].strip()!r} (this hysid reads '{MAGIC[2:]}')")
-    name, meq, meta, k = _header(lines, path)
+    name, meq, meta, x_harmonics, k = _header(lines, path)
     rows = list(csv.reader(lines[k:]))
     if not rows or tuple(c.strip() for c in rows[0]) != COLUMNS:
         raise HysidInputError(f"{path}: line {k + 1}: expected the column header {','.join(COLUMNS)}")
@@ -161,4 +178,5 @@ def read_loops(path: Path) -> LoopSet:
         cycles=values[:, 3].astype(int),
         labels=[loops[j]["head"][0] for j in order],
         meta=meta,
+        x_harmonics=x_harmonics,
     )

@@ -8,6 +8,13 @@
 * leave-one-frequency-out cross-validation: refit without all loops at one
   frequency, predict them; the whitened RMS of those predictions over every
   frequency in turn (the error the model makes where it was not fitted).
+
+A physical model rarely reaches the noise floor of a real specimen, so the
+gap is also held against two references that need no physical model
+(:func:`references`): what an independent linear fit per loop reaches (each
+loop's own offset and first harmonic: only the loop's distortion is left),
+and the scatter between repeated tests at the same frequency and amplitude,
+where a dataset has them.
 """
 
 from __future__ import annotations
@@ -17,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from hysid.diagnose.fitting import Fit
+from hysid.diagnosis.fitting import Fit
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from island.polish import polish
 
@@ -52,6 +59,63 @@ def energy_error_pct(fit: Fit, harmonics: Harmonics) -> float:
     model = harmonics.energy_per_cycle(harmonics.project(fit.objective.objective.predict(fit.theta)[0]))
     data = harmonics.energy_per_cycle(harmonics.coef)
     return float(100.0 * np.sqrt(np.sum((model - data) ** 2) / np.sum(data**2)))
+
+
+SAME_AMPLITUDE = 0.02
+"""Repeated tests: loops at the same frequency (within 0.1 %) and amplitude (within this)."""
+
+
+@dataclass
+class References:
+    """Whitened RMS levels a model of these loops can be held against (1 is the noise floor)."""
+
+    linear_per_loop: float
+    """Each loop fitted by its own offset and first harmonic: what no linear model beats."""
+    repeatability: float | None
+    """The scatter between repeated tests at one setting (None: the dataset has no repeats)."""
+    repeats: int
+    """Loops that have a repeat."""
+
+    def reached(self, whitened_rms: float, adequate: bool) -> str:
+        """The lowest reference ``whitened_rms`` reaches: noise floor, repeatability, linear per loop, or none."""
+        if adequate:
+            return "noise floor"
+        if self.repeatability is not None and whitened_rms <= REACHED * self.repeatability:
+            return "repeatability"
+        if whitened_rms <= REACHED * self.linear_per_loop:
+            return "linear per loop"
+        return "none"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"noise_floor": 1.0, "linear_per_loop": self.linear_per_loop, "repeatability": self.repeatability, "repeated_loops": self.repeats}
+
+
+REACHED = 1.1
+"""A model reaches a reference when its whitened RMS is within 10 % of it."""
+
+
+def repeat_groups(harmonics: Harmonics) -> list[np.ndarray]:
+    """Loop indices of repeated tests: same frequency and amplitude, two loops or more."""
+    out = []
+    for group in frequency_groups(harmonics):
+        x0 = harmonics.loops.x0[group]
+        keys = np.round(np.log(x0) / np.log1p(SAME_AMPLITUDE)).astype(int)
+        out += [group[keys == k] for k in np.unique(keys) if np.count_nonzero(keys == k) > 1]
+    return out
+
+
+def references(harmonics: Harmonics) -> References:
+    """The model-free references of :class:`References` on the whitened harmonic coefficients."""
+    white = harmonics.whiten(harmonics.loops.forces())
+    beyond_first = white[:, 3:]  # orders dc, s1, c1 come first (hysid_model.basis.harmonic_names)
+    linear = float(np.sqrt(np.mean(beyond_first**2)))
+    groups = repeat_groups(harmonics)
+    if not groups:
+        return References(linear, None, 0)
+    spread = sum(float(np.sum((white[g] - white[g].mean(axis=0)) ** 2)) for g in groups)
+    dof = sum((g.size - 1) * white.shape[1] for g in groups)
+    # the scatter of a loop about the mean of n repeats is (n-1)/n of its own: dof counts that
+    return References(linear, float(np.sqrt(spread / dof)), int(sum(g.size for g in groups)))
 
 
 def frequency_groups(harmonics: Harmonics) -> list[np.ndarray]:

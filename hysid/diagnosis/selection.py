@@ -22,25 +22,28 @@ else ``unexplained`` with a description of what is left.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
-from hysid.diagnose.fitting import Fit, fit_objective, initial_fit, make_model
-from hysid.diagnose.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
-from hysid.diagnose.metrics import GapMetrics, gap_metrics
-from hysid.diagnose.naming import adequacy, residual_signature
-from hysid.diagnose.scoring import Candidate, score_candidates
+from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
+from hysid.diagnosis.metrics import GapMetrics, References, gap_metrics, references
+from hysid.diagnosis.naming import adequacy, residual_signature
+from hysid.diagnosis.scoring import Candidate, score_candidates
+from hysid.identifiability import Identifiability, assess
 from hysid.report import diagnosis as diagnosis_report
-from hysid.report import text
+from hysid.report import tables, text
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
-from hysid_model.model import PRESETS
+from hysid_model.model import PRESETS, build_model
+from hysid_model.problem import dataset_bounds, displaced
 from hysid_model.uncertainty import jacobian_covariance
 
 TRIALS = 4
@@ -89,6 +92,10 @@ class Diagnosis:
     """Contenders of the last round and why none was taken."""
     gap: list[GapMetrics]
     """The gap between model and data at the start and after every step."""
+    references: References
+    """Model-free levels the gap is held against (linear per loop, repeatability)."""
+    identifiability: Identifiability
+    """What the data cannot determine of the final model, and its correlations."""
     last_scores: list[Candidate] = field(default_factory=list)
     report: str | None = None
     """The report written last (:meth:`write_report`)."""
@@ -104,8 +111,25 @@ class Diagnosis:
 
     @property
     def stderr(self) -> dict[str, float]:
-        """The final model's standard errors."""
-        return self.final.errors()
+        """The final model's standard errors (NaN where the data cannot determine a parameter)."""
+        return self.final.model.as_dict(self.identifiability.stderr * max(1.0, self.final.whitened_rms))
+
+    @property
+    def reaches(self) -> str:
+        """Which reference the final model reaches: noise floor, repeatability, linear per loop, or none."""
+        return self.references.reached(self.final.whitened_rms, self.status == "adequate")
+
+    def tables(self) -> dict[str, list[dict[str, Any]]]:
+        """``parameters`` of the final model, ``steps`` (the effects named, with their parameters) and ``gap``."""
+        return tables.diagnosis_tables(self)
+
+    def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
+        """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
+        return tables.write_tables(self.tables(), out_dir)
+
+    def to_dataframes(self) -> dict[str, Any]:
+        """Each table of :meth:`tables` as a pandas DataFrame (needs pandas, an optional dependency)."""
+        return tables.data_frames(self.tables())
 
     def summary(self) -> str:
         """The gap after each step, the status and what cannot be identified, as text."""
@@ -146,11 +170,21 @@ class Diagnosis:
             ],
             "status": self.status,
             "unexplained_signature": self.unexplained,
-            "not_identifiable": self.not_identifiable,
+            "not_identifiable": sorted(self.not_identifiable) + list(self.identifiability.not_identifiable),
+            "not_identifiable_reasons": {
+                **{e: f"whatever it does, the model already does with {', '.join(a)}" for e, a in self.not_identifiable.items()},
+                **self.identifiability.not_identifiable,
+            },
+            "correlation": self.identifiability.correlation_dict(),
             "rejected": self.rejected,
             "final_params": self.final.params(),
-            "final_stderr": self.final.errors(),
+            "final_stderr": self.stderr,
+            "final_bounds": {p.name: [p.lower, p.upper] for p in self.final.model.parameters},
+            "final_fixed": self.final.model.fixed,
+            "bounds_from_data": sorted(p.name for p in self.final.model.parameters if p.soft),
             "whitened_rms": self.final.whitened_rms,
+            "references": self.references.as_dict(),
+            "reaches": self.reaches,
             "noise_sigma": "known" if np.all(self.harmonics.sigma_known) else "estimated from the data",
             "gap": [g.as_dict() for g in self.gap],
         }
@@ -228,23 +262,60 @@ def judge(before: Fit, after: Fit, effect: str) -> str | None:
     return None
 
 
-def diagnose(loops: LoopSet, model: str = "baseline", *, max_steps: int = MAX_STEPS, cross_validate: bool = True) -> Diagnosis:
+def with_given_bounds(loops: LoopSet, start: str, bounds: Mapping[str, tuple[float, float]] | None) -> LoopSet:
+    """``loops`` whose given (hard) bounds are the dataset's and then ``bounds``, each checked against the
+    parameters of the start model and of every library effect."""
+    if not bounds:
+        return loops
+    build_model("+".join((start, *EFFECTS))).with_bounds(bounds)
+    given = {**dataset_bounds(loops), **{name: (float(lo), float(hi)) for name, (lo, hi) in bounds.items()}}
+    return replace(loops, meta={**loops.meta, "bounds": given})
+
+
+def diagnose(
+    loops: LoopSet,
+    model: str = "baseline",
+    *,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    displacement: str = "measured",
+    max_steps: int = MAX_STEPS,
+    cross_validate: bool = True,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> Diagnosis:
     """Find which library effects the start ``model`` (a preset) misses on ``loops`` (see the module docstring).
 
+    ``bounds`` (``{"w0": (10, 200)}``, any parameter of the start model or of a library effect) are
+    hard, as the dataset's: every model the diagnosis fits keeps them (:func:`hysid_model.problem.prepare_model`).
+    ``displacement``: each loop's measured waveform or the ideal sine (as :func:`hysid.fit`);
     ``cross_validate`` adds the leave-one-frequency-out gap of every step (a refit per frequency).
+    ``progress(done, total, what)`` is called after every fit; ``total`` is what is known so far (it
+    grows while effects are found). It does not change the result.
     """
     if model not in PRESETS:
         raise HysidInputError(f"the start model must be one of {', '.join(PRESETS)}", param="model", value=model)
+    count = [0, 2]  # fits done, fits known to come (the start fit, and the gap of the start model)
+
+    def done(what: str) -> None:
+        count[0] += 1
+        if progress is not None:
+            progress(count[0], count[1], what)
+
     start = model
-    harmonics = Harmonics.from_loops(loops)
-    fit, bounds = initial_fit(harmonics, start)
+    harmonics = Harmonics.from_loops(displaced(with_given_bounds(loops, start, bounds), displacement))
+    fit = initial_fit(harmonics, start)
+    bounds = soft_bounds(fit.model)
+    done(f"start model {start} fitted")
     first = fit
     steps: list[Step] = []
     while True:
         candidates = score_candidates(fit, harmonics, bounds)
         not_identifiable = {c.effect: c.absorbed_by for c in candidates if not c.identifiable}
         trials = contenders(candidates) if len(steps) < max_steps else []
-        refits = {c.effect: refit(fit, harmonics, c, bounds) for c in trials}
+        count[1] += len(trials)
+        refits = {}
+        for c in trials:
+            refits[c.effect] = refit(fit, harmonics, c, bounds)
+            done(f"step {len(steps) + 1}: refitted with {c.effect}")
         verdicts = {e: judge(fit, r, e) for e, r in refits.items()}
         rejected = {e: v for e, v in verdicts.items() if v is not None}
         accepted = sorted((r.bic, e) for e, r in refits.items() if verdicts[e] is None)
@@ -256,9 +327,17 @@ def diagnose(loops: LoopSet, model: str = "baseline", *, max_steps: int = MAX_ST
         reasons = {e: v or f"fits worse than {best} (BIC +{refits[e].bic - best_bic:.1f})" for e, v in others.items()}
         score = next(c.score for c in trials if c.effect == best)
         steps.append(Step(effect=best, confusable_with=confusable, score=score, before=fit, after=refits[best], rejected=reasons))
+        count[1] += 1  # the gap after this step
         fit = refits[best]
+        bounds.update(soft_bounds(fit.model))
     check = adequacy(fit, harmonics)
     fits = [first] + [s.after for s in steps]
+
+    def gap(f: Fit, i: int) -> GapMetrics:
+        metrics = gap_metrics(f, harmonics, cross_validate)
+        done(f"gap after {'the start' if i == 0 else f'step {i}'}")
+        return metrics
+
     return Diagnosis(
         harmonics=harmonics,
         start=first,
@@ -268,6 +347,16 @@ def diagnose(loops: LoopSet, model: str = "baseline", *, max_steps: int = MAX_ST
         unexplained=None if check.adequate else residual_signature(fit, harmonics),
         not_identifiable=not_identifiable,
         rejected=rejected,
-        gap=[gap_metrics(f, harmonics, cross_validate) for f in fits],
+        gap=[gap(f, i) for i, f in enumerate(fits)],
+        references=references(harmonics),
+        identifiability=final_identifiability(fit, harmonics),
         last_scores=candidates,
+    )
+
+
+def final_identifiability(fit: Fit, harmonics: Harmonics) -> Identifiability:
+    """Which parameters of the final fit the harmonics cannot determine (:mod:`hysid.identifiability`)."""
+    return assess(
+        fit.objective, fit.theta, lambda objective, theta: jacobian_covariance(objective.jacobian(theta)),
+        lambda model: HarmonicObjective(harmonics, model), noise=1.0,
     )

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hysid.diagnose.fitting import Fit, make_model
+from hysid.diagnosis.fitting import Fit, make_model
 from hysid_model.effects import EFFECTS
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import PRESETS
