@@ -328,8 +328,8 @@ def test_migrants_wait_for_the_roster_strangers_are_never_taken_and_a_flood_is_c
         epochs = len(node.rows) - first_row + 2
         assert node.migrant_evaluations - evaluated <= epochs  # at most one migrant per epoch from the one in-neighbour
         assert node.stats["rejected"] == 0
-    finally:
-        rsession.put("hysid/c1/control", coordinator.control(stop="enough"))
+    finally:  # stop, and confirm every row so that the island leaves at once
+        rsession.put("hysid/c1/control", coordinator.control(stored={"pso-1": 2**53}, stop="enough"))
         worker.join(20)
         coordinator.close()
         sender.close()
