@@ -80,6 +80,17 @@ def session_config(
     return config
 
 
+def authenticated_name(config: zenoh.Config) -> str | None:
+    """The user name a client configuration authenticates with (``transport.auth.usrpwd.user``),
+    None without user/password: with the access-control list of ``deploy/secure-campaign.py`` it is
+    the only island id the coordinator lets this island use."""
+    try:
+        user = json.loads(config.get_json("transport/auth/usrpwd/user"))
+    except (zenoh.ZError, ValueError):
+        return None
+    return user if isinstance(user, str) and user else None
+
+
 def open_session(config: zenoh.Config, what: str) -> zenoh.Session:
     """Open a session; failure -> :class:`HysidInputError` naming ``what`` (e.g. the endpoint)."""
     try:

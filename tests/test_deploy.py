@@ -565,33 +565,38 @@ r.close()
 
 
 @pytest.mark.slow
-def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_another_id(certs: Path, tmp_path: Path) -> None:
-    port = free_port()
-    out = secure_campaign(tmp_path / "z", "demo", port, certs, "island-1", "island-2")
+def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_another_id(tmp_path: Path) -> None:
+    require_openssl()
+    port, certs = free_port(), tmp_path / "certs"
+    assert make_certs(certs, "-s", "127.0.0.1", "island-1", "island-2", "island-3").returncode == 0
+    out = secure_campaign(tmp_path / "z", "demo", port, certs, "island-1", "island-2", "island-3")
     hysid = [sys.executable, "-m", "hysid"]
-    coordinator = subprocess.Popen(
-        [*hysid, "coordinator", "--config", str(out / "coordinator.json5"), "--campaign", "demo", "--out", str(tmp_path / "report"),
-         "--min-islands", "2", "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "300", "--no-polish", "--quiet", "--json"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )
-    island = lambda config, name: subprocess.Popen(  # noqa: E731
-        [*hysid, "island", "--config", str(config), "--campaign", "demo", "--id", name, "--wait", "10", "--quiet"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )
+    started: list[subprocess.Popen] = []
+
+    def start(*args: str) -> subprocess.Popen:
+        started.append(subprocess.Popen([*hysid, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        return started[-1]
+
+    def island(name: str, *id_option: str) -> subprocess.Popen:
+        return start("island", "--config", str(out / "islands" / f"{name}.json5"), "--campaign", "demo", *id_option, "--wait", "10", "--quiet")
+
     try:
-        impostor = island(out / "islands" / "island-1.json5", "island-2")  # island-1's identity, island-2's id
-        _, impostor_err = impostor.communicate(timeout=40)
-        islands = [island(out / "islands" / f"{name}.json5", name) for name in ("island-1", "island-2")]
+        coordinator = start("coordinator", "--config", str(out / "coordinator.json5"), "--campaign", "demo", "--out", str(tmp_path / "report"),
+                            "--min-islands", "3", "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "300",
+                            "--no-polish", "--quiet", "--json")
+        _, impostor_err = island("island-1", "--id", "island-2").communicate(timeout=40)  # island-1's identity, island-2's id
+        islands = [island("island-1", "--id", "island-1"), island("island-2", "--id", "island-2"), island("island-3")]  # no --id: its name
         for p in islands:
             assert p.wait(timeout=60) == 0, p.stderr.read()
         doc_text, err = coordinator.communicate(timeout=60)
         assert coordinator.returncode == 0, err
     finally:
-        for p in (coordinator, impostor, *islands) if "islands" in dir() else (coordinator,):
+        for p in started:
             p.kill()
-    assert impostor.returncode == 2 and "no coordinator admitted island 'island-2'" in impostor_err and impostor_err.count("\n") == 1
+            p.communicate()
+    assert impostor_err.count("\n") == 1 and "--id 'island-2': this island authenticates as 'island-1'" in impostor_err
     doc = json.loads(doc_text)
-    assert {i["island"] for i in doc["islands"]} == {"island-1", "island-2"}
+    assert {i["island"] for i in doc["islands"]} == {"island-1", "island-2", "island-3"}
     assert doc["settings"]["stop_reason"] == "every island finished" and doc["migrations"]["rejected"] == 0
 
 

@@ -34,7 +34,7 @@ from island.config import MAX_SEED, CampaignConfig, decode_config
 from island.migration import Migration
 from island.node import IslandNode, ZenohTransport, fetch_config
 from island.protocol import check_name
-from island.session import DEFAULT_ENDPOINT, open_session, session_config
+from island.session import DEFAULT_ENDPOINT, authenticated_name, open_session, session_config
 from island.termination import Termination
 
 
@@ -202,7 +202,9 @@ def register(app: typer.Typer) -> None:
         name: str = o.CAMPAIGN,
         algo: Optional[str] = typer.Option(None, "--algo", help="ga or pso (default: from the campaign's mix, by seed)."),
         seed: Optional[int] = typer.Option(None, "--seed", help="Optimizer seed (default: from the campaign seed and the island id)."),
-        island_id: Optional[str] = typer.Option(None, "--id", help="Island name, unique in the campaign (default: island-<host>-<pid>)."),
+        island_id: Optional[str] = typer.Option(
+            None, "--id", help="Island name, unique in the campaign (default: the user name of --config's authentication, else island-<host>-<pid>)."
+        ),
         wait: float = typer.Option(30.0, "--wait", help="Seconds to wait for the coordinator."),
         quiet: bool = typer.Option(False, "--quiet", help="Print nothing but errors."),
     ) -> None:
@@ -214,8 +216,11 @@ def register(app: typer.Typer) -> None:
             raise HysidInputError("seeds must be from 0 to 2**62", param="seed", value=seed)
         if not 0 <= wait <= MAX_WAIT_S:  # also NaN
             raise HysidInputError(f"must be from 0 to {MAX_WAIT_S:g} seconds", param="wait", value=wait)
-        island = check_name("island", island_id or default_island_id())
         zconfig = session_config("client", connect=connect, config_file=config_file, connect_timeout_s=wait)
+        identity = authenticated_name(zconfig)
+        if island_id is not None and identity is not None and island_id != identity:
+            raise HysidInputError(f"this island authenticates as {identity!r} (user name in {config_file}); its id is that name", param="island", value=island_id)
+        island = check_name("island", island_id or identity or default_island_id())
         session = open_session(zconfig, f"connect {', '.join(connect) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
         try:
             config, loops = decode_config(fetch_config(session, name, wait), name)
