@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from hysid_model import plausibility
 from hysid_model.errors import HysidInputError
 from hysid_model.extraction import extract_loop
 from hysid_model.loops import LoopSet
@@ -148,11 +149,16 @@ def extract_records(records: list[tuple[Path, float | None]], config: DatasetCon
         series = _read_record(path, config)
         extracted.append(extract_loop(
             series.t, series.x, series.force, source=str(path), n_points=n_points,
-            nominal_freq_hz=nominal, steady_window=config.steady.get(path.name),
+            nominal_freq_hz=nominal, steady_window=config.window(path.name),
         ))
     per_loop: dict[str, list[Any]] = {"file": [p.name for p, _ in records], "nominal_frequency_hz": [math.nan if f is None else f for _, f in records]}
     for key in extracted[0].meta():
         per_loop[key] = [e.meta()[key] for e in extracted]
+    plausibility.warn_loops(
+        [p.stem for p, _ in records], np.array([e.x0 for e in extracted]), np.array([e.force_amplitude for e in extracted]),
+        np.array([e.x_distortion for e in extracted]), np.array([e.drift for e in extracted]),
+        [e.clipping for e in extracted], str(config.directory),
+    )
     meta = config.meta()
     meta.update({"format": fmt, "per_loop": per_loop})
     return LoopSet(

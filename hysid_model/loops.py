@@ -130,8 +130,9 @@ class LoopSet:
         return np.concatenate([self.top[:, :, 1], self.bottom[:, :, 1]], axis=1)
 
     def rows(self) -> list[dict[str, Any]]:
-        """One dict per loop: label, frequency, X0, peak force, noise sigma, cycles (+ phase and
-        displacement distortion when extracted from raw records); ``hysid loops --json``."""
+        """One dict per loop: label, frequency, X0, peak force, noise sigma, cycles (+ phase, displacement
+        distortion and clipping, ``clipped`` "displacement"/"velocity" at ``clip_level`` m or m/s, when extracted
+        from raw records); ``hysid loops --json``."""
         per_loop = self.meta.get("per_loop", {})
         out = []
         for j in range(self.n_loops):
@@ -147,6 +148,10 @@ class LoopSet:
             for key in ("phase_deg", "x_distortion"):
                 if key in per_loop:
                     row[key] = float(per_loop[key][j])
+            if "clipped" in per_loop:
+                clipped = per_loop["clipped"][j]
+                row["clipped"] = clipped or None
+                row["clip_level"] = float(per_loop["clip_level"][j]) if clipped else None
             out.append(row)
         return out
 

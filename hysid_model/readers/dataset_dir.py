@@ -14,7 +14,10 @@
     [bounds]                    # search-space overrides, stored in LoopSet.meta["bounds"]
     xi0 = [0.0, 0.1]
 
-    [[tests]]                   # per record: the steady (constant-amplitude) window in s
+    steady_t0_s = 2             # the steady (constant-amplitude) window in s of every record ...
+    steady_t1_s = 5
+
+    [[tests]]                   # ... unless its own entry gives one
     file = "run1.csv"
     steady_t0_s = 8
     steady_t1_s = 20
@@ -56,9 +59,15 @@ class DatasetConfig:
     displacement_channel: str | int | None = None
     force_channel: str | int | None = None
     steady: dict[str, tuple[float, float]] = field(default_factory=dict)
+    steady_default: tuple[float, float] | None = None
+    """The top-level steady window, for every record without its own [[tests]] window."""
     info: dict[str, Any] = field(default_factory=dict)
     given: frozenset[str] = frozenset()
     """Top-level keys present in ``dataset.toml`` (to tell "absent" from a default)."""
+
+    def window(self, file: str) -> tuple[float, float] | None:
+        """The steady window of a record: its [[tests]] entry's, else the dataset's, else None (found from the data)."""
+        return self.steady.get(file, self.steady_default)
 
     def meta(self) -> dict[str, Any]:
         """Dataset-level entries of ``LoopSet.meta``."""
@@ -139,6 +148,17 @@ def _bounds(doc: dict[str, Any], where: str) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _window(entry: dict[str, Any], what: str, where: str) -> tuple[float, float] | None:
+    """``steady_t0_s``/``steady_t1_s`` of a table, both or neither."""
+    given = [key for key in ("steady_t0_s", "steady_t1_s") if key in entry]
+    if not given:
+        return None
+    t0, t1 = entry.get("steady_t0_s"), entry.get("steady_t1_s")
+    if len(given) != 2 or not (_is_number(t0) and _is_number(t1) and 0 <= t0 < t1):
+        raise HysidInputError(f"{where}: {what}steady_t0_s and steady_t1_s must both be given with 0 <= t0 < t1, got {t0!r}, {t1!r}")
+    return float(t0), float(t1)
+
+
 def _steady_windows(doc: dict[str, Any], where: str) -> dict[str, tuple[float, float]]:
     tests = doc.get("tests", [])
     if not isinstance(tests, list) or not all(isinstance(entry, dict) for entry in tests):
@@ -148,13 +168,9 @@ def _steady_windows(doc: dict[str, Any], where: str) -> dict[str, tuple[float, f
         name = entry.get("file")
         if not isinstance(name, str) or not name:
             raise HysidInputError(f"{where}: [[tests]] entry {k} has no file name")
-        given = [key for key in ("steady_t0_s", "steady_t1_s") if key in entry]
-        if not given:
-            continue
-        t0, t1 = entry.get("steady_t0_s"), entry.get("steady_t1_s")
-        if len(given) != 2 or not (_is_number(t0) and _is_number(t1) and 0 <= t0 < t1):
-            raise HysidInputError(f"{where}: [[tests]] {name}: steady_t0_s and steady_t1_s must both be given with 0 <= t0 < t1, got {t0!r}, {t1!r}")
-        out[name] = (float(t0), float(t1))
+        window = _window(entry, f"[[tests]] {name}: ", where)
+        if window is not None:
+            out[name] = window
     return out
 
 
@@ -189,6 +205,7 @@ def read_config(directory: Path) -> DatasetConfig:
         displacement_channel=_channel(doc, "displacement_channel", where),
         force_channel=_channel(doc, "force_channel", where),
         steady=_steady_windows(doc, where),
+        steady_default=_window(doc, "", where),
         info=info,
         given=frozenset(doc),
     )
