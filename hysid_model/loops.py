@@ -18,6 +18,11 @@ from hysid_model import waveform
 from hysid_model.errors import HysidInputError
 
 
+INERTIA_LIMIT = 1e6
+"""A known mass whose inertia force exceeds the measured forces a million times is a typo (a specimen at
+resonance with a damping ratio of 1e-4 stays at 5e3)."""
+
+
 @dataclass
 class LoopSet:
     """Loops of one specimen; arrays are indexed ``[loop]`` or ``[loop, sample]``.
@@ -73,6 +78,14 @@ class LoopSet:
             raise HysidInputError(f"{self.name}: every loop needs a positive amplitude X0")
         if self.meq_kg is not None and not (np.isfinite(self.meq_kg) and self.meq_kg > 0):
             raise HysidInputError(f"{self.name}: meq_kg must be a positive mass or unknown (None), got {self.meq_kg}")
+        if self.meq_kg is not None:
+            with np.errstate(over="ignore"):
+                inertia = float(np.max(self.meq_kg * self.omega**2 * self.x0))
+            if not inertia <= INERTIA_LIMIT * max(float(np.max(self.peak_force)), np.finfo(float).tiny):
+                raise HysidInputError(
+                    f"{self.name}: meq_kg = {self.meq_kg:g} kg is not plausible: its inertia force m w^2 X0 reaches {inertia:.3g} N, "
+                    f"more than {INERTIA_LIMIT:g} times the largest measured force ({float(np.max(self.peak_force)):.3g} N)"
+                )
         if self.x_harmonics is not None:
             self.x_harmonics = waveform.check(self.x_harmonics, self.name)
             if self.x_harmonics.shape[0] != n_loops:
