@@ -6,7 +6,8 @@ hysid maps them the same way:
 * a name given in ``dataset.toml`` (``time_channel``, ``displacement_channel``,
   ``force_channel``; case-insensitive; a number counts columns from 1), else
 * the CSV names ``time_s``, ``displacement_m``, ``force_n`` (case-insensitive),
-  else a name ``<quantity>_<unit>`` such as ``Displacement_mm`` or ``force_kN``.
+  else the bare ``time``, ``displacement``, ``force``, or a name
+  ``<quantity>_<unit>`` such as ``Displacement_mm`` or ``force_kN``.
 
 Units, in this order: the unit declared in ``dataset.toml``
 (``time_unit``, ``displacement_unit``, ``force_unit``), else the unit the file
@@ -91,7 +92,7 @@ def choose(names: list[str], quantity: str, config: DatasetConfig | None, source
     else:
         matches = [i for i, n in enumerate(short) if n == DEFAULT_NAMES[quantity]]
         if not matches:
-            matches = [i for i, n in enumerate(short) if _suffix_unit(n, quantity)]
+            matches = [i for i, n in enumerate(short) if n == quantity or _suffix_unit(n, quantity)]
         if len(matches) > 1:
             raise HysidInputError(
                 f"{source}: {len(matches)} {quantity} channels ({', '.join(repr(names[i]) for i in matches)}); "
@@ -101,7 +102,7 @@ def choose(names: list[str], quantity: str, config: DatasetConfig | None, source
             if not required:
                 return None
             raise HysidInputError(
-                f"{source}: no {quantity} channel: expected {DEFAULT_NAMES[quantity]!r} (any case), a name like "
+                f"{source}: no {quantity} channel: expected {DEFAULT_NAMES[quantity]!r} or {quantity!r} (any case), a name like "
                 f"'{quantity}_<unit>', or {key} in dataset.toml; channels: {listing}"
             )
         index = matches[0]

@@ -141,6 +141,8 @@ def read_daq(path: Path, config: DatasetConfig) -> TimeSeries:
 
 def _record(path: Path, found: _Channels, config: DatasetConfig) -> TimeSeries:
     source = str(path)
+    if not found.names:
+        raise HysidInputError(f"{path}: holds no channels")
     x_ch = channels.choose(found.names, "displacement", config, source, found.units)
     f_ch = channels.choose(found.names, "force", config, source, found.units)
     t_ch = channels.choose(found.names, "time", config, source, found.units, required=False)

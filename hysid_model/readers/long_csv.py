@@ -85,9 +85,10 @@ def read_long(path: Path, config: DatasetConfig | None) -> list[LongRecord]:
     labels_of_rows = read_columns(path, dialect, [record_col], dtype=str)[:, 0]
     if labels_of_rows.size == 0:
         raise HysidInputError(f"{path}: the header is there but there are no data rows")
-    labels, row_record = _groups(labels_of_rows)
+    unique, row_record = _groups(labels_of_rows)
+    labels = [str(label) for label in unique]
     del labels_of_rows
-    rows_of = _rows_by_group(row_record, labels.size)
+    rows_of = _rows_by_group(row_record, len(labels))
     freq = read_columns(path, dialect, [freq_col])[:, 0] if freq_col is not None else np.full(row_record.size, math.nan)
     channel_col, value_col = _column(dialect, "channel"), _column(dialect, "value")
     if channel_col is not None and value_col is not None:
@@ -99,7 +100,7 @@ def read_long(path: Path, config: DatasetConfig | None) -> list[LongRecord]:
         t, x, force = data[rows, 0] * time.factor, data[rows, 1] * picked[0].factor, data[rows, 2] * picked[1].factor
         order = np.argsort(t, kind="stable")
         series = checked_series(f"{path} (record {label})", t[order], x[order], force[order], names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1)
-        out.append(LongRecord(str(label), series, _nominal(path, str(label), freq[rows])))
+        out.append(LongRecord(label, series, _nominal(path, label, freq[rows])))
     return out
 
 
@@ -109,7 +110,7 @@ def _rows_by_group(group: np.ndarray, n_groups: int) -> list[np.ndarray]:
     return np.split(order, np.cumsum(np.bincount(group, minlength=n_groups))[:-1])
 
 
-def _long(path: Path, dialect: Dialect, config: DatasetConfig | None, labels: np.ndarray, rows_of: list[np.ndarray],
+def _long(path: Path, dialect: Dialect, config: DatasetConfig | None, labels: list[str], rows_of: list[np.ndarray],
           freq: np.ndarray, time: channels.Channel, channel_col: int, value_col: int) -> list[LongRecord]:
     """Pivot the long format: per record, the displacement and force rows, each sorted by time."""
     where = str(path)
@@ -139,5 +140,5 @@ def _long(path: Path, dialect: Dialect, config: DatasetConfig | None, labels: np
                 f"({t.size} and {t_f.size} samples)"
             )
         series = checked_series(f"{path} (record {label})", t, x, force, names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1)
-        out.append(LongRecord(str(label), series, _nominal(path, str(label), freq[mine])))
+        out.append(LongRecord(label, series, _nominal(path, label, freq[mine])))
     return out
