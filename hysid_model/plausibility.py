@@ -54,9 +54,9 @@ class Clipping:
 
     def describe(self, x0: float) -> str:
         if self.kind == "displacement":
-            return f"displacement flat at {self.level * 1e3:+.4g} mm (a stroke or sensor limit?), X0 = {x0 * 1e3:.4g} mm"
+            return f"displacement flat at {self.level * 1e3:+.3g} mm (a stroke or sensor limit?), X0 = {x0 * 1e3:.3g} mm"
         if self.kind == "velocity":
-            return f"velocity flattened at {self.level:.4g} m/s (a speed limit?), the displacement reaching X0 = {x0 * 1e3:.4g} mm"
+            return f"velocity flattened at {self.level:.3g} m/s (a speed limit?), the displacement reaching X0 = {x0 * 1e3:.3g} mm"
         return ""
 
 

@@ -6,8 +6,9 @@ hysid maps them the same way:
 * a name given in ``dataset.toml`` (``time_channel``, ``displacement_channel``,
   ``force_channel``; case-insensitive; a number counts columns from 1), else
 * the CSV names ``time_s``, ``displacement_m``, ``force_n`` (case-insensitive),
-  else the bare ``time``, ``displacement``, ``force``, or a name
-  ``<quantity>_<unit>`` such as ``Displacement_mm`` or ``force_kN``.
+  else a name ``<quantity>_<unit>`` such as ``Displacement_mm`` or
+  ``force_kN``, or the bare ``time``, ``displacement``, ``force`` of a channel
+  whose unit the file states.
 
 Units, in this order: the unit declared in ``dataset.toml``
 (``time_unit``, ``displacement_unit``, ``force_unit``), else the unit the file
@@ -92,7 +93,8 @@ def choose(names: list[str], quantity: str, config: DatasetConfig | None, source
     else:
         matches = [i for i, n in enumerate(short) if n == DEFAULT_NAMES[quantity]]
         if not matches:
-            matches = [i for i, n in enumerate(short) if n == quantity or _suffix_unit(n, quantity)]
+            stated = file_units or [None] * len(names)
+            matches = [i for i, n in enumerate(short) if (n == quantity and stated[i]) or _suffix_unit(n, quantity)]
         if len(matches) > 1:
             raise HysidInputError(
                 f"{source}: {len(matches)} {quantity} channels ({', '.join(repr(names[i]) for i in matches)}); "
@@ -102,7 +104,7 @@ def choose(names: list[str], quantity: str, config: DatasetConfig | None, source
             if not required:
                 return None
             raise HysidInputError(
-                f"{source}: no {quantity} channel: expected {DEFAULT_NAMES[quantity]!r} or {quantity!r} (any case), a name like "
+                f"{source}: no {quantity} channel: expected {DEFAULT_NAMES[quantity]!r} (any case), a name like "
                 f"'{quantity}_<unit>', or {key} in dataset.toml; channels: {listing}"
             )
         index = matches[0]

@@ -23,6 +23,7 @@ from hysid_model.readers.dataset_dir import DatasetConfig
 COLUMNS = ("time_s", "displacement_m", "force_n")
 MAX_LINE = 65536
 """Longest line read as text (a header, or a bad line explained): a file that is one huge line is not read whole."""
+CHUNK = 1 << 22
 PREAMBLE_LINES = 100
 """Blank or ``#`` comment lines allowed before the header (a DAQ's preamble)."""
 
@@ -141,8 +142,34 @@ def _missing(path: Path, names: list[str], missing: list[str]) -> HysidInputErro
     )
 
 
+def first_long_line(path: Path) -> int | None:
+    """The number of the first line longer than ``MAX_LINE`` bytes, else None: one pass over the bytes in
+    chunks, because numpy's parser holds a whole line's fields at once (a 200 MB line would take GBs)."""
+    line, start, offset = 1, 0, 0
+    with path.open("rb") as handle:
+        while chunk := handle.read(CHUNK):
+            ends = np.flatnonzero(np.frombuffer(chunk, np.uint8) == 10) + offset
+            if ends.size:
+                lengths = ends - np.concatenate([[start], ends[:-1] + 1])
+                too_long = np.flatnonzero(lengths > MAX_LINE)
+                if too_long.size:
+                    return line + int(too_long[0])
+                line, start = line + ends.size, int(ends[-1]) + 1
+            offset += len(chunk)
+            if offset - start > MAX_LINE:
+                return line
+    return None
+
+
+def check_line_lengths(path: Path) -> None:
+    number = first_long_line(path)
+    if number is not None:
+        raise HysidInputError(f"{path}: line {number} is longer than {MAX_LINE} characters; not a record of samples")
+
+
 def read_columns(path: Path, dialect: Dialect, usecols: list[int], dtype: type = float) -> np.ndarray:
     """Columns ``usecols`` of the rows after the header, as numpy parses them (decimal commas turned to points)."""
+    check_line_lengths(path)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
