@@ -220,8 +220,9 @@ def _too_few_cycles(source: str, found: int, of: int) -> HysidInputError:
     )
 
 
-def _auto_window(t: np.ndarray, x: np.ndarray, force: np.ndarray, f0: float, source: str) -> tuple[float, float, float]:
-    """(t0, t1, refined frequency) of the steady whole cycles (:mod:`hysid_model.steady`, stages 1 and 2)."""
+def _auto_window(t: np.ndarray, x: np.ndarray, force: np.ndarray, f0: float, source: str) -> tuple[float, float, float, steady.CycleFits]:
+    """(t0, t1, refined frequency, the per-cycle fits on cycles of 1/f0 from t[0]) of the steady whole cycles
+    (:mod:`hysid_model.steady`, stages 1 and 2)."""
     n_cycles = int(np.floor((t[-1] - t[0]) * f0 * (1 + 1e-9)))
     if n_cycles < 2:
         raise HysidInputError(f"{source}: fewer than 2 steady cycles: the whole record holds {(t[-1] - t[0]) * f0:.2f} cycles at {f0:.6g} Hz")
@@ -235,13 +236,13 @@ def _auto_window(t: np.ndarray, x: np.ndarray, force: np.ndarray, f0: float, sou
     off = steady.line_through(fits.offset, start, start + length)
     length = int(np.floor(length * freq / f0 + CYCLE_SLACK))
     if length < steady.WAVEFORM_MIN_CYCLES:
-        return t_a, t_a + length / freq, freq
+        return t_a, t_a + length / freq, freq, fits
     index = start + np.arange(length) * (f0 / freq)  # the stage-2 cycles on stage 1's cycle numbers
     trends = [(amp[s, 0] + amp[s, 1] * index, off[s, 0] + off[s, 1] * index) for s in range(2)]
     first, last = steady.waveform_steady(t, [x, force], trends, t_a, freq, length)
     if last - first < 2:
         raise _too_few_cycles(source, max(last - first, 0), n_cycles)
-    return t_a + first / freq, t_a + last / freq, freq
+    return t_a + first / freq, t_a + last / freq, freq, fits
 
 
 def _given_window(t: np.ndarray, window: tuple[float, float], source: str) -> tuple[float, float]:
@@ -262,9 +263,9 @@ def _cycle_mean(t: np.ndarray, y: np.ndarray, t_a: float, t_b: float) -> float:
     of the waveform, which for a 400 N loop sampled 700 times a cycle is
     already a visible 0.05 N offset.
     """
-    inner = (t > t_a) & (t < t_b)
+    inner = slice(np.searchsorted(t, t_a, side="right"), np.searchsorted(t, t_b, side="left"))
     grid = np.concatenate([[t_a], t[inner], [t_b]])
-    vals = np.interp(grid, t, y)
+    vals = np.concatenate([np.interp([t_a], t, y), y[inner], np.interp([t_b], t, y)])
     return float(np.sum(0.5 * (vals[1:] + vals[:-1]) * np.diff(grid)) / (t_b - t_a))
 
 
@@ -474,13 +475,15 @@ def extract_loop(
     t, x, force = (np.asarray(a, dtype=float) for a in (t, x, force))
     f0 = _spectral_frequency(t, x, source)
     if steady_window is None:
-        t_a, t_b, freq = _auto_window(t, x, force, f0, source)
+        t_a, t_b, freq, fits = _auto_window(t, x, force, f0, source)
+        origin = float(t[0])
     else:
         t_a, t_b = _given_window(t, steady_window, source)
         n_given = int(np.floor((t_b - t_a) * f0 + CYCLE_SLACK))
-        if n_given < 2 or np.count_nonzero((t >= t_a) & (t <= t_b)) < 8:
+        if n_given < 2 or np.searchsorted(t, t_b, side="right") - np.searchsorted(t, t_a) < 8:
             raise HysidInputError(f"{source}: fewer than 2 steady cycles ({(t_b - t_a) * f0:.2f} cycles at {f0:.6g} Hz in [{t_a:g}, {t_b:g}] s)")
-        freq = steady.phase_slope_frequency(steady.cycle_fits(t, [x], t_a, f0, n_given), f0, 0, n_given)
+        fits, origin = steady.cycle_fits(t, [x, force], t_a, f0, n_given), t_a
+        freq = steady.phase_slope_frequency(fits, f0, 0, n_given)
     if nominal_freq_hz is not None and abs(freq / nominal_freq_hz - 1) > FREQ_TOLERANCE:
         raise HysidInputError(
             f"{source}: the data's frequency {freq:.6g} Hz disagrees with the manifest's {nominal_freq_hz:g} Hz "
@@ -491,25 +494,29 @@ def extract_loop(
         cycles -= 1
     if cycles < 2:
         raise HysidInputError(f"{source}: fewer than 2 steady whole cycles at {freq:.6g} Hz in [{t_a:g}, {t_b:g}] s")
-    span = (t >= t_a) & (t < t_a + cycles / freq)
+    t_end = t_a + cycles / freq
+    span = slice(np.searchsorted(t, t_a), np.searchsorted(t, t_end))
     ts, xs, fs = t[span], x[span], force[span]
     w = 2 * np.pi * freq
+    theta = w * (ts - t_a)
     harmonics = max(1, min(X_HARMONICS, int((ts.size / cycles - 1) // 2)))  # below the Nyquist frequency
-    design = _harmonic_design(w * (ts - t_a), harmonics)
-    cx, cf = np.linalg.solve(design @ design.T, design @ np.column_stack([xs, fs])).T
+    design = _harmonic_design(theta, harmonics)
+    cx, cf = np.linalg.solve(design @ design.T, np.stack([design @ xs, design @ fs], axis=1)).T
     x0 = float(np.hypot(cx[1], cx[2]))
     phi = float(np.arctan2(cx[2], cx[1]))
     phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
-    force_mean = _cycle_mean(t, force, t_a, t_a + cycles / freq)
+    force_mean = _cycle_mean(t, force, t_a, t_end)
     x_residual = xs - cx @ design
-    x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - design.shape[0], 1)))
+    del design
+    x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - (2 * harmonics + 1), 1)))
     xh, thd = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
     lo, hi = (float(r[0]) for r in waveform.reversals(xh))
     x_min, x_max = (float(e[0]) for e in waveform.extremes(xh))
     grid = np.linspace(x_min, x_max, n_points)
     sample_phases = waveform.branch_phases(xh, grid[None], grid[None])[0]
-    values, var, sigma_raw, overlap = _branches(w * (ts - t_a) + phi, fs - force_mean, sample_phases, (lo, hi), source)
-    amplitudes = steady.cycle_fits(t, [x, force], t_a, freq, cycles).amplitude
+    values, var, sigma_raw, overlap = _branches(theta + phi, fs - force_mean, sample_phases, (lo, hi), source)
+    first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
+    used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]
     return ExtractedLoop(
         freq_hz=freq,
         x0=x0,
@@ -528,6 +535,6 @@ def extract_loop(
         window_s=(float(ts[0]), float(ts[-1])),
         samples_per_point=float(np.mean(1.0 / var)),
         window_overlap=overlap,
-        drift=tuple(float(d) for d in plausibility.amplitude_drift(amplitudes)),
-        clipping=plausibility.clipping(plausibility.mean_cycle(t, x, t_a, freq, cycles), xh, freq),
+        drift=tuple(float(d) for d in plausibility.amplitude_drift(used)),
+        clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), xh, freq),
     )

@@ -69,15 +69,14 @@ def _dwell_ratios(y: np.ndarray, band: float) -> np.ndarray:
     return np.array([np.mean(y >= y.max() - band * half), np.mean(y <= y.min() + band * half)]) / sine
 
 
-def mean_cycle(t: np.ndarray, x: np.ndarray, t_a: float, freq: float, cycles: int) -> np.ndarray:
-    """The average displacement cycle over the whole cycles from ``t_a``, in up to ``CLIP_BINS`` phase bins
-    (empty bins, of a sample rate locked to the excitation, left out)."""
-    span = (t >= t_a) & (t < t_a + cycles / freq)
-    phase = np.mod((t[span] - t_a) * freq, 1.0)
-    bins = int(max(1, min(CLIP_BINS, np.count_nonzero(span) // 4)))
-    b = np.minimum((phase * bins).astype(np.int64), bins - 1)
+def mean_cycle(cycle_phase: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The average displacement cycle of samples at ``cycle_phase`` (in cycles; whole cycles), in up to
+    ``CLIP_BINS`` phase bins (empty bins, of a sample rate locked to the excitation, left out)."""
+    bins = int(max(1, min(CLIP_BINS, x.size // 4)))
+    b = (np.mod(cycle_phase, 1.0) * bins).astype(np.int64)
+    np.minimum(b, bins - 1, out=b)
     count = np.bincount(b, minlength=bins)
-    total = np.bincount(b, weights=x[span], minlength=bins)
+    total = np.bincount(b, weights=x, minlength=bins)
     used = count > 0
     return total[used] / count[used]
 

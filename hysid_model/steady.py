@@ -82,38 +82,52 @@ def cycle_bounds(t: np.ndarray, t_a: float, freq: float, n_cycles: int) -> np.nd
     return np.searchsorted(t, t_a + np.arange(n_cycles + 1) / freq)
 
 
-def per_cycle_sums(values: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """Sums of ``values`` (the samples bounds[0]:bounds[-1]) over each cycle (0 for an empty cycle)."""
-    padded = np.concatenate([values, [0.0]])  # reduceat's indices must lie inside the array, also for empty last cycles
-    return np.where(np.diff(bounds) > 0, np.add.reduceat(padded, bounds[:-1] - bounds[0]), 0.0)
+def per_cycle_sums(rows: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """Sums over each cycle of ``rows`` ``(R, n + 1)``: the samples bounds[0]:bounds[-1] then one zero column
+    (reduceat's indices must lie inside the array, also for empty last cycles); 0 for an empty cycle."""
+    sums = np.add.reduceat(rows, bounds[:-1] - bounds[0], axis=1)
+    sums[:, np.diff(bounds) == 0] = 0.0
+    return sums
 
 
 def cycle_fits(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: float, n_cycles: int) -> CycleFits:
     """One 3-term least-squares fit per cycle [t_a + k/f, t_a + (k+1)/f), k < ``n_cycles``, of every signal (batched)."""
     bounds = cycle_bounds(t, t_a, freq, n_cycles)
     span = slice(bounds[0], bounds[-1])
-    theta = (2 * np.pi * freq) * (t[span] - t_a)
-    sin, cos = np.sin(theta), np.cos(theta)
+    n = bounds[-1] - bounds[0]
+    rows = np.empty((6 + 4 * len(signals), n + 1))
+    rows[:, n] = 0.0
+    sin, cos = rows[0, :n], rows[1, :n]
+    np.multiply(2 * np.pi * freq, t[span] - t_a, out=rows[2, :n])
+    np.sin(rows[2, :n], out=sin)
+    np.cos(rows[2, :n], out=cos)
+    np.multiply(sin, sin, out=rows[2, :n])
+    np.multiply(sin, cos, out=rows[3, :n])
+    np.multiply(cos, cos, out=rows[4, :n])
+    rows[5, :n] = t[span]
+    for k, y in enumerate(signals):
+        yk = rows[6 + 4 * k, :n]
+        yk[:] = y[span]
+        np.multiply(yk, sin, out=rows[7 + 4 * k, :n])
+        np.multiply(yk, cos, out=rows[8 + 4 * k, :n])
+        np.multiply(yk, yk, out=rows[9 + 4 * k, :n])
+    sums = per_cycle_sums(rows, bounds)
+    del rows
     count = np.diff(bounds).astype(float)
-    sums = {name: per_cycle_sums(v, bounds) for name, v in (("s", sin), ("c", cos), ("ss", sin * sin), ("sc", sin * cos), ("cc", cos * cos))}
-    gram = np.stack([
-        np.stack([count, sums["s"], sums["c"]], axis=-1),
-        np.stack([sums["s"], sums["ss"], sums["sc"]], axis=-1),
-        np.stack([sums["c"], sums["sc"], sums["cc"]], axis=-1),
-    ], axis=-2)
+    s, c, ss, sc, cc = sums[:5]
+    gram = np.stack([np.stack([count, s, c], axis=-1), np.stack([s, ss, sc], axis=-1), np.stack([c, sc, cc], axis=-1)], axis=-2)
     few = count < 4  # a cycle cut short by the end of the record: no fit
     gram[few] = np.eye(3)
-    t_mid = per_cycle_sums(t[span], bounds) / np.maximum(count, 1.0)
+    t_mid = sums[5] / np.maximum(count, 1.0)
     z, offset, resid = [], [], []
-    for y in signals:
-        yk = y[span]
-        rhs = np.stack([per_cycle_sums(yk, bounds), per_cycle_sums(yk * sin, bounds), per_cycle_sums(yk * cos, bounds)], axis=1)
+    for k in range(len(signals)):
+        rhs = sums[6 + 4 * k : 9 + 4 * k].T
         coef = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
         coef[few] = 0.0
-        ss = per_cycle_sums(yk * yk, bounds) - np.sum(coef * rhs, axis=1)
+        ss_res = sums[9 + 4 * k] - np.sum(coef * rhs, axis=1)
         z.append(coef[:, 1] + 1j * coef[:, 2])
         offset.append(coef[:, 0])
-        resid.append(np.where(few, 0.0, np.maximum(ss, 0.0) / np.maximum(count - 3.0, 1.0)))
+        resid.append(np.where(few, 0.0, np.maximum(ss_res, 0.0) / np.maximum(count - 3.0, 1.0)))
     return CycleFits(np.array(z), np.array(offset), np.array(resid), count, t_mid)
 
 
@@ -245,8 +259,10 @@ def _periodic_interp(phase: np.ndarray, centre: np.ndarray, value: np.ndarray) -
 def cycle_excess(phase: np.ndarray, bounds: np.ndarray, y: np.ndarray, per_cycle: float) -> np.ndarray:
     """Per cycle, the mean squared difference of its samples from the median cycle (phase in [0, 1))."""
     centre, median = _bin_medians(phase, y, max(4, int(per_cycle // 2)))
-    sq = (y - _periodic_interp(phase, centre, median)) ** 2
-    return per_cycle_sums(sq, bounds) / np.maximum(np.diff(bounds), 1)
+    sq = np.empty((1, y.size + 1))
+    sq[0, -1] = 0.0
+    np.square(y - _periodic_interp(phase, centre, median), out=sq[0, :-1])
+    return per_cycle_sums(sq, bounds)[0] / np.maximum(np.diff(bounds), 1)
 
 
 def waveform_steady(
