@@ -52,35 +52,39 @@ def manifest(directory: Path, files: list[str]) -> None:
     (directory / "manifest.csv").write_text("\n".join(["file,frequency_hz"] + rows) + "\n")
 
 
-def test_csv_headers_in_any_case_with_semicolons_and_decimal_commas(tmp_path, reference):
-    d = tmp_path / "eu"
-    d.mkdir()
+def csv_dataset(directory: Path, write) -> Path:
+    """A dataset directory of one CSV per record, each written by ``write(path, record)``, and a manifest."""
+    directory.mkdir()
     for rec in RECORDS:
+        write(directory / f"{rec.label}.csv", rec)
+    manifest(directory, [f"{r.label}.csv" for r in RECORDS])
+    return directory
+
+
+def test_csv_headers_in_any_case_with_semicolons_and_decimal_commas(tmp_path, reference):
+    def write(path: Path, rec: RawRecord) -> None:
         lines = ["# exported by a DAQ", "# operator: somebody", "Time_S;Displacement_M;FORCE_N"]
         lines += [f"{t:.12g};{x:.12g};{f:.12g}".replace(".", ",") for t, x, f in zip(rec.t, rec.x, rec.force)]
-        (d / f"{rec.label}.csv").write_text("\n".join(lines) + "\n")
-    manifest(d, [f"{r.label}.csv" for r in RECORDS])
-    same_loops(load_dataset(d), reference)
+        path.write_text("\n".join(lines) + "\n")
+
+    same_loops(load_dataset(csv_dataset(tmp_path / "eu", write)), reference)
 
 
 def test_tab_separated_csv_with_unit_suffixes_is_converted(tmp_path, reference):
-    d = tmp_path / "units"
-    d.mkdir()
-    for rec in RECORDS:
+    def write(path: Path, rec: RawRecord) -> None:
         data = np.column_stack([rec.t * 1e3, rec.x * 1e3, rec.force / 4.4482216152605])
-        np.savetxt(d / f"{rec.label}.csv", data, delimiter="\t", fmt="%.15g", header="time_ms\tdisplacement_mm\tforce_lbf", comments="")
-    manifest(d, [f"{r.label}.csv" for r in RECORDS])
-    same_loops(load_dataset(d), reference)
+        np.savetxt(path, data, delimiter="\t", fmt="%.15g", header="time_ms\tdisplacement_mm\tforce_lbf", comments="")
+
+    same_loops(load_dataset(csv_dataset(tmp_path / "units", write)), reference)
 
 
 def test_csv_channels_and_units_named_in_dataset_toml(tmp_path, reference):
     """A header of the rig's own names, and the mm-under-_m slip fixed by declaring the unit."""
-    d = tmp_path / "named"
-    d.mkdir()
-    for rec in RECORDS:
-        np.savetxt(d / f"{rec.label}.csv", np.column_stack([rec.force / 1e3, rec.t, rec.x * 1e3]), delimiter=",", fmt="%.15g",
+    def write(path: Path, rec: RawRecord) -> None:
+        np.savetxt(path, np.column_stack([rec.force / 1e3, rec.t, rec.x * 1e3]), delimiter=",", fmt="%.15g",
                    header="Load,Zeit,displacement_m", comments="")
-    manifest(d, [f"{r.label}.csv" for r in RECORDS])
+
+    d = csv_dataset(tmp_path / "named", write)
     (d / "dataset.toml").write_text('time_channel = "zeit"\nforce_channel = "LOAD"\nforce_unit = "kN"\ndisplacement_unit = "mm"\n')
     same_loops(load_dataset(d), reference)
 
