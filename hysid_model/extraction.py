@@ -50,6 +50,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import warnings
+from math import comb
 
 import numpy as np
 from scipy.special import gammaincinv
@@ -125,7 +126,7 @@ class ExtractedLoop:
             "x_drift": self.drift[0],
             "force_drift": self.drift[1],
             "clipped": self.clipping.kind,
-            "clip_level": self.clipping.level,
+            "clip_level": self.clipping.level if self.clipping.kind else None,
         }
 
 
@@ -335,7 +336,7 @@ def _branches(
     psi[np.abs(psi - hi_phase) < SNAP] = hi_phase  # whatever the last bits of its phase say
     order = np.argsort(psi, kind="stable")
     ps, ys = psi[order], force[order]
-    cum = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones_like(ps), ps, ps * ps)]
+    sums = _PhaseSums(ps, h)
     new_phase = np.concatenate([[1.0], (np.diff(ps) > DISTINCT * h).astype(float)])  # a sample at a phase not seen before
     cum_distinct = np.concatenate([[0.0], np.cumsum(new_phase)])
     chosen_lo = np.full(centre.size, np.nan)
@@ -347,7 +348,7 @@ def _branches(
             break
         lo, hi = _window_bounds(centre, start, width, half_lo, half_hi, r * h)
         a, b = np.searchsorted(ps, lo), np.searchsorted(ps, hi)
-        s0, s1, s2 = (c[b] - c[a] for c in cum)
+        s0, s1, s2 = (c[b] - c[a] for c in sums.cum[:3])
         distinct = cum_distinct[b] - cum_distinct[a] + (a < b) * (1.0 - new_phase[np.minimum(a, ps.size - 1)])
         with np.errstate(divide="ignore", invalid="ignore"):
             spread = np.sqrt(np.maximum(s2 / s0 - (s1 / s0) ** 2, 0.0))
@@ -360,10 +361,8 @@ def _branches(
             "sample phases (few samples per cycle, or a sample rate locked to the excitation); use fewer points per branch "
             "or a longer or faster-sampled record"
         )
-    fit = _window_fits(ps, centre, h, chosen_lo, chosen_hi)
-    if _even_out_variance(ps, centre, start, width, half_lo, half_hi, h, chosen_lo, chosen_hi, chosen_r, fit[4][:, 0, 0]):
-        fit = _window_fits(ps, centre, h, chosen_lo, chosen_hi)
-    win, pos, u, moments, inverse = fit
+    _even_out_variance(sums, centre, start, width, half_lo, half_hi, chosen_lo, chosen_hi, chosen_r)
+    win, pos, u, moments, inverse = _window_fits(ps, centre, h, chosen_lo, chosen_hi)
     y = ys[pos]
     starts = _starts(win)
     yu = y * u
@@ -402,10 +401,36 @@ def _starts(win: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.diff(win, prepend=-1))
 
 
-def _even_out_variance(ps: np.ndarray, centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray,
-                       half_hi: np.ndarray, h: float, lo: np.ndarray, hi: np.ndarray, chosen_r: np.ndarray, v: np.ndarray) -> bool:
-    """Widen (in place) windows whose branch value's variance factor ``v`` exceeds ``VARIANCE_SPREAD`` times the
-    median; True when a window changed.
+class _PhaseSums:
+    """Prefix sums of the powers 0..4 of the sorted sample phases: the local-quadratic Gram matrix of any
+    window in O(1), to choose windows before the one pass that fits them."""
+
+    def __init__(self, ps: np.ndarray, h: float) -> None:
+        self.ps, self.h = ps, h
+        self.shift = 0.5 * (ps[0] + ps[-1])  # phases centred: the expansion below loses fewer digits
+        q = ps - self.shift
+        self.cum = np.empty((5, ps.size + 1))
+        self.cum[:, 0] = 0.0
+        self.cum[0, 1:] = np.arange(1, ps.size + 1)
+        power = q.copy()
+        for k in range(1, 5):
+            np.cumsum(power, out=self.cum[k, 1:])
+            if k < 4:
+                power *= q
+
+    def variance(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """[(U^T U)^-1]_00 of the windows [lo, hi) about ``centre``: sum (q - c)^p expanded in the prefix sums."""
+        a, b = np.searchsorted(self.ps, lo), np.searchsorted(self.ps, hi)
+        s = [c[b] - c[a] for c in self.cum]
+        c = -(centre - self.shift)
+        m = [sum(comb(p, k) * s[k] * c ** (p - k) for k in range(p + 1)) / self.h**p for p in range(5)]
+        gram = np.stack([np.stack([m[i + j] for j in range(3)], axis=-1) for i in range(3)], axis=-2)
+        return np.linalg.inv(gram)[:, 0, 0]
+
+
+def _even_out_variance(sums: _PhaseSums, centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray,
+                       half_hi: np.ndarray, lo: np.ndarray, hi: np.ndarray, chosen_r: np.ndarray) -> None:
+    """Widen (in place) windows whose branch value's variance exceeds ``VARIANCE_SPREAD`` times the median one's.
 
     On a rate locked to the excitation the samples at a reversal's own phase
     belong to the branch they start, so the branch that ends there
@@ -413,20 +438,17 @@ def _even_out_variance(ps: np.ndarray, centre: np.ndarray, start: np.ndarray, wi
     widening its window brings its variance back to the others', so that one
     ``sigma`` describes every branch value.
     """
-    v = v.copy()
+    v = sums.variance(centre, lo, hi)
     limit = VARIANCE_SPREAD * np.median(v)
-    changed = False
     for r in WIDEN:
         idx = np.flatnonzero((v > limit) & (r > chosen_r))
         if idx.size == 0:
             continue
-        wlo, whi = _window_bounds(centre[idx], start[idx], width[idx], half_lo[idx], half_hi[idx], r * h)
-        v_new = _window_fits(ps, centre[idx], h, wlo, whi)[4][:, 0, 0]
+        wlo, whi = _window_bounds(centre[idx], start[idx], width[idx], half_lo[idx], half_hi[idx], r * sums.h)
+        v_new = sums.variance(centre[idx], wlo, whi)
         better = v_new < v[idx]
         sel = idx[better]
         lo[sel], hi[sel], v[sel], chosen_r[sel] = wlo[better], whi[better], v_new[better], r
-        changed = changed or sel.size > 0
-    return changed
 
 
 def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float, source: str) -> tuple[np.ndarray, float]:

@@ -165,7 +165,7 @@ class LoopSet:
             if "clipped" in per_loop:
                 clipped = per_loop["clipped"][j]
                 row["clipped"] = clipped or None
-                row["clip_level"] = float(per_loop["clip_level"][j]) if clipped else None
+                row["clip_level"] = per_loop["clip_level"][j] if clipped else None
             out.append(row)
         return out
 
