@@ -7,14 +7,16 @@ a top (loading) and a bottom (unloading) branch, centres it
 x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
 :func:`extract_loop` does the same from every steady whole cycle of a record:
 
-1. frequency: peak of the displacement spectrum, refined by least squares of x
-   on harmonics of w t in the steady window (variable projection, Brent);
+1. frequency: peak of the displacement spectrum, refined by the slope of the
+   steady cycles' first-harmonic phases (:func:`hysid_model.steady.phase_slope_frequency`);
    compared with the nominal (manifest) frequency, > 2 % apart is an error;
-2. steady window: given (``dataset.toml``) or found automatically (the
-   amplitude plateau of a tapered sine, minus leading/trailing transient
-   cycles, see :func:`_auto_window`); all whole cycles inside it are used;
+2. steady window: given (``dataset.toml``; it may reach one sample interval
+   past the record) or found automatically (:mod:`hysid_model.steady`: the
+   longest run of cycles with steady amplitudes, a slow drift allowed, minus
+   leading/trailing transient cycles); all whole cycles inside it are used;
 3. reference: x = X0 sin(theta) + harmonics + x_offset with theta = w t + phi
-   (the fundamental of Eq. 4.5), by harmonic least squares over those whole cycles;
+   (the fundamental of Eq. 4.5), by harmonic least squares over those whole
+   cycles (harmonics below the Nyquist frequency only);
 4. branches: on the grid x_i = linspace(x_min, x_max, n) (``reinterpolate``)
    between the measured displacement's extremes, the loading branch sits at
    the phase theta_i where the measured waveform passes x_i rising, the
@@ -43,7 +45,13 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
    A branch value is a weighted average of m ~ 1/v_i raw samples with
    v_i = [(U^T U)^-1]_00, so its std is sigma_raw sqrt(v_i); the loop's
    ``sigma`` is sigma_raw sqrt(mean v_i), the noise of the branch samples *as
-   stored*, which maximum-likelihood weights and Cramer-Rao bounds need.
+   stored*, which maximum-likelihood weights and Cramer-Rao bounds need. A
+   window whose v_i exceeds twice the median is widened
+   (``VARIANCE_SPREAD``), so that one sigma describes every branch value;
+7. checks (:mod:`hysid_model.plausibility`): displacement distortion,
+   clipping of the displacement or its velocity, amplitude drift.
+
+Every step is linear in the record length (no sliding windows over cycles).
 """
 
 from __future__ import annotations

@@ -10,7 +10,8 @@ record length:
    around a straight line through them: +-``STEADY_TOLERANCE`` of the line
    or ``NOISE_SIGMAS`` robust standard deviations of the cycle-to-cycle
    scatter, whichever is wider, with the line changing by at most
-   ``DRIFT_LIMIT`` over the run. The reference is the run itself, not the
+   ``DRIFT_LIMIT`` over the run and bending by at most ``CURVATURE`` (a
+   settling transient is curved, a drift straight). The reference is the run itself, not the
    largest amplitude, so the start-up overshoot and beating of a lightly
    damped specimen are left out, and a slow drift (heating, creep) keeps its
    cycles. A tapered sine's ramps change far faster than the band allows.
