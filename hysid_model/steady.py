@@ -7,7 +7,7 @@ record length:
 1. amplitude (:func:`steady_run`): first-harmonic amplitudes of x and F in
    every cycle (:func:`cycle_fits`, one batched 3-term least squares); the
    steady cycles are the longest run whose amplitudes lie within a band
-   around a straight line through them: +-``STEADY_TOLERANCE`` of the line
+   (but for a few isolated cycles: scatter) around a straight line through them: +-``STEADY_TOLERANCE`` of the line
    or ``NOISE_SIGMAS`` robust standard deviations of the cycle-to-cycle
    scatter, whichever is wider, with the line changing by at most
    ``DRIFT_LIMIT`` over the run and bending by at most ``CURVATURE`` (a
@@ -50,6 +50,8 @@ WAVEFORM_MIN_CYCLES = 5
 """Fewer steady cycles cannot tell a transient from cycle-to-cycle scatter; then only stage 1 applies."""
 WAVEFORM_TOLERANCE = 1e-3
 """A cycle whose samples differ from the median cycle by less than 0.1 % of the signal's std is steady whatever the noise."""
+OUTLIERS = 0.05
+"""Isolated cycles outside the band (scatter, not a transient) allowed in a steady run, as a fraction of it."""
 MAD_TO_STD = 1.4826
 
 
@@ -190,8 +192,11 @@ def _band_test(amp: np.ndarray, noise: np.ndarray) -> Callable[[int, int], bool]
         beta = a @ u / (u @ u) if n > 1 else np.zeros(a.shape[0])
         line = level[:, None] + beta[:, None] * u
         resid = a - line
-        if np.any(np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor)):
-            return False
+        out = np.any(np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor), axis=0)
+        if out.any():  # an isolated cycle outside the band is scatter; a transient is a run of them, or the window's end
+            pairs = out[1:] & out[:-1]
+            if out[0] or out[-1] or pairs.any() or np.count_nonzero(out) > max(1, OUTLIERS * n):
+                return False
         if np.any(np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)):
             return False
         if n < WAVEFORM_MIN_CYCLES:

@@ -144,3 +144,15 @@ def test_the_auto_window_of_a_tapered_record_is_its_plateau():
         warnings.simplefilter("error")
         loop = extract_loop(rec.t, rec.x, rec.force, source="a.csv", nominal_freq_hz=2.0)
     assert loop.cycles == 3 and abs(loop.window_s[0] - 1.0) < 2 / 1024
+
+
+def test_cycle_to_cycle_amplitude_scatter_is_not_a_transient():
+    """A controller that holds the amplitude only to 2 % from cycle to cycle: scatter, so (nearly) every cycle is used."""
+    rng = np.random.default_rng(1)
+    fs, freq, n = 5000.0, 8.0, 100
+    t = np.arange(int(n / freq * fs)) / fs
+    theta = 2 * np.pi * freq * t
+    envelope = np.interp(t * freq, np.arange(n + 1), 1 + 0.02 * rng.standard_normal(n + 1))
+    loop = extract_loop(t, 1e-3 * envelope * np.sin(theta), 100 * envelope * np.sin(theta + 0.5) + 0.5 * rng.standard_normal(t.size),
+                        source="jitter.csv")
+    assert loop.cycles >= 90
