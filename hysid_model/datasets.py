@@ -176,7 +176,7 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     meta.update({"format": fmt, "per_loop": per_loop})
     estimated = [k for k, s in enumerate(sources) if s.nominal_hz is None]
     if estimate_manifest and estimated:
-        files = [k for k, s in enumerate(sources) if s.label == s.path.stem]
+        files = [k for k, s in enumerate(sources) if s.whole_file]
         meta["estimated_manifest"] = manifest_text(
             [sources[k] for k in files], [sources[k].nominal_hz or extracted[k].freq_hz for k in files]
         )

@@ -49,7 +49,7 @@ class Channel:
     factor: float
 
 
-def unit_of(label: str | None, quantity: str) -> str | None:
+def _unit_of(label: str | None, quantity: str) -> str | None:
     """The unit a file's label names for ``quantity`` (None for no label; error handling is the caller's)."""
     if label is None or not label.strip():
         return None
@@ -60,10 +60,10 @@ def unit_of(label: str | None, quantity: str) -> str | None:
 def _suffix_unit(name: str, quantity: str) -> str | None:
     """``displacement_mm`` -> "mm" (for the quantity's own name only)."""
     match = re.fullmatch(rf"{quantity}_(\w+)", name.strip(), re.IGNORECASE)
-    return unit_of(match.group(1), quantity) or None if match else None
+    return _unit_of(match.group(1), quantity) or None if match else None
 
 
-def configured(config: DatasetConfig | None, quantity: str) -> tuple[str | int | None, str | None]:
+def _configured(config: DatasetConfig | None, quantity: str) -> tuple[str | int | None, str | None]:
     """(channel, unit) that ``dataset.toml`` declares for a quantity."""
     if config is None:
         return None, None
@@ -74,7 +74,7 @@ def choose(names: list[str], quantity: str, config: DatasetConfig | None, source
            file_units: list[str | None] | None = None, required: bool = True) -> Channel | None:
     """The channel of ``quantity`` among ``names`` (see the module docstring); ``file_units`` are the units the
     file states per channel. None when it is absent and not ``required``."""
-    chosen, declared = configured(config, quantity)
+    chosen, declared = _configured(config, quantity)
     lower = [n.strip().lower() for n in names]
     short = [n.rsplit("/", 1)[-1] for n in lower]  # a channel in a group (TDMS, HDF5) may be named without it
     listing = ", ".join(repr(n) for n in names) or "none"
@@ -116,7 +116,7 @@ def _unit(name: str, quantity: str, declared: str | None, stated: str | None, so
     key = f"{quantity}_unit"
     if declared is not None:
         return declared, table[declared]
-    from_file = unit_of(stated, quantity)
+    from_file = _unit_of(stated, quantity)
     if from_file == "":
         raise HysidInputError(f"{source}: channel {name!r} states the unit {stated!r}, not a {quantity} unit; set {key} in dataset.toml")
     from_name = _suffix_unit(name.rsplit("/", 1)[-1], quantity)

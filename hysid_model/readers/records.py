@@ -39,9 +39,14 @@ class RawSource:
     read: Callable[[], TimeSeries]
 
     @property
+    def whole_file(self) -> bool:
+        """True for a record that is a file of its own (not one of a tidy long file's)."""
+        return self.label == self.path.stem
+
+    @property
     def window_key(self) -> str:
         """The name its ``[[tests]]`` entry in ``dataset.toml`` uses: the file's, or a long file's record name."""
-        return self.file if self.label == self.path.stem else self.label
+        return self.file if self.whole_file else self.label
 
 
 def read_record(path: Path, config: DatasetConfig) -> TimeSeries:
