@@ -126,8 +126,17 @@ def _outliers(values: np.ndarray) -> np.ndarray:
     return np.sort(order[groups != main])
 
 
+NAMED = 5
+"""Loops a warning names one by one; beyond that it counts them and gives the range."""
+
+
 def _names(labels: list[str], idx: np.ndarray, values: np.ndarray, fmt: str) -> str:
-    return ", ".join(f"{labels[i]} ({fmt.format(values[i])})" for i in idx)
+    if idx.size <= NAMED:
+        return ", ".join(f"{labels[i]} ({fmt.format(values[i])})" for i in idx)
+    low, high = int(idx[np.argmin(values[idx])]), int(idx[np.argmax(values[idx])])
+    every = "all" if idx.size == len(labels) else f"{idx.size} of"
+    return (f"{every} {len(labels)} records ({fmt.format(values[low])} in {labels[low]} to "
+            f"{fmt.format(values[high])} in {labels[high]})")
 
 
 def warn_loops(labels: list[str], x0: np.ndarray, force_amplitude: np.ndarray, thd: np.ndarray, drift: np.ndarray,
