@@ -1,19 +1,23 @@
 """The equivalent-linear survey: what every loop says by itself, before any model (Figs. 4.6-4.8).
 
 A practitioner's first look at a folder of loops, model-free except for the
-mass. From each loop's first harmonics (force F1 against displacement X1,
-:func:`hysid_model.frf.first_harmonic`) and its area:
+mass. From each loop's first harmonics (force F1 against displacement X1, the
+complex dynamic stiffness K = F1 / X1, the describing function of the loop; the
+force's higher harmonics are fitted alongside so they do not leak into F1,
+:func:`hysid_model.frf.force_harmonics`) and its area:
 
 * dynamic stiffness k_dyn = Re(F1 / X1) (N/m), in phase with the displacement;
+* equivalent viscous damping c_eq = Im(F1 / X1) / w (N s/m): the dashpot that,
+  on the ideal sine, dissipates as much per cycle (E = pi c_eq w X0^2); on a
+  distorted displacement it stays the linear damping, while E grows with the
+  distortion's harmonics;
 * energy dissipated per cycle E = the loop area (J), the closed integral of F dx:
   pi sum_k k Im(F_k conj(X_k)) over the displacement's harmonics (pi X0 a_c for the
   ideal sine; the force's other harmonics do no work);
-* equivalent viscous damping c_eq = E / (pi w X0^2) (N s/m): the dashpot that
-  dissipates as much per cycle;
 * secant stiffness k_sec: the slope between the loop's two tips (N/m);
 * with the equivalent mass m (known, or estimated from all loops at once from
   Re(F1/X1) = k - m w^2 with one k per amplitude level, as Eq. 4.6 gives):
-  the storage stiffness k = k_dyn + m w^2, the loss factor eta = E / (pi k X0^2),
+  the storage stiffness k = k_dyn + m w^2, the loss factor eta = c_eq w / k,
   and each loop's natural frequency fn = sqrt(k / m) / 2 pi and damping ratio
   xi = c_eq / (2 m wn) (Eq. 2.4). Without a mass, eta uses k_dyn and fn, xi are
   unknown: the survey says so instead of guessing.
@@ -27,7 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import numpy as np
 
-from hysid_model.frf import amplitude_levels, first_harmonic, force_harmonics
+from hysid_model.frf import amplitude_levels, force_harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.terms import DataScale
 
@@ -151,11 +155,10 @@ def estimate_mass(loops: LoopSet, k_dyn: np.ndarray) -> tuple[float | None, str]
 
 def survey(loops: LoopSet, meq_kg: float | None = None) -> Survey:
     """The survey of ``loops``; the mass is ``meq_kg``, else the loop set's, else estimated (see the module docstring)."""
-    x0, w = loops.x0, loops.omega
-    f1 = first_harmonic(loops)
-    k_dyn = f1.real / x0
+    w = loops.omega
+    dynamic = -1j * force_harmonics(loops, 1)[:, 0] / loops.displacement_harmonics()[:, 0]  # K = F1 / X1
+    k_dyn, c_eq = dynamic.real, dynamic.imag / w
     energy = loop_area(loops)
-    c_eq = energy / (np.pi * w * x0**2)
     mass = meq_kg if meq_kg is not None else loops.meq_kg
     source = "known"
     if mass is None:
@@ -169,7 +172,7 @@ def survey(loops: LoopSet, meq_kg: float | None = None) -> Survey:
             wn = np.where(k_storage > 0, np.sqrt(np.maximum(k_storage, 0.0) / mass), np.nan)
             fn, xi = wn / (2 * np.pi), c_eq / (2 * mass * wn)
     with np.errstate(invalid="ignore", divide="ignore"):
-        loss = energy / (np.pi * k_storage * x0**2)
+        loss = c_eq * w / k_storage
     return Survey(
         loops=loops, k_dyn=k_dyn, c_eq=c_eq, loss_factor=loss, energy_per_cycle=energy, k_secant=secant_stiffness(loops),
         k_storage=k_storage, fn_hz=fn, xi=xi, meq_kg=mass, mass_source=source,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import typer
 
@@ -11,6 +11,8 @@ from hysid.cli import options as o
 from hysid.report import jsondoc
 from hysid.report.text import loops_table
 from hysid_model.datasets import load_dataset, write_dataset
+from hysid_model.loops import LoopSet
+from hysid_model.plausibility import Clipping
 from hysid_model.survey import survey
 from hysid_model.synth import BOUNDS, MEQ_KG, TRUE_PARAMS, synth_loops, synth_raw
 
@@ -47,7 +49,8 @@ def register(app: typer.Typer) -> None:
         out: Optional[Path] = typer.Option(None, "--out", help="Also write survey.png and loops.json to this new (or empty) directory."),
     ) -> None:
         """List a dataset's loops and their equivalent-linear survey: frequency, X0, force, noise, cycles,
-        dynamic stiffness, equivalent damping, loss factor, energy per cycle, and fn, xi where the mass is known or estimated."""
+        dynamic stiffness, equivalent damping, loss factor, energy per cycle, and fn, xi where the mass is known or estimated;
+        displacement distortion and clipping, and, without a manifest, the manifest.csv of the frequencies estimated."""
         target = None if out is None else o.report_dir(out, "loops")
         loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
         found = survey(loops)
@@ -57,4 +60,12 @@ def register(app: typer.Typer) -> None:
 
             figures.survey_figure(target / "survey.png", found)
             jsondoc.write(target / "loops.json", {"dataset": loops.name, "mass": found.mass_source, "meq_kg": found.meq_kg, "loops": rows})
-        print(jsondoc.dumps(rows, indent=1) if as_json else loops_table(loops, rows, found))
+        print(jsondoc.dumps(rows, indent=1) if as_json else loops_table(loops, rows, found) + _loop_notes(loops, rows))
+
+
+def _loop_notes(loops: LoopSet, rows: list[dict[str, Any]]) -> str:
+    """What ``hysid loops`` adds under its table: clipped records, and the manifest a folder without one would need."""
+    lines = [f"clipped: {row['label']}: {Clipping(row['clipped'], row['clip_level']).describe(row['x0_m'])}" for row in rows if row.get("clipped")]
+    if "estimated_manifest" in loops.meta:
+        lines += ["no manifest.csv: frequencies estimated from the data; the manifest.csv it would write:", loops.meta["estimated_manifest"].rstrip("\n")]
+    return "".join("\n" + line for line in lines)

@@ -60,6 +60,9 @@ FLAGS = {
     "bound": "--bound",
     "displacement": "--displacement",
     "fix": "--fix",
+    "records": "--records",
+    "seconds": "--seconds",
+    "sample_rate_hz": "--rate",
 }
 """Python parameter (as a :class:`HysidInputError` names it) -> command-line flag."""
 

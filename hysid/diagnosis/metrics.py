@@ -70,7 +70,8 @@ class References:
     """Whitened RMS levels a model of these loops can be held against (1 is the noise floor)."""
 
     linear_per_loop: float
-    """Each loop fitted by its own offset and first harmonic: what no linear model beats."""
+    """Each loop fitted on its own by an offset and a linear spring, dashpot and mass (:func:`linear_per_loop`):
+    what no equivalent-linear description beats."""
     repeatability: float | None
     """The scatter between repeated tests at one setting (None: the dataset has no repeats)."""
     repeats: int
@@ -107,8 +108,7 @@ def repeat_groups(harmonics: Harmonics) -> list[np.ndarray]:
 def references(harmonics: Harmonics) -> References:
     """The model-free references of :class:`References` on the whitened harmonic coefficients."""
     white = harmonics.whiten(harmonics.loops.forces())
-    beyond_first = white[:, 3:]  # orders dc, s1, c1 come first (hysid_model.basis.harmonic_names)
-    linear = float(np.sqrt(np.mean(beyond_first**2)))
+    linear = linear_per_loop(harmonics, white)
     groups = repeat_groups(harmonics)
     if not groups:
         return References(linear, None, 0)
@@ -116,6 +116,32 @@ def references(harmonics: Harmonics) -> References:
     dof = sum((g.size - 1) * white.shape[1] for g in groups)
     # the scatter of a loop about the mean of n repeats is (n-1)/n of its own: dof counts that
     return References(linear, float(np.sqrt(spread / dof)), int(sum(g.size for g in groups)))
+
+
+def linear_per_loop(harmonics: Harmonics, white: np.ndarray) -> float:
+    """Whitened RMS of each loop fitted on its own by an offset and a linear spring, dashpot and mass,
+    F = a0 + k x + c dx/dt + m d^2x/dt^2 on its measured displacement (on the ideal sine k and m are one
+    stiffness k - m w^2). In whitened coordinates a coefficient vector a maps to R a / sigma (Phi = Q R,
+    :class:`hysid_model.harmonics.Harmonics`), so the residual is ``white`` less its projection there."""
+    names, loops = harmonics.names, harmonics.loops
+    xh = loops.displacement_harmonics()
+    chi2, dof = 0.0, 0
+    for j in range(loops.n_loops):
+        order = np.arange(1, xh.shape[1] + 1)
+        columns = []
+        for factor in (np.ones(order.size), 1j * order * loops.omega[j], -((order * loops.omega[j]) ** 2)):
+            a = np.zeros(len(names))
+            for k, value in zip(order, factor * xh[j]):  # x = Re sum X_k e^{ik wt}: s_k = -Im X_k, c_k = Re X_k
+                if f"s{k}" in names:
+                    a[names.index(f"s{k}")], a[names.index(f"c{k}")] = -value.imag, value.real
+            columns.append(a)
+        dc = np.zeros(len(names))
+        dc[names.index("dc")] = 1.0
+        basis = harmonics.r[j] @ np.column_stack([dc, *columns]) / harmonics.sigma[j]
+        coef, _, rank, _ = np.linalg.lstsq(basis, white[j], rcond=None)
+        chi2 += float(np.sum((white[j] - basis @ coef) ** 2))
+        dof += len(names) - int(rank)
+    return float(np.sqrt(chi2 / max(dof, 1)))
 
 
 def frequency_groups(harmonics: Harmonics) -> list[np.ndarray]:

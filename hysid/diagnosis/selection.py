@@ -8,13 +8,20 @@ From the start model (baseline or thesis) fitted to the loops' harmonics:
 2. refit the model plus each of the best few contenders (and of any contender
    whose projected signature is nearly parallel to the best one's), from the
    one-step estimate after a short line search along the strength;
-3. accept the refit with the lowest BIC if it lowers the BIC by at least
+3. where two contenders other than the top one together remove significantly
+   more chi^2 (to first order) than the top one with any partner, refit them together as
+   well: greedy selection never finds a pair whose members each explain less
+   than a third effect alone (an amplitude-dependent stiffness with a constant
+   dashpot needs both slopes of Eq. 4.8-4.9; either alone loses to a cubic
+   spring). A pair that is acceptable and beats every single refit by
+   ``BIC_MARGIN`` is named as two steps, the better member first;
+4. accept the refit with the lowest BIC if it lowers the BIC by at least
    ``BIC_MARGIN``, its strength is significant (``MIN_Z`` standard errors) and
    has the physical sign, no parameter is pushed against a bound (:func:`binding`), and it
    removes at least ``MIN_SHARE`` of the chi^2 above the noise floor; every
    other acceptable refit within ``BIC_MARGIN`` of it is named as confusable
    with it (this data set cannot tell them apart);
-4. repeat until no contender is left or none is accepted.
+5. repeat until no contender is left or none is accepted.
 
 The result is ``adequate`` when the final residual is noise (:mod:`.naming`),
 else ``unexplained`` with a description of what is left.
@@ -23,6 +30,7 @@ else ``unexplained`` with a description of what is left.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from itertools import combinations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -34,7 +42,7 @@ from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, References, gap_metrics, references
 from hysid.diagnosis.naming import adequacy, residual_signature
-from hysid.diagnosis.scoring import Candidate, score_candidates
+from hysid.diagnosis.scoring import Candidate, joint_score, score_candidates
 from hysid.identifiability import Identifiability, assess
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
@@ -53,6 +61,8 @@ PARALLEL = 0.9
 LINE_SEARCH = (0.25, 0.5, 1.0, 2.0, 4.0)
 """Multiples of the one-step estimate tried before polishing."""
 MAX_STEPS = 6
+PAIRS = 5
+"""Best contenders whose pairs are scored together."""
 
 
 @dataclass
@@ -66,6 +76,8 @@ class Step:
     after: Fit
     rejected: dict[str, str]
     """Other contenders of this round and why they were not taken."""
+    joint_with: str | None = None
+    """The effect named together with this one (neither alone explains what both do)."""
 
     @property
     def params(self) -> dict[str, float]:
@@ -165,6 +177,7 @@ class Diagnosis:
                     "whitened_rms_after": s.after.whitened_rms,
                     "delta_bic": s.after.bic - s.before.bic,
                     "rejected": s.rejected,
+                    "joint_with": s.joint_with,
                 }
                 for s in self.steps
             ],
@@ -190,15 +203,41 @@ class Diagnosis:
         }
 
 
+def threshold(candidates: list[Candidate]) -> float:
+    """The score a contender needs: chi^2_1 at the family-wise ``SIGNIFICANCE`` (Bonferroni over all effects and shapes)."""
+    return float(chi2_dist.isf(SIGNIFICANCE / max(sum(c.n_shapes for c in candidates), 1), 1))
+
+
+def passing(candidates: list[Candidate]) -> list[Candidate]:
+    """The candidates that pass the round's score test, best first."""
+    level = threshold(candidates)
+    return [c for c in candidates if c.physical and c.identifiable and c.score > level]
+
+
 def contenders(candidates: list[Candidate]) -> list[Candidate]:
-    """The candidates that pass the round's score test, best first, and the ones to refit."""
-    tests = sum(c.n_shapes for c in candidates)
-    threshold = chi2_dist.isf(SIGNIFICANCE / max(tests, 1), 1)
-    passing = [c for c in candidates if c.physical and c.identifiable and c.score > threshold]
-    if not passing:
+    """The contenders to refit one by one: the best few, and any nearly parallel to the best."""
+    ok = passing(candidates)
+    if not ok:
         return []
-    top = passing[0]
-    return [c for i, c in enumerate(passing) if i < TRIALS or abs(float(c.direction @ top.direction)) > PARALLEL]
+    top = ok[0]
+    return [c for i, c in enumerate(ok) if i < TRIALS or abs(float(c.direction @ top.direction)) > PARALLEL]
+
+
+def best_pair(candidates: list[Candidate], residual: np.ndarray) -> tuple[tuple[Candidate, Candidate], np.ndarray, float] | None:
+    """The pair of contenders without the top one that together remove the most chi^2 (to first order),
+    if that exceeds by a significant amount what the top one removes with any partner (where greedy
+    selection would go); (pair, joint one-step strengths, chi^2 removed)."""
+    ok = passing(candidates)[:PAIRS]
+    if len(ok) < 3:
+        return None
+    top, level = ok[0], threshold(candidates)
+    greedy = max(joint_score(top, c, residual)[0] for c in ok[1:])
+    best = None
+    for a, b in combinations(ok[1:], 2):
+        removed, step = joint_score(a, b, residual)
+        if removed > greedy + level and (best is None or removed > best[2]):
+            best = ((a, b), step, removed)
+    return best
 
 
 def refit(fit: Fit, harmonics: Harmonics, candidate: Candidate, bounds: dict[str, tuple[float, float]]) -> Fit:
@@ -217,6 +256,24 @@ def refit(fit: Fit, harmonics: Harmonics, candidate: Candidate, bounds: dict[str
         line[:, i] = one_step * np.array(LINE_SEARCH)
         rows.append(line)
     rows = np.clip(np.concatenate(rows), model.bounds[:, 0], model.bounds[:, 1])
+    order = np.argsort(objective(rows))
+    return fit_objective(objective, fit.start, effects, [rows[j] for j in order[: 1 if model.has_memory else 2]])
+
+
+def refit_pair(fit: Fit, harmonics: Harmonics, pair: tuple[Candidate, Candidate], step: np.ndarray, bounds: dict[str, tuple[float, float]]) -> Fit:
+    """The current model plus both effects of ``pair`` (each at its best shape), polished from the best
+    points of a line search along their joint one-step estimate (:func:`.scoring.joint_score`)."""
+    effects = fit.effects + tuple(c.effect for c in pair)
+    model = make_model(harmonics, fit.start, effects, bounds)
+    objective = HarmonicObjective(harmonics, model)
+    terms = [EFFECTS[c.effect]() for c in pair]
+    base = model.from_dict(
+        {**{p.name: 0.0 for t in terms for p in t.params}, **fit.params(), **pair[0].starts[0][0], **pair[1].starts[0][0]}
+    )
+    rows = np.repeat(base[None, :], len(LINE_SEARCH), axis=0)
+    for t, strength in zip(terms, step):
+        rows[:, model.names.index(t.strength)] = strength * np.array(LINE_SEARCH)
+    rows = np.clip(rows, model.bounds[:, 0], model.bounds[:, 1])
     order = np.argsort(objective(rows))
     return fit_objective(objective, fit.start, effects, [rows[j] for j in order[: 1 if model.has_memory else 2]])
 
@@ -319,6 +376,14 @@ def diagnose(
         verdicts = {e: judge(fit, r, e) for e, r in refits.items()}
         rejected = {e: v for e, v in verdicts.items() if v is not None}
         accepted = sorted((r.bic, e) for e, r in refits.items() if verdicts[e] is None)
+        pair = best_pair(candidates, fit.residual) if trials else None
+        if pair is not None:
+            joint = pair_step(fit, harmonics, pair, bounds, refits, accepted, done, count)
+            if joint is not None:
+                steps += joint
+                fit = joint[-1].after
+                bounds.update(soft_bounds(fit.model))
+                continue
         if not accepted:
             break
         best_bic, best = accepted[0]
@@ -352,6 +417,47 @@ def diagnose(
         identifiability=final_identifiability(fit, harmonics),
         last_scores=candidates,
     )
+
+
+def pair_step(
+    fit: Fit,
+    harmonics: Harmonics,
+    pair: tuple[tuple[Candidate, Candidate], np.ndarray, float],
+    bounds: dict[str, tuple[float, float]],
+    refits: dict[str, Fit],
+    accepted: list[tuple[float, str]],
+    done: Callable[[str], None],
+    count: list[int],
+) -> list[Step] | None:
+    """The two steps that name ``pair`` together, if its joint refit is acceptable for both effects and
+    beats every acceptable single refit by ``BIC_MARGIN``; else None. The member whose single refit fits
+    better comes first, its single refit in between."""
+    members, step, removed = pair
+    names = tuple(c.effect for c in members)
+    count[1] += 1
+    joint = refit_pair(fit, harmonics, members, step, bounds)
+    done(f"refitted with {' and '.join(names)} together")
+    if any(judge(fit, joint, e) is not None for e in names):
+        return None
+    if accepted and joint.bic > accepted[0][0] - BIC_MARGIN:
+        return None
+    for c in members:
+        if c.effect not in refits:
+            count[1] += 1
+            refits[c.effect] = refit(fit, harmonics, c, bounds)
+            done(f"refitted with {c.effect} alone")
+    first, second = sorted(members, key=lambda c: refits[c.effect].bic)
+    both = f"{first.effect} with {second.effect} together"
+    reasons = {
+        e: f"fits worse than {both} (BIC +{r.bic - joint.bic:.1f})" for e, r in refits.items() if e not in names
+    }
+    count[1] += 2  # the gaps after both steps
+    return [
+        Step(effect=first.effect, confusable_with=[], score=first.score, before=fit, after=refits[first.effect], rejected=reasons,
+             joint_with=second.effect),
+        Step(effect=second.effect, confusable_with=[], score=removed - first.score, before=refits[first.effect], after=joint,
+             rejected={}, joint_with=first.effect),
+    ]
 
 
 def final_identifiability(fit: Fit, harmonics: Harmonics) -> Identifiability:

@@ -34,6 +34,9 @@ def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
         f"{num(step.after.bic - step.before.bic, 5)} and the whitened RMS falls from {num(step.before.whitened_rms, 4)} "
         f"to {num(step.after.whitened_rms, 4)}."
     )
+    if step.joint_with:
+        lines += ["", f"**Named together with {step.joint_with}**: the two explain together significantly more than any "
+                  "effect with a partner chosen one at a time (alone, each explains less than another effect would)."]
     if step.confusable_with:
         lines += ["", f"**Confusable with** {', '.join(step.confusable_with)}: on this data set they fit within "
                   f"{BIC_MARGIN:g} BIC of it, so the data cannot tell them apart (e.g. too narrow a band of frequencies or amplitudes)."]

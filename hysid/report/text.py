@@ -233,10 +233,14 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     doc = diagnosis.to_dict()
     lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"]
     gap = doc["gap"]
-    lines.append(f"  {'start':<40} whitened RMS {gap[0]['whitened_rms']:10.4g}")
-    for step, after in zip(doc["steps"], gap[1:]):
+    labels = []
+    for step in doc["steps"]:
         also = f" (confusable with {', '.join(step['confusable_with'])})" if step["confusable_with"] else ""
-        lines.append(f"  + {step['effect'] + also:<38} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
+        labels.append(step["effect"] + also + (f" (with {step['joint_with']})" if step["joint_with"] else ""))
+    width = max([38, *map(len, labels)])
+    lines.append(f"  {'start':<{width + 2}} whitened RMS {gap[0]['whitened_rms']:10.4g}")
+    for label, step, after in zip(labels, doc["steps"], gap[1:]):
+        lines.append(f"  + {label:<{width}} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
     if doc["status"] == "adequate":
         lines.append(f"status: adequate, the final model {doc['final_model']} leaves only noise")
     else:
@@ -261,10 +265,18 @@ def reference_text(doc: dict[str, Any]) -> str:
     """Where the final model's gap stands against the model-free references."""
     ref = doc["references"]
     repeat = f", repeated tests {ref['repeatability']:.4g}" if ref["repeatability"] is not None else ", no repeated tests"
-    return (
+    out = (
         f"the final model reaches {REACHES[doc['reaches']]}: whitened RMS {doc['whitened_rms']:.4g} against noise 1, "
         f"linear per loop {ref['linear_per_loop']:.4g}{repeat}"
     )
+    if doc["reaches"] != "noise floor" and ref["linear_per_loop"] <= LINEAR_LOOPS:
+        out += ("; each loop on its own is linear within the noise, so what the model misses is how stiffness, "
+                "damping or mass change from loop to loop (with amplitude or frequency)")
+    return out
+
+
+LINEAR_LOOPS = 1.1
+"""A linear fit per loop this close to the noise floor (whitened RMS): the loops themselves are linear."""
 
 
 def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | None" = None) -> str:
