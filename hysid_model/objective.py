@@ -16,7 +16,9 @@ in closed form, ||Phi a - y||^2 = (a - a*)^T G (a - a*) + r_min, with the Gram
 matrix G = Phi^T Phi, the least-squares coefficients a* and their residual
 r_min precomputed once. A population of P candidates costs O(P L M^2) instead
 of O(P L N) and needs no interpolation or time integration. Models with memory
-terms are evaluated sample by sample instead.
+terms (or the sign of the velocity behind a measurement chain) add a force
+evaluated sample by sample, by compiled kernels at the loops' fixed phases
+(:mod:`hysid_model.sampled`; ``compiled=False`` keeps the numpy reference).
 """
 
 from __future__ import annotations
@@ -35,7 +37,10 @@ BLOCK_ELEMENTS = 1 << 13
 temporaries stay in cache and below glibc's mmap threshold, which is ~5x faster
 than one pass over a whole 6000-candidate population."""
 MEMORY_BLOCK_ELEMENTS = 1 << 22
-"""Candidates x loops x samples per block when memory terms integrate in time (32 MiB arrays)."""
+"""Candidates x loops x samples per block of the numpy reference for per-sample forces (32 MiB arrays)."""
+SAMPLED_BLOCK_ELEMENTS = 1 << 19
+"""Candidates x loops x samples per block of the compiled per-sample force (2 MiB: it stays in cache
+between the kernel that writes it and the one that sums the squares)."""
 
 
 def loop_weights(loops: LoopSet, scheme: str) -> np.ndarray:
@@ -75,7 +80,7 @@ class ModelSpace:
 class Objective(ModelSpace):
     """Weighted sum of squared force errors over all loops; lower is better."""
 
-    def __init__(self, loops: LoopSet, model: Model, weights: str = "thesis") -> None:
+    def __init__(self, loops: LoopSet, model: Model, weights: str = "thesis", compiled: bool = True) -> None:
         self.loops = loops
         self.model = model
         self.weights = weights
@@ -92,8 +97,13 @@ class Objective(ModelSpace):
         self.r_min = np.sum((np.einsum("lnm,lm->ln", self.phi, self.a_star) - self.y) ** 2, axis=1)
         m = len(self.features)
         self._gram_terms = [(i, k, self.gram[:, i, k] * (1.0 if i == k else 2.0)) for i in range(m) for k in range(i, m)]
+        self.sampled = model.sampled(self.kin, self.phase, loops.n_samples) if compiled else None
+        self._features = np.ascontiguousarray(self.phi.transpose(0, 2, 1))
+        """The per-sample force compiled at these loops' phases (:mod:`hysid_model.sampled`); None for a
+        memoryless model or ``compiled=False`` (the numpy reference :meth:`Model.memory_force`)."""
         if model.has_memory:
-            self._block_rows = max(1, MEMORY_BLOCK_ELEMENTS // (loops.n_loops * 2 * loops.n_samples))
+            block = SAMPLED_BLOCK_ELEMENTS if self.sampled is not None else MEMORY_BLOCK_ELEMENTS
+            self._block_rows = max(1, block // (loops.n_loops * 2 * loops.n_samples))
         else:
             self._block_rows = max(1, BLOCK_ELEMENTS // loops.n_loops)
 
@@ -113,6 +123,8 @@ class Objective(ModelSpace):
         as sum over feature pairs i <= k of (2 - [i == k]) G_ik d_i d_k with
         d = a - a* (for the few features of a model this beats a generic einsum).
         """
+        if self.sampled is not None:
+            return self.sampled.sum_of_squares(pop, self._coefficient_array(pop), self._features, self.y)
         if self.model.has_memory:
             return np.sum((self.predict(pop) - self.y) ** 2, axis=2)
         d = [c - self.a_star[:, m] for m, c in enumerate(self._coefficients(pop))]
@@ -136,9 +148,17 @@ class Objective(ModelSpace):
     def predict(self, pop: np.ndarray) -> np.ndarray:
         """Model force at every sample, ``(P, L, 2n)`` (top branch first)."""
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
-        force = np.einsum("plm,lnm->pln", self._coefficient_array(pop), self.phi)
+        force = np.ascontiguousarray(np.matmul(self._coefficient_array(pop).transpose(1, 0, 2), self._features).transpose(1, 0, 2))
+        if self.sampled is not None:
+            return self.sampled.force(pop, out=force)
         memory = self.model.memory_force(pop, self.kin, self.phase)
         return force if memory is None else force + memory
+
+    def memory_force(self, pop: np.ndarray) -> np.ndarray | None:
+        """The per-sample part of the model force (memory terms, sgn through the chain), ``(P, L, 2n)``, or None."""
+        if self.sampled is not None:
+            return self.sampled.force(np.atleast_2d(np.asarray(pop, dtype=float)))
+        return self.model.memory_force(pop, self.kin, self.phase)
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         """Model minus measured force per loop and sample, ``(L, 2n)``."""
