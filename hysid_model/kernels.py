@@ -203,17 +203,44 @@ def _square_sum(residual: np.ndarray) -> float:
 
 @njit(cache=True, nogil=True)
 def bouc_wen_mean(
-    z_max: np.ndarray, run: np.ndarray, which: np.ndarray, a: np.ndarray, b: np.ndarray, travel: np.ndarray, sign: np.ndarray,
+    z_max: np.ndarray, run: np.ndarray, which: np.ndarray, a: np.ndarray, b: np.ndarray, travel: np.ndarray, split: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """out[p, l] = mean of sign z(travel) over the nodes ``(L, M)`` of loop l (a uniform phase grid: the cycle mean)."""
+    """out[p, l] = mean of z over the nodes of loop l (a uniform phase grid: the cycle mean).
+
+    ``travel`` ``(L, M)`` holds the loading nodes' travels (the first ``split[l]``), then the
+    unloading ones', each increasing; z = +-z(travel) (:func:`_state`), summed piece by piece."""
+    nodes = travel.shape[1]
     for p in range(a.shape[0]):
+        ap, bp = a[p], b[p]
         for l in range(travel.shape[0]):
             zm, rn = z_max[p, which[l]], run[p, which[l]]
             total = 0.0
-            for j in range(travel.shape[1]):
-                total += sign[l, j] * _state(travel[l, j], zm, rn, a[p], b[p])
-            out[p, l] = total / travel.shape[1]
+            for g in range(2):
+                first = 0 if g == 0 else split[l]
+                last = split[l] if g == 0 else nodes
+                lo, hi = first, last  # first node on the relaxing piece: bisection
+                while lo < hi:
+                    mid = (lo + hi) // 2
+                    if travel[l, mid] < rn:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                part = 0.0
+                if ap == 0.0:
+                    for j in range(first, lo):
+                        part += travel[l, j] - zm
+                else:
+                    climb = 0.0
+                    for j in range(first, lo):
+                        climb += math.expm1(-ap * travel[l, j])
+                    part += -zm * (lo - first) - (zm + 1.0 / ap) * climb
+                relax = 0.0
+                for j in range(lo, last):
+                    relax += math.expm1(-bp * (travel[l, j] - rn))
+                part -= relax / bp
+                total += part if g == 0 else -part
+            out[p, l] = total / nodes
 
 
 def motion_tables(xh: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -9,7 +9,7 @@ from hysid_model.terms import Kinematics, ModalState, Term, Values
 
 BISECTIONS = 60
 """Bisection steps for the orbit's peak state (to double precision)."""
-MEAN_SAMPLES = 512
+MEAN_SAMPLES = 256
 """Phases per cycle over which the orbit's mean is taken under a measured displacement."""
 
 
@@ -204,7 +204,9 @@ class BoucWenSampler:
         if kin.xh is None:
             self.mean_nodes = None
         else:
-            self.mean_nodes = tuple(np.ascontiguousarray(a) for a in travels(kin, mean_grid(n_loops)))
+            node_travel, node_sign = travels(kin, mean_grid(n_loops))
+            order = np.lexsort((node_travel, node_sign < 0), axis=-1)
+            self.mean_nodes = (np.ascontiguousarray(np.take_along_axis(node_travel, order, axis=1)), np.count_nonzero(node_sign > 0, axis=1).astype(np.int64))
         self._motion: tuple[np.ndarray, np.ndarray] | None = None
 
     def _orbit(self, v: Values) -> tuple[np.ndarray, ...]:
