@@ -129,7 +129,7 @@ class HarmonicObjective(ModelSpace):
         self.model = model
         self.objective = Objective(harmonics.loops, model, weights="thesis")
         self.target = harmonics.whiten(harmonics.loops.forces())
-        self.design = np.einsum("lnm,lnf->lmf", harmonics.q, self.objective.phi) / harmonics.sigma[:, None, None]
+        self.design = np.matmul(harmonics.q.transpose(0, 2, 1), self.objective.phi) / harmonics.sigma[:, None, None]
         self.evaluations = 0
 
     def whitened(self, pop: np.ndarray) -> np.ndarray:

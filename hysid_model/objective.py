@@ -23,6 +23,8 @@ evaluated sample by sample, by compiled kernels at the loops' fixed phases
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from hysid_model.basis import design_matrix
@@ -92,13 +94,10 @@ class Objective(ModelSpace):
         probe = model.bounds.mean(axis=1)[None, :]
         self.features = list(model.coefficients(probe, self.kin))
         self.phi = design_matrix(self.features, self.phase, loops.n_samples)
-        self.gram = np.einsum("lnm,lnk->lmk", self.phi, self.phi)
-        self.a_star = np.stack([np.linalg.lstsq(p, y, rcond=None)[0] for p, y in zip(self.phi, self.y)])
-        self.r_min = np.sum((np.einsum("lnm,lm->ln", self.phi, self.a_star) - self.y) ** 2, axis=1)
-        m = len(self.features)
-        self._gram_terms = [(i, k, self.gram[:, i, k] * (1.0 if i == k else 2.0)) for i in range(m) for k in range(i, m)]
-        self.sampled = model.sampled(self.kin, self.phase, loops.n_samples) if compiled else None
         self._features = np.ascontiguousarray(self.phi.transpose(0, 2, 1))
+        self.sampled = model.sampled(self.kin, self.phase, loops.n_samples) if compiled else None
+        if self.sampled is not None:  # compile (or load from the disk cache) here, not in the first evaluation
+            self._sse(probe)
         """The per-sample force compiled at these loops' phases (:mod:`hysid_model.sampled`); None for a
         memoryless model or ``compiled=False`` (the numpy reference :meth:`Model.memory_force`)."""
         if model.has_memory:
@@ -106,6 +105,26 @@ class Objective(ModelSpace):
             self._block_rows = max(1, block // (loops.n_loops * 2 * loops.n_samples))
         else:
             self._block_rows = max(1, BLOCK_ELEMENTS // loops.n_loops)
+
+    @cached_property
+    def gram(self) -> np.ndarray:
+        """Gram matrices Phi^T Phi of the features, ``(L, M, M)``."""
+        return np.einsum("lnm,lnk->lmk", self.phi, self.phi)
+
+    @cached_property
+    def a_star(self) -> np.ndarray:
+        """Least-squares feature coefficients of each loop, ``(L, M)``."""
+        return np.stack([np.linalg.lstsq(p, y, rcond=None)[0] for p, y in zip(self.phi, self.y)])
+
+    @cached_property
+    def r_min(self) -> np.ndarray:
+        """Each loop's least-squares residual sum of squares, ``(L,)``."""
+        return np.sum((np.einsum("lnm,lm->ln", self.phi, self.a_star) - self.y) ** 2, axis=1)
+
+    @cached_property
+    def _gram_terms(self) -> list[tuple[int, int, np.ndarray]]:
+        m = len(self.features)
+        return [(i, k, self.gram[:, i, k] * (1.0 if i == k else 2.0)) for i in range(m) for k in range(i, m)]
 
     def _coefficients(self, pop: np.ndarray) -> list[np.ndarray]:
         coefs = self.model.coefficients(pop, self.kin)

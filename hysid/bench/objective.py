@@ -16,8 +16,10 @@ Eq. 2.1): ``memory_evals_per_s`` of the compiled objective
 (:mod:`hysid_model.sampled`) on the Synth set, ``memory_ratio`` against the
 numpy reference path of the same objective (``compiled=False``), timed
 alternately in the same run, and ``memory_waveform_evals_per_s`` on the Synth
-set under a measured, distorted displacement (13 % THD, :func:`distorted_synth`)
-with ``memory_waveform_cost`` its cost relative to the ideal sine. On one core:
+set under a measured, distorted displacement (10.6 % THD, :func:`distorted_synth`),
+with ``memory_waveform_cost`` the cost of the memory force there relative to
+the ideal sine (``memory_waveform_objective_cost`` for the whole objective,
+whose linear part has 10 harmonic features there instead of 2). On one core:
 a Bouc-Wen fit of the 5 % noise Synth set with the default budget
 (``bouc_wen_fit_s``, as ``hysid fit synth --noise 5 --model thesis+bouc_wen``)
 and the diagnosis of the Synth set from the baseline (``diagnose_s``).
@@ -167,19 +169,25 @@ def memory_rates(rounds: int = MEMORY_ROUNDS) -> dict[str, float]:
     sizes = {"compiled": MEMORY_BATCH, "reference": REFERENCE_BATCH, "waveform": MEMORY_BATCH}
     for name, objective in objectives.items():  # compile, warm caches
         objective(batch[:5])
-    seconds: dict[str, list[float]] = {name: [] for name in objectives}
+    forces = {"ideal_force": objectives["compiled"].sampled, "waveform_force": objectives["waveform"].sampled}
+    seconds: dict[str, list[float]] = {name: [] for name in (*objectives, *forces)}
     for _ in range(rounds):
         for name, objective in objectives.items():
             start = time.perf_counter()
             objective(batch[: sizes[name]])
             seconds[name].append((time.perf_counter() - start) / sizes[name])
+        for name, sampled in forces.items():
+            start = time.perf_counter()
+            sampled.force(batch)
+            seconds[name].append((time.perf_counter() - start) / MEMORY_BATCH)
     per_eval = {name: float(np.median(t)) for name, t in seconds.items()}
     return {
         "memory_evals_per_s": 1.0 / per_eval["compiled"],
         "memory_reference_evals_per_s": 1.0 / per_eval["reference"],
         "memory_ratio": per_eval["reference"] / per_eval["compiled"],
         "memory_waveform_evals_per_s": 1.0 / per_eval["waveform"],
-        "memory_waveform_cost": per_eval["waveform"] / per_eval["compiled"],
+        "memory_waveform_cost": per_eval["waveform_force"] / per_eval["ideal_force"],
+        "memory_waveform_objective_cost": per_eval["waveform"] / per_eval["compiled"],
         "memory_rounds": rounds,
     }
 
@@ -265,8 +273,9 @@ def to_text(result: dict[str, Any]) -> str:
         f"  numpy reference path              {result['memory_reference_evals_per_s']:>14,.0f} evaluations/s",
         f"  ratio                             {result['memory_ratio']:>14,.1f} x   (target >= {targets['memory_ratio_min']:g}: "
         f"{verdict(result['memory_ratio'] >= targets['memory_ratio_min'])})",
-        f"  measured waveform (13 % THD)      {result['memory_waveform_evals_per_s']:>14,.0f} evaluations/s = "
-        f"{result['memory_waveform_cost']:.2f} x the ideal sine's cost (target <= {targets['memory_waveform_cost_max']:g}: "
+        f"  measured waveform (10.6 % THD)    {result['memory_waveform_evals_per_s']:>14,.0f} evaluations/s = "
+        f"{result['memory_waveform_objective_cost']:.2f} x the ideal sine's cost (10 linear features instead of 2); "
+        f"its memory force {result['memory_waveform_cost']:.2f} x (target <= {targets['memory_waveform_cost_max']:g}: "
         f"{verdict(result['memory_waveform_cost'] <= targets['memory_waveform_cost_max'])})",
         f"on one core: Bouc-Wen fit of Synth 5 % ({result['bouc_wen_fit_evaluations']:,} evaluations, polish included) "
         f"{result['bouc_wen_fit_s']:.2f} s (target < {targets['bouc_wen_fit_s_max']:g} s: {verdict(result['bouc_wen_fit_s'] < targets['bouc_wen_fit_s_max'])}); "
