@@ -179,7 +179,7 @@ def _bouc_wen_loop(
         _piece(out, start, stride, lo, count, travel, deviation, step[r], spread[r], rn, bp, -km, -ks / bp)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath={"contract"})
 def bouc_wen_samples(
     z_max: np.ndarray, run: np.ndarray, which: np.ndarray, a: np.ndarray, b: np.ndarray, k: np.ndarray, mean: np.ndarray,
     travel: np.ndarray, runs: np.ndarray, loop_runs: np.ndarray, step: np.ndarray, spread: np.ndarray, deviation: np.ndarray,

@@ -223,7 +223,10 @@ class Model:
 
     def coefficients(self, pop: np.ndarray, kin: Kinematics) -> Coefficients:
         """Feature coefficients of the measured steady-state force, each ``(P, L)``."""
-        v, state = self.modal_state(pop, kin)
+        return self.measured_coefficients(*self.modal_state(pop, kin), kin)
+
+    def measured_coefficients(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
+        """:meth:`coefficients` from the parameter values and modal state of :meth:`modal_state`."""
         coefs = self._force_coefficients(v, state, kin)
         for term in self.terms:
             coefs = term.measure(v, coefs, kin)

@@ -31,7 +31,10 @@ from hysid_model.basis import design_matrix
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from hysid_model.terms import Kinematics
+from hysid_model.terms import Kinematics, ModalState, Values
+
+Modal = tuple[Values, ModalState]
+"""Parameter values and modal state of a population (:meth:`hysid_model.model.Model.modal_state`)."""
 
 WEIGHTS = ("thesis", "ml")
 BLOCK_ELEMENTS = 1 << 13
@@ -126,14 +129,14 @@ class Objective(ModelSpace):
         m = len(self.features)
         return [(i, k, self.gram[:, i, k] * (1.0 if i == k else 2.0)) for i in range(m) for k in range(i, m)]
 
-    def _coefficients(self, pop: np.ndarray) -> list[np.ndarray]:
-        coefs = self.model.coefficients(pop, self.kin)
+    def _coefficients(self, pop: np.ndarray, modal: Modal | None = None) -> list[np.ndarray]:
+        coefs = self.model.measured_coefficients(*(modal or self.model.modal_state(pop, self.kin)), self.kin)
         if set(coefs) != set(self.features):
             raise RuntimeError(f"model features changed between candidates: {sorted(coefs)} vs {self.features}")
         return [coefs[name] for name in self.features]
 
-    def _coefficient_array(self, pop: np.ndarray) -> np.ndarray:
-        return np.stack(self._coefficients(pop), axis=-1)
+    def _coefficient_array(self, pop: np.ndarray, modal: Modal | None = None) -> np.ndarray:
+        return np.stack(self._coefficients(pop, modal), axis=-1)
 
     def _sse(self, pop: np.ndarray) -> np.ndarray:
         """Unweighted sum of squared errors per candidate and loop, ``(P, L)``.
@@ -143,7 +146,8 @@ class Objective(ModelSpace):
         d = a - a* (for the few features of a model this beats a generic einsum).
         """
         if self.sampled is not None:
-            return self.sampled.sum_of_squares(pop, self._coefficient_array(pop), self._features, self.y)
+            modal = self.model.modal_state(pop, self.kin)
+            return self.sampled.sum_of_squares(modal, self._coefficient_array(pop, modal), self._features, self.y)
         if self.model.has_memory:
             return np.sum((self.predict(pop) - self.y) ** 2, axis=2)
         d = [c - self.a_star[:, m] for m, c in enumerate(self._coefficients(pop))]
@@ -167,16 +171,17 @@ class Objective(ModelSpace):
     def predict(self, pop: np.ndarray) -> np.ndarray:
         """Model force at every sample, ``(P, L, 2n)`` (top branch first)."""
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
-        force = np.ascontiguousarray(np.matmul(self._coefficient_array(pop).transpose(1, 0, 2), self._features).transpose(1, 0, 2))
+        modal = self.model.modal_state(pop, self.kin)
+        force = np.ascontiguousarray(np.matmul(self._coefficient_array(pop, modal).transpose(1, 0, 2), self._features).transpose(1, 0, 2))
         if self.sampled is not None:
-            return self.sampled.force(pop, out=force)
+            return self.sampled.force(modal, out=force)
         memory = self.model.memory_force(pop, self.kin, self.phase)
         return force if memory is None else force + memory
 
     def memory_force(self, pop: np.ndarray) -> np.ndarray | None:
         """The per-sample part of the model force (memory terms, sgn through the chain), ``(P, L, 2n)``, or None."""
         if self.sampled is not None:
-            return self.sampled.force(np.atleast_2d(np.asarray(pop, dtype=float)))
+            return self.sampled.force(self.model.modal_state(np.atleast_2d(np.asarray(pop, dtype=float)), self.kin))
         return self.model.memory_force(pop, self.kin, self.phase)
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hysid_model import kernels, waveform
-from hysid_model.terms import Kinematics, MeasurementTerm, Term
+from hysid_model.terms import Kinematics, MeasurementTerm, ModalState, Term, Values
 
 if TYPE_CHECKING:
     from hysid_model.model import Model
@@ -63,23 +63,25 @@ class SampledMemory:
             self.theta_lo, self.theta_hi = np.ascontiguousarray(lo, dtype=float), np.ascontiguousarray(hi, dtype=float)
             self.x0 = np.ascontiguousarray(kin.x0, dtype=float)
 
-    def sum_of_squares(self, pop: np.ndarray, coef: np.ndarray, features: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """``(P, L)``: sum over samples of (coef . features + this force - y)^2 for candidates ``pop``, with the
-        linear coefficients ``coef`` ``(P, L, M)`` of ``features`` ``(L, M, N)`` and the data ``y`` ``(L, N)``."""
+    def sum_of_squares(self, modal: tuple[Values, ModalState], coef: np.ndarray, features: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """``(P, L)``: sum over samples of (coef . features + this force - y)^2 for the candidates of ``modal``
+        (:meth:`~hysid_model.model.Model.modal_state`), with the linear coefficients ``coef`` ``(P, L, M)``
+        of ``features`` ``(L, M, N)`` and the data ``y`` ``(L, N)``."""
         out = np.empty(coef.shape[:2])
-        kernels.sum_of_squares(coef, features, self.force(pop), y, out)
+        kernels.sum_of_squares(coef, features, self.force(modal), y, out)
         return out
 
-    def force(self, pop: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """The per-sample force of candidates ``pop`` ``(P, D)``, ``(P, L, N)``; added to ``out`` (C-contiguous) if given."""
-        pop = np.atleast_2d(np.asarray(pop, dtype=float))
+    def force(self, modal: tuple[Values, ModalState], out: np.ndarray | None = None) -> np.ndarray:
+        """The per-sample force ``(P, L, N)`` of the candidates of ``modal`` (parameter values and modal
+        state, :meth:`~hysid_model.model.Model.modal_state`); added to ``out`` (C-contiguous) if given."""
+        v, state = modal
+        n_pop = state.xi.shape[0]
         if out is None:
-            out = np.zeros((pop.shape[0],) + self.phase.shape)
+            out = np.zeros((n_pop,) + self.phase.shape)
         if not self.compiled:
+            pop = np.hstack([v[name] for name in self.model.names])
             out += self.model.memory_force(pop, self.kin, self.phase, self.n_top)
             return out
-        v, state = self.model.modal_state(pop, self.kin)
-        n_pop = state.xi.shape[0]
         shift = None
         if self.sensors:
             delay = sum(np.asarray(t.delay(v, self.kin), dtype=float) for t in self.sensors)
