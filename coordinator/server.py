@@ -19,7 +19,7 @@ lands in one queue and is handled by one thread, which owns the SQLite store
   island has finished; then re-evaluates every island's best and polishes the
   global best (section 3.1's calculus-based refinement):
   :meth:`Coordinator.outcome` is the raw material of the report that
-  :mod:`hysid.campaign` builds, the same as ``hysid fit``'s.
+  :mod:`hysid.campaigns` builds, the same as ``hysid fit``'s.
 
 :class:`coordinator.links.ZenohLink` wires a coordinator to a Zenoh session;
 single-node campaigns feed the same queue from island threads
@@ -39,6 +39,7 @@ import numpy as np
 from coordinator.store import IslandRecord, Store, StoredBest
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
+from hysid_model.model import MAX_WIDENINGS
 from hysid_model.objective import Objective
 from island.config import CampaignConfig, decode_config, encode_config
 from island.node import key_prefix
@@ -393,8 +394,17 @@ class Coordinator:
         if not runs:
             raise HysidInputError(f"campaign {self.name!r}: no island reported any result ({self.stop_reason or 'not run'})")
         best = int(np.argmin([r.fitness for r in runs]))
+        widened: list[dict[str, Any]] = []
         if polish_best:
             runs[best] = polish_run(objective, runs[best])
+            for _ in range(MAX_WIDENINGS):  # a best on a bound derived from the data: widen it and refit
+                wider, changed = objective.model.widen_at(runs[best].theta)
+                if not changed:
+                    break
+                old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
+                widened += [{"param": n, "from": old[n], "to": [float(b) for b in pair]} for n, pair in changed.items()]
+                objective = Objective(objective.loops, wider, weights=objective.weights)
+                runs[best] = polish_run(objective, runs[best])
         settings = {
             "campaign": self.name,
             "algo": "/".join(self.config.algos),
@@ -406,6 +416,8 @@ class Coordinator:
             "stop_rules": self.termination.as_dict(),
             "stop_reason": self.stop_reason or self.store.stop_reason(self.name),
             "db": self.store.path,
+            "bounds_from_data": list(self.config.soft),
+            "bounds_widened": widened,
         }
         return CampaignOutcome(
             objective=objective,

@@ -99,6 +99,36 @@ class Store:
         except (sqlite3.DatabaseError, OSError) as exc:
             raise HysidInputError(f"{self.path}: not a usable campaign database ({exc})") from None
 
+    @classmethod
+    def read_only(cls, path: Path | str) -> "Store":
+        """A campaign database opened for reading only (never written, never created), also while a
+        coordinator writes it: WAL lets readers see every committed batch without blocking the writer."""
+        path = Path(path)
+        if not path.is_file():
+            raise HysidInputError(f"{path}: no such campaign database")
+        try:
+            db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, check_same_thread=False, timeout=10.0)
+            db.execute("SELECT count(*) FROM campaigns").fetchone()
+        except sqlite3.DatabaseError as exc:
+            raise HysidInputError(f"{path}: not a campaign database ({exc})") from None
+        store = cls.__new__(cls)
+        store.path, store.db = str(path), db
+        return store
+
+    @classmethod
+    def snapshot(cls, path: Path | str) -> "Store":
+        """An in-memory copy of a campaign database, read (only) from the file at one committed moment:
+        a stored campaign can be taken up again in it without changing the file."""
+        source = cls.read_only(path)
+        copy = sqlite3.connect(":memory:", check_same_thread=False)
+        try:
+            source.db.backup(copy)
+        finally:
+            source.db.close()
+        store = cls.__new__(cls)
+        store.path, store.db = source.path, copy
+        return store
+
     def close(self) -> None:
         self.db.commit()
         self.db.close()
@@ -245,6 +275,16 @@ class Store:
     def members(self, campaign: str) -> list[tuple[str, str, float]]:
         """Membership events ``(island, event, unix time)`` in order."""
         return self.db.execute("SELECT island, event, t FROM members WHERE campaign = ? ORDER BY id", (campaign,)).fetchall()
+
+    def campaign_list(self) -> list[dict[str, Any]]:
+        """Every stored campaign, oldest first: name, dataset, status, stop reason, created and ended (unix time)."""
+        rows = self.db.execute("SELECT name, dataset, status, stop_reason, created, ended FROM campaigns ORDER BY created")
+        return [dict(zip(("name", "dataset", "status", "stop_reason", "created", "ended"), r)) for r in rows]
+
+    def migrations_by_island(self, campaign: str) -> dict[str, int]:
+        """Migrant messages the coordinator saw from each island."""
+        rows = self.db.execute("SELECT island, count(*) FROM migrations WHERE campaign = ? GROUP BY island", (campaign,))
+        return {island: int(n) for island, n in rows}
 
     def count(self, table: str, campaign: str) -> int:
         if table not in ("migrations", "rejected", "history", "members"):

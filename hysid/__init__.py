@@ -16,19 +16,59 @@ raises :class:`HysidInputError` with one line naming what is wrong; doubtful
 input warns with :class:`HysidWarning`.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from __future__ import annotations
 
-from hysid import effects, models
-from hysid.campaign import CampaignResult, campaign
-from hysid.diagnose.selection import Diagnosis, diagnose
-from hysid.fit import FitResult, fit
-from hysid_model.datasets import load_dataset as load
-from hysid_model.errors import HysidInputError, HysidWarning
-from hysid_model.loops import LoopSet
-from hysid_model.model import Model
-from hysid_model.params import Parameter
-from island.migration import Migration
-from island.termination import Termination
+from importlib import import_module
+from importlib.metadata import PackageNotFoundError, version
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from hysid import effects, models
+    from hysid.campaigns import CampaignResult, campaign
+    from hysid.diagnosis.selection import Diagnosis, diagnose
+    from hysid.fitting import FitResult, fit
+    from hysid_model.datasets import load_dataset as load
+    from hysid_model.errors import HysidInputError, HysidWarning
+    from hysid_model.loops import LoopSet
+    from hysid_model.model import Model
+    from hysid_model.params import Parameter
+    from island.migration import Migration
+    from island.termination import Termination
+
+_EXPORTS = {
+    "effects": ("hysid.effects", None),
+    "models": ("hysid.models", None),
+    "CampaignResult": ("hysid.campaigns", "CampaignResult"),
+    "campaign": ("hysid.campaigns", "campaign"),
+    "Diagnosis": ("hysid.diagnosis.selection", "Diagnosis"),
+    "diagnose": ("hysid.diagnosis.selection", "diagnose"),
+    "FitResult": ("hysid.fitting", "FitResult"),
+    "fit": ("hysid.fitting", "fit"),
+    "load": ("hysid_model.datasets", "load_dataset"),
+    "HysidInputError": ("hysid_model.errors", "HysidInputError"),
+    "HysidWarning": ("hysid_model.errors", "HysidWarning"),
+    "LoopSet": ("hysid_model.loops", "LoopSet"),
+    "Model": ("hysid_model.model", "Model"),
+    "Parameter": ("hysid_model.params", "Parameter"),
+    "Migration": ("island.migration", "Migration"),
+    "Termination": ("island.termination", "Termination"),
+}
+"""The front door's names and where they live; imported on first use, so that ``import hysid`` (and the
+command line's start, which Ctrl-C may interrupt) stays light until something is used."""
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'hysid' has no attribute {name!r}")
+    module, attr = _EXPORTS[name]
+    value = import_module(module) if attr is None else getattr(import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(list(globals()) + list(_EXPORTS))
+
 
 try:
     __version__ = version("hysid")

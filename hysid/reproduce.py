@@ -25,7 +25,7 @@ from typing import Any, Callable
 import numpy as np
 
 from hysid import thesis_tables as tt
-from hysid.fit import FitResult, fit
+from hysid.fitting import FitResult, fit
 from hysid.report import reproduction, text
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet

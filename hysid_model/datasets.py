@@ -4,40 +4,46 @@
 
 * ``"synth"``: the thesis' Synth set (:func:`hysid_model.synth.synth_loops`);
 * a dataset directory holding ``manifest.csv`` (``file,frequency_hz``) and one
-  raw record per row (``.csv`` with ``time_s,displacement_m,force_n`` or
-  ``.lvm``), optionally ``dataset.toml``; loops are extracted with
+  raw record per row (``.csv`` with ``time_s,displacement_m,force_n``,
+  ``.lvm``, ``.tdms``, ``.h5``: :mod:`hysid_model.readers.records`),
+  optionally ``dataset.toml``; loops are extracted with
   :func:`hysid_model.extraction.extract_loop`;
 * a directory holding the tidy loops file ``loops.csv`` (what ``hysid synth``
   writes), or a tidy loops file itself; a ``dataset.toml`` next to it
   overrides the ``name``, ``meq_kg`` and ``bounds`` it sets;
 * a directory of the thesis' ``.mat`` loop files (with ``ef.mat`` or a
   manifest), or one such file;
-* a directory of ``.lvm`` records without a manifest (frequencies then come
-  from the data alone), or one ``.lvm``/raw ``.csv`` record.
+* a directory of raw records without a manifest (frequencies from the file
+  names, else from the data: loops.meta["estimated_manifest"] is the
+  manifest that would fix them), or one record file, or a tidy long CSV of
+  several records (:mod:`hysid_model.readers.long_csv`).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hysid_model.errors import HysidInputError
+from hysid_model import plausibility
+from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.extraction import extract_loop
 from hysid_model.loops import LoopSet
-from hysid_model.readers.csv_series import TimeSeries, read_series, write_series
-from hysid_model.readers.dataset_dir import MANIFEST_NAME, DatasetConfig, frequency_in_name, listed_file, natural_key, read_config, read_manifest
-from hysid_model.readers.lvm import read_lvm
+from hysid_model.readers.csv_series import write_series
+from hysid_model.readers.dataset_dir import (
+    MANIFEST_NAME, DatasetConfig, confined, frequency_in_name, inside, listed_file, read_config, read_manifest,
+)
 from hysid_model.readers.matfile import read_mat_dataset
+from hysid_model.readers.records import RAW_SUFFIXES, RawSource, directory_sources, manifest_sources, manifest_text, sources_of_file
 from hysid_model.readers.tidy import is_tidy_file, read_loops, write_loops
 from hysid_model.synth import RawRecord, check_noise, synth_loops
 
 TIDY_NAME = "loops.csv"
 DEFAULT_POINTS = 100
-RAW_SUFFIXES = (".csv", ".lvm")
 
 
 def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 0, n_points: int | None = None) -> LoopSet:
@@ -99,8 +105,8 @@ def _load_file(path: Path, n_points: int | None) -> LoopSet:
     if suffix == ".mat":
         return read_mat_dataset([path], config, n_points or DEFAULT_POINTS)
     if suffix in RAW_SUFFIXES:
-        return extract_records([(path, frequency_in_name(path.stem))], config, n_points or DEFAULT_POINTS, f"raw-{suffix[1:]}")
-    raise HysidInputError(f"{path}: unknown dataset file type (expected a hysid loops file, .mat, .lvm or a raw .csv record)")
+        return extract_records(sources_of_file(path, config, frequency_in_name(path.stem)), config, n_points or DEFAULT_POINTS, f"raw-{suffix[1:]}")
+    raise HysidInputError(f"{path}: unknown dataset file type (expected a hysid loops file, .mat, or a raw record: {', '.join(RAW_SUFFIXES)})")
 
 
 def _load_dir(directory: Path, n_points: int | None) -> LoopSet:
@@ -110,51 +116,75 @@ def _load_dir(directory: Path, n_points: int | None) -> LoopSet:
     if manifest.is_file() and tidy.is_file():
         raise HysidInputError(f"{directory}: holds both {MANIFEST_NAME} (raw records) and {TIDY_NAME} (extracted loops); keep one")
     if tidy.is_file():
-        return _tidy(tidy, config, n_points)
+        return _tidy(confined(directory, TIDY_NAME, str(directory)), config, n_points)
     n = n_points or DEFAULT_POINTS
     if manifest.is_file():
-        rows = read_manifest(manifest)
+        rows = read_manifest(confined(directory, MANIFEST_NAME, str(directory)))
         files = [listed_file(manifest, row) for row in rows]
         suffixes = {f.suffix.lower() for f in files}
         if suffixes == {".mat"}:
             return read_mat_dataset(files, config, n, manifest=rows)
         if not suffixes <= set(RAW_SUFFIXES):
-            raise HysidInputError(f"{manifest}: lists {', '.join(sorted(suffixes))} files; records must be all .csv/.lvm or all .mat")
+            raise HysidInputError(f"{manifest}: lists {', '.join(sorted(suffixes))} files; records must be all raw records ({', '.join(RAW_SUFFIXES)}) or all .mat")
         unlisted = sorted(set(config.steady) - {row.file for row in rows})
         if unlisted:
             raise HysidInputError(f"{directory / 'dataset.toml'}: [[tests]] file {unlisted[0]!r} is not listed in {MANIFEST_NAME}")
-        return extract_records([(f, row.frequency_hz) for f, row in zip(files, rows)], config, n, "raw-" + "+".join(s[1:] for s in sorted(suffixes)))
+        return extract_records(manifest_sources(manifest, rows, files, config), config, n, "raw-" + "+".join(s[1:] for s in sorted(suffixes)))
     mats = sorted(p for p in directory.iterdir() if p.suffix.lower() == ".mat" and p.is_file())
     if mats:
+        outside = [p.name for p in mats if not inside(directory, p)]
+        if outside:
+            raise HysidInputError(f"{directory}: {outside[0]!r} links outside the dataset directory; copy the file in")
         return read_mat_dataset(mats, config, n)
-    lvms = sorted((p for p in directory.iterdir() if p.suffix.lower() == ".lvm" and p.is_file()), key=lambda p: natural_key(p.name))
-    if lvms:
-        return extract_records([(p, frequency_in_name(p.stem)) for p in lvms], config, n, "raw-lvm")
+    sources = directory_sources(directory, config)
+    if sources:
+        suffixes = sorted({s.path.suffix.lower()[1:] for s in sources})
+        return extract_records(sources, config, n, "raw-" + "+".join(suffixes), estimate_manifest=True)
     raise HysidInputError(
-        f"{directory}: no dataset here (expected {MANIFEST_NAME} with raw records, {TIDY_NAME}, .mat loop files or .lvm records)"
+        f"{directory}: no dataset here (expected {MANIFEST_NAME} with raw records, {TIDY_NAME}, .mat loop files, or raw records: "
+        f"{', '.join(RAW_SUFFIXES)})"
     )
 
 
-def _read_record(path: Path, config: DatasetConfig) -> TimeSeries:
-    if path.stat().st_size == 0:
-        raise HysidInputError(f"{path}: the file is empty")
-    return read_lvm(path, config) if path.suffix.lower() == ".lvm" else read_series(path)
+def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: int, fmt: str, estimate_manifest: bool = False) -> LoopSet:
+    """Extract one loop per raw record (see :mod:`hysid_model.extraction`), reading one record at a time.
 
-
-def extract_records(records: list[tuple[Path, float | None]], config: DatasetConfig, n_points: int, fmt: str) -> LoopSet:
-    """Extract one loop per raw record ((path, nominal frequency or None)); see :mod:`hysid_model.extraction`."""
+    With ``estimate_manifest`` (a directory without ``manifest.csv``) records whose frequency is known
+    from neither a manifest nor their name get the data's; a warning says so, and ``meta`` keeps
+    ``estimated_manifest``, the ``manifest.csv`` that would fix those frequencies.
+    """
     extracted = []
-    for path, nominal in records:
-        series = _read_record(path, config)
+    for source in sources:
+        series = source.read()
         extracted.append(extract_loop(
-            series.t, series.x, series.force, source=str(path), n_points=n_points,
-            nominal_freq_hz=nominal, steady_window=config.steady.get(path.name),
+            series.t, series.x, series.force, source=series.source, n_points=n_points,
+            nominal_freq_hz=source.nominal_hz, steady_window=config.window(source.window_key),
         ))
-    per_loop: dict[str, list[Any]] = {"file": [p.name for p, _ in records], "nominal_frequency_hz": [math.nan if f is None else f for _, f in records]}
+        del series
+    labels = [s.label for s in sources]
+    per_loop: dict[str, list[Any]] = {
+        "file": [s.file for s in sources], "nominal_frequency_hz": [math.nan if s.nominal_hz is None else s.nominal_hz for s in sources],
+    }
     for key in extracted[0].meta():
         per_loop[key] = [e.meta()[key] for e in extracted]
+    plausibility.warn_loops(
+        labels, np.array([e.x0 for e in extracted]), np.array([e.force_amplitude for e in extracted]),
+        np.array([e.x_distortion for e in extracted]), np.array([e.drift for e in extracted]),
+        [e.clipping for e in extracted], str(config.directory),
+    )
     meta = config.meta()
     meta.update({"format": fmt, "per_loop": per_loop})
+    estimated = [k for k, s in enumerate(sources) if s.nominal_hz is None]
+    if estimate_manifest and estimated:
+        files = [k for k, s in enumerate(sources) if s.whole_file]
+        meta["estimated_manifest"] = manifest_text(
+            [sources[k] for k in files], [sources[k].nominal_hz or extracted[k].freq_hz for k in files]
+        )
+        found = ", ".join(f"{labels[k]} {extracted[k].freq_hz:.6g} Hz" for k in estimated)
+        warnings.warn(HysidWarning(
+            f"{config.directory}: no {MANIFEST_NAME}; frequencies estimated from the data: {found}"
+            + (f" (the {MANIFEST_NAME} that fixes them is in loops.meta['estimated_manifest'])" if files else "")
+        ), stacklevel=3)
     return LoopSet(
         name=config.name,
         freq_hz=np.array([e.freq_hz for e in extracted]),
@@ -164,7 +194,7 @@ def extract_records(records: list[tuple[Path, float | None]], config: DatasetCon
         sigma=np.array([e.sigma for e in extracted]),
         meq_kg=config.meq_kg,
         cycles=np.array([e.cycles for e in extracted]),
-        labels=[p.stem for p, _ in records],
+        labels=labels,
         meta=meta,
         x_harmonics=stack_harmonics([e.x_harmonics for e in extracted]),
     )

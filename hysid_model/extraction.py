@@ -7,14 +7,16 @@ a top (loading) and a bottom (unloading) branch, centres it
 x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
 :func:`extract_loop` does the same from every steady whole cycle of a record:
 
-1. frequency: peak of the displacement spectrum, refined by least squares of x
-   on harmonics of w t in the steady window (variable projection, Brent);
+1. frequency: peak of the displacement spectrum, refined by the slope of the
+   steady cycles' first-harmonic phases (:func:`hysid_model.steady.phase_slope_frequency`);
    compared with the nominal (manifest) frequency, > 2 % apart is an error;
-2. steady window: given (``dataset.toml``) or found automatically (the
-   amplitude plateau of a tapered sine, minus leading/trailing transient
-   cycles, see :func:`_auto_window`); all whole cycles inside it are used;
+2. steady window: given (``dataset.toml``; it may reach one sample interval
+   past the record) or found automatically (:mod:`hysid_model.steady`: the
+   longest run of cycles with steady amplitudes, a slow drift allowed, minus
+   leading/trailing transient cycles); all whole cycles inside it are used;
 3. reference: x = X0 sin(theta) + harmonics + x_offset with theta = w t + phi
-   (the fundamental of Eq. 4.5), by harmonic least squares over those whole cycles;
+   (the fundamental of Eq. 4.5), by harmonic least squares over those whole
+   cycles (harmonics below the Nyquist frequency only);
 4. branches: on the grid x_i = linspace(x_min, x_max, n) (``reinterpolate``)
    between the measured displacement's extremes, the loading branch sits at
    the phase theta_i where the measured waveform passes x_i rising, the
@@ -43,30 +45,29 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
    A branch value is a weighted average of m ~ 1/v_i raw samples with
    v_i = [(U^T U)^-1]_00, so its std is sigma_raw sqrt(v_i); the loop's
    ``sigma`` is sigma_raw sqrt(mean v_i), the noise of the branch samples *as
-   stored*, which maximum-likelihood weights and Cramer-Rao bounds need.
+   stored*, which maximum-likelihood weights and Cramer-Rao bounds need. A
+   window whose v_i exceeds twice the median is widened
+   (``VARIANCE_SPREAD``), so that one sigma describes every branch value;
+7. checks (:mod:`hysid_model.plausibility`): displacement distortion,
+   clipping of the displacement or its velocity, amplitude drift.
+
+Every step is linear in the record length (no sliding windows over cycles).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import warnings
+from math import comb
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
-from scipy.optimize import minimize_scalar
 from scipy.special import gammaincinv
 
-from hysid_model import waveform
+from hysid_model import plausibility, steady, waveform
 from hysid_model.errors import HysidInputError, HysidWarning
 
 FREQ_TOLERANCE = 0.02
 """Largest relative difference between the nominal and the measured frequency."""
-STEADY_TOLERANCE = 0.01
-"""A cycle is steady when its amplitudes are within 1 % (or 4 robust stds) of the plateau."""
-WAVEFORM_MIN_CYCLES = 5
-"""Fewer steady cycles cannot tell a transient from cycle-to-cycle scatter; then only stage 1 applies."""
-WAVEFORM_TOLERANCE = 1e-3
-"""A cycle whose samples differ from the median cycle by less than 0.1 % of the signal's std is steady whatever the noise."""
 X_HARMONICS = 7
 """Harmonics of w t in the displacement (a real shaker's x is not a pure sine): fitted to refine the
 frequency, and kept for the model (:mod:`hysid_model.waveform`)."""
@@ -80,6 +81,8 @@ at the edge of a window has 4x the variance of one at its centre, so a 4x wider
 window gives every branch value the same variance."""
 WIDEN = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 """Widening factors tried for a phase window that holds too few distinct samples."""
+VARIANCE_SPREAD = 2.0
+"""A branch value whose variance exceeds the median one's this many times gets a wider window."""
 DISTINCT = 1e-3
 """Sample phases closer than this fraction of a window apart count as one (a rate locked to the excitation repeats them)."""
 SNAP = 1e-9
@@ -110,6 +113,9 @@ class ExtractedLoop:
     window_s: tuple[float, float]
     samples_per_point: float
     window_overlap: float
+    drift: tuple[float, float] = (0.0, 0.0)
+    """Relative change of the displacement and force amplitudes over the cycles used."""
+    clipping: plausibility.Clipping = field(default_factory=plausibility.Clipping)
 
     def meta(self) -> dict[str, float]:
         """Per-loop facts kept in ``LoopSet.meta['per_loop']``."""
@@ -125,6 +131,10 @@ class ExtractedLoop:
             "force_mean_n": self.force_mean,
             "steady_t0_s": self.window_s[0],
             "steady_t1_s": self.window_s[1],
+            "x_drift": self.drift[0],
+            "force_drift": self.drift[1],
+            "clipped": self.clipping.kind,
+            "clip_level": self.clipping.level if self.clipping.kind else None,
         }
 
 
@@ -176,21 +186,30 @@ def loop_from_branches(top: np.ndarray, bottom: np.ndarray, n_points: int, sourc
 
 
 def _harmonic_design(theta: np.ndarray, harmonics: int) -> np.ndarray:
-    """Columns 1, sin(k theta), cos(k theta) for k = 1..harmonics (by the angle-sum recurrence)."""
-    s1, c1 = np.sin(theta), np.cos(theta)
-    cols = [np.ones_like(theta), s1, c1]
-    s, c = s1, c1
-    for _ in range(harmonics - 1):
-        s, c = s * c1 + c * s1, c * c1 - s * s1
-        cols += [s, c]
-    return np.column_stack(cols)
+    """Rows 1, sin(k theta), cos(k theta) for k = 1..harmonics, ``(2 harmonics + 1, N)`` (angle-sum recurrence)."""
+    design = np.empty((2 * harmonics + 1, theta.size))
+    design[0] = 1.0
+    np.sin(theta, out=design[1])
+    np.cos(theta, out=design[2])
+    s1, c1 = design[1], design[2]
+    for k in range(2, harmonics + 1):
+        s, c = design[2 * k - 3], design[2 * k - 2]
+        np.multiply(s, c1, out=design[2 * k - 1])
+        design[2 * k - 1] += c * s1
+        np.multiply(c, c1, out=design[2 * k])
+        design[2 * k] -= s * s1
+    return design
 
 
 def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
-    """Frequency of the largest displacement spectral peak (Hann window, zero padding, parabolic interpolation)."""
+    """Frequency of the largest displacement spectral peak (Hann window, zero padding to a power of 2, Gaussian interpolation).
+
+    Accurate to a few percent of a bin (1 / record length); :func:`hysid_model.steady.phase_slope_frequency`
+    refines it.
+    """
     n = t.size
     dt = (t[-1] - t[0]) / (n - 1)
-    nfft = 1 << int(np.ceil(np.log2(8 * n)))
+    nfft = 1 << int(np.ceil(np.log2(n)))
     mag = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nfft))
     first = int(np.ceil(nfft / (n - 1)))  # below one period per record there is no cycle to extract
     if first >= mag.size - 1 or not np.any(mag[first:] > 0):
@@ -203,85 +222,6 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     return float(k / (nfft * dt))
 
 
-def _refine_frequency(t: np.ndarray, x: np.ndarray, f0: float) -> float:
-    """Frequency minimising the residual of x on ``X_HARMONICS`` harmonics of w t (variable projection)."""
-    tc = t - 0.5 * (t[0] + t[-1])
-    span = t[-1] - t[0]
-    xx = float(x @ x)
-
-    def rss(f: float) -> float:
-        design = _harmonic_design(2 * np.pi * f * tc, X_HARMONICS)
-        rhs = design.T @ x
-        return xx - float(rhs @ np.linalg.solve(design.T @ design, rhs))
-
-    half_width = 0.5 / span
-    # xatol: a phase drift of 2 pi 1e-5 rad over the window, far below any measurable phase
-    res = minimize_scalar(rss, bounds=(f0 - half_width, f0 + half_width), method="bounded", options={"xatol": 1e-5 / span})
-    return float(res.x)
-
-
-def _cycles_of(t: np.ndarray, t_a: float, freq: float, n_cycles: int) -> tuple[np.ndarray, np.ndarray]:
-    """(sample selector, cycle index) of the samples in the cycles [t_a + k/f, t_a + (k+1)/f), k < n_cycles."""
-    cycle = np.floor((t - t_a) * freq).astype(int)
-    keep = (cycle >= 0) & (cycle < n_cycles)
-    return keep, cycle[keep]
-
-
-def _per_cycle_amplitudes(theta: np.ndarray, cycle: np.ndarray, n_cycles: int, signals: list[np.ndarray]) -> list[np.ndarray]:
-    """First-harmonic amplitude of each signal in each cycle (3-term least squares per cycle, batched)."""
-    basis = [np.ones_like(theta), np.sin(theta), np.cos(theta)]
-    gram = np.empty((n_cycles, 3, 3))
-    for i in range(3):
-        for j in range(i, 3):
-            gram[:, i, j] = gram[:, j, i] = np.bincount(cycle, weights=basis[i] * basis[j], minlength=n_cycles)
-    out = []
-    for y in signals:
-        rhs = np.stack([np.bincount(cycle, weights=b * y, minlength=n_cycles) for b in basis], axis=1)
-        coef = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
-        out.append(np.hypot(coef[:, 1], coef[:, 2]))
-    return out
-
-
-def _per_cycle_excess(phase: np.ndarray, cycle: np.ndarray, n_cycles: int, y: np.ndarray) -> np.ndarray:
-    """Per cycle, the mean squared difference of its samples from the running median cycle.
-
-    The reference at each sample is the median of the 2K+1 samples nearest in
-    phase (about two from every cycle): robust to one deviating cycle and,
-    being a median, it keeps jumps (friction) sharp, so cycles whose samples
-    straddle a jump differently do not look different.
-    """
-    order = np.argsort(phase, kind="stable")
-    ys = y[order]
-    k = min(n_cycles, ys.size // 2)
-    padded = np.concatenate([ys[-k:], ys, ys[:k]])  # the phase is periodic
-    ref = np.median(sliding_window_view(padded, 2 * k + 1), axis=1)
-    sq = np.empty_like(ys)
-    sq[order] = (ys - ref) ** 2
-    return np.bincount(cycle, weights=sq, minlength=n_cycles) / np.bincount(cycle, minlength=n_cycles)
-
-
-def _plateau(amplitude: np.ndarray) -> np.ndarray:
-    """Cycles whose amplitude is within the tolerance of the plateau (median of the cycles above 90 % of the largest)."""
-    top = amplitude >= 0.9 * amplitude.max()
-    ref = np.median(amplitude[top])
-    if ref <= 0:
-        return np.ones(amplitude.size, dtype=bool)
-    dev = amplitude / ref - 1.0
-    tol = max(STEADY_TOLERANCE, 4.0 * 1.4826 * np.median(np.abs(dev[top])))
-    return np.abs(dev) <= tol
-
-
-def _longest_run(mask: np.ndarray) -> tuple[int, int]:
-    """(start, length) of the longest run of True."""
-    padded = np.concatenate([[0], mask.astype(np.int8), [0]])
-    edges = np.flatnonzero(np.diff(padded))
-    if edges.size == 0:
-        return 0, 0
-    starts, stops = edges[::2], edges[1::2]
-    best = int(np.argmax(stops - starts))
-    return int(starts[best]), int(stops[best] - starts[best])
-
-
 def _too_few_cycles(source: str, found: int, of: int) -> HysidInputError:
     return HysidInputError(
         f"{source}: fewer than 2 steady cycles (longest run of steady cycles: {found} of {of}); "
@@ -289,48 +229,40 @@ def _too_few_cycles(source: str, found: int, of: int) -> HysidInputError:
     )
 
 
-def _auto_window(t: np.ndarray, x: np.ndarray, force: np.ndarray, f0: float, source: str) -> tuple[float, float, float]:
-    """(t0, t1, refined frequency) of the steady whole cycles, found in two stages.
-
-    1. amplitude plateau: cycles whose displacement and force first-harmonic
-       amplitudes are within ``STEADY_TOLERANCE`` (or 4 robust stds) of the
-       plateau (drops the ramps of a tapered sine);
-    2. waveform (runs of >= ``WAVEFORM_MIN_CYCLES``): with the refined
-       frequency, leading and trailing cycles whose x or F samples differ
-       from the running-median cycle significantly more than the typical
-       cycle's do (4 stds of a noise-only chi-square, and more than
-       ``WAVEFORM_TOLERANCE`` of the signal's std) are dropped: transients
-       that hardly change the first harmonic. Deviating cycles inside the run
-       are kept (scatter, not a transient).
-    """
+def _auto_window(t: np.ndarray, x: np.ndarray, force: np.ndarray, f0: float, source: str) -> tuple[float, float, float, steady.CycleFits]:
+    """(t0, t1, refined frequency, the per-cycle fits on cycles of 1/f0 from t[0]) of the steady whole cycles
+    (:mod:`hysid_model.steady`, stages 1 and 2)."""
     n_cycles = int(np.floor((t[-1] - t[0]) * f0 * (1 + 1e-9)))
     if n_cycles < 2:
         raise HysidInputError(f"{source}: fewer than 2 steady cycles: the whole record holds {(t[-1] - t[0]) * f0:.2f} cycles at {f0:.6g} Hz")
-    keep, cycle = _cycles_of(t, t[0], f0, n_cycles)
-    theta = 2 * np.pi * f0 * (t[keep] - t[0])
-    amp_x, amp_f = _per_cycle_amplitudes(theta, cycle, n_cycles, [x[keep], force[keep]])
-    start, length = _longest_run(_plateau(amp_x) & _plateau(amp_f))
+    fits = steady.cycle_fits(t, [x, force], t[0], f0, n_cycles)
+    start, length = steady.steady_run(fits.amplitude, fits.amplitude_noise())
     if length < 2:
         raise _too_few_cycles(source, length, n_cycles)
+    freq = steady.phase_slope_frequency(fits, f0, start, start + length)
     t_a = t[0] + start / f0
-    sel = (t >= t_a) & (t <= t_a + length / f0)
-    freq = _refine_frequency(t[sel], x[sel], f0)
+    amp = steady.line_through(fits.amplitude, start, start + length)
+    off = steady.line_through(fits.offset, start, start + length)
     length = int(np.floor(length * freq / f0 + CYCLE_SLACK))
-    if length < WAVEFORM_MIN_CYCLES:
-        return t_a, t_a + length / freq, freq
-    keep, cycle = _cycles_of(t, t_a, freq, length)
-    phase = np.mod((t[keep] - t_a) * freq, 1.0)
-    per_cycle = np.count_nonzero(keep) / length
-    steady = np.ones(length, dtype=bool)
-    for y in (x[keep], force[keep]):
-        excess = _per_cycle_excess(phase, cycle, length, y)
-        limit = max(np.median(excess) * (1.0 + 4.0 * np.sqrt(2.0 / per_cycle)), (WAVEFORM_TOLERANCE * np.std(y)) ** 2)
-        steady &= excess <= limit
-    first = int(np.argmax(steady))
-    last = length - int(np.argmax(steady[::-1]))
-    if not steady.any() or last - first < 2:
-        raise _too_few_cycles(source, int(steady.sum()), n_cycles)
-    return t_a + first / freq, t_a + last / freq, freq
+    if length < steady.WAVEFORM_MIN_CYCLES:
+        return t_a, t_a + length / freq, freq, fits
+    index = start + np.arange(length) * (f0 / freq)  # the stage-2 cycles on stage 1's cycle numbers
+    trends = [(amp[s, 0] + amp[s, 1] * index, off[s, 0] + off[s, 1] * index) for s in range(2)]
+    first, last = steady.waveform_steady(t, [x, force], trends, t_a, freq, length)
+    if last - first < 2:
+        raise _too_few_cycles(source, max(last - first, 0), n_cycles)
+    return t_a + first / freq, t_a + last / freq, freq, fits
+
+
+def _given_window(t: np.ndarray, window: tuple[float, float], source: str) -> tuple[float, float]:
+    """A steady window from ``dataset.toml``, which may reach one sample interval past either end of the record
+    (a window written as the nominal end of a record sampled up to one interval before it)."""
+    t_a, t_b = window
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    slack = dt * (1.0 + 1e-6)
+    if not (t[0] - slack <= t_a < t_b <= t[-1] + slack):
+        raise HysidInputError(f"{source}: steady window [{t_a:g}, {t_b:g}] s is not inside the record [{t[0]:g}, {t[-1]:g}] s")
+    return max(t_a, float(t[0])), t_b
 
 
 def _cycle_mean(t: np.ndarray, y: np.ndarray, t_a: float, t_b: float) -> float:
@@ -340,9 +272,9 @@ def _cycle_mean(t: np.ndarray, y: np.ndarray, t_a: float, t_b: float) -> float:
     of the waveform, which for a 400 N loop sampled 700 times a cycle is
     already a visible 0.05 N offset.
     """
-    inner = (t > t_a) & (t < t_b)
+    inner = slice(np.searchsorted(t, t_a, side="right"), np.searchsorted(t, t_b, side="left"))
     grid = np.concatenate([[t_a], t[inner], [t_b]])
-    vals = np.interp(grid, t, y)
+    vals = np.concatenate([np.interp([t_a], t, y), y[inner], np.interp([t_b], t, y)])
     return float(np.sum(0.5 * (vals[1:] + vals[:-1]) * np.diff(grid)) / (t_b - t_a))
 
 
@@ -412,24 +344,24 @@ def _branches(
     psi[np.abs(psi - hi_phase) < SNAP] = hi_phase  # whatever the last bits of its phase say
     order = np.argsort(psi, kind="stable")
     ps, ys = psi[order], force[order]
-    cum = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones_like(ps), ps, ps * ps)]
+    sums = _PhaseSums(ps, h)
     new_phase = np.concatenate([[1.0], (np.diff(ps) > DISTINCT * h).astype(float)])  # a sample at a phase not seen before
     cum_distinct = np.concatenate([[0.0], np.cumsum(new_phase)])
     chosen_lo = np.full(centre.size, np.nan)
     chosen_hi = np.full(centre.size, np.nan)
+    chosen_r = np.zeros(centre.size)
     for r in WIDEN:
         todo = np.isnan(chosen_lo)
         if not np.any(todo):
             break
-        lo = np.maximum(centre + start * r * h, half_lo)
-        hi = np.minimum(centre + (start + width) * r * h, half_hi)
+        lo, hi = _window_bounds(centre, start, width, half_lo, half_hi, r * h)
         a, b = np.searchsorted(ps, lo), np.searchsorted(ps, hi)
-        s0, s1, s2 = (c[b] - c[a] for c in cum)
+        s0, s1, s2 = (c[b] - c[a] for c in sums.cum[:3])
         distinct = cum_distinct[b] - cum_distinct[a] + (a < b) * (1.0 - new_phase[np.minimum(a, ps.size - 1)])
         with np.errstate(divide="ignore", invalid="ignore"):
             spread = np.sqrt(np.maximum(s2 / s0 - (s1 / s0) ** 2, 0.0))
         ok = todo & (distinct >= 4) & (spread >= 0.1 * (hi - lo))
-        chosen_lo[ok], chosen_hi[ok] = lo[ok], hi[ok]
+        chosen_lo[ok], chosen_hi[ok], chosen_r[ok] = lo[ok], hi[ok], r
     if np.any(np.isnan(chosen_lo)):
         distinct = np.unique(np.mod(np.round(ps * (1e6 / (2 * np.pi))), 1e6)).size
         raise HysidInputError(
@@ -437,43 +369,121 @@ def _branches(
             "sample phases (few samples per cycle, or a sample rate locked to the excitation); use fewer points per branch "
             "or a longer or faster-sampled record"
         )
-    win, pos = _concatenated_ranges(np.searchsorted(ps, chosen_lo), np.searchsorted(ps, chosen_hi))
-    n_win = centre.size
-    u = (ps[pos] - centre[win]) / h  # in window widths: the normal equations stay well conditioned
+    _even_out_variance(sums, centre, start, width, half_lo, half_hi, chosen_lo, chosen_hi, chosen_r)
+    win, pos, u, moments, inverse = _window_fits(ps, centre, h, chosen_lo, chosen_hi)
     y = ys[pos]
-    moments = [np.bincount(win, weights=u**p, minlength=n_win) for p in range(5)]
-    gram = np.stack([np.stack([moments[i + j] for j in range(3)], axis=-1) for i in range(3)], axis=-2)
-    rhs = np.stack([np.bincount(win, weights=y * u**p, minlength=n_win) for p in range(3)], axis=-1)
-    inverse = np.linalg.inv(gram)
+    starts = _starts(win)
+    yu = y * u
+    rhs = np.stack([np.add.reduceat(w, starts) for w in (y, yu, yu * u)], axis=-1)
     coef = np.einsum("wij,wj->wi", inverse, rhs)
     resid = y - coef[win, 0] - coef[win, 1] * u - coef[win, 2] * u * u
-    ss = np.bincount(win, weights=resid * resid, minlength=n_win)
+    ss = np.add.reduceat(resid * resid, starts)
     dof = moments[0] - 3
     sigma_raw = float(np.sqrt(np.median(ss / dof) / _chi2_median_ratio(float(np.median(dof)))))
     overlap = pos.size / np.count_nonzero(np.bincount(pos))
     return coef[:, 0], inverse[:, 0, 0], sigma_raw, float(overlap)
 
 
-def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float, source: str) -> np.ndarray:
-    """The displacement's harmonics referenced to its fundamental, ``(1, K)``: x = sum Re[X_k e^{ik theta}], theta = w t + phi.
+def _window_bounds(centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray, half_hi: np.ndarray,
+                   rh: float) -> tuple[np.ndarray, np.ndarray]:
+    """Phase windows at width ``rh`` clipped to their half cycles (see :func:`_phase_windows`)."""
+    return np.maximum(centre + start * rh, half_lo), np.minimum(centre + (start + width) * rh, half_hi)
+
+
+def _window_fits(ps: np.ndarray, centre: np.ndarray, h: float, lo: np.ndarray, hi: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray], np.ndarray]:
+    """(window of each used sample, its position in ``ps``, its u = (phase - centre) / h, moments of u^0..u^4,
+    inverse Gram matrices ``(W, 3, 3)``) of local-quadratic fits in the windows [lo, hi)."""
+    win, pos = _concatenated_ranges(np.searchsorted(ps, lo), np.searchsorted(ps, hi))
+    u = (ps[pos] - centre[win]) / h  # in window widths: the normal equations stay well conditioned
+    u2 = u * u
+    starts = _starts(win)
+    moments = [np.diff(np.append(starts, win.size)).astype(float)]
+    moments += [np.add.reduceat(w, starts) for w in (u, u2, u2 * u, u2 * u2)]
+    gram = np.stack([np.stack([moments[i + j] for j in range(3)], axis=-1) for i in range(3)], axis=-2)
+    return win, pos, u, moments, np.linalg.inv(gram)
+
+
+def _starts(win: np.ndarray) -> np.ndarray:
+    """Where each window's run starts in ``win`` (windows in order, none empty)."""
+    return np.flatnonzero(np.diff(win, prepend=-1))
+
+
+class _PhaseSums:
+    """Prefix sums of the powers 0..4 of the sorted sample phases: the local-quadratic Gram matrix of any
+    window in O(1), to choose windows before the one pass that fits them."""
+
+    def __init__(self, ps: np.ndarray, h: float) -> None:
+        self.ps, self.h = ps, h
+        self.shift = 0.5 * (ps[0] + ps[-1])  # phases centred: the expansion below loses fewer digits
+        q = ps - self.shift
+        self.cum = np.empty((5, ps.size + 1))
+        self.cum[:, 0] = 0.0
+        self.cum[0, 1:] = np.arange(1, ps.size + 1)
+        power = q.copy()
+        for k in range(1, 5):
+            np.cumsum(power, out=self.cum[k, 1:])
+            if k < 4:
+                power *= q
+
+    def variance(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """[(U^T U)^-1]_00 of the windows [lo, hi) about ``centre``: sum (q - c)^p expanded in the prefix sums."""
+        a, b = np.searchsorted(self.ps, lo), np.searchsorted(self.ps, hi)
+        s = [c[b] - c[a] for c in self.cum]
+        c = -(centre - self.shift)
+        m = [sum(comb(p, k) * s[k] * c ** (p - k) for k in range(p + 1)) / self.h**p for p in range(5)]
+        gram = np.stack([np.stack([m[i + j] for j in range(3)], axis=-1) for i in range(3)], axis=-2)
+        return np.linalg.inv(gram)[:, 0, 0]
+
+
+def _even_out_variance(sums: _PhaseSums, centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray,
+                       half_hi: np.ndarray, lo: np.ndarray, hi: np.ndarray, chosen_r: np.ndarray) -> None:
+    """Widen (in place) windows whose branch value's variance exceeds ``VARIANCE_SPREAD`` times the median one's.
+
+    On a rate locked to the excitation the samples at a reversal's own phase
+    belong to the branch they start, so the branch that ends there
+    extrapolates its last value from samples a whole sample interval away;
+    widening its window brings its variance back to the others', so that one
+    ``sigma`` describes every branch value.
+    """
+    v = sums.variance(centre, lo, hi)
+    limit = VARIANCE_SPREAD * np.median(v)
+    for r in WIDEN:
+        idx = np.flatnonzero((v > limit) & (r > chosen_r))
+        if idx.size == 0:
+            continue
+        wlo, whi = _window_bounds(centre[idx], start[idx], width[idx], half_lo[idx], half_hi[idx], r * sums.h)
+        v_new = sums.variance(centre[idx], wlo, whi)
+        better = v_new < v[idx]
+        sel = idx[better]
+        lo[sel], hi[sel], v[sel], chosen_r[sel] = wlo[better], whi[better], v_new[better], r
+
+
+def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float, source: str) -> tuple[np.ndarray, float]:
+    """(the displacement's harmonics referenced to its fundamental ``(1, K)``, their THD): x = sum Re[X_k e^{ik theta}], theta = w t + phi.
 
     ``cx`` holds [offset, a_1, b_1, a_2, b_2, ...] of x = sum a_k sin(k w t) + b_k cos(k w t);
     X_k = (b_k - i a_k) e^{-i k phi}, so X_1 = -i X0. Harmonics within ``SIGNIFICANT`` standard
     errors (``stderr``, of each coefficient) of zero, or below ``DISTORTION_FLOOR``, are noise and
-    set to 0, so a clean sine stays the ideal sine. A waveform that reverses more than twice per cycle (sub-loops) has no single
-    loading and unloading branch: it is taken as the ideal sine, with a warning.
+    set to 0, so a clean sine stays the ideal sine. A waveform that reverses more than twice per cycle
+    has no single loading and unloading branch: sub-loops, or the ripple that a few harmonics put on
+    a clipped, flat top. The loop then keeps the most harmonics that reverse twice (at least the
+    fundamental, the ideal sine), with a warning; the THD is that of all the measured harmonics.
     """
     k = np.arange(1, (cx.size - 1) // 2 + 1)
     xh = ((cx[2::2] - 1j * cx[1::2]) * np.exp(-1j * k * phi))[None, :]
     xh[0, 0] = -1j * x0
     xh[0, 1:][np.abs(xh[0, 1:]) < max(SIGNIFICANT * stderr, DISTORTION_FLOOR * x0)] = 0.0
+    thd = float(waveform.thd(xh)[0])
     reverses = int(waveform.reversal_count(xh)[0])
-    if reverses != 2:
-        warnings.warn(HysidWarning(
-            f"{source}: the displacement reverses {reverses} times per cycle (sub-loops); the loop is placed on the ideal sine X0 sin(wt)"
-        ), stacklevel=3)
-        return waveform.ideal([x0])
-    return xh
+    if reverses == 2:
+        return xh, thd
+    kept = next(n for n in range(xh.shape[1] - 1, 0, -1) if n == 1 or waveform.reversal_count(xh[:, :n])[0] == 2)
+    warnings.warn(HysidWarning(
+        f"{source}: the displacement reverses {reverses} times per cycle (sub-loops, or a clipped top); "
+        + ("the loop is placed on the ideal sine X0 sin(wt)" if kept == 1 else f"the loop keeps its first {kept} harmonics, which reverse twice")
+    ), stacklevel=3)
+    return xh[:, :kept].copy(), thd
 
 
 def extract_loop(
@@ -495,42 +505,48 @@ def extract_loop(
     t, x, force = (np.asarray(a, dtype=float) for a in (t, x, force))
     f0 = _spectral_frequency(t, x, source)
     if steady_window is None:
-        t_a, t_b, freq = _auto_window(t, x, force, f0, source)
+        t_a, t_b, freq, fits = _auto_window(t, x, force, f0, source)
+        origin = float(t[0])
     else:
-        t_a, t_b = steady_window
-        if not (t[0] - 1e-9 <= t_a < t_b <= t[-1] + 1e-9 * max(1.0, abs(t[-1]))):
-            raise HysidInputError(f"{source}: steady window [{t_a:g}, {t_b:g}] s is not inside the record [{t[0]:g}, {t[-1]:g}] s")
-        in_window = (t >= t_a) & (t <= t_b)
-        if (t_b - t_a) * f0 < 2 - CYCLE_SLACK or np.count_nonzero(in_window) < 8:
+        t_a, t_b = _given_window(t, steady_window, source)
+        n_given = int(np.floor((t_b - t_a) * f0 + CYCLE_SLACK))
+        if n_given < 2 or np.searchsorted(t, t_b, side="right") - np.searchsorted(t, t_a) < 8:
             raise HysidInputError(f"{source}: fewer than 2 steady cycles ({(t_b - t_a) * f0:.2f} cycles at {f0:.6g} Hz in [{t_a:g}, {t_b:g}] s)")
-        freq = _refine_frequency(t[in_window], x[in_window], f0)
+        fits, origin = steady.cycle_fits(t, [x, force], t_a, f0, n_given), t_a
+        freq = steady.phase_slope_frequency(fits, f0, 0, n_given)
     if nominal_freq_hz is not None and abs(freq / nominal_freq_hz - 1) > FREQ_TOLERANCE:
         raise HysidInputError(
             f"{source}: the data's frequency {freq:.6g} Hz disagrees with the manifest's {nominal_freq_hz:g} Hz "
             f"by {100 * abs(freq / nominal_freq_hz - 1):.1f} % (more than {100 * FREQ_TOLERANCE:g} %)"
         )
     cycles = int(np.floor((t_b - t_a) * freq + CYCLE_SLACK))
-    while cycles >= 2 and t_a + cycles / freq > t[-1] + 0.5 * (t[-1] - t[0]) / (t.size - 1):
+    while cycles >= 2 and t_a + cycles / freq > t[-1] + (1 + 1e-6) * (t[-1] - t[0]) / (t.size - 1):  # the last sample of a whole cycle is one interval before its end
         cycles -= 1
     if cycles < 2:
         raise HysidInputError(f"{source}: fewer than 2 steady whole cycles at {freq:.6g} Hz in [{t_a:g}, {t_b:g}] s")
-    span = (t >= t_a) & (t < t_a + cycles / freq)
+    t_end = t_a + cycles / freq
+    span = slice(np.searchsorted(t, t_a), np.searchsorted(t, t_end))
     ts, xs, fs = t[span], x[span], force[span]
     w = 2 * np.pi * freq
-    design = _harmonic_design(w * (ts - t_a), X_HARMONICS)
-    cx, cf = np.linalg.solve(design.T @ design, design.T @ np.column_stack([xs, fs])).T
+    theta = w * (ts - t_a)
+    harmonics = max(1, min(X_HARMONICS, int((ts.size / cycles - 1) // 2)))  # below the Nyquist frequency
+    design = _harmonic_design(theta, harmonics)
+    cx, cf = np.linalg.solve(design @ design.T, np.stack([design @ xs, design @ fs], axis=1)).T
     x0 = float(np.hypot(cx[1], cx[2]))
     phi = float(np.arctan2(cx[2], cx[1]))
     phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
-    force_mean = _cycle_mean(t, force, t_a, t_a + cycles / freq)
-    x_residual = xs - design @ cx
-    x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - design.shape[1], 1)))
-    xh = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
+    force_mean = _cycle_mean(t, force, t_a, t_end)
+    x_residual = xs - cx @ design
+    del design
+    x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - (2 * harmonics + 1), 1)))
+    xh, thd = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
     lo, hi = (float(r[0]) for r in waveform.reversals(xh))
     x_min, x_max = (float(e[0]) for e in waveform.extremes(xh))
     grid = np.linspace(x_min, x_max, n_points)
     sample_phases = waveform.branch_phases(xh, grid[None], grid[None])[0]
-    values, var, sigma_raw, overlap = _branches(w * (ts - t_a) + phi, fs - force_mean, sample_phases, (lo, hi), source)
+    values, var, sigma_raw, overlap = _branches(theta + phi, fs - force_mean, sample_phases, (lo, hi), source)
+    first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
+    used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]
     return ExtractedLoop(
         freq_hz=freq,
         x0=x0,
@@ -544,9 +560,11 @@ def extract_loop(
         force_amplitude=float(np.hypot(cf[1], cf[2])),
         x_offset=float(cx[0]),
         x_peak=float(np.abs(xs - cx[0]).max()),
-        x_distortion=float(waveform.thd(xh)[0]),
+        x_distortion=thd,
         force_mean=force_mean,
         window_s=(float(ts[0]), float(ts[-1])),
         samples_per_point=float(np.mean(1.0 / var)),
         window_overlap=overlap,
+        drift=tuple(float(d) for d in plausibility.amplitude_drift(used)),
+        clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), xh, freq),
     )

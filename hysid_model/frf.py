@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hysid_model.basis import design_matrix
+from hysid_model.basis import design_matrix, harmonic_names
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
 from hysid_model.terms import Kinematics
@@ -37,16 +37,28 @@ AMPLITUDE_RTOL = 0.05
 """Loops whose amplitudes X0 agree within this relative tolerance form one amplitude level."""
 
 
-def first_harmonic(loops: LoopSet) -> np.ndarray:
-    """Complex first harmonic F1 = a_s + i a_c of each loop's force (N), shape ``(L,)``.
+FIT_ORDERS = 7
+"""Force harmonics fitted together (:func:`force_harmonics`): the orders the extraction keeps."""
 
-    Least squares of the force on [1, sin(wt), cos(wt)] over both branches, so a
-    constant offset and higher harmonics do not leak into F1.
+
+def force_harmonics(loops: LoopSet, max_order: int = 1) -> np.ndarray:
+    """Complex harmonics a_s + i a_c of each loop's force (N) at orders 1..``max_order``, shape ``(L, K)``.
+
+    Least squares of the force on [1, sin(k wt), cos(k wt)] over both branches, orders up to
+    ``max(FIT_ORDERS, max_order)`` fitted together: branch points are not evenly spaced in phase,
+    so a harmonic left out of the fit (from a nonlinear force, or a distorted displacement) would
+    leak into the ones kept; the constant keeps an offset out of them too.
     """
-    phi = design_matrix(["dc", "s1", "c1"], loops.phases(), loops.n_samples)
+    fitted = max(FIT_ORDERS, max_order)
+    phi = design_matrix(harmonic_names(fitted), loops.phases(), loops.n_samples)
     y = loops.forces()
     coef = np.stack([np.linalg.lstsq(p, f, rcond=None)[0] for p, f in zip(phi, y)])
-    return coef[:, 1] + 1j * coef[:, 2]
+    return (coef[:, 1::2] + 1j * coef[:, 2::2])[:, :max_order]
+
+
+def first_harmonic(loops: LoopSet) -> np.ndarray:
+    """Complex first harmonic F1 = a_s + i a_c of each loop's force (N), shape ``(L,)``."""
+    return force_harmonics(loops, 1)[:, 0]
 
 
 def compliance(loops: LoopSet) -> np.ndarray:

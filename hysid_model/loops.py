@@ -18,6 +18,11 @@ from hysid_model import waveform
 from hysid_model.errors import HysidInputError
 
 
+INERTIA_LIMIT = 1e6
+"""A known mass whose inertia force exceeds the measured forces a million times is a typo (a specimen at
+resonance with a damping ratio of 1e-4 stays at 5e3)."""
+
+
 @dataclass
 class LoopSet:
     """Loops of one specimen; arrays are indexed ``[loop]`` or ``[loop, sample]``.
@@ -73,6 +78,15 @@ class LoopSet:
             raise HysidInputError(f"{self.name}: every loop needs a positive amplitude X0")
         if self.meq_kg is not None and not (np.isfinite(self.meq_kg) and self.meq_kg > 0):
             raise HysidInputError(f"{self.name}: meq_kg must be a positive mass or unknown (None), got {self.meq_kg}")
+        measured = float(np.max(self.peak_force))
+        if self.meq_kg is not None and measured > 0:  # all-zero forces: a template to predict on, nothing to compare
+            with np.errstate(over="ignore"):
+                inertia = float(np.max(self.meq_kg * self.omega**2 * self.x0))
+            if not inertia <= INERTIA_LIMIT * measured:
+                raise HysidInputError(
+                    f"{self.name}: meq_kg = {self.meq_kg:g} kg is not plausible: its inertia force m w^2 X0 reaches {inertia:.3g} N, "
+                    f"more than {INERTIA_LIMIT:g} times the largest measured force ({measured:.3g} N)"
+                )
         if self.x_harmonics is not None:
             self.x_harmonics = waveform.check(self.x_harmonics, self.name)
             if self.x_harmonics.shape[0] != n_loops:
@@ -130,8 +144,9 @@ class LoopSet:
         return np.concatenate([self.top[:, :, 1], self.bottom[:, :, 1]], axis=1)
 
     def rows(self) -> list[dict[str, Any]]:
-        """One dict per loop: label, frequency, X0, peak force, noise sigma, cycles (+ phase and
-        displacement distortion when extracted from raw records); ``hysid loops --json``."""
+        """One dict per loop: label, frequency, X0, peak force, noise sigma, cycles (+ phase, displacement
+        distortion and clipping, ``clipped`` "displacement"/"velocity" at ``clip_level`` m or m/s, when extracted
+        from raw records); ``hysid loops --json``."""
         per_loop = self.meta.get("per_loop", {})
         out = []
         for j in range(self.n_loops):
@@ -147,6 +162,10 @@ class LoopSet:
             for key in ("phase_deg", "x_distortion"):
                 if key in per_loop:
                     row[key] = float(per_loop[key][j])
+            if "clipped" in per_loop:
+                clipped = per_loop["clipped"][j]
+                row["clipped"] = clipped or None
+                row["clip_level"] = per_loop["clip_level"][j] if clipped else None
             out.append(row)
         return out
 

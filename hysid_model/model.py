@@ -33,6 +33,9 @@ from hysid_model.terms import (
 if TYPE_CHECKING:
     from hysid_model.sampled import SampledMemory
 
+MAX_WIDENINGS = 3
+"""How often a fit widens the data-derived bounds its best ends on (:meth:`Model.widen_at`) and refits."""
+
 PARAMETER_ORDER = ("xi0", "S_xi", "w0", "S_w", "meq")
 """Parameters are ordered as the thesis' chromosome ``[xi0, S_xi, w0, S_w]`` (Appendix A),
 since the GA's single-point crossover depends on gene order; other terms' follow in term order."""
@@ -137,8 +140,9 @@ class Model:
                 return p
         raise HysidInputError(f"{what} given for unknown parameter {name!r}; model {self.spec} has {', '.join(p.name for p in self._all)}")
 
-    def with_bounds(self, bounds: Mapping[str, tuple[float, float]]) -> "Model":
-        """This model with other search bounds, ``{name: (lower, upper)}``."""
+    def with_bounds(self, bounds: Mapping[str, tuple[float, float]], soft: bool = False) -> "Model":
+        """This model with other search bounds, ``{name: (lower, upper)}``; ``soft`` marks bounds derived
+        from the data, which a fit may widen (:meth:`widen_at`)."""
         changes = {}
         for name, pair in bounds.items():
             p = self._parameter(name, "bounds")
@@ -146,8 +150,25 @@ class Model:
                 lower, upper = (float(b) for b in pair)
             except (TypeError, ValueError):
                 raise HysidInputError("bounds must be a pair of numbers (lower, upper)", param=f"bounds[{name!r}]", value=pair) from None
-            changes[name] = p.with_bounds(lower, upper)
+            changes[name] = p.with_bounds(lower, upper, soft)
         return self._changed(changes)
+
+    def widen_at(self, theta: np.ndarray) -> tuple["Model", dict[str, tuple[float, float]]]:
+        """This model with every soft bound that ``theta`` sits on widened (:meth:`Parameter.widened`),
+        and the new bounds of the parameters widened (none: nothing to widen)."""
+        bounds = self.bounds
+        span = bounds[:, 1] - bounds[:, 0]
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        low = theta - bounds[:, 0] <= 1e-6 * span
+        high = bounds[:, 1] - theta <= 1e-6 * span
+        changes = {}
+        for p, lo, hi in zip(self._params, low, high):
+            if p.soft and (lo or hi):
+                wider = p.widened(bool(lo), bool(hi))
+                if (wider.lower, wider.upper) != (p.lower, p.upper):
+                    changes[p.name] = wider
+        widened = {name: (p.lower, p.upper) for name, p in changes.items()}
+        return (self._changed(changes), widened) if changes else (self, {})
 
     def fix(self, values: Mapping[str, float] | None = None, **kwargs: float) -> "Model":
         """This model with parameters fixed at known values (``model.fix(meq=0.04)``)."""
@@ -165,8 +186,15 @@ class Model:
         return self._changed({name: self._parameter(name, "vary").varied() for name in names})
 
     def at_bounds(self, theta: np.ndarray) -> list[str]:
-        """Free parameters of ``theta`` that sit on a bound of the search space (the optimum may lie beyond it)."""
-        return [name for name, hit in zip(self.names, on_bounds(self.bounds, theta)) if hit]
+        """Free parameters of ``theta`` that sit on a bound of the search space that is not a physical
+        limit (the optimum may lie beyond it; a friction force of 0 is an answer, not a search artifact)."""
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        out = []
+        for p, value, hit in zip(self._params, theta, on_bounds(self.bounds, theta)):
+            side = p.lower if value - p.lower <= p.upper - value else p.upper
+            if hit and side not in p.physical:
+                out.append(p.name)
+        return out
 
     def __add__(self, other: "Term | Model") -> "Model":
         """This model plus an effect term (or another model's terms): ``thesis + coulomb_friction``."""
@@ -346,13 +374,13 @@ def build_model(spec: str = "thesis") -> Model:
         raise HysidInputError("a model is a string such as 'thesis+coulomb_friction' or a hysid Model", param="model", value=spec)
     parts = [p.strip() for p in spec.split("+") if p.strip()]
     if not parts or parts[0] not in PRESETS:
-        raise HysidInputError(f"model {spec!r}: must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)")
+        raise HysidInputError(f"must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)", param="model", value=spec)
     effect_ids = list(PRESETS[parts[0]])
     for part in parts[1:]:
         if part not in EFFECTS:
-            raise HysidInputError(f"model {spec!r}: unknown effect {part!r}; known: {', '.join(sorted(EFFECTS))}")
+            raise HysidInputError(f"unknown effect {part!r}; known: {', '.join(sorted(EFFECTS))}", param="model", value=spec)
         if part in effect_ids:
-            raise HysidInputError(f"model {spec!r}: effect {part!r} is already in the model")
+            raise HysidInputError(f"effect {part!r} is already in the model", param="model", value=spec)
         effect_ids.append(part)
     terms: list[Term] = [Oscillator()] + [EFFECTS[e]() for e in effect_ids]
     return Model(terms, "+".join(parts))

@@ -3,6 +3,11 @@
 A parameter is either searched within its bounds (``vary=True``) or fixed at a
 known ``value`` (``vary=False``), as in lmfit. The known equivalent mass of a
 specimen is the fixed parameter ``meq``.
+
+Bounds are *soft* when hysid derived them from the data (they may be widened
+when a fit ends on one) and hard when a user or a dataset gave them; no bound
+ever leaves the parameter's ``physical`` range (a damping ratio is not
+negative, a mass is positive).
 """
 
 from __future__ import annotations
@@ -27,6 +32,10 @@ class Parameter:
     vary: bool = True
     value: float | None = None
     """The fixed value (``vary=False``); None while the parameter is searched."""
+    soft: bool = False
+    """The bounds were derived from the data and may be widened."""
+    physical: tuple[float, float] = (-math.inf, math.inf)
+    """Values outside this range mean nothing (bounds are never widened past it)."""
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
@@ -34,8 +43,19 @@ class Parameter:
         if not self.vary and (self.value is None or not math.isfinite(self.value)):
             raise HysidInputError("a fixed parameter needs a finite value", param=self.name, value=self.value)
 
-    def with_bounds(self, lower: float, upper: float) -> "Parameter":
-        return replace(self, lower=float(lower), upper=float(upper))
+    def with_bounds(self, lower: float, upper: float, soft: bool = False) -> "Parameter":
+        return replace(self, lower=float(lower), upper=float(upper), soft=soft)
+
+    def widened(self, lower: bool, upper: bool) -> "Parameter":
+        """These soft bounds widened on the given sides, within the physical range: a decade for a
+        positive scale (a stiffness, a frequency), one more range width for a signed quantity."""
+        lo, hi = self.lower, self.upper
+        span = hi - lo
+        if lower:
+            lo = lo / 10.0 if lo > 0 and self.physical[0] >= 0 else lo - span
+        if upper:
+            hi = hi * 10.0 if hi > 0 and self.physical[0] >= 0 else hi + span
+        return replace(self, lower=max(lo, self.physical[0]), upper=min(hi, self.physical[1]))
 
     def fixed_at(self, value: float) -> "Parameter":
         return replace(self, vary=False, value=float(value))

@@ -8,9 +8,14 @@ their islands, the diagnosis and the benches all come here):
 * a mass the dataset knows (``LoopSet.meq_kg``, from ``dataset.toml``) becomes
   the fixed parameter ``meq``, unless the caller fixes or bounds ``meq`` itself
   (bounds mean: fit it);
-* the dataset's own bounds (``[bounds]`` of ``dataset.toml``, Table 5.4 for the
-  Synth set) replace the model's defaults, and the caller's ``bounds`` and
-  ``fixed`` values come last;
+* bounds, one rule for every model and every command: each term derives its
+  parameters' bounds from the loops' equivalent-linear survey with generous
+  margins (:meth:`hysid_model.terms.Term.data_bounds`); these are *soft*, a fit
+  that ends on one widens it and refits. The dataset's own bounds (``[bounds]``
+  of ``dataset.toml``; Table 5.4 for the Synth set and the thesis' own ``.mat``
+  loops) and the caller's ``bounds`` are hard; ``fixed`` values come last;
+* the starting point (:func:`starting_point`) is the survey's linear estimate
+  of xi, wn and their slopes (Eq. 4.8, 4.9), every effect switched off;
 * the loop weights of Eq. 3.3 are the thesis' (Appendix A) or maximum
   likelihood (1/sigma^2), by default ML when every loop's noise is known;
 * the displacement is each loop's measured waveform where the loops carry it
@@ -22,10 +27,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import numpy as np
+
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, as_model
 from hysid_model.objective import WEIGHTS, Objective
+from hysid_model.survey import survey
+from hysid_model.synth import BOUNDS as TABLE_5_4
 from hysid_model.thesis_port import ThesisObjective
 
 DISPLACEMENTS = ("measured", "sine")
@@ -53,15 +62,41 @@ def displaced(loops: LoopSet, displacement: str) -> LoopSet:
     return loops.as_ideal_sine() if displacement == "sine" and loops.measured_displacement else loops
 
 
-def prepare_model(loops: LoopSet, model: str | Model = "thesis", *, bounds: Bounds | None = None, fixed: Mapping[str, float] | None = None) -> Model:
-    """``model`` ready for ``loops``: the known mass fixed, dataset bounds, then the caller's bounds and fixed values."""
+def dataset_bounds(loops: LoopSet) -> dict[str, tuple[float, float]]:
+    """The bounds a dataset gives: its ``[bounds]``; Table 5.4 for the thesis' own loops."""
+    given = loops.meta.get("bounds") or (TABLE_5_4 if loops.meta.get("format") == "thesis-mat" else {})
+    return {name: (float(b[0]), float(b[1])) for name, b in given.items()}
+
+
+def prepare_model(
+    loops: LoopSet,
+    model: str | Model = "thesis",
+    *,
+    bounds: Bounds | None = None,
+    fixed: Mapping[str, float] | None = None,
+    derived: Bounds | None = None,
+) -> Model:
+    """``model`` ready for ``loops``: the known mass fixed, soft bounds from the data (or ``derived``,
+    e.g. a campaign's, as they were), the dataset's and the caller's hard ``bounds``, then ``fixed`` values."""
     m = as_model(model)
     bounds, fixed = dict(bounds or {}), dict(fixed or {})
     if loops.meq_kg is not None and "meq" in m.names and "meq" not in bounds and "meq" not in fixed:
         m = m.fix(meq=loops.meq_kg)
-    given = loops.meta.get("bounds") or {}
-    m = m.with_bounds({name: tuple(b) for name, b in given.items() if name in m.names})
+    given = dataset_bounds(loops)
+    if derived is None:
+        scale = survey(loops, m.fixed.get("meq")).scale()
+        derived = {name: pair for t in m.terms for name, pair in t.data_bounds(scale).items()}
+    soft = {n: b for n, b in derived.items() if n in m.names and n not in given and n not in bounds}
+    m = m.with_bounds(soft, soft=True).with_bounds({n: b for n, b in given.items() if n in m.names})
     return m.with_bounds(bounds).vary(*(n for n in bounds if n in m.fixed and n not in fixed)).fix(fixed)
+
+
+def starting_point(loops: LoopSet, model: Model) -> np.ndarray:
+    """The survey's linear estimate in ``model``'s parameters (Eq. 4.8, 4.9; effects off), inside its bounds."""
+    estimate = survey(loops, model.fixed.get("meq")).oscillator()
+    values = {p.name: 0.0 if p.lower <= 0.0 <= p.upper else 0.5 * (p.lower + p.upper) for p in model.parameters}
+    values.update({k: v for k, v in estimate.items() if k in values and np.isfinite(v)})
+    return np.clip(model.from_dict(values), model.bounds[:, 0], model.bounds[:, 1])
 
 
 def build_objective(
@@ -71,6 +106,7 @@ def build_objective(
     *,
     bounds: Bounds | None = None,
     fixed: Mapping[str, float] | None = None,
+    derived: Bounds | None = None,
     kind: str = "closed_form",
     displacement: str = "measured",
 ) -> Objective | ThesisObjective:
@@ -78,7 +114,7 @@ def build_objective(
     loops = displaced(loops, displacement)
     if kind not in OBJECTIVES:
         raise HysidInputError(f"choose one of {', '.join(OBJECTIVES)}", param="objective", value=kind)
-    m = prepare_model(loops, model, bounds=bounds, fixed=fixed)
+    m = prepare_model(loops, model, bounds=bounds, fixed=fixed, derived=derived)
     resolved = resolve_weights(loops, weights)
     if kind == "thesis_port":
         if m.spec != "thesis" or resolved != "thesis" or "meq" not in m.fixed:

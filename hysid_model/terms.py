@@ -33,6 +33,8 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import Callable, ClassVar, Protocol
 
+import math
+
 import numpy as np
 
 from hysid_model import waveform
@@ -98,6 +100,37 @@ class ModalState:
     m: np.ndarray
 
 
+@dataclass(frozen=True)
+class DataScale:
+    """The scale of a loop set, from its equivalent-linear survey (:mod:`hysid_model.survey`): what
+    each term's search bounds are generous around (:meth:`Term.data_bounds`). None: not known."""
+
+    stiffness: float
+    """Typical storage (or dynamic) stiffness magnitude, N/m."""
+    damping: float
+    """Typical equivalent viscous damping, N s/m."""
+    loss_factor: float
+    mass: float | None
+    wn: float | None
+    """Natural frequency (rad/s) at the smallest amplitude."""
+    xi: float | None
+    w_min: float
+    w_max: float
+    x_min: float
+    x_max: float
+    force: float
+    """Largest peak force, N."""
+
+    @property
+    def mass_scale(self) -> float:
+        """The mass, else the one that would put the resonance in the middle of the band."""
+        return self.mass if self.mass is not None else self.stiffness / (self.w_min * self.w_max)
+
+    @property
+    def wn_scale(self) -> float:
+        return self.wn if self.wn is not None else math.sqrt(self.w_min * self.w_max)
+
+
 def add_coefficient(coefs: Coefficients, name: str, value: np.ndarray) -> None:
     coefs[name] = coefs[name] + value if name in coefs else value
 
@@ -121,6 +154,11 @@ class Term:
     def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
         """Values of the shape parameters worth testing on loops ``kin`` (default: none to choose)."""
         return [{}]
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Search bounds of this term's parameters that hold the data's ``scale`` with generous
+        margins (default: the parameters' own bounds)."""
+        return {}
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         """Stage 1: adjust ``state`` in place (default: nothing)."""
@@ -248,10 +286,20 @@ class Oscillator(Term):
     id = "oscillator"
     explanation = "Mass, viscous damping ratio xi and natural frequency wn of the equivalent 1-DOF system (Eq. 4.4-4.6)."
     params = (
-        Parameter("xi0", "1", 0.0, 0.1, "damping ratio (at zero amplitude)"),
-        Parameter("w0", "rad/s", 100.0, 500.0, "natural frequency (at zero amplitude)"),
-        Parameter("meq", "kg", 1e-3, 10.0, "equivalent mass"),
+        Parameter("xi0", "1", 0.0, 0.1, "damping ratio (at zero amplitude)", physical=(0.0, math.inf)),
+        Parameter("w0", "rad/s", 100.0, 500.0, "natural frequency (at zero amplitude)", physical=(0.0, math.inf)),
+        Parameter("meq", "kg", 1e-3, 10.0, "equivalent mass", physical=(0.0, math.inf)),
     )
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """A decade either side of the survey's natural frequency (or of the band), damping ratios up to
+        10 x the survey's (at least 2), two decades either side of its mass."""
+        xi = 10.0 * scale.xi if scale.xi is not None else 0.0
+        return {
+            "xi0": (0.0, max(2.0, xi)),
+            "w0": (scale.wn_scale / 10.0, 10.0 * scale.wn_scale) if scale.wn is not None else (scale.w_min / 10.0, 10.0 * scale.w_max),
+            "meq": (scale.mass_scale / 100.0, 100.0 * scale.mass_scale),
+        }
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.xi = state.xi + v["xi0"]
@@ -275,6 +323,11 @@ class AmplitudeDependentDamping(Term):
     )
     params = (Parameter("S_xi", "1/m", -10.0, 10.0, "slope of the damping ratio with amplitude"),)
 
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Slopes that change xi by up to 10 x its value (at least 0.1) over the largest amplitude."""
+        reach = 10.0 * max(scale.xi or 0.0, 0.01) / scale.x_max
+        return {"S_xi": (-reach, reach)}
+
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.xi = state.xi + v["S_xi"] * kin.x0
 
@@ -292,6 +345,11 @@ class AmplitudeDependentFrequency(Term):
         "support stiffness that softens with amplitude (Eq. 4.7, Fig. 4.6, 4.9)."
     )
     params = (Parameter("S_w", "rad/s/m", -10000.0, 10000.0, "slope of the natural frequency with amplitude"),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Slopes that move wn by up to 90 % over the largest amplitude (it stays positive)."""
+        reach = 0.9 * scale.wn_scale / scale.x_max
+        return {"S_w": (-reach, reach)}
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.wn = state.wn + v["S_w"] * kin.x0

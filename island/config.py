@@ -19,7 +19,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
 from hysid_model.objective import WEIGHTS, Objective
-from hysid_model.problem import DISPLACEMENTS, OBJECTIVES, build_objective, prepare_model, resolve_weights
+from hysid_model.problem import DISPLACEMENTS, OBJECTIVES, build_objective, displaced, prepare_model, resolve_weights, starting_point
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import ALGORITHMS, check_algorithm, make_optimizer
 from island.migration import Migration
@@ -45,7 +45,11 @@ class CampaignConfig:
     model: str = "thesis"
     weights: str = "thesis"
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    soft: list[str] = field(default_factory=list)
+    """Parameters whose bounds were derived from the data (the final refit may widen them)."""
     fixed: dict[str, float] = field(default_factory=dict)
+    start: list[float] | None = None
+    """A starting point every island adds to its initial population (the survey's linear estimate)."""
     algos: list[str] = field(default_factory=lambda: ["ga", "pso"])
     options: dict[str, dict[str, Any]] = field(default_factory=dict)
     migration: Migration = field(default_factory=Migration)
@@ -79,6 +83,11 @@ class CampaignConfig:
             self.bounds = {str(k): (float(v[0]), float(v[1])) for k, v in self.bounds.items()}
         except (TypeError, ValueError, IndexError, KeyError):
             raise HysidInputError("bounds must map parameter names to (lower, upper)", param="bounds", value=self.bounds) from None
+        if not isinstance(self.soft, list) or not all(isinstance(n, str) and n in self.bounds for n in self.soft):
+            raise HysidInputError("soft must list parameters that have bounds", param="soft", value=self.soft)
+        if self.start is not None and (not isinstance(self.start, list) or len(self.start) != len(self.bounds)
+                                       or not all(_plain_number(v) and np.isfinite(v) for v in self.start)):
+            raise HysidInputError("start must hold one finite number per parameter", param="start", value=self.start)
         if not all(_plain_number(v) for v in self.fixed.values()):
             raise HysidInputError("fixed values must be numbers", param="fixed", value=self.fixed)
         self.fixed = {str(k): float(v) for k, v in self.fixed.items()}
@@ -110,13 +119,15 @@ class CampaignConfig:
         displacement: str = "measured",
     ) -> "CampaignConfig":
         """The configuration of a campaign on ``loops``: the bounds and fixed values ``hysid fit`` would use."""
-        m = prepare_model(loops, model, bounds=bounds, fixed=fixed)
+        m = prepare_model(displaced(loops, displacement), model, bounds=bounds, fixed=fixed)
         return cls(
             name=name,
             model=m.spec,
             weights=resolve_weights(loops, weights),
             bounds={p.name: (p.lower, p.upper) for p in m.parameters},
+            soft=[p.name for p in m.parameters if p.soft],
             fixed=m.fixed,
+            start=[float(v) for v in starting_point(displaced(loops, displacement), m)],
             algos=list(algos or ["ga", "pso"]),
             options=dict(options or {}),
             migration=migration or Migration(),
@@ -128,8 +139,11 @@ class CampaignConfig:
 
     def objective(self, loops: LoopSet) -> Objective | ThesisObjective:
         """The campaign objective (Eq. 3.3 with the configured weights) on ``loops``."""
+        hard = {n: b for n, b in self.bounds.items() if n not in self.soft}
+        soft = {n: b for n, b in self.bounds.items() if n in self.soft}
         return build_objective(
-            loops, self.model, weights=self.weights, bounds=self.bounds, fixed=self.fixed, kind=self.objective_kind, displacement=self.displacement
+            loops, self.model, weights=self.weights, bounds=hard, derived=soft, fixed=self.fixed, kind=self.objective_kind,
+            displacement=self.displacement,
         )
 
     def algo_for(self, seed: int) -> str:
@@ -142,7 +156,9 @@ class CampaignConfig:
             "model": self.model,
             "weights": self.weights,
             "bounds": {k: list(v) for k, v in self.bounds.items()},
+            "soft": list(self.soft),
             "fixed": dict(self.fixed),
+            "start": None if self.start is None else list(self.start),
             "algos": list(self.algos),
             "options": {k: dict(v) for k, v in self.options.items()},
             "migration": self.migration.as_dict(),
@@ -157,7 +173,8 @@ class CampaignConfig:
         try:
             bounds = {k: (v[0], v[1]) for k, v in d["bounds"].items()}
             return cls(
-                name=d["name"], model=d["model"], weights=d["weights"], bounds=bounds, fixed=dict(d["fixed"]),
+                name=d["name"], model=d["model"], weights=d["weights"], bounds=bounds, soft=list(d["soft"]), fixed=dict(d["fixed"]),
+                start=None if d["start"] is None else list(d["start"]),
                 algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"],
                 objective_kind=d["objective"], displacement=d["displacement"], min_islands=d["min_islands"],
             )

@@ -155,7 +155,7 @@ class GA(PopulationOptimizer):
         )
         self.population = check_int(self.name, "population", population, 2)
         if self.population % 2:
-            raise HysidInputError(f"GA option population must be even (mu/2 couples), got {population}")
+            raise HysidInputError("GA population must be even (mu/2 couples)", param="population", value=population)
         self.initial_population = check_int(self.name, "initial_population", initial_population, self.population)
         self.alpha_blx = check_float(self.name, "alpha_blx", alpha_blx, 0.0)
         self.mutation_rate = check_float(self.name, "mutation_rate", mutation_rate, 0.0, 1.0)

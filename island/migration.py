@@ -51,7 +51,7 @@ class Migration:
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_MIGRANTS:
                 raise HysidInputError(f"must be an integer from 1 to {MAX_MIGRANTS}", param=name, value=value)
         if self.topology not in TOPOLOGIES:
-            raise HysidInputError(f"topology must be one of {', '.join(TOPOLOGIES)}, got {self.topology!r}")
+            raise HysidInputError(f"must be one of {', '.join(TOPOLOGIES)}", param="topology", value=self.topology)
 
     def as_dict(self) -> dict[str, Any]:
         return {"interval": self.interval, "k": self.k, "topology": self.topology, "random_k": self.random_k}

@@ -145,6 +145,10 @@ class IslandNode:
 
     def _migrate(self, optimizer: PopulationOptimizer) -> None:
         assert self._transport is not None
+        if optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
+            x = np.array(self.config.start, dtype=float)[None, :]
+            self.migrant_evaluations += 1
+            optimizer.inject(x, self.objective(x))
         if self._best_in is not None:
             self._take([self._best_in.x[None, :]])
             self._best_in = None

@@ -45,23 +45,23 @@ def check_bounds(bounds: np.ndarray) -> np.ndarray:
 def check_int(algorithm: str, name: str, value: Any, minimum: int) -> int:
     """An integer option of at least ``minimum``, else a one-line error naming the option."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise HysidInputError(f"{algorithm} option {name} must be an integer >= {minimum}, got {value!r}")
+        raise HysidInputError(f"{algorithm} {name} must be an integer >= {minimum}", param=name, value=value)
     return int(value)
 
 
 def check_float(algorithm: str, name: str, value: Any, minimum: float, maximum: float = np.inf) -> float:
     """A finite number in ``[minimum, maximum]``, else a one-line error naming the option."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise HysidInputError(f"{algorithm} option {name} must be a number, got {value!r}")
+        raise HysidInputError(f"{algorithm} {name} must be a number", param=name, value=value)
     if not (np.isfinite(value) and minimum <= value <= maximum):
-        raise HysidInputError(f"{algorithm} option {name} must be in [{minimum:g}, {maximum:g}], got {value!r}")
+        raise HysidInputError(f"{algorithm} {name} must be in [{minimum:g}, {maximum:g}]", param=name, value=value)
     return float(value)
 
 
 def check_choice(algorithm: str, name: str, value: Any, choices: tuple[str, ...]) -> str:
     """One of ``choices``, else a one-line error naming the option."""
     if value not in choices:
-        raise HysidInputError(f"{algorithm} option {name} must be one of {', '.join(choices)}, got {value!r}")
+        raise HysidInputError(f"{algorithm} {name} must be one of {', '.join(choices)}", param=name, value=value)
     return str(value)
 
 

@@ -135,12 +135,23 @@ def optimize(
     options: dict[str, Any] | None = None,
     termination: Termination | None = None,
     callback: Callable[[HistoryRow], None] | None = None,
+    start: np.ndarray | None = None,
 ) -> RunResult:
-    """One GA/PSO run on ``objective`` (thesis settings unless ``options`` override them), then an optional polish."""
+    """One GA/PSO run on ``objective`` (thesis settings unless ``options`` override them), then an optional polish.
+
+    ``start`` (a parameter vector, e.g. a linear estimate or an earlier best) joins the population
+    after the initial one, as a migrant would (evaluated here, replacing the worst).
+    """
     optimizer = make_optimizer(algo, objective.bounds, seed, options)
-    start = time.perf_counter()
+    began = time.perf_counter()
     before = objective.evaluations
-    rows = run(optimizer, objective, callback=callback, termination=termination)
+
+    def seed_start(opt: PopulationOptimizer) -> None:
+        if opt.iteration == 0 and start is not None:
+            x = np.clip(np.asarray(start, dtype=float).reshape(1, -1), objective.bounds[:, 0], objective.bounds[:, 1])
+            opt.inject(x, objective(x))
+
+    rows = run(optimizer, objective, callback=callback, termination=termination, migrate=None if start is None else seed_start)
     x, f = optimizer.best(1)
     result = RunResult(
         label=label or f"{algo.upper()} seed {seed}",
@@ -156,5 +167,5 @@ def optimize(
     )
     if polish:
         polish_run(objective, result)
-    result.wall_s = time.perf_counter() - start
+    result.wall_s = time.perf_counter() - began
     return result

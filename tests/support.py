@@ -69,3 +69,46 @@ def wait_for(predicate: Callable[[], bool], timeout: float, what: str, step: flo
             raise AssertionError(f"timed out after {timeout} s waiting for {what}")
         time.sleep(step)
     return time.monotonic() - start
+
+
+def screen_of(argv: list[str], timeout: float, until: Callable[[str], bool] | None = None, columns: int = 160) -> tuple[int | None, str]:
+    """Run ``argv`` on a pseudo-terminal (stdout and stderr) of ``columns`` columns; returns its exit
+    status (None if it was still running when ``until(text so far)`` held) and everything it wrote."""
+    import fcntl
+    import os
+    import pty
+    import select
+    import struct
+    import subprocess
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 50, columns, 0, 0))
+    env = {**os.environ, "TERM": "xterm-256color", "COLUMNS": str(columns)}
+    proc = subprocess.Popen(argv, stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+    os.close(slave)
+    chunks: list[bytes] = []
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([master], [], [], 0.1)
+            if ready:
+                try:
+                    data = os.read(master, 65536)
+                except OSError:  # the child closed the terminal
+                    break
+                if not data:
+                    break
+                chunks.append(data)
+                if until is not None and until(b"".join(chunks).decode(errors="replace")):
+                    return None, b"".join(chunks).decode(errors="replace")
+            elif proc.poll() is not None and not select.select([master], [], [], 0)[0]:
+                break
+        else:
+            raise AssertionError(f"{argv[3:]} still running after {timeout} s")
+        return proc.wait(timeout=30), b"".join(chunks).decode(errors="replace")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)

@@ -203,7 +203,7 @@ def test_synth_never_overwrites(tmp_path, capsys):
     out = tmp_path / "taken"
     out.mkdir()
     (out / "keep.txt").write_text("mine")
-    assert "already exists and is not an empty directory" in cli_error(["synth", str(out)], capsys)
+    assert "already exists and is not empty; choose a new directory" in cli_error(["synth", str(out)], capsys)  # the one --out policy
     assert (out / "keep.txt").read_text() == "mine" and len(list(out.iterdir())) == 1
     assert "noise must be a percentage from 0 to 100" in cli_error(["loops", "synth", "--noise", "150"], capsys)
     assert "points per branch must be an integer >= 2" in cli_error(["loops", "synth", "--points", "1"], capsys)

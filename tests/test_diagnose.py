@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from hysid.cli import main
-from hysid.diagnose.fitting import initial_fit
-from hysid.diagnose.selection import diagnose
+from hysid.diagnosis.fitting import initial_fit
+from hysid.diagnosis.selection import diagnose
 from hysid_model.datasets import write_dataset
 from hysid_model.effects import EFFECTS
 from hysid_model.extraction import extract_loop
@@ -101,7 +101,7 @@ def residual_energy(model: Model, theta: np.ndarray, sigma: np.ndarray, freqs: n
     force = np.stack([model_force(model, theta, fi, ai, phase) for fi, ai in zip(f, a)])
     branch = lambda part: np.stack([np.column_stack([x * ai, fi]) for ai, fi in zip(a, part)])
     clean = LoopSet(name="clean", freq_hz=f, x0=a, top=branch(force[:, :POINTS]), bottom=branch(force[:, POINTS:]), sigma=sigma, meq_kg=MEQ)
-    return initial_fit(Harmonics.from_loops(clean), "baseline")[0].chi2
+    return initial_fit(Harmonics.from_loops(clean), "baseline").chi2
 
 
 def with_effects(effects: dict[str, float]) -> tuple[Model, np.ndarray]:

@@ -12,7 +12,7 @@ import pytest
 
 from hysid import thesis_tables as tt
 from hysid.cli import main
-from hysid.fit import fit
+from hysid.fitting import fit
 from hysid_model.problem import build_objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from hysid_model.uncertainty import cramer_rao_stderr, standard_errors
@@ -109,11 +109,17 @@ def test_noisy_fit_errors_are_consistent_with_their_standard_errors():
 
 
 def test_no_polish_keeps_the_search_result():
-    result = fit(synth_loops(0.0), algo="ga", polish=False, options={"initial_population": 400, "population": 60, "iterations": 4})
+    result = fit(synth_loops(0.0), algo="ga", polish=False, start=False, options={"initial_population": 400, "population": 60, "iterations": 4})
     run = result.runs[0]
     assert run.polish is None
     assert run.fitness == run.search_fitness and np.array_equal(run.theta, run.search_theta)
-    assert result.fitness > 1e-12  # a short search alone does not reach the noiseless optimum
+    assert result.fitness > 1e-12  # a short search alone, without the survey's start, does not reach the noiseless optimum
+
+
+def test_the_survey_start_of_noiseless_thesis_loops_is_the_truth():
+    """The thesis model is linear per loop: the survey's per-loop oscillators, drawn against amplitude, are Eq. 4.8-4.10."""
+    result = fit(synth_loops(0.0), algo="ga", polish=False, options={"initial_population": 60, "population": 20, "iterations": 1})
+    assert result.fitness < 1e-20
 
 
 def test_out_must_not_be_a_file(tmp_path, capsys):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from hysid.fit import fit
+from hysid.fitting import fit
 from hysid.report import jsondoc
 from hysid.report.figures import convergence_figure
 from hysid_model.synth import synth_loops

@@ -15,11 +15,14 @@ from typing import Any, TextIO
 
 import typer
 
-from hysid.cli import bench, campaign, data, diagnose, fit
+from hysid.cli import bench, campaign, data, diagnose, fit, watch
 from hysid.cli.options import error_line
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.model import PRESETS, build_model
+
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as shells report it."""
 
 app = typer.Typer(
     name="hysid",
@@ -51,7 +54,7 @@ def root(
     """Identify damping, natural frequency and missing physics from hysteresis loops."""
 
 
-for module in (data, fit, bench, campaign, diagnose):
+for module in (data, fit, bench, campaign, diagnose, watch):
     module.register(app)
 
 
@@ -93,11 +96,13 @@ def main(argv: list[str] | None = None) -> int:
             return int(getattr(exc, "exit_code", 2) or 2)
         except typer.Abort:
             fail("aborted")
-            return 130
+            return INTERRUPTED
         except HysidInputError as exc:
             fail(error_line(exc))
             return 2
         except KeyboardInterrupt:
             fail("interrupted")
-            return 130
+            return INTERRUPTED
+    if result == INTERRUPTED:  # typer's answer to Ctrl-C in a command (commands themselves return None)
+        fail("interrupted")
     return result if isinstance(result, int) else 0

@@ -15,7 +15,7 @@ from typing import Any
 
 import typer
 
-from hysid.bench import accuracy, environment, islands, objective
+from hysid.bench import accuracy, environment, ingest, islands, objective
 from hysid.report import jsondoc
 
 bench_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None)
@@ -53,6 +53,17 @@ def islands_command(
 ) -> None:
     """Island model: 2-island speedup, migration vs isolation, hysid vs pygmo, migration latency."""
     emit(islands.run(islands.PARTS if part == "all" else [part]), islands.to_text, as_json)
+
+
+@bench_app.command("ingest")
+def ingest_command(
+    records: int = typer.Option(ingest.RECORDS, "--records", help="Raw records to generate (at least 1)."),
+    seconds: float = typer.Option(ingest.SECONDS, "--seconds", help="Length of each record in s."),
+    rate: float = typer.Option(ingest.SAMPLE_RATE_HZ, "--rate", help="Sample rate of the records in Hz."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    """Ingestion: extraction of raw records against numpy's parse of the same files, and peak memory."""
+    emit(ingest.run(records, seconds, rate), ingest.to_text, as_json)
 
 
 def bench_names() -> list[str]:

@@ -21,9 +21,9 @@ import typer
 from coordinator.links import ZenohLink
 from coordinator.server import CampaignProgress, Coordinator, resume
 from coordinator.store import Store
-from hysid.campaign import CampaignResult, campaign, finish
+from hysid.campaigns import campaign, finish
 from hysid.cli import options as o
-from hysid.report import jsondoc
+from hysid.cli.progress import Progress, campaign_reporter
 from hysid.report.text import campaign_progress_line
 from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError
@@ -58,12 +58,6 @@ def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) 
     return path
 
 
-def show(result: CampaignResult, out: Path, as_json: bool) -> None:
-    """Write the campaign's report and print the JSON document or the summary."""
-    result.write_report(out)
-    print(jsondoc.dumps(result.to_dict()) if as_json else result.summary())
-
-
 def register(app: typer.Typer) -> None:
     """Add ``campaign``, ``coordinator`` and ``island`` to the hysid app."""
 
@@ -95,8 +89,13 @@ def register(app: typer.Typer) -> None:
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
+        csv: bool = o.CSV,
+        bound: Optional[list[str]] = o.BOUND,
+        fix: Optional[list[str]] = o.FIX,
+        displacement: str = o.DISPLACEMENT,
     ) -> None:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
+        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         algo_list = o.parse_algos(algos)
         sizes = o.island_sizes(population, initial, iterations)
         migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
@@ -105,12 +104,14 @@ def register(app: typer.Typer) -> None:
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
-        result = campaign(
-            loops, islands, name=name, model=model, weights=weights, algos=algo_list, options=sizes, migration=migration,
-            seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
-            polish=polish, progress=None if quiet else print_progress,
-        )
-        show(result, target_dir, as_json)
+        with Progress("campaign", islands * iterations, enabled=not (quiet or as_json)) as bar:
+            result = campaign(
+                loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
+                algos=algo_list, options=sizes, migration=migration,
+                seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
+                polish=polish, progress=campaign_reporter(bar, islands, iterations, termination),
+            )
+        o.show_result(result, target_dir, as_json, csv)
 
     @app.command("coordinator")
     def coordinator_command(
@@ -143,37 +144,44 @@ def register(app: typer.Typer) -> None:
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
+        bound: Optional[list[str]] = o.BOUND,
+        fix: Optional[list[str]] = o.FIX,
+        displacement: str = o.DISPLACEMENT,
     ) -> None:
         """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
         check_name("campaign", name)
+        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
         if resume_db and dataset is not None:
             raise HysidInputError(f"--resume takes the loop set from {db}; drop DATASET {dataset!r}")
+        if resume_db and (bounds or fixed):
+            raise HysidInputError(f"--resume takes the bounds and fixed values from {db}; drop --bound and --fix")
         target_dir = o.report_dir(out, "coordinator")
-        store = Store(database(db, target_dir, name, resuming=resume_db))
+        path = database(db, target_dir, name, resuming=resume_db)
+        if not resume_db:  # every argument is checked before the database is written or a session opened
+            sizes = o.island_sizes(population, initial, iterations)
+            migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
+            loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
+            config = CampaignConfig.create(
+                loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
+                algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands,
+            )
+        store = Store(path)
         try:
             if resume_db:
                 coordinator = resume(store, name, termination)
             else:
-                sizes = o.island_sizes(population, initial, iterations)
-                migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
-                loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
-                config = CampaignConfig.create(
-                    loops, name=name, model=model, weights=weights, algos=o.parse_algos(algos), options=sizes,
-                    migration=migration, seed=seed, min_islands=min_islands,
-                )
                 coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
             session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
             link = ZenohLink(session, coordinator)
-            if not quiet:
-                print(f"coordinator of campaign {name!r} ready (database {store.path})", file=sys.stderr, flush=True)
+            print(f"coordinator of campaign {name!r} ready (database {store.path})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
             try:
                 coordinator.serve(link, None if quiet else print_progress)
             finally:
                 link.close()
                 session.close()
-            show(finish(coordinator, coordinator.outcome(polish_best=polish)), target_dir, as_json)
+            o.show_result(finish(coordinator, coordinator.outcome(polish_best=polish)), target_dir, as_json, csv=False)
         finally:
             store.close()
 
@@ -214,7 +222,7 @@ def register(app: typer.Typer) -> None:
             best = rows[-1][1] if rows else float("inf")
             s = node.stats
             print(
-                f"island {node.island} ({algo_.upper()}, seed {seed_}): best {best:.6g} after {len(rows)} iterations, "
+                f"island {node.island} ({algo_.upper()}, seed {seed_}): best {best:.6g} after {rows[-1][0] if rows else 0} iterations, "
                 f"{rows[-1][2] if rows else 0:,} evaluations; {node.stop_reason}; migrant messages sent {s['sent']}, "
                 f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}",
                 file=sys.stderr,

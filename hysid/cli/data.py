@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
+from typing import Any, Optional
 
 import typer
 
 from hysid.cli import options as o
+from hysid.report import jsondoc
 from hysid.report.text import loops_table
 from hysid_model.datasets import load_dataset, write_dataset
+from hysid_model.loops import LoopSet
+from hysid_model.plausibility import Clipping
+from hysid_model.survey import survey
 from hysid_model.synth import BOUNDS, MEQ_KG, TRUE_PARAMS, synth_loops, synth_raw
 
 
@@ -20,17 +24,18 @@ def register(app: typer.Typer) -> None:
     def synth_command(
         out_dir: Path = typer.Argument(..., help="New (or empty) directory to write the dataset to."),
         noise: float = o.NOISE,
-        seed: int = typer.Option(0, "--seed", help="Noise seed."),
+        noise_seed: int = o.SYNTH_NOISE_SEED,
         raw: bool = typer.Option(False, "--raw", help="Write raw time series (one CSV per loop, manifest.csv, dataset.toml) instead of branches."),
     ) -> None:
         """Write the thesis' Synth set (Tables 5.2-5.4, 120 loops) as a dataset directory."""
+        out_dir = o.report_dir(out_dir, "synth", param="out_dir")
         if raw:
-            records = synth_raw(noise, seed)
-            write_dataset(out_dir, records, name=f"synth-raw-{noise:g}pct-seed{seed}", meq_kg=MEQ_KG, bounds=BOUNDS,
+            records = synth_raw(noise, noise_seed)
+            write_dataset(out_dir, records, name=f"synth-raw-{noise:g}pct-seed{noise_seed}", meq_kg=MEQ_KG, bounds=BOUNDS,
                           true_params=TRUE_PARAMS, description="Thesis Synth set (section 5.2) as raw time series")
             print(f"wrote {len(records)} raw records, manifest.csv and dataset.toml to {out_dir}")
         else:
-            loops = synth_loops(noise, seed)
+            loops = synth_loops(noise, noise_seed)
             write_dataset(out_dir, loops)
             print(f"wrote {loops.n_loops} loops to {out_dir / 'loops.csv'}")
 
@@ -41,8 +46,26 @@ def register(app: typer.Typer) -> None:
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         points: int | None = o.POINTS,
+        out: Optional[Path] = typer.Option(None, "--out", help="Also write survey.png and loops.json to this new (or empty) directory."),
     ) -> None:
-        """List a dataset's loops: label, frequency, X0, peak force, noise sigma, cycles used."""
+        """List a dataset's loops and their equivalent-linear survey: frequency, X0, force, noise, cycles,
+        dynamic stiffness, equivalent damping, loss factor, energy per cycle, and fn, xi where the mass is known or estimated;
+        displacement distortion and clipping, and, without a manifest, the manifest.csv of the frequencies estimated."""
+        target = None if out is None else o.report_dir(out, "loops")
         loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
-        rows = loops.rows()
-        print(json.dumps(rows, indent=1) if as_json else loops_table(loops, rows))
+        found = survey(loops)
+        rows = [{**row, **extra} for row, extra in zip(loops.rows(), found.rows())]
+        if target is not None:
+            from hysid.report import figures  # matplotlib loads only when a figure is drawn
+
+            figures.survey_figure(target / "survey.png", found)
+            jsondoc.write(target / "loops.json", {"dataset": loops.name, "mass": found.mass_source, "meq_kg": found.meq_kg, "loops": rows})
+        print(jsondoc.dumps(rows, indent=1) if as_json else loops_table(loops, rows, found) + _loop_notes(loops, rows))
+
+
+def _loop_notes(loops: LoopSet, rows: list[dict[str, Any]]) -> str:
+    """What ``hysid loops`` adds under its table: clipped records, and the manifest a folder without one would need."""
+    lines = [f"clipped: {row['label']}: {Clipping(row['clipped'], row['clip_level']).describe(row['x0_m'])}" for row in rows if row.get("clipped")]
+    if "estimated_manifest" in loops.meta:
+        lines += ["no manifest.csv: frequencies estimated from the data; the manifest.csv it would write:", loops.meta["estimated_manifest"].rstrip("\n")]
+    return "".join("\n" + line for line in lines)

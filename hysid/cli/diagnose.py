@@ -8,8 +8,8 @@ from typing import Optional
 import typer
 
 from hysid.cli import options as o
-from hysid.diagnose.selection import diagnose
-from hysid.report import jsondoc
+from hysid.diagnosis.selection import diagnose
+from hysid.cli.progress import Progress
 from hysid_model.datasets import load_dataset
 
 
@@ -23,10 +23,15 @@ def register(app: typer.Typer) -> None:
         out: Optional[Path] = o.OUT,
         as_json: bool = o.JSON,
         points: Optional[int] = o.POINTS,
+        csv: bool = o.CSV,
+        quiet: bool = o.QUIET,
+        bound: Optional[list[str]] = o.BOUND,
+        displacement: str = o.DISPLACEMENT,
     ) -> None:
         """Find which effects of the library the model misses, step by step, and write a report."""
+        bounds = o.parse_bounds(bound)
         target = o.report_dir(out, "diagnose")
         loops = load_dataset(dataset, n_points=points)
-        result = diagnose(loops, model)
-        result.write_report(target, dataset)
-        print(jsondoc.dumps(result.to_dict(), indent=2) if as_json else result.summary())
+        with Progress("diagnosing", 2, enabled=not (quiet or as_json)) as progress:
+            result = diagnose(loops, model, bounds=bounds, displacement=displacement, progress=lambda done, total, what: progress.update(done, what, total))
+        o.show_result(result, target, as_json, csv, dataset)

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
-from typing import Optional, TextIO
+from typing import Optional
 
 import typer
 
 from hysid import thesis_tables as tt
 from hysid.cli import options as o
-from hysid.fit import fit
+from hysid.cli.progress import Progress
+from hysid.fitting import fit
 from hysid.report import jsondoc
 from hysid.reproduce import SETTINGS, parse_seeds, reproduce_thesis
 from hysid_model.datasets import load_dataset
@@ -18,31 +18,6 @@ from island.run import HistoryRow
 
 ROWS_PER_RUN = 18 + 1
 """History rows of a run with the thesis' settings: the initial population, then 18 iterations (section 5.1)."""
-
-
-class ProgressBar:
-    """A one-line progress bar on a terminal's stderr; silent when stderr is not a terminal."""
-
-    def __init__(self, total: int, label: str, stream: TextIO | None = None) -> None:
-        self.stream = sys.stderr if stream is None else stream
-        self.enabled = self.stream.isatty()
-        self.total = max(total, 1)
-        self.label = label
-        self.done = 0
-
-    def step(self, text: str) -> None:
-        self.done += 1
-        if not self.enabled:
-            return
-        width = 28
-        filled = int(width * min(self.done, self.total) / self.total)
-        self.stream.write(f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] {text}\x1b[K")
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.enabled:
-            self.stream.write("\r\x1b[K")
-            self.stream.flush()
 
 
 def register(app: typer.Typer) -> None:
@@ -61,21 +36,26 @@ def register(app: typer.Typer) -> None:
         polish: bool = o.POLISH,
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
+        csv: bool = o.CSV,
+        quiet: bool = o.QUIET,
+        bound: Optional[list[str]] = o.BOUND,
+        fix: Optional[list[str]] = o.FIX,
+        displacement: str = o.DISPLACEMENT,
     ) -> None:
         """Identify the model's parameters from DATASET in this process (no network)."""
+        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         target = o.report_dir(out, "fit")
         loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed)
-        progress = ProgressBar(max(runs, 1) * ROWS_PER_RUN, "fitting")
+        with Progress("fitting", max(runs, 1) * ROWS_PER_RUN, enabled=not (quiet or as_json)) as progress:
 
-        def show(i: int, row: HistoryRow) -> None:
-            progress.step(f"run {i + 1}/{runs}, iteration {row.iteration}, best {row.best_fitness:.4g}")
+            def show(i: int, row: HistoryRow) -> None:
+                progress.update(i * ROWS_PER_RUN + row.iteration + 1, f"run {i + 1}/{runs}, best {row.best_fitness:.4g}")
 
-        try:
-            result = fit(loops, model, algo=algo, runs=runs, seed=seed, weights=weights, polish=polish, progress=show)
-        finally:
-            progress.close()
-        result.write_report(target)
-        print(jsondoc.dumps(result.to_dict()) if as_json else result.summary())
+            result = fit(
+                loops, model, algo=algo, runs=runs, seed=seed, weights=weights, polish=polish, bounds=bounds, fixed=fixed,
+                displacement=displacement, progress=show,
+            )
+        o.show_result(result, target, as_json, csv)
 
     reproduce = typer.Typer(help="Regenerate the thesis' published results.", no_args_is_help=True)
     app.add_typer(reproduce, name="reproduce")
@@ -91,10 +71,8 @@ def register(app: typer.Typer) -> None:
         """Section 5.2.1 again: Tables 5.5-5.13 and Figs. 5.2-5.13 next to the thesis' numbers."""
         noise_seeds = parse_seeds(seeds_noise, runs)
         target = o.report_dir(out, "reproduce")
-        progress = ProgressBar(len(noise_seeds) * len(tt.NOISE_LEVELS) * len(SETTINGS) * len(tt.ALGOS), "reproducing")
-        try:
-            rep = reproduce_thesis(noise_seeds=noise_seeds, seed=seed, progress=progress.step)
-        finally:
-            progress.close()
+        total = len(noise_seeds) * len(tt.NOISE_LEVELS) * len(SETTINGS) * len(tt.ALGOS)
+        with Progress("reproducing", total, enabled=not as_json) as progress:
+            rep = reproduce_thesis(noise_seeds=noise_seeds, seed=seed, progress=lambda what: progress.advance(what))
         rep.write_report(target)
         print(jsondoc.dumps(rep.to_dict()) if as_json else rep.summary())

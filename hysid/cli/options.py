@@ -14,6 +14,7 @@ from typing import Any
 
 import typer
 
+from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
 from hysid_model.model import PRESETS
 from island.algorithms import ALGORITHMS
@@ -38,6 +39,7 @@ FLAGS = {
     "iterations": "--iterations",
     "interval": "--interval",
     "k": "--migrants",
+    "topology": "--topology",
     "random_k": "--random-k",
     "min_islands": "--min-islands",
     "budget": "--budget",
@@ -48,10 +50,17 @@ FLAGS = {
     "connect": "--connect",
     "config_file": "--config",
     "out": "--out",
+    "out_dir": "OUT_DIR",
     "db": "--db",
     "seeds": "--seeds",
     "thesis_runs": "--thesis-runs",
     "part": "PART",
+    "bound": "--bound",
+    "displacement": "--displacement",
+    "fix": "--fix",
+    "records": "--records",
+    "seconds": "--seconds",
+    "sample_rate_hz": "--rate",
 }
 """Python parameter (as a :class:`HysidInputError` names it) -> command-line flag."""
 
@@ -60,6 +69,8 @@ def error_line(exc: HysidInputError) -> str:
     """A library error in the command line's words: the flag instead of the Python parameter."""
     if exc.param in FLAGS:
         return f"{exc.subject(FLAGS[exc.param])}: {exc.detail}"
+    if exc.param and exc.param.startswith("bounds["):
+        return f"--bound {exc.param[8:-2]}: {exc.detail}"
     return str(exc)
 
 
@@ -71,6 +82,7 @@ START_MODEL = typer.Option("baseline", "--model", help=f"Start model: {' or '.jo
 WEIGHTS = typer.Option(None, "--weights", help="thesis or ml (1/sigma^2); default: ml when every loop's noise sigma is known.")
 NOISE = typer.Option(0.0, "--noise", help="Gaussian force noise, % of each loop's peak force (as the thesis' Synth tests).")
 NOISE_SEED = typer.Option(0, "--noise-seed", help="Seed of that noise.")
+SYNTH_NOISE_SEED = typer.Option(0, "--noise-seed", "--seed", help="Seed of that noise (--seed, its old name, works too).")
 POINTS = typer.Option(None, "--points", help="Points per branch when loops are extracted from raw records (default 100; a loops file keeps its own).")
 ALGO = typer.Option("pso", "--algo", help="Optimizer: ga or pso (the thesis' settings, section 5.1).")
 RUNS = typer.Option(1, "--runs", help="Independent runs with seeds SEED..SEED+RUNS-1; the best is reported.")
@@ -79,6 +91,7 @@ POLISH = typer.Option(True, "--polish/--no-polish", help="Refine the best by bou
 OUT = typer.Option(None, "--out", help="Report directory, new or empty (default hysid-out/<command>-<time>).")
 JSON = typer.Option(False, "--json", help="Print one JSON object on stdout instead of the summary.")
 QUIET = typer.Option(False, "--quiet", help="No live progress on stderr.")
+CSV = typer.Option(False, "--csv", help="Also write the result's tables as CSV files in the report directory (parameters.csv, amplitudes.csv, ...).")
 ALGOS = typer.Option("ga,pso", "--algos", help="Comma-separated algorithm mix the islands cycle through (ga, pso).")
 POPULATION = typer.Option(200, "--population", help="GA population / PSO swarm of each island (the thesis: 500).")
 INITIAL = typer.Option(2000, "--initial", help="Initial random population / swarm of each island (the thesis: 6000).")
@@ -94,13 +107,25 @@ TIME_LIMIT = typer.Option(None, "--time-limit", help="Stop after this many secon
 DB = typer.Option(None, "--db", help="Campaign database (SQLite; default OUT/campaign.sqlite).")
 CONFIG = typer.Option(None, "--config", help="Zenoh configuration file (JSON5); authoritative for mode, TLS, auth, ACL, lease.")
 CAMPAIGN = typer.Option("default", "--campaign", help="Campaign name: its key space is hysid/<name>/**.")
+BOUND = typer.Option(
+    None, "--bound", metavar="NAME=LO:HI",
+    help="A hard search bound (repeatable): kept as given, never widened; overrides the dataset's and the data-derived bound.",
+)
+DISPLACEMENT = typer.Option(
+    "measured", "--displacement",
+    help="measured: the model sees each loop's measured displacement harmonics; sine: the ideal X0 sin(wt) of Eq. 4.5 (as the thesis).",
+)
+FIX = typer.Option(None, "--fix", metavar="NAME=VALUE", help="A parameter known, not searched (repeatable), e.g. --fix meq=0.2.")
 
 
-def report_dir(out: Path | None, kind: str) -> Path:
-    """Where a command writes its report: ``--out`` if new or empty, else a new ``hysid-out/<kind>-<time>``.
+def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
+    """Where a command writes: ``out`` if new or empty, else (not given) a new ``hysid-out/<kind>-<time>``.
 
-    Checked before any work, so that a run never ends in an error after its
-    work is done, and never overwrites an earlier report.
+    Every command that writes a directory (``fit``, ``diagnose``, ``synth``,
+    ``campaign``, ``coordinator``, ``reproduce``, ``report``) checks it here
+    before any work, so that a run never ends in an error after its work is
+    done, and never overwrites an earlier report. ``param`` names the option
+    or argument in errors.
     """
     if out is None:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -111,10 +136,54 @@ def report_dir(out: Path | None, kind: str) -> Path:
             out = base.with_name(f"{base.name}-{n}")
         return out
     if out.exists() and not out.is_dir():
-        raise HysidInputError("exists and is not a directory", param="out", value=out)
+        raise HysidInputError("exists and is not a directory", param=param, value=out)
     if out.exists() and any(out.iterdir()):
-        raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param="out", value=out)
+        raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
     return out
+
+
+def show_result(result: Any, target: Path, as_json: bool, csv: bool, dataset: str | None = None) -> None:
+    """Write a result's report (and with ``csv`` its tables) to ``target``; print its JSON document or its summary."""
+    if dataset is None:
+        result.write_report(target)
+    else:
+        result.write_report(target, dataset)
+    tables = result.to_csv(target) if csv else {}
+    if as_json:
+        print(jsondoc.dumps(result.to_dict()))
+        return
+    print(result.summary())
+    if tables:
+        print(f"tables: {', '.join(str(p) for p in tables.values())}")
+
+
+def parse_bounds(values: list[str] | None) -> dict[str, tuple[float, float]]:
+    """``--bound w0=10:200 --bound S_w=-1e4:0`` as ``{"w0": (10.0, 200.0), ...}`` (names checked by the library)."""
+    bounds = {}
+    for value in values or []:
+        name, _, pair = value.partition("=")
+        lower, sep, upper = pair.partition(":")
+        try:
+            if not name.strip() or not sep:
+                raise ValueError
+            bounds[name.strip()] = (float(lower), float(upper))
+        except ValueError:
+            raise HysidInputError("give NAME=LOWER:UPPER, e.g. --bound w0=10:200", param="bound", value=value) from None
+    return bounds
+
+
+def parse_fixed(values: list[str] | None) -> dict[str, float]:
+    """``--fix meq=0.2`` as ``{"meq": 0.2}`` (names checked by the library)."""
+    fixed = {}
+    for value in values or []:
+        name, sep, number = value.partition("=")
+        try:
+            if not name.strip() or not sep:
+                raise ValueError
+            fixed[name.strip()] = float(number)
+        except ValueError:
+            raise HysidInputError("give NAME=VALUE, e.g. --fix meq=0.2", param="fix", value=value) from None
+    return fixed
 
 
 def parse_algos(value: str) -> list[str]:

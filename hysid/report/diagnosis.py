@@ -12,15 +12,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hysid.diagnose.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc
 from hysid.report.markdown import image, num, table, with_error
-from hysid.report.text import mass_text
+from hysid.report.text import band_text, mass_text, reference_text
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
-    from hysid.diagnose.selection import Diagnosis
+    from hysid.diagnosis.selection import Diagnosis
 
 
 def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
@@ -34,6 +34,9 @@ def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
         f"{num(step.after.bic - step.before.bic, 5)} and the whitened RMS falls from {num(step.before.whitened_rms, 4)} "
         f"to {num(step.after.whitened_rms, 4)}."
     )
+    if step.joint_with:
+        lines += ["", f"**Named together with {step.joint_with}**: the two explain together significantly more than any "
+                  "effect with a partner chosen one at a time (alone, each explains less than another effect would)."]
     if step.confusable_with:
         lines += ["", f"**Confusable with** {', '.join(step.confusable_with)}: on this data set they fit within "
                   f"{BIC_MARGIN:g} BIC of it, so the data cannot tell them apart (e.g. too narrow a band of frequencies or amplitudes)."]
@@ -91,7 +94,7 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         f"# hysid diagnose: {h.loops.name}",
         "",
         f"{h.loops.n_loops} loops at {levels.size} amplitude(s) ({', '.join(f'{a * 1e3:.3g}' for a in levels)} mm), "
-        f"{h.loops.freq_hz.min():.4g}-{h.loops.freq_hz.max():.4g} Hz, {h.loops.n_samples} samples per branch; {mass}; "
+        f"{band_text(h.loops.freq_hz)}, {h.loops.n_samples} samples per branch; {mass}; "
         f"force noise {sigma}. Each loop is reduced to its harmonics of orders 0-{int(h.orders().max())} "
         f"({h.coef.shape[1]} coefficients, in phase and in quadrature with the measured displacement).",
         "",
@@ -119,18 +122,27 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         lines.append("The residual is consistent with the noise: its chi^2 and the chi^2 of every harmonic coefficient are within their noise range.")
     else:
         lines.append(f"**Unexplained**: {diagnosis.unexplained['description']}. No effect of the library accounts for it; it is not named.")
+        lines += ["", f"Against references that need no physical model, {reference_text(diagnosis.to_dict())}."]
     if diagnosis.rejected:
         lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in diagnosis.rejected.items()) + "."]
     for effect, absorbed in diagnosis.not_identifiable.items():
         lines += ["", f"**{effect} cannot be identified with this setup**: whatever it does, the model already does with "
                   f"{', '.join(absorbed)} (e.g. a transducer mass while the equivalent mass is fitted)."]
+    for name, why in diagnosis.identifiability.not_identifiable.items():
+        lines += ["", f"**`{name}` of the final model is not identifiable** (no standard error): it {why}."]
+    names = diagnosis.final.model.names
+    corr = diagnosis.identifiability.correlation
+    lines += ["", "Correlation between the final model's parameters:", "",
+              table([""] + [f"`{n}`" for n in names],
+                    [[f"`{a}`"] + ["" if not np.isfinite(corr[i, j]) else f"{corr[i, j]:+.3f}" for j in range(len(names))] for i, a in enumerate(names)])]
     lines += [
         "",
         image(maps, out, "Residual per loop over frequency x amplitude, before and after"),
         "",
         "## Loops",
         "",
-        image(loops, out, "Measured loops (points), start model (dashed) and final model (solid)"),
+        image(loops, out, "Measured loops (points), start model (dashed) and final model (solid); rows: amplitudes, "
+              "columns: the loop the start model fits worst and the one at the median frequency"),
         "",
         "## Method",
         "",

@@ -7,14 +7,16 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 from matplotlib.colors import LogNorm
-from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
-from hysid.diagnose.metrics import GapMetrics, loop_whitened_rms
-from hysid.report.style import MODEL, PAGE_WIDTH_IN, TRIAL, new_figure, save, series_color, styled
+from hysid.diagnosis.metrics import GapMetrics, loop_whitened_rms
+from hysid.report.style import MODEL, PAGE_WIDTH_IN, TRIAL, frequency_axis, new_figure, save, series_color, styled
+from hysid.report.text import hz_text
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
-    from hysid.diagnose.selection import Diagnosis
+    from hysid.diagnosis.selection import Diagnosis
 
 START = "#999999"
 """The start model in loop plots (grey, dashed)."""
@@ -55,51 +57,68 @@ def residual_map_figure(path: Path, diagnosis: "Diagnosis") -> Path:
         art = ax.scatter(h.loops.freq_hz, h.loops.x0 * 1e3, c=values, s=60, marker="s", cmap="viridis", norm=norm, edgecolors="none")
         ax.set_title(title, fontsize=7.5)
         ax.set_xlabel("frequency (Hz)")
-        if h.loops.freq_hz.max() > 4 * h.loops.freq_hz.min():
-            ax.set_xscale("log")
-            ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
-            ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
-            ax.xaxis.set_minor_formatter(NullFormatter())
+        frequency_axis(ax, h.loops.freq_hz)
     axes[0].set_ylabel("amplitude X0 (mm)")
     fig.colorbar(art, ax=axes, label="whitened RMS per loop (1 = noise)")
     return save(fig, path)
 
 
-def chosen_loops(diagnosis: "Diagnosis", per_level: int = 2) -> list[int]:
-    """Per amplitude level, the loop the start model misses most and the one at the median frequency."""
+LOOP_CHOICE = ("worst fit at the start", "median frequency")
+"""What the diagnosis' loop figure shows of each amplitude, left to right."""
+MAX_LEVELS = 3
+
+
+def chosen_loops(diagnosis: "Diagnosis") -> list[list[int]]:
+    """Per amplitude level (at most :data:`MAX_LEVELS`, spread over the levels with two loops or more if
+    there are any): the loop the start model misses most and the one at the median frequency (the next
+    worst if that is the same loop)."""
     h = diagnosis.harmonics
-    levels, index = amplitude_levels(h.loops.x0)
+    _, index = amplitude_levels(h.loops.x0)
     worst = loop_whitened_rms(diagnosis.start, h)
-    out: list[int] = []
-    for level in range(levels.size):
+    sizes = np.bincount(index)
+    candidates = np.flatnonzero(sizes > 1) if np.any(sizes > 1) else np.arange(sizes.size)
+    shown = candidates[np.unique(np.round(np.linspace(0, candidates.size - 1, min(candidates.size, MAX_LEVELS))).astype(int))]
+    out = []
+    for level in shown:
         members = np.flatnonzero(index == level)
-        picks = [members[np.argmax(worst[members])], members[np.argsort(h.loops.freq_hz[members])[members.size // 2]]]
-        out += [int(p) for p in dict.fromkeys(picks)][:per_level]
-    return out[:6]
+        ranked = members[np.argsort(-worst[members], kind="stable")]
+        median = members[np.argsort(h.loops.freq_hz[members], kind="stable")[members.size // 2]]
+        picks = [int(ranked[0])] + ([int(median if median != ranked[0] else ranked[1])] if members.size > 1 else [])
+        out.append(picks)
+    return out
 
 
 @styled
 def loops_figure(path: Path, diagnosis: "Diagnosis") -> Path:
-    """Measured loops with the start and the final model's branches."""
+    """Measured loops with the start and the final model's branches (:func:`draw_loops`)."""
+    return save(draw_loops(diagnosis), path)
+
+
+def draw_loops(diagnosis: "Diagnosis") -> Figure:
+    """One row per amplitude, the loops of :data:`LOOP_CHOICE` as columns (titled so), the legend below the panels."""
     h = diagnosis.harmonics
-    picks = chosen_loops(diagnosis)
-    cols = min(3, len(picks))
-    rows = -(-len(picks) // cols)
-    fig = new_figure(2.1 * rows, PAGE_WIDTH_IN)
-    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).reshape(-1)
+    rows = chosen_loops(diagnosis)
+    cols = max(len(r) for r in rows)
+    fig = new_figure(1.9 * len(rows) + 0.5, PAGE_WIDTH_IN * (0.5 + 0.25 * cols))
+    axes = fig.subplots(len(rows), cols, squeeze=False)
     n = h.loops.n_samples
     start = diagnosis.start.objective.objective.predict(diagnosis.start.theta)[0]
     final = diagnosis.final.objective.objective.predict(diagnosis.final.theta)[0]
-    for ax, j in zip(axes, picks):
-        x = np.concatenate([h.loops.top[j, :, 0], h.loops.bottom[j, :, 0]]) * 1e3
-        ax.plot(x, h.loops.forces()[j], ".", ms=2.0, color=TRIAL, label="measured")
-        for force, color, style, label in ((start, START, "--", "start model"), (final, MODEL, "-", "final model")):
-            ax.plot(x[:n], force[j, :n], style, color=color, lw=1.0, label=label)
-            ax.plot(x[n:], force[j, n:], style, color=color, lw=1.0)
-        ax.set_title(f"{h.loops.freq_hz[j]:.4g} Hz, X0 = {h.loops.x0[j] * 1e3:.3g} mm", fontsize=7.5)
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("F (N)")
-    for ax in axes[len(picks):]:
-        ax.set_visible(False)
-    axes[0].legend(loc="best")
-    return save(fig, path)
+    for r, picks in enumerate(rows):
+        for c in range(cols):
+            ax = axes[r, c]
+            if c >= len(picks):
+                ax.set_visible(False)
+                continue
+            j = picks[c]
+            x = np.concatenate([h.loops.top[j, :, 0], h.loops.bottom[j, :, 0]]) * 1e3
+            ax.plot(x, h.loops.forces()[j], ".", ms=2.0, color=TRIAL)
+            for force, color, style in ((start, START, "--"), (final, MODEL, "-")):
+                ax.plot(x[:n], force[j, :n], style, color=color, lw=1.0)
+                ax.plot(x[n:], force[j, n:], style, color=color, lw=1.0)
+            ax.set_title(f"{LOOP_CHOICE[c]}: {hz_text(h.loops.freq_hz[j])}, X0 = {h.loops.x0[j] * 1e3:.3g} mm", fontsize=7.5)
+            ax.set_xlabel("x (mm)")
+            ax.set_ylabel("F (N)")
+    handles = [Line2D([], [], ls="none", marker=".", ms=5, color=TRIAL), Line2D([], [], ls="--", color=START), Line2D([], [], color=MODEL)]
+    fig.legend(handles, ["measured", "start model", "final model"], loc="outside lower center", ncol=3)
+    return fig

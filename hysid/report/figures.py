@@ -9,7 +9,9 @@
 * :func:`half_power_figure`: compliance FRF per amplitude with the half-power
   points of Eq. 2.7 (Figs. 2.8, 6.1), measured and model;
 * :func:`scatter_figure`: a parameter's results per noise level with its true
-  value dashed (Figs. 5.2-5.5).
+  value dashed (Figs. 5.2-5.5);
+* :func:`survey_figure`: the equivalent-linear survey of the loops against
+  frequency per amplitude (Figs. 4.6-4.8).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
@@ -29,14 +32,17 @@ from hysid.report.style import (
     PEAK,
     TRIAL,
     TRUE,
+    frequency_axis,
     math_name,
     new_figure,
     save,
     series_color,
     styled,
 )
+from hysid.report.text import hz_text
 from hysid_model.frf import HalfPower, amplitude_levels
 from hysid_model.loops import LoopSet
+from hysid_model.survey import Survey
 from island.run import RunResult
 
 MAX_LOOP_ROWS = 5
@@ -117,6 +123,11 @@ def _closed(top: np.ndarray, bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray
 @styled
 def loops_figure(path: Path, loops: LoopSet, predicted: np.ndarray, columns: int = 4, title: str = "") -> Path:
     """Trial (dots) and model (line) loops: one row per amplitude, ``columns`` frequencies across the band."""
+    return save(draw_loops(loops, predicted, columns, title), path)
+
+
+def draw_loops(loops: LoopSet, predicted: np.ndarray, columns: int = 4, title: str = "") -> Figure:
+    """The figure of :func:`loops_figure` (drawn under its style); the legend sits below the panels, clear of the title."""
     levels, index = amplitude_levels(loops.x0)
     rows = np.unique(np.round(np.linspace(0, levels.size - 1, min(levels.size, MAX_LOOP_ROWS))).astype(int))
     n = loops.n_samples
@@ -138,7 +149,7 @@ def loops_figure(path: Path, loops: LoopSet, predicted: np.ndarray, columns: int
             xm, fm = _closed(model_top, model_bottom)
             ax.plot(xt * 1e3, ft, linestyle="none", marker=".", markersize=2.0, color=TRIAL)
             ax.plot(xm * 1e3, fm, color=MODEL, linewidth=1.1)
-            ax.set_title(f"{loops.freq_hz[j]:g} Hz", pad=2)
+            ax.set_title(hz_text(loops.freq_hz[j]), pad=2)
             if r == rows.size - 1:
                 ax.set_xlabel("displacement (mm)")
         axes[r, 0].set_ylabel(f"$X_0$ = {_mm(levels[k])}\nforce (N)")
@@ -146,10 +157,10 @@ def loops_figure(path: Path, loops: LoopSet, predicted: np.ndarray, columns: int
         Line2D([], [], linestyle="none", marker=".", markersize=6, color=TRIAL),
         Line2D([], [], color=MODEL),
     ]
-    fig.legend(handles, ["trial", "model"], loc="outside upper center", ncol=2)
+    fig.legend(handles, ["trial", "model"], loc="outside lower center", ncol=2)
     if title:
         fig.suptitle(title)
-    return save(fig, path)
+    return fig
 
 
 def _level_handles(levels: np.ndarray) -> tuple[list[Line2D], list[str]]:
@@ -255,6 +266,8 @@ def half_power_figure(
         ax2.plot([hp.f1_hz, hp.f2_hz], [level, level], color=color, linestyle="--", linewidth=0.9)
         ax2.plot([hp.f1_hz, hp.f2_hz], [level, level], linestyle="none", marker="D", markersize=4.5, color=HALF_POWER, markeredgecolor=color)
         ax2.plot([hp.f_peak_hz], [hp.peak_compliance * 1e3], linestyle="none", marker="v", markersize=6, color=PEAK, markeredgecolor=color)
+    if hi - lo < 1e-6 * max(abs(hi), 1e-12):  # one frequency: a window around it, not a singular axis
+        lo, hi = lo * 0.8, hi * 1.2
     ax2.set_xlim(lo, hi)
     in_view = (loops.freq_hz >= lo) & (loops.freq_hz <= hi)
     if np.any(in_view):
@@ -329,4 +342,42 @@ def scatter_figure(
         handles.append(Patch(color="0.85"))
         labels.append("true $\\pm$ Cramer-Rao bound")
     fig.legend(handles, labels, loc="outside lower center", ncol=len(labels))
+    return save(fig, path)
+
+
+@styled
+def survey_figure(path: Path, survey: Survey) -> Path:
+    """The equivalent-linear survey (Figs. 4.6-4.8): per amplitude level, against frequency, (a) the dynamic
+    and storage stiffness, (b) the equivalent viscous damping, (c) the loss factor and (d) the damping ratio
+    (or, without a mass, the energy dissipated per cycle)."""
+    loops = survey.loops
+    levels, index = amplitude_levels(loops.x0)
+    fig = new_figure(4.8)
+    (ax_k, ax_c), (ax_eta, ax_last) = fig.subplots(2, 2, sharex=True)
+    last, last_label = (survey.xi, r"damping ratio $\xi$") if survey.has_mass else (survey.energy_per_cycle, "energy per cycle (J)")
+    for k in range(levels.size):
+        m = np.flatnonzero(index == k)
+        m = m[np.argsort(loops.freq_hz[m], kind="stable")]
+        color, f = series_color(k), loops.freq_hz[m]
+        ax_k.plot(f, survey.k_dyn[m], marker="o", markersize=3, color=color)
+        if survey.has_mass:
+            ax_k.plot(f, survey.k_storage[m], marker="s", markersize=3, color=color, linestyle="--", markerfacecolor="none")
+        ax_c.plot(f, survey.c_eq[m], marker="o", markersize=3, color=color)
+        ax_eta.plot(f, survey.loss_factor[m], marker="o", markersize=3, color=color)
+        ax_last.plot(f, last[m], marker="o", markersize=3, color=color)
+    ax_k.axhline(0.0, color="0.3", linewidth=0.6)
+    ax_k.set_ylabel("stiffness (N/m)")
+    ax_k.set_title("(a) dynamic Re($F_1/X_1$)" + (", storage + $m\\omega^2$ (dashed)" if survey.has_mass else ""))
+    ax_c.set_ylabel("$c_{eq}$ (N s/m)")
+    ax_c.set_title("(b) equivalent viscous damping")
+    ax_eta.set_ylabel(r"loss factor $\eta$")
+    ax_eta.set_title("(c) loss factor")
+    ax_last.set_ylabel(last_label)
+    ax_last.set_title("(d) " + ("damping ratio per loop" if survey.has_mass else f"energy per cycle (mass {survey.mass_source.split(':')[0]})"))
+    for ax in (ax_eta, ax_last):
+        ax.set_xlabel("excitation frequency (Hz)")
+    for ax in (ax_k, ax_c, ax_eta, ax_last):
+        frequency_axis(ax, loops.freq_hz)
+    handles, labels = _level_handles(levels)
+    fig.legend(handles, labels, loc="outside upper center", ncol=len(labels))
     return save(fig, path)

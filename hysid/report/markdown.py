@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from hysid.report import jsondoc
-from hysid.report.text import at_bounds_warning, loops_description, quality_text
+from hysid.report.text import fit_warnings, fixed_text, loops_description, quality_text
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
 
 if TYPE_CHECKING:
-    from hysid.fit import FitResult
+    from hysid.fitting import FitResult
 
 MODEL_CURVE_POINTS = 1500
 
@@ -96,7 +96,7 @@ def summary_lines(result: "FitResult") -> list[str]:
     polish = "then a least-squares polish" if s.get("polish") else "no polish"
     return [
         f"- **Data**: `{result.loops.name}`: {loops_description(result)}.",
-        f"- **Model**: `{result.model.spec}`, parameters {', '.join(result.model.names)}.",
+        f"- **Model**: `{result.model.spec}`, parameters {', '.join(result.model.names)}{fixed_text(result.model.fixed)}.",
         f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; "
         f"{result.weights} loop weights.",
         f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
@@ -114,13 +114,23 @@ def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
     se = result.stderr
     for p in result.model.parameters:
         value = result.params[p.name]
-        row = [f"`{p.name}`", num(value, 7), num(se[p.name], 3), p.unit, f"[{p.lower:g}, {p.upper:g}]"]
+        error = "not identifiable" if p.name in result.not_identifiable else num(se[p.name], 3)
+        where = "from the data" if p.soft else "given"
+        row = [f"`{p.name}`", num(value, 7), error, p.unit, f"[{p.lower:g}, {p.upper:g}] ({where})"]
         if true:
             t = true.get(p.name)
             ratio = abs(value - t) / se[p.name] if t is not None and se[p.name] > 0 else float("nan")
             row += [num(t, 7), num(ratio, 3)]
         rows.append(row)
     return headers, rows
+
+
+def correlation_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+    """The parameter correlation matrix (as lmfit's fit report); blank for parameters not identifiable."""
+    names = result.model.names
+    matrix = result.identifiability.correlation
+    rows = [[f"`{a}`"] + ["" if not np.isfinite(matrix[i, j]) else f"{matrix[i, j]:+.3f}" for j in range(len(names))] for i, a in enumerate(names)]
+    return [""] + [f"`{n}`" for n in names], rows
 
 
 def amplitude_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
@@ -163,8 +173,7 @@ def fit_overview(result: "FitResult") -> str:
     """The summary and the parameter and amplitude tables, as Markdown (a notebook's view of a result)."""
     p_head, p_rows = parameter_rows(result)
     a_head, a_rows = amplitude_rows(result)
-    warning = at_bounds_warning(result)
-    parts = ["\n".join(summary_lines(result)), table(p_head, p_rows)] + ([f"**{warning}**"] if warning else [])
+    parts = ["\n".join(summary_lines(result)), table(p_head, p_rows)] + [f"**{w}**" for w in fit_warnings(result)]
     return "\n\n".join(parts + [table(a_head, a_rows)])
 
 
@@ -185,13 +194,23 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
     a_head, a_rows = amplitude_rows(result)
     h_head, h_rows = half_power_rows(result)
     r_head, r_rows = run_rows(result)
+    c_head, c_rows = correlation_rows(result)
+    identifiable = (
+        "Every parameter is determined by the data."
+        if not result.not_identifiable
+        else "Not identifiable with these loops (no standard error is given): "
+        + "; ".join(f"`{n}` {why}" for n, why in result.not_identifiable.items()) + "."
+    )
     parts = [
         f"# {title}: {result.loops.name}",
         f"Written {dt.datetime.now().isoformat(timespec='seconds')}; all numbers also in [`result.json`](result.json).",
         "\n".join(summary_lines(result)),
         "## Parameters",
         table(p_head, p_rows),
-        *([f"**{at_bounds_warning(result)}**"] if result.at_bounds else []),
+        *[f"**{w}**" for w in fit_warnings(result)],
+        identifiable,
+        "Correlation between the parameters (from the covariance of the standard errors):",
+        table(c_head, c_rows),
         f"Standard errors: {result.stderr_method}. "
         "The model is xi(X0) = xi0 + S_xi X0 (Eq. 4.8), wn(X0) = w0 + S_w X0 (Eq. 4.9) in the force of Eq. 4.10 "
         "when the model is `thesis`; `hysid models` lists every term.",

@@ -12,7 +12,10 @@ from pathlib import Path
 from typing import Callable, ParamSpec, TypeVar
 
 import matplotlib as mpl
+import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.ticker import FixedLocator, FormatStrFormatter, LogLocator, NullFormatter
 
 DPI = 200
 PAGE_WIDTH_IN = 7.0
@@ -82,6 +85,26 @@ def styled(func: Callable[P, R]) -> Callable[P, R]:
             return func(*args, **kwargs)
 
     return wrapper
+
+
+def frequency_ticks(freq_hz: np.ndarray, most: int = 8) -> list[float]:
+    """Ticks of a log frequency axis that always mark the lowest and the highest frequency measured:
+    every measured frequency when there are at most ``most``, else 1-2-5 steps between the two ends."""
+    measured = np.unique(np.round(freq_hz, 6))
+    if measured.size <= most:
+        return measured.tolist()
+    low, high = measured[0], measured[-1]
+    inner = [t for t in LogLocator(subs=(1.0, 2.0, 5.0)).tick_values(low, high) if low * 1.3 < t < high / 1.3]
+    return [float(low), *inner, float(high)]
+
+
+def frequency_axis(ax: Axes, freq_hz: np.ndarray) -> None:
+    """A frequency axis: logarithmic, ticked at :func:`frequency_ticks`, when the band spans more than a factor 4."""
+    if freq_hz.max() > 4 * freq_hz.min():
+        ax.set_xscale("log")
+        ax.xaxis.set_major_locator(FixedLocator(frequency_ticks(freq_hz)))
+        ax.xaxis.set_major_formatter(FormatStrFormatter("%.3g"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
 
 
 def new_figure(height_in: float, width_in: float = PAGE_WIDTH_IN) -> Figure:

@@ -6,8 +6,11 @@ here, so a notebook and a terminal read the same words.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from hysid import thesis_tables as tt
 from hysid_model.frf import amplitude_levels
@@ -15,10 +18,12 @@ from hysid_model.loops import LoopSet
 
 if TYPE_CHECKING:
     from coordinator.server import CampaignProgress
-    from hysid.campaign import CampaignResult
-    from hysid.diagnose.selection import Diagnosis
-    from hysid.fit import FitResult
+    from hysid.campaigns import CampaignResult
+    from hysid.diagnosis.selection import Diagnosis
+    from hysid.fitting import FitResult
     from hysid.reproduce import Reproduction
+    from hysid_model.survey import Survey
+    from hysid.watch import CampaignSnapshot
 
 
 def text_table(headers: Sequence[str], rows: Sequence[Sequence[str]], indent: str = "  ") -> str:
@@ -38,15 +43,36 @@ def mass_text(meq_kg: float | None) -> str:
     return f"Meq = {meq_kg * 1e3:.4g} g (known)" if meq_kg < 1.0 else f"Meq = {meq_kg:.4g} kg (known)"
 
 
+def hz_text(f_hz: float) -> str:
+    """A frequency as a reader wants it: four significant digits (``0.25 Hz``, not ``0.250027 Hz``)."""
+    return f"{f_hz:.4g} Hz"
+
+
+def band_text(freq_hz: Sequence[float]) -> str:
+    """The frequency band of some loops: ``0.25-2 Hz``, or one frequency (``12 Hz``, not ``12-12 Hz``)."""
+    low, high = f"{min(freq_hz):.4g}", f"{max(freq_hz):.4g}"
+    return f"{low} Hz" if low == high else f"{low}-{high} Hz"
+
+
 def loops_description(result: "FitResult") -> str:
     loops = result.loops
     levels, _ = amplitude_levels(loops.x0)
     amps = ", ".join(f"{a * 1e3:.3g}" for a in levels)
     return (
         f"{loops.n_loops} loops at {levels.size} amplitude(s) X0 = {amps} mm, "
-        f"{loops.freq_hz.min():g}-{loops.freq_hz.max():g} Hz, {loops.n_samples} samples per branch; "
+        f"{band_text(loops.freq_hz)}, {loops.n_samples} samples per branch; "
         f"{mass_text(result.model.fixed.get('meq'))}"
     )
+
+
+def fixed_text(fixed: dict[str, float]) -> str:
+    """The known parameters other than the mass (which the loop description gives), as ``; fixed S_xi = -0.4``."""
+    known = {k: v for k, v in fixed.items() if k != "meq"}
+    return "; fixed " + ", ".join(f"{k} = {v:.6g}" for k, v in known.items()) if known else ""
+
+
+MISFIT = 3.0
+"""A residual beyond this many times the noise: the model does not describe the data."""
 
 
 def quality_text(result: "FitResult") -> str:
@@ -58,13 +84,31 @@ def quality_text(result: "FitResult") -> str:
     return out
 
 
-def at_bounds_warning(result: "FitResult") -> str | None:
-    if not result.at_bounds:
-        return None
-    return (
-        f"warning: {', '.join(result.at_bounds)} ended on a bound of the search space, so the optimum may lie "
-        "beyond it and its standard error means little; widen the bounds ([bounds] in dataset.toml)"
-    )
+def fit_warnings(result: "FitResult") -> list[str]:
+    """What a reader must know before trusting the numbers: a model that misses the data, parameters on bounds."""
+    out = []
+    misfit = result.misfit
+    if misfit is not None and misfit > MISFIT:
+        out.append(
+            f"warning: the model does not describe these loops: the residual is {misfit:.3g} x the noise; a diagnosis "
+            "(hysid diagnose, or hysid.diagnose) tells what it is missing"
+        )
+    soft = {p.name for p in result.model.parameters if p.soft}
+    given = [n for n in result.at_bounds if n not in soft]
+    derived = [n for n in result.at_bounds if n in soft]
+    if given:
+        out.append(
+            f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
+            "beyond it and its standard error means little; widen that bound ([bounds] in dataset.toml, bounds=...) if the physics allows"
+        )
+    if derived:
+        widened = [w["param"] for w in result.settings.get("bounds_widened", [])]
+        times = max(widened.count(n) for n in derived)
+        out.append(
+            f"warning: {', '.join(derived)} ended on a bound derived from the data even after {times} widening(s): "
+            + ("the model cannot reach the data there" if misfit is not None and misfit > MISFIT else "its value and standard error mean little")
+        )
+    return out
 
 
 def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
@@ -77,7 +121,7 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     wall = sum(r.wall_s for r in result.runs)
     lines = [
         f"{command} {result.loops.name}: {loops_description(result)}",
-        f"model {result.model.spec} ({', '.join(result.model.names)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
+        f"model {result.model.spec} ({', '.join(result.model.names)}{fixed_text(result.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
         f"fit quality: {quality_text(result)}",
         "",
@@ -86,14 +130,14 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     headers = ["parameter", "value", "std. error", "unit"] + (["true"] if true else [])
     rows = []
     for p in result.model.parameters:
-        row = [p.name, f"{result.params[p.name]:.7g}", f"{se[p.name]:.2g}", p.unit]
+        error = "not identifiable" if p.name in result.not_identifiable else f"{se[p.name]:.2g}"
+        row = [p.name, f"{result.params[p.name]:.7g}", error, p.unit]
         if true:
             row.append(f"{true[p.name]:.7g}" if p.name in true else "")
         rows.append(row)
     lines += [text_table(headers, rows), f"  (standard errors: {result.stderr_method})"]
-    warning = at_bounds_warning(result)
-    if warning:
-        lines.append(f"  {warning}")
+    lines += [f"  not identifiable: {name} {why}" for name, why in result.not_identifiable.items()]
+    lines += [f"  {warning}" for warning in fit_warnings(result)]
     lines.append("")
     rows = []
     for a, hp in zip(result.amplitudes, result.half_power):
@@ -144,32 +188,107 @@ def campaign_progress_line(p: "CampaignProgress") -> str:
     )
 
 
+SPARK = "▁▂▃▄▅▆▇█"
+
+
+def sparkline(values: Sequence[float]) -> str:
+    """A course of best fitness as one block per point, log scale, lowest = shortest block."""
+    v = np.log10(np.clip(np.asarray(values, dtype=float), 1e-300, None))
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return ""
+    span = float(v.max() - v.min())
+    if span < 1e-12:
+        return SPARK[0] * v.size
+    return "".join(SPARK[int(round((x - v.min()) / span * (len(SPARK) - 1)))] for x in v)
+
+
+def watch_text(snap: "CampaignSnapshot") -> str:
+    """The screen of ``hysid watch``: status, global best, one row per island run, membership."""
+    p = snap.progress
+    state = f"stopped ({snap.stop_reason})" if snap.status == "stopped" else snap.status
+    rejected = f" | rejected messages {p.rejected}" if p.rejected else ""
+    best = f"{p.best:.6g} from {snap.best_island}" if np.isfinite(p.best) else "none yet"
+    lines = [
+        f"campaign {snap.name!r} on {snap.dataset}: {state} after {p.elapsed_s:.1f} s",
+        f"global best {best} | evaluations {p.evaluations:,} | migrant messages {p.migrations}{rejected}",
+        "",
+    ]
+    several = {i["island"] for i in snap.islands if sum(j["island"] == i["island"] for j in snap.islands) > 1}
+    rows = [
+        [f"{i['island']}/{i['run']}" if i["island"] in several else i["island"], i["algo"].upper(), i["status"], str(i["iterations"]),
+         f"{i['evaluations']:,}", f"{i['best_fitness']:.4g}", str(i["messages"]), f"{i['received']}/{i['taken']}", sparkline(i["trend"])]
+        for i in snap.islands
+    ]
+    headers = ["island", "algo", "status", "iteration", "evaluations", "best", "sent", "received/taken", "best over iterations"]
+    lines.append(text_table(headers, rows) if rows else "  no island has reported yet")
+    counts = {s: sum(v == s for v in p.members.values()) for s in ("alive", "left", "lost")}
+    latest = ", ".join(f"{island} {event} {time.strftime('%H:%M:%S', time.localtime(t))}" for island, event, t in snap.events)
+    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left, {counts['lost']} lost" + (f"; latest: {latest}" if latest else "")]
+    return "\n".join(lines)
+
+
 def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     """The gap after each step, the status, and what cannot be identified."""
     doc = diagnosis.to_dict()
     lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"]
     gap = doc["gap"]
-    lines.append(f"  {'start':<40} whitened RMS {gap[0]['whitened_rms']:10.4g}")
-    for step, after in zip(doc["steps"], gap[1:]):
+    labels = []
+    for step in doc["steps"]:
         also = f" (confusable with {', '.join(step['confusable_with'])})" if step["confusable_with"] else ""
-        lines.append(f"  + {step['effect'] + also:<38} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
+        labels.append(step["effect"] + also + (f" (with {step['joint_with']})" if step["joint_with"] else ""))
+    width = max([38, *map(len, labels)])
+    lines.append(f"  {'start':<{width + 2}} whitened RMS {gap[0]['whitened_rms']:10.4g}")
+    for label, step, after in zip(labels, doc["steps"], gap[1:]):
+        lines.append(f"  + {label:<{width}} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
     if doc["status"] == "adequate":
         lines.append(f"status: adequate, the final model {doc['final_model']} leaves only noise")
     else:
         lines.append(f"status: unexplained, {doc['unexplained_signature']['description']}")
-    for effect, absorbed in doc["not_identifiable"].items():
-        lines.append(f"not identifiable here: {effect} (absorbed by {', '.join(absorbed)})")
+        lines.append(reference_text(doc))
+    for name in doc["not_identifiable"]:
+        lines.append(f"not identifiable here: {name} ({doc['not_identifiable_reasons'][name]})")
     if diagnosis.report:
         lines.append(f"report: {diagnosis.report}")
     return "\n".join(lines)
 
 
-def loops_table(loops: LoopSet, rows: list[dict[str, Any]]) -> str:
-    """``hysid loops``: one row per loop (label, frequency, X0, peak force, noise, cycles, phase, distortion)."""
+REACHES = {
+    "noise floor": "the noise floor",
+    "repeatability": "the scatter between repeated tests (the data repeat no better)",
+    "linear per loop": "at least what a linear fit of each loop on its own reaches (no equivalent-linear description does better), not the noise floor",
+    "none": "none of the references: not even what a linear fit of each loop on its own reaches",
+}
+
+
+def reference_text(doc: dict[str, Any]) -> str:
+    """Where the final model's gap stands against the model-free references."""
+    ref = doc["references"]
+    repeat = f", repeated tests {ref['repeatability']:.4g}" if ref["repeatability"] is not None else ", no repeated tests"
+    out = (
+        f"the final model reaches {REACHES[doc['reaches']]}: whitened RMS {doc['whitened_rms']:.4g} against noise 1, "
+        f"linear per loop {ref['linear_per_loop']:.4g}{repeat}"
+    )
+    if doc["reaches"] != "noise floor" and ref["linear_per_loop"] <= LINEAR_LOOPS:
+        out += ("; each loop on its own is linear within the noise, so what the model misses is how stiffness, "
+                "damping or mass change from loop to loop (with amplitude or frequency)")
+    return out
+
+
+LINEAR_LOOPS = 1.1
+"""A linear fit per loop this close to the noise floor (whitened RMS): the loops themselves are linear."""
+
+
+def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | None" = None) -> str:
+    """``hysid loops``: one row per loop (label, frequency, X0, peak force, noise, cycles, phase, distortion,
+    and the equivalent-linear survey where given)."""
     columns = [("label", "label", "{}"), ("frequency_hz", "freq_Hz", "{:.6g}"), ("x0_m", "X0_mm", "{:.4f}"),
                ("peak_force_n", "Fpk_N", "{:.5g}"), ("sigma_n", "sigma_N", "{:.3g}"), ("cycles", "cycles", "{:d}")]
     if "phase_deg" in rows[0]:
         columns += [("phase_deg", "phase_deg", "{:.2f}"), ("x_distortion", "x_thd_%", "{:.2f}")]
+    if "k_dyn" in rows[0]:
+        columns += [("k_dyn", "k_dyn_N/m", "{:.4g}"), ("c_eq", "c_eq_Ns/m", "{:.4g}"), ("loss_factor", "eta", "{:.3g}"),
+                    ("energy_per_cycle", "E_cycle_J", "{:.4g}"), ("fn_hz", "fn_Hz", "{:.4g}"), ("xi", "xi", "{:.4g}")]
     scale = {"x0_m": 1e3, "x_distortion": 100.0}
     cells = []
     for row in rows:
@@ -180,6 +299,9 @@ def loops_table(loops: LoopSet, rows: list[dict[str, Any]]) -> str:
         cells.append(line)
     mass = "unknown (fitted)" if loops.meq_kg is None else f"{loops.meq_kg:g} kg"
     head = f"{loops.name}: {loops.n_loops} loops, {loops.n_samples} points per branch, meq = {mass}"
+    if survey is not None and survey.mass_source != "known":
+        found = f"{survey.meq_kg:.4g} kg, estimated from all loops (Re(F1/X1) = k - m w^2)" if survey.has_mass else survey.mass_source
+        head += f"; survey mass {found}"
     return head + "\n" + text_table([title for _, title, _ in columns], cells, indent="")
 
 

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Kinematics, ModalState, Term, Values
+from hysid_model.terms import DataScale, Kinematics, ModalState, Term, Values
 
 BISECTIONS = 60
 """Bisection steps for the orbit's peak state (to double precision)."""
@@ -89,10 +91,14 @@ class BoucWen(Term):
         "loops between a spring (z_y >> X0) and dry friction (z_y << X0)."
     )
     params = (
-        Parameter("bw_k", "N/m", 0.0, 1.0e9, "stiffness of the hysteretic spring ((1 - alpha) k)"),
-        Parameter("bw_zy", "m", 1.0e-9, 1.0, "yield displacement 1 / (gamma + beta)"),
-        Parameter("bw_r", "1", -0.9, 3.0, "shape (gamma - beta) / (gamma + beta)"),
+        Parameter("bw_k", "N/m", 0.0, 1.0e9, "stiffness of the hysteretic spring ((1 - alpha) k)", physical=(0.0, math.inf)),
+        Parameter("bw_zy", "m", 1.0e-9, 1.0, "yield displacement 1 / (gamma + beta)", physical=(0.0, math.inf)),
+        Parameter("bw_r", "1", -0.9, 3.0, "shape (gamma - beta) / (gamma + beta)", physical=(-0.9, math.inf)),
     )
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Hysteretic stiffness up to 10 x the survey's, yield from 1/1000 of the smallest to 10 x the largest amplitude."""
+        return {"bw_k": (0.0, 10.0 * scale.stiffness), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max)}
 
     def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
         """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes r."""

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 from hysid_model import waveform
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values
+from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values
 
 
 class CoulombFriction(Term):
@@ -21,7 +23,11 @@ class CoulombFriction(Term):
         "2 F_d at every reversal, the loops become rectangular, and the energy dissipated per cycle, "
         "4 F_d X0, does not depend on frequency."
     )
-    params = (Parameter("F_d", "N", 0.0, 1.0e6, "friction force magnitude mu N"),)
+    params = (Parameter("F_d", "N", 0.0, 1.0e6, "friction force magnitude mu N", physical=(0.0, math.inf)),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Friction up to twice the largest peak force."""
+        return {"F_d": (0.0, 2.0 * scale.force)}
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """F_d sgn(x'), less its cycle mean where the displacement's reversals are not half a cycle apart

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from hysid_model.params import Parameter
+import math
+
 import numpy as np
 
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values, linear_response
+from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values, linear_response
 
 
 class TransducerMass(Term):
@@ -24,7 +26,11 @@ class TransducerMass(Term):
         "the specimen force plus M x'' (Eq. 2.13): an extra inertia force that grows with w^2. It cannot "
         "be told apart from the equivalent mass when that mass is fitted."
     )
-    params = (Parameter("m_t", "kg", 0.0, 10.0, "transducer mass between the gauge and the specimen"),)
+    params = (Parameter("m_t", "kg", 0.0, 10.0, "transducer mass between the gauge and the specimen", physical=(0.0, math.inf)),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Up to 10 x the equivalent mass (or the mass that would resonate in the band)."""
+        return {"m_t": (0.0, 10.0 * scale.mass_scale)}
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """M x'': dynamic stiffness -M w^2 at each harmonic frequency."""

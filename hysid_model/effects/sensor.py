@@ -6,10 +6,12 @@ displacement and with it the loop width, the thesis' warning after Eq. 4.3.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Kinematics, MeasurementTerm, Values
+from hysid_model.terms import DataScale, Kinematics, MeasurementTerm, Values
 
 
 class ChargeAmplifierHighpass(MeasurementTerm):
@@ -27,7 +29,11 @@ class ChargeAmplifierHighpass(MeasurementTerm):
         "cutoff f_c = 1/(2 pi TC), Eq. 4.1-4.3): at low frequency the force is attenuated and leads the "
         "displacement, which widens the loops as if there were extra damping."
     )
-    params = (Parameter("f_c", "Hz", 0.0, 100.0, "cutoff frequency 1/(2 pi TC) of the charge amplifier (Eq. 4.3)"),)
+    params = (Parameter("f_c", "Hz", 0.0, 100.0, "cutoff frequency 1/(2 pi TC) of the charge amplifier (Eq. 4.3)", physical=(0.0, math.inf)),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Cutoffs up to 10 x the highest excitation frequency."""
+        return {"f_c": (0.0, 10.0 * scale.w_max / (2.0 * math.pi))}
 
     def gain(self, v: Values, kin: Kinematics, order: np.ndarray) -> np.ndarray:
         w = np.asarray(order, dtype=float)[None, None, :] * kin.omega[None, :, None]
@@ -55,6 +61,11 @@ class ChannelDelay(MeasurementTerm):
         "which narrows or widens the loops more at high frequency."
     )
     params = (Parameter("delay_s", "s", -0.01, 0.01, "delay of the force channel behind the displacement channel"),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Delays up to half a period of the highest frequency (beyond that the phase is ambiguous)."""
+        reach = math.pi / scale.w_max
+        return {"delay_s": (-reach, reach)}
 
     def delay(self, v: Values, kin: Kinematics) -> np.ndarray:
         return v["delay_s"]

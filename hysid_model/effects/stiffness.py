@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from hysid_model.params import Parameter
+import math
+
 import numpy as np
 
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values, linear_response
+from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values, linear_response
 
 
 class HystereticDamping(Term):
@@ -23,7 +25,11 @@ class HystereticDamping(Term):
         "(Eq. 2.3), so the energy lost per cycle, pi eta k X0^2, does not change with frequency, "
         "unlike viscous damping which grows with it."
     )
-    params = (Parameter("eta", "1", 0.0, 2.0, "loss factor of the complex stiffness"),)
+    params = (Parameter("eta", "1", 0.0, 2.0, "loss factor of the complex stiffness", physical=(0.0, math.inf)),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Loss factors up to 10 x the survey's (at least 2)."""
+        return {"eta": (0.0, max(2.0, 10.0 * scale.loss_factor))}
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """i eta k at every harmonic frequency (the complex spring's loss part)."""
@@ -48,6 +54,11 @@ class CubicStiffness(Term):
         "phase with the displacement."
     )
     params = (Parameter("k3", "N/m^3", -1.0e16, 1.0e16, "cubic stiffness coefficient"),)
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Cubic stiffness that changes the stiffness by up to 10 x at the largest amplitude."""
+        reach = 10.0 * scale.stiffness / scale.x_max**2
+        return {"k3": (-reach, reach)}
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """k3 times the harmonics of x^3 (on a measured displacement: of its cube, orders 1..3K)."""

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Term, Values, linear_response
+from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values, linear_response
 
 
 class ZenerThermoelastic(Term):
@@ -25,9 +27,13 @@ class ZenerThermoelastic(Term):
         "unrelaxed value across that frequency."
     )
     params = (
-        Parameter("zener_delta", "1", 0.0, 1.0, "relaxation strength Delta_r"),
-        Parameter("zener_tau", "s", 1.0e-6, 10.0, "thermal relaxation time tau_s"),
+        Parameter("zener_delta", "1", 0.0, 1.0, "relaxation strength Delta_r", physical=(0.0, 1.0)),
+        Parameter("zener_tau", "s", 1.0e-6, 10.0, "thermal relaxation time tau_s", physical=(0.0, math.inf)),
     )
+
+    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+        """Relaxation times two decades beyond either end of the band."""
+        return {"zener_tau": (0.01 / scale.w_max, 100.0 / scale.w_min)}
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """k Delta (w^2 tau^2 + i w tau) / (1 + w^2 tau^2) at every harmonic frequency w."""

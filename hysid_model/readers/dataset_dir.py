@@ -4,17 +4,21 @@
 
     name = "beam-sample-2"
     meq_kg = 0.040              # equivalent mass (thesis Meq); 0 or absent = unknown (fitted)
-    sample_rate_hz = 10000      # for .lvm exports without a time column
-    displacement_unit = "mm"    # units of .lvm channels: m, mm, um, cm, in / N, kN, mN, lbf, kip
+    sample_rate_hz = 10000      # for records without a time channel (.lvm, TDMS/HDF5 without waveform timing)
+    displacement_unit = "mm"    # declared units (override the file's): m, mm, um, cm, in / N, kN, mN, lbf, kip / s, ms, us
     force_unit = "N"
-    displacement_channel = "Displacement"   # .lvm channel by name, or by number (1 = first channel)
+    time_channel = "Time"       # channels (CSV columns, TDMS/HDF5/.lvm channels) by name, or by number (1 = first)
+    displacement_channel = "Displacement"
     force_channel = 2
     description = "..."
 
     [bounds]                    # search-space overrides, stored in LoopSet.meta["bounds"]
     xi0 = [0.0, 0.1]
 
-    [[tests]]                   # per record: the steady (constant-amplitude) window in s
+    steady_t0_s = 2             # the steady (constant-amplitude) window in s of every record ...
+    steady_t1_s = 5
+
+    [[tests]]                   # ... unless its own entry gives one
     file = "run1.csv"
     steady_t0_s = 8
     steady_t1_s = 20
@@ -38,6 +42,9 @@ from hysid_model.errors import HysidInputError
 CONFIG_NAME = "dataset.toml"
 MANIFEST_NAME = "manifest.csv"
 MANIFEST_COLUMNS = ("file", "frequency_hz")
+MAX_MASS_KG = 1e7
+"""Largest equivalent mass a dataset may state: ten times the payload of the largest shake tables."""
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
 DISPLACEMENT_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "cm": 1e-2, "in": 0.0254}
 FORCE_UNITS = {"N": 1.0, "kN": 1e3, "mN": 1e-3, "lbf": 4.4482216152605, "kip": 4448.2216152605}
 
@@ -51,14 +58,22 @@ class DatasetConfig:
     meq_kg: float | None = None
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     sample_rate_hz: float | None = None
+    time_unit: str | None = None
     displacement_unit: str | None = None
     force_unit: str | None = None
+    time_channel: str | int | None = None
     displacement_channel: str | int | None = None
     force_channel: str | int | None = None
     steady: dict[str, tuple[float, float]] = field(default_factory=dict)
+    steady_default: tuple[float, float] | None = None
+    """The top-level steady window, for every record without its own [[tests]] window."""
     info: dict[str, Any] = field(default_factory=dict)
     given: frozenset[str] = frozenset()
     """Top-level keys present in ``dataset.toml`` (to tell "absent" from a default)."""
+
+    def window(self, file: str) -> tuple[float, float] | None:
+        """The steady window of a record: its [[tests]] entry's, else the dataset's, else None (found from the data)."""
+        return self.steady.get(file, self.steady_default)
 
     def meta(self) -> dict[str, Any]:
         """Dataset-level entries of ``LoopSet.meta``."""
@@ -100,11 +115,19 @@ def _positive(doc: dict[str, Any], key: str, where: str) -> float | None:
 
 
 def _mass(doc: dict[str, Any], where: str) -> float | None:
-    """``meq_kg``: absent or 0 = unknown (None); negative or not a number is an error."""
+    """``meq_kg``: absent or 0 = unknown (None); negative, not a number or beyond ``MAX_MASS_KG`` is an error."""
     value = doc.get("meq_kg", 0.0)
     if not _is_number(value) or value < 0:
         raise HysidInputError(f"{where}: meq_kg must be a mass in kg >= 0 (0 = unknown), got {value!r}")
+    check_mass(float(value), where)
     return float(value) if value > 0 else None
+
+
+def check_mass(value: float, where: str) -> None:
+    """A stated equivalent mass above ``MAX_MASS_KG`` is an error (no test rig moves more; numbers like
+    1e300 only overflow the fit)."""
+    if value > MAX_MASS_KG:
+        raise HysidInputError(f"{where}: meq_kg = {value:g} kg is not a plausible equivalent mass (at most {MAX_MASS_KG:g} kg)")
 
 
 def _unit(doc: dict[str, Any], key: str, table: dict[str, float], where: str) -> str | None:
@@ -139,6 +162,17 @@ def _bounds(doc: dict[str, Any], where: str) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _window(entry: dict[str, Any], what: str, where: str) -> tuple[float, float] | None:
+    """``steady_t0_s``/``steady_t1_s`` of a table, both or neither."""
+    given = [key for key in ("steady_t0_s", "steady_t1_s") if key in entry]
+    if not given:
+        return None
+    t0, t1 = entry.get("steady_t0_s"), entry.get("steady_t1_s")
+    if len(given) != 2 or not (_is_number(t0) and _is_number(t1) and 0 <= t0 < t1):
+        raise HysidInputError(f"{where}: {what}steady_t0_s and steady_t1_s must both be given with 0 <= t0 < t1, got {t0!r}, {t1!r}")
+    return float(t0), float(t1)
+
+
 def _steady_windows(doc: dict[str, Any], where: str) -> dict[str, tuple[float, float]]:
     tests = doc.get("tests", [])
     if not isinstance(tests, list) or not all(isinstance(entry, dict) for entry in tests):
@@ -148,13 +182,9 @@ def _steady_windows(doc: dict[str, Any], where: str) -> dict[str, tuple[float, f
         name = entry.get("file")
         if not isinstance(name, str) or not name:
             raise HysidInputError(f"{where}: [[tests]] entry {k} has no file name")
-        given = [key for key in ("steady_t0_s", "steady_t1_s") if key in entry]
-        if not given:
-            continue
-        t0, t1 = entry.get("steady_t0_s"), entry.get("steady_t1_s")
-        if len(given) != 2 or not (_is_number(t0) and _is_number(t1) and 0 <= t0 < t1):
-            raise HysidInputError(f"{where}: [[tests]] {name}: steady_t0_s and steady_t1_s must both be given with 0 <= t0 < t1, got {t0!r}, {t1!r}")
-        out[name] = (float(t0), float(t1))
+        window = _window(entry, f"[[tests]] {name}: ", where)
+        if window is not None:
+            out[name] = window
     return out
 
 
@@ -184,11 +214,14 @@ def read_config(directory: Path) -> DatasetConfig:
         meq_kg=_mass(doc, where),
         bounds=_bounds(doc, where),
         sample_rate_hz=_positive(doc, "sample_rate_hz", where),
+        time_unit=_unit(doc, "time_unit", TIME_UNITS, where),
         displacement_unit=_unit(doc, "displacement_unit", DISPLACEMENT_UNITS, where),
         force_unit=_unit(doc, "force_unit", FORCE_UNITS, where),
+        time_channel=_channel(doc, "time_channel", where),
         displacement_channel=_channel(doc, "displacement_channel", where),
         force_channel=_channel(doc, "force_channel", where),
         steady=_steady_windows(doc, where),
+        steady_default=_window(doc, "", where),
         info=info,
         given=frozenset(doc),
     )
@@ -231,9 +264,26 @@ def read_manifest(path: Path) -> list[ManifestRow]:
     return rows
 
 
+def inside(directory: Path, path: Path) -> bool:
+    """Whether ``path``, with every link followed, lies inside ``directory``."""
+    return path.resolve().is_relative_to(directory.resolve())
+
+
+def confined(directory: Path, name: str, where: str) -> Path:
+    """``directory / name`` for a file a dataset names; an absolute path, a ``..`` or a link leading out of
+    the directory is an error (nothing outside is read, so no message shows its content)."""
+    relative = Path(name)
+    if relative.is_absolute() or ".." in relative.parts or name.startswith(("/", "\\")):
+        raise HysidInputError(f"{where}: {name!r} is not a file inside the dataset directory (absolute paths and '..' are refused)")
+    target = directory / relative
+    if not inside(directory, target):
+        raise HysidInputError(f"{where}: {name!r} links outside the dataset directory; copy the file in")
+    return target
+
+
 def listed_file(path: Path, row: ManifestRow) -> Path:
-    """The record a manifest row names, which must exist next to the manifest."""
-    target = path.parent / row.file
+    """The record a manifest row names, which must exist inside the manifest's directory."""
+    target = confined(path.parent, row.file, f"{path}: line {row.line}")
     if not target.is_file():
         raise HysidInputError(f"{path}: line {row.line}: listed file {row.file!r} does not exist in {path.parent}")
     return target

@@ -29,17 +29,11 @@ from pathlib import Path
 import numpy as np
 
 from hysid_model.errors import HysidInputError
-from hysid_model.readers.csv_series import TimeSeries, checked_series
+from hysid_model.readers.channels import UNIT_ALIASES
+from hysid_model.readers.csv_series import TimeSeries, check_line_lengths, checked_series
 from hysid_model.readers.dataset_dir import DISPLACEMENT_UNITS, FORCE_UNITS, DatasetConfig
 
 END_OF_HEADER = "***End_of_Header***"
-UNIT_ALIASES = {
-    "m": "m", "meter": "m", "meters": "m", "metre": "m", "metres": "m",
-    "mm": "mm", "millimeter": "mm", "millimeters": "mm", "millimetre": "mm", "millimetres": "mm",
-    "um": "um", "micrometer": "um", "micrometers": "um", "cm": "cm", "in": "in", "inch": "in", "inches": "in",
-    "n": "N", "newton": "N", "newtons": "N", "kn": "kN", "kilonewton": "kN", "kilonewtons": "kN",
-    "mn": "mN", "lbf": "lbf", "lb": "lbf", "kip": "kip", "kips": "kip",
-}
 DISPLACEMENT_NAMES = ("disp", "position")
 FORCE_NAMES = ("force", "load")
 
@@ -54,6 +48,7 @@ class _Segment:
 
 def read_lvm(path: Path, config: DatasetConfig) -> TimeSeries:
     """Read one ``.lvm`` record as (t in s, x in m, F in N)."""
+    check_line_lengths(path)
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:

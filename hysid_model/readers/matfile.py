@@ -46,11 +46,18 @@ def load_mat(path: Path) -> dict[str, np.ndarray]:
         raise HysidInputError(f"{path}: not a readable MATLAB .mat file ({' '.join(str(exc).split())})") from None
 
 
-def _ef_vector(path: Path, variables: dict[str, np.ndarray]) -> np.ndarray:
+def _real(path: Path, name: str, value: np.ndarray, what: str) -> np.ndarray:
+    """A numeric variable as float; complex numbers are an error, not silently cast; ``what`` it must be."""
+    if np.iscomplexobj(value):
+        raise HysidInputError(f"{path}: {name} holds complex numbers; {what} must be real")
     try:
-        ef = np.asarray(variables["ef"], dtype=float).reshape(-1)
+        return np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise HysidInputError(f"{path}: ef must be a numeric vector of frequencies in Hz") from None
+        raise HysidInputError(f"{path}: {name} must be {what}") from None
+
+
+def _ef_vector(path: Path, variables: dict[str, np.ndarray]) -> np.ndarray:
+    ef = _real(path, "ef", variables["ef"], "a numeric vector of frequencies in Hz").reshape(-1)
     if ef.size == 0 or not np.all(np.isfinite(ef)) or np.any(ef <= 0):
         raise HysidInputError(f"{path}: ef must hold positive frequencies in Hz")
     return ef
@@ -108,10 +115,7 @@ def read_mat_dataset(files: list[Path], config: DatasetConfig, n_points: int, ma
         amp, name_freq = parse_loop_name(Path(name).stem)
         if name_freq is not None and abs(f / name_freq - 1) > FREQ_TOLERANCE:
             raise HysidInputError(f"{directory / name}: the name says {name_freq:g} Hz but {freq_source} gives {f:g} Hz (more than {100 * FREQ_TOLERANCE:g} % apart)")
-        try:
-            branches = [np.asarray(loops[name][key], dtype=float) for key in ("HexpT", "HexpB")]
-        except (TypeError, ValueError):
-            raise HysidInputError(f"{directory / name}: HexpT and HexpB must be numeric N x 2 arrays (x, F)") from None
+        branches = [_real(directory / name, key, loops[name][key], "a numeric N x 2 array (x, F)") for key in ("HexpT", "HexpB")]
         a, t, b = loop_from_branches(branches[0], branches[1], n_points, str(directory / name))
         x0.append(a)
         top.append(t)

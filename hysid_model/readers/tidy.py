@@ -28,6 +28,7 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
+from hysid_model.readers.dataset_dir import check_mass
 
 MAGIC = "# hysid-loops v1"
 COLUMNS = ("loop", "label", "frequency_hz", "x0_m", "sigma_n", "cycles", "branch", "displacement_m", "force_n")
@@ -90,7 +91,7 @@ def _harmonics(text: str | None, path: Path) -> np.ndarray | None:
         return None
     try:
         pairs = np.array(json.loads(text), dtype=float)
-    except (json.JSONDecodeError, ValueError, TypeError):
+    except (json.JSONDecodeError, ValueError, TypeError, RecursionError):
         raise HysidInputError(f"{path}: the '# x_harmonics:' line must be a JSON array of [re, im] pairs per loop") from None
     if pairs.ndim != 3 or pairs.shape[2] != 2:
         raise HysidInputError(f"{path}: the '# x_harmonics:' line must be a JSON array of [re, im] pairs per loop")
@@ -111,10 +112,14 @@ def _header(lines: list[str], path: Path) -> tuple[str, float | None, dict[str, 
     meq = None if meq_text == "unknown" else _float(meq_text, "meq_kg", str(path))
     if meq is not None and not (math.isfinite(meq) and meq > 0):
         raise HysidInputError(f"{path}: meq_kg must be a positive mass or 'unknown', got {meq_text!r}")
+    if meq is not None:
+        check_mass(meq, str(path))
     try:
         meta = json.loads(fields["meta"])
     except json.JSONDecodeError as exc:
         raise HysidInputError(f"{path}: the '# meta:' line is not valid JSON ({exc.msg} at column {exc.colno})") from None
+    except RecursionError:
+        raise HysidInputError(f"{path}: the '# meta:' line nests too deeply to be hysid's metadata") from None
     if not isinstance(meta, dict):
         raise HysidInputError(f"{path}: the '# meta:' line must hold a JSON object")
     if isinstance(meta.get("bounds"), dict):

@@ -23,14 +23,15 @@ from typing import Any
 
 import numpy as np
 
-from hysid.report import markdown, text
+from hysid.identifiability import Identifiability, assess
+from hysid.report import markdown, tables, text
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
 from hysid_model.loops import LoopSet
 from hysid_model.modal import AmplitudeResult, derived_table
-from hysid_model.model import Model
+from hysid_model.model import MAX_WIDENINGS, Model
 from hysid_model.objective import Objective
-from hysid_model.problem import build_objective
+from hysid_model.problem import build_objective, starting_point
 from hysid_model.uncertainty import covariance, fisher_information
 from island.algorithms import check_algorithm
 from island.run import HistoryRow, RunResult, optimize
@@ -51,7 +52,9 @@ class FitResult:
     settings: dict[str, Any]
     best: int
     covariance: np.ndarray
+    """Parameter covariance; NaN rows and columns for parameters the data cannot determine."""
     stderr_method: str
+    identifiability: Identifiability
     amplitudes: list[AmplitudeResult]
     half_power: list[HalfPower]
     quality: dict[str, float | None]
@@ -67,12 +70,14 @@ class FitResult:
         theta = runs[best].theta
         loops, model = objective.loops, objective.model
         if objective.weights == "ml":
-            cov = np.linalg.pinv(fisher_information(objective, theta))
             method = "Cramer-Rao bound of the ML weights, noise sigma known"
         else:
-            cov = covariance(objective, theta)
             source = "known" if loops.has_sigma else "estimated from the residuals"
             method = f"sandwich covariance of the thesis-weighted least squares, noise sigma {source}"
+        ident = assess(
+            objective, theta, parameter_covariance, lambda m: Objective(objective.loops, m, weights=objective.weights), noise_unit(objective, theta)
+        )
+        cov = ident.covariance
         levels, _ = amplitude_levels(loops.x0)
         force_amplitude = np.abs(first_harmonic(loops))
         relative = objective.residuals(theta) / force_amplitude[:, None]
@@ -89,7 +94,8 @@ class FitResult:
             best=best,
             covariance=cov,
             stderr_method=method,
-            amplitudes=derived_table(model, theta, cov, levels),
+            identifiability=ident,
+            amplitudes=derived_table(model, theta, np.nan_to_num(cov), levels),
             half_power=half_power_by_amplitude(loops),
             quality=quality,
         )
@@ -113,8 +119,19 @@ class FitResult:
 
     @property
     def stderr(self) -> dict[str, float]:
-        """One standard error per parameter (see :attr:`stderr_method`)."""
-        return self.model.as_dict(np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)))
+        """One standard error per parameter (see :attr:`stderr_method`); NaN where not identifiable."""
+        return self.model.as_dict(self.identifiability.stderr)
+
+    @property
+    def not_identifiable(self) -> dict[str, str]:
+        """Parameters the data cannot determine, and why (:mod:`hysid.identifiability`)."""
+        return self.identifiability.not_identifiable
+
+    @property
+    def misfit(self) -> float | None:
+        """RMS residual over the known noise (1: the noise floor), None where the noise is not known."""
+        noise = self.quality["noise_sigma_pct"]
+        return None if not noise else float(self.quality["rms_residual_pct"]) / noise  # type: ignore[arg-type]
 
     @property
     def at_bounds(self) -> list[str]:
@@ -139,6 +156,7 @@ class FitResult:
             "bounds": {p.name: [p.lower, p.upper] for p in self.model.parameters},
             "fixed": self.model.fixed,
             "at_bounds": self.at_bounds,
+            **self.identifiability.to_dict(),
             "derived": [a.as_dict() for a in self.amplitudes],
             "half_power": [
                 {**hp.as_dict(), "xi_fit": a.values["xi"]} for hp, a in zip(self.half_power, self.amplitudes)
@@ -158,6 +176,19 @@ class FitResult:
             "report": self.report,
         }
 
+    def tables(self) -> dict[str, list[dict[str, Any]]]:
+        """``parameters`` (value, standard error, unit, bounds, status) and ``amplitudes`` (fn, xi, k, c, m with
+        standard errors, and the half-power xi of Eq. 2.7) as lists of plain dicts."""
+        return tables.fit_tables(self)
+
+    def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
+        """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
+        return tables.write_tables(self.tables(), out_dir)
+
+    def to_dataframes(self) -> dict[str, Any]:
+        """Each table of :meth:`tables` as a pandas DataFrame (needs pandas, an optional dependency)."""
+        return tables.data_frames(self.tables())
+
     def summary(self) -> str:
         """What a user reads after a fit (like lmfit's ``fit_report()``): data, model, parameters, amplitudes."""
         return text.fit_summary(self)
@@ -173,6 +204,20 @@ class FitResult:
         return f"<FitResult {self.model.spec} on {self.loops.name}: fitness {self.fitness:.6g}, {self.params}>"
 
 
+def parameter_covariance(objective: Objective, theta: np.ndarray) -> np.ndarray:
+    """The fit's covariance: the Cramer-Rao bound for ML weights, the sandwich covariance for the thesis' (Appendix A)."""
+    if objective.weights == "ml":
+        return np.linalg.pinv(fisher_information(objective, theta))
+    return covariance(objective, theta)
+
+
+def noise_unit(objective: Objective, theta: np.ndarray) -> float:
+    """The objective's value of one unit of chi^2: 1 for ML weights, else the mean weighted residual at the optimum."""
+    if objective.weights == "ml":
+        return 1.0
+    return max(float(objective(theta[None, :])[0]) / max(objective.y.size - objective.dim, 1), 1e-300)
+
+
 def fit(
     loops: LoopSet,
     model: str | Model = "thesis",
@@ -185,6 +230,7 @@ def fit(
     weights: str | None = None,
     displacement: str = "measured",
     polish: bool = True,
+    start: bool = True,
     options: dict[str, Any] | None = None,
     termination: Termination | None = None,
     progress: RunCallback | None = None,
@@ -195,8 +241,13 @@ def fit(
     ``bounds`` (``{"w0": (10, 200)}``) and ``fixed`` (``{"meq": 0.2}``) override the dataset's and
     the model's; ``options`` are the algorithm's settings (``population``, ``initial_population``,
     ``iterations``, ...; the thesis' by default); ``displacement`` is ``"measured"`` (each loop's
-    measured waveform, where the loops carry it) or ``"sine"`` (Eq. 4.5); ``termination`` may end
-    runs early; ``progress(run, row)`` is called after every iteration.
+    measured waveform, where the loops carry it) or ``"sine"`` (Eq. 4.5); ``start`` adds the
+    survey's linear estimate to every run's population (:func:`hysid_model.problem.starting_point`);
+    ``termination`` may end runs early; ``progress(run, row)`` is called after every iteration.
+
+    Bounds the data suggested (soft, see :mod:`hysid_model.problem`) that the best run ends on are
+    widened and every run repeated from that best, up to ``MAX_WIDENINGS`` times, before the result
+    is reported; bounds given by a user or a dataset are kept.
     """
     check_algorithm(algo)
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
@@ -204,10 +255,29 @@ def fit(
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise HysidInputError("seeds must be non-negative integers", param="seed", value=seed)
     objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement)
-    results = []
-    for i in range(runs):
-        callback = None if progress is None else (lambda row, i=i: progress(i, row))
-        results.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options, termination=termination, callback=callback))
+    first = starting_point(objective.loops, objective.model) if start else None
+    widened: list[dict[str, Any]] = []
+
+    def search(objective: Objective, first: np.ndarray | None) -> list[RunResult]:
+        out = []
+        for i in range(runs):
+            callback = None if progress is None else (lambda row, i=i: progress(i, row))
+            out.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options,
+                                termination=termination, callback=callback, start=first))
+        return out
+
+    results = search(objective, first)
+    for _ in range(MAX_WIDENINGS):
+        best = min(results, key=lambda r: r.fitness)
+        wider, changed = objective.model.widen_at(best.theta)
+        if not changed:
+            break
+        old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
+        widened += [{"param": name, "from": old[name], "to": [float(b) for b in pair]} for name, pair in changed.items()]
+        spent = sum(r.evaluations for r in results)
+        objective = Objective(objective.loops, wider, weights=objective.weights)
+        results = search(objective, best.theta)
+        results[0].evaluations += spent  # what the narrower searches cost counts too
     settings = {
         "algo": algo,
         "runs": runs,
@@ -218,6 +288,9 @@ def fit(
         "model": objective.model.spec,
         "options": dict(options or {}),
         "bounds_from_dataset": sorted(n for n in (loops.meta.get("bounds") or {}) if n in objective.model.names),
+        "bounds_from_data": sorted(p.name for p in objective.model.parameters if p.soft),
+        "bounds_widened": widened,
+        "start": "linear estimate of the survey" if start else None,
     }
     if termination is not None:
         settings["termination"] = termination.as_dict()

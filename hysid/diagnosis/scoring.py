@@ -10,7 +10,8 @@ remains is what only E can explain. The score statistic
     LM = (g_perp . e)^2 / (g_perp . g_perp)                     (chi^2_1 under psi = 0)
 
 is the chi^2 the effect would remove to first order, and
-psi_1 = -(g_perp . e) / (g_perp . g_perp) its one-step estimate. Effects whose
+psi_1 = -(g_perp . e) / (g_perp . g_perp) its one-step estimate. Two effects
+together remove the residual's projection on both signatures (:func:`joint_score`). Effects whose
 shape parameters are undefined at psi = 0 (a relaxation time, a yield
 displacement) are scored on their term's ``shape_grid`` and keep the best.
 An effect whose signature the current model absorbs entirely
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hysid.diagnose.fitting import Fit, make_model
+from hysid.diagnosis.fitting import Fit, make_model
 from hysid_model.effects import EFFECTS
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import PRESETS
@@ -49,6 +50,8 @@ class Candidate:
     absorbed_by: list[str]
     direction: np.ndarray
     """Unit vector of g_perp (whitened harmonic space) for the best shape."""
+    norm: float
+    """|g_perp| for the best shape (whitened residual per unit strength)."""
     n_shapes: int
 
 
@@ -75,6 +78,15 @@ def signature(fit: Fit, harmonics: Harmonics, effect: str, bounds: dict[str, tup
         rows += [up, down]
     white = objective.whitened(np.array(rows)).reshape(len(shapes), 2, -1)
     return (white[:, 0] - white[:, 1]) / (2.0 * h), shapes, lo == 0.0
+
+
+def joint_score(a: Candidate, b: Candidate, residual: np.ndarray) -> tuple[float, np.ndarray]:
+    """The chi^2 two effects remove together to first order (each at its best shape), and their joint
+    one-step strengths: least squares of the residual on both projected signatures."""
+    g = np.column_stack([a.direction * a.norm, b.direction * b.norm])
+    step = np.linalg.lstsq(g, -residual, rcond=None)[0]
+    after = residual + g @ step
+    return float(residual @ residual - after @ after), step
 
 
 def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]]) -> list[Candidate]:
@@ -108,7 +120,7 @@ def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[flo
                 effect=effect, score=float(lm[best]),
                 starts=[(shapes[i], float(step[i])) for i in ranked[:STARTS] if usable[i] >= 0 or i == best],
                 physical=bool(physical[best]), identifiable=bool(identifiable[best]), absorbed_by=absorbed_by,
-                direction=direction, n_shapes=len(shapes),
+                direction=direction, norm=float(np.sqrt(norm2[best])), n_shapes=len(shapes),
             )
         )
     return sorted(out, key=lambda c: -(c.score if c.physical and c.identifiable else -1.0))

@@ -19,19 +19,20 @@ from typing import Any
 from coordinator.launch import island_specs, run_campaign
 from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
 from coordinator.store import Store
-from hysid.fit import FitResult
-from hysid.report import jsondoc, markdown, text
+from hysid.fitting import FitResult
+from hysid.report import jsondoc, markdown, tables, text
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from island.config import CampaignConfig
+from hysid_model.errors import HysidInputError
+from island.config import CampaignConfig, decode_config
 from island.migration import Migration
-from island.protocol import check_name
+from island.protocol import MessageRejected, check_name
 from island.termination import Termination
 
 
 @dataclass
 class CampaignResult:
-    """A campaign's :class:`~hysid.fit.FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
+    """A campaign's :class:`~hysid.fitting.FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
 
     fit: FitResult
     islands: list[dict[str, Any]]
@@ -47,6 +48,34 @@ class CampaignResult:
             members=outcome.members,
         )
 
+    @classmethod
+    def from_database(cls, db: str | Path, name: str | None = None) -> "CampaignResult":
+        """The result of a stored campaign, finished or interrupted, rebuilt from its database alone.
+
+        The database (``db``) is only read: its campaign ``name`` (default: the
+        latest) is taken up in an in-memory copy, which re-evaluates every
+        island's best and polishes the global best as the campaign did. The loop
+        set and the settings come from the stored configuration message.
+        """
+        store = Store.snapshot(db)
+        try:
+            name = pick_campaign(store, name)
+            dataset, message, status = store.campaign(name)
+            reason, stored = store.stop_reason(name), store.result(name)
+            try:
+                config, loops = decode_config(message, name)
+            except MessageRejected as exc:
+                raise HysidInputError(f"{db}: campaign {name!r} has an unreadable configuration ({exc})") from None
+            settings = (stored or {}).get("settings", {})
+            termination = Termination(**settings["stop_rules"]) if "stop_rules" in settings else None
+            coordinator = Coordinator(store, config, loops, termination, dataset=dataset, resume=True)
+            coordinator.stop_reason = reason if status == "stopped" and reason else (
+                f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else "")
+            )
+            return cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
+        finally:
+            store.close()
+
     @property
     def params(self) -> dict[str, float]:
         return self.fit.params
@@ -58,6 +87,18 @@ class CampaignResult:
     def to_dict(self) -> dict[str, Any]:
         """The ``hysid fit --json`` document plus ``islands``, ``migrations`` and membership ``members``."""
         return {**self.fit.to_dict(), "islands": self.islands, "migrations": self.migrations, "members": self.members}
+
+    def tables(self) -> dict[str, list[dict[str, Any]]]:
+        """The fit's tables (``parameters``, ``amplitudes``) plus ``islands`` (one row per island run)."""
+        return {**self.fit.tables(), "islands": [dict(i) for i in self.islands]}
+
+    def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
+        """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
+        return tables.write_tables(self.tables(), out_dir)
+
+    def to_dataframes(self) -> dict[str, Any]:
+        """Each table of :meth:`tables` as a pandas DataFrame (needs pandas, an optional dependency)."""
+        return tables.data_frames(self.tables())
 
     def summary(self) -> str:
         """The fit summary, why the campaign stopped, its migrations and every island."""
@@ -72,6 +113,18 @@ class CampaignResult:
 
     def __repr__(self) -> str:
         return f"<CampaignResult {self.fit.settings.get('campaign')!r}: {len(self.islands)} island run(s), fitness {self.fit.fitness:.6g}>"
+
+
+def pick_campaign(store: Store, name: str | None = None) -> str:
+    """``name`` if the database holds it, else (None) its latest campaign; a one-line error otherwise."""
+    names = [c["name"] for c in store.campaign_list()]
+    if name is None:
+        if not names:
+            raise HysidInputError(f"{store.path}: holds no campaign yet")
+        return names[-1]
+    if name not in names:
+        raise HysidInputError(f"{store.path}: no campaign {name!r} (stored: {', '.join(map(repr, names)) or 'none'})")
+    return name
 
 
 def finish(coordinator: Coordinator, outcome: CampaignOutcome) -> CampaignResult:

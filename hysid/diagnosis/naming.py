@@ -15,7 +15,7 @@ import numpy as np
 from scipy.stats import chi2 as chi2_dist
 from scipy.stats import spearmanr
 
-from hysid.diagnose.fitting import Fit
+from hysid.diagnosis.fitting import Fit
 from hysid_model.harmonics import Harmonics
 
 ADEQUATE_ALPHA = 1e-3
@@ -62,6 +62,27 @@ def _coefficient_words(name: str) -> str:
     return f"order {name[1:]} {kind}"
 
 
+def excess_words(names: list[str], orders: np.ndarray, share: np.ndarray) -> str:
+    """Where the excess chi^2 sits, in words: the odd and the even orders' shares, each with its
+    largest coefficients (at least 10 % of the excess, three at most), the larger kind first."""
+    even_mask = orders % 2 == 0
+    kinds = []
+    for kind, mask in (("odd", ~even_mask), ("even", even_mask)):
+        ranked = [i for i in np.argsort(-np.where(mask, share, -1.0), kind="stable") if mask[i] and share[i] >= 0.1][:3]
+        parts = ", ".join(f"{_coefficient_words(names[i])} {100 * share[i]:.0f}%" for i in ranked)
+        kinds.append((float(share[mask].sum()), kind, parts))
+    kinds.sort(key=lambda k: -k[0])
+    (top, kind, parts), (rest, other, other_parts) = kinds
+    if not parts:
+        return "spread over all harmonics"
+    text = f"{kind} harmonics ({100 * top:.0f}% of the excess: {parts})"
+    if kind == "even":
+        text += ": the loops are not point-symmetric, F(-x, -v) != -F(x, v)"
+    if other_parts:
+        text += f"; {other} harmonics {100 * rest:.0f}% ({other_parts})"
+    return text
+
+
 def residual_signature(fit: Fit, harmonics: Harmonics) -> dict:
     """Where the chi^2 above the noise floor sits: by harmonic coefficient, and its trend over the loops."""
     observed, expected = _groups(fit, harmonics)
@@ -70,12 +91,7 @@ def residual_signature(fit: Fit, harmonics: Harmonics) -> dict:
     share = excess / total if total > 0 else excess
     orders = harmonics.orders()
     even = float(share[orders % 2 == 0].sum())
-    ranked = [i for i in np.argsort(-share) if share[i] >= 0.1][:3]
-    parts = ", ".join(f"{_coefficient_words(harmonics.names[i])} {100 * share[i]:.0f}%" for i in ranked)
-    if even >= 0.5:
-        text = f"even harmonics ({100 * even:.0f}% of the excess; {parts}): the loops are not point-symmetric, F(-x, -v) != -F(x, v)"
-    else:
-        text = f"odd harmonics: {parts}" if parts else "spread over all harmonics"
+    text = excess_words(harmonics.names, orders, share)
     e = fit.residual.reshape(harmonics.loops.n_loops, -1)
     per_loop = np.sum(e**2, axis=1) - e.shape[1] * fit.dof / fit.n
     trends = {}

@@ -1,0 +1,110 @@
+"""Fitting a model to the harmonic coefficients: the survey's linear start, data-derived bounds, polish.
+
+The diagnosis compares models by their chi^2 on the whitened harmonic
+coefficients (:class:`hysid_model.harmonics.HarmonicObjective`); every model it
+meets is smooth and low-dimensional, so a good start plus the bounded
+least-squares polish of :mod:`island.polish` finds the optimum.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hysid_model.harmonics import HarmonicObjective, Harmonics
+from hysid_model.model import MAX_WIDENINGS, Model
+from hysid_model.problem import prepare_model, starting_point
+from hysid_model.uncertainty import jacobian_covariance
+from island.polish import polish
+
+MAX_NFEV = 100
+"""Residual evaluations per polish."""
+
+
+@dataclass
+class Fit:
+    """A model fitted to the harmonics, with its whitened residual and Jacobian at the optimum."""
+
+    effects: tuple[str, ...]
+    start: str
+    objective: HarmonicObjective
+    theta: np.ndarray
+    residual: np.ndarray
+    jacobian: np.ndarray
+    stderr: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        """Standard errors from the Fisher information J^T J of the whitened residuals (the
+        Cramer-Rao bound), inflated by sqrt(chi^2 / dof) where the model misses the noise floor."""
+        cov = jacobian_covariance(self.jacobian)
+        self.stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * max(1.0, self.whitened_rms)
+
+    @property
+    def model(self) -> Model:
+        return self.objective.model
+
+    @property
+    def spec(self) -> str:
+        return "+".join((self.start,) + self.effects)
+
+    @property
+    def chi2(self) -> float:
+        return float(self.residual @ self.residual)
+
+    @property
+    def n(self) -> int:
+        return int(self.residual.size)
+
+    @property
+    def dof(self) -> int:
+        return self.n - self.model.dim
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion on the harmonic coefficients (sigma known): chi^2 + D ln N."""
+        return self.chi2 + self.model.dim * np.log(self.n)
+
+    @property
+    def whitened_rms(self) -> float:
+        """sqrt(chi^2 / dof): 1 is the noise floor."""
+        return float(np.sqrt(self.chi2 / max(self.dof, 1)))
+
+    def params(self) -> dict[str, float]:
+        return self.model.as_dict(self.theta)
+
+    def errors(self) -> dict[str, float]:
+        return self.model.as_dict(self.stderr)
+
+
+def soft_bounds(model: Model) -> dict[str, tuple[float, float]]:
+    """The data-derived (soft) bounds in force in ``model``, as they stand after any widening."""
+    return {p.name: (p.lower, p.upper) for p in model.parameters if p.soft}
+
+
+def make_model(harmonics: Harmonics, start: str, effects: tuple[str, ...], bounds: dict[str, tuple[float, float]]) -> Model:
+    """The start model plus ``effects``, ready for the loops (known mass fixed, bounds by the one rule of
+    :func:`hysid_model.problem.prepare_model`), with the soft ``bounds`` widened so far."""
+    model = prepare_model(harmonics.loops, "+".join((start,) + effects))
+    soft = soft_bounds(model)
+    return model.with_bounds({k: v for k, v in bounds.items() if k in soft}, soft=True)
+
+
+def fit_objective(objective: HarmonicObjective, start: str, effects: tuple[str, ...], starts: list[np.ndarray]) -> Fit:
+    """Polish every start and keep the best (lowest chi^2); where it ends on a soft bound, widen that bound
+    and polish again (up to ``MAX_WIDENINGS`` times): a bound the data suggested decides nothing."""
+    results = [polish(objective, s, max_nfev=MAX_NFEV) for s in starts]
+    best = min(results, key=lambda r: r.fitness)
+    for _ in range(MAX_WIDENINGS):
+        wider, changed = objective.model.widen_at(best.theta)
+        if not changed:
+            break
+        objective = HarmonicObjective(objective.harmonics, wider)
+        best = polish(objective, best.theta, max_nfev=MAX_NFEV)
+    return Fit(effects, start, objective, best.theta, objective.weighted_residuals(best.theta), objective.jacobian(best.theta))
+
+
+def initial_fit(harmonics: Harmonics, start: str) -> Fit:
+    """Fit the preset ``start`` (baseline or thesis) from the survey's linear estimate."""
+    model = prepare_model(harmonics.loops, start)
+    return fit_objective(HarmonicObjective(harmonics, model), start, (), [starting_point(harmonics.loops, model)])

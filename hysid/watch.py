@@ -1,0 +1,85 @@
+"""What a live view of a campaign shows, read from its database while the coordinator writes it.
+
+``hysid watch CAMPAIGN_DB`` draws :func:`snapshot` again and again: the
+campaign's status, the global best, and per island run its algorithm,
+membership status, iterations, evaluations, best fitness (with its course
+over the iterations), and the migrants it sent, received and took in. The
+database is opened read-only (:meth:`coordinator.store.Store.read_only`), so
+watching never disturbs the campaign.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from coordinator.server import STATUS_AFTER, CampaignProgress, IslandView
+from coordinator.store import Store
+from hysid.campaigns import pick_campaign
+
+TREND_POINTS = 24
+"""Iterations shown in each island's best-fitness trend."""
+
+
+@dataclass
+class CampaignSnapshot:
+    """A campaign as its database holds it at one moment."""
+
+    name: str
+    dataset: str
+    status: str
+    """running, stopping or stopped (a campaign left running was interrupted if nothing writes any more)."""
+    stop_reason: str | None
+    progress: CampaignProgress
+    best_island: str | None
+    islands: list[dict[str, Any]]
+    """Per island run: ``island``, ``run``, ``algo``, ``status``, ``iterations``, ``evaluations``,
+    ``best_fitness``, ``sent``, ``received``, ``taken``, ``messages`` (migrant messages the coordinator saw)
+    and ``trend`` (best fitness at up to :data:`TREND_POINTS` iterations)."""
+    events: list[tuple[str, str, float]]
+    """The latest membership events ``(island, event, unix time)``."""
+
+
+def trend(values: list[float], points: int = TREND_POINTS) -> list[float]:
+    """``values`` thinned to at most ``points``, always keeping the last."""
+    if len(values) <= points:
+        return list(values)
+    idx = np.unique(np.round(np.linspace(0, len(values) - 1, points)).astype(int))
+    return [values[i] for i in idx]
+
+
+def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
+    """Read campaign ``name`` (default: the latest) from ``store`` as it is now."""
+    name = pick_campaign(store, name)
+    meta = next(c for c in store.campaign_list() if c["name"] == name)
+    records = store.islands(name)
+    by_run: dict[tuple[str, str], list[float]] = {}
+    for island, run, _, best, _, _ in store.history(name):
+        by_run.setdefault((island, run), []).append(best)
+    members: dict[str, str] = {}
+    events = store.members(name)
+    for island, event, _ in events:
+        members[island] = STATUS_AFTER[event]
+    sent = store.migrations_by_island(name)
+    best = store.best(name)
+    several = {r.island for r in records if sum(q.island == r.island for q in records) > 1}
+    islands = [
+        {**r.as_dict(), "status": members.get(r.island, "unknown"), "messages": sent.get(r.island, 0),
+         "trend": trend(by_run.get((r.island, r.run), []))}
+        for r in records
+    ]
+    ended = meta["ended"] if meta["status"] == "stopped" and meta["ended"] else time.time()
+    progress = CampaignProgress(
+        elapsed_s=ended - meta["created"],
+        evaluations=store.total_evaluations(name),
+        best=np.inf if best is None else best.fitness,
+        members=members,
+        islands={f"{r.island}/{r.run}" if r.island in several else r.island: IslandView(r.algo, r.iterations, r.best_fitness, r.final) for r in records},
+        migrations=store.count("migrations", name),
+        rejected=store.count("rejected", name),
+    )
+    return CampaignSnapshot(name, meta["dataset"], meta["status"], meta["stop_reason"], progress,
+                            None if best is None else best.island, islands, events[-5:])

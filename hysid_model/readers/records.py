@@ -1,0 +1,118 @@
+"""The raw records of a dataset: which files, in which order, at which nominal frequency, read how.
+
+A record is a ``.csv`` (:mod:`.csv_series`), ``.lvm`` (:mod:`.lvm`),
+``.tdms`` or ``.h5``/``.hdf5`` (:mod:`.daq`) file, or one record of a tidy
+long CSV holding several (:mod:`.long_csv`). They come from ``manifest.csv``
+(its order and frequencies), or, without one, from the files of the
+directory in natural order (``run2`` before ``run10``) with frequencies from
+their names (``..._12Hz``) or, failing that, from the data. Every file must lie
+inside the dataset directory (:func:`~.dataset_dir.confined`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from hysid_model.errors import HysidInputError, HysidWarning
+from hysid_model.readers import channels
+from hysid_model.readers.csv_series import TimeSeries, read_series, sniff
+from hysid_model.readers.daq import HDF5_SUFFIXES, TDMS_SUFFIXES, read_daq
+from hysid_model.readers.dataset_dir import DatasetConfig, ManifestRow, frequency_in_name, inside, natural_key
+from hysid_model.readers.long_csv import is_long_csv, read_long
+from hysid_model.readers.lvm import read_lvm
+
+RAW_SUFFIXES = (".csv", ".lvm") + TDMS_SUFFIXES + HDF5_SUFFIXES
+
+
+@dataclass
+class RawSource:
+    """One record to extract: its label, its file (relative to the dataset directory), the nominal frequency
+    (None: from the data), and how to read it (called once, when its loop is extracted)."""
+
+    label: str
+    file: str
+    path: Path
+    nominal_hz: float | None
+    read: Callable[[], TimeSeries]
+
+    @property
+    def whole_file(self) -> bool:
+        """True for a record that is a file of its own (not one of a tidy long file's)."""
+        return self.label == self.path.stem
+
+    @property
+    def window_key(self) -> str:
+        """The name its ``[[tests]]`` entry in ``dataset.toml`` uses: the file's, or a long file's record name."""
+        return self.file if self.whole_file else self.label
+
+
+def read_record(path: Path, config: DatasetConfig) -> TimeSeries:
+    """One record file as (t in s, x in m, F in N)."""
+    if path.stat().st_size == 0:
+        raise HysidInputError(f"{path}: the file is empty")
+    suffix = path.suffix.lower()
+    if suffix == ".lvm":
+        return read_lvm(path, config)
+    if suffix in TDMS_SUFFIXES + HDF5_SUFFIXES:
+        return read_daq(path, config)
+    return read_series(path, config)
+
+
+def sources_of_file(path: Path, config: DatasetConfig, nominal_hz: float | None, name: str | None = None) -> list[RawSource]:
+    """The records of one file: a tidy long CSV holds several, any other file one."""
+    name = name or path.name
+    if path.suffix.lower() == ".csv" and path.stat().st_size > 0 and is_long_csv(sniff(path)):
+        return [RawSource(r.label, name, path, r.nominal_hz if r.nominal_hz is not None else frequency_in_name(r.label),
+                          lambda s=r.series: s) for r in read_long(path, config)]
+    return [RawSource(path.stem, name, path, nominal_hz, lambda: read_record(path, config))]
+
+
+def is_record_csv(path: Path, config: DatasetConfig) -> bool:
+    """Whether a ``.csv`` file holds raw records (time, displacement and force columns, or a ``record`` column)."""
+    try:
+        dialect = sniff(path)
+        return is_long_csv(dialect) or all(
+            channels.choose(dialect.names, q, config, str(path), required=False) is not None for q in channels.QUANTITIES
+        )
+    except HysidInputError:
+        return False
+
+
+def manifest_sources(manifest: Path, rows: list[ManifestRow], files: list[Path], config: DatasetConfig) -> list[RawSource]:
+    """The records ``manifest.csv`` lists (one per row)."""
+    out = []
+    for row, path in zip(rows, files):
+        found = sources_of_file(path, config, row.frequency_hz, row.file)
+        if len(found) != 1:
+            raise HysidInputError(f"{manifest}: line {row.line}: {row.file!r} holds {len(found)} records; list a tidy file of records without a manifest")
+        out.append(found[0])
+    return out
+
+
+def directory_sources(directory: Path, config: DatasetConfig) -> list[RawSource]:
+    """The records of a directory without ``manifest.csv``: every record file in natural order; ``.csv`` files
+    that hold no records are left out with a warning."""
+    candidates = sorted((p for p in directory.iterdir() if p.suffix.lower() in RAW_SUFFIXES and p.is_file()), key=lambda p: natural_key(p.name))
+    outside = [p.name for p in candidates if not inside(directory, p)]
+    if outside:
+        raise HysidInputError(f"{directory}: {outside[0]!r} links outside the dataset directory; copy the file in")
+    skipped = [p.name for p in candidates if p.suffix.lower() == ".csv" and not is_record_csv(p, config)]
+    if skipped:
+        warnings.warn(HysidWarning(
+            f"{directory}: left out {', '.join(skipped)}: no time, displacement and force columns (nor a record column)"
+        ), stacklevel=3)
+    out = []
+    for path in candidates:
+        if path.name not in skipped:
+            out.extend(sources_of_file(path, config, frequency_in_name(path.stem)))
+    return out
+
+
+def manifest_text(sources: list[RawSource], frequencies: list[float]) -> str:
+    """The ``manifest.csv`` of these records at these frequencies (one row per file record)."""
+    rows = [f"{s.file},{f:.6g}" for s, f in zip(sources, frequencies)]
+    return "\n".join(["file,frequency_hz"] + rows) + "\n"
+

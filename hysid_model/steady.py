@@ -1,0 +1,296 @@
+"""The steady part of a raw record: which whole cycles a loop is extracted from.
+
+The thesis (Appendix A, ``PrepareExpData``) picks one steady cycle by hand.
+hysid uses every steady whole cycle, found in two stages, both linear in the
+record length:
+
+1. amplitude (:func:`steady_run`): first-harmonic amplitudes of x and F in
+   every cycle (:func:`cycle_fits`, one batched 3-term least squares); the
+   steady cycles are the longest run whose amplitudes lie within a band
+   (but for a few isolated cycles: scatter) around a straight line through them: +-``STEADY_TOLERANCE`` of the line
+   or ``NOISE_SIGMAS`` robust standard deviations of the cycle-to-cycle
+   scatter, whichever is wider, with the line changing by at most
+   ``DRIFT_LIMIT`` over the run and bending by at most ``CURVATURE`` (a
+   settling transient is curved, a drift straight). The reference is the run itself, not the
+   largest amplitude, so the start-up overshoot and beating of a lightly
+   damped specimen are left out, and a slow drift (heating, creep) keeps its
+   cycles. A tapered sine's ramps change far faster than the band allows.
+2. waveform (:func:`waveform_steady`, runs of at least
+   ``WAVEFORM_MIN_CYCLES``): leading and trailing cycles whose samples differ
+   from the median cycle significantly more than the typical cycle's do
+   (transients that hardly change the first harmonic) are dropped. Each cycle
+   is compared after the amplitude and offset trends of stage 1 are divided
+   out, so a drift is not taken for a transient. The median cycle is the
+   median of the samples in phase bins of about two samples per cycle,
+   interpolated between the bins' centres (the bin edges sit between the
+   phases of a sample rate locked to the excitation, so every cycle is
+   compared with the same reference).
+
+The first-harmonic phases of the cycles also give the frequency
+(:func:`phase_slope_frequency`): a frequency error delta makes the phase
+advance by 2 pi delta per second, a straight line through the cycles' phases.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+STEADY_TOLERANCE = 0.01
+"""Half-width of the steady band, relative to the amplitude (or ``NOISE_SIGMAS`` stds of its scatter, if wider)."""
+NOISE_SIGMAS = 4.0
+CURVATURE = 0.0025
+"""Largest departure of the amplitude from a straight line that a curve through the run may show: a start-up
+transient settles along a curve, a drift does not."""
+DRIFT_LIMIT = 0.10
+"""Largest relative change of the amplitude over the steady run (a slow drift); faster changes are ramps."""
+WAVEFORM_MIN_CYCLES = 5
+"""Fewer steady cycles cannot tell a transient from cycle-to-cycle scatter; then only stage 1 applies."""
+WAVEFORM_TOLERANCE = 1e-3
+"""A cycle whose samples differ from the median cycle by less than 0.1 % of the signal's std is steady whatever the noise."""
+OUTLIERS = 0.05
+"""Isolated cycles outside the band (scatter, not a transient) allowed in a steady run, as a fraction of it."""
+MAD_TO_STD = 1.4826
+
+
+@dataclass
+class CycleFits:
+    """First-harmonic fits y = a sin(theta) + b cos(theta) + c per cycle, theta = 2 pi f (t - t_a).
+
+    ``z`` ``(S, n)`` is a + i b (|z| the amplitude, arg z the phase of the sine),
+    ``offset`` ``(S, n)`` c, ``resid_var`` ``(S, n)`` the residual variance of a
+    sample, ``count`` ``(n,)`` samples per cycle, ``t_mid`` ``(n,)`` their mean time.
+    """
+
+    z: np.ndarray
+    offset: np.ndarray
+    resid_var: np.ndarray
+    count: np.ndarray
+    t_mid: np.ndarray
+
+    @property
+    def amplitude(self) -> np.ndarray:
+        return np.abs(self.z)
+
+    def amplitude_noise(self) -> np.ndarray:
+        """Std of one cycle's amplitude from the samples' residual scatter, per signal (an upper bound:
+        harmonics count as scatter)."""
+        return np.sqrt(np.median(self.resid_var, axis=1) * 2.0 / max(float(np.median(self.count)), 1.0))
+
+
+def cycle_bounds(t: np.ndarray, t_a: float, freq: float, n_cycles: int) -> np.ndarray:
+    """``(n_cycles + 1,)`` sample indices: cycle k holds samples bounds[k]:bounds[k+1], t in [t_a + k/f, t_a + (k+1)/f)."""
+    return np.searchsorted(t, t_a + np.arange(n_cycles + 1) / freq)
+
+
+def per_cycle_sums(rows: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """Sums over each cycle of ``rows`` ``(R, n + 1)``: the samples bounds[0]:bounds[-1] then one zero column
+    (reduceat's indices must lie inside the array, also for empty last cycles); 0 for an empty cycle."""
+    sums = np.add.reduceat(rows, bounds[:-1] - bounds[0], axis=1)
+    sums[:, np.diff(bounds) == 0] = 0.0
+    return sums
+
+
+def cycle_fits(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: float, n_cycles: int) -> CycleFits:
+    """One 3-term least-squares fit per cycle [t_a + k/f, t_a + (k+1)/f), k < ``n_cycles``, of every signal (batched)."""
+    bounds = cycle_bounds(t, t_a, freq, n_cycles)
+    span = slice(bounds[0], bounds[-1])
+    n = bounds[-1] - bounds[0]
+    rows = np.empty((6 + 4 * len(signals), n + 1))
+    rows[:, n] = 0.0
+    sin, cos = rows[0, :n], rows[1, :n]
+    np.multiply(2 * np.pi * freq, t[span] - t_a, out=rows[2, :n])
+    np.sin(rows[2, :n], out=sin)
+    np.cos(rows[2, :n], out=cos)
+    np.multiply(sin, sin, out=rows[2, :n])
+    np.multiply(sin, cos, out=rows[3, :n])
+    np.multiply(cos, cos, out=rows[4, :n])
+    rows[5, :n] = t[span]
+    for k, y in enumerate(signals):
+        yk = rows[6 + 4 * k, :n]
+        yk[:] = y[span]
+        np.multiply(yk, sin, out=rows[7 + 4 * k, :n])
+        np.multiply(yk, cos, out=rows[8 + 4 * k, :n])
+        np.multiply(yk, yk, out=rows[9 + 4 * k, :n])
+    sums = per_cycle_sums(rows, bounds)
+    del rows
+    count = np.diff(bounds).astype(float)
+    s, c, ss, sc, cc = sums[:5]
+    gram = np.stack([np.stack([count, s, c], axis=-1), np.stack([s, ss, sc], axis=-1), np.stack([c, sc, cc], axis=-1)], axis=-2)
+    few = count < 4  # a cycle cut short by the end of the record: no fit
+    gram[few] = np.eye(3)
+    t_mid = sums[5] / np.maximum(count, 1.0)
+    z, offset, resid = [], [], []
+    for k in range(len(signals)):
+        rhs = sums[6 + 4 * k : 9 + 4 * k].T
+        coef = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
+        coef[few] = 0.0
+        ss_res = sums[9 + 4 * k] - np.sum(coef * rhs, axis=1)
+        z.append(coef[:, 1] + 1j * coef[:, 2])
+        offset.append(coef[:, 0])
+        resid.append(np.where(few, 0.0, np.maximum(ss_res, 0.0) / np.maximum(count - 3.0, 1.0)))
+    return CycleFits(np.array(z), np.array(offset), np.array(resid), count, t_mid)
+
+
+def phase_slope_frequency(fits: CycleFits, freq: float, first: int, stop: int) -> float:
+    """The frequency from the phases of cycles ``first..stop-1`` (fitted at ``freq``) of signal 0:
+    a weighted straight line through the unwrapped phases against time (weights: the inverse phase variances)."""
+    z = fits.z[0, first:stop]
+    tau = fits.t_mid[first:stop]
+    weight = np.abs(z) ** 2 * fits.count[first:stop]
+    if z.size < 2 or not np.any(weight > 0):
+        return freq
+    psi = np.unwrap(np.angle(z))
+    w = weight / weight.sum()
+    tc = tau - w @ tau
+    den = w @ (tc * tc)
+    return freq if den <= 0 else float(freq + (w @ (tc * psi)) / den / (2 * np.pi))
+
+
+def line_through(values: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """``(S, 2)``: each row's least-squares line (alpha, beta) through its cycles start..stop-1 (value alpha + beta k)."""
+    v = values[:, start : max(stop, start + 1)]
+    k = np.arange(start, start + v.shape[1], dtype=float)
+    u = k - k.mean()
+    beta = v @ u / (u @ u) if v.shape[1] > 1 else np.zeros(v.shape[0])
+    return np.stack([v.mean(axis=1) - beta * k.mean(), beta], axis=1)
+
+
+def steady_run(amp: np.ndarray, noise: np.ndarray) -> tuple[int, int]:
+    """(start, length) of the longest run of cycles whose amplitudes ``amp`` ``(S, n)`` are steady (stage 1).
+
+    ``noise`` ``(S,)`` is a first guess of each amplitude's cycle-to-cycle std;
+    it is re-estimated from the run found (robust std of successive
+    differences), and the run searched again, until it no longer changes.
+    """
+    start, length = _longest_band_run(amp, noise)
+    for _ in range(3):
+        if length < WAVEFORM_MIN_CYCLES:
+            break
+        run = amp[:, start : start + length]
+        scatter = MAD_TO_STD * np.median(np.abs(np.diff(run, axis=1)), axis=1) / np.sqrt(2.0)
+        found = _longest_band_run(amp, scatter)
+        if found == (start, length):
+            break
+        start, length = found
+    return start, length
+
+
+def _band_test(amp: np.ndarray, noise: np.ndarray) -> Callable[[int, int], bool]:
+    """Whether cycles i..j-1 are steady: within the band around their line, drifting at most ``DRIFT_LIMIT``,
+    and not curved (a settling transient is curved, a drift is straight)."""
+    floor = NOISE_SIGMAS * noise[:, None]
+    index = np.arange(amp.shape[1], dtype=float)
+
+    def fits(i: int, j: int) -> bool:
+        a = amp[:, i:j]
+        n = j - i
+        u = index[:n] - 0.5 * (n - 1)
+        level = a.mean(axis=1)
+        beta = a @ u / (u @ u) if n > 1 else np.zeros(a.shape[0])
+        line = level[:, None] + beta[:, None] * u
+        resid = a - line
+        out = np.any(np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor), axis=0)
+        if out.any():  # an isolated cycle outside the band is scatter; a transient is a run of them, or the window's end
+            pairs = out[1:] & out[:-1]
+            if out[0] or out[-1] or pairs.any() or np.count_nonzero(out) > max(1, OUTLIERS * n):
+                return False
+        if np.any(np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)):
+            return False
+        if n < WAVEFORM_MIN_CYCLES:
+            return True
+        q = u * u - (u @ u) / n  # orthogonal to 1 and u
+        qq = q @ q
+        bend = np.abs(resid @ q) / qq * np.abs(q).max()  # the largest departure of the best parabola from the line
+        return bool(np.all(bend <= np.maximum(CURVATURE * np.abs(level), NOISE_SIGMAS * noise * np.abs(q).max() / np.sqrt(qq))))
+
+    return fits
+
+
+def _longest_band_run(amp: np.ndarray, noise: np.ndarray) -> tuple[int, int]:
+    """Longest window of cycles that passes :func:`_band_test`. A window that passes holds only windows that pass,
+    so a window that never shrinks, slid over the cycles and grown by galloping, finds it."""
+    n = amp.shape[1]
+    fits = _band_test(amp, noise)
+    if n <= 1 or fits(0, n):
+        return 0, n
+    best_start, best_length, i = 0, 1, 0
+    while i + best_length < n:
+        j = i + best_length + 1  # a window one cycle longer than the best so far
+        if not fits(i, j):
+            i += 1
+            continue
+        step = 1
+        while j + step <= n and fits(i, j + step):  # gallop, then bisect, to the longest window from i
+            j += step
+            step *= 2
+        bad = min(j + step, n + 1)
+        while bad - j > 1:
+            mid = (j + bad) // 2
+            if fits(i, mid):
+                j = mid
+            else:
+                bad = mid
+        best_start, best_length = i, j - i
+        i += 1
+    return best_start, best_length
+
+
+def _bin_medians(phase: np.ndarray, y: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
+    """(centre phase, median of y) of the non-empty phase bins [(j - 1/4)/bins, (j + 3/4)/bins)."""
+    b = np.floor(phase * bins + 0.25).astype(np.int64) % bins
+    order = np.argsort(b.astype(np.int32), kind="stable")
+    counts = np.bincount(b, minlength=bins)
+    width = int(counts.max())
+    rank = np.arange(b.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    table = np.full((bins, width), np.inf)
+    table[b[order], rank] = y[order]
+    table.sort(axis=1)
+    used = np.flatnonzero(counts)
+    c = counts[used]
+    rows = table[used]
+    median = 0.5 * (rows[np.arange(used.size), (c - 1) // 2] + rows[np.arange(used.size), c // 2])
+    return (used + 0.25) / bins, median
+
+
+def _periodic_interp(phase: np.ndarray, centre: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """Linear interpolation in a phase of period 1."""
+    xp = np.concatenate([[centre[-1] - 1.0], centre, [centre[0] + 1.0]])
+    fp = np.concatenate([[value[-1]], value, [value[0]]])
+    return np.interp(phase, xp, fp)
+
+
+def cycle_excess(phase: np.ndarray, bounds: np.ndarray, y: np.ndarray, per_cycle: float) -> np.ndarray:
+    """Per cycle, the mean squared difference of its samples from the median cycle (phase in [0, 1))."""
+    centre, median = _bin_medians(phase, y, max(4, int(per_cycle // 2)))
+    sq = np.empty((1, y.size + 1))
+    sq[0, -1] = 0.0
+    np.square(y - _periodic_interp(phase, centre, median), out=sq[0, :-1])
+    return per_cycle_sums(sq, bounds)[0] / np.maximum(np.diff(bounds), 1)
+
+
+def waveform_steady(
+    t: np.ndarray, signals: list[np.ndarray], trends: list[tuple[np.ndarray, np.ndarray]], t_a: float, freq: float, n_cycles: int
+) -> tuple[int, int]:
+    """(first, stop) of the steady cycles after leading and trailing transients are dropped (stage 2).
+
+    ``trends`` gives each signal's amplitude and offset per cycle (``(n,)``
+    each), divided out before the comparison.
+    """
+    bounds = cycle_bounds(t, t_a, freq, n_cycles)
+    span = slice(bounds[0], bounds[-1])
+    cycle = np.repeat(np.arange(n_cycles), np.diff(bounds))
+    phase = (t[span] - t_a) * freq - cycle
+    per_cycle = (bounds[-1] - bounds[0]) / n_cycles
+    steady = np.ones(n_cycles, dtype=bool)
+    for y, (amplitude, offset) in zip(signals, trends):
+        scale = np.where(amplitude > 0, np.mean(amplitude) / np.where(amplitude > 0, amplitude, 1.0), 1.0)
+        yk = (y[span] - offset[cycle]) * scale[cycle]
+        excess = cycle_excess(phase, bounds, yk, per_cycle)
+        limit = max(np.median(excess) * (1.0 + NOISE_SIGMAS * np.sqrt(2.0 / per_cycle)), (WAVEFORM_TOLERANCE * np.std(yk)) ** 2)
+        steady &= excess <= limit
+    if not steady.any():
+        return 0, 0
+    return int(np.argmax(steady)), n_cycles - int(np.argmax(steady[::-1]))

@@ -1,0 +1,307 @@
+"""Real measurements out of the box: the equivalent-linear survey, bounds and a start from the data, honest
+identifiability, and a diagnosis that does not depend on the specimen's scale (issue: real measurements)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hysid
+from hysid.cli import main
+from hysid_model.loops import LoopSet
+from hysid_model.model import build_model
+from hysid_model.problem import prepare_model
+from hysid_model.survey import survey
+from hysid_model.objective import Objective
+from support import GA_SMALL
+
+DAMPER = Path(__file__).resolve().parents[2] / "shared" / "data" / "arts-friction-damper"
+SURVEY_KEYS = {"k_dyn", "c_eq", "loss_factor", "energy_per_cycle", "k_secant", "fn_hz", "xi"}
+POINTS = 40
+
+
+def branches(model, theta: np.ndarray, freqs: np.ndarray, amps: np.ndarray, noise_pct: float = 0.0, seed: int = 0,
+             meq: float | None = None) -> LoopSet:
+    """Loops of any model on the ideal sine (its force on each branch as the objective sees it), with force
+    noise of ``noise_pct`` % of each loop's peak force."""
+    f, a = (g.reshape(-1) for g in np.meshgrid(freqs, amps))
+    x = np.linspace(-1.0, 1.0, POINTS)
+    pack = lambda part: np.stack([np.column_stack([x * ai, fi]) for ai, fi in zip(a, part)])
+    empty = LoopSet(name="specimen", freq_hz=f, x0=a, top=pack(np.zeros((f.size, POINTS))), bottom=pack(np.zeros((f.size, POINTS))),
+                    sigma=np.ones(f.size), meq_kg=meq)
+    force = Objective(empty, model, weights="ml").predict(theta)[0]
+    sigma = noise_pct / 100.0 * np.abs(force).max(axis=1)
+    force = force + sigma[:, None] * np.random.default_rng(seed).standard_normal(force.shape)
+    return LoopSet(name="specimen", freq_hz=f, x0=a, top=pack(force[:, :POINTS]), bottom=pack(force[:, POINTS:]),
+                   sigma=np.where(sigma > 0, sigma, np.nan), meq_kg=meq)
+
+
+def isolator(noise_pct: float = 0.0, amps=(1e-3, 2e-3, 3e-3), freqs=np.linspace(6.0, 20.0, 8), seed: int = 0, hidden: dict | None = None):
+    """A 1-DOF specimen far from the thesis' beams: 12 Hz, xi0 = 0.5, 0.2 kg, stiffness softening by
+    40 % over its amplitude range (wn by 23 %), optionally with hidden effects ``{effect: {param: value}}``."""
+    w0 = 2 * math.pi * 12.0
+    s_w = (math.sqrt(0.6) - 1.0) * w0 / amps[-1]
+    spec = "+".join(["thesis", *(hidden or {})])
+    model = build_model(spec).fix(meq=0.2)
+    values = {"xi0": 0.5, "S_xi": 0.0, "w0": w0, "S_w": s_w, **{k: v for params in (hidden or {}).values() for k, v in params.items()}}
+    return branches(model, model.from_dict(values), np.asarray(freqs), np.asarray(amps), noise_pct, seed, meq=None), values
+
+
+# --- the survey ------------------------------------------------------------------------------
+def test_the_survey_of_a_linear_specimen_is_its_physics(tmp_path, capsys):
+    """k - m w^2, c, the loop area pi c w X0^2, and with the mass estimated from all loops, fn and xi."""
+    m, k, c = 0.2, 0.2 * (2 * math.pi * 12.0) ** 2, 2 * 0.2 * 0.5 * 2 * math.pi * 12.0
+    model = build_model("baseline").fix(meq=m)
+    loops = branches(model, model.from_dict({"xi0": 0.5, "w0": 2 * math.pi * 12.0}), np.linspace(6.0, 20.0, 6), np.array([1e-3, 2e-3]))
+    s = survey(loops)
+    w = loops.omega
+    assert s.mass_source == "estimated" and s.meq_kg == pytest.approx(m, rel=1e-6)
+    np.testing.assert_allclose(s.k_dyn, k - m * w**2, rtol=1e-6)
+    np.testing.assert_allclose(s.c_eq, c, rtol=1e-3)  # the area of 40-point branches (trapezoid)
+    np.testing.assert_allclose(s.energy_per_cycle, math.pi * c * w * loops.x0**2, rtol=1e-3)
+    np.testing.assert_allclose(s.k_secant, s.k_dyn, rtol=1e-6)  # an ellipse's tips: zero velocity
+    np.testing.assert_allclose(s.fn_hz, 12.0, rtol=1e-6)
+    np.testing.assert_allclose(s.xi, 0.5, rtol=1e-3)
+    np.testing.assert_allclose(s.loss_factor, c * w / k, rtol=1e-3)
+    loops.meta["bounds"] = {}
+    from hysid_model.datasets import write_dataset
+
+    data = write_dataset(tmp_path / "d", loops)
+    assert main(["loops", str(data), "--json", "--out", str(tmp_path / "out")]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert all(SURVEY_KEYS <= set(r) for r in rows) and rows[0]["fn_hz"] == pytest.approx(12.0, rel=1e-6)
+    assert (tmp_path / "out" / "survey.png").stat().st_size > 20_000
+    assert json.loads((tmp_path / "out" / "loops.json").read_text())["mass"] == "estimated"
+
+
+def test_a_mass_the_loops_do_not_show_is_not_claimed():
+    """One frequency per amplitude: stiffness and inertia cannot be told apart; the survey says so."""
+    model = build_model("baseline").fix(meq=0.2)
+    loops = branches(model, model.from_dict({"xi0": 0.05, "w0": 50.0}), np.array([10.0]), np.array([1e-3, 2e-3]))
+    s = survey(loops)
+    assert s.meq_kg is None and s.mass_source.startswith("unknown") and np.all(np.isnan(s.fn_hz))
+    assert all(r["fn_hz"] is None and r["k_dyn"] is not None for r in s.rows())
+
+
+@pytest.mark.skipif(not DAMPER.is_dir(), reason=f"the shared friction damper is not at {DAMPER}")
+def test_the_friction_damper_shows_no_consistent_inertia():
+    s = survey(hysid.load(DAMPER))
+    assert s.meq_kg is None and "do not show a consistent inertia" in s.mass_source
+    assert np.all(s.energy_per_cycle > 0) and np.all(s.loss_factor > 1.0)  # friction: wide loops
+
+
+# --- bounds and a start from the data ----------------------------------------------------------------
+def test_a_specimen_far_from_the_thesis_is_fitted_without_hand_tuning():
+    """12 Hz, xi0 = 0.5, 0.2 kg: outside every range of Table 5.4, and no bounds given."""
+    loops, truth = isolator(noise_pct=1.0)
+    result = hysid.fit(loops, "thesis", algo="ga", options=GA_SMALL)
+    for name in ("xi0", "w0", "S_w", "meq"):
+        expected = truth.get(name, 0.2)
+        assert result.params[name] == pytest.approx(expected, rel=0.02), name
+    assert not result.at_bounds and not result.not_identifiable
+    assert set(result.settings["bounds_from_data"]) == {"xi0", "S_xi", "w0", "S_w", "meq"}
+    assert "warning" not in result.summary()
+
+
+def test_given_bounds_are_kept_and_the_report_says_which_bound_held():
+    loops, _ = isolator(noise_pct=1.0)
+    table_5_4 = {"xi0": (0.0, 0.1), "w0": (100.0, 500.0)}
+    result = hysid.fit(loops, "thesis", bounds=table_5_4, algo="ga", options=GA_SMALL)
+    assert {"xi0", "w0"} <= set(result.at_bounds) and result.settings["bounds_widened"] == []
+    text = result.summary()
+    assert "ended on a bound that was given" in text and "does not describe these loops" in text and "diagnos" in text
+
+
+def test_a_derived_bound_the_fit_ends_on_is_widened_and_the_fit_repeated(tmp_path):
+    """Stiffness that softens by 98 % over the amplitude range: the slope S_w lies beyond the bound the
+    survey suggests (wn moving by 90 % of its median), so the fit widens it and searches again."""
+    w0, amps = 2 * math.pi * 12.0, np.array([1e-3, 2e-3, 3e-3])
+    model = build_model("thesis").fix(meq=0.2)
+    truth = {"xi0": 0.05, "S_xi": 0.0, "w0": w0, "S_w": -0.85 * w0 / amps[-1]}
+    loops = branches(model, model.from_dict(truth), np.linspace(2.0, 20.0, 8), amps, noise_pct=0.5, meq=0.2)
+    derived = prepare_model(loops, "thesis").bounds[3]
+    assert truth["S_w"] < derived[0]
+    result = hysid.fit(loops, "thesis", algo="ga", options=GA_SMALL)
+    assert "S_w" in [w["param"] for w in result.settings["bounds_widened"]]
+    assert result.params["S_w"] == pytest.approx(truth["S_w"], rel=0.01) and "S_w" not in result.at_bounds
+    report = result.write_report(tmp_path / "r").read_text()
+    assert "(from the data)" in report and "Correlation between the parameters" in report
+
+
+def test_fit_campaign_and_diagnose_take_their_bounds_by_one_rule():
+    loops, _ = isolator(noise_pct=1.0)
+    rule = {p.name: (p.lower, p.upper) for p in prepare_model(loops, "thesis").parameters}
+    fitted = hysid.fit(loops, "thesis", algo="ga", options={**GA_SMALL, "iterations": 1}, polish=False)
+    assert {n: tuple(b) for n, b in fitted.to_dict()["bounds"].items()} == rule
+    from island.config import CampaignConfig
+
+    assert CampaignConfig.create(loops, name="c").bounds == rule
+    diagnosis = hysid.diagnose(loops, "thesis", cross_validate=False)
+    start = {p.name: (p.lower, p.upper) for p in diagnosis.start.model.parameters}
+    assert start == rule
+
+
+def test_bounds_and_known_values_from_the_command_line_are_hard(tmp_path, capsys):
+    """--bound is a given bound (kept, never widened, the report says so), --fix a known value, in fit and diagnose."""
+    from hysid_model.readers.tidy import write_loops
+
+    loops, _ = isolator(noise_pct=1.0, freqs=np.linspace(6.0, 20.0, 4))
+    write_loops(loops, tmp_path / "iso.loops")
+    fit_args = ["fit", str(tmp_path / "iso.loops"), "--algo", "ga", "--bound", "w0=100:500", "--fix", "S_xi=0", "--json"]
+    assert main([*fit_args, "--out", str(tmp_path / "fit")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["bounds"]["w0"] == [100.0, 500.0] and doc["fixed"]["S_xi"] == 0.0 and "S_xi" not in doc["params"]
+    assert "w0" in doc["at_bounds"] and "w0" not in doc["settings"]["bounds_from_data"]
+    assert "fixed S_xi = 0" in (tmp_path / "fit" / "report.md").read_text()
+    assert main(["diagnose", str(tmp_path / "iso.loops"), "--bound", "w0=100:500", "--json", "--out", str(tmp_path / "dx")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["final_bounds"]["w0"] == [100.0, 500.0] and "w0" not in doc["bounds_from_data"] and "xi0" in doc["bounds_from_data"]
+    for bad, says in [("w0=500:100", "--bound w0: lower bound 500"), ("w0", "give NAME=LOWER:UPPER"), ("nope=1:2", "unknown parameter 'nope'")]:
+        assert main(["fit", str(tmp_path / "iso.loops"), "--bound", bad, "--out", str(tmp_path / "x")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("hysid: error: ") and says in err and err.count("\n") == 1
+    assert not (tmp_path / "x").exists()
+
+
+# --- a distorted shaker on a linear specimen whose stiffness softens, its dashpot constant --------------------
+def dashpot_records(noise: float = 0.01, seed: int = 0):
+    """A 0.5 kg specimen, 20 Hz, c = 88 N s/m (xi 0.7 at small amplitude), k softening by 30 % over 1-3 mm,
+    driven with 10 % displacement THD for 1 s per test (so the faster tests hold more cycles); force
+    m x'' + c x' + k(X0) x from the displacement's own derivatives."""
+    from hysid_model import waveform
+    from hysid_model.synth import RawRecord
+
+    m, c, k0, fs = 0.5, 88.0, 0.5 * (2 * math.pi * 20.0) ** 2, 4096.7
+    shape = np.array([-1j, 0.0, -0.1j * np.exp(0.4j)])
+    rng = np.random.default_rng(seed)
+    records, truth = [], {"m": m, "c": c, "k": {}}
+    for a in (1e-3, 2e-3, 3e-3):
+        k = k0 * (1.0 - 0.3 * a / 3e-3)
+        truth["k"][a] = k
+        for f in np.linspace(5.0, 60.0, 8):
+            t = np.arange(int(fs)) / fs
+            theta = 2 * np.pi * f * t + rng.uniform(0, 2 * np.pi)
+            x, x1, x2 = (waveform.displacement(shape[None, :] * a, theta[None, :], d)[0] for d in (0, 1, 2))
+            w = 2 * np.pi * f
+            force = m * w**2 * x2 + c * w * x1 + k * x
+            sigma = noise * np.abs(force).max()
+            records.append(RawRecord(f"R_{a * 1e3:g}mm_{f:g}Hz", float(f), a, t, x, force + sigma * rng.standard_normal(t.size), sigma))
+    return records, truth
+
+
+def test_the_survey_of_a_distorted_shaker_is_the_linear_physics(tmp_path):
+    """F1 is fitted with the force's other harmonics, so the distortion's third harmonic does not leak into it:
+    the mass, the dashpot and each amplitude's stiffness come out; the loop area counts every harmonic's work."""
+    from hysid_model.datasets import write_dataset
+
+    records, truth = dashpot_records(noise=0.002)
+    loops = hysid.load(write_dataset(tmp_path / "d", records, name="shaker"), n_points=60)
+    s = survey(loops)
+    assert s.mass_source == "estimated" and s.meq_kg == pytest.approx(truth["m"], rel=0.01)
+    np.testing.assert_allclose(s.c_eq, truth["c"], rtol=0.01)
+    k = np.array([truth["k"][r.x0] for r in records])
+    np.testing.assert_allclose(s.k_dyn, k - truth["m"] * loops.omega**2, rtol=0.005)
+    xh = loops.displacement_harmonics()
+    orders = np.arange(1, xh.shape[1] + 1)
+    area = np.pi * truth["c"] * loops.omega * np.sum(orders**2 * np.abs(xh) ** 2, axis=1)  # pi c w sum k^2 |X_k|^2
+    np.testing.assert_allclose(s.energy_per_cycle, area, rtol=0.01)
+
+
+@pytest.mark.slow
+def test_a_softening_specimen_with_a_constant_dashpot_is_both_amplitude_slopes(tmp_path):
+    """Either slope of Eq. 4.8-4.9 alone loses to a cubic spring here (xi = c / 2 m wn moves when wn does):
+    the diagnosis names the two together, and says each loop is linear, so what remains is the law in amplitude."""
+    from hysid_model.datasets import write_dataset
+
+    records, _ = dashpot_records(noise=0.005)
+    loops = hysid.load(write_dataset(tmp_path / "d", records, name="shaker"), n_points=40)
+    diagnosis = hysid.diagnose(loops, cross_validate=False)
+    steps = [(s.effect, s.joint_with) for s in diagnosis.steps]
+    assert steps[:2] in (
+        [("amplitude_dependent_frequency", "amplitude_dependent_damping"), ("amplitude_dependent_damping", "amplitude_dependent_frequency")],
+        [("amplitude_dependent_damping", "amplitude_dependent_frequency"), ("amplitude_dependent_frequency", "amplitude_dependent_damping")],
+    ), steps
+    assert not {"cubic_stiffness", "bouc_wen"} & {e for e, _ in steps}
+    assert diagnosis.references.linear_per_loop < 1.2
+    if diagnosis.status != "adequate":
+        assert "each loop on its own is linear" in diagnosis.summary()
+
+
+# --- identifiability ---------------------------------------------------------------------------------
+def test_one_amplitude_leaves_the_amplitude_slopes_undetermined(tmp_path):
+    loops = hysid.load("synth", noise_pct=5.0)
+    one = loops.subset(np.flatnonzero(np.isclose(loops.x0, 1e-3)))
+    result = hysid.fit(one, "thesis", algo="ga", options=GA_SMALL)
+    assert set(result.not_identifiable) == {"S_xi", "S_w"}
+    doc = json.loads(json.dumps(result.to_dict(), allow_nan=True))
+    assert set(doc["not_identifiable"]) == {"S_xi", "S_w"} and math.isnan(result.stderr["S_w"])
+    assert "trades off with w0" in doc["not_identifiable_reasons"]["S_w"] and doc["correlation"]["S_w"]["w0"] is None
+    assert result.stderr["w0"] > 0 and "not identifiable: S_w" in result.summary()
+    assert "Not identifiable with these loops" in result.write_report(tmp_path / "r").read_text()
+
+
+def test_one_frequency_with_the_mass_fitted_leaves_the_mass_undetermined():
+    loops = hysid.load("synth", noise_pct=5.0).with_meq(None)
+    one = loops.subset(np.flatnonzero(np.isclose(loops.freq_hz, 30.0)))
+    result = hysid.fit(one, "baseline", bounds={"meq": (0.001, 1.0)}, algo="ga", options=GA_SMALL)
+    assert list(result.not_identifiable) == ["meq"]
+
+
+def test_the_full_synth_set_determines_everything_and_the_correlations_are_reported():
+    result = hysid.fit(hysid.load("synth", noise_pct=10.0), "thesis", algo="ga", options=GA_SMALL)
+    assert result.not_identifiable == {}
+    corr = result.to_dict()["correlation"]
+    assert set(corr) == {"xi0", "S_xi", "w0", "S_w"} and corr["w0"]["w0"] == pytest.approx(1.0)
+    assert -1.0 < corr["w0"]["S_w"] < -0.5  # w0 and its amplitude slope trade off strongly (Eq. 4.9)
+
+
+def test_a_campaign_and_a_diagnosis_say_what_one_amplitude_cannot_tell():
+    one = hysid.load("synth", noise_pct=5.0)
+    one = one.subset(np.flatnonzero(np.isclose(one.x0, 1e-3)))
+    sizes = {"population": 20, "initial_population": 40, "iterations": 6}
+    campaign = hysid.campaign(one, islands=2, single_node=True, options={"ga": sizes, "pso": sizes})
+    assert set(campaign.to_dict()["not_identifiable"]) == {"S_xi", "S_w"}
+    diagnosis = hysid.diagnose(one, "thesis", cross_validate=False)
+    doc = diagnosis.to_dict()
+    assert {"S_xi", "S_w"} <= set(doc["not_identifiable"]) and doc["final_stderr"]["S_w"] != doc["final_stderr"]["S_w"]
+
+
+# --- diagnosis on real data -----------------------------------------------------------------------------
+def test_the_gap_is_held_against_a_linear_fit_per_loop_and_the_repeatability():
+    loops, _ = isolator(noise_pct=2.0, hidden={"coulomb_friction": {"F_d": 0.3}})
+    again, _ = isolator(noise_pct=2.0, seed=1, hidden={"coulomb_friction": {"F_d": 0.3}})
+    both = LoopSet(name="repeated", freq_hz=np.concatenate([loops.freq_hz, again.freq_hz]), x0=np.concatenate([loops.x0, again.x0]),
+                   top=np.concatenate([loops.top, again.top]), bottom=np.concatenate([loops.bottom, again.bottom]),
+                   sigma=np.concatenate([loops.sigma, again.sigma]))
+    diagnosis = hysid.diagnose(both, "baseline", cross_validate=False)
+    ref = diagnosis.to_dict()["references"]
+    assert ref["repeated_loops"] == both.n_loops and 0.8 < ref["repeatability"] < 1.2  # only noise differs between repeats
+    assert ref["linear_per_loop"] > 3.0  # friction's harmonics: no linear model reaches the noise
+    assert diagnosis.reaches in ("noise floor", "repeatability")
+
+
+@pytest.mark.slow
+def test_a_specimen_far_from_the_thesis_gets_the_diagnosis_of_the_same_physics_at_the_thesis_scale():
+    """12 Hz, xi0 = 0.5, 0.2 kg, 40 % softening, hidden friction; and the same dimensionless physics at 30 Hz,
+    0.04 kg, 0.5-1.5 mm (the thesis' beams): both diagnoses name the same effects with the same status."""
+    named = {}
+    for scale in ("far", "thesis"):
+        results = []
+        for seed in range(3):
+            if scale == "far":
+                loops, _ = isolator(noise_pct=1.0, seed=seed, hidden={"coulomb_friction": {"F_d": 0.15 * 0.2 * (2 * math.pi * 12) ** 2 * 1e-3}})
+            else:
+                w0, amps = 2 * math.pi * 30.0, np.array([0.5e-3, 1.0e-3, 1.5e-3])
+                model = build_model("thesis+coulomb_friction").fix(meq=0.04)
+                values = {"xi0": 0.5, "S_xi": 0.0, "w0": w0, "S_w": (math.sqrt(0.6) - 1.0) * w0 / amps[-1],
+                          "F_d": 0.15 * 0.04 * w0**2 * 0.5e-3}
+                loops = branches(model, model.from_dict(values), np.linspace(6.0, 20.0, 8) * 2.5, amps, 1.0, seed)
+            diagnosis = hysid.diagnose(loops, "baseline", cross_validate=False)
+            results.append((tuple(s.effect for s in diagnosis.steps), diagnosis.status))
+        named[scale] = results
+    assert named["far"] == named["thesis"], named
+    assert all("coulomb_friction" in effects and "amplitude_dependent_frequency" in effects for effects, _ in named["far"])

@@ -1,0 +1,81 @@
+"""Results to take away: tables as plain dicts, CSV files (``--csv``, ``to_csv()``) and pandas DataFrames."""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+
+import numpy as np
+import pytest
+
+import hysid
+from hysid.cli import main
+from hysid_model.errors import HysidInputError
+from support import GA_SMALL
+
+
+@pytest.fixture(scope="module")
+def result():
+    return hysid.fit(hysid.load("synth", noise_pct=5.0, noise_seed=1), algo="ga", seed=1, options=GA_SMALL)
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_fit_tables_hold_parameters_with_errors_and_every_amplitude(result):
+    tables = result.tables()
+    rows = {r["parameter"]: r for r in tables["parameters"]}
+    for name, value in result.params.items():
+        assert rows[name]["value"] == value and rows[name]["stderr"] == result.stderr[name] and rows[name]["status"] == "fitted"
+    assert rows["meq"] == {"parameter": "meq", "value": 0.04, "stderr": 0.0, "unit": "kg", "lower": 0.04, "upper": 0.04, "status": "fixed"}
+    amplitudes = tables["amplitudes"]
+    assert [a["x0_m"] for a in amplitudes] == [0.0005, 0.001, 0.0015]
+    for row, a, hp in zip(amplitudes, result.amplitudes, result.half_power):
+        assert (row["fn_hz"], row["xi"], row["xi_stderr"], row["k_n_per_m"], row["c_n_s_per_m"]) == (
+            a.values["fn_hz"], a.values["xi"], a.stderr["xi"], a.values["k"], a.values["c"])
+        assert row["xi_half_power"] == hp.xi and row["xi_half_power"] == pytest.approx(row["xi"], rel=0.05)
+    assert json.loads(json.dumps(tables)) == tables  # plain dicts of plain values
+
+
+def test_to_csv_writes_what_tables_holds_at_full_precision(result, tmp_path):
+    paths = result.to_csv(tmp_path / "t")
+    assert sorted(paths) == ["amplitudes", "parameters"]
+    for name, rows in result.tables().items():
+        back = read_csv(paths[name])
+        assert list(back[0]) == list(rows[0])
+        for row, got in zip(rows, back):
+            for key, value in row.items():
+                assert got[key] == ("" if value is None else str(value)) if not isinstance(value, float) else float(got[key]) == value
+
+
+def test_dataframes_when_pandas_is_there_and_a_clear_error_when_not(result, monkeypatch):
+    pd = pytest.importorskip("pandas")
+    frames = result.to_dataframes()
+    assert isinstance(frames["amplitudes"], pd.DataFrame)
+    np.testing.assert_array_equal(frames["amplitudes"]["xi"].to_numpy(), [a.values["xi"] for a in result.amplitudes])
+    monkeypatch.setitem(sys.modules, "pandas", None)  # as if pandas were not installed
+    with pytest.raises(HysidInputError, match=r"DataFrames need pandas \(pip install 'hysid\[pandas\]'\)"):
+        result.to_dataframes()
+
+
+def test_csv_flag_of_fit_campaign_and_diagnose(tmp_path, capsys):
+    assert main(["campaign", "--single-node", "--islands", "2", "--population", "20", "--initial", "40", "--iterations", "10",
+                 "--quiet", "--csv", "--out", str(tmp_path / "c")]) == 0
+    out = capsys.readouterr().out
+    assert out.rstrip().endswith(f"tables: {tmp_path / 'c' / 'parameters.csv'}, {tmp_path / 'c' / 'amplitudes.csv'}, {tmp_path / 'c' / 'islands.csv'}")
+    islands = read_csv(tmp_path / "c" / "islands.csv")
+    assert [i["island"] for i in islands] == ["ga-0", "pso-1"] and all(i["iterations"] == "10" for i in islands)
+    doc = json.loads((tmp_path / "c" / "result.json").read_text())
+    assert {r["parameter"]: float(r["value"]) for r in read_csv(tmp_path / "c" / "parameters.csv")} == {**doc["params"], **doc["fixed"]}
+
+    loops = hysid.load("synth", noise_pct=5.0, noise_seed=2)
+    subset = loops.subset(np.arange(0, loops.n_loops, 4))
+    diagnosis = hysid.diagnose(subset, "baseline", cross_validate=False)
+    tables = diagnosis.tables()
+    assert [s["effect"] for s in tables["steps"]] == ["amplitude_dependent_frequency", "amplitude_dependent_damping"]
+    assert [g["step"] for g in tables["gap"]] == [label for label, _ in diagnosis.fits()]
+    assert {r["parameter"]: r["value"] for r in tables["parameters"] if r["status"] == "fitted"} == diagnosis.params
+    assert sorted(diagnosis.to_csv(tmp_path / "d")) == ["gap", "parameters", "steps"]

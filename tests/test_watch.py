@@ -1,0 +1,123 @@
+"""A campaign's database: ``hysid watch`` (live, read-only) and ``hysid report`` (the report again, from the file alone)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import signal
+import subprocess
+
+import pytest
+
+from hysid.cli import main
+from hysid.campaigns import CampaignResult
+from support import hysid, rows_of, screen_of, wait_for
+
+SMALL = ["--population", "20", "--initial", "40"]
+ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A finished single-node campaign: its database and its own result document."""
+    out = tmp_path_factory.mktemp("campaign") / "out"
+    assert main(["campaign", "--single-node", "--islands", "3", *SMALL, "--iterations", "12", "--quiet", "--out", str(out)]) == 0
+    return out / "campaign.sqlite", json.loads((out / "result.json").read_text())
+
+
+def digest(path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_report_rebuilds_a_campaign_from_its_database_alone(finished, tmp_path, capsys):
+    db, original = finished
+    before = digest(db)
+    capsys.readouterr()
+    assert main(["report", str(db), "--json", "--out", str(tmp_path / "again")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["params"] == pytest.approx(original["params"], rel=1e-9) and doc["stderr"] == pytest.approx(original["stderr"], rel=1e-6)
+    assert doc["islands"] == original["islands"] and doc["migrations"] == original["migrations"]
+    assert doc["settings"]["stop_reason"] == "every island finished" and doc["settings"]["db"] == str(db)
+    assert doc["dataset"] == original["dataset"]  # the loop set came from the configuration message
+    report = tmp_path / "again" / "report.md"
+    assert report.read_text().startswith("# hysid campaign: synth")
+    assert all((tmp_path / "again" / f).is_file() for f in ("convergence.png", "loops.png", "residuals.png", "half_power.png"))
+    assert digest(db) == before  # read only
+    result = CampaignResult.from_database(db)
+    assert [i["island"] for i in result.islands] == ["ga-0", "ga-2", "pso-1"]
+
+
+def test_watch_once_shows_islands_migrations_and_members(finished, capsys):
+    db, original = finished
+    assert main(["watch", str(db), "--once"]) == 0
+    screen = capsys.readouterr().out
+    assert screen.startswith("campaign 'campaign' on synth: stopped (every island finished) after ")
+    assert f"migrant messages {original['migrations']['messages']}" in screen
+    for island in original["islands"]:
+        row = next(line for line in screen.splitlines() if line.strip().startswith(island["island"] + " "))
+        assert island["algo"].upper() in row and " left " in row and f"{island['received']}/{island['taken']}" in row
+        assert re.search(r"[▁▂▃▄▅▆▇█]{13}$", row)  # the best fitness over iterations 0..12
+    assert "members: 0 alive, 3 left, 0 lost" in screen
+
+
+def test_watch_and_report_name_what_is_wrong_and_create_nothing(finished, tmp_path, capsys):
+    missing = tmp_path / "missing.sqlite"
+    assert main(["watch", str(missing)]) == 2
+    assert capsys.readouterr().err == f"hysid: error: {missing}: no such campaign database\n" and not missing.exists()
+    assert main(["report", str(finished[0]), "--campaign", "other", "--out", str(tmp_path / "r")]) == 2
+    assert "no campaign 'other' (stored: 'campaign')" in capsys.readouterr().err and not (tmp_path / "r").exists()
+    junk = tmp_path / "junk.sqlite"
+    junk.write_text("not a database\n")
+    assert main(["watch", str(junk), "--once"]) == 2
+    assert "not a campaign database" in capsys.readouterr().err and junk.read_text() == "not a database\n"
+
+
+def start_campaign(tmp_path, islands: int = 2):
+    db = tmp_path / "live.sqlite"
+    proc = subprocess.Popen(
+        hysid("campaign", "--single-node", "--islands", str(islands), "--algos", "pso", *SMALL, "--iterations", "10000000",
+              "--time-limit", "300", "--quiet", "--json", "--db", str(db), "--out", str(tmp_path / "out")),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    wait_for(lambda: all(rows_of(db, f"pso-{i}") > 20 for i in range(islands)), 120, "both islands' history")
+    return db, proc
+
+
+@pytest.mark.slow
+def test_watch_follows_a_running_campaign_on_a_terminal_until_it_stops(tmp_path):
+    db, campaign = start_campaign(tmp_path)
+    stopped = []
+
+    def stop_once_seen_running(text: str) -> bool:
+        screen = ANSI.sub("", text)
+        if not stopped and "running after" in screen and "pso-1" in screen and " alive " in screen:
+            campaign.send_signal(signal.SIGINT)  # Ctrl-C on the campaign: it stops and reports
+            stopped.append(True)
+        return False
+
+    try:
+        code, text = screen_of(hysid("watch", str(db), "--interval", "0.2"), 180, until=stop_once_seen_running)
+        out, err = campaign.communicate(timeout=120)
+    finally:
+        campaign.kill()
+        campaign.wait()
+    assert stopped and code == 0  # watch ended by itself when the campaign stopped
+    screen = ANSI.sub("", text)
+    assert "campaign 'campaign' on synth: running after" in screen and "global best " in screen
+    assert re.search(r"pso-0\s+PSO\s+alive\s+\d+", screen) and re.search(r"pso-1\s+PSO\s+alive\s+\d+", screen)
+    final = screen[screen.rindex("campaign 'campaign' on synth: stopped (interrupted)"):]
+    assert re.search(r"pso-0\s+PSO\s+left\s+\d+", final) and "members: 0 alive, 2 left, 0 lost" in final
+    assert campaign.returncode == 0, err
+    assert json.loads(out)["settings"]["stop_reason"] == "interrupted"
+
+
+@pytest.mark.slow
+def test_report_of_a_campaign_whose_coordinator_was_killed(tmp_path, capsys):
+    db, campaign = start_campaign(tmp_path)
+    campaign.kill()  # SIGKILL: no stop, no result, the database left as it was
+    campaign.communicate()
+    assert main(["report", str(db), "--out", str(tmp_path / "r")]) == 0
+    summary = capsys.readouterr().out
+    assert "stopped because not finished: the database was left while the campaign was running" in summary
+    assert re.search(r"pso-0 +PSO +seed 0 +alive +best ", summary) and (tmp_path / "r" / "report.md").is_file()
