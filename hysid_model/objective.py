@@ -43,7 +43,7 @@ temporaries stay in cache and below glibc's mmap threshold, which is ~5x faster
 than one pass over a whole 6000-candidate population."""
 MEMORY_BLOCK_ELEMENTS = 1 << 22
 """Candidates x loops x samples per block of the numpy reference for per-sample forces (32 MiB arrays)."""
-SAMPLED_BLOCK_ELEMENTS = 1 << 19
+SAMPLED_BLOCK_ELEMENTS = 1 << 18
 """Candidates x loops x samples per block of the compiled per-sample force (2 MiB: it stays in cache
 between the kernel that writes it and the one that sums the squares)."""
 
@@ -99,10 +99,10 @@ class Objective(ModelSpace):
         self.phi = design_matrix(self.features, self.phase, loops.n_samples)
         self._features = np.ascontiguousarray(self.phi.transpose(0, 2, 1))
         self.sampled = model.sampled(self.kin, self.phase, loops.n_samples) if compiled else None
-        if self.sampled is not None:  # compile (or load from the disk cache) here, not in the first evaluation
-            self._sse(probe)
         """The per-sample force compiled at these loops' phases (:mod:`hysid_model.sampled`); None for a
         memoryless model or ``compiled=False`` (the numpy reference :meth:`Model.memory_force`)."""
+        if self.sampled is not None:  # compile (or load from the disk cache) here, not in the first evaluation
+            self._sse(probe)
         if model.has_memory:
             block = SAMPLED_BLOCK_ELEMENTS if self.sampled is not None else MEMORY_BLOCK_ELEMENTS
             self._block_rows = max(1, block // (loops.n_loops * 2 * loops.n_samples))

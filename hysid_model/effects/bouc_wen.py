@@ -12,7 +12,9 @@ from hysid_model.terms import DataScale, Kinematics, ModalState, Term, Values
 BISECTIONS = 60
 """Bisection steps for the orbit's peak state (to double precision)."""
 MEAN_SAMPLES = 256
-"""Phases per cycle over which the orbit's mean is taken under a measured displacement."""
+"""Phases per cycle over which the orbit's mean is taken under a measured displacement (trapezoid rule:
+within 1e-5 of z_max for yield displacements down to 1 % of X0 under 10 % distortion, the curvature
+jumps at the reversals and zero crossings of z limiting it; 512 phases gain a factor 20 at twice the cost)."""
 
 
 def _relax(rate: np.ndarray, length: np.ndarray) -> np.ndarray:
