@@ -209,9 +209,11 @@ def test_a_forged_migrant_claiming_fitness_zero_becomes_the_best_only_if_it_earn
             publisher.put(forged(TRUTH, 0.0))
         wait_for(lambda: query(db, "SELECT island FROM best")[0][0] == "forger", 20, "the earned best")
         wait_for(lambda: query(db, "SELECT max(taken) FROM islands WHERE island = 'target'")[0][0] > 0, 20, "the island to take it")
-        (best_x, best_f), = query(db, "SELECT x, fitness FROM best")
-        np.testing.assert_array_equal(np.frombuffer(best_x, dtype="<f8"), TRUTH)
-        assert best_f == objective(TRUTH[None, :])[0]
+        (holder, best_x, best_f), = query(db, "SELECT island, x, fitness FROM best")
+        x = np.frombuffer(best_x, dtype="<f8")
+        assert best_f == objective(x[None, :])[0] <= objective(TRUTH[None, :])[0]  # earned, by the coordinator's count
+        if holder == "forger":  # else the island, having taken the truth, has since polished it further
+            np.testing.assert_array_equal(x, TRUTH)
     finally:
         token.undeclare()
         session.close()
