@@ -115,9 +115,10 @@ class HarmonicObjective(ModelSpace):
 
     Same contract as :class:`hysid_model.objective.Objective` (``__call__`` on a
     population, ``weighted_residuals``, ``jacobian``, ``bounds``), so the
-    optimizers and the polish step run on it unchanged. For a memoryless model
-    the features are whitened once, Q^T Phi / sigma, so a candidate costs
-    O(L x 15 x features); a model with memory is evaluated on the samples.
+    optimizers and the polish step run on it unchanged. The closed-form
+    features are whitened once, Q^T Phi / sigma, so they cost O(L x 15 x
+    features) per candidate; the per-sample force of a model with memory is
+    evaluated on the samples (compiled, :mod:`hysid_model.sampled`) and whitened.
     """
 
     JACOBIAN_STEP = 1e-6
@@ -128,17 +129,20 @@ class HarmonicObjective(ModelSpace):
         self.model = model
         self.objective = Objective(harmonics.loops, model, weights="thesis")
         self.target = harmonics.whiten(harmonics.loops.forces())
-        self.design = None if model.has_memory else np.einsum("lnm,lnf->lmf", harmonics.q, self.objective.phi) / harmonics.sigma[:, None, None]
+        self.design = np.matmul(harmonics.q.transpose(0, 2, 1), self.objective.phi) / harmonics.sigma[:, None, None]
         self.evaluations = 0
 
     def whitened(self, pop: np.ndarray) -> np.ndarray:
-        """Whitened residual coefficients (model - data), ``(P, L, M)``."""
+        """Whitened residual coefficients (model - data), ``(P, L, M)``: the closed-form features through
+        the whitened design, plus the per-sample force (memory terms) whitened sample by sample."""
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
-        if self.design is None:
-            return self.harmonics.whiten(self.objective.predict(pop)) - self.target
         coefs = self.model.coefficients(pop, self.objective.kin)
         a = np.stack([coefs[name] for name in self.objective.features], axis=-1)
-        return np.einsum("plf,lmf->plm", a, self.design) - self.target
+        out = np.matmul(a.transpose(1, 0, 2), self.design.transpose(0, 2, 1)).transpose(1, 0, 2) - self.target
+        memory = self.objective.memory_force(pop)
+        if memory is not None:
+            out += np.matmul(memory.transpose(1, 0, 2), self.harmonics.q).transpose(1, 0, 2) / self.harmonics.sigma[:, None]
+        return out
 
     def __call__(self, pop: np.ndarray) -> np.ndarray:
         pop = np.atleast_2d(np.asarray(pop, dtype=float))

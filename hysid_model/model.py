@@ -8,6 +8,7 @@ of :data:`hysid_model.effects.EFFECTS` can be appended, ``thesis+<effect id>``.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from hysid_model.terms import (
     Values,
     add_coefficient,
 )
+
+if TYPE_CHECKING:
+    from hysid_model.sampled import SampledMemory
 
 MAX_WIDENINGS = 3
 """How often a fit widens the data-derived bounds its best ends on (:meth:`Model.widen_at`) and refits."""
@@ -116,6 +120,16 @@ class Model:
         """True when the force is evaluated sample by sample: memory terms, or a
         measurement chain filtering the sign-of-velocity feature."""
         return self._filters_sgn or any(t.memory for t in self.terms)
+
+    @property
+    def sensors(self) -> list[MeasurementTerm]:
+        """The measurement chain: the model's measurement terms."""
+        return list(self._sensors)
+
+    @property
+    def filters_sgn(self) -> bool:
+        """True when the measurement chain filters the sign-of-velocity feature sample by sample."""
+        return self._filters_sgn
 
     def _changed(self, changes: Mapping[str, Parameter]) -> "Model":
         return Model(self.terms, self.spec, {**self._overrides, **changes})
@@ -237,7 +251,10 @@ class Model:
 
     def coefficients(self, pop: np.ndarray, kin: Kinematics) -> Coefficients:
         """Feature coefficients of the measured steady-state force, each ``(P, L)``."""
-        v, state = self.modal_state(pop, kin)
+        return self.measured_coefficients(*self.modal_state(pop, kin), kin)
+
+    def measured_coefficients(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
+        """:meth:`coefficients` from the parameter values and modal state of :meth:`modal_state`."""
         coefs = self._force_coefficients(v, state, kin)
         for term in self.terms:
             coefs = term.measure(v, coefs, kin)
@@ -267,8 +284,21 @@ class Model:
         v, state = self.modal_state(pop, kin)
         if not self._sensors:
             return sum(t.time_force(v, state, kin, phase) for t in memory_terms)
-        sgn = self._force_coefficients(v, state, kin)["sgn"] if self._filters_sgn else None
+        sgn = self.sgn_coefficient(v, state, kin) if self._filters_sgn else None
         return self._through_chain(v, state, kin, phase, phase.shape[-1] // 2 if n_top is None else n_top, sgn, memory_terms)
+
+    def sgn_coefficient(self, v: Values, state: ModalState, kin: Kinematics) -> np.ndarray:
+        """The coefficient of the sign-of-velocity feature before the measurement chain, ``(P, L)``."""
+        return self._force_coefficients(v, state, kin)["sgn"]
+
+    def sampled(self, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> "SampledMemory | None":
+        """:meth:`memory_force` at these fixed phases for any population, compiled
+        (:class:`hysid_model.sampled.SampledMemory`); None for a model without per-sample force."""
+        if not self.has_memory:
+            return None
+        from hysid_model.sampled import SampledMemory
+
+        return SampledMemory(self, kin, phase, phase.shape[-1] // 2 if n_top is None else n_top)
 
     def _through_chain(
         self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int, sgn: np.ndarray | None, memory_terms: list[Term]

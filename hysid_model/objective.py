@@ -16,10 +16,14 @@ in closed form, ||Phi a - y||^2 = (a - a*)^T G (a - a*) + r_min, with the Gram
 matrix G = Phi^T Phi, the least-squares coefficients a* and their residual
 r_min precomputed once. A population of P candidates costs O(P L M^2) instead
 of O(P L N) and needs no interpolation or time integration. Models with memory
-terms are evaluated sample by sample instead.
+terms (or the sign of the velocity behind a measurement chain) add a force
+evaluated sample by sample, by compiled kernels at the loops' fixed phases
+(:mod:`hysid_model.sampled`; ``compiled=False`` keeps the numpy reference).
 """
 
 from __future__ import annotations
+
+from functools import cached_property
 
 import numpy as np
 
@@ -27,7 +31,10 @@ from hysid_model.basis import design_matrix
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from hysid_model.terms import Kinematics
+from hysid_model.terms import Kinematics, ModalState, Values
+
+Modal = tuple[Values, ModalState]
+"""Parameter values and modal state of a population (:meth:`hysid_model.model.Model.modal_state`)."""
 
 WEIGHTS = ("thesis", "ml")
 BLOCK_ELEMENTS = 1 << 13
@@ -35,7 +42,10 @@ BLOCK_ELEMENTS = 1 << 13
 temporaries stay in cache and below glibc's mmap threshold, which is ~5x faster
 than one pass over a whole 6000-candidate population."""
 MEMORY_BLOCK_ELEMENTS = 1 << 22
-"""Candidates x loops x samples per block when memory terms integrate in time (32 MiB arrays)."""
+"""Candidates x loops x samples per block of the numpy reference for per-sample forces (32 MiB arrays)."""
+SAMPLED_BLOCK_ELEMENTS = 1 << 18
+"""Candidates x loops x samples per block of the compiled per-sample force (2 MiB: it stays in cache
+between the kernel that writes it and the one that sums the squares)."""
 
 
 def loop_weights(loops: LoopSet, scheme: str) -> np.ndarray:
@@ -75,7 +85,7 @@ class ModelSpace:
 class Objective(ModelSpace):
     """Weighted sum of squared force errors over all loops; lower is better."""
 
-    def __init__(self, loops: LoopSet, model: Model, weights: str = "thesis") -> None:
+    def __init__(self, loops: LoopSet, model: Model, weights: str = "thesis", compiled: bool = True) -> None:
         self.loops = loops
         self.model = model
         self.weights = weights
@@ -87,24 +97,46 @@ class Objective(ModelSpace):
         probe = model.bounds.mean(axis=1)[None, :]
         self.features = list(model.coefficients(probe, self.kin))
         self.phi = design_matrix(self.features, self.phase, loops.n_samples)
-        self.gram = np.einsum("lnm,lnk->lmk", self.phi, self.phi)
-        self.a_star = np.stack([np.linalg.lstsq(p, y, rcond=None)[0] for p, y in zip(self.phi, self.y)])
-        self.r_min = np.sum((np.einsum("lnm,lm->ln", self.phi, self.a_star) - self.y) ** 2, axis=1)
-        m = len(self.features)
-        self._gram_terms = [(i, k, self.gram[:, i, k] * (1.0 if i == k else 2.0)) for i in range(m) for k in range(i, m)]
+        self._features = np.ascontiguousarray(self.phi.transpose(0, 2, 1))
+        self.sampled = model.sampled(self.kin, self.phase, loops.n_samples) if compiled else None
+        """The per-sample force compiled at these loops' phases (:mod:`hysid_model.sampled`); None for a
+        memoryless model or ``compiled=False`` (the numpy reference :meth:`Model.memory_force`)."""
+        if self.sampled is not None:  # compile (or load from the disk cache) here, not in the first evaluation
+            self._sse(probe)
         if model.has_memory:
-            self._block_rows = max(1, MEMORY_BLOCK_ELEMENTS // (loops.n_loops * 2 * loops.n_samples))
+            block = SAMPLED_BLOCK_ELEMENTS if self.sampled is not None else MEMORY_BLOCK_ELEMENTS
+            self._block_rows = max(1, block // (loops.n_loops * 2 * loops.n_samples))
         else:
             self._block_rows = max(1, BLOCK_ELEMENTS // loops.n_loops)
 
-    def _coefficients(self, pop: np.ndarray) -> list[np.ndarray]:
-        coefs = self.model.coefficients(pop, self.kin)
+    @cached_property
+    def gram(self) -> np.ndarray:
+        """Gram matrices Phi^T Phi of the features, ``(L, M, M)``."""
+        return np.einsum("lnm,lnk->lmk", self.phi, self.phi)
+
+    @cached_property
+    def a_star(self) -> np.ndarray:
+        """Least-squares feature coefficients of each loop, ``(L, M)``."""
+        return np.stack([np.linalg.lstsq(p, y, rcond=None)[0] for p, y in zip(self.phi, self.y)])
+
+    @cached_property
+    def r_min(self) -> np.ndarray:
+        """Each loop's least-squares residual sum of squares, ``(L,)``."""
+        return np.sum((np.einsum("lnm,lm->ln", self.phi, self.a_star) - self.y) ** 2, axis=1)
+
+    @cached_property
+    def _gram_terms(self) -> list[tuple[int, int, np.ndarray]]:
+        m = len(self.features)
+        return [(i, k, self.gram[:, i, k] * (1.0 if i == k else 2.0)) for i in range(m) for k in range(i, m)]
+
+    def _coefficients(self, pop: np.ndarray, modal: Modal | None = None) -> list[np.ndarray]:
+        coefs = self.model.measured_coefficients(*(modal or self.model.modal_state(pop, self.kin)), self.kin)
         if set(coefs) != set(self.features):
             raise RuntimeError(f"model features changed between candidates: {sorted(coefs)} vs {self.features}")
         return [coefs[name] for name in self.features]
 
-    def _coefficient_array(self, pop: np.ndarray) -> np.ndarray:
-        return np.stack(self._coefficients(pop), axis=-1)
+    def _coefficient_array(self, pop: np.ndarray, modal: Modal | None = None) -> np.ndarray:
+        return np.stack(self._coefficients(pop, modal), axis=-1)
 
     def _sse(self, pop: np.ndarray) -> np.ndarray:
         """Unweighted sum of squared errors per candidate and loop, ``(P, L)``.
@@ -113,6 +145,9 @@ class Objective(ModelSpace):
         as sum over feature pairs i <= k of (2 - [i == k]) G_ik d_i d_k with
         d = a - a* (for the few features of a model this beats a generic einsum).
         """
+        if self.sampled is not None:
+            modal = self.model.modal_state(pop, self.kin)
+            return self.sampled.sum_of_squares(modal, self._coefficient_array(pop, modal), self._features, self.y)
         if self.model.has_memory:
             return np.sum((self.predict(pop) - self.y) ** 2, axis=2)
         d = [c - self.a_star[:, m] for m, c in enumerate(self._coefficients(pop))]
@@ -136,9 +171,18 @@ class Objective(ModelSpace):
     def predict(self, pop: np.ndarray) -> np.ndarray:
         """Model force at every sample, ``(P, L, 2n)`` (top branch first)."""
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
-        force = np.einsum("plm,lnm->pln", self._coefficient_array(pop), self.phi)
+        modal = self.model.modal_state(pop, self.kin)
+        force = np.ascontiguousarray(np.matmul(self._coefficient_array(pop, modal).transpose(1, 0, 2), self._features).transpose(1, 0, 2))
+        if self.sampled is not None:
+            return self.sampled.force(modal, out=force)
         memory = self.model.memory_force(pop, self.kin, self.phase)
         return force if memory is None else force + memory
+
+    def memory_force(self, pop: np.ndarray) -> np.ndarray | None:
+        """The per-sample part of the model force (memory terms, sgn through the chain), ``(P, L, 2n)``, or None."""
+        if self.sampled is not None:
+            return self.sampled.force(self.model.modal_state(np.atleast_2d(np.asarray(pop, dtype=float)), self.kin))
+        return self.model.memory_force(pop, self.kin, self.phase)
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         """Model minus measured force per loop and sample, ``(L, 2n)``."""

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Callable, ClassVar
+from typing import Callable, ClassVar, Protocol
 
 import math
 
@@ -172,11 +172,23 @@ class Term:
         return coefs
 
     def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
-        """Force of a memory term at phases ``(L, N)`` or ``(P, L, N)``, shape ``(P, L, N)``."""
+        """Force of a memory term at phases ``(L, N)`` or ``(P, L, N)``, shape ``(P, L, N)`` (the numpy reference)."""
         raise TypeError(f"term {self.id} has no memory")
+
+    def sampler(self, kin: Kinematics, phase: np.ndarray) -> "Sampler | None":
+        """A compiled evaluator of :meth:`time_force` at the fixed phases ``(L, N)`` of a loop set, or None
+        (then :mod:`hysid_model.sampled` uses :meth:`time_force`)."""
+        return None
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({', '.join(p.name for p in self.params)})"
+
+
+class Sampler(Protocol):
+    """A memory term's force at fixed phases, compiled (:meth:`Term.sampler`)."""
+
+    def add(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
+        """Add the force of candidates ``v`` to ``out`` ``(P, L, N)``, at the phases less ``shift`` ``(P, L)`` if given."""
 
 
 Stiffness = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -227,6 +239,15 @@ class MeasurementTerm(Term):
     def gain(self, v: Values, kin: Kinematics, order: np.ndarray) -> np.ndarray | complex:
         """G at orders ``order`` (K,) of every loop's frequency: ``(P, L, K)`` complex, or 1."""
         return 1.0
+
+    def corner(self, v: Values) -> np.ndarray | None:
+        """w_c (rad/s) ``(P, 1)`` when :meth:`gain` is the single-pole high-pass G = s / (s + w_c), else None.
+
+        With it the sign-of-velocity feature passes the chain exactly and
+        compiled (:mod:`hysid_model.sampled`); a term that overrides :meth:`gain`
+        without it is filtered by the spectral reference path.
+        """
+        return None
 
     def transfer(self, v: Values, kin: Kinematics, order: np.ndarray) -> np.ndarray:
         """T = exp(-j k w delay) G, shape ``(P, L, K)``."""

@@ -18,6 +18,8 @@ Arrays: ``xh`` is ``(L, K)`` complex, one row per loop.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from hysid_model.errors import HysidInputError
@@ -60,7 +62,21 @@ def _refine_extreme(xh: np.ndarray, theta: np.ndarray) -> np.ndarray:
 
 
 def reversals(xh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Phases (theta_lo, theta_hi) of each loop's displacement minimum and maximum, with theta_lo < theta_hi < theta_lo + 2 pi."""
+    """Phases (theta_lo, theta_hi) of each loop's displacement minimum and maximum, with theta_lo < theta_hi < theta_lo + 2 pi.
+
+    A loop set's harmonics are fixed data while a fit evaluates its model many times, so the
+    result is kept per distinct ``xh`` (:data:`REVERSALS_KEPT` of them)."""
+    xh = np.ascontiguousarray(xh, dtype=complex)
+    lo, hi = _reversals(xh.tobytes(), xh.shape)
+    return lo.copy(), hi.copy()
+
+
+REVERSALS_KEPT = 64
+
+
+@lru_cache(maxsize=REVERSALS_KEPT)
+def _reversals(data: bytes, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    xh = np.frombuffer(data, dtype=complex).reshape(shape)
     grid = np.linspace(-np.pi, np.pi, GRID, endpoint=False)
     x = displacement(xh, np.broadcast_to(grid, (xh.shape[0], GRID)))
     lo = _refine_extreme(xh, grid[np.argmin(x, axis=1)])
@@ -96,11 +112,20 @@ def _invert(xh: np.ndarray, targets: np.ndarray, start: np.ndarray, stop: np.nda
 
 
 def branch_phases(xh: np.ndarray, x_top: np.ndarray, x_bottom: np.ndarray) -> np.ndarray:
-    """Phases ``(L, 2n)`` of loading samples at displacements ``x_top`` and unloading samples at ``x_bottom`` (each ``(L, n)``)."""
-    lo, hi = reversals(xh)
-    top = _invert(xh, x_top, lo, hi)
-    bottom = _invert(xh, x_bottom, hi, lo + 2 * np.pi)
-    return np.concatenate([top, bottom], axis=1)
+    """Phases ``(L, 2n)`` of loading samples at displacements ``x_top`` and unloading samples at ``x_bottom`` (each ``(L, n)``).
+
+    Kept per distinct input (:data:`REVERSALS_KEPT` of them), as :func:`reversals`: every objective
+    and projection built on a loop set asks again."""
+    arrays = [np.ascontiguousarray(xh, dtype=complex), *(np.ascontiguousarray(a, dtype=float) for a in (x_top, x_bottom))]
+    return _branch_phases(*((a.tobytes(), a.shape) for a in arrays)).copy()
+
+
+@lru_cache(maxsize=REVERSALS_KEPT)
+def _branch_phases(xh: tuple[bytes, tuple[int, ...]], top: tuple[bytes, tuple[int, ...]], bottom: tuple[bytes, tuple[int, ...]]) -> np.ndarray:
+    xh_ = np.frombuffer(xh[0], dtype=complex).reshape(xh[1])
+    x_top, x_bottom = (np.frombuffer(b, dtype=float).reshape(shape) for b, shape in (top, bottom))
+    lo, hi = reversals(xh_)
+    return np.concatenate([_invert(xh_, x_top, lo, hi), _invert(xh_, x_bottom, hi, lo + 2 * np.pi)], axis=1)
 
 
 def extremes(xh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

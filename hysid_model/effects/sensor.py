@@ -42,6 +42,9 @@ class ChargeAmplifierHighpass(MeasurementTerm):
             g = 1j * w / (1j * w + wc)
         return np.where((w == 0.0) & (wc == 0.0), 1.0 + 0j, g)
 
+    def corner(self, v: Values) -> np.ndarray:
+        return 2.0 * np.pi * v["f_c"]
+
 
 class ChannelDelay(MeasurementTerm):
     """A time shift between the force and the displacement channels: F_rec(t) = F(t - tau_d).
