@@ -183,7 +183,8 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
         found = ", ".join(f"{labels[k]} {extracted[k].freq_hz:.6g} Hz" for k in estimated)
         warnings.warn(HysidWarning(
             f"{config.directory}: no {MANIFEST_NAME}; frequencies estimated from the data: {found}"
-            + (f" (the {MANIFEST_NAME} that fixes them is in loops.meta['estimated_manifest'])" if files else "")
+            + (f" (`hysid loops {config.directory}` prints the {MANIFEST_NAME} that fixes them; in Python it is "
+               "loops.meta['estimated_manifest'])" if files else "")
         ), stacklevel=3)
     return LoopSet(
         name=config.name,

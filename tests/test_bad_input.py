@@ -180,13 +180,6 @@ def test_lvm_needs_sample_rate_and_channels(tmp_path):
     assert "TRAC1.lvm: no channel names contain 'disp' or 'position' (channels: 'Voltage', 'Voltage_0'); set displacement_channel" in error_of(d)
 
 
-def test_sample_rate_locked_too_sparse_for_the_points(tmp_path):
-    t = np.arange(600) / 200.0  # 20 samples per cycle at 10 Hz, identical phases every cycle
-    theta = 2 * np.pi * FREQ * t
-    with pytest.raises(HysidInputError, match="run.csv: too few samples for 100 points per branch: the steady cycles hold only 20 distinct"):
-        extract_loop(t, np.sin(theta), np.cos(theta), source="run.csv")
-
-
 def test_manifest_and_loops_file_together_and_bad_tidy(tmp_path):
     d = dataset(tmp_path)
     (d / "loops.csv").write_text("# hysid-loops v1\n")

@@ -160,8 +160,13 @@ def test_bounds_and_known_values_from_the_command_line_are_hard(tmp_path, capsys
     assert main(["diagnose", str(tmp_path / "iso.loops"), "--bound", "w0=100:500", "--json", "--out", str(tmp_path / "dx")]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["final_bounds"]["w0"] == [100.0, 500.0] and "w0" not in doc["bounds_from_data"] and "xi0" in doc["bounds_from_data"]
-    for bad, says in [("w0=500:100", "--bound w0: lower bound 500"), ("w0", "give NAME=LOWER:UPPER"), ("nope=1:2", "unknown parameter 'nope'")]:
-        assert main(["fit", str(tmp_path / "iso.loops"), "--bound", bad, "--out", str(tmp_path / "x")]) == 2
+    for flag, bad, says in [
+        ("--bound", "w0=500:100", "--bound w0: lower bound 500"), ("--bound", "w0", "give NAME=LOWER:UPPER"),
+        ("--bound", "nope=1:2", "unknown parameter 'nope'"),
+        ("--bound", "xi0=-1:0.5", "--bound xi0: bounds -1:0.5 reach outside the physical range [0, inf) of damping ratio"),
+        ("--fix", "meq=-1", "meq: -1 kg is outside the physical range [0, inf) of equivalent mass"),
+    ]:
+        assert main(["fit", str(tmp_path / "iso.loops"), flag, bad, "--out", str(tmp_path / "x")]) == 2
         err = capsys.readouterr().err
         assert err.startswith("hysid: error: ") and says in err and err.count("\n") == 1
     assert not (tmp_path / "x").exists()

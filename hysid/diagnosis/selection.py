@@ -16,7 +16,8 @@ From the start model (baseline or thesis) fitted to the loops' harmonics:
    spring). A pair that is acceptable and beats every single refit by
    ``BIC_MARGIN`` is named as two steps, the better member first;
 4. accept the refit with the lowest BIC if it lowers the BIC by at least
-   ``BIC_MARGIN``, its strength is significant (``MIN_Z`` standard errors) and
+   ``BIC_MARGIN``, it makes no harmonic order significantly worse (:func:`created_order`),
+   its strength is significant (``MIN_Z`` standard errors) and
    has the physical sign, no parameter is pushed against a bound (:func:`binding`), and it
    removes at least ``MIN_SHARE`` of the chi^2 above the noise floor; every
    other acceptable refit within ``BIC_MARGIN`` of it is named as confusable
@@ -297,11 +298,33 @@ def binding(fit: Fit, j: int) -> bool:
     return bool(outward and lm > MIN_Z**2)
 
 
+def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
+    """A harmonic order that ``after`` fits significantly worse than ``before`` and no longer at the
+    noise (the family-wise ``SIGNIFICANCE`` of chi^2 over that order's coefficients): (order, chi^2 before,
+    after), or None. An effect that buys a better first harmonic with content the loops do not have
+    (a hysteretic spring fitting how a linear stiffness changes with amplitude) has the wrong shape."""
+    orders = before.objective.harmonics.orders()
+    n_loops = before.objective.harmonics.loops.n_loops
+    r0, r1 = (f.residual.reshape(n_loops, -1) for f in (before, after))
+    levels = np.unique(orders)
+    for k in levels:
+        n = int(np.count_nonzero(orders == k)) * n_loops
+        c0, c1 = float(np.sum(r0[:, orders == k] ** 2)), float(np.sum(r1[:, orders == k] ** 2))
+        limit = float(chi2_dist.isf(SIGNIFICANCE / levels.size, n))
+        if c1 > limit and c1 - c0 > limit - n:
+            return int(k), c0, c1
+    return None
+
+
 def judge(before: Fit, after: Fit, effect: str) -> str | None:
     """Why ``after`` (``before`` plus ``effect``) is not accepted, or None."""
     delta = after.bic - before.bic
     if delta > -BIC_MARGIN:
         return f"BIC changes by only {delta:+.1f}"
+    created = created_order(before, after)
+    if created is not None:
+        k, c0, c1 = created
+        return f"adds order-{k} content the loops do not have (chi^2 of order {k}: {c0:.4g} -> {c1:.4g})"
     term = EFFECTS[effect]()
     names = after.model.names
     values, errors, bounds = after.theta, after.stderr, after.model.bounds

@@ -275,7 +275,7 @@ def reference_text(doc: dict[str, Any]) -> str:
     return out
 
 
-LINEAR_LOOPS = 1.1
+LINEAR_LOOPS = 1.25
 """A linear fit per loop this close to the noise floor (whitened RMS): the loops themselves are linear."""
 
 
