@@ -11,7 +11,6 @@ import scipy.io
 from hysid.cli import main
 from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError
-from hysid_model.extraction import extract_loop
 from hysid_model.synth import synth_loops
 
 FREQ = 10.0

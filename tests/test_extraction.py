@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hysid_model.errors import HysidInputError
 from hysid_model.extraction import centre_branches, extract_loop, loop_from_branches
 
 FREQ = 7.3
