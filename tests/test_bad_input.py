@@ -51,10 +51,10 @@ def cli_error(args: list[str], capsys) -> str:
 
 
 def test_missing_or_misspelled_column(tmp_path, capsys):
-    d = dataset(tmp_path, header="time_s,displacement_m,force")
+    d = dataset(tmp_path, header="time_s,displacement_m,forse_n")
     message = error_of(d)
-    assert "run.csv" in message and "missing column 'force_n' (found 'force')" in message
-    assert "expected columns time_s, displacement_m, force_n, found: time_s, displacement_m, force" in message
+    assert "run.csv" in message and "missing column 'force_n' (found 'forse_n')" in message
+    assert "expected columns time_s, displacement_m, force_n, the header has: 'time_s', 'displacement_m', 'forse_n'" in message
     assert "force_n" in cli_error(["loops", str(d)], capsys)
 
 

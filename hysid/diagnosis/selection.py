@@ -49,6 +49,7 @@ from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
+from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import PRESETS, build_model
@@ -112,6 +113,17 @@ class Diagnosis:
     last_scores: list[Candidate] = field(default_factory=list)
     report: str | None = None
     """The report written last (:meth:`write_report`)."""
+
+    def effects_not_identifiable(self) -> dict[str, str]:
+        """Why each effect of ``not_identifiable`` cannot be identified from these loops."""
+        levels = amplitude_levels(self.harmonics.loops.x0)[0]
+        out = {}
+        for effect, absorbed in self.not_identifiable.items():
+            if levels.size == 1 and EFFECTS[effect].slope_of:
+                out[effect] = f"one amplitude level (X0 = {levels[0] * 1e3:.4g} mm) cannot show a change with amplitude: it is {', '.join(absorbed)} again"
+            else:
+                out[effect] = f"whatever it does, the model already does with {', '.join(absorbed)}"
+        return out
 
     def fits(self) -> list[tuple[str, Fit]]:
         """(label, fit) for the start and after every step."""
@@ -185,10 +197,7 @@ class Diagnosis:
             "status": self.status,
             "unexplained_signature": self.unexplained,
             "not_identifiable": sorted(self.not_identifiable) + list(self.identifiability.not_identifiable),
-            "not_identifiable_reasons": {
-                **{e: f"whatever it does, the model already does with {', '.join(a)}" for e, a in self.not_identifiable.items()},
-                **self.identifiability.not_identifiable,
-            },
+            "not_identifiable_reasons": {**self.effects_not_identifiable(), **self.identifiability.not_identifiable},
             "correlation": self.identifiability.correlation_dict(),
             "rejected": self.rejected,
             "final_params": self.final.params(),
@@ -299,7 +308,7 @@ def binding(fit: Fit, j: int) -> bool:
 
 
 def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
-    """A harmonic order that ``after`` fits significantly worse than ``before`` and no longer at the
+    """A harmonic order that ``before`` fits at the noise and ``after`` significantly worse, no longer at the
     noise (the family-wise ``SIGNIFICANCE`` of chi^2 over that order's coefficients): (order, chi^2 before,
     after), or None. An effect that buys a better first harmonic with content the loops do not have
     (a hysteretic spring fitting how a linear stiffness changes with amplitude) has the wrong shape."""
@@ -311,7 +320,7 @@ def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
         n = int(np.count_nonzero(orders == k)) * n_loops
         c0, c1 = float(np.sum(r0[:, orders == k] ** 2)), float(np.sum(r1[:, orders == k] ** 2))
         limit = float(chi2_dist.isf(SIGNIFICANCE / levels.size, n))
-        if c1 > limit and c1 - c0 > limit - n:
+        if c0 <= limit < c1 and c1 - c0 > limit - n:
             return int(k), c0, c1
     return None
 
