@@ -19,7 +19,6 @@ input warns with :class:`HysidWarning`.
 from __future__ import annotations
 
 from importlib import import_module
-from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -58,6 +57,14 @@ command line's start, which Ctrl-C may interrupt) stays light until something is
 
 
 def __getattr__(name: str) -> Any:
+    if name == "__version__":  # importlib.metadata is slow to import: only when asked
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            globals()[name] = version("hysid")
+        except PackageNotFoundError:  # running from a source tree that was never installed
+            globals()[name] = "0+unknown"
+        return globals()[name]
     if name not in _EXPORTS:
         raise AttributeError(f"module 'hysid' has no attribute {name!r}")
     module, attr = _EXPORTS[name]
@@ -69,11 +76,6 @@ def __getattr__(name: str) -> Any:
 def __dir__() -> list[str]:
     return sorted(list(globals()) + list(_EXPORTS))
 
-
-try:
-    __version__ = version("hysid")
-except PackageNotFoundError:  # running from a source tree that was never installed
-    __version__ = "0+unknown"
 
 __all__ = [
     "CampaignResult",
