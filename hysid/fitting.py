@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from hysid.identifiability import Identifiability, assess
+from hysid.identifiability import Identifiability, assess, one_amplitude
 from hysid.report import markdown, tables, text
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
@@ -77,6 +77,7 @@ class FitResult:
         ident = assess(
             objective, theta, parameter_covariance, lambda m: Objective(objective.loops, m, weights=objective.weights), noise_unit(objective, theta)
         )
+        ident.not_identifiable.update(one_amplitude(loops, model))
         cov = ident.covariance
         levels, _ = amplitude_levels(loops.x0)
         force_amplitude = np.abs(first_harmonic(loops))

@@ -19,7 +19,9 @@ standard errors (a pseudo-inverse of a singular Fisher matrix) misleads. So:
    was local) and is not named.
 
 Standard errors and the correlation matrix come from the covariance with the
-named parameters held at their values; the named ones get none.
+named parameters held at their values; the named ones get none. Loops at a
+single amplitude level never search S_xi, S_w (they are fixed at 0 before the
+fit, :func:`one_amplitude` says why).
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from hysid_model.frf import amplitude_levels
+from hysid_model.loops import LoopSet
 from hysid_model.model import Model
 from island.polish import polish
 
@@ -71,6 +75,19 @@ class Identifiability:
     def to_dict(self) -> dict[str, Any]:
         return {"not_identifiable": list(self.not_identifiable), "not_identifiable_reasons": dict(self.not_identifiable),
                 "correlation": self.correlation_dict()}
+
+
+def one_amplitude(loops: LoopSet, model: Model) -> dict[str, str]:
+    """The amplitude slopes (S_xi, S_w: terms with a ``slope_of``) that loops at a single amplitude level left
+    fixed at 0 (:func:`hysid_model.problem.prepare_model`), each with why."""
+    levels = amplitude_levels(loops.x0)[0]
+    if levels.size > 1:
+        return {}
+    return {
+        p.name: f"cannot be told from {t.slope_of} with one amplitude level (X0 = {levels[0] * 1e3:.4g} mm): fixed at 0, "
+                f"so {t.slope_of} is the value at that amplitude"
+        for t in model.terms if t.slope_of for p in t.params if model.fixed.get(p.name) == 0.0
+    }
 
 
 def naming_priority(model: Model) -> list[str]:

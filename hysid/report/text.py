@@ -90,13 +90,6 @@ def quality_text(result: "FitResult") -> str:
 def fit_warnings(result: "FitResult") -> list[str]:
     """What a reader must know before trusting the numbers: a model that misses the data, parameters on bounds."""
     out = []
-    levels = amplitude_levels(result.loops.x0)[0]
-    slopes = [p.name for t in result.model.terms if t.slope_of for p in t.params if result.model.fixed.get(p.name) == 0.0]
-    if levels.size == 1 and slopes:
-        out.append(
-            f"note: one amplitude level (X0 = {levels[0] * 1e3:.4g} mm) cannot tell {', '.join(slopes)} from xi0, w0: fixed at 0, so "
-            "xi0 and w0 are the damping ratio and natural frequency at that amplitude (bound them in the call to search them anyway)"
-        )
     if "meq" in result.model.names:
         found = survey(result.loops)
         if found.meq_kg is None:
