@@ -15,8 +15,10 @@ from typing import Any
 
 import typer
 
-from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective
+from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective, sites
+from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
+from hysid_model.errors import HysidInputError
 
 bench_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None)
 BENCH_JSON = typer.Option(False, "--json", help="Print one JSON object (with date and machine) instead of text.")
@@ -72,6 +74,18 @@ def ingest_command(
 ) -> None:
     """Ingestion: extraction of raw records against numpy's parse of the same files, and peak memory."""
     emit(ingest.run(records, seconds, rate), ingest.to_text, as_json)
+
+
+@bench_app.command("sites", help=(sites.run.__doc__ or "").strip().splitlines()[0])
+def sites_command(
+    time_limit: float = typer.Option(120.0, "--time-limit", help="Campaign length in s, start-up included (the cut comes 15 s after every island joined)."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    try:
+        result = sites.run(time_limit)
+    except NamespacesUnavailable as exc:
+        raise HysidInputError(f"the sites bench needs network namespaces: {exc}") from None
+    emit(result, sites.to_text, as_json)
 
 
 def bench_names() -> list[str]:
