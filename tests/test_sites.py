@@ -19,11 +19,29 @@ import pytest
 from coordinator.launch import free_port
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.bench.sites import Site, campaign
+from hysid.cli import main
 from support import hysid, query
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
+pytestmark = pytest.mark.timeout(120)
+DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
+ROUTER_CONFIG = DEPLOY / "sites" / "router.json5"
 
 
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--listen", "localhost"], "--listen 'localhost': a Zenoh endpoint looks like tcp/127.0.0.1:7447"),
+        (["--config", str(DEPLOY / "zenoh" / "island.json5")], 'island.json5: is not a router configuration (its mode must be "router")'),
+        (["--config", "nowhere.json5"], "--config nowhere.json5: no such file"),
+    ],
+)
+def test_bad_router_arguments_are_one_line_errors(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["router", *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hysid: error: ") and message in err and err.count("\n") == 1
+
+
+@pytest.mark.slow
 def test_the_delay_relay_holds_every_byte_for_its_delay_each_way() -> None:
     echo = socket.create_server(("127.0.0.1", 0))
 
@@ -55,10 +73,12 @@ def test_the_delay_relay_holds_every_byte_for_its_delay_each_way() -> None:
     assert elapsed >= 0.1  # 50 ms there and 50 ms back: a relay cannot deliver early, whatever the load
 
 
+@pytest.mark.slow
 def test_islands_behind_a_router_take_part_in_a_campaign(tmp_path: Path) -> None:
-    """Coordinator <- hysid router <- two islands on loopback: the router comes up before the coordinator and dials it."""
+    """Coordinator <- hysid router (deploy/sites/router.json5) <- two islands on loopback: the router
+    comes up before the coordinator and dials it."""
     upstream, site = f"tcp/127.0.0.1:{free_port()}", f"tcp/127.0.0.1:{free_port()}"
-    router = subprocess.Popen(hysid("router", "--listen", site, "--connect", upstream), stderr=subprocess.PIPE, text=True)
+    router = subprocess.Popen(hysid("router", "--config", str(ROUTER_CONFIG), "--listen", site, "--connect", upstream), stderr=subprocess.PIPE, text=True)
     processes = [router]
     try:
         ready = router.stderr.readline()
@@ -89,6 +109,7 @@ def test_islands_behind_a_router_take_part_in_a_campaign(tmp_path: Path) -> None
     assert sorted(rows) == [(name, finals[name] + 1, finals[name]) for name in ("a", "b")]
 
 
+@pytest.mark.slow
 def test_a_two_site_campaign_over_delayed_lossy_links_survives_a_cut_without_losing_history(tmp_path: Path) -> None:
     sites = [Site(2, delay_ms=50.0), Site(2, delay_ms=50.0, loss_pct=1.0, cut_at_s=3.0, cut_for_s=5.0)]
     try:

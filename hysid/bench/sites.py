@@ -35,6 +35,8 @@ import numpy as np
 from hysid.bench.netns import Lab, NamespacesUnavailable, unavailable
 from hysid_model.synth import TRUE_PARAMS
 
+ROUTER_CONFIG = Path(__file__).resolve().parents[2] / "deploy" / "sites" / "router.json5"
+"""The site router's configuration of the recipe (deploy/GUIDE.md, section 6), in a source checkout."""
 PORT = 7447
 RELAY_PORT = 7450
 CAMPAIGN = "sites"
@@ -71,6 +73,19 @@ def rss_mb(pid: int) -> float | None:
     return None
 
 
+def query(db: Path, sql: str, *params: Any) -> list[tuple]:
+    """Read a campaign database, also while a coordinator writes it ([] until its tables exist)."""
+    if not db.exists():
+        return []
+    with sqlite3.connect(db, timeout=10) as con:
+        try:
+            return con.execute(sql, params).fetchall()
+        except sqlite3.OperationalError as exc:
+            if "no such table" in str(exc):
+                return []
+            raise
+
+
 class Database:
     """The coordinator's SQLite file, read while it writes."""
 
@@ -78,15 +93,7 @@ class Database:
         self.path = path
 
     def rows(self, sql: str, *params: Any) -> list[tuple]:
-        if not self.path.exists():
-            return []
-        with sqlite3.connect(self.path, timeout=10) as con:
-            try:
-                return con.execute(sql, params).fetchall()
-            except sqlite3.OperationalError as exc:
-                if "no such table" in str(exc):
-                    return []
-                raise
+        return query(self.path, sql, *params)
 
     def events(self, event: str, islands: list[str], after: float = 0.0) -> dict[str, float]:
         """The first ``event`` of each island at or after ``after`` (unix time)."""
@@ -160,7 +167,8 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
                 why = lab.drop(k, site.loss_pct)
                 applied["loss"] = "iptables -m statistic --mode random" if why is None else f"not applied: {why}"
         impairments.append(applied)
-        router = subprocess.Popen(hysid(lab, lab.host(k), "router", "--listen", f"tcp/{lab.host_address(k)}:{PORT}", "--connect", upstream),
+        config = ["--config", str(ROUTER_CONFIG)] if ROUTER_CONFIG.is_file() else []
+        router = subprocess.Popen(hysid(lab, lab.host(k), "router", *config, "--listen", f"tcp/{lab.host_address(k)}:{PORT}", "--connect", upstream),
                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         processes.append(router)
         assert router.stderr is not None
@@ -220,7 +228,7 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
     truth = np.array(list(TRUE_PARAMS.values()))
     return {
         "sites": [asdict(s) for s in sites], "islands": len(everyone), "processes": "one island per process",
-        "impairments": impairments, "netem": netem, "startup_s": startup_s, "time_limit_s": time_limit_s,
+        "impairments": impairments, "netem": netem, "router_config": str(ROUTER_CONFIG.name) if ROUTER_CONFIG.is_file() else "defaults", "startup_s": startup_s, "time_limit_s": time_limit_s,
         "stop_reason": result["settings"]["stop_reason"], "best_fitness": result["fitness"],
         "max_relative_error": float(np.max(np.abs(best - truth) / np.abs(truth))),
         "islands_final": sum(1 for i in by_island.values() if i["final"]),

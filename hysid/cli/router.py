@@ -11,7 +11,7 @@ tokens included, so islands join, migrate and report exactly as on one network.
 Zenoh's own router, ``zenohd``, does the same job but is not on PyPI (it comes
 as a binary or a Debian package from the Zenoh project); this is a Zenoh session
 in router mode from the ``eclipse-zenoh`` package hysid already needs, so it
-takes the same configuration files (``deploy/zenoh/router*.json5``).
+takes a Zenoh configuration file (``deploy/sites/router.json5``).
 
 The router keeps dialling its ``--connect`` endpoints from the start (it may
 come up before the coordinator) and after every lost link (Zenoh's connect
@@ -22,6 +22,7 @@ number of clients (islands) connected; it runs until Ctrl-C or SIGTERM.
 
 from __future__ import annotations
 
+import json
 import signal
 import sys
 import threading
@@ -33,6 +34,7 @@ import typer
 import zenoh
 
 from hysid.cli import options as o
+from hysid_model.errors import HysidInputError
 from island.session import DEFAULT_ENDPOINT, open_session, session_config
 
 
@@ -50,6 +52,8 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Forward a campaign between this site's islands and the coordinator: a Zenoh router (what zenohd does)."""
         zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
+        if json.loads(zconfig.get_json("mode")) != "router":
+            raise HysidInputError('is not a router configuration (its mode must be "router")', param="config_file", value=config_file)
         listening = ", ".join(listen) or (f"as in {config_file}" if config_file else DEFAULT_ENDPOINT)
         session = open_session(zconfig, f"listen {listening}")
         stop = threading.Event()
