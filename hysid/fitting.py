@@ -32,7 +32,7 @@ from hysid_model.modal import AmplitudeResult, derived_table
 from hysid_model.model import MAX_WIDENINGS, Model
 from hysid_model.objective import Objective
 from hysid_model.problem import build_objective, starting_point
-from hysid_model.uncertainty import covariance, fisher_information
+from hysid_model.uncertainty import covariance, fisher_information, scaled_inverse
 from island.algorithms import check_algorithm
 from island.run import HistoryRow, RunResult, optimize
 from island.termination import Termination
@@ -207,7 +207,7 @@ class FitResult:
 def parameter_covariance(objective: Objective, theta: np.ndarray) -> np.ndarray:
     """The fit's covariance: the Cramer-Rao bound for ML weights, the sandwich covariance for the thesis' (Appendix A)."""
     if objective.weights == "ml":
-        return np.linalg.pinv(fisher_information(objective, theta))
+        return scaled_inverse(fisher_information(objective, theta))
     return covariance(objective, theta)
 
 

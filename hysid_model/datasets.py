@@ -106,6 +106,9 @@ def _load_file(path: Path, n_points: int | None) -> LoopSet:
         return read_mat_dataset([path], config, n_points or DEFAULT_POINTS)
     if suffix in RAW_SUFFIXES:
         return extract_records(sources_of_file(path, config, frequency_in_name(path.stem)), config, n_points or DEFAULT_POINTS, f"raw-{suffix[1:]}")
+    if suffix == ".json":
+        raise HysidInputError(f"{path}: a JSON document is not a dataset (the loops.json of `hysid loops --out` is a survey of the loops; "
+                              f"the loops themselves are the {TIDY_NAME} beside it, or the raw records)")
     raise HysidInputError(f"{path}: unknown dataset file type (expected a hysid loops file, .mat, or a raw record: {', '.join(RAW_SUFFIXES)})")
 
 
@@ -183,7 +186,8 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
         found = ", ".join(f"{labels[k]} {extracted[k].freq_hz:.6g} Hz" for k in estimated)
         warnings.warn(HysidWarning(
             f"{config.directory}: no {MANIFEST_NAME}; frequencies estimated from the data: {found}"
-            + (f" (the {MANIFEST_NAME} that fixes them is in loops.meta['estimated_manifest'])" if files else "")
+            + (f" (`hysid loops {config.directory}` prints the {MANIFEST_NAME} that fixes them; in Python it is "
+               "loops.meta['estimated_manifest'])" if files else "")
         ), stacklevel=3)
     return LoopSet(
         name=config.name,

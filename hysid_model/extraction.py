@@ -26,9 +26,14 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
    Each branch value is a local-quadratic least-squares fit of the force
    against theta over all cycles, in a phase window around theta_i. The
    windows are disjoint (branch values have independent noise) unless a
-   record has too few distinct sample phases, and one-sided at the reversals,
-   so loading and unloading samples never mix and a friction jump at the
-   reversal stays sharp. A local-quadratic fit is unbiased for a parabola, so
+   window must widen (at most ``MAX_WIDEN`` times) to hold 4 distinct sample
+   phases, and one-sided at the reversals, so loading and unloading samples
+   never mix and a friction jump at the reversal stays sharp. A record whose
+   samples fall on too few distinct phases even so (a sample rate locked to
+   the excitation, say 200 samples per cycle for 100 points per branch, or
+   sparse sampling) gets the force's harmonics below its Nyquist order
+   instead, evaluated at theta_i (exact for a force without higher content;
+   the loop records K). A local-quadratic fit is unbiased for a parabola, so
    the force's curvature (large where a mass-dominated force carries the
    shaker's displacement harmonics, amplified k^2 times) leaves no bias; what
    remains is of order f^(4) h^4 inside and f^(3) w^3 at the four reversal
@@ -80,7 +85,12 @@ END_WINDOW = 4.0
 at the edge of a window has 4x the variance of one at its centre, so a 4x wider
 window gives every branch value the same variance."""
 WIDEN = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
-"""Widening factors tried for a phase window that holds too few distinct samples."""
+"""Widening factors tried for a window with too few distinct sample phases (up to ``MAX_WIDEN``) and for a reversal
+window whose branch value is noisier than the others (:func:`_even_out_variance`)."""
+MAX_WIDEN = 2.0
+"""Widest window (times its width) a local-quadratic fit may take to find >= 4 distinct sample phases; a record
+that needs more (a rate locked to the excitation, sparse sampling) gets the force's harmonics instead, as a
+quadratic over a wider window would bias a curved force."""
 VARIANCE_SPREAD = 2.0
 """A branch value whose variance exceeds the median one's this many times gets a wider window."""
 DISTINCT = 1e-3
@@ -113,6 +123,8 @@ class ExtractedLoop:
     window_s: tuple[float, float]
     samples_per_point: float
     window_overlap: float
+    force_harmonics: int | None = None
+    """Set where the record's few distinct sample phases made the branches harmonics 0..K of the force."""
     drift: tuple[float, float] = (0.0, 0.0)
     """Relative change of the displacement and force amplitudes over the cycles used."""
     clipping: plausibility.Clipping = field(default_factory=plausibility.Clipping)
@@ -125,6 +137,7 @@ class ExtractedLoop:
             "sigma_raw_n": self.sigma_raw,
             "samples_per_point": self.samples_per_point,
             "window_overlap": self.window_overlap,
+            "force_harmonics": self.force_harmonics,
             "x_offset_m": self.x_offset,
             "x_peak_m": self.x_peak,
             "x_distortion": self.x_distortion,
@@ -325,18 +338,17 @@ def _concatenated_ranges(first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarra
 
 
 def _branches(
-    theta: np.ndarray, force: np.ndarray, sample_phases: np.ndarray, reversal: tuple[float, float], source: str
-) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Local-quadratic branch values at the 2n ``sample_phases`` (top, then bottom); ``reversal`` = (lo, hi) phases.
+    theta: np.ndarray, force: np.ndarray, sample_phases: np.ndarray, reversal: tuple[float, float], samples_per_cycle: float
+) -> tuple[np.ndarray, np.ndarray, float, float, int | None]:
+    """Branch values at the 2n ``sample_phases`` (top, then bottom); ``reversal`` = (lo, hi) phases.
 
-    Returns (values, variance factors v, sigma_raw, overlap). Each window
-    starts at width factor 1 and is widened (``WIDEN``) until it holds samples at
-    >= 4 distinct phases spread over >= 10 % of its width, so records whose samples fall on
-    few phases per cycle (an integer number of samples per period) still give
-    a local *quadratic* fit; widened windows overlap their neighbours, which
-    ``overlap`` (mean number of windows per used sample, 1 = independent) reports.
+    Returns (values, variance factors v, sigma_raw, overlap, harmonics). Local-quadratic fits in
+    phase windows, each widened (``WIDEN``, up to ``MAX_WIDEN``) until it holds samples at >= 4
+    distinct phases spread over >= 10 % of its width (``harmonics`` None); else, for records whose samples fall on few phases per
+    cycle (a rate locked to the excitation, or sparse sampling), the force's harmonics below the
+    sample rate's Nyquist order (:func:`_harmonic_branches`). ``overlap`` is how many branch values
+    share one independent number (1: independent).
     """
-    n_points = sample_phases.size // 2
     centre, start, width, half_lo, half_hi, h = _phase_windows(sample_phases, *reversal)
     lo_phase, hi_phase = reversal
     psi = np.mod(theta - lo_phase, 2 * np.pi) + lo_phase
@@ -347,30 +359,24 @@ def _branches(
     sums = _PhaseSums(ps, h)
     new_phase = np.concatenate([[1.0], (np.diff(ps) > DISTINCT * h).astype(float)])  # a sample at a phase not seen before
     cum_distinct = np.concatenate([[0.0], np.cumsum(new_phase)])
-    chosen_lo = np.full(centre.size, np.nan)
-    chosen_hi = np.full(centre.size, np.nan)
+    lo, hi = np.full(centre.size, np.nan), np.full(centre.size, np.nan)
     chosen_r = np.zeros(centre.size)
-    for r in WIDEN:
-        todo = np.isnan(chosen_lo)
+    for r in WIDEN[: WIDEN.index(MAX_WIDEN) + 1]:
+        todo = np.isnan(lo)
         if not np.any(todo):
             break
-        lo, hi = _window_bounds(centre, start, width, half_lo, half_hi, r * h)
-        a, b = np.searchsorted(ps, lo), np.searchsorted(ps, hi)
+        w_lo, w_hi = _window_bounds(centre, start, width, half_lo, half_hi, r * h)
+        a, b = np.searchsorted(ps, w_lo), np.searchsorted(ps, w_hi)
         s0, s1, s2 = (c[b] - c[a] for c in sums.cum[:3])
         distinct = cum_distinct[b] - cum_distinct[a] + (a < b) * (1.0 - new_phase[np.minimum(a, ps.size - 1)])
         with np.errstate(divide="ignore", invalid="ignore"):
             spread = np.sqrt(np.maximum(s2 / s0 - (s1 / s0) ** 2, 0.0))
-        ok = todo & (distinct >= 4) & (spread >= 0.1 * (hi - lo))
-        chosen_lo[ok], chosen_hi[ok], chosen_r[ok] = lo[ok], hi[ok], r
-    if np.any(np.isnan(chosen_lo)):
-        distinct = np.unique(np.mod(np.round(ps * (1e6 / (2 * np.pi))), 1e6)).size
-        raise HysidInputError(
-            f"{source}: too few samples for {n_points} points per branch: the steady cycles hold only {distinct} distinct "
-            "sample phases (few samples per cycle, or a sample rate locked to the excitation); use fewer points per branch "
-            "or a longer or faster-sampled record"
-        )
-    _even_out_variance(sums, centre, start, width, half_lo, half_hi, chosen_lo, chosen_hi, chosen_r)
-    win, pos, u, moments, inverse = _window_fits(ps, centre, h, chosen_lo, chosen_hi)
+        ok = todo & (distinct >= 4) & (spread >= 0.1 * (w_hi - w_lo))
+        lo[ok], hi[ok], chosen_r[ok] = w_lo[ok], w_hi[ok], r
+    if np.any(np.isnan(lo)):
+        return _harmonic_branches(ps, ys, sample_phases, h, samples_per_cycle)
+    _even_out_variance(sums, centre, start, width, half_lo, half_hi, lo, hi, chosen_r)
+    win, pos, u, moments, inverse = _window_fits(ps, centre, h, lo, hi)
     y = ys[pos]
     starts = _starts(win)
     yu = y * u
@@ -381,7 +387,37 @@ def _branches(
     dof = moments[0] - 3
     sigma_raw = float(np.sqrt(np.median(ss / dof) / _chi2_median_ratio(float(np.median(dof)))))
     overlap = pos.size / np.count_nonzero(np.bincount(pos))
-    return coef[:, 0], inverse[:, 0, 0], sigma_raw, float(overlap)
+    return coef[:, 0], inverse[:, 0, 0], sigma_raw, float(overlap), None
+
+
+def _harmonic_branches(
+    ps: np.ndarray, ys: np.ndarray, sample_phases: np.ndarray, h: float, samples_per_cycle: float
+) -> tuple[np.ndarray, np.ndarray, float, float, int]:
+    """Branch values of a record with few distinct sample phases: the force's harmonics 0..K by least
+    squares over every sample (K below the sample rate's Nyquist order and the distinct phases'),
+    evaluated at the branch phases.
+
+    Exact for a force without content above order K, whatever the phases; content above K (a
+    friction jump) is smoothed, as the samples themselves cannot resolve it. Samples at one phase
+    (within ``DISTINCT``) are averaged first, so the cost does not grow with the cycles. The 2n values
+    then carry 2K + 1 independent numbers: their variance factors are scaled by 2n / (2K + 1), so
+    that the loop's sigma gives chi^2 and the Fisher information of the raw samples.
+    """
+    key = np.concatenate([[0], np.cumsum(np.diff(ps) > DISTINCT * h)])
+    count = np.bincount(key).astype(float)
+    phase = np.bincount(key, ps) / count
+    mean = np.bincount(key, ys) / count
+    k = int(max(1, min((samples_per_cycle - 1) // 2, (count.size - 1) // 2)))
+    design = _harmonic_design(phase, k)  # (2k + 1, distinct)
+    gram_inv = np.linalg.inv((design * count) @ design.T)
+    coef = gram_inv @ (design @ (count * mean))
+    within = float(np.sum(ys * ys) - np.sum(count * mean * mean))
+    between = float(np.sum(count * (mean - coef @ design) ** 2))
+    sigma_raw = float(np.sqrt(max(within + between, 0.0) / max(ys.size - (2 * k + 1), 1)))
+    at = _harmonic_design(sample_phases, k)
+    var = np.einsum("in,ij,jn->n", at, gram_inv, at)
+    overlap = max(1.0, sample_phases.size / (2 * k + 1))
+    return coef @ at, var * overlap, sigma_raw, overlap, k
 
 
 def _window_bounds(centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray, half_hi: np.ndarray,
@@ -544,7 +580,7 @@ def extract_loop(
     x_min, x_max = (float(e[0]) for e in waveform.extremes(xh))
     grid = np.linspace(x_min, x_max, n_points)
     sample_phases = waveform.branch_phases(xh, grid[None], grid[None])[0]
-    values, var, sigma_raw, overlap = _branches(theta + phi, fs - force_mean, sample_phases, (lo, hi), source)
+    values, var, sigma_raw, overlap, force_harmonics = _branches(theta + phi, fs - force_mean, sample_phases, (lo, hi), ts.size / cycles)
     first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
     used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]
     return ExtractedLoop(
@@ -565,6 +601,7 @@ def extract_loop(
         window_s=(float(ts[0]), float(ts[-1])),
         samples_per_point=float(np.mean(1.0 / var)),
         window_overlap=overlap,
+        force_harmonics=force_harmonics,
         drift=tuple(float(d) for d in plausibility.amplitude_drift(used)),
         clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), xh, freq),
     )

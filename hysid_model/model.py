@@ -176,9 +176,10 @@ class Model:
         for name, value in {**(values or {}), **kwargs}.items():
             p = self._parameter(name, "a fixed value")
             try:
-                changes[name] = p.fixed_at(float(value))
+                number = float(value)
             except (TypeError, ValueError):
                 raise HysidInputError("a fixed value must be a number", param=name, value=value) from None
+            changes[name] = p.fixed_at(number)
         return self._changed(changes)
 
     def vary(self, *names: str) -> "Model":

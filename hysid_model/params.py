@@ -20,6 +20,11 @@ import numpy as np
 from hysid_model.errors import HysidInputError
 
 
+def _range(physical: tuple[float, float]) -> str:
+    lo, hi = physical
+    return f"[{lo:g}, {hi:g}]" if math.isfinite(hi) else f"[{lo:g}, inf)"
+
+
 @dataclass(frozen=True)
 class Parameter:
     """One identifiable quantity: its name, SI unit, search bounds, meaning, and a value if it is fixed."""
@@ -42,6 +47,14 @@ class Parameter:
             raise HysidInputError(f"lower bound {self.lower:g} must be finite and below the upper bound {self.upper:g}", param=f"bounds[{self.name!r}]")
         if not self.vary and (self.value is None or not math.isfinite(self.value)):
             raise HysidInputError("a fixed parameter needs a finite value", param=self.name, value=self.value)
+        lo, hi = self.physical
+        if not self.vary and not lo <= self.value <= hi:  # type: ignore[operator]
+            raise HysidInputError(f"{self.value:g}{'' if self.unit == '1' else ' ' + self.unit} is outside the physical range {_range(self.physical)} of {self.description or self.name}", param=self.name)
+        if self.lower < lo or self.upper > hi:
+            raise HysidInputError(
+                f"bounds {self.lower:g}:{self.upper:g} reach outside the physical range {_range(self.physical)} of {self.description or self.name}",
+                param=f"bounds[{self.name!r}]",
+            )
 
     def with_bounds(self, lower: float, upper: float, soft: bool = False) -> "Parameter":
         return replace(self, lower=float(lower), upper=float(upper), soft=soft)

@@ -14,6 +14,10 @@ their islands, the diagnosis and the benches all come here):
   that ends on one widens it and refits. The dataset's own bounds (``[bounds]``
   of ``dataset.toml``; Table 5.4 for the Synth set and the thesis' own ``.mat``
   loops) and the caller's ``bounds`` are hard; ``fixed`` values come last;
+* loops at a single amplitude level cannot tell the amplitude slopes S_xi,
+  S_w (Eq. 4.8, 4.9) from xi0 and w0: unless the caller bounds them (a
+  dataset's bounds only say where they lie), they are fixed at 0 (:func:`single_amplitude_slopes`), so xi0
+  and w0 are the damping ratio and natural frequency at that amplitude;
 * the starting point (:func:`starting_point`) is the survey's linear estimate
   of xi, wn and their slopes (Eq. 4.8, 4.9), every effect switched off;
 * the loop weights of Eq. 3.3 are the thesis' (Appendix A) or maximum
@@ -30,6 +34,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from hysid_model.errors import HysidInputError
+from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, as_model
 from hysid_model.objective import WEIGHTS, Objective
@@ -88,7 +93,16 @@ def prepare_model(
         derived = {name: pair for t in m.terms for name, pair in t.data_bounds(scale).items()}
     soft = {n: b for n, b in derived.items() if n in m.names and n not in given and n not in bounds}
     m = m.with_bounds(soft, soft=True).with_bounds({n: b for n, b in given.items() if n in m.names})
-    return m.with_bounds(bounds).vary(*(n for n in bounds if n in m.fixed and n not in fixed)).fix(fixed)
+    unseen = {n: 0.0 for n in single_amplitude_slopes(loops, m) if n not in bounds and n not in fixed}
+    return m.with_bounds(bounds).vary(*(n for n in bounds if n in m.fixed and n not in fixed)).fix({**unseen, **fixed})
+
+
+def single_amplitude_slopes(loops: LoopSet, model: Model) -> list[str]:
+    """The searched amplitude slopes of ``model`` (S_xi, S_w: terms with ``amplitude_slope``) when ``loops``
+    hold a single amplitude level (:func:`~hysid_model.frf.amplitude_levels`), else none."""
+    if amplitude_levels(loops.x0)[0].size > 1:
+        return []
+    return [p.name for t in model.terms if t.slope_of for p in t.params if p.name in model.names]
 
 
 def starting_point(loops: LoopSet, model: Model) -> np.ndarray:

@@ -149,6 +149,9 @@ class Term:
     explanation: ClassVar[str] = ""
     memory: ClassVar[bool] = False
     strength: ClassVar[str] = ""
+    slope_of: ClassVar[str] = ""
+    """The oscillator parameter whose change with amplitude this term is (Eq. 4.8, 4.9): it changes the loops
+    only from one amplitude to another, so loops at a single amplitude cannot tell the two apart."""
     params: tuple[Parameter, ...] = ()
 
     def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
@@ -317,6 +320,7 @@ class AmplitudeDependentDamping(Term):
 
     id = "amplitude_dependent_damping"
     strength = "S_xi"
+    slope_of = "xi0"
     explanation = (
         "The damping ratio changes linearly with the excitation amplitude (Eq. 4.8); "
         "in the thesis the resonance peak sharpens as the amplitude grows (Fig. 4.7, 4.10)."
@@ -340,6 +344,7 @@ class AmplitudeDependentFrequency(Term):
 
     id = "amplitude_dependent_frequency"
     strength = "S_w"
+    slope_of = "w0"
     explanation = (
         "The natural frequency changes linearly with the excitation amplitude (Eq. 4.9): "
         "support stiffness that softens with amplitude (Eq. 4.7, Fig. 4.6, 4.9)."

@@ -20,12 +20,18 @@ import numpy as np
 from hysid_model.objective import Objective
 
 
+def scaled_inverse(matrix: np.ndarray) -> np.ndarray:
+    """The inverse of a symmetric information matrix, scaled to unit diagonal first (pseudo-inverse where
+    singular): without the scaling, a pseudo-inverse's cut-off drops the weakly determined directions of
+    parameters of very different magnitude and reports them as precise."""
+    scale = np.sqrt(np.abs(np.diag(matrix)))
+    scale = np.where(scale > 0, scale, 1.0)
+    return np.linalg.pinv(matrix / np.outer(scale, scale), hermitian=True) / np.outer(scale, scale)
+
+
 def jacobian_covariance(jac: np.ndarray) -> np.ndarray:
     """(J^T J)^-1 of a whitened-residual Jacobian ``(N, D)``, column-scaled (pseudo-inverse where singular)."""
-    scale = np.linalg.norm(jac, axis=0)
-    scale = np.where(scale > 0, scale, 1.0)
-    unit = jac / scale
-    return np.linalg.pinv(unit.T @ unit) / np.outer(scale, scale)
+    return scaled_inverse(jac.T @ jac)
 
 
 def noise_sigma(obj: Objective, theta: np.ndarray) -> np.ndarray:
@@ -49,7 +55,7 @@ def fisher_information(obj: Objective, theta: np.ndarray, sigma: np.ndarray | No
 
 def cramer_rao_stderr(obj: Objective, theta: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
     """sqrt(diag(I^-1)): the smallest standard error any unbiased estimator can reach."""
-    return np.sqrt(np.diag(np.linalg.pinv(fisher_information(obj, theta, sigma))))
+    return np.sqrt(np.diag(scaled_inverse(fisher_information(obj, theta, sigma))))
 
 
 def covariance(obj: Objective, theta: np.ndarray, sigma: np.ndarray | None = None) -> np.ndarray:
@@ -59,7 +65,7 @@ def covariance(obj: Objective, theta: np.ndarray, sigma: np.ndarray | None = Non
     n = obj.y.shape[1]
     w = np.repeat(obj.loop_weight, n)
     var = np.repeat(sigma**2, n)
-    bread = np.linalg.pinv(jac.T @ (jac * w[:, None]))
+    bread = scaled_inverse(jac.T @ (jac * w[:, None]))
     meat = jac.T @ (jac * (w**2 * var)[:, None])
     return bread @ meat @ bread
 

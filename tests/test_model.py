@@ -56,6 +56,10 @@ def test_bounds_override_checks_names():
     assert model.bounds[2].tolist() == [150.0, 250.0]
     with pytest.raises(HysidInputError, match="unknown parameter"):
         model.with_bounds({"omega": (1.0, 2.0)})
+    with pytest.raises(HysidInputError, match=r"bounds -0.1:0.1 reach outside the physical range \[0, inf\)"):
+        model.with_bounds({"xi0": (-0.1, 0.1)})
+    with pytest.raises(HysidInputError, match=r"1.5 is outside the physical range \[0, 1\] of relaxation strength"):
+        build_model("thesis+zener_thermoelastic").fix(zener_delta=1.5)
 
 
 def test_modal_values_follow_eq_4_8_and_4_9():

@@ -78,6 +78,48 @@ def test_tab_separated_csv_with_unit_suffixes_is_converted(tmp_path, reference):
     same_loops(load_dataset(csv_dataset(tmp_path / "units", write)), reference)
 
 
+@pytest.mark.parametrize("header, scale", [
+    ("Time [s],Displacement [mm],Force [N]", (1.0, 1e3, 1.0)),
+    ("Time (s),Position (mm),Load (kN)", (1.0, 1e3, 1e-3)),
+    ("t/s,x/m,F/N", (1.0, 1.0, 1.0)),
+    ("TIME;DISP_MM;FORCE_N", (1.0, 1e3, 1.0)),
+    ("Zeit [ms],Weg [mm],Kraft [N]", (1e3, 1e3, 1.0)),
+    ("time s,disp_m,load_N", (1.0, 1.0, 1.0)),
+])
+def test_csv_headers_as_daq_software_writes_them(tmp_path, reference, header, scale):
+    """Units in brackets, parentheses, after a slash, a space or an underscore; the usual words for each quantity."""
+    delimiter = ";" if ";" in header else ","
+
+    def write(path: Path, rec: RawRecord) -> None:
+        data = np.column_stack([rec.t * scale[0], rec.x * scale[1], rec.force * scale[2]])
+        np.savetxt(path, data, delimiter=delimiter, fmt="%.15g", header=header, comments="")
+
+    same_loops(load_dataset(csv_dataset(tmp_path / "daq", write)), reference)
+
+
+def test_headers_without_units_are_read_as_si_with_a_warning(tmp_path, reference):
+    def write(path: Path, rec: RawRecord) -> None:
+        np.savetxt(path, np.column_stack([rec.t, rec.x, rec.force]), delimiter=",", fmt="%.15g", header="t,x,force", comments="")
+
+    with pytest.warns(HysidWarning, match=r"channel 'x' states no unit: read as m \(set displacement_unit in dataset.toml"):
+        same_loops(load_dataset(csv_dataset(tmp_path / "bare", write)), reference)
+
+
+def test_a_header_without_a_force_column_names_what_it_has_and_the_dataset_toml_keys(tmp_path):
+    path = tmp_path / "d" / "run.csv"
+    path.parent.mkdir()
+    path.write_text("Time [s],Displacement [mm],Frequency [Hz]\n0,1,10\n")
+    with pytest.raises(HysidInputError, match=r"missing column 'force_n'.*the header has: 'Time \[s\]', 'Displacement \[mm\]', 'Frequency \[Hz\]'.*force_channel in dataset.toml"):
+        load_dataset(path)
+
+
+@pytest.mark.parametrize("name, hz", [("run_9,5Hz", 9.5), ("run_9p5Hz", 9.5), ("run 12.25 Hz", 12.25), ("light_12_Hz", 12.0), ("s2_05mm_436Hz", 436.0)])
+def test_frequencies_in_record_names_with_decimal_commas_and_p(name, hz):
+    from hysid_model.readers.dataset_dir import frequency_in_name
+
+    assert frequency_in_name(name) == hz
+
+
 def test_csv_channels_and_units_named_in_dataset_toml(tmp_path, reference):
     """A header of the rig's own names, and the mm-under-_m slip fixed by declaring the unit."""
     def write(path: Path, rec: RawRecord) -> None:

@@ -87,6 +87,7 @@ def register(app: typer.Typer) -> None:
         weights: Optional[str] = o.WEIGHTS,
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
+        points: Optional[int] = o.POINTS,
         budget: Optional[int] = o.BUDGET,
         target: Optional[float] = o.TARGET,
         stall: Optional[int] = o.STALL,
@@ -113,7 +114,7 @@ def register(app: typer.Typer) -> None:
         CampaignConfig(name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands)
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
-        loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
+        loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
         with Progress("campaign", islands * iterations, enabled=not (quiet or as_json)) as bar:
             result = campaign(
                 loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
@@ -146,6 +147,7 @@ def register(app: typer.Typer) -> None:
         weights: Optional[str] = o.WEIGHTS,
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
+        points: Optional[int] = o.POINTS,
         budget: Optional[int] = o.BUDGET,
         target: Optional[float] = o.TARGET,
         stall: Optional[int] = o.STALL,
@@ -171,7 +173,7 @@ def register(app: typer.Typer) -> None:
         if not resume_db:  # every argument is checked before the database is written or a session opened
             sizes = o.island_sizes(population, initial, iterations)
             migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
-            loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
+            loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
             config = CampaignConfig.create(
                 loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
                 algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands,

@@ -46,7 +46,9 @@ def register(app: typer.Typer) -> None:
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         points: int | None = o.POINTS,
-        out: Optional[Path] = typer.Option(None, "--out", help="Also write survey.png and loops.json to this new (or empty) directory."),
+        out: Optional[Path] = typer.Option(
+            None, "--out", help="Also write the loops (loops.csv: fit, diagnose and campaign read this directory without extracting again), survey.png and loops.json to this new (or empty) directory."
+        ),
     ) -> None:
         """List a dataset's loops and their equivalent-linear survey: frequency, X0, force, noise, cycles,
         dynamic stiffness, equivalent damping, loss factor, energy per cycle, and fn, xi where the mass is known or estimated;
@@ -58,6 +60,7 @@ def register(app: typer.Typer) -> None:
         if target is not None:
             from hysid.report import figures  # matplotlib loads only when a figure is drawn
 
+            write_dataset(target, loops)
             figures.survey_figure(target / "survey.png", found)
             jsondoc.write(target / "loops.json", {"dataset": loops.name, "mass": found.mass_source, "meq_kg": found.meq_kg, "loops": rows})
         print(jsondoc.dumps(rows, indent=1) if as_json else loops_table(loops, rows, found) + _loop_notes(loops, rows))

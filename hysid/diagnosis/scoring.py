@@ -26,6 +26,7 @@ import numpy as np
 
 from hysid.diagnosis.fitting import Fit, make_model
 from hysid_model.effects import EFFECTS
+from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import PRESETS
 
@@ -90,11 +91,18 @@ def joint_score(a: Candidate, b: Candidate, residual: np.ndarray) -> tuple[float
 
 
 def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]]) -> list[Candidate]:
-    """Score every library effect not yet in the model, best first."""
+    """Score every library effect not yet in the model, best first; with loops at one amplitude, the amplitude
+    slopes (in the model or not) are scored as not identifiable."""
     q, _ = np.linalg.qr(fit.jacobian)
     e = fit.residual
     out = []
+    single = amplitude_levels(harmonics.loops.x0)[0].size == 1
     for effect in EFFECTS:
+        partner = EFFECTS[effect].slope_of
+        if single and partner:  # one amplitude: a slope of xi or wn with amplitude is xi0 or w0 again (fixed at 0 if in the model)
+            out.append(Candidate(effect=effect, score=0.0, starts=[], physical=True, identifiable=False, absorbed_by=[partner],
+                                 direction=np.zeros_like(e), norm=0.0, n_shapes=0))
+            continue
         if effect in effects_in(fit):
             continue
         g, shapes, one_sided = signature(fit, harmonics, effect, bounds)

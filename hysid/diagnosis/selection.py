@@ -16,7 +16,8 @@ From the start model (baseline or thesis) fitted to the loops' harmonics:
    spring). A pair that is acceptable and beats every single refit by
    ``BIC_MARGIN`` is named as two steps, the better member first;
 4. accept the refit with the lowest BIC if it lowers the BIC by at least
-   ``BIC_MARGIN``, its strength is significant (``MIN_Z`` standard errors) and
+   ``BIC_MARGIN``, it makes no harmonic order significantly worse (:func:`created_order`),
+   its strength is significant (``MIN_Z`` standard errors) and
    has the physical sign, no parameter is pushed against a bound (:func:`binding`), and it
    removes at least ``MIN_SHARE`` of the chi^2 above the noise floor; every
    other acceptable refit within ``BIC_MARGIN`` of it is named as confusable
@@ -48,6 +49,7 @@ from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
+from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import PRESETS, build_model
@@ -111,6 +113,17 @@ class Diagnosis:
     last_scores: list[Candidate] = field(default_factory=list)
     report: str | None = None
     """The report written last (:meth:`write_report`)."""
+
+    def effects_not_identifiable(self) -> dict[str, str]:
+        """Why each effect of ``not_identifiable`` cannot be identified from these loops."""
+        levels = amplitude_levels(self.harmonics.loops.x0)[0]
+        out = {}
+        for effect, absorbed in self.not_identifiable.items():
+            if levels.size == 1 and EFFECTS[effect].slope_of:
+                out[effect] = f"one amplitude level (X0 = {levels[0] * 1e3:.4g} mm) cannot show a change with amplitude: it is {', '.join(absorbed)} again"
+            else:
+                out[effect] = f"whatever it does, the model already does with {', '.join(absorbed)}"
+        return out
 
     def fits(self) -> list[tuple[str, Fit]]:
         """(label, fit) for the start and after every step."""
@@ -184,10 +197,7 @@ class Diagnosis:
             "status": self.status,
             "unexplained_signature": self.unexplained,
             "not_identifiable": sorted(self.not_identifiable) + list(self.identifiability.not_identifiable),
-            "not_identifiable_reasons": {
-                **{e: f"whatever it does, the model already does with {', '.join(a)}" for e, a in self.not_identifiable.items()},
-                **self.identifiability.not_identifiable,
-            },
+            "not_identifiable_reasons": {**self.effects_not_identifiable(), **self.identifiability.not_identifiable},
             "correlation": self.identifiability.correlation_dict(),
             "rejected": self.rejected,
             "final_params": self.final.params(),
@@ -297,11 +307,33 @@ def binding(fit: Fit, j: int) -> bool:
     return bool(outward and lm > MIN_Z**2)
 
 
+def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
+    """A harmonic order that ``before`` fits at the noise and ``after`` significantly worse, no longer at the
+    noise (the family-wise ``SIGNIFICANCE`` of chi^2 over that order's coefficients): (order, chi^2 before,
+    after), or None. An effect that buys a better first harmonic with content the loops do not have
+    (a hysteretic spring fitting how a linear stiffness changes with amplitude) has the wrong shape."""
+    orders = before.objective.harmonics.orders()
+    n_loops = before.objective.harmonics.loops.n_loops
+    r0, r1 = (f.residual.reshape(n_loops, -1) for f in (before, after))
+    levels = np.unique(orders)
+    for k in levels:
+        n = int(np.count_nonzero(orders == k)) * n_loops
+        c0, c1 = float(np.sum(r0[:, orders == k] ** 2)), float(np.sum(r1[:, orders == k] ** 2))
+        limit = float(chi2_dist.isf(SIGNIFICANCE / levels.size, n))
+        if c0 <= limit < c1 and c1 - c0 > limit - n:
+            return int(k), c0, c1
+    return None
+
+
 def judge(before: Fit, after: Fit, effect: str) -> str | None:
     """Why ``after`` (``before`` plus ``effect``) is not accepted, or None."""
     delta = after.bic - before.bic
     if delta > -BIC_MARGIN:
         return f"BIC changes by only {delta:+.1f}"
+    created = created_order(before, after)
+    if created is not None:
+        k, c0, c1 = created
+        return f"adds order-{k} content the loops do not have (chi^2 of order {k}: {c0:.4g} -> {c1:.4g})"
     term = EFFECTS[effect]()
     names = after.model.names
     values, errors, bounds = after.theta, after.stderr, after.model.bounds

@@ -125,9 +125,8 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         lines += ["", f"Against references that need no physical model, {reference_text(diagnosis.to_dict())}."]
     if diagnosis.rejected:
         lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in diagnosis.rejected.items()) + "."]
-    for effect, absorbed in diagnosis.not_identifiable.items():
-        lines += ["", f"**{effect} cannot be identified with this setup**: whatever it does, the model already does with "
-                  f"{', '.join(absorbed)} (e.g. a transducer mass while the equivalent mass is fitted)."]
+    for effect, why in diagnosis.effects_not_identifiable().items():
+        lines += ["", f"**{effect} cannot be identified with this setup**: {why}."]
     for name, why in diagnosis.identifiability.not_identifiable.items():
         lines += ["", f"**`{name}` of the final model is not identifiable** (no standard error): it {why}."]
     names = diagnosis.final.model.names

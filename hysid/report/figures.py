@@ -20,10 +20,11 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
 from hysid.report.style import (
     HALF_POWER,
@@ -33,6 +34,7 @@ from hysid.report.style import (
     TRIAL,
     TRUE,
     frequency_axis,
+    frequency_ticks,
     math_name,
     new_figure,
     save,
@@ -232,20 +234,16 @@ def half_power_figure(
     xi_fit: Sequence[float],
     model_curves: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> Path:
-    """Compliance |X0/F1| per amplitude (Fig. 6.1): (a) the whole sweep; (b) the resonance with the -3 dB points.
+    """Compliance |X0/F1| per amplitude (Fig. 6.1): (a) the whole sweep; (b) the resonance with the -3 dB points
+    (only (a), saying why, where no amplitude has a half-power estimate).
 
     ``model_curves`` holds (frequency Hz, compliance m/N) of the fitted model at each level.
     """
     levels, index = amplitude_levels(loops.x0)
-    fig = new_figure(3.3)
-    ax1, ax2 = fig.subplots(1, 2)
     ok = [hp for hp in half_power if hp.ok]
-    if ok:
-        width = max(hp.f2_hz - hp.f1_hz for hp in ok)
-        lo, hi = min(hp.f1_hz for hp in ok) - 2.5 * width, max(hp.f2_hz for hp in ok) + 2.5 * width
-    else:
-        lo, hi = float(loops.freq_hz.min()), float(loops.freq_hz.max())
-    for ax in (ax1, ax2):
+    fig = new_figure(3.3)
+    axes = list(fig.subplots(1, 2)) if ok else [fig.subplots(1, 1)]
+    for ax in axes:
         for k in range(levels.size):
             m = np.flatnonzero(index == k)
             m = m[np.argsort(loops.freq_hz[m], kind="stable")]
@@ -257,6 +255,16 @@ def half_power_figure(
         ax.set_yscale("log")
         ax.set_xlabel("excitation frequency (Hz)")
         ax.set_ylabel("compliance $|X_0/F_1|$ (mm/N)")
+    handles, labels = _level_handles(levels)
+    handles += [Line2D([], [], linestyle="none", marker="o", markersize=3.5, color="0.4"), Line2D([], [], color="0.4")]
+    labels += ["loops", "fitted model"]
+    if not ok:
+        axes[0].set_title("compliance over the sweep: no resonance peak with $-3$ dB points on both sides (no Eq. 2.7 estimate)")
+        fig.legend(handles, labels, loc="outside upper center", ncol=len(labels))
+        return save(fig, path)
+    ax1, ax2 = axes
+    width = max(hp.f2_hz - hp.f1_hz for hp in ok)
+    lo, hi = min(hp.f1_hz for hp in ok) - 2.5 * width, max(hp.f2_hz for hp in ok) + 2.5 * width
     ax1.set_title("(a) compliance over the sweep")
     for k, hp in enumerate(half_power):
         if not hp.ok:
@@ -266,8 +274,6 @@ def half_power_figure(
         ax2.plot([hp.f1_hz, hp.f2_hz], [level, level], color=color, linestyle="--", linewidth=0.9)
         ax2.plot([hp.f1_hz, hp.f2_hz], [level, level], linestyle="none", marker="D", markersize=4.5, color=HALF_POWER, markeredgecolor=color)
         ax2.plot([hp.f_peak_hz], [hp.peak_compliance * 1e3], linestyle="none", marker="v", markersize=6, color=PEAK, markeredgecolor=color)
-    if hi - lo < 1e-6 * max(abs(hi), 1e-12):  # one frequency: a window around it, not a singular axis
-        lo, hi = lo * 0.8, hi * 1.2
     ax2.set_xlim(lo, hi)
     in_view = (loops.freq_hz >= lo) & (loops.freq_hz <= hi)
     if np.any(in_view):
@@ -279,16 +285,12 @@ def half_power_figure(
          rf"$\xi_{{2.7}}$ = {hp.xi:.5f}, fit {xi_fit[k]:.5f}")
         for k, hp in enumerate(half_power) if hp.ok
     ]
-    if xi_rows:
-        ax2.legend([h for h, _ in xi_rows], [t for _, t in xi_rows], loc="lower center", title="damping ratio at each $X_0$")
-    handles, labels = _level_handles(levels)
+    ax2.legend([h for h, _ in xi_rows], [t for _, t in xi_rows], loc="lower center", title="damping ratio at each $X_0$")
     handles += [
-        Line2D([], [], linestyle="none", marker="o", markersize=3.5, color="0.4"),
-        Line2D([], [], color="0.4"),
         Line2D([], [], linestyle="none", marker="v", markersize=6, color=PEAK),
         Line2D([], [], linestyle="none", marker="D", markersize=4.5, color=HALF_POWER),
     ]
-    labels += ["loops", "fitted model", "resonance peak", "$-3$ dB points"]
+    labels += ["resonance peak", "$-3$ dB points"]
     fig.legend(handles, labels, loc="outside upper center", ncol=len(labels))
     return save(fig, path)
 
@@ -349,11 +351,13 @@ def scatter_figure(
 def survey_figure(path: Path, survey: Survey) -> Path:
     """The equivalent-linear survey (Figs. 4.6-4.8): per amplitude level, against frequency, (a) the dynamic
     and storage stiffness, (b) the equivalent viscous damping, (c) the loss factor and (d) the damping ratio
-    (or, without a mass, the energy dissipated per cycle)."""
+    (or, without a mass, the energy dissipated per cycle); against amplitude, each loop coloured by its
+    frequency, (e) the dynamic and secant stiffness and (f) the energy per cycle (a linear specimen: slope 2
+    on these log axes; friction: slope 1)."""
     loops = survey.loops
     levels, index = amplitude_levels(loops.x0)
-    fig = new_figure(4.8)
-    (ax_k, ax_c), (ax_eta, ax_last) = fig.subplots(2, 2, sharex=True)
+    fig = new_figure(7.0)
+    (ax_k, ax_c), (ax_eta, ax_last), (ax_ka, ax_ea) = fig.subplots(3, 2)
     last, last_label = (survey.xi, r"damping ratio $\xi$") if survey.has_mass else (survey.energy_per_cycle, "energy per cycle (J)")
     for k in range(levels.size):
         m = np.flatnonzero(index == k)
@@ -374,10 +378,32 @@ def survey_figure(path: Path, survey: Survey) -> Path:
     ax_eta.set_title("(c) loss factor")
     ax_last.set_ylabel(last_label)
     ax_last.set_title("(d) " + ("damping ratio per loop" if survey.has_mass else f"energy per cycle (mass {survey.mass_source.split(':')[0]})"))
-    for ax in (ax_eta, ax_last):
-        ax.set_xlabel("excitation frequency (Hz)")
     for ax in (ax_k, ax_c, ax_eta, ax_last):
+        ax.set_xlabel("excitation frequency (Hz)")
         frequency_axis(ax, loops.freq_hz)
+    x_mm = loops.x0 * 1e3
+    norm = LogNorm(loops.freq_hz.min(), loops.freq_hz.max()) if loops.freq_hz.max() > loops.freq_hz.min() else None
+    dots = ax_ka.scatter(x_mm, survey.k_dyn, c=loops.freq_hz, norm=norm, cmap="viridis", s=14, label="dynamic")
+    squares = ax_ka.scatter(x_mm, survey.k_secant, c=loops.freq_hz, norm=norm, cmap="viridis", s=16, marker="s")
+    squares.set_edgecolors(squares.to_rgba(loops.freq_hz))
+    squares.set_facecolors("none")
+    ax_ka.set_ylabel("stiffness (N/m)")
+    ax_ka.set_title("(e) dynamic (dots), secant (squares) vs amplitude")
+    energy = np.where(survey.energy_per_cycle > 0, survey.energy_per_cycle, np.nan)
+    ax_ea.scatter(x_mm, energy, c=loops.freq_hz, norm=norm, cmap="viridis", s=14)
+    ax_ea.set_ylabel("energy per cycle (J)")
+    ax_ea.set_title("(f) energy dissipated per cycle vs amplitude")
+    if np.any(np.isfinite(energy)):
+        ax_ea.set_xscale("log")
+        ax_ea.set_yscale("log")
+        ax_ea.xaxis.set_major_formatter(FormatStrFormatter("%.3g"))
+        ax_ea.xaxis.set_minor_formatter(FormatStrFormatter("%.3g"))
+    for ax in (ax_ka, ax_ea):
+        ax.set_xlabel("amplitude $X_0$ (mm)")
+    bar = fig.colorbar(dots, ax=[ax_ka, ax_ea], label="frequency (Hz)", shrink=0.9)
+    bar.set_ticks(frequency_ticks(loops.freq_hz))
+    bar.ax.yaxis.set_major_formatter(FormatStrFormatter("%.3g"))
+    bar.ax.yaxis.set_minor_formatter(NullFormatter())
     handles, labels = _level_handles(levels)
-    fig.legend(handles, labels, loc="outside upper center", ncol=len(labels))
+    fig.legend(handles, labels, loc="outside upper center", ncol=min(len(labels), 6))
     return save(fig, path)

@@ -225,8 +225,8 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         "xi = (w2 - w1) / (2 w0) (Eq. 2.7, Fig. 6.1). The resolution is what the frequency spacing alone "
         "guarantees; the estimate interpolates between frequencies and is much closer for a 1-DOF response.",
         table(h_head, h_rows),
-        image(figs["half_power"], out_dir, "Compliance per amplitude: loops (dots) and fitted model (lines); "
-              "(b) the resonance with its peak and -3 dB points"),
+        image(figs["half_power"], out_dir, "Compliance per amplitude: loops (dots) and fitted model (lines)"
+              + ("; (b) the resonance with its peak and -3 dB points" if any(hp.ok for hp in result.half_power) else "")),
         "## Runs",
         table(r_head, r_rows),
         image(figs["convergence"], out_dir, "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "

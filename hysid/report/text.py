@@ -15,6 +15,7 @@ import numpy as np
 from hysid import thesis_tables as tt
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
+from hysid_model.survey import survey
 
 if TYPE_CHECKING:
     from coordinator.server import CampaignProgress
@@ -73,6 +74,8 @@ def fixed_text(fixed: dict[str, float]) -> str:
 
 MISFIT = 3.0
 """A residual beyond this many times the noise: the model does not describe the data."""
+STDERR_TRUST = 1.3
+"""A residual beyond this many times the noise makes the standard errors too small (a note says by how much)."""
 
 
 def quality_text(result: "FitResult") -> str:
@@ -87,11 +90,30 @@ def quality_text(result: "FitResult") -> str:
 def fit_warnings(result: "FitResult") -> list[str]:
     """What a reader must know before trusting the numbers: a model that misses the data, parameters on bounds."""
     out = []
+    levels = amplitude_levels(result.loops.x0)[0]
+    slopes = [p.name for t in result.model.terms if t.slope_of for p in t.params if result.model.fixed.get(p.name) == 0.0]
+    if levels.size == 1 and slopes:
+        out.append(
+            f"note: one amplitude level (X0 = {levels[0] * 1e3:.4g} mm) cannot tell {', '.join(slopes)} from xi0, w0: fixed at 0, so "
+            "xi0 and w0 are the damping ratio and natural frequency at that amplitude (bound them in the call to search them anyway)"
+        )
+    if "meq" in result.model.names:
+        found = survey(result.loops)
+        if found.meq_kg is None:
+            out.append(
+                f"note: the equivalent mass is fitted, but the survey cannot estimate it ({found.mass_source.removeprefix('unknown: ')}): "
+                "meq, w0 and xi0 stand for each amplitude's stiffness k and damping c (given below) more than for a resonance"
+            )
     misfit = result.misfit
     if misfit is not None and misfit > MISFIT:
         out.append(
             f"warning: the model does not describe these loops: the residual is {misfit:.3g} x the noise; a diagnosis "
             "(hysid diagnose, or hysid.diagnose) tells what it is missing"
+        )
+    elif misfit is not None and misfit > STDERR_TRUST:
+        out.append(
+            f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
+            f"understate the uncertainty, by a factor of about {misfit:.2g}"
         )
     soft = {p.name for p in result.model.parameters if p.soft}
     given = [n for n in result.at_bounds if n not in soft]
@@ -275,7 +297,7 @@ def reference_text(doc: dict[str, Any]) -> str:
     return out
 
 
-LINEAR_LOOPS = 1.1
+LINEAR_LOOPS = 1.25
 """A linear fit per loop this close to the noise floor (whitened RMS): the loops themselves are linear."""
 
 

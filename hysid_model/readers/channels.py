@@ -8,7 +8,12 @@ hysid maps them the same way:
 * the CSV names ``time_s``, ``displacement_m``, ``force_n`` (case-insensitive),
   else a name ``<quantity>_<unit>`` such as ``Displacement_mm`` or
   ``force_kN``, or the bare ``time``, ``displacement``, ``force`` of a channel
-  whose unit the file states.
+  whose unit the file states, else
+* a name as DAQ software and spreadsheets write it: a word for the quantity
+  (``SYNONYMS``: ``t``, ``disp``, ``x``, ``position``, ``load``, ...) with its
+  unit in brackets, parentheses, after a slash, a space or an underscore
+  (``Time [s]``, ``t/s``, ``DISP_MM``, ``load (kN)``), or with no unit at all
+  (read as SI, with a warning for displacement and force).
 
 Units, in this order: the unit declared in ``dataset.toml``
 (``time_unit``, ``displacement_unit``, ``force_unit``), else the unit the file
@@ -19,9 +24,10 @@ or its name's suffix (``_mm``); the two must then agree. Else SI.
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
 
-from hysid_model.errors import HysidInputError
+from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.readers.dataset_dir import DISPLACEMENT_UNITS, FORCE_UNITS, TIME_UNITS, DatasetConfig
 
 QUANTITIES = ("time", "displacement", "force")
@@ -34,9 +40,16 @@ UNIT_ALIASES = {
     "mm": "mm", "millimeter": "mm", "millimeters": "mm", "millimetre": "mm", "millimetres": "mm",
     "um": "um", "micrometer": "um", "micrometers": "um", "µm": "um", "cm": "cm", "in": "in", "inch": "in", "inches": "in",
     "n": "N", "newton": "N", "newtons": "N", "kn": "kN", "kilonewton": "kN", "kilonewtons": "kN",
-    "mn": "mN", "lbf": "lbf", "lb": "lbf", "kip": "kip", "kips": "kip",
+    "mn": "mN", "lbf": "lbf", "lb": "lbf", "lbs": "lbf", "kip": "kip", "kips": "kip",
 }
 """Unit labels as files write them (lower case) -> the unit names of ``dataset.toml``."""
+SYNONYMS = {
+    "time": ("time", "t", "zeit", "temps", "tiempo", "tempo"),
+    "displacement": ("displacement", "disp", "x", "position", "pos", "deflection", "stroke", "extension", "weg", "dx"),
+    "force": ("force", "load", "f", "kraft", "fz", "load_cell", "loadcell"),
+}
+"""Words a header uses for each quantity (lower case), the quantity's own name first."""
+_LABEL = re.compile(r"^(?P<word>[a-z_]+?)(?:\s*[\[(]\s*(?P<bracket>[^\])]*?)\s*[\])]|\s*/\s*(?P<slash>\w+)|[_ ]+(?:in\s+)?(?P<suffix>[a-zµ]+))?$")
 
 
 @dataclass(frozen=True)
@@ -61,6 +74,23 @@ def _suffix_unit(name: str, quantity: str) -> str | None:
     """``displacement_mm`` -> "mm" (for the quantity's own name only)."""
     match = re.fullmatch(rf"{quantity}_(\w+)", name.strip(), re.IGNORECASE)
     return _unit_of(match.group(1), quantity) or None if match else None
+
+
+def label(name: str, quantity: str) -> tuple[bool, str | None]:
+    """Whether a header ``name`` is one of ``quantity``'s words (``SYNONYMS``) with a unit of it or none, and that
+    unit: ``"Time [s]"`` -> (True, "s"), ``"DISP_MM"`` -> (True, "mm"), ``"x"`` -> (True, None), ``"f [Hz]"`` ->
+    (False, None) for force (Hz is not a force unit)."""
+    text = name.rsplit("/", 1)[-1] if name.count("/") > 1 else name
+    match = _LABEL.fullmatch(text.strip().lower())
+    if match is None:
+        return False, None
+    word, unit_label = match["word"], match["bracket"] or match["slash"] or match["suffix"]
+    if word in SYNONYMS[quantity] and unit_label is None:
+        return True, None
+    if unit_label is not None and word.rstrip("_") in SYNONYMS[quantity]:
+        unit = _unit_of(unit_label, quantity)
+        return (True, unit) if unit else (False, None)
+    return False, None
 
 
 def _configured(config: DatasetConfig | None, quantity: str) -> tuple[str | int | None, str | None]:
@@ -95,6 +125,8 @@ def choose(names: list[str], quantity: str, config: DatasetConfig | None, source
         if not matches:
             stated = file_units or [None] * len(names)
             matches = [i for i, n in enumerate(short) if (n == quantity and stated[i]) or _suffix_unit(n, quantity)]
+        if not matches:
+            matches = [i for i, n in enumerate(names) if label(n, quantity)[0]]
         if len(matches) > 1:
             raise HysidInputError(
                 f"{source}: {len(matches)} {quantity} channels ({', '.join(repr(names[i]) for i in matches)}); "
@@ -105,7 +137,7 @@ def choose(names: list[str], quantity: str, config: DatasetConfig | None, source
                 return None
             raise HysidInputError(
                 f"{source}: no {quantity} channel: expected {DEFAULT_NAMES[quantity]!r} (any case), a name like "
-                f"'{quantity}_<unit>', or {key} in dataset.toml; channels: {listing}"
+                f"'{quantity}_<unit>' or '{quantity.capitalize()} [unit]', or {key} in dataset.toml; channels: {listing}"
             )
         index = matches[0]
     return Channel(index, names[index], *_unit(names[index], quantity, declared, None if file_units is None else file_units[index], source))
@@ -119,10 +151,14 @@ def _unit(name: str, quantity: str, declared: str | None, stated: str | None, so
     from_file = _unit_of(stated, quantity)
     if from_file == "":
         raise HysidInputError(f"{source}: channel {name!r} states the unit {stated!r}, not a {quantity} unit; set {key} in dataset.toml")
-    from_name = _suffix_unit(name.rsplit("/", 1)[-1], quantity)
+    from_name = _suffix_unit(name.rsplit("/", 1)[-1], quantity) or label(name, quantity)[1]
     if from_file and from_name and from_file != from_name:
         raise HysidInputError(
             f"{source}: channel {name!r} states the unit {stated!r} but its name says {from_name}; set {key} in dataset.toml"
         )
-    unit = from_file or from_name or SI[quantity]
+    unit = from_file or from_name
+    if unit is None:
+        if quantity != "time" and name.strip().lower() != DEFAULT_NAMES[quantity]:  # a unit slip in time shows as a wrong frequency
+            warnings.warn(HysidWarning(f"channel {name!r} states no unit: read as {SI[quantity]} (set {key} in dataset.toml if it is not)"), stacklevel=2)
+        unit = SI[quantity]
     return unit, table[unit]

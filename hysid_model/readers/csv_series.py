@@ -137,8 +137,9 @@ def _missing(path: Path, names: list[str], missing: list[str]) -> HysidInputErro
         close = difflib.get_close_matches(name, names, n=1, cutoff=0.5)
         hints.append(f"{name!r}" + (f" (found {close[0]!r})" if close else ""))
     return HysidInputError(
-        f"{path}: missing column {', '.join(hints)}; expected columns {', '.join(COLUMNS)}, found: {', '.join(names)} "
-        "(names in any case, with a unit suffix like displacement_mm, or named in dataset.toml)"
+        f"{path}: missing column {', '.join(hints)}; expected columns {', '.join(COLUMNS)}, the header has: {', '.join(map(repr, names))} "
+        "(names in any case, with a unit like displacement_mm or 'Displacement [mm]'; or name the columns with "
+        "time_channel, displacement_channel, force_channel in dataset.toml)"
     )
 
 

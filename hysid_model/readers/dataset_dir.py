@@ -91,9 +91,10 @@ class ManifestRow:
 
 
 def frequency_in_name(stem: str) -> float | None:
-    """A nominal frequency written in a record's name (``SAMPLE2_05mm_436Hz``, ``0.25Hz30lb...``), else None."""
-    match = re.search(r"(?<![\d.])(\d+(?:\.\d+)?)\s*Hz", stem, re.IGNORECASE)
-    return float(match.group(1)) if match else None
+    """A nominal frequency written in a record's name (``SAMPLE2_05mm_436Hz``, ``0.25Hz30lb...``, with a decimal
+    comma or ``p`` too: ``9,5Hz``, ``9p5Hz``), else None."""
+    match = re.search(r"(?<![\d.,])(\d+(?:[.,p]\d+)?)[\s_]*Hz", stem, re.IGNORECASE)
+    return float(match.group(1).replace(",", ".").replace("p", ".").replace("P", ".")) if match else None
 
 
 def natural_key(name: str) -> list[object]:
