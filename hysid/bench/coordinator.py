@@ -84,35 +84,52 @@ def rss_now_mb() -> float:
         return next(int(line.split()[1]) for line in status if line.startswith("VmRSS:")) / 1024.0
 
 
+class Gaps:
+    """The longest gap between calls of :meth:`tick` from ``start`` to ``end`` (monotonic time), kept
+    as it goes: no list grows with the run, so the process's memory is the coordinator's."""
+
+    def __init__(self, start: float, end: float) -> None:
+        self.start, self.end = start, end
+        self.last: float | None = None
+        self.longest: float | None = None
+        self.ticks = 0
+
+    def tick(self) -> None:
+        now = time.monotonic()
+        if self.start <= now <= self.end:
+            if self.last is not None:
+                self.longest = max(self.longest or 0.0, now - self.last)
+            self.last, self.ticks = now, self.ticks + 1
+
+
 def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, Any]:
     """``islands`` joined islands, each alive (its token seen) and sending :func:`feed`'s traffic to an
     in-process coordinator on a real SQLite file for ``seconds`` (its time limit); the coordinator's
     thread handles every message as it would from Zenoh. Measured: rows and migrant messages sent and
-    stored per second (over the time limit plus the coordinator's wait for the islands' final rows), the lag of each stored row (stored at - sent at: p50, p95, max), the gaps between
-    commits and between stop-rule checks, the deepest inbox and this process's RSS every ``rss_every_s``."""
+    stored per second (over the time limit plus the coordinator's wait for the islands' final rows),
+    the lag of each stored row (stored at - sent at: p50, p95, max), the longest gaps between commits
+    and between stop-rule checks, the deepest inbox and this process's RSS every ``rss_every_s``."""
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
         c = coordinator(Path(tmp), "load", Termination(time_limit_s=seconds))
         creds = [c.admit(f"pso-{i}", "pso", i) for i in range(islands)]
         for cred in creds:
             c.member(cred.island, True)
-        commits: list[float] = []
+        stop, sampled = threading.Event(), threading.Event()
+        rss: list[tuple[float, float]] = []
+        started = time.monotonic()
+        commits, checks = Gaps(started, started + seconds), Gaps(started, started + seconds)
         commit = c.store.commit
 
         def timed_commit(campaign: str | None = None) -> None:
             commit(campaign)
-            commits.append(time.monotonic())
+            commits.tick()
 
         c.store.commit = timed_commit  # type: ignore[method-assign]
-        checks: list[float] = []
         deepest = [0]
 
         def shown(p: Any) -> None:
-            checks.append(time.monotonic())
+            checks.tick()
             deepest[0] = max(deepest[0], len(c.inbox))
-
-        stop, sampled = threading.Event(), threading.Event()
-        rss: list[tuple[float, float]] = []
-        started = time.monotonic()
 
         def sample() -> None:
             while not sampled.is_set():
@@ -133,16 +150,12 @@ def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, A
         starts = {cred.island: sent[i]["start"] for i, cred in enumerate(creds)}
         stored = c.store.db.execute("SELECT island, wall_s, t FROM history WHERE campaign = 'load'").fetchall()
         lag = np.array([t - starts[island] - wall for island, wall, t in stored]) if stored else np.zeros(1)
-        window = [t for t in commits if started <= t <= started + seconds]
-        checks = checks[:-1]  # the last progress line comes after the islands were told to stop
         return {
             "islands": islands, "seconds": seconds, "elapsed_s": elapsed, "history_rows": len(stored), "rows_per_s": len(stored) / elapsed,
             "rows_sent_per_s": sum(s["rows"] for s in sent) / elapsed, "migrations": c.migrations,
             "migrant_messages_per_s": c.migrations / elapsed, "migrant_messages_sent_per_s": sum(s["migrants"] for s in sent) / elapsed,
             "row_lag_s": {"p50": float(np.percentile(lag, 50)), "p95": float(np.percentile(lag, 95)), "max": float(np.max(lag))},
-            "commits": len(window),
-            "max_commit_gap_s": float(np.max(np.diff(window))) if len(window) > 1 else None,
-            "max_stop_check_gap_s": float(np.max(np.diff(checks))) if len(checks) > 1 else None,
+            "commits": commits.ticks, "max_commit_gap_s": commits.longest, "max_stop_check_gap_s": checks.longest,
             "deepest_inbox": deepest[0], "rejected": c.rejected,
             "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "rss_samples": rss,
         }

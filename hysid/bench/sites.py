@@ -28,7 +28,7 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -130,7 +130,8 @@ def campaign(sites: list[Site], time_limit_s: float, workdir: Path) -> dict[str,
     processes: list[subprocess.Popen] = []
     try:
         lab.build()
-        return _campaign(lab, sites, time_limit_s, workdir, processes)
+        with (workdir / "coordinator.log").open("w") as log:
+            return _campaign(lab, sites, time_limit_s, workdir, processes, log)
     finally:
         for p in reversed(processes):
             if p.poll() is None:
@@ -139,13 +140,12 @@ def campaign(sites: list[Site], time_limit_s: float, workdir: Path) -> dict[str,
         lab.destroy()
 
 
-def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, processes: list[subprocess.Popen]) -> dict[str, Any]:
+def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, processes: list[subprocess.Popen], log: TextIO) -> dict[str, Any]:
     netem = lab.has_netem()
     impairments: list[dict[str, Any]] = []
     names = {k: [f"s{k}-i{j}" for j in range(1, site.islands + 1)] for k, site in enumerate(sites, start=1)}
     everyone = [n for group in names.values() for n in group]
     db = Database(workdir / "sites.sqlite")
-    log = (workdir / "coordinator.log").open("w")
     coordinator = subprocess.Popen(
         hysid(lab, lab.hub, "coordinator", "--listen", f"tcp/{lab.hub_address}:{PORT}", "--campaign", CAMPAIGN, "--db", str(db.path),
               "--out", str(workdir / "out"), "--min-islands", str(len(everyone)), "--time-limit", f"{time_limit_s:g}", *ISLAND_SETTINGS, "synth"),
@@ -217,7 +217,8 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
         if island.wait(timeout=time_limit_s + 120) != 0:
             raise RuntimeError(f"island {island.args[-5]} exited with {island.returncode}: {island.stderr.read().strip()[-300:]}")
     if coordinator.wait(timeout=60) != 0:
-        raise RuntimeError(f"coordinator exited with {coordinator.returncode}: see {log.name}")
+        log.flush()
+        raise RuntimeError(f"coordinator exited with {coordinator.returncode}: {Path(log.name).read_text().strip()[-500:]}")
     for router in routers:
         router.terminate()
         router.wait(timeout=10)
