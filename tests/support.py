@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import sqlite3
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
+from hysid.bench.sites import query  # noqa: F401  (read a campaign database while a coordinator writes it)
 from island.run import run
 
 GA_SMALL = dict(initial_population=200, population=40, iterations=5)
@@ -25,19 +25,6 @@ def drive(opt, objective):
 def hysid(*args: str) -> list[str]:
     """The command line of ``hysid ARGS`` as a separate process."""
     return [sys.executable, "-m", "hysid", *args]
-
-
-def query(db: Path, sql: str, *params) -> list[tuple]:
-    """Read a campaign database, also while a coordinator writes it ([] until its tables exist)."""
-    if not db.exists():
-        return []
-    with sqlite3.connect(db, timeout=10) as con:
-        try:
-            return con.execute(sql, params).fetchall()
-        except sqlite3.OperationalError as exc:
-            if "no such table" in str(exc):
-                return []
-            raise
 
 
 def rows_of(db: Path, island: str) -> int:

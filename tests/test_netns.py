@@ -1,33 +1,24 @@
-"""A multi-host campaign on one machine: hosts are Linux network namespaces.
-
-The coordinator's namespace holds a bridge with the address SUBNET.1; every
-other namespace is a host with one veth into that bridge and the address
-SUBNET.(10+k). The namespaces have no default route: traffic goes only between
-their own addresses. Needs root and iproute2 (``ip``); skipped otherwise.
-Namespaces are always deleted, also those left by a killed earlier run.
-"""
+"""A multi-host campaign on one machine: hosts are Linux network namespaces
+(:mod:`hysid.bench.netns`: the coordinator's namespace is the hub). Needs root and
+iproute2 (``ip``); skipped otherwise."""
 
 from __future__ import annotations
 
 import json
-import os
-import re
 import shutil
 import sqlite3
 import subprocess
 import sys
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 import zenoh
 
+from hysid.bench.netns import SUBNET, Lab, NamespacesUnavailable, ip, unavailable
+
 pytestmark = pytest.mark.timeout(60)
 
-SUBNET = "169.254.147"
-"""Link-local /24 used only inside the test's namespaces."""
-PREFIX = "hysidt"
 PORT = 7447
 DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
 HYSID = [sys.executable, "-m", "hysid"]
@@ -40,81 +31,15 @@ TIME_BOXED_CAMPAIGN = [
 """Islands that run until the coordinator's time limit, so that both are members at once."""
 
 
-def ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
-    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=20, check=check)
-
-
-def remove_stale_namespaces() -> None:
-    """Delete namespaces of earlier runs whose process is gone (killed before its cleanup)."""
-    for line in ip("netns", "list", check=False).stdout.splitlines():
-        match = re.match(rf"({PREFIX}(\d+)-\S+)", line)
-        if match and not os.path.exists(f"/proc/{match.group(2)}"):
-            ip("netns", "del", match.group(1), check=False)
-
-
-@dataclass
-class Lab:
-    """Network namespaces joined by a bridge in the coordinator's namespace."""
-
-    hosts: int
-    tag: str = field(default_factory=lambda: f"{PREFIX}{os.getpid()}")
-    made: list[str] = field(default_factory=list)
-
-    @property
-    def hub(self) -> str:
-        return f"{self.tag}-c"
-
-    def host(self, k: int) -> str:
-        return f"{self.tag}-h{k}"
-
-    hub_address = f"{SUBNET}.1"
-
-    @staticmethod
-    def host_address(k: int) -> str:
-        return f"{SUBNET}.{10 + k}"
-
-    def _add(self, name: str) -> None:
-        ip("netns", "add", name)
-        self.made.append(name)
-        ip("-n", name, "link", "set", "lo", "up")
-
-    def build(self) -> None:
-        self._add(self.hub)
-        ip("-n", self.hub, "link", "add", "br0", "type", "bridge")
-        ip("-n", self.hub, "addr", "add", f"{self.hub_address}/24", "dev", "br0")
-        ip("-n", self.hub, "link", "set", "br0", "up")
-        for k in range(1, self.hosts + 1):
-            self._add(self.host(k))
-            port = f"veth{k}"
-            ip("-n", self.hub, "link", "add", port, "type", "veth", "peer", "name", "eth0", "netns", self.host(k))
-            ip("-n", self.hub, "link", "set", port, "master", "br0", "up")
-            ip("-n", self.host(k), "addr", "add", f"{self.host_address(k)}/24", "dev", "eth0")
-            ip("-n", self.host(k), "link", "set", "eth0", "up")
-
-    def destroy(self) -> None:
-        for name in reversed(self.made):
-            ip("netns", "del", name, check=False)
-        self.made.clear()
-
-    def namespaces(self) -> list[str]:
-        return [self.hub, *(self.host(k) for k in range(1, self.hosts + 1))]
-
-    def command(self, namespace: str, *argv: str) -> list[str]:
-        return ["ip", "netns", "exec", namespace, *argv]
-
-
 def lab_or_skip(hosts: int) -> Iterator[Lab]:
-    if os.geteuid() != 0:
-        pytest.skip("network namespaces need root")
-    if shutil.which("ip") is None:
-        pytest.skip("iproute2 'ip' is not installed")
-    remove_stale_namespaces()
+    if reason := unavailable():
+        pytest.skip(reason)
     lab = Lab(hosts)
     try:
         try:
             lab.build()
-        except subprocess.CalledProcessError as exc:
-            pytest.skip(f"cannot create network namespaces here: {' '.join(exc.cmd)}: {exc.stderr.strip()}")
+        except NamespacesUnavailable as exc:
+            pytest.skip(str(exc))
         yield lab
     finally:
         lab.destroy()

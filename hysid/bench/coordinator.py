@@ -5,6 +5,11 @@
   file: the longest gaps between commits, between stop-rule checks and between progress
   lines (targets: commits every 0.5 s, checks within 0.2 s plus one message, progress
   every second), rows stored per second and the deepest inbox;
+* **sustain**: the same load for 3 minutes: the process's resident memory every second
+  and its slope after the first 30 s (MB per minute: about 0 when nothing grows);
+* **ramp**: the same traffic per island from 32, 64, 128, ... islands, 12 s each, until
+  the coordinator lags (a row's p95 delay from sent to stored above 1 s, or fewer than
+  90 % of the rows sent stored): the most islands it held and where it degrades;
 * **backlog**: the same 32 islands with a backlog of 6400 messages queued at once and a
   budget spent after about a quarter of them: seconds from the start to the stop decision
   and how much was still queued (it must not drain the queue first);
@@ -49,12 +54,15 @@ def coordinator(workdir: Path, name: str, termination: Termination | None = None
     return Coordinator(Store(workdir / f"{name}.sqlite"), config, loops, termination)
 
 
-def feed(c: Coordinator, cred: Credentials, seed: int, stop: threading.Event) -> None:
-    """One island's traffic: 200 iterations a second, history every 0.25 s, migrants every 0.05 s."""
+def feed(c: Coordinator, cred: Credentials, seed: int, stop: threading.Event, sent: dict[str, Any]) -> None:
+    """One island's traffic: 200 iterations a second, history every 0.25 s, migrants every 0.05 s.
+    ``sent`` gets the island's start (unix time; its rows' ``wall_s`` count from there), the rows
+    and the migrant messages it sent."""
     x = c.objective.bounds.mean(axis=1)
     f = float(c.objective(x[None, :])[0])
     stats = {"sent": 0, "received": 0, "taken": 0, "rejected": 0}
     it, seq, started = 0, 0, time.monotonic()
+    sent.update(start=time.time(), rows=0, migrants=0)
     next_history = started
     while not stop.is_set():
         now = time.monotonic()
@@ -63,50 +71,136 @@ def feed(c: Coordinator, cred: Credentials, seed: int, stop: threading.Event) ->
             rows = np.array([[i, f, 40 + 35 * i, now - started] for i in range(it, max(top, it + 1))], dtype=float)
             c.receive(f"{c.prefix}/history/{cred.island}", encode_history(History(c.name, cred.island, cred.run, "pso", seed, rows, x, f, stats, seq=seq), cred))
             it, seq, next_history = int(rows[-1, 0]) + 1, seq + 1, next_history + 0.25
+            sent["rows"] += len(rows)
         c.receive(f"{c.prefix}/migrants/{cred.island}", encode_migrants(Migrants(c.name, cred.island, cred.run, it, np.tile(x, (2, 1)), np.full(2, f), time.time(), seq), cred))
         seq += 1
+        sent["migrants"] += 1
         stop.wait(0.05)
 
 
-def load(seconds: float = 10.0) -> dict[str, Any]:
+def rss_now_mb() -> float:
+    """This process's resident memory now (``VmRSS``)."""
+    with open("/proc/self/status", encoding="utf-8") as status:
+        return next(int(line.split()[1]) for line in status if line.startswith("VmRSS:")) / 1024.0
+
+
+class Gaps:
+    """The longest gap between calls of :meth:`tick` from ``start`` to ``end`` (monotonic time), kept
+    as it goes: no list grows with the run, so the process's memory is the coordinator's."""
+
+    def __init__(self, start: float, end: float) -> None:
+        self.start, self.end = start, end
+        self.last: float | None = None
+        self.longest: float | None = None
+        self.ticks = 0
+
+    def tick(self) -> None:
+        now = time.monotonic()
+        if self.start <= now <= self.end:
+            if self.last is not None:
+                self.longest = max(self.longest or 0.0, now - self.last)
+            self.last, self.ticks = now, self.ticks + 1
+
+
+def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, Any]:
+    """``islands`` joined islands, each alive (its token seen) and sending :func:`feed`'s traffic to an
+    in-process coordinator on a real SQLite file for ``seconds`` (its time limit); the coordinator's
+    thread handles every message as it would from Zenoh. Measured: rows and migrant messages sent and
+    stored per second (over the time limit plus the coordinator's wait for the islands' final rows),
+    the lag of each stored row (stored at - sent at: p50, p95, max), the longest gaps between commits
+    and between stop-rule checks, the deepest inbox and this process's RSS every ``rss_every_s``."""
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
         c = coordinator(Path(tmp), "load", Termination(time_limit_s=seconds))
-        creds = [c.admit(f"pso-{i}", "pso", i) for i in range(ISLANDS)]
-        commits: list[float] = []
+        creds = [c.admit(f"pso-{i}", "pso", i) for i in range(islands)]
+        for cred in creds:
+            c.member(cred.island, True)
+        stop, sampled = threading.Event(), threading.Event()
+        rss: list[tuple[float, float]] = []
+        started = time.monotonic()
+        commits, checks = Gaps(started, started + seconds), Gaps(started, started + seconds)
         commit = c.store.commit
 
         def timed_commit(campaign: str | None = None) -> None:
             commit(campaign)
-            commits.append(time.monotonic())
+            commits.tick()
 
         c.store.commit = timed_commit  # type: ignore[method-assign]
-        checks: list[float] = []
         deepest = [0]
 
         def shown(p: Any) -> None:
-            checks.append(time.monotonic())
+            checks.tick()
             deepest[0] = max(deepest[0], len(c.inbox))
 
-        stop = threading.Event()
-        feeders = [threading.Thread(target=feed, args=(c, cred, i, stop), daemon=True) for i, cred in enumerate(creds)]
-        for t in feeders:
+        def sample() -> None:
+            while not sampled.is_set():
+                rss.append((time.monotonic() - started, rss_now_mb()))
+                sampled.wait(rss_every_s)
+
+        sent: list[dict[str, Any]] = [{} for _ in creds]
+        threads = [threading.Thread(target=sample, daemon=True)]
+        threads += [threading.Thread(target=feed, args=(c, cred, i, stop, sent[i]), daemon=True) for i, cred in enumerate(creds)]
+        for t in threads:
             t.start()
-        started = time.monotonic()
         c.serve(MemoryLink(threading.Event()), shown, progress_every_s=0.0)
+        elapsed = time.monotonic() - started  # the time limit plus the wait for the islands' final rows
         stop.set()
-        for t in feeders:
+        sampled.set()
+        for t in threads:
             t.join()
-        rows = c.store.count("history", "load")
-        window = [t for t in commits if started <= t <= started + seconds]
-        checks = checks[:-1]  # the last progress line comes after the islands were told to stop
+        starts = {cred.island: sent[i]["start"] for i, cred in enumerate(creds)}
+        stored = c.store.db.execute("SELECT island, wall_s, t FROM history WHERE campaign = 'load'").fetchall()
+        lag = np.array([t - starts[island] - wall for island, wall, t in stored]) if stored else np.zeros(1)
         return {
-            "islands": ISLANDS, "seconds": seconds, "history_rows": rows, "rows_per_s": rows / seconds,
-            "migrations": c.migrations, "commits": len(window),
-            "max_commit_gap_s": float(np.max(np.diff(window))) if len(window) > 1 else None,
-            "max_stop_check_gap_s": float(np.max(np.diff(checks))) if len(checks) > 1 else None,
+            "islands": islands, "seconds": seconds, "elapsed_s": elapsed, "history_rows": len(stored), "rows_per_s": len(stored) / elapsed,
+            "rows_sent_per_s": sum(s["rows"] for s in sent) / elapsed, "migrations": c.migrations,
+            "migrant_messages_per_s": c.migrations / elapsed, "migrant_messages_sent_per_s": sum(s["migrants"] for s in sent) / elapsed,
+            "row_lag_s": {"p50": float(np.percentile(lag, 50)), "p95": float(np.percentile(lag, 95)), "max": float(np.max(lag))},
+            "commits": commits.ticks, "max_commit_gap_s": commits.longest, "max_stop_check_gap_s": checks.longest,
             "deepest_inbox": deepest[0], "rejected": c.rejected,
-            "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "rss_samples": rss,
         }
+
+
+def load(seconds: float = 10.0) -> dict[str, Any]:
+    """32 islands for ``seconds``: what :func:`drive` measures, without the RSS samples."""
+    r = drive(ISLANDS, seconds)
+    del r["rss_samples"]
+    return r
+
+
+def sustain(seconds: float = 180.0, settle_s: float = 30.0) -> dict[str, Any]:
+    """32 islands for ``seconds``: RSS at the start, after ``settle_s`` and at the end, and its slope
+    (MB per minute, least squares over the samples after ``settle_s``; about 0 when nothing grows)."""
+    r = drive(ISLANDS, seconds)
+    samples = np.array(r.pop("rss_samples"))
+    late = samples[samples[:, 0] >= settle_s]
+    return {**r, "settle_s": settle_s, "rss_first_mb": float(samples[0, 1]), "rss_settled_mb": float(late[0, 1]),
+            "rss_last_mb": float(samples[-1, 1]), "rss_slope_mb_per_min": float(np.polyfit(late[:, 0], late[:, 1], 1)[0] * 60.0),
+            "rss_every_10_s": [[round(t), round(m, 1)] for t, m in samples[::10]]}
+
+
+RAMP = (32, 64, 128, 256, 512)
+LAG_LIMIT_S = 1.0
+"""A row stored more than this after it was sent (p95) means the coordinator lags."""
+
+
+def lags(r: dict[str, Any]) -> bool:
+    """Whether the coordinator fell behind: p95 row lag above ``LAG_LIMIT_S``, or under 90 % of the rows sent stored."""
+    return r["row_lag_s"]["p95"] > LAG_LIMIT_S or r["rows_per_s"] < 0.9 * r["rows_sent_per_s"]
+
+
+def ramp(steps: tuple[int, ...] = RAMP, seconds: float = 12.0) -> dict[str, Any]:
+    """The same traffic from more and more islands, up to the first step where the coordinator lags."""
+    results = []
+    for n in steps:
+        r = drive(n, seconds)
+        del r["rss_samples"]
+        results.append(r)
+        if lags(r):
+            break
+    held = [r["islands"] for r in results if not lags(r)]
+    return {"steps": results, "lag_limit_s": LAG_LIMIT_S, "held_at_islands": max(held, default=None),
+            "degrades_at_islands": results[-1]["islands"] if lags(results[-1]) else None}
 
 
 def backlog(rounds: int = 200, budget: int = 400_000) -> dict[str, Any]:
@@ -189,17 +283,26 @@ def flood(iterations: int = 1000) -> dict[str, Any]:
             "most_migrants_allowed": 2 * iterations + 1}  # k = 2 from its one in-neighbour per migration, plus the global best
 
 
-def run(seconds: float = 10.0) -> dict[str, Any]:
-    """A coordinator with 32 islands (commit, stop-check and progress gaps), a backlog, an island under a migrant flood."""
-    return {"load": load(seconds), "backlog": backlog(), "flood": flood()}
+def run(seconds: float = 10.0, sustain_s: float = 180.0, ramp_s: float = 12.0) -> dict[str, Any]:
+    """A coordinator with 32 islands (gaps, memory over 3 minutes), more islands until it lags, a backlog, an island under a migrant flood."""
+    return {"load": load(seconds), "sustain": sustain(sustain_s), "ramp": ramp(seconds=ramp_s), "backlog": backlog(), "flood": flood()}
 
 
 def to_text(r: dict[str, Any]) -> str:
-    lo, bl, fl = r["load"], r["backlog"], r["flood"]
+    lo, su, ra, bl, fl = r["load"], r["sustain"], r["ramp"], r["backlog"], r["flood"]
+
+    def traffic(x: dict[str, Any]) -> str:
+        return (f"{x['islands']} islands for {x['elapsed_s']:.1f} s: {x['rows_per_s']:,.0f} rows/s stored of {x['rows_sent_per_s']:,.0f} sent, "
+                f"{x['migrant_messages_per_s']:,.0f} migrant messages/s of {x['migrant_messages_sent_per_s']:,.0f}; row lag p50 "
+                f"{x['row_lag_s']['p50']:.3f} s, p95 {x['row_lag_s']['p95']:.3f} s; longest gap between commits {x['max_commit_gap_s']:.3f} s, "
+                f"between stop-rule checks {x['max_stop_check_gap_s']:.3f} s; deepest inbox {x['deepest_inbox']}")
+
     return "\n".join([
-        f"load: {lo['islands']} islands for {lo['seconds']:g} s: {lo['history_rows']:,} rows ({lo['rows_per_s']:,.0f}/s), "
-        f"{lo['migrations']:,} migrant messages, {lo['commits']} commits; longest gap between commits {lo['max_commit_gap_s']:.3f} s, "
-        f"between stop-rule checks {lo['max_stop_check_gap_s']:.3f} s; deepest inbox {lo['deepest_inbox']}; RSS {lo['rss_mb']:.0f} MB",
+        f"load: {traffic(lo)}; RSS {lo['rss_mb']:.0f} MB",
+        f"sustain: {traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
+        f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min",
+        *(f"ramp: {traffic(x)}{' <- lags' if lags(x) else ''}" for x in ra["steps"]),
+        f"ramp: held {ra['held_at_islands']} islands; degrades at {ra['degrades_at_islands'] or 'none of the steps'}",
         f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
         f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)",
         f"flood: an island of {fl['quiet']['iterations']} iterations ran {fl['quiet']['run_s']:.2f} s alone and "

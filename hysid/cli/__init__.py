@@ -15,7 +15,7 @@ from typing import Any, TextIO
 
 import typer
 
-from hysid.cli import bench, campaign, data, diagnose, fit, watch
+from hysid.cli import bench, campaign, data, diagnose, fit, router, watch
 from hysid.cli.options import error_line
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError, HysidWarning
@@ -54,7 +54,7 @@ def root(
     """Identify damping, natural frequency and missing physics from hysteresis loops."""
 
 
-for module in (data, fit, bench, campaign, diagnose, watch):
+for module in (data, fit, bench, campaign, router, diagnose, watch):
     module.register(app)
 
 

@@ -15,8 +15,10 @@ from typing import Any
 
 import typer
 
-from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective
+from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective, sites
+from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
+from hysid_model.errors import HysidInputError
 
 bench_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None)
 BENCH_JSON = typer.Option(False, "--json", help="Print one JSON object (with date and machine) instead of text.")
@@ -58,9 +60,11 @@ def islands_command(
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
 def coordinator_command(
     seconds: float = typer.Option(10.0, "--seconds", help="Duration of the 32-island load."),
+    sustain: float = typer.Option(180.0, "--sustain", help="Duration of the 32-island run whose memory is watched."),
+    ramp: float = typer.Option(12.0, "--ramp-seconds", help="Duration of each step of the island ramp."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    emit(coordinator.run(seconds), coordinator.to_text, as_json)
+    emit(coordinator.run(seconds, sustain, ramp), coordinator.to_text, as_json)
 
 
 @bench_app.command("ingest")
@@ -72,6 +76,18 @@ def ingest_command(
 ) -> None:
     """Ingestion: extraction of raw records against numpy's parse of the same files, and peak memory."""
     emit(ingest.run(records, seconds, rate), ingest.to_text, as_json)
+
+
+@bench_app.command("sites", help=(sites.run.__doc__ or "").strip().splitlines()[0])
+def sites_command(
+    time_limit: float = typer.Option(120.0, "--time-limit", help="Campaign length in s, start-up included (the cut comes 15 s after every island joined)."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    try:
+        result = sites.run(time_limit)
+    except NamespacesUnavailable as exc:
+        raise HysidInputError(f"the sites bench needs network namespaces: {exc}") from None
+    emit(result, sites.to_text, as_json)
 
 
 def bench_names() -> list[str]:
