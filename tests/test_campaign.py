@@ -8,6 +8,7 @@ import signal
 import socket
 import subprocess
 
+import numpy as np
 import pytest
 
 from coordinator.launch import free_port, island_specs, run_campaign
@@ -170,3 +171,52 @@ def test_resuming_a_finished_campaign_reports_it_again_from_the_database(tmp_pat
     assert again["settings"]["stop_reason"] == "every island finished"
     assert again["islands"] == first["islands"] and again["params"] == pytest.approx(first["params"], rel=1e-9)
     assert again["dataset"]["true_params"] == TRUE_PARAMS  # the loop set's metadata travelled through the database
+
+
+def shadow_package(where):
+    """A folder ``hysid/`` in ``where`` that fails on import, as the parent folder of a clone named hysid would."""
+    fake = where / "hysid"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("raise SystemExit('imported the hysid folder of the working directory')\n")
+    (fake / "__main__.py").write_text("")
+    return where
+
+
+@pytest.mark.slow
+def test_a_folder_named_hysid_in_the_working_directory_does_not_shadow_the_islands_package(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(shadow_package(tmp_path / "parent"))
+    argv = ["campaign", "--islands", "2", "--algos", "pso", *SMALL, "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0, capsys.readouterr().err
+    doc = json.loads(capsys.readouterr().out)
+    assert [(i["island"], i["iterations"], i["status"]) for i in doc["islands"]] == [("pso-0", 15, "left"), ("pso-1", 15, "left")]
+
+
+@pytest.mark.slow
+def test_a_failed_campaign_leaves_no_directory_that_blocks_the_next_run(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "o"
+    argv = ["campaign", "--islands", "1", "--algos", "pso", *SMALL, "--no-polish", "--json", "--quiet", "--out", str(out)]
+    monkeypatch.setenv("PYTHONPATH", str(shadow_package(tmp_path / "broken")))  # every island process fails at its start
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hysid: error: ") and "imported the hysid folder" in err
+    assert not out.exists()  # nothing was stored: nothing is kept
+    monkeypatch.delenv("PYTHONPATH")
+    assert main(argv) == 0, capsys.readouterr().err
+
+
+def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, capsys):
+    from hysid.cli.campaign import discard_failed
+
+    out = tmp_path / "o"
+    db = out / "campaign.sqlite"
+    loops = synth_loops(n_points=30)
+    store = Store(db)
+    Coordinator(store, CampaignConfig.create(loops, name="campaign"), loops)
+    store.add_history("campaign", "a", "r", np.array([[0, 1.0, 10, 0.1]]))
+    store.close()
+    discard_failed(out, db, "campaign")  # history: kept
+    assert db.is_file()
+    assert main(["campaign", "--islands", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"holds the database of a campaign that did not finish ({db}, no report.md)" in err
+    assert f"hysid coordinator --resume --db {db}" in err and err.count("\n") == 1

@@ -66,6 +66,26 @@ def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) 
     return path
 
 
+def discard_failed(out: Path, db: Path, campaign_name: str) -> None:
+    """After a failed ``hysid campaign``: the database it made goes if it holds no history row
+    (nothing is lost), and ``out`` with it if that leaves it empty, so that the same ``--out`` works
+    again; a database with history stays (``hysid coordinator --resume`` carries it on, and
+    :func:`hysid.cli.options.report_dir` says so)."""
+    if not db.is_file():
+        return
+    store = Store.read_only(db)
+    try:
+        kept = store.has_campaign(campaign_name) and store.count("history", campaign_name) > 0 or len(store.campaign_list()) > 1
+    finally:
+        store.db.close()
+    if kept:
+        return
+    for suffix in ("", "-wal", "-shm", "-journal", "-reserve"):
+        Path(f"{db}{suffix}").unlink(missing_ok=True)
+    if out.is_dir() and not any(out.iterdir()):
+        out.rmdir()
+
+
 def register(app: typer.Typer) -> None:
     """Add ``campaign``, ``coordinator`` and ``island`` to the hysid app."""
 
@@ -113,14 +133,20 @@ def register(app: typer.Typer) -> None:
         CampaignConfig(name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands)
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
+        new_db = not path.exists()
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed)
-        with Progress("campaign", islands * iterations, enabled=not (quiet or as_json)) as bar:
-            result = campaign(
-                loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
-                algos=algo_list, options=sizes, migration=migration,
-                seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
-                polish=polish, progress=campaign_reporter(bar, islands, iterations, termination),
-            )
+        try:
+            with Progress("campaign", islands * iterations, enabled=not (quiet or as_json)) as bar:
+                result = campaign(
+                    loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
+                    algos=algo_list, options=sizes, migration=migration,
+                    seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
+                    polish=polish, progress=campaign_reporter(bar, islands, iterations, termination),
+                )
+        except BaseException:
+            if new_db:
+                discard_failed(target_dir, path, name)
+            raise
         o.show_result(result, target_dir, as_json, csv)
 
     @app.command("coordinator")

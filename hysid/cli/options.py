@@ -141,6 +141,12 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
     if out.exists() and not out.is_dir():
         raise HysidInputError("exists and is not a directory", param=param, value=out)
     if out.exists() and any(out.iterdir()):
+        if (out / "campaign.sqlite").is_file() and not (out / "report.md").exists():
+            raise HysidInputError(
+                f"holds the database of a campaign that did not finish ({out / 'campaign.sqlite'}, no report.md): carry it on with "
+                f"'hysid coordinator --resume --db {out / 'campaign.sqlite'} --out NEW_DIR', or choose a new directory (nothing was written)",
+                param=param, value=out,
+            )
         raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
     return check_writable(out, param)
 
