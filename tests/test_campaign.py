@@ -220,3 +220,34 @@ def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, caps
     err = capsys.readouterr().err
     assert f"holds the database of a campaign that did not finish ({db}, no report.md)" in err
     assert f"hysid coordinator --resume --db {db}" in err and err.count("\n") == 1
+
+
+def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_the_stop(tmp_path, capsys):
+    argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--population", "20", "--initial", "40", "--interval", "5",
+            "--evaluations", "6000", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["settings"]["stop_reason"] == "budget of 6,000 evaluations spent" and doc["settings"]["until_stopped"] is True
+    ga, pso = doc["islands"]
+    assert ga["algo"] == "ga" and pso["algo"] == "pso"
+    assert abs(ga["iterations"] - pso["iterations"]) <= 5 and ga["iterations"] > 60  # in step to the end, past the old default of 60
+    assert all(i["final"] and i["status"] == "left" and i["received"] > 0 for i in doc["islands"])
+
+
+def test_iterations_given_stay_each_islands_own_budget(tmp_path, capsys):
+    argv = ["campaign", "--single-node", "--islands", "2", *SMALL, "--time", "600", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["settings"]["stop_reason"] == "every island finished" and doc["settings"]["until_stopped"] is False
+    assert [i["iterations"] for i in doc["islands"]] == [15, 15]
+
+
+def test_islands_search_until_stopped_by_default_only_with_a_budget_that_surely_ends():
+    from hysid.campaigns import islands_until_stopped
+    from island.termination import Termination
+
+    assert islands_until_stopped(Termination(budget=10_000), None)
+    assert islands_until_stopped(Termination(time_limit_s=60.0), {"pso": {"population": 20}})
+    assert not islands_until_stopped(Termination(budget=10_000), {"ga": {"iterations": 30}})
+    assert not islands_until_stopped(Termination(target=1e-6, stall=5000), None)  # might never fire
+    assert not islands_until_stopped(None, None)
