@@ -25,11 +25,13 @@ and is handled by one thread, which owns the SQLite store
   whatever the load, and after each commit publishes the sealed ``control``
   message: the roster, how far each island's history is committed (an island
   waits for that before it leaves) and, at the end, the stop order;
-* after a restart (``--resume``) knows every run that joined and asks every
-  live island for the history rows it missed;
+* after a restart (``--resume``) knows every run that joined, takes up again
+  the runs that were alive when it died (lost unless their liveliness token
+  returns within :data:`TOKEN_WAIT_S`), keeps the campaign's stop rules unless
+  new ones are given, and asks every live island for the history rows it missed;
 * stops by the rules of :class:`island.termination.Termination` (a total
   evaluation budget, a target fitness, a stall, a time limit), when every
-  island has finished, or when no island has been alive for
+  island has finished (or finished or was lost), or when no island has been alive for
   :data:`ORPHAN_S`; then re-evaluates every island's best and polishes the
   global best (section 3.1's calculus-based refinement):
   :meth:`Coordinator.outcome` is the raw material of the report that

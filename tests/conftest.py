@@ -21,12 +21,12 @@ def synth():
 @pytest.fixture
 def spawn() -> Iterator[Callable[..., subprocess.Popen]]:
     """Start ``hysid ARGS`` processes (text pipes); whatever is still running at the end is killed (only ours, by pid)."""
-    from support import hysid
+    from support import hysid, interruptible
 
     started: list[subprocess.Popen] = []
 
     def start(*args: str) -> subprocess.Popen:
-        p = subprocess.Popen(hysid(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        p = subprocess.Popen(hysid(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
         started.append(p)
         return p
 

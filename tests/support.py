@@ -27,6 +27,16 @@ def hysid(*args: str) -> list[str]:
     return [sys.executable, "-m", "hysid", *args]
 
 
+def interruptible() -> None:
+    """``Popen(preexec_fn=interruptible)``: SIGINT takes its default action in the child, which Python
+    turns into Ctrl-C (KeyboardInterrupt), also when the test runner itself was started with SIGINT
+    ignored (a background job of a non-interactive shell, as CI runners and nohup loops are): a
+    test's SIGINT then reaches the process as a user's Ctrl-C would."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def query(db: Path, sql: str, *params) -> list[tuple]:
     """Read a campaign database, also while a coordinator writes it ([] until its tables exist)."""
     if not db.exists():

@@ -19,7 +19,7 @@ from hysid_model.errors import HysidWarning
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from support import events, history_iterations, hysid, rows_of, wait_for
+from support import events, history_iterations, hysid, interruptible, rows_of, wait_for
 
 
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
@@ -89,7 +89,7 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
         hysid("coordinator", "--listen", endpoint, "--campaign", "lj", "--db", str(db), "--out", str(tmp_path / "out"),
               "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "10000000", "--interval", "0",
               "--time-limit", "120", "--json", "--quiet"),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
     early = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet"), stderr=subprocess.PIPE, text=True)
     late = None

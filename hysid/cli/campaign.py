@@ -237,7 +237,10 @@ def register(app: typer.Typer) -> None:
         island_id: Optional[str] = typer.Option(
             None, "--id", help="Island name, unique in the campaign (default: the user name of --config's authentication, else island-<host>-<pid>)."
         ),
-        wait: float = typer.Option(30.0, "--wait", help="Seconds to wait for the coordinator."),
+        wait: float = typer.Option(
+            30.0, "--wait",
+            help="Seconds to wait for the coordinator: at the start, for the final confirmation, and for one that fell silent to come back.",
+        ),
         quiet: bool = typer.Option(False, "--quiet", help="Print nothing but errors."),
     ) -> None:
         """Join a campaign: fetch its loop set, optimize, migrate, report history until told to stop."""
