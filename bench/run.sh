@@ -5,6 +5,7 @@
 # Run on a quiet machine (the load average is printed).
 #   bash bench/run.sh              # all benches
 #   bash bench/run.sh objective    # one
+#   bash bench/run.sh islands:mixed   # one part of a bench -> bench/results/islands-mixed-<date>-<host>.json
 set -euo pipefail
 if command -v hysid >/dev/null; then
   cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -22,9 +23,12 @@ mkdir -p bench/results
 stamp="$(date +%F)-$(hostname)"
 status=0
 for name in "${benches[@]}"; do
-  out="bench/results/${name}-${stamp}.json"
-  echo "hysid bench ${name} -> ${out} (load average: $(cut -d' ' -f1-3 /proc/loadavg))" >&2
-  if hysid bench "${name}" --json >"${out}.part"; then
+  bench="${name%%:*}"
+  part=()
+  [ "${name}" != "${bench}" ] && part=("${name#*:}")
+  out="bench/results/${bench}${part:+-${part[0]}}-${stamp}.json"
+  echo "hysid bench ${bench} ${part[*]} -> ${out} (load average: $(cut -d' ' -f1-3 /proc/loadavg))" >&2
+  if hysid bench "${bench}" "${part[@]}" --json >"${out}.part"; then
     mv "${out}.part" "${out}"
   else
     rm -f "${out}.part"

@@ -95,8 +95,10 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
 
 
 def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
+    """``hysid island`` for ``spec`` with this interpreter; ``-P`` keeps the working directory off
+    ``sys.path``, so that a folder named ``hysid`` there (e.g. a clone's parent) cannot shadow the package."""
     return [
-        sys.executable, "-m", "hysid", "island", "--connect", endpoint, "--campaign", campaign,
+        sys.executable, "-P", "-m", "hysid", "island", "--connect", endpoint, "--campaign", campaign,
         "--algo", spec.algo, "--seed", str(spec.seed), "--id", spec.id, "--quiet",
     ]
 

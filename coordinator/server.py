@@ -25,11 +25,13 @@ and is handled by one thread, which owns the SQLite store
   whatever the load, and after each commit publishes the sealed ``control``
   message: the roster, how far each island's history is committed (an island
   waits for that before it leaves) and, at the end, the stop order;
-* after a restart (``--resume``) knows every run that joined and asks every
-  live island for the history rows it missed;
+* after a restart (``--resume``) knows every run that joined, takes up again
+  the runs that were alive when it died (lost unless their liveliness token
+  returns within :data:`TOKEN_WAIT_S`), keeps the campaign's stop rules unless
+  new ones are given, and asks every live island for the history rows it missed;
 * stops by the rules of :class:`island.termination.Termination` (a total
   evaluation budget, a target fitness, a stall, a time limit), when every
-  island has finished, or when no island has been alive for
+  island has finished (or finished or was lost), or when no island has been alive for
   :data:`ORPHAN_S`; then re-evaluates every island's best and polishes the
   global best (section 3.1's calculus-based refinement):
   :meth:`Coordinator.outcome` is the raw material of the report that
@@ -152,6 +154,9 @@ class Member:
     joined_at: float = 0.0
     nonce: bytes = b""
     """The join request that admitted this run (a repeated request gets the same credentials)."""
+    resumed: bool = False
+    """Alive when the previous coordinator died: taken up by this one, lost unless its token shows
+    within :data:`TOKEN_WAIT_S`."""
 
 
 @dataclass(frozen=True)
@@ -213,7 +218,12 @@ class Coordinator:
         self.prefix = key_prefix(config.name)
         self.loops = loops
         self.objective = config.objective(loops)
+        if resume and (termination is None or termination == Termination()):
+            termination = Termination(**config.stop_rules)  # the campaign's own rules, unless new ones are given
         self.termination = termination or Termination()
+        if not resume:
+            config = replace(config, stop_rules=self.termination.as_dict())
+            self.config = config
         self.config_message = encode_config(config, loops)
         if not resume:
             store.create_campaign(self.name, dataset, self.config_message)
@@ -241,6 +251,8 @@ class Coordinator:
         for rec in store.islands(self.name):
             self.run_evaluations[(rec.island, rec.run)] = rec.evaluations
             self.islands[(rec.island, rec.run)] = IslandView(rec.algo, rec.iterations, rec.best_fitness, rec.final)
+        if resume:
+            self._take_up_members()
         self.best: StoredBest | None = store.best(self.name)
         self.best_message: bytes | None = None if self.best is None else self._best_message()
         self.migrations = store.count("migrations", self.name)
@@ -249,7 +261,7 @@ class Coordinator:
         self.stop_reason: str | None = None
         self.full_at: float | None = None
         """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
-        self.idle_since: float | None = self.started if self.runs else None
+        self.idle_since: float | None = self.started if self.runs and not self.members else None
         """Since when no island has been alive, once some joined (None while one is)."""
         self.best_trace: list[tuple[float, float, int, np.ndarray]] = []
         """``(time.monotonic(), fitness, total evaluations, x)`` at every improvement of the global best."""
@@ -390,6 +402,18 @@ class Coordinator:
         self._now_alive()
         return credentials
 
+    def _take_up_members(self) -> None:
+        """After a restart: every island run that was alive when the previous coordinator died (its
+        last membership event says so, it never said goodbye) is a member again, waiting for its
+        liveliness token; :meth:`_settle_departures` records it lost if the token does not show
+        within :data:`TOKEN_WAIT_S`, so an island that died with the coordinator is not listed
+        alive forever, and one that comes back carries on as the same run."""
+        status = {island: STATUS_AFTER[event] for island, event, _ in self.store.members(self.name)}
+        now = time.monotonic()
+        for island, run in self.current.items():
+            if status.get(island) == "alive" and not self.islands.get((island, run), IslandView("")).final:
+                self.members[island] = Member("alive", run, joined_at=now, resumed=True)
+
     def _now_alive(self) -> None:
         alive = sum(m.status == "alive" for m in self.members.values())
         if alive:
@@ -405,7 +429,7 @@ class Coordinator:
             raise MessageRejected("unjoined", f"liveliness token of {island!r}, which never joined")
         member = self.members.get(island)
         if alive:
-            if member is None:  # joined before this coordinator (re)started
+            if member is None or (member.resumed and member.status == "alive"):  # joined before this coordinator (re)started
                 self.members[island] = Member("alive", run, token=True, joined_at=time.monotonic())
                 self._event(island, "join")
             elif member.status != "alive":
@@ -469,7 +493,7 @@ class Coordinator:
     def _optimizer(self, algo: str) -> PopulationOptimizer:
         """An (unused) optimizer with an island's settings: what its evaluation counts may be."""
         if algo not in self._optimizers:
-            self._optimizers[algo] = make_optimizer(algo, self.objective.bounds, 0, self.config.options.get(algo))
+            self._optimizers[algo] = make_optimizer(algo, self.objective.bounds, 0, self.config.island_options(algo))
         return self._optimizers[algo]
 
     def evaluation_bound(self, algo: str, iterations: np.ndarray) -> np.ndarray:
@@ -591,6 +615,11 @@ class Coordinator:
         enough = len({island for island, _ in self.islands} | set(self.members)) >= self.config.min_islands
         if finished and (enough or self.resumed):
             return "every island finished"
+        if not alive and enough and any(v.final for v in self.islands.values()) and all(
+            v.final or self.members.get(island, Member("lost")).status == "lost" or self.current.get(island) != run
+            for (island, run), v in self.islands.items()
+        ):
+            return "every island finished or was lost"
         if not alive and self.idle_since is not None and time.monotonic() - self.idle_since >= ORPHAN_S:
             return f"no island alive for {ORPHAN_S:g} s"
         return None
@@ -749,6 +778,7 @@ class Coordinator:
             "algos": self.config.algos,
             "options": self.config.options,
             "migration": self.config.migration.as_dict(),
+            "until_stopped": self.config.until_stopped,
             "seed": self.config.seed,
             "stop_rules": self.termination.as_dict(),
             "stop_reason": self.stop_reason or self.store.stop_reason(self.name),

@@ -134,6 +134,13 @@ def finish(coordinator: Coordinator, outcome: CampaignOutcome) -> CampaignResult
     return result
 
 
+def islands_until_stopped(termination: Termination | None, options: Mapping[str, Mapping[str, Any]] | None) -> bool:
+    """Whether islands search until the stop order by default: the budget is in evaluations or time
+    (:attr:`Termination.bounded`) and nobody gave an iteration budget."""
+    given = any("iterations" in opts for opts in (options or {}).values())
+    return termination is not None and termination.bounded and not given
+
+
 def campaign(
     loops: LoopSet,
     islands: int = 4,
@@ -154,6 +161,7 @@ def campaign(
     dataset: str = "",
     polish: bool = True,
     progress: Callable[[CampaignProgress], None] | None = None,
+    until_stopped: bool | None = None,
 ) -> CampaignResult:
     """Run ``islands`` GA/PSO islands on ``loops`` to a stop rule and report the polished global best.
 
@@ -164,12 +172,18 @@ def campaign(
     ``initial_population``, ``iterations``, ...), ``migration`` how islands share
     their best, ``termination`` the coordinator's stop rules. The campaign is
     recorded in the SQLite file ``db`` (in memory by default).
+
+    ``until_stopped``: every island searches (and migrates) until the coordinator's
+    stop order, its ``iterations`` off, so that GA and PSO islands overlap for the
+    whole campaign. By default (None) that holds when ``termination`` has an
+    evaluation budget or a time limit and no ``options`` give ``iterations``.
     """
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
         options=options, migration=migration, seed=seed, min_islands=islands, displacement=displacement,
+        until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped,
     )
     store = Store(db)
     try:

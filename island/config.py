@@ -25,6 +25,8 @@ from hysid_model.problem import DISPLACEMENTS, OBJECTIVES, build_objective, disp
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import ALGORITHMS, check_algorithm, make_optimizer
 from island.migration import Migration
+from island.population import MAX_ITERATIONS
+from island.termination import Termination
 from island.protocol import INT64_MAX, MAX_MEMBERS, MessageRejected, check_name
 from island.protocol import decode_config as unpack_config
 from island.protocol import encode_config as pack_config
@@ -70,6 +72,13 @@ class CampaignConfig:
     min_islands: int = 1
     """Islands wait (up to :data:`island.node.START_TIMEOUT_S`) until this many are members before
     they start, so that islands launched together also search together."""
+    until_stopped: bool = False
+    """Islands search until the coordinator's stop order (their own iteration budget is off): with a
+    campaign budget in evaluations or time, fast (GA) and slow (PSO) islands overlap, and migrate,
+    for the whole campaign instead of the fast ones leaving early."""
+    stop_rules: dict[str, Any] = field(default_factory=dict)
+    """The coordinator's :class:`~island.termination.Termination` as plain data (kept with the
+    campaign, so that ``--resume`` stops by the same rules)."""
 
     def __post_init__(self) -> None:
         check_name("campaign", self.name)
@@ -85,8 +94,13 @@ class CampaignConfig:
         for algo, opts in self.options.items():
             if not isinstance(opts, dict) or not all(isinstance(k, str) and _option_value(v) for k, v in opts.items()):
                 raise HysidInputError(f"{algo} options must map names to finite numbers, short strings or booleans")
+        if not isinstance(self.until_stopped, bool):
+            raise HysidInputError("must be true or false", param="until_stopped", value=self.until_stopped)
+        if not isinstance(self.stop_rules, dict) or not set(self.stop_rules) <= set(Termination().as_dict()):
+            raise HysidInputError("must map Termination's fields to values", param="stop_rules", value=self.stop_rules)
+        Termination(**self.stop_rules)
         for algo in self.algos:  # every island's settings are checked here, before any island starts
-            make_optimizer(algo, np.array([[0.0, 1.0]]), 0, self.options.get(algo))
+            make_optimizer(algo, np.array([[0.0, 1.0]]), 0, self.island_options(algo))
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed <= MAX_SEED:
             raise HysidInputError("must be an integer from 0 to 2**62", param="seed", value=self.seed)
         try:
@@ -129,6 +143,7 @@ class CampaignConfig:
         min_islands: int = 1,
         objective_kind: str = "closed_form",
         displacement: str = "measured",
+        until_stopped: bool = False,
     ) -> "CampaignConfig":
         """The configuration of a campaign on ``loops``: the bounds and fixed values ``hysid fit`` would use."""
         m = prepare_model(displaced(loops, displacement), model, bounds=bounds, fixed=fixed)
@@ -147,6 +162,7 @@ class CampaignConfig:
             min_islands=min_islands,
             objective_kind=objective_kind,
             displacement=displacement,
+            until_stopped=until_stopped,
         )
 
     def objective(self, loops: LoopSet) -> Objective | ThesisObjective:
@@ -157,6 +173,14 @@ class CampaignConfig:
             loops, self.model, weights=self.weights, bounds=hard, derived=soft, fixed=self.fixed, kind=self.objective_kind,
             displacement=self.displacement,
         )
+
+    def island_options(self, algo: str) -> dict[str, Any]:
+        """The constructor options of an island running ``algo``: ``options[algo]``, and with
+        :attr:`until_stopped` no iteration budget of its own (the coordinator's stop order ends it)."""
+        options = dict(self.options.get(algo, {}))
+        if self.until_stopped:
+            options["iterations"] = MAX_ITERATIONS
+        return options
 
     def algo_for(self, seed: int) -> str:
         """The algorithm of an island that was not told one: the mix, cycled by seed."""
@@ -178,6 +202,8 @@ class CampaignConfig:
             "objective": self.objective_kind,
             "displacement": self.displacement,
             "min_islands": self.min_islands,
+            "until_stopped": self.until_stopped,
+            "stop_rules": dict(self.stop_rules),
         }
 
     @classmethod
@@ -189,6 +215,7 @@ class CampaignConfig:
                 start=None if d["start"] is None else list(d["start"]),
                 algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"],
                 objective_kind=d["objective"], displacement=d["displacement"], min_islands=d["min_islands"],
+                until_stopped=d.get("until_stopped", False), stop_rules=d.get("stop_rules", {}),  # absent in campaigns stored before them
             )
         except HysidInputError:
             raise

@@ -86,6 +86,9 @@ JOIN_GRACE_S = 5.0
 Zenoh does not order the coordinator's roster before a joiner's first
 publications, so a joiner's first migrants can arrive before the island knows
 it is a member."""
+SILENT_S = 4.0
+"""An island whose coordinator sent no control message for this long (it sends one every second at
+least) says so and waits for it, searching on, up to its ``wait_s`` more; then it stops."""
 HISTORY_QUERIES_PER_S = 4.0
 """History queries an island answers per second (the coordinator asks every 2 s at most)."""
 SINCE_PATTERN = re.compile(r"-?[0-9]{1,16}\Z")
@@ -110,10 +113,14 @@ class Transport(Protocol):
     def members(self) -> list[str]:
         """Islands currently alive in the campaign."""
 
-    def stop_requested(self) -> bool: ...
+    def stop_requested(self) -> bool:
+        """The coordinator ordered the stop, or (Zenoh) it has been silent for longer than the island waits."""
 
     def global_best(self) -> bytes | None:
         """The coordinator's current best message, if there is one (asked once, when the island starts)."""
+
+    def stop_reason(self) -> str:
+        """Why :meth:`stop_requested` holds."""
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
         """Return once ``n`` islands have joined (or after ``timeout_s``, or on a stop order)."""
@@ -136,7 +143,7 @@ class IslandNode:
         history_every_s: float = 0.25,
     ) -> None:
         self.island = check_name("island", island)
-        self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.options.get(algo))
+        self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.island_options(algo))
         self.algo = algo
         self.seed = seed
         self.config = config
@@ -181,7 +188,7 @@ class IslandNode:
         self._best_in = self._decode_best(transport.global_best())
         try:
             run(self.optimizer, self.objective, callback=self._record, should_stop=transport.stop_requested, migrate=self._migrate)
-            self.stop_reason = "stopped by the coordinator" if transport.stop_requested() else "own budget spent"
+            self.stop_reason = transport.stop_reason() if transport.stop_requested() else "own budget spent"
         finally:
             self.finished = True
             self._flush(final=True)
@@ -345,14 +352,21 @@ class ZenohTransport:
     ``history/<id>?run=R;since=N`` with the rows the coordinator is missing
     (after a coordinator restart), and declares the liveliness token
     ``members/<id>`` (last: it tells the coordinator the island is up).
-    ``wait_s`` bounds the join and the final wait for the coordinator's
-    confirmation.
+    ``wait_s`` bounds the join, the final wait for the coordinator's
+    confirmation, and how long the island waits for a coordinator that fell
+    silent (no control message for :data:`SILENT_S`: killed, or cut off) to come
+    back: it keeps its state and searches on, and the Zenoh session reconnects
+    to a coordinator resumed on the same endpoint, which takes the island up as
+    the same run (its rows missed meanwhile fetched again, its best carried on);
+    after ``SILENT_S + wait_s`` of silence the island stops. ``notify`` hears
+    (one line each) when the coordinator falls silent and when it is back.
     """
 
-    def __init__(self, session: zenoh.Session, node: IslandNode, wait_s: float = 30.0) -> None:
+    def __init__(self, session: zenoh.Session, node: IslandNode, wait_s: float = 30.0, notify: Callable[[str], None] | None = None) -> None:
         self.session = session
         self.node = node
         self.wait_s = wait_s
+        self.notify = notify or (lambda message: None)
         prefix = key_prefix(node.config.name)
         self.prefix = prefix
         self.credentials = join(session, node.config.name, node.island, node.algo, node.seed, wait_s, node.count_rejected)
@@ -362,6 +376,11 @@ class ZenohTransport:
         self._roster: dict[tuple[str, str], tuple[bool, int]] = {}
         """(island, run) -> (alive, stored) as the coordinator's last control message said."""
         self._stop = ""
+        self._heard_at = time.monotonic()
+        """When the coordinator was last heard (a control message, or the join)."""
+        self._silent = False
+        self._gone = ""
+        """Why the island stopped on its own: its coordinator was silent for too long."""
         self._queries: deque[float] = deque(maxlen=int(HISTORY_QUERIES_PER_S))
         self._migrants = session.declare_publisher(f"{prefix}/migrants/{node.island}")
         self._history = session.declare_publisher(f"{prefix}/history/{node.island}", congestion_control=zenoh.CongestionControl.BLOCK)
@@ -392,6 +411,10 @@ class ZenohTransport:
             self._control_seq = control.seq
             self._roster = {(m.island, m.run): (m.alive, m.stored) for m in control.members}
             self._stop = self._stop or control.stop
+            silent_s, self._heard_at = time.monotonic() - self._heard_at, time.monotonic()
+            if self._silent:
+                self._silent = False
+                self.notify(f"island {self.node.island}: the coordinator of campaign {self.node.config.name!r} is back after {silent_s:.0f} s of silence; carrying on")
             self._cond.notify_all()
 
     def _on_history_query(self, query: zenoh.Query) -> None:
@@ -429,7 +452,24 @@ class ZenohTransport:
 
     def stop_requested(self) -> bool:
         with self._cond:
-            return bool(self._stop)
+            if self._stop or self._gone:
+                return True
+            silent_s = time.monotonic() - self._heard_at
+            if silent_s >= SILENT_S and not self._silent:
+                self._silent = True
+                self.notify(
+                    f"island {self.node.island}: the coordinator of campaign {self.node.config.name!r} has been silent for "
+                    f"{silent_s:.0f} s; searching on and waiting up to {self.wait_s:g} s (--wait) for it to come back"
+                )
+            if silent_s >= SILENT_S + self.wait_s:
+                self._gone = f"the coordinator was silent for {silent_s:.0f} s"
+                self.notify(f"island {self.node.island}: {self._gone}; stopping")
+                self._cond.notify_all()
+            return bool(self._gone)
+
+    def stop_reason(self) -> str:
+        with self._cond:
+            return self._gone or "stopped by the coordinator"
 
     def global_best(self) -> bytes | None:
         for reply in self.session.get(f"{self.prefix}/best", timeout=2.0):
@@ -439,7 +479,7 @@ class ZenohTransport:
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
         with self._cond:
-            self._cond.wait_for(lambda: self._joined_count() >= n or bool(self._stop), timeout=timeout_s)
+            self._cond.wait_for(lambda: self._joined_count() >= n or bool(self._stop or self._gone), timeout=timeout_s)
 
     def confirm(self, iteration: int) -> bool:
         """Wait up to ``wait_s`` for a control message saying rows up to ``iteration`` are committed."""
@@ -534,6 +574,9 @@ class MemoryTransport:
 
     def stop_requested(self) -> bool:
         return self.bus.stop.is_set()
+
+    def stop_reason(self) -> str:
+        return "stopped by the coordinator"
 
     def global_best(self) -> bytes | None:
         return None

@@ -3,7 +3,10 @@
 Any rule that is set can end the search: a budget of objective evaluations, a
 target fitness, a stall (evaluations since the best last improved) or a wall
 time limit. An optimizer's own iteration budget (section 5.1: 18 iterations)
-ends its run as well; a coordinator adds "every island finished".
+ends its run as well, unless a campaign lets its islands search until its
+coordinator's stop order (:attr:`island.config.CampaignConfig.until_stopped`,
+the default when the budget is in evaluations or time: :attr:`Termination.bounded`);
+a coordinator adds "every island finished".
 """
 
 from __future__ import annotations
@@ -33,6 +36,12 @@ class Termination:
             raise HysidInputError("must be a finite fitness >= 0", param="target", value=self.target)
         if self.time_limit_s is not None and not (isinstance(self.time_limit_s, (int, float)) and self.time_limit_s > 0):
             raise HysidInputError("must be a positive number of seconds", param="time_limit_s", value=self.time_limit_s)
+
+    @property
+    def bounded(self) -> bool:
+        """A rule that surely fires is set (an evaluation budget or a time limit): a campaign can let
+        its islands search until its stop order instead of each spending an iteration budget."""
+        return self.budget is not None or self.time_limit_s is not None
 
     def reason(self, *, evaluations: int, best: float, best_at: int, elapsed_s: float) -> str | None:
         """Why the search ends now, or None: ``best`` is the best fitness so far, found after ``best_at`` evaluations."""

@@ -1,5 +1,9 @@
 """Shared fixtures."""
 
+import signal
+import subprocess
+from collections.abc import Callable, Iterator
+
 import pytest
 
 from hysid_model.model import build_model
@@ -12,3 +16,23 @@ def synth():
     """The thesis model and its objective on the noiseless Synth set."""
     model = build_model("thesis").fix(meq=MEQ_KG)
     return model, Objective(synth_loops(0), model)
+
+
+@pytest.fixture
+def spawn() -> Iterator[Callable[..., subprocess.Popen]]:
+    """Start ``hysid ARGS`` processes (text pipes); whatever is still running at the end is killed (only ours, by pid)."""
+    from support import hysid, interruptible
+
+    started: list[subprocess.Popen] = []
+
+    def start(*args: str) -> subprocess.Popen:
+        p = subprocess.Popen(hysid(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
+        started.append(p)
+        return p
+
+    yield start
+    for p in started:
+        if p.poll() is None:
+            p.send_signal(signal.SIGCONT)
+            p.kill()
+        p.communicate(timeout=30)

@@ -27,6 +27,16 @@ def hysid(*args: str) -> list[str]:
     return [sys.executable, "-m", "hysid", *args]
 
 
+def interruptible() -> None:
+    """``Popen(preexec_fn=interruptible)``: SIGINT takes its default action in the child, which Python
+    turns into Ctrl-C (KeyboardInterrupt), also when the test runner itself was started with SIGINT
+    ignored (a background job of a non-interactive shell, as CI runners and nohup loops are): a
+    test's SIGINT then reaches the process as a user's Ctrl-C would."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def rows_of(db: Path, island: str) -> int:
     """History rows of an island."""
     found = query(db, "SELECT count(*) FROM history WHERE island = ?", island)
@@ -58,6 +68,42 @@ def wait_for(predicate: Callable[[], bool], timeout: float, what: str, step: flo
     return time.monotonic() - start
 
 
+def ready(endpoint: str, campaign: str, timeout: float = 90.0) -> None:
+    """Wait until the coordinator of ``campaign`` answers its ``config`` query on ``endpoint`` (a
+    coordinator process just started may not even listen yet): the readiness wait of every test
+    that starts one, instead of a sleep."""
+    from island.node import fetch_config
+    from island.session import open_session, session_config
+
+    deadline = time.monotonic() + timeout
+    session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=timeout), endpoint)
+    try:
+        fetch_config(session, campaign, max(deadline - time.monotonic(), 1.0))
+    finally:
+        session.close()
+
+
+class Lines:
+    """Every line a process writes to one of its pipes, collected by a thread (read while it runs)."""
+
+    def __init__(self, pipe) -> None:
+        import threading
+
+        self.lines: list[str] = []
+        self.thread = threading.Thread(target=self._read, args=(pipe,), daemon=True)
+        self.thread.start()
+
+    def _read(self, pipe) -> None:
+        for line in pipe:
+            self.lines.append(line)
+
+    def text(self) -> str:
+        return "".join(self.lines)
+
+    def wait_for(self, fragment: str, timeout: float) -> None:
+        wait_for(lambda: fragment in self.text(), timeout, f"{fragment!r} in the output")
+
+
 class Peer:
     """A hand-driven island over Zenoh, for broken or hostile ones: it joins like an island (unless
     ``joined=False``), then sends whatever a test wants under any key of the campaign."""
@@ -68,7 +114,7 @@ class Peer:
         from island.session import open_session, session_config
 
         self.campaign, self.island = campaign, island
-        self.session = open_session(session_config("client", connect=[endpoint]), endpoint)
+        self.session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=60.0), endpoint)
         self.credentials = join(self.session, campaign, island, algo, seed, 30.0) if joined else None
         self.seq = Counter()
         self.entities: list = []

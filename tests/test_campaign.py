@@ -8,6 +8,7 @@ import signal
 import socket
 import subprocess
 
+import numpy as np
 import pytest
 
 from coordinator.launch import free_port, island_specs, run_campaign
@@ -18,7 +19,7 @@ from hysid_model.errors import HysidWarning
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from support import events, history_iterations, hysid, rows_of, wait_for
+from support import events, history_iterations, hysid, interruptible, rows_of, wait_for
 
 
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
@@ -88,7 +89,7 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
         hysid("coordinator", "--listen", endpoint, "--campaign", "lj", "--db", str(db), "--out", str(tmp_path / "out"),
               "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "10000000", "--interval", "0",
               "--time-limit", "120", "--json", "--quiet"),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
     early = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet"), stderr=subprocess.PIPE, text=True)
     late = None
@@ -170,3 +171,83 @@ def test_resuming_a_finished_campaign_reports_it_again_from_the_database(tmp_pat
     assert again["settings"]["stop_reason"] == "every island finished"
     assert again["islands"] == first["islands"] and again["params"] == pytest.approx(first["params"], rel=1e-9)
     assert again["dataset"]["true_params"] == TRUE_PARAMS  # the loop set's metadata travelled through the database
+
+
+def shadow_package(where):
+    """A folder ``hysid/`` in ``where`` that fails on import, as the parent folder of a clone named hysid would."""
+    fake = where / "hysid"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("raise SystemExit('imported the hysid folder of the working directory')\n")
+    (fake / "__main__.py").write_text("")
+    return where
+
+
+@pytest.mark.slow
+def test_a_folder_named_hysid_in_the_working_directory_does_not_shadow_the_islands_package(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(shadow_package(tmp_path / "parent"))
+    argv = ["campaign", "--islands", "2", "--algos", "pso", *SMALL, "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0, capsys.readouterr().err
+    doc = json.loads(capsys.readouterr().out)
+    assert [(i["island"], i["iterations"], i["status"]) for i in doc["islands"]] == [("pso-0", 15, "left"), ("pso-1", 15, "left")]
+
+
+@pytest.mark.slow
+def test_a_failed_campaign_leaves_no_directory_that_blocks_the_next_run(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "o"
+    argv = ["campaign", "--islands", "1", "--algos", "pso", *SMALL, "--no-polish", "--json", "--quiet", "--out", str(out)]
+    monkeypatch.setenv("PYTHONPATH", str(shadow_package(tmp_path / "broken")))  # every island process fails at its start
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hysid: error: ") and "imported the hysid folder" in err
+    assert not out.exists()  # nothing was stored: nothing is kept
+    monkeypatch.delenv("PYTHONPATH")
+    assert main(argv) == 0, capsys.readouterr().err
+
+
+def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, capsys):
+    from hysid.cli.campaign import discard_failed
+
+    out = tmp_path / "o"
+    db = out / "campaign.sqlite"
+    loops = synth_loops(n_points=30)
+    store = Store(db)
+    Coordinator(store, CampaignConfig.create(loops, name="campaign"), loops)
+    store.add_history("campaign", "a", "r", np.array([[0, 1.0, 10, 0.1]]))
+    store.close()
+    discard_failed(out, db, "campaign")  # history: kept
+    assert db.is_file()
+    assert main(["campaign", "--islands", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"holds the database of a campaign that did not finish ({db}, no report.md)" in err
+    assert f"hysid coordinator --resume --db {db}" in err and err.count("\n") == 1
+
+
+def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_the_stop(tmp_path, capsys):
+    argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--population", "20", "--initial", "40", "--interval", "5",
+            "--evaluations", "6000", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["settings"]["stop_reason"] == "budget of 6,000 evaluations spent" and doc["settings"]["until_stopped"] is True
+    ga, pso = doc["islands"]
+    assert ga["algo"] == "ga" and pso["algo"] == "pso"
+    assert abs(ga["iterations"] - pso["iterations"]) <= 5 and ga["iterations"] > 60  # in step to the end, past the old default of 60
+    assert all(i["final"] and i["status"] == "left" and i["received"] > 0 for i in doc["islands"])
+
+
+def test_iterations_given_stay_each_islands_own_budget(tmp_path, capsys):
+    argv = ["campaign", "--single-node", "--islands", "2", *SMALL, "--time", "600", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    assert main(argv) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["settings"]["stop_reason"] == "every island finished" and doc["settings"]["until_stopped"] is False
+    assert [i["iterations"] for i in doc["islands"]] == [15, 15]
+
+
+def test_islands_search_until_stopped_by_default_only_with_a_budget_that_surely_ends():
+    from hysid.campaigns import islands_until_stopped
+    from island.termination import Termination
+
+    assert islands_until_stopped(Termination(budget=10_000), None)
+    assert islands_until_stopped(Termination(time_limit_s=60.0), {"pso": {"population": 20}})
+    assert not islands_until_stopped(Termination(budget=10_000), {"ga": {"iterations": 30}})
+    assert not islands_until_stopped(Termination(target=1e-6, stall=5000), None)  # might never fire
+    assert not islands_until_stopped(None, None)

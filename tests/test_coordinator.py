@@ -250,11 +250,24 @@ def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_rep
 
 def test_a_resumed_campaign_nobody_comes_back_to_ends_after_the_orphan_wait(tmp_path, link, monkeypatch):
     monkeypatch.setattr("coordinator.server.ORPHAN_S", 0.2)
+    monkeypatch.setattr("coordinator.server.TOKEN_WAIT_S", 0.5)
     c = make(tmp_path)
     c.admit("pso-0", "pso", 0)  # joined, never finished
     c.store.close()
     again = resume(Store(tmp_path / "c.sqlite"), "c1")
+    assert again.progress().members == {"pso-0": "alive"}  # alive when the coordinator died: waited for, not forgotten
     assert again.serve(MemoryLink(threading.Event())) == "no island alive for 0.2 s"
+    assert [e for i, e, _ in again.store.members("c1")] == ["join", "lost"]  # not listed alive forever
+
+
+def test_a_resumed_coordinator_keeps_the_stop_rules_of_its_campaign(tmp_path, link):
+    c = make(tmp_path, Termination(budget=12_345, stall=999))
+    c.store.close()
+    again = resume(Store(tmp_path / "c.sqlite"), "c1")
+    assert again.termination == Termination(budget=12_345, stall=999)
+    again.store.close()
+    other = resume(Store(tmp_path / "c.sqlite"), "c1", Termination(time_limit_s=5.0))  # rules given again replace them
+    assert other.termination == Termination(time_limit_s=5.0)
 
 
 def test_the_inbox_serves_sources_in_turn_and_bounds_each():

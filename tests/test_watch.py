@@ -12,7 +12,7 @@ import pytest
 
 from hysid.cli import main
 from hysid.campaigns import CampaignResult
-from support import hysid, rows_of, screen_of, wait_for
+from support import hysid, interruptible, rows_of, screen_of, wait_for
 
 SMALL = ["--population", "20", "--initial", "40"]
 ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
@@ -78,7 +78,7 @@ def start_campaign(tmp_path, islands: int = 2):
     proc = subprocess.Popen(
         hysid("campaign", "--single-node", "--islands", str(islands), "--algos", "pso", *SMALL, "--iterations", "10000000",
               "--time-limit", "300", "--quiet", "--json", "--db", str(db), "--out", str(tmp_path / "out")),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
     wait_for(lambda: all(rows_of(db, f"pso-{i}") > 20 for i in range(islands)), 120, "both islands' history")
     return db, proc

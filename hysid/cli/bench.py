@@ -50,10 +50,10 @@ def accuracy_command(
 
 @bench_app.command("islands")
 def islands_command(
-    part: str = typer.Argument("all", help="speedup, migration, pygmo, latency or all."),
+    part: str = typer.Argument("all", help="speedup, migration, mixed, pygmo, latency or all."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    """Island model: 2-island speedup, migration vs isolation, hysid vs pygmo, migration latency."""
+    """Island model: 2-island speedup, migration vs isolation, mixed vs single-algorithm islands, hysid vs pygmo, migration latency."""
     emit(islands.run(islands.PARTS if part == "all" else [part]), islands.to_text, as_json)
 
 

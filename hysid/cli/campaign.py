@@ -12,6 +12,7 @@ import os
 import re
 import socket
 import sys
+import threading
 import warnings
 import zlib
 from pathlib import Path
@@ -39,6 +40,8 @@ from island.termination import Termination
 
 
 MAX_WAIT_S = 86400.0
+WAIT_NOTICE_S = 1.0
+"""An island still without its coordinator after this says that it waits."""
 
 
 def print_progress(p: CampaignProgress) -> None:
@@ -66,6 +69,26 @@ def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) 
     return path
 
 
+def discard_failed(out: Path, db: Path, campaign_name: str) -> None:
+    """After a failed ``hysid campaign``: the database it made goes if it holds no history row
+    (nothing is lost), and ``out`` with it if that leaves it empty, so that the same ``--out`` works
+    again; a database with history stays (``hysid coordinator --resume`` carries it on, and
+    :func:`hysid.cli.options.report_dir` says so)."""
+    if not db.is_file():
+        return
+    store = Store.read_only(db)
+    try:
+        kept = store.has_campaign(campaign_name) and store.count("history", campaign_name) > 0 or len(store.campaign_list()) > 1
+    finally:
+        store.db.close()
+    if kept:
+        return
+    for suffix in ("", "-wal", "-shm", "-journal", "-reserve"):
+        Path(f"{db}{suffix}").unlink(missing_ok=True)
+    if out.is_dir() and not any(out.iterdir()):
+        out.rmdir()
+
+
 def register(app: typer.Typer) -> None:
     """Add ``campaign``, ``coordinator`` and ``island`` to the hysid app."""
 
@@ -81,7 +104,7 @@ def register(app: typer.Typer) -> None:
         random_k: int = o.RANDOM_K,
         population: int = o.POPULATION,
         initial: int = o.INITIAL,
-        iterations: int = o.ITERATIONS,
+        iterations: Optional[int] = o.ITERATIONS,
         seed: int = o.SEED,
         model: str = o.MODEL,
         weights: Optional[str] = o.WEIGHTS,
@@ -106,22 +129,29 @@ def register(app: typer.Typer) -> None:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
         bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         algo_list = o.parse_algos(algos)
+        termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
+        iterations, until_stopped = o.island_budget(iterations, termination)
         sizes = o.island_sizes(population, initial, iterations)
         migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
-        termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
         check_name("campaign", name)
         island_specs(islands, algo_list, seed)  # every setting is checked before the report directory is made
-        CampaignConfig(name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands)
+        CampaignConfig(name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands, until_stopped=until_stopped)
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
+        new_db = not path.exists()
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
-        with Progress("campaign", islands * iterations, enabled=not (quiet or as_json)) as bar:
-            result = campaign(
-                loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
-                algos=algo_list, options=sizes, migration=migration,
-                seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
-                polish=polish, progress=campaign_reporter(bar, islands, iterations, termination),
-            )
+        try:
+            with Progress("campaign", islands * (iterations or 0) or 100, enabled=not (quiet or as_json)) as bar:
+                result = campaign(
+                    loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
+                    algos=algo_list, options=sizes, migration=migration,
+                    seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
+                    polish=polish, progress=campaign_reporter(bar, islands, iterations, termination), until_stopped=until_stopped,
+                )
+        except BaseException:
+            if new_db:
+                discard_failed(target_dir, path, name)
+            raise
         o.show_result(result, target_dir, as_json, csv)
 
     @app.command("coordinator")
@@ -141,7 +171,7 @@ def register(app: typer.Typer) -> None:
         random_k: int = o.RANDOM_K,
         population: int = o.POPULATION,
         initial: int = o.INITIAL,
-        iterations: int = o.ITERATIONS,
+        iterations: Optional[int] = o.ITERATIONS,
         seed: int = o.SEED,
         model: str = o.MODEL,
         weights: Optional[str] = o.WEIGHTS,
@@ -171,12 +201,14 @@ def register(app: typer.Typer) -> None:
         target_dir = o.report_dir(out, "coordinator")
         path = database(db, target_dir, name, resuming=resume_db)
         if not resume_db:  # every argument is checked before the database is written or a session opened
+            iterations, until_stopped = o.island_budget(iterations, termination)
             sizes = o.island_sizes(population, initial, iterations)
             migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
             loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
             config = CampaignConfig.create(
                 loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
                 algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands,
+                until_stopped=until_stopped,
             )
         store = Store(path)
         try:
@@ -207,7 +239,10 @@ def register(app: typer.Typer) -> None:
         island_id: Optional[str] = typer.Option(
             None, "--id", help="Island name, unique in the campaign (default: the user name of --config's authentication, else island-<host>-<pid>)."
         ),
-        wait: float = typer.Option(30.0, "--wait", help="Seconds to wait for the coordinator."),
+        wait: float = typer.Option(
+            30.0, "--wait",
+            help="Seconds to wait for the coordinator: at the start, for the final confirmation, and for one that fell silent to come back.",
+        ),
         quiet: bool = typer.Option(False, "--quiet", help="Print nothing but errors."),
     ) -> None:
         """Join a campaign: fetch its loop set, optimize, migrate, report history until told to stop."""
@@ -223,13 +258,24 @@ def register(app: typer.Typer) -> None:
         if island_id is not None and identity is not None and island_id != identity:
             raise HysidInputError(f"this island authenticates as {identity!r} (user name in {config_file}); its id is that name", param="island", value=island_id)
         island = check_name("island", island_id or identity or default_island_id())
-        session = open_session(zconfig, f"connect {', '.join(connect) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
+        where = ', '.join(connect) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)
+        waiting = threading.Timer(WAIT_NOTICE_S, lambda: say(f"island {island}: no coordinator of campaign {name!r} at {where} yet; waiting up to {wait:g} s (--wait)"))
+        waiting.start()  # an island started before its coordinator waits for it, and says so
         try:
-            config, loops = decode_config(fetch_config(session, name, wait), name)
+            session = open_session(zconfig, f"connect {where}")
+            try:
+                message = fetch_config(session, name, wait)
+            except BaseException:
+                session.close()
+                raise
+        finally:
+            waiting.cancel()
+        try:
+            config, loops = decode_config(message, name)
             seed_ = seed if seed is not None else config.seed + zlib.crc32(island.encode()) % (1 << 20)
             algo_ = algo or config.algo_for(seed_)
             node = IslandNode(island, algo_, seed_, config, config.objective(loops))
-            transport = ZenohTransport(session, node, wait)
+            transport = ZenohTransport(session, node, wait, notify=say)
             try:
                 node.run(transport)
             finally:
@@ -251,6 +297,11 @@ def register(app: typer.Typer) -> None:
                 f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}",
                 file=sys.stderr,
             )
+
+
+def say(message: str) -> None:
+    """A line about the island's wait for its coordinator, on stderr (also with --quiet: it is about a fault)."""
+    print(f"hysid: {message}", file=sys.stderr, flush=True)
 
 
 def default_island_id() -> str:

@@ -19,6 +19,7 @@ from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
 from hysid_model.model import PRESETS
 from island.algorithms import ALGORITHMS
+from island.termination import Termination
 
 FLAGS = {
     "model": "--model",
@@ -43,7 +44,7 @@ FLAGS = {
     "topology": "--topology",
     "random_k": "--random-k",
     "min_islands": "--min-islands",
-    "budget": "--budget",
+    "budget": "--evaluations",
     "target": "--target",
     "stall": "--stall",
     "time_limit_s": "--time-limit",
@@ -97,15 +98,21 @@ CSV = typer.Option(False, "--csv", help="Also write the result's tables as CSV f
 ALGOS = typer.Option("ga,pso", "--algos", help="Comma-separated algorithm mix the islands cycle through (ga, pso).")
 POPULATION = typer.Option(200, "--population", help="GA population / PSO swarm of each island (the thesis: 500).")
 INITIAL = typer.Option(2000, "--initial", help="Initial random population / swarm of each island (the thesis: 6000).")
-ITERATIONS = typer.Option(60, "--iterations", help="Iterations of each island: its own budget (the thesis: 18).")
+ISLAND_ITERATIONS = 60
+"""Each island's iteration budget when neither --iterations nor an evaluation or time budget is given."""
+ITERATIONS = typer.Option(
+    None, "--iterations",
+    help=f"Iterations of each island: its own budget (the thesis: 18). Default: none with --evaluations or --time "
+    f"(every island searches and migrates until the campaign stops), else {ISLAND_ITERATIONS}.",
+)
 TOPOLOGY = typer.Option("ring", "--topology", help="Who takes migrants from whom: ring, full or random.")
 INTERVAL = typer.Option(5, "--interval", help="Migrate every N iterations (0: isolated islands).")
 MIGRANTS = typer.Option(2, "--migrants", help="Best candidates each island sends per migration.")
 RANDOM_K = typer.Option(2, "--random-k", help="Neighbours of each island per migration with --topology random.")
-BUDGET = typer.Option(None, "--budget", help="Stop after this many evaluations over all islands.")
+BUDGET = typer.Option(None, "--evaluations", "--budget", help="Stop after this many evaluations over all islands (--budget is the same).")
 TARGET = typer.Option(None, "--target", help="Stop once the global best fitness is at or below this.")
 STALL = typer.Option(None, "--stall", help="Stop after this many evaluations without improvement of the global best.")
-TIME_LIMIT = typer.Option(None, "--time-limit", help="Stop after this many seconds.")
+TIME_LIMIT = typer.Option(None, "--time-limit", "--time", help="Stop after this many seconds (--time is the same).")
 DB = typer.Option(None, "--db", help="Campaign database (SQLite; default OUT/campaign.sqlite).")
 CONFIG = typer.Option(None, "--config", help="Zenoh configuration file (JSON5); authoritative for mode, TLS, auth, ACL, lease.")
 CAMPAIGN = typer.Option("default", "--campaign", help="Campaign name: its key space is hysid/<name>/**.")
@@ -141,6 +148,12 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
     if out.exists() and not out.is_dir():
         raise HysidInputError("exists and is not a directory", param=param, value=out)
     if out.exists() and any(out.iterdir()):
+        if (out / "campaign.sqlite").is_file() and not (out / "report.md").exists():
+            raise HysidInputError(
+                f"holds the database of a campaign that did not finish ({out / 'campaign.sqlite'}, no report.md): carry it on with "
+                f"'hysid coordinator --resume --db {out / 'campaign.sqlite'} --out NEW_DIR', or choose a new directory (nothing was written)",
+                param=param, value=out,
+            )
         raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
     return check_writable(out, param)
 
@@ -224,8 +237,18 @@ def parse_algos(value: str) -> list[str]:
     return algos
 
 
-def island_sizes(population: int, initial: int, iterations: int) -> dict[str, dict[str, Any]]:
-    """The per-island sizes of ``--population``, ``--initial``, ``--iterations`` for every algorithm."""
+def island_sizes(population: int, initial: int, iterations: int | None) -> dict[str, dict[str, Any]]:
+    """The per-island sizes of ``--population``, ``--initial``, ``--iterations`` (None: not given) for every algorithm."""
     if initial < population:
         raise HysidInputError(f"must be at least --population {population}", param="initial_population", value=initial)
-    return {algo: {"population": population, "initial_population": initial, "iterations": iterations} for algo in ALGORITHMS}
+    counts = {} if iterations is None else {"iterations": iterations}
+    return {algo: {"population": population, "initial_population": initial, **counts} for algo in ALGORITHMS}
+
+
+def island_budget(iterations: int | None, termination: Termination) -> tuple[int | None, bool]:
+    """Each island's iteration budget and whether it searches until the campaign stops: without
+    ``--iterations``, a budget in evaluations or time (:attr:`Termination.bounded`) lets every island
+    run until the stop order, else each runs :data:`ISLAND_ITERATIONS`."""
+    if iterations is not None:
+        return iterations, False
+    return (None, True) if termination.bounded else (ISLAND_ITERATIONS, False)

@@ -97,16 +97,17 @@ class Progress:
         )
 
 
-def campaign_done(p: CampaignProgress, islands: int, iterations: int, termination: Termination) -> float:
-    """How far a campaign is, in island iterations of ``islands x iterations``: the furthest of the islands'
-    own budgets and the stop rules that can be measured in advance (evaluation budget, time limit)."""
-    total = max(islands * iterations, 1)
-    fractions = [sum(min(v.iteration, iterations) for v in p.islands.values()) / total]
+def campaign_done(p: CampaignProgress, islands: int, iterations: int | None, termination: Termination) -> float:
+    """How far a campaign is, in island iterations of ``islands x iterations`` (in percent when islands
+    search until the stop order, ``iterations`` None): the furthest of the islands' own budgets and the
+    stop rules that can be measured in advance (evaluation budget, time limit)."""
+    total = islands * iterations if iterations else 100
+    fractions = [sum(min(v.iteration, iterations) for v in p.islands.values()) / total] if iterations else []
     if termination.budget:
         fractions.append(p.evaluations / termination.budget)
     if termination.time_limit_s:
         fractions.append(p.elapsed_s / termination.time_limit_s)
-    return min(max(fractions), 1.0) * total
+    return min(max(fractions, default=0.0), 1.0) * total
 
 
 def campaign_status(p: CampaignProgress) -> str:
@@ -115,7 +116,7 @@ def campaign_status(p: CampaignProgress) -> str:
     return f"best {p.best:.4g} | members {alive} | migrations {p.migrations}" + (f" | rejected {p.rejected}" if p.rejected else "")
 
 
-def campaign_reporter(bar: Progress, islands: int, iterations: int, termination: Termination) -> Callable[[CampaignProgress], None] | None:
+def campaign_reporter(bar: Progress, islands: int, iterations: int | None, termination: Termination) -> Callable[[CampaignProgress], None] | None:
     """The coordinator's progress callback for ``bar``: the bar on a terminal, else one line per
     report (:func:`hysid.report.text.campaign_progress_line`); None when the bar is off."""
     if not bar.enabled:
