@@ -86,36 +86,6 @@ def test_a_frozen_island_is_lost_within_3_s_and_back_after_sigcont(spawn, tmp_pa
     assert a.wait(30) == b.wait(30) == 0
 
 
-def contiguous(db: Path) -> dict[str, list[int]]:
-    got: dict[str, list[int]] = {}
-    for isl, it in query(db, "SELECT island, iteration FROM history ORDER BY island, iteration"):
-        got.setdefault(isl, []).append(it)
-    return got
-
-
-def test_a_killed_coordinator_resumes_from_sqlite_without_losing_history(spawn, tmp_path):
-    endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "r.sqlite"
-    first = coordinator(spawn, endpoint, "resume", db, "--min-islands", "2")
-    islands = [island(spawn, endpoint, "resume", n) for n in ("a", "b")]
-    wait_for(lambda: rows_of(db, "a") > 30 and rows_of(db, "b") > 30, 60, "both islands' history")
-    first.send_signal(signal.SIGKILL)
-    first.communicate(timeout=30)
-    before = contiguous(db)
-    time.sleep(1.5)  # the islands go on iterating with nobody to hear them
-    second = spawn("coordinator", "--listen", endpoint, "--campaign", "resume", "--db", str(db), "--resume",
-                   "--out", str(tmp_path / "out2"), "--json", "--quiet", "--time-limit", "12")
-    doc = finished(second)
-    after = contiguous(db)
-    for name in ("a", "b"):
-        assert after[name][: len(before[name])] == before[name]  # nothing stored before the crash was lost
-        assert after[name] == list(range(len(after[name])))  # and the rows missed while down were fetched
-        assert len(after[name]) > len(before[name]) + 50
-        assert events(db, name) == ["join", "join", "left"]  # joined, seen again by the resumed coordinator, left
-    assert {i["island"] for i in doc["islands"]} == {"a", "b"}
-    assert doc["evaluations"] >= sum(i["evaluations"] for i in doc["islands"])
-    assert all(p.wait(30) == 0 for p in islands)
-
-
 def bad_messages(n: int, evil: Peer) -> list[tuple[str, bytes, str]]:
     """``n`` bad migrant messages of a joined but broken island (key suffix, payload, expected
     reason), cycling through kinds; sealed with its own keys, so that each reaches the check it fails."""

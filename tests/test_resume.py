@@ -49,7 +49,7 @@ def iterations(db: Path, island: str) -> list[int]:
 
 def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own_rule(spawn, tmp_path):
     """SIGKILL the coordinator and one of three islands mid-campaign, resume on the same endpoint and
-    database (no stop rule repeated), start a new island: the survivors rejoin carrying on, the dead
+    database (no stop rule repeated), a new island waiting for it: the survivors rejoin carrying on, the dead
     island is recorded lost, no history row is lost, the new island takes migrants from the
     survivors, and the campaign ends by its evaluation budget with the right answer."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "r.sqlite"
@@ -66,8 +66,9 @@ def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own
     assert spent_before < budget / 2
     for name in ("a", "c"):  # the survivors notice, and wait
         islands[name][1].wait_for("has been silent", 60)
+    late, late_err = start_island(spawn, endpoint, "back", "d", "--wait", "60")  # a new island, waiting for the coordinator
+    late_err.wait_for("no coordinator of campaign 'back' at", 60)
     second = start_coordinator(spawn, endpoint, "back", db, tmp_path / "out2", "--resume")
-    late, late_err = start_island(spawn, endpoint, "back", "d", "--wait", "60")
     doc = finished(second)
     # (b) it did not stop at once: it stopped by the stored budget, after the islands spent it
     assert doc["settings"]["stop_reason"] == f"budget of {budget:,} evaluations spent"
