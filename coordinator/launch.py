@@ -32,6 +32,9 @@ from island.session import open_session, session_config
 ISLAND_EXIT_WAIT_S = 15.0
 MEMORY_WAIT_S = 5.0
 """How long an island thread waits for room in the coordinator's inbox before its message is dropped."""
+MEMORY_HISTORY_EVERY_S = 0.02
+"""How often an island thread sends its history: in memory a message costs little, and the
+coordinator's count of evaluations (budget, adaptive share) follows the islands closely."""
 
 
 @dataclass(frozen=True)
@@ -63,8 +66,12 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
     bus = MemoryBus(
         coordinator.name, [s.id for s in specs], lambda key, data: coordinator.receive(key, data, wait_s=MEMORY_WAIT_S), stop,
         admit=lambda island, algo, seed: coordinator.admit(island, algo, seed),
+        assigned=lambda island: coordinator.assigned.get((island, coordinator.current.get(island, ""))),
     )
-    nodes = [IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops)) for s in specs]
+    nodes = [
+        IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops), history_every_s=MEMORY_HISTORY_EVERY_S)
+        for s in specs
+    ]
     transports = [bus.transport(node.island, node.algo, node.seed) for node in nodes]
     errors: list[BaseException] = []
 

@@ -21,6 +21,10 @@ and is handled by one thread, which owns the SQLite store
 * keeps the global best, **re-evaluating** every candidate it receives (a
   claimed fitness is never trusted, neither to take nor to skip one) and
   publishes it for late joiners;
+* in a mixed campaign with the ``adaptive`` share (:mod:`island.share`),
+  credits each improvement of the global best to the finder's algorithm and,
+  after each round, moves an island of a lagging algorithm to the leading one
+  (stored, and told to the island in the roster of the ``control`` message);
 * commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
   whatever the load, and after each commit publishes the sealed ``control``
   message: the roster, how far each island's history is committed (an island
@@ -87,6 +91,7 @@ from island.protocol import (
     encode_joined,
 )
 from island.run import RunResult, polish_run
+from island.share import Move, Share
 from island.termination import Termination
 
 LEAVE_GRACE_S = 0.3
@@ -111,6 +116,8 @@ PASS_S = 0.2
 """Longest stretch of message handling between two checks of the stop rules and progress."""
 CONTROL_EVERY_S = 1.0
 """The control message goes out after commits that changed something, and at least this often."""
+SHARE_ROUND_ITERATIONS = 10
+"""Iterations per island in one round of the adaptive share when islands do not migrate."""
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
 FITNESS_TOLERANCE = 1e-6
@@ -246,6 +253,15 @@ class Coordinator:
         for island, run, key, algo, seed in store.runs(self.name):
             self.runs[(island, run)] = RunInfo(key, algo, seed)
             self.current[island] = run
+        self.share = Share(config.algos) if config.share == "adaptive" and len(set(config.algos)) > 1 else None
+        """The adaptive share of a mixed campaign (None: every island keeps its algorithm)."""
+        self.moves: list[Move] = store.moves(self.name)
+        self.gains: dict[tuple[str, str], float] = {}
+        """Per run, the gain of its own moves its last history message reported (:mod:`island.share`)."""
+        self.assigned: dict[tuple[str, str], str] = {key: info.algo for key, info in self.runs.items()}
+        """The algorithm each run is to run: the one it joined with, unless the share moved it."""
+        for move in self.moves:
+            self.assigned[(move.island, move.run)] = move.dst
         self.islands: dict[tuple[str, str], IslandView] = {}
         self.run_evaluations: dict[tuple[str, str], int] = {}
         for rec in store.islands(self.name):
@@ -395,6 +411,7 @@ class Coordinator:
         credentials = Credentials.issue(island, self.campaign_key)
         self.store.add_run(self.name, island, credentials.run, credentials.key, algo, seed)
         self.runs[(island, credentials.run)] = RunInfo(credentials.key, algo, seed)
+        self.assigned[(island, credentials.run)] = algo
         self.current[island] = credentials.run
         self.members[island] = Member("alive", credentials.run, joined_at=time.monotonic(), nonce=nonce)
         self._event(island, "join")
@@ -505,16 +522,21 @@ class Coordinator:
         epochs = np.floor_divide(iterations, mig.interval) if mig.interval else np.zeros_like(iterations)
         return self._optimizer(algo).evaluation_bound(iterations) + epochs * max(len(self.runs) - 1, 0) * mig.k + 2
 
+    def _algos_of(self, key: tuple[str, str]) -> list[str]:
+        """The algorithms a run has been told to run: the one it joined with, then where the share moved it."""
+        return list(dict.fromkeys([self.runs[key].algo] + [m.dst for m in self.moves if (m.island, m.run) == key]))
+
     def _plausible(self, h: History, info: RunInfo) -> None:
         """:class:`MessageRejected` ("implausible") for counters the island cannot have reached."""
-        if (h.algo, h.seed) != (info.algo, info.seed):
+        algos = self._algos_of((h.island, h.run))
+        if h.algo not in algos or h.seed != info.seed:
             raise MessageRejected("implausible", f"history of a {h.algo} run with seed {h.seed}; it joined as {info.algo} with seed {info.seed}")
-        opt = self._optimizer(info.algo)
         if h.rows.size:
             iterations = h.rows[:, 0]
-            if iterations[-1] > opt.iterations:
-                raise MessageRejected("implausible", f"iteration {iterations[-1]:.0f} beyond the island's budget of {opt.iterations}")
-            bound = self.evaluation_bound(info.algo, iterations)
+            budget = max(self._optimizer(a).iterations for a in algos)
+            if iterations[-1] > budget:
+                raise MessageRejected("implausible", f"iteration {iterations[-1]:.0f} beyond the island's budget of {budget}")
+            bound = np.max([self.evaluation_bound(a, iterations) for a in algos], axis=0)
             if np.any(h.rows[:, 2] > bound):
                 i = int(np.argmax(h.rows[:, 2] > bound))
                 raise MessageRejected("implausible", f"{h.rows[i, 2]:.0f} evaluations after iteration {iterations[i]:.0f}, at most {bound[i]:.0f} possible")
@@ -557,7 +579,11 @@ class Coordinator:
             h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final,
         ))
         self.run_evaluations[key] = max(self.run_evaluations.get(key, 0), evaluations)
+        if self.share is not None and key in self.gains:  # (the first message after a join or a restart sets the baseline)
+            self.share.credit(h.algo, h.gain - self.gains[key])
+        self.gains[key] = max(self.gains.get(key, 0.0), h.gain)
         view = self.islands.setdefault(key, IslandView(h.algo))
+        view.algo = h.algo
         view.iteration = max(view.iteration, iterations)
         view.best = min(view.best, f)
         view.final = view.final or h.final
@@ -566,6 +592,24 @@ class Coordinator:
         if member is not None and member.run == h.run and h.final and member.status == "alive" and member.gone_at is not None:
             self._leave(h.island, member, "left")
         self._consider(link, h.island, h.best_x, f)
+        self._review_share()
+
+    def _review_share(self) -> None:
+        """After a round of every alive island's migration interval, the adaptive share's moves
+        (:mod:`island.share`): stored, and told to the islands with the next control message."""
+        if self.share is None or self.stop_reason is not None:
+            return
+        alive = {
+            (island, m.run): (self.assigned[(island, m.run)], self.islands.get((island, m.run), IslandView("")).best)
+            for island, m in self.members.items() if m.status == "alive" and (island, m.run) in self.assigned
+        }
+        per_iteration = max(self._optimizer(a).population + self._optimizer(a).addpop_number for a in self.config.algos)
+        round_evaluations = len(alive) * (self.config.migration.interval or SHARE_ROUND_ITERATIONS) * per_iteration
+        for move in self.share.review(self.evaluations, round_evaluations, alive):
+            self.store.add_move(self.name, move)
+            self.moves.append(move)
+            self.assigned[(move.island, move.run)] = move.dst
+            self._changed = True
 
     def _migrants(self, link: Link, m: Migrants) -> None:
         check_replay(self._replays, "migrants", m.island, m.run, m.seq)
@@ -594,7 +638,9 @@ class Coordinator:
     def control_message(self, stop: str = "") -> bytes:
         """The sealed roster (every run that joined, alive or not, and how far its rows are committed)
         and the stop order, tagged for every island with its latest run's key."""
-        members = tuple(MemberState(island, run, self._alive(island, run), self._contiguous((island, run))) for island, run in self.runs)
+        members = tuple(
+            MemberState(island, run, self._alive(island, run), self._contiguous((island, run)), self.assigned[(island, run)]) for island, run in self.runs
+        )
         self._control_seq = max(self._control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
         keys = {island: self.runs[(island, run)].key for island, run in self.current.items()}
         return encode_control(Control(self.name, members, stop, self._control_seq), self.run_id, keys)
@@ -779,6 +825,8 @@ class Coordinator:
             "options": self.config.options,
             "migration": self.config.migration.as_dict(),
             "until_stopped": self.config.until_stopped,
+            "share": self.config.share,
+            "moves": [m.as_dict() for m in self.store.moves(self.name)],
             "seed": self.config.seed,
             "stop_rules": self.termination.as_dict(),
             "stop_reason": self.stop_reason or self.store.stop_reason(self.name),

@@ -30,6 +30,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from hysid_model.errors import HysidInputError
+from island.share import Move
 
 T = TypeVar("T")
 
@@ -61,6 +62,9 @@ CREATE TABLE IF NOT EXISTS best (
 CREATE TABLE IF NOT EXISTS runs (
     campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, key BLOB NOT NULL, algo TEXT NOT NULL,
     seed INTEGER NOT NULL, joined REAL NOT NULL, PRIMARY KEY (campaign, island, run));
+CREATE TABLE IF NOT EXISTS moves (
+    id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, src TEXT NOT NULL,
+    dst TEXT NOT NULL, evaluations INTEGER NOT NULL, credit TEXT NOT NULL, t REAL NOT NULL);
 CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL);
 CREATE TABLE IF NOT EXISTS commits (campaign TEXT PRIMARY KEY, t REAL NOT NULL);
 """
@@ -284,11 +288,12 @@ class Store:
 
     @_writes
     def update_island(self, campaign: str, record: IslandRecord) -> None:
-        """Upsert an island run's counters; iterations and evaluations only grow."""
+        """Upsert an island run's counters (iterations and evaluations only grow) and its latest algorithm."""
         r = record
         self.db.execute(
             """INSERT INTO islands VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
                ON CONFLICT (campaign, island, run) DO UPDATE SET
+               algo = CASE WHEN excluded.iterations >= iterations THEN excluded.algo ELSE algo END,
                iterations = max(iterations, excluded.iterations), evaluations = max(evaluations, excluded.evaluations),
                best_x = CASE WHEN excluded.best_fitness < best_fitness THEN excluded.best_x ELSE best_x END,
                best_fitness = min(best_fitness, excluded.best_fitness), sent = max(sent, excluded.sent),
@@ -328,6 +333,19 @@ class Store:
     @_writes
     def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int) -> None:
         self.db.execute("INSERT INTO runs VALUES (?, ?, ?, ?, ?, ?, ?)", (campaign, island, run, key, algo, seed, time.time()))
+
+    @_writes
+    def add_move(self, campaign: str, move: Move) -> None:
+        """An island run the adaptive share moved to another algorithm (:mod:`island.share`)."""
+        self.db.execute(
+            "INSERT INTO moves (campaign, island, run, src, dst, evaluations, credit, t) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (campaign, move.island, move.run, move.src, move.dst, move.evaluations, json.dumps(move.credit), time.time()),
+        )
+
+    def moves(self, campaign: str) -> list[Move]:
+        """The moves of the campaign in the order they were made."""
+        rows = self.db.execute("SELECT island, run, src, dst, evaluations, credit FROM moves WHERE campaign = ? ORDER BY id", (campaign,))
+        return [Move(i, r, a, b, int(e), json.loads(c)) for i, r, a, b, e, c in rows]
 
     def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int]]:
         """Every run that joined: ``(island, run, key, algo, seed)`` in the order they joined."""

@@ -162,6 +162,7 @@ def campaign(
     polish: bool = True,
     progress: Callable[[CampaignProgress], None] | None = None,
     until_stopped: bool | None = None,
+    share: str = "adaptive",
 ) -> CampaignResult:
     """Run ``islands`` GA/PSO islands on ``loops`` to a stop rule and report the polished global best.
 
@@ -177,13 +178,17 @@ def campaign(
     stop order, its ``iterations`` off, so that GA and PSO islands overlap for the
     whole campaign. By default (None) that holds when ``termination`` has an
     evaluation budget or a time limit and no ``options`` give ``iterations``.
+
+    ``share``: with several ``algos``, ``adaptive`` (default) moves islands to the
+    algorithm that improves the global best (:mod:`island.share`; the moves are in
+    ``result.fit.settings["moves"]``), ``fixed`` keeps every island's algorithm.
     """
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
         options=options, migration=migration, seed=seed, min_islands=islands, displacement=displacement,
-        until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped,
+        until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped, share=share,
     )
     store = Store(db)
     try:

@@ -30,3 +30,13 @@ def check_algorithm(algo: Any, param: str = "algo") -> str:
 def make_optimizer(algo: str, bounds: np.ndarray, seed: int, options: dict[str, Any] | None = None) -> PopulationOptimizer:
     """A seeded optimizer of ``algo`` on ``bounds`` with keyword ``options`` (thesis settings where not given)."""
     return ALGORITHMS[check_algorithm(algo)](bounds, seed, **(options or {}))
+
+
+def switch_algorithm(optimizer: PopulationOptimizer, algo: str, options: dict[str, Any] | None = None) -> PopulationOptimizer:
+    """``optimizer``'s search carried on by ``algo`` with keyword ``options`` (same bounds and seed;
+    :meth:`~island.population.PopulationOptimizer.carry_on`), or ``optimizer`` itself if it runs ``algo``."""
+    if ALGORITHMS[check_algorithm(algo)] is type(optimizer):
+        return optimizer
+    switched = make_optimizer(algo, optimizer.bounds, optimizer.seed, options)
+    switched.carry_on(optimizer)
+    return switched

@@ -26,6 +26,7 @@ from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import ALGORITHMS, check_algorithm, make_optimizer
 from island.migration import Migration
 from island.population import MAX_ITERATIONS
+from island.share import check_share
 from island.termination import Termination
 from island.protocol import INT64_MAX, MAX_MEMBERS, MessageRejected, check_name
 from island.protocol import decode_config as unpack_config
@@ -76,6 +77,9 @@ class CampaignConfig:
     """Islands search until the coordinator's stop order (their own iteration budget is off): with a
     campaign budget in evaluations or time, fast (GA) and slow (PSO) islands overlap, and migrate,
     for the whole campaign instead of the fast ones leaving early."""
+    share: str = "adaptive"
+    """How the islands are shared between :attr:`algos` (:mod:`island.share`): ``adaptive`` moves
+    islands to the algorithm that improves the global best, ``fixed`` keeps each island's algorithm."""
     stop_rules: dict[str, Any] = field(default_factory=dict)
     """The coordinator's :class:`~island.termination.Termination` as plain data (kept with the
     campaign, so that ``--resume`` stops by the same rules)."""
@@ -96,6 +100,7 @@ class CampaignConfig:
                 raise HysidInputError(f"{algo} options must map names to finite numbers, short strings or booleans")
         if not isinstance(self.until_stopped, bool):
             raise HysidInputError("must be true or false", param="until_stopped", value=self.until_stopped)
+        check_share(self.share)
         if not isinstance(self.stop_rules, dict) or not set(self.stop_rules) <= set(Termination().as_dict()):
             raise HysidInputError("must map Termination's fields to values", param="stop_rules", value=self.stop_rules)
         Termination(**self.stop_rules)
@@ -144,6 +149,7 @@ class CampaignConfig:
         objective_kind: str = "closed_form",
         displacement: str = "measured",
         until_stopped: bool = False,
+        share: str = "adaptive",
     ) -> "CampaignConfig":
         """The configuration of a campaign on ``loops``: the bounds and fixed values ``hysid fit`` would use."""
         m = prepare_model(displaced(loops, displacement), model, bounds=bounds, fixed=fixed)
@@ -163,6 +169,7 @@ class CampaignConfig:
             objective_kind=objective_kind,
             displacement=displacement,
             until_stopped=until_stopped,
+            share=share,
         )
 
     def objective(self, loops: LoopSet) -> Objective | ThesisObjective:
@@ -203,6 +210,7 @@ class CampaignConfig:
             "displacement": self.displacement,
             "min_islands": self.min_islands,
             "until_stopped": self.until_stopped,
+            "share": self.share,
             "stop_rules": dict(self.stop_rules),
         }
 
@@ -216,6 +224,7 @@ class CampaignConfig:
                 algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"],
                 objective_kind=d["objective"], displacement=d["displacement"], min_islands=d["min_islands"],
                 until_stopped=d.get("until_stopped", False), stop_rules=d.get("stop_rules", {}),  # absent in campaigns stored before them
+                share=d.get("share", "fixed"),
             )
         except HysidInputError:
             raise

@@ -192,10 +192,11 @@ class GA(PopulationOptimizer):
     def _finish(self, kind: str, x: np.ndarray, f: np.ndarray) -> None:
         if kind == "initial":
             keep = np.argsort(f, kind="stable")[: self.population]
-            self.pop, self.fit = x[keep], f[keep]
+            self._adopt(x[keep], f[keep])
             self.history.append(float(self.fit[0]))
             return
         mu = self.population
+        self._gained(float(self.fit[0]), float(np.min(f[:mu])))
         pool_x, pool_f = [x[:mu]], [f[:mu]]
         if x.shape[0] > mu:
             j = mu + int(np.argmin(f[mu:]))
@@ -207,6 +208,9 @@ class GA(PopulationOptimizer):
         keep = np.argsort(fs, kind="stable")[:mu]
         self.pop, self.fit = xs[keep], fs[keep]
         self._complete_iteration(self.fit[0])
+
+    def _adopt(self, x: np.ndarray, f: np.ndarray) -> None:
+        self.pop, self.fit = x, f
 
     def _take(self, x: np.ndarray, f: float) -> bool:
         if not f < self.fit[-1]:

@@ -19,6 +19,9 @@ evaluate -> tell) and uses its hooks:
 * who is a member, and the stop order, come from the coordinator's sealed
   ``control`` messages (a liveliness token alone makes nobody a member);
 * a late joiner takes the coordinator's current global best the same way;
+* when the roster assigns its run another algorithm (a mixed campaign's
+  adaptive share, :mod:`island.share`), it carries its search on with that
+  algorithm from the next iteration;
 * it stops at the coordinator's stop order or when its own budget is spent,
   then waits (bounded) until the coordinator confirms it has committed every
   history row, serving the rows it asks for again (e.g. after a restart).
@@ -45,7 +48,7 @@ import zenoh
 from hysid_model.errors import HysidInputError
 from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
-from island.algorithms import make_optimizer
+from island.algorithms import make_optimizer, switch_algorithm
 from island.config import CampaignConfig
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
@@ -128,6 +131,9 @@ class Transport(Protocol):
     def confirm(self, iteration: int) -> bool:
         """Wait (bounded) until the coordinator has committed this run's rows up to ``iteration``."""
 
+    def assigned_algo(self) -> str | None:
+        """The algorithm the coordinator tells this run to run (None: it has not said)."""
+
 
 class IslandNode:
     """One island of a campaign (see the module docstring)."""
@@ -153,6 +159,8 @@ class IslandNode:
         self.stats = dict.fromkeys(STAT_NAMES, 0)
         self.rows: list[tuple[int, float, int, float]] = []
         self.migrant_evaluations = 0
+        self.moves: list[tuple[int, str, str]] = []
+        """``(iteration, from, to)`` each time the coordinator moved this island to another algorithm."""
         self.stop_reason = ""
         self.finished = False
         """The run is over (its last history message says so)."""
@@ -226,8 +234,22 @@ class IslandNode:
             self._latest.pop(m.island, None)
             self._latest[m.island] = (time.monotonic(), m)
 
-    def _migrate(self, optimizer: PopulationOptimizer) -> None:
+    def _follow_assignment(self) -> PopulationOptimizer:
+        """The optimizer to go on with: this one, or its search carried on by the algorithm the
+        coordinator now assigns this run (a mixed campaign's adaptive share, :mod:`island.share`)."""
+        assert self._transport is not None
+        algo = self._transport.assigned_algo()
+        if algo is not None and algo != self.algo and algo in self.config.algos:
+            self.optimizer = switch_algorithm(self.optimizer, algo, self.config.island_options(algo))
+            self.moves.append((self.optimizer.iteration, self.algo, algo))
+            self.algo = algo
+        return self.optimizer
+
+    def _migrate(self, optimizer: PopulationOptimizer) -> PopulationOptimizer:
+        """After an iteration: follow a new assignment, take the starting point and the global best
+        in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
         assert self._transport is not None and self.credentials is not None
+        optimizer = self._follow_assignment()
         if optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
             x = np.array(self.config.start, dtype=float)[None, :]
             self.migrant_evaluations += 1
@@ -237,7 +259,7 @@ class IslandNode:
             self._best_in = None
         mig = self.config.migration
         if mig.interval == 0 or optimizer.iteration == 0 or optimizer.iteration % mig.interval:
-            return
+            return optimizer
         epoch = optimizer.iteration // mig.interval
         x, f = optimizer.best(mig.k)
         outgoing = encode_migrants(
@@ -250,6 +272,7 @@ class IslandNode:
         members = self._transport.members()
         senders = in_neighbours(mig.topology, members, self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k)
         self._take(self._intake(senders, set(members), mig.k))
+        return optimizer
 
     def _intake(self, senders: set[str], members: set[str], k: int) -> list[np.ndarray]:
         """The newest untaken message of each in-neighbour (at most ``k`` migrants from each); migrants
@@ -300,7 +323,7 @@ class IslandNode:
         return [
             encode_history(History(
                 self.config.name, self.island, self.run_id, self.algo, self.seed, chunk, x, f, stats,
-                final and i == len(chunks) - 1, self._seq(),
+                final and i == len(chunks) - 1, self._seq(), self.optimizer.gain,
             ), self.credentials)
             for i, chunk in enumerate(chunks)
         ]
@@ -375,6 +398,8 @@ class ZenohTransport:
         self._control_seq = -1
         self._roster: dict[tuple[str, str], tuple[bool, int]] = {}
         """(island, run) -> (alive, stored) as the coordinator's last control message said."""
+        self._algo: str | None = None
+        """The algorithm that message assigns this run."""
         self._stop = ""
         self._heard_at = time.monotonic()
         """When the coordinator was last heard (a control message, or the join)."""
@@ -410,6 +435,7 @@ class ZenohTransport:
                 return
             self._control_seq = control.seq
             self._roster = {(m.island, m.run): (m.alive, m.stored) for m in control.members}
+            self._algo = next((m.algo for m in control.members if (m.island, m.run) == (self.node.island, self.credentials.run)), self._algo)
             self._stop = self._stop or control.stop
             silent_s, self._heard_at = time.monotonic() - self._heard_at, time.monotonic()
             if self._silent:
@@ -471,6 +497,10 @@ class ZenohTransport:
         with self._cond:
             return self._gone or "stopped by the coordinator"
 
+    def assigned_algo(self) -> str | None:
+        with self._cond:
+            return self._algo
+
     def global_best(self) -> bytes | None:
         for reply in self.session.get(f"{self.prefix}/best", timeout=2.0):
             if reply.ok is not None:
@@ -518,11 +548,13 @@ class MemoryBus:
     still running has posted for ``e`` (or finished), so the exchange does not
     depend on thread timing and a seeded single-node campaign is reproducible.
     ``admit`` issues each island's credentials (the coordinator's, in a
-    single-node campaign; by default the bus' own).
+    single-node campaign; by default the bus' own); ``assigned(island)`` is the
+    algorithm the coordinator tells an island to run (None: not said).
     """
 
     def __init__(
-        self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], None], stop: threading.Event, admit: Admit | None = None
+        self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], None], stop: threading.Event, admit: Admit | None = None,
+        assigned: Callable[[str], str | None] | None = None,
     ) -> None:
         self.prefix = key_prefix(campaign)
         self.islands = sorted(islands)
@@ -533,6 +565,7 @@ class MemoryBus:
         self.stop = stop
         campaign_key = secrets.token_bytes(32)
         self.admit = admit or (lambda island, algo, seed: Credentials.issue(island, campaign_key))
+        self.assigned = assigned or (lambda island: None)
         self._active = set(islands)
         self._posts: dict[int, dict[str, bytes]] = {}
         self._cond = threading.Condition()
@@ -580,6 +613,9 @@ class MemoryTransport:
 
     def global_best(self) -> bytes | None:
         return None
+
+    def assigned_algo(self) -> str | None:
+        return self.bus.assigned(self.island)
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
         """Every island of the bus exists from the start."""

@@ -45,6 +45,8 @@ def check_bounds(bounds: np.ndarray) -> np.ndarray:
 MAX_POPULATION = 1_000_000
 """Largest initial population or swarm (the thesis: 6000): a million candidates are evaluated in one
 vectorized call within a few GB of memory."""
+GAIN_AT_ZERO = 16.0
+"""The gain counted for reaching an exact zero from a positive best: float64's 16 digits."""
 MAX_ITERATIONS = 2**53
 """Largest iteration budget (iterations travel as exact float64 counts)."""
 
@@ -125,6 +127,10 @@ class PopulationOptimizer(AskTell):
         self._evaluations = 0
         self._iteration = 0
         self._batch: Batch | None = None
+        self.gain = 0.0
+        """Orders of magnitude (log10) by which the algorithm's own moves (GA offspring, PSO particle
+        moves) improved the best; the additional population and migrants do not count. What the
+        adaptive share of a mixed campaign credits (:mod:`island.share`)."""
 
     # --- subclass hooks ---------------------------------------------------------
     @abstractmethod
@@ -134,6 +140,10 @@ class PopulationOptimizer(AskTell):
     @abstractmethod
     def _finish(self, kind: str, x: np.ndarray, f: np.ndarray) -> None:
         """Use a completely evaluated batch (non-finite fitness already redrawn or set to inf)."""
+
+    @abstractmethod
+    def _adopt(self, x: np.ndarray, f: np.ndarray) -> None:
+        """Make ``population`` evaluated candidates, best first, the population (or swarm)."""
 
     @abstractmethod
     def _take(self, x: np.ndarray, f: float) -> bool:
@@ -213,9 +223,27 @@ class PopulationOptimizer(AskTell):
         self._batch = None
         self._finish(batch.kind, batch.x, np.where(np.isfinite(batch.f), batch.f, np.inf))
 
+    def _gained(self, before: float, after: float) -> None:
+        """Count an improvement of the best by the algorithm's own moves in :attr:`gain`."""
+        if np.isfinite(before) and after < before:
+            self.gain += float(np.log10(before / after)) if after > 0 else GAIN_AT_ZERO
+
     def _complete_iteration(self, best_fitness: float) -> None:
         self._iteration += 1
         self.history.append(float(best_fitness))
+
+    def carry_on(self, other: "PopulationOptimizer") -> None:
+        """Go on with ``other``'s search between two of its iterations: its iteration and evaluation
+        counts, history and random stream, and its known candidates (best first, cycled where this
+        population is larger) as the population. A mixed campaign moves an island to another
+        algorithm this way (:mod:`island.share`)."""
+        if not other.history or other._batch is not None:
+            raise ValueError(f"{other.name}: a search is carried on only between two of its iterations")
+        x, f = other.best(other._known()[1].size)
+        rows = np.arange(self.population) % f.size  # type: ignore[attr-defined]
+        self._adopt(x[rows], f[rows])
+        self.rng, self._iteration, self._evaluations = other.rng, other._iteration, other._evaluations
+        self.history, self.gain = list(other.history), other.gain
 
     # --- migrants and results -------------------------------------------------------
     def inject(self, x: np.ndarray, f: np.ndarray) -> int:
@@ -260,6 +288,7 @@ class PopulationOptimizer(AskTell):
             "evaluations": self._evaluations,
             "iteration": self._iteration,
             "history": list(self.history),
+            "gain": self.gain,
             "batch": None if self._batch is None else self._batch.as_dict(),
             "own": self._state(),
         }
@@ -275,6 +304,7 @@ class PopulationOptimizer(AskTell):
             opt._evaluations = int(state["evaluations"])
             opt._iteration = int(state["iteration"])
             opt.history = [float(v) for v in state["history"]]
+            opt.gain = float(state.get("gain", 0.0))  # absent in checkpoints written before it
             opt._batch = None if state["batch"] is None else Batch.from_dict(state["batch"], opt.dim)
             opt._load(state["own"])
         except HysidInputError:

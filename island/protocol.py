@@ -60,7 +60,10 @@ import numpy as np
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
+MAX_GAIN = 1e6
+"""Most orders of magnitude an island's own moves can have gained (a float64 best spans about 630 per
+fall from its largest to its smallest value; a campaign of a million falls is beyond any budget)."""
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 """Campaign, island and run names: usable as one Zenoh key chunk (no ``/ * $ ? #``)."""
 ALGO_PATTERN = re.compile(r"[a-z][a-z0-9_]{0,15}\Z")
@@ -190,6 +193,13 @@ def _name(msg: dict[str, Any], key: str) -> str:
     value = _get(msg, key, str)
     if not NAME_PATTERN.match(value):
         raise MessageRejected("schema", f"field {key!r} is not a valid name")
+    return value
+
+
+def _algo(msg: dict[str, Any], key: str) -> str:
+    value = _get(msg, key, str)
+    if not ALGO_PATTERN.match(value):
+        raise MessageRejected("schema", f"field {key!r} is not an algorithm label (a short lower-case name)")
     return value
 
 
@@ -485,10 +495,7 @@ def decode_join(data: bytes, campaign: str, sender: str | None = None) -> JoinRe
     island = _name(msg, "island")
     if sender is not None and island != sender:
         raise MessageRejected("sender", f"join request on the key of {sender!r} names island {island!r}")
-    algo = _get(msg, "algo", str)
-    if not ALGO_PATTERN.match(algo):
-        raise MessageRejected("schema", "algorithm label is not a short lower-case name")
-    return JoinRequest(campaign, island, algo, _int(msg, "seed"), _bytes(msg, "nonce", 16))
+    return JoinRequest(campaign, island, _algo(msg, "algo"), _int(msg, "seed"), _bytes(msg, "nonce", 16))
 
 
 def encode_joined(campaign: str, nonce: bytes, credentials: Credentials | None = None, refused: str = "") -> bytes:
@@ -579,13 +586,15 @@ class History:
     stats: dict[str, int]
     final: bool = False
     seq: int = 0
+    gain: float = 0.0
+    """Orders of magnitude the island's own moves gained so far (:attr:`~island.population.PopulationOptimizer.gain`)."""
 
 
 def encode_history(h: History, credentials: Credentials) -> bytes:
     fields = {
         "algo": h.algo, "seed": int(h.seed), "rows": pack_array(np.asarray(h.rows, dtype=float).reshape(-1, 4)),
         "best_x": pack_array(h.best_x), "best_f": float(h.best_f), "stats": {k: int(h.stats[k]) for k in STAT_NAMES},
-        "final": bool(h.final),
+        "final": bool(h.final), "gain": float(h.gain),
     }
     return seal("history", h.campaign, h.island, h.run, h.seq, fields, {"run": credentials.key})
 
@@ -596,9 +605,7 @@ def decode_history(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: K
     is the coordinator's check)."""
     s = unseal(data, "history", campaign, tag="run", key_for=key_for, sender=sender)
     msg = s.fields
-    algo = _get(msg, "algo", str)
-    if not ALGO_PATTERN.match(algo):
-        raise MessageRejected("schema", "algorithm label is not a short lower-case name")
+    algo = _algo(msg, "algo")
     rows = _array(msg, "rows", (None, 4), 4 * MAX_ROWS)
     _finite(rows[:, [0, 2, 3]], "history iteration, evaluations or wall time")
     _finite(rows[:, 1], "history best fitness", allow_inf=True)
@@ -614,19 +621,24 @@ def decode_history(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: K
         raise MessageRejected("schema", "best fitness is negative")
     stats_msg = _get(msg, "stats", dict)
     stats = {k: _int(stats_msg, k) for k in STAT_NAMES}
-    return History(campaign, s.sender, s.run, algo, _int(msg, "seed"), rows, best_x, best_f, stats, bool(_get(msg, "final", bool)), s.seq)
+    gain = _number(msg, "gain")
+    if not 0 <= gain <= MAX_GAIN:
+        raise MessageRejected("schema", f"gain {gain:g} is outside [0, {MAX_GAIN:g}] orders of magnitude")
+    return History(campaign, s.sender, s.run, algo, _int(msg, "seed"), rows, best_x, best_f, stats, bool(_get(msg, "final", bool)), s.seq, gain)
 
 
 # --- control -------------------------------------------------------------------------
 @dataclass(frozen=True)
 class MemberState:
-    """One joined island run as the coordinator sees it: alive or not, and the last iteration up to
-    which all of its history rows are committed to the database (-1: none)."""
+    """One joined island run as the coordinator sees it: alive or not, the last iteration up to
+    which all of its history rows are committed to the database (-1: none), and the algorithm it
+    is to run (a mixed campaign may move it to another one, :mod:`island.share`)."""
 
     island: str
     run: str
     alive: bool
     stored: int
+    algo: str
 
 
 @dataclass(frozen=True)
@@ -641,7 +653,7 @@ class Control:
 
 def encode_control(c: Control, run: str, keys: dict[str, bytes]) -> bytes:
     """Tagged once per joined island (``keys``: island -> its run key) by the coordinator run ``run``."""
-    fields = {"members": [[m.island, m.run, bool(m.alive), int(m.stored)] for m in c.members], "stop": c.stop[:MAX_TEXT]}
+    fields = {"members": [[m.island, m.run, bool(m.alive), int(m.stored), m.algo] for m in c.members], "stop": c.stop[:MAX_TEXT]}
     return seal("control", c.campaign, COORDINATOR, run, c.seq, fields, keys)
 
 
@@ -653,10 +665,12 @@ def decode_control(data: bytes, campaign: str, credentials: Credentials) -> Cont
         raise MessageRejected("oversized", f"roster of {len(entries)} runs exceeds {MAX_MEMBERS}")
     members = []
     for e in entries:
-        if not (isinstance(e, list) and len(e) == 4):
-            raise MessageRejected("schema", "roster entry is not [island, run, alive, stored]")
-        entry = dict(zip(("island", "run", "alive", "stored"), e))
-        members.append(MemberState(_name(entry, "island"), _name(entry, "run"), _get(entry, "alive", bool), _int(entry, "stored", -1, MAX_COUNT)))
+        if not (isinstance(e, list) and len(e) == 5):
+            raise MessageRejected("schema", "roster entry is not [island, run, alive, stored, algo]")
+        entry = dict(zip(("island", "run", "alive", "stored", "algo"), e))
+        members.append(MemberState(
+            _name(entry, "island"), _name(entry, "run"), _get(entry, "alive", bool), _int(entry, "stored", -1, MAX_COUNT), _algo(entry, "algo"),
+        ))
     return Control(campaign, tuple(members), _text(s.fields, "stop"), s.seq)
 
 

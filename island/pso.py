@@ -162,9 +162,7 @@ class PSO(PopulationOptimizer):
     def _finish(self, kind: str, x: np.ndarray, f: np.ndarray) -> None:
         if kind == "initial":
             keep = np.argsort(f, kind="stable")[: self.population]
-            self.x, self.P, self.Pf = x[keep], x[keep].copy(), f[keep]
-            self.v = np.zeros_like(self.x)
-            self.Pg, self.Pgf = self.P[0].copy(), float(self.Pf[0])
+            self._adopt(x[keep], f[keep])
             self.history.append(self.Pgf)
         elif kind == "addpop":
             j = int(np.argmin(f))
@@ -178,6 +176,13 @@ class PSO(PopulationOptimizer):
         else:
             self._moved_to(self._movers(), x, f)
 
+    def _adopt(self, x: np.ndarray, f: np.ndarray) -> None:
+        """Particles at the candidates, each its own personal best, at rest (P = x, v = 0; Fig. 3.12)."""
+        self.x, self.P, self.Pf = x.copy(), x.copy(), f.copy()
+        self.v = np.zeros_like(self.x)
+        self.Pg, self.Pgf = self.P[0].copy(), float(self.Pf[0])
+        self._particle, self._moved = 0, False
+
     def _moved_to(self, movers: slice, x: np.ndarray, f: np.ndarray) -> None:
         """New positions and fitness of the movers: personal bests, then Pg (Figs. 3.11/3.12)."""
         self.x[movers] = x
@@ -187,6 +192,7 @@ class PSO(PopulationOptimizer):
             self.P[idx], self.Pf[idx] = x[better], f[better]
             j = better[np.argmin(f[better])]
             if f[j] < self.Pgf:
+                self._gained(self.Pgf, float(f[j]))
                 self.Pg, self.Pgf = x[j].copy(), float(f[j])
         self._particle = movers.stop % self.population
         if self._particle == 0:

@@ -5,7 +5,8 @@
 After every completed iteration (iteration 0 = the initial population) a
 :class:`HistoryRow` is recorded and handed to ``callback``; then, unless the
 budget is spent, ``migrate(optimizer)`` may publish the best and ``inject``
-received migrants. ``should_stop()`` is asked before every ``ask`` and ends
+received migrants, and may return the optimizer to go on with (an island that
+a mixed campaign moves to another algorithm, :mod:`island.share`). ``should_stop()`` is asked before every ``ask`` and ends
 the run early, leaving the optimizer resumable (``state_dict``); a
 :class:`~island.termination.Termination` ends it by its rules.
 
@@ -48,7 +49,7 @@ def run(
     *,
     callback: Callable[[HistoryRow], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
-    migrate: Callable[[PopulationOptimizer], None] | None = None,
+    migrate: Callable[[PopulationOptimizer], PopulationOptimizer | None] | None = None,
     termination: Termination | None = None,
 ) -> list[HistoryRow]:
     """Ask, evaluate, tell until the optimizer is done, ``should_stop()`` or a ``termination`` rule;
@@ -79,7 +80,7 @@ def run(
         if callback is not None:
             callback(row)
         if migrate is not None and not optimizer.done:
-            migrate(optimizer)
+            optimizer = migrate(optimizer) or optimizer
     return rows
 
 

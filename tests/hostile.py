@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import msgpack
 import numpy as np
 
-from island.protocol import MAX_BYTES, Credentials, pack_array, seal
+from island.protocol import MAX_BYTES, PROTOCOL_VERSION, Credentials, pack_array, seal
 
 HOSTILE_INTS = [-1, 2**53 + 1, 2**62, 2**63, 2**64 - 1, -(2**63)]
 HOSTILE_FLOATS = [float("nan"), float("inf"), -float("inf"), 1e300, -1e300]
@@ -164,7 +164,7 @@ class Hostile:
 
     def join(self, island: str) -> bytes:
         """A join request that is malformed (a well-formed one would be admitted: anyone may join)."""
-        good = {"v": 2, "type": "join", "campaign": self.campaign, "island": island, "algo": "pso", "seed": 1, "nonce": b"n" * 16}
+        good = {"v": PROTOCOL_VERSION, "type": "join", "campaign": self.campaign, "island": island, "algo": "pso", "seed": 1, "nonce": b"n" * 16}
         field = self._pick(["island", "algo", "seed", "nonce", "v", "campaign", "garbage"])
         if field == "garbage":
             return self.rng.bytes(int(self.rng.integers(0, 100)))

@@ -189,6 +189,7 @@ class Admissions:
         self.session, self.campaign = session, cfg.name
         self.campaign_key = secrets.token_bytes(32)
         self.issued: dict[str, Credentials] = {}
+        self.algos: dict[str, str] = {}
         self.seq = 0
         message = encode_config(cfg, LOOPS)
         self.entities = [
@@ -199,6 +200,7 @@ class Admissions:
     def _on_join(self, query: zenoh.Query) -> None:
         request = decode_join(query.payload.to_bytes(), self.campaign)
         self.issued[request.island] = Credentials.issue(request.island, self.campaign_key)
+        self.algos[request.island] = request.algo
         query.reply(query.key_expr, encode_joined(self.campaign, request.nonce, self.issued[request.island]))
 
     def key_for(self, island: str, run: str) -> bytes | None:
@@ -208,7 +210,7 @@ class Admissions:
     def control(self, stored: dict[str, int] | None = None, stop: str = "", keys: dict[str, bytes] | None = None) -> bytes:
         """A roster of every island issued credentials (all alive), ``stored`` rows confirmed."""
         self.seq += 1
-        members = tuple(MemberState(i, c.run, True, (stored or {}).get(i, -1)) for i, c in self.issued.items())
+        members = tuple(MemberState(i, c.run, True, (stored or {}).get(i, -1), self.algos.get(i, "pso")) for i, c in self.issued.items())
         tags = keys if keys is not None else {i: c.key for i, c in self.issued.items()}
         return encode_control(Control(self.campaign, members, stop, self.seq), "test", tags)
 

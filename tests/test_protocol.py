@@ -12,6 +12,7 @@ from island.config import CampaignConfig, decode_config, encode_config
 from island.migration import Migration, in_neighbours
 from island.protocol import (
     MAX_BYTES,
+    PROTOCOL_VERSION,
     Best,
     Control,
     Credentials,
@@ -62,7 +63,7 @@ ENVELOPE = ("v", "type", "campaign", "island", "run", "seq")
 
 def raw(msg_type: str = "migrants", **fields) -> bytes:
     """A migrant message of ga-0, correctly tagged, with any envelope or body field replaced (``...``: left out)."""
-    base = {"v": 2, "type": msg_type, "campaign": "c1", "island": "ga-0", "run": "r1", "seq": 0, "iteration": 3,
+    base = {"v": PROTOCOL_VERSION, "type": msg_type, "campaign": "c1", "island": "ga-0", "run": "r1", "seq": 0, "iteration": 3,
             "x": pack_array(X), "claimed": pack_array(np.array([0.1, 0.2])), "sent_at": 0.0}
     base.update(fields)
     body = {k: v for k, v in base.items() if k not in ENVELOPE and v is not ...}
@@ -293,7 +294,7 @@ def test_best_and_stop_round_trip_and_validate():
     assert b.fitness == 1e-9 and b.island == "ga-0"
     with pytest.raises(MessageRejected):
         decode_best(encode_best(Best("c1", "ga-0", X[0], np.nan)), "c1", BOUNDS)
-    control = Control("c1", (MemberState("ga-0", "r1", True, 41), MemberState("pso-1", "r9", False, -1)), "budget spent", 5)
+    control = Control("c1", (MemberState("ga-0", "r1", True, 41, "ga"), MemberState("pso-1", "r9", False, -1, "pso")), "budget spent", 5)
     message = encode_control(control, "coord", {"ga-0": GA0.key, "pso-1": PSO1.key})
     assert decode_control(message, "c1", GA0) == control == decode_control(message, "c1", PSO1)
     with pytest.raises(MessageRejected):

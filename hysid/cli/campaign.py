@@ -98,6 +98,7 @@ def register(app: typer.Typer) -> None:
         islands: int = typer.Option(4, "--islands", help="Number of islands."),
         name: str = typer.Option("campaign", "--campaign", help="Campaign name (in the database and the key space hysid/<name>/**)."),
         algos: str = o.ALGOS,
+        share: str = o.SHARE,
         topology: str = o.TOPOLOGY,
         interval: int = o.INTERVAL,
         migrants: int = o.MIGRANTS,
@@ -135,7 +136,9 @@ def register(app: typer.Typer) -> None:
         migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
         check_name("campaign", name)
         island_specs(islands, algo_list, seed)  # every setting is checked before the report directory is made
-        CampaignConfig(name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands, until_stopped=until_stopped)
+        CampaignConfig(
+            name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands, until_stopped=until_stopped, share=share,
+        )
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
         new_db = not path.exists()
@@ -146,7 +149,7 @@ def register(app: typer.Typer) -> None:
                     loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
                     algos=algo_list, options=sizes, migration=migration,
                     seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
-                    polish=polish, progress=campaign_reporter(bar, islands, iterations, termination), until_stopped=until_stopped,
+                    polish=polish, progress=campaign_reporter(bar, islands, iterations, termination), until_stopped=until_stopped, share=share,
                 )
         except BaseException:
             if new_db:
@@ -165,6 +168,7 @@ def register(app: typer.Typer) -> None:
         resume_db: bool = typer.Option(False, "--resume", help="Carry on the campaign stored in --db after a crash (its settings and loop set come from there)."),
         min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
         algos: str = o.ALGOS,
+        share: str = o.SHARE,
         topology: str = o.TOPOLOGY,
         interval: int = o.INTERVAL,
         migrants: int = o.MIGRANTS,
@@ -208,7 +212,7 @@ def register(app: typer.Typer) -> None:
             config = CampaignConfig.create(
                 loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
                 algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands,
-                until_stopped=until_stopped,
+                until_stopped=until_stopped, share=share,
             )
         store = Store(path)
         try:

@@ -42,6 +42,7 @@ FLAGS = {
     "interval": "--interval",
     "k": "--migrants",
     "topology": "--topology",
+    "share": "--share",
     "random_k": "--random-k",
     "min_islands": "--min-islands",
     "budget": "--evaluations",
@@ -104,6 +105,10 @@ ITERATIONS = typer.Option(
     None, "--iterations",
     help=f"Iterations of each island: its own budget (the thesis: 18). Default: none with --evaluations or --time "
     f"(every island searches and migrates until the campaign stops), else {ISLAND_ITERATIONS}.",
+)
+SHARE = typer.Option(
+    "adaptive", "--share",
+    help="With several --algos: adaptive moves islands to the algorithm that improves the global best; fixed keeps each island's algorithm.",
 )
 TOPOLOGY = typer.Option("ring", "--topology", help="Who takes migrants from whom: ring, full or random.")
 INTERVAL = typer.Option(5, "--interval", help="Migrate every N iterations (0: isolated islands).")

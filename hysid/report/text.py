@@ -184,12 +184,28 @@ def campaign_summary(result: "CampaignResult") -> str:
         f"migrations: {m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
         f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected",
     ]
+    lines += share_lines(fit.settings)
     for isl in result.islands:
         lines.append(
             f"  {isl['island']:<12} {isl['algo'].upper():<4} seed {isl['seed']:<4} {isl['status']:<6} best {isl['best_fitness']:.4g} "
             f"after {isl['iterations']} iterations, {isl['evaluations']:,} evaluations"
         )
     return "\n".join(lines)
+
+
+def share_lines(settings: dict[str, Any]) -> list[str]:
+    """How a mixed campaign shared its islands between algorithms, and each move of the adaptive share."""
+    algos = list(dict.fromkeys(settings.get("algos") or []))
+    if len(algos) < 2:
+        return []
+    moves = settings.get("moves") or []
+    if settings.get("share") != "adaptive":
+        return [f"share: fixed (every island kept its algorithm of {', '.join(a.upper() for a in algos)})"]
+    lines = [f"share: adaptive, {len(moves)} island move(s) to the algorithm that improved the global best"]
+    for m in moves:
+        credit = ", ".join(f"{a.upper()} {c:.2g}" for a, c in m["credit"].items())
+        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained lately: {credit})")
+    return lines
 
 
 def campaign_progress_line(p: "CampaignProgress") -> str:
