@@ -67,18 +67,11 @@ from island.config import CampaignConfig, decode_config, encode_config
 from island.node import key_prefix
 from island.population import PopulationOptimizer
 from island.protocol import (
-    KEY_BYTES,
-    MAX_MEMBERS,
-    NAME_PATTERN,
     Best,
     Control,
-    Credentials,
     History,
     MemberState,
-    MessageRejected,
     Migrants,
-    ReplayGuard,
-    check_replay,
     decode_history,
     decode_join,
     decode_migrants,
@@ -87,7 +80,9 @@ from island.protocol import (
     encode_joined,
 )
 from island.run import RunResult, polish_run
+from island.sealing import KEY_BYTES, Credentials, ReplayGuard, check_replay
 from island.termination import Termination
+from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
 
 LEAVE_GRACE_S = 0.3
 """After a token disappears, how long a final history may still arrive to count as a graceful leave."""

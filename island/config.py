@@ -27,7 +27,7 @@ from island.algorithms import ALGORITHMS, check_algorithm, make_optimizer
 from island.migration import Migration
 from island.population import MAX_ITERATIONS
 from island.termination import Termination
-from island.protocol import INT64_MAX, MAX_MEMBERS, MessageRejected, check_name
+from island.wire import INT64_MAX, MAX_MEMBERS, MessageRejected, check_name
 from island.protocol import decode_config as unpack_config
 from island.protocol import encode_config as pack_config
 

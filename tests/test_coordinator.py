@@ -22,7 +22,6 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
 from island.protocol import (
-    Credentials,
     History,
     JoinRequest,
     Migrants,
@@ -32,6 +31,7 @@ from island.protocol import (
     encode_join,
     encode_migrants,
 )
+from island.sealing import Credentials
 from island.termination import Termination
 
 LOOPS = synth_loops(n_points=30)
