@@ -26,8 +26,8 @@ from coordinator.links import MemoryLink, ZenohLink
 from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
 from island.node import IslandNode, MemoryBus, MemoryTransport
-from island.protocol import MAX_MEMBERS
 from island.session import open_session, session_config
+from island.wire import MAX_MEMBERS
 
 ISLAND_EXIT_WAIT_S = 15.0
 MEMORY_WAIT_S = 5.0

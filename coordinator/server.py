@@ -15,7 +15,7 @@ and is handled by one thread, which owns the SQLite store
 * records joins, graceful leaves (a final history, then the token goes) and
   losses (the token goes without a final history: crash, kill, or a frozen
   process whose Zenoh lease expired; or a joined island whose token never
-  shows);
+  shows) through :class:`coordinator.members.Membership`;
 * stores every history row and migrant message, and every rejected message
   with its reason (a flood as counted summaries);
 * keeps the global best, **re-evaluating** every candidate it receives (a
@@ -31,7 +31,7 @@ and is handled by one thread, which owns the SQLite store
   waits for that before it leaves) and, at the end, the stop order;
 * after a restart (``--resume``) knows every run that joined, takes up again
   the runs that were alive when it died (lost unless their liveliness token
-  returns within :data:`TOKEN_WAIT_S`), keeps the campaign's stop rules unless
+  returns within :data:`coordinator.members.TOKEN_WAIT_S`), keeps the campaign's stop rules unless
   new ones are given, and asks every live island for the history rows it missed;
 * stops by the rules of :class:`island.termination.Termination` (a total
   evaluation budget, a target fitness, a stall, a time limit), when every
@@ -61,6 +61,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from coordinator.inbox import Inbox
+from coordinator.members import LEAVE_GRACE_S, STATUS_AFTER, Member, Membership
 from coordinator.store import IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
@@ -71,18 +72,11 @@ from island.config import CampaignConfig, decode_config, encode_config
 from island.node import key_prefix
 from island.population import PopulationOptimizer
 from island.protocol import (
-    KEY_BYTES,
-    MAX_MEMBERS,
-    NAME_PATTERN,
     Best,
     Control,
-    Credentials,
     History,
     MemberState,
-    MessageRejected,
     Migrants,
-    ReplayGuard,
-    check_replay,
     decode_history,
     decode_join,
     decode_migrants,
@@ -91,17 +85,13 @@ from island.protocol import (
     encode_joined,
 )
 from island.run import RunResult, polish_run
+from island.sealing import KEY_BYTES, Credentials, ReplayGuard, check_replay
 from island.share import Move, Share
 from island.termination import Termination
+from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
 
-LEAVE_GRACE_S = 0.3
-"""After a token disappears, how long a final history may still arrive to count as a graceful leave."""
-TOKEN_WAIT_S = 10.0
-"""A joined island whose liveliness token has not shown within this is lost."""
 ORPHAN_S = 30.0
 """Once islands have joined, a campaign with none alive for this long ends."""
-STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left", "lost": "lost"}
-"""A member's status after each recorded membership event."""
 STOP_GRACE_S = 10.0
 """After the stop order, how long to wait for islands' final histories."""
 FAULT_ANNOUNCEMENTS = 4
@@ -148,22 +138,6 @@ class Link(Protocol):
 
     def request_history(self, island: str, run: str, since: int) -> None:
         """Ask an island for its rows after ``since``; the answer arrives in the inbox as a history message."""
-
-
-@dataclass
-class Member:
-    status: str = "alive"
-    """alive, left (said goodbye), lost (vanished: crash, kill, lease expired, token never shown)"""
-    run: str = ""
-    gone_at: float | None = None
-    token: bool = False
-    """Its liveliness token was seen (since it joined or came back)."""
-    joined_at: float = 0.0
-    nonce: bytes = b""
-    """The join request that admitted this run (a repeated request gets the same credentials)."""
-    resumed: bool = False
-    """Alive when the previous coordinator died: taken up by this one, lost unless its token shows
-    within :data:`TOKEN_WAIT_S`."""
 
 
 @dataclass(frozen=True)
@@ -246,7 +220,6 @@ class Coordinator:
         self.run_id = secrets.token_hex(6)
         """This coordinator process, as the sender run of its control messages."""
         self.inbox = Inbox()
-        self.members: dict[str, Member] = {}
         self.runs: dict[tuple[str, str], RunInfo] = {}
         self.current: dict[str, str] = {}
         """Each island's latest run."""
@@ -267,22 +240,18 @@ class Coordinator:
         for rec in store.islands(self.name):
             self.run_evaluations[(rec.island, rec.run)] = rec.evaluations
             self.islands[(rec.island, rec.run)] = IslandView(rec.algo, rec.iterations, rec.best_fitness, rec.final)
+        self.membership = Membership(store, self.name, config.min_islands, self._finished)
         if resume:
-            self._take_up_members()
+            self.membership.take_up(self.current)
         self.best: StoredBest | None = store.best(self.name)
         self.best_message: bytes | None = None if self.best is None else self._best_message()
         self.migrations = store.count("migrations", self.name)
         self.rejected = store.count("rejected", self.name)
         self.started = time.monotonic()
         self.stop_reason: str | None = None
-        self.full_at: float | None = None
-        """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
-        self.idle_since: float | None = self.started if self.runs and not self.members else None
-        """Since when no island has been alive, once some joined (None while one is)."""
+        self.membership.idle_since = self.started if self.runs and not self.members else None
         self.best_trace: list[tuple[float, float, int, np.ndarray]] = []
         """``(time.monotonic(), fitness, total evaluations, x)`` at every improvement of the global best."""
-        self.member_events = 0
-        """Membership events recorded by this process (progress is shown at each)."""
         self.contiguous: dict[tuple[str, str], int] = {}
         """Per island run, the last iteration k with 0..k all stored (rows beyond a gap are asked for again)."""
         self.last_stored: dict[tuple[str, str], int] = {}
@@ -296,10 +265,25 @@ class Coordinator:
         self._committed_at = time.monotonic()
         self._rows_since_commit = 0
         self._changed = True
+        self._announced_events = 0
+        """Membership events when the control message last went out."""
         self._control_at = -np.inf
         self._control_seq = 0
 
     # --- state -------------------------------------------------------------------
+    @property
+    def members(self) -> dict[str, Member]:
+        """Each island's latest run as a member (:class:`coordinator.members.Membership`)."""
+        return self.membership.members
+
+    @property
+    def full_at(self) -> float | None:
+        """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
+        return self.membership.full_at
+
+    def _finished(self, island: str, run: str) -> bool:
+        return self.islands.get((island, run), IslandView("")).final
+
     @property
     def evaluations(self) -> int:
         return int(sum(self.run_evaluations.values()))
@@ -413,30 +397,9 @@ class Coordinator:
         self.runs[(island, credentials.run)] = RunInfo(credentials.key, algo, seed)
         self.assigned[(island, credentials.run)] = algo
         self.current[island] = credentials.run
-        self.members[island] = Member("alive", credentials.run, joined_at=time.monotonic(), nonce=nonce)
-        self._event(island, "join")
+        self.membership.joined(island, credentials.run, nonce)
         self.store.commit()
-        self._now_alive()
         return credentials
-
-    def _take_up_members(self) -> None:
-        """After a restart: every island run that was alive when the previous coordinator died (its
-        last membership event says so, it never said goodbye) is a member again, waiting for its
-        liveliness token; :meth:`_settle_departures` records it lost if the token does not show
-        within :data:`TOKEN_WAIT_S`, so an island that died with the coordinator is not listed
-        alive forever, and one that comes back carries on as the same run."""
-        status = {island: STATUS_AFTER[event] for island, event, _ in self.store.members(self.name)}
-        now = time.monotonic()
-        for island, run in self.current.items():
-            if status.get(island) == "alive" and not self.islands.get((island, run), IslandView("")).final:
-                self.members[island] = Member("alive", run, joined_at=now, resumed=True)
-
-    def _now_alive(self) -> None:
-        alive = sum(m.status == "alive" for m in self.members.values())
-        if alive:
-            self.idle_since = None
-        if self.full_at is None and alive >= self.config.min_islands:
-            self.full_at = time.monotonic()
 
     def _member(self, link: Link, island: str, alive: bool) -> None:
         if not NAME_PATTERN.match(island):
@@ -444,43 +407,9 @@ class Coordinator:
         run = self.current.get(island)
         if run is None:
             raise MessageRejected("unjoined", f"liveliness token of {island!r}, which never joined")
-        member = self.members.get(island)
+        self.membership.token(island, run, alive)
         if alive:
-            if member is None or (member.resumed and member.status == "alive"):  # joined before this coordinator (re)started
-                self.members[island] = Member("alive", run, token=True, joined_at=time.monotonic())
-                self._event(island, "join")
-            elif member.status != "alive":
-                member.status, member.gone_at, member.token = "alive", None, True
-                self._event(island, "back")
-            else:
-                member.gone_at, member.token = None, True
-            self._now_alive()
             link.request_history(island, run, self._contiguous((island, run)))
-        elif member is not None and member.status == "alive":
-            if self.islands.get((island, member.run), IslandView("")).final:
-                self._leave(island, member, "left")
-            else:
-                member.gone_at = time.monotonic()
-
-    def _leave(self, island: str, member: Member, event: str) -> None:
-        member.status = event
-        self._event(island, event)
-        if not any(m.status == "alive" for m in self.members.values()):
-            self.idle_since = time.monotonic()
-
-    def _event(self, island: str, event: str) -> None:
-        self.store.member_event(self.name, island, event)
-        self.member_events += 1
-        self._changed = True
-
-    def _settle_departures(self) -> None:
-        """Tokens gone without a final history for ``LEAVE_GRACE_S``, or never shown: the island is lost."""
-        now = time.monotonic()
-        for island, member in self.members.items():
-            vanished = member.gone_at is not None and now - member.gone_at >= LEAVE_GRACE_S
-            never_seen = not member.token and now - member.joined_at >= TOKEN_WAIT_S
-            if member.status == "alive" and (vanished or never_seen):
-                self._leave(island, member, "lost")
 
     def _contiguous(self, key: tuple[str, str]) -> int:
         if key not in self.contiguous:
@@ -588,9 +517,8 @@ class Coordinator:
         view.best = min(view.best, f)
         view.final = view.final or h.final
         self._changed = True
-        member = self.members.get(h.island)
-        if member is not None and member.run == h.run and h.final and member.status == "alive" and member.gone_at is not None:
-            self._leave(h.island, member, "left")
+        if h.final:
+            self.membership.final_history(h.island, h.run)
         self._consider(link, h.island, h.best_x, f)
         self._review_share()
 
@@ -631,15 +559,12 @@ class Coordinator:
         link.publish_best(self.best_message)
 
     # --- control ---------------------------------------------------------------------------
-    def _alive(self, island: str, run: str) -> bool:
-        member = self.members.get(island)
-        return member is not None and member.status == "alive" and member.run == run
-
     def control_message(self, stop: str = "") -> bytes:
         """The sealed roster (every run that joined, alive or not, and how far its rows are committed)
         and the stop order, tagged for every island with its latest run's key."""
         members = tuple(
-            MemberState(island, run, self._alive(island, run), self._contiguous((island, run)), self.assigned[(island, run)]) for island, run in self.runs
+            MemberState(island, run, self.membership.alive(island, run), self._contiguous((island, run)), self.assigned[(island, run)])
+            for island, run in self.runs
         )
         self._control_seq = max(self._control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
         keys = {island: self.runs[(island, run)].key for island, run in self.current.items()}
@@ -656,7 +581,7 @@ class Coordinator:
         )
         if reason:
             return reason
-        alive = any(m.status == "alive" for m in self.members.values())
+        alive = self.membership.any_alive()
         finished = bool(self.islands) and all(v.final for v in self.islands.values()) and not alive
         enough = len({island for island, _ in self.islands} | set(self.members)) >= self.config.min_islands
         if finished and (enough or self.resumed):
@@ -666,7 +591,8 @@ class Coordinator:
             for (island, run), v in self.islands.items()
         ):
             return "every island finished or was lost"
-        if not alive and self.idle_since is not None and time.monotonic() - self.idle_since >= ORPHAN_S:
+        idle_since = self.membership.idle_since
+        if not alive and idle_since is not None and time.monotonic() - idle_since >= ORPHAN_S:
             return f"no island alive for {ORPHAN_S:g} s"
         return None
 
@@ -683,9 +609,10 @@ class Coordinator:
         self._rejected_backlog.clear()
         self.store.commit(self.name)
         self._committed_at, self._rows_since_commit = time.monotonic(), 0
-        if self.runs and (announce or self._changed or self._committed_at - self._control_at >= CONTROL_EVERY_S):
+        changed = self._changed or self.membership.events != self._announced_events
+        if self.runs and (announce or changed or self._committed_at - self._control_at >= CONTROL_EVERY_S):
             link.publish_control(self.control_message(self.stop_reason or ""), self.stop_reason is not None)
-            self._control_at, self._changed = time.monotonic(), False
+            self._control_at, self._changed, self._announced_events = time.monotonic(), False, self.membership.events
 
     def pump(self, link: Link, seconds: float, first_wait: float = 0.05) -> int:
         """Handle what arrives for up to ``seconds`` (waiting up to ``first_wait`` for the first item),
@@ -702,7 +629,7 @@ class Coordinator:
             now = time.monotonic()
             done = item is None or now >= deadline
             if done or now - self._committed_at >= COMMIT_EVERY_S or self._rows_since_commit >= COMMIT_ROWS:
-                self._settle_departures()
+                self.membership.settle()
                 self.commit(link)
             if done:
                 return handled
@@ -728,9 +655,9 @@ class Coordinator:
             while self.stop_reason is None:
                 self.pump(link, PASS_S)
                 self.stop_reason = self.check_stop() or (extra_stop() if extra_stop is not None else None)
-                if on_progress is not None and (time.monotonic() - last >= progress_every_s or self.member_events != shown_events):
+                if on_progress is not None and (time.monotonic() - last >= progress_every_s or self.membership.events != shown_events):
                     on_progress(self.progress())
-                    last, shown_events = time.monotonic(), self.member_events
+                    last, shown_events = time.monotonic(), self.membership.events
         except KeyboardInterrupt:  # Ctrl-C (SIGINT) stops the campaign like a stop rule; a second one aborts
             self.stop_reason = "interrupted"
         except StoreError as exc:
@@ -752,7 +679,7 @@ class Coordinator:
         """Announce the stop until every island left (at most :data:`STOP_GRACE_S`), storing their
         final histories and confirming them."""
         deadline = time.monotonic() + STOP_GRACE_S
-        while time.monotonic() < deadline and any(m.status == "alive" for m in self.members.values()):
+        while time.monotonic() < deadline and self.membership.any_alive():
             self.commit(link, announce=True)
             self.pump(link, 0.5)
         self.pump(link, LEAVE_GRACE_S, first_wait=LEAVE_GRACE_S)

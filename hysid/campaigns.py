@@ -26,8 +26,8 @@ from hysid_model.model import Model
 from hysid_model.errors import HysidInputError
 from island.config import CampaignConfig, decode_config
 from island.migration import Migration
-from island.protocol import MessageRejected, check_name
 from island.termination import Termination
+from island.wire import MessageRejected, check_name
 
 
 @dataclass

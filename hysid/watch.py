@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from coordinator.server import STATUS_AFTER, CampaignProgress, IslandView
+from coordinator.members import STATUS_AFTER
+from coordinator.server import CampaignProgress, IslandView
 from coordinator.store import Store
 from hysid.campaigns import pick_campaign
 

@@ -28,7 +28,7 @@ from island.migration import Migration
 from island.population import MAX_ITERATIONS
 from island.share import check_share
 from island.termination import Termination
-from island.protocol import INT64_MAX, MAX_MEMBERS, MessageRejected, check_name
+from island.wire import INT64_MAX, MAX_MEMBERS, MessageRejected, check_name
 from island.protocol import decode_config as unpack_config
 from island.protocol import encode_config as pack_config
 

@@ -4,7 +4,7 @@ The node holds no optimizer logic. It drives :func:`island.run.run` (ask ->
 evaluate -> tell) and uses its hooks:
 
 * it joins the campaign first: the coordinator issues its run id and keys
-  (:class:`island.protocol.Credentials`), and every message it sends is sealed
+  (:class:`island.sealing.Credentials`), and every message it sends is sealed
   with them;
 * after every iteration the history row goes to the coordinator (in batches,
   every ``history_every_s``; iteration, best fitness, evaluations, wall time);
@@ -53,20 +53,12 @@ from island.config import CampaignConfig
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
-    MAX_COUNT,
-    MAX_MEMBERS,
     STAT_NAMES,
     Best,
     Control,
-    Counter,
-    Credentials,
     History,
     JoinRequest,
-    MessageRejected,
     Migrants,
-    ReplayGuard,
-    check_name,
-    check_replay,
     decode_best,
     decode_control,
     decode_joined,
@@ -76,6 +68,8 @@ from island.protocol import (
     encode_migrants,
 )
 from island.run import HistoryRow, run
+from island.sealing import Counter, Credentials, ReplayGuard, check_replay
+from island.wire import MAX_COUNT, MAX_MEMBERS, MessageRejected, check_name
 
 START_TIMEOUT_S = 60.0
 """Longest wait for ``min_islands`` members before an island starts anyway."""

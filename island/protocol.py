@@ -9,7 +9,7 @@ they exchange these messages under ``hysid/<campaign>/`` (see
   each loop's measured displacement harmonics, as real/imaginary pairs),
   served by the coordinator so that islands need no shared file system;
 * ``join`` / ``joined``: an island asks the coordinator to join and gets its
-  :class:`Credentials`: a run id, a per-run key, and the campaign key that
+  :class:`island.sealing.Credentials`: a run id, a per-run key, and the campaign key that
   every joined island shares (the *join handshake*);
 * ``migrants``: an island's ``k`` best partial solutions with the fitness it
   *claims* for them; receivers always re-evaluate (the claim only orders);
@@ -20,180 +20,62 @@ they exchange these messages under ``hysid/<campaign>/`` (see
   order;
 * ``best``: the coordinator's global best (fitness re-evaluated by it).
 
-``migrants``, ``history`` and ``control`` are *sealed*: the fields travel as a
-msgpack ``body`` inside an envelope naming the sender, its run and a message
-number ``seq``, with HMAC-SHA256 tags over all of it. An island tags with its
-run key (checked by the coordinator) and, for migrants, the campaign key
-(checked by other islands); the coordinator tags a control message once per
-joined island with that island's run key. A message from a sender that did not
-join, with a wrong tag, or whose number was seen before (a replay, see
-:class:`ReplayGuard`) is rejected.
+``migrants``, ``history`` and ``control`` are *sealed* (:mod:`island.sealing`:
+sender, run, message number and HMAC tags; replays dropped). Every field is
+checked strictly as it is decoded (:mod:`island.wire`); a bad message raises
+:class:`island.wire.MessageRejected` naming why.
 
-Float arrays travel as ``{"shape": [...], "data": <little-endian float64
-bytes>}``. Decoding never trusts a sender: size limits are checked before
-unpacking, then every field's type, integer range (SQLite's 64 bits, and 2**53
-for counts carried as floats), string length, every shape (sizes computed
-without overflow) against the campaign's dimension, finiteness and the search
-bounds. A bad message raises :class:`MessageRejected` whose ``reason`` is one
-of :data:`REASONS`.
-
-This is the wire format only: it depends on msgpack, numpy and the loop set,
+This is the wire format only: with :mod:`island.wire` and :mod:`island.sealing`
+it depends on msgpack, numpy and the loop set,
 not on models, objectives or optimizers (the campaign settings inside
 ``config`` are checked by :class:`island.config.CampaignConfig`).
 """
 
 from __future__ import annotations
 
-import hashlib
-import hmac
-import math
 import re
-import secrets
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import msgpack
 import numpy as np
 
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
+from island.sealing import KEY_BYTES, Credentials, KeyLookup, seal, unseal
+from island.wire import (
+    INT64_MAX,
+    MAX_BYTES,
+    MAX_COUNT,
+    MAX_MEMBERS,
+    MAX_TEXT,
+    PROTOCOL_VERSION,
+    MessageRejected,
+    _array,
+    _bytes,
+    _dumps,
+    _finite,
+    _get,
+    _in_bounds,
+    _int,
+    _name,
+    _number,
+    _plain,
+    _text,
+    _unpack,
+    pack_array,
+)
 
-PROTOCOL_VERSION = 3
-MAX_GAIN = 1e6
-"""Most orders of magnitude an island's own moves can have gained (a float64 best spans about 630 per
-fall from its largest to its smallest value; a campaign of a million falls is beyond any budget)."""
-NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
-"""Campaign, island and run names: usable as one Zenoh key chunk (no ``/ * $ ? #``)."""
 ALGO_PATTERN = re.compile(r"[a-z][a-z0-9_]{0,15}\Z")
 """An island's algorithm label (``ga``, ``pso``) as it travels in its history."""
 COORDINATOR = "coordinator"
 """The sender name of the coordinator's sealed messages."""
-
-MAX_BYTES = {
-    "config": 256 << 20,
-    "join": 4 << 10,
-    "joined": 4 << 10,
-    "migrants": 256 << 10,
-    "history": 4 << 20,
-    "control": 1 << 20,
-    "best": 64 << 10,
-}
-"""Largest accepted encoded size of each message type, in bytes."""
 MAX_MIGRANTS = 256
 MAX_ROWS = 100_000
 MAX_DIM = 256
-MAX_MEMBERS = 4096
-"""Island runs a campaign admits (and a control message lists)."""
-MAX_TEXT = 200
-"""Longest free text (a stop reason, a refusal) taken from a message."""
-INT64_MAX = 2**63 - 1
-"""Largest integer SQLite stores."""
-MAX_COUNT = 2**53
-"""Largest count (iterations, evaluations) carried exactly in a float64 array."""
-KEY_BYTES = 32
-REASONS = (
-    "oversized", "undecodable", "schema", "version", "campaign", "sender", "unjoined", "forged", "replay",
-    "shape", "not_finite", "out_of_bounds", "implausible", "overflow",
-)
-"""Why a message is rejected. ``sender``: the key it came on names another island; ``unjoined``: its
-sender or run never joined; ``forged``: its tag does not match; ``replay``: its number was seen;
-``implausible``: well-formed but impossible (e.g. more evaluations than the island could have done);
-``overflow``: dropped because the receiver's queue for that sender was full."""
-
-
-class MessageRejected(HysidInputError):
-    """A message that failed validation; ``reason`` is one of :data:`REASONS`."""
-
-    def __init__(self, reason: str, detail: str) -> None:
-        self.reason = reason
-        super().__init__(f"rejected message ({reason}): {detail}")
-
-
-def check_name(param: str, value: Any) -> str:
-    """A campaign or island name usable as a Zenoh key chunk, else :class:`HysidInputError` naming ``param``."""
-    if not isinstance(value, str) or not NAME_PATTERN.match(value):
-        raise HysidInputError("must be 1-64 characters of letters, digits, '_', '.', '-' (starting with a letter or digit)", param=param, value=value)
-    return value
-
-
-# --- low-level packing and field checks --------------------------------------------
-def pack_array(a: np.ndarray) -> dict[str, Any]:
-    a = np.ascontiguousarray(a, dtype="<f8")
-    return {"shape": list(a.shape), "data": a.tobytes()}
-
-
-def _dumps(obj: Any) -> bytes:
-    return msgpack.packb(obj, use_bin_type=True)
-
-
-def _loads(data: bytes, what: str) -> Any:
-    try:
-        return msgpack.unpackb(bytes(data), raw=False, strict_map_key=True)
-    except Exception as exc:  # msgpack raises ValueError subclasses, StackError, UnicodeDecodeError...
-        raise MessageRejected("undecodable", f"{what} is not msgpack ({type(exc).__name__})") from None
-
-
-def _unpack(data: bytes, msg_type: str, campaign: str) -> dict[str, Any]:
-    """Size check, msgpack decoding and the common envelope."""
-    if not isinstance(data, (bytes, bytearray, memoryview)):
-        raise MessageRejected("schema", f"payload is {type(data).__name__}, not bytes")
-    if len(data) > MAX_BYTES[msg_type]:
-        raise MessageRejected("oversized", f"{msg_type} message of {len(data)} bytes exceeds {MAX_BYTES[msg_type]}")
-    msg = _loads(data, f"{msg_type} message")
-    if not isinstance(msg, dict):
-        raise MessageRejected("schema", f"top level is {type(msg).__name__}, not a map")
-    if msg.get("v") != PROTOCOL_VERSION or isinstance(msg.get("v"), bool):
-        raise MessageRejected("version", f"protocol version {_show(msg.get('v'))}, expected {PROTOCOL_VERSION}")
-    if msg.get("type") != msg_type:
-        raise MessageRejected("schema", f"type {_show(msg.get('type'))}, expected {msg_type!r}")
-    if msg.get("campaign") != campaign:
-        raise MessageRejected("campaign", f"campaign {_show(msg.get('campaign'))}, expected {campaign!r}")
-    return msg
-
-
-def _show(value: Any) -> str:
-    """A received value for an error message: its type, or a short repr of a short plain value."""
-    if isinstance(value, (bool, int, float)) or (isinstance(value, str) and len(value) <= 64):
-        return repr(value)[:80]
-    return f"<{type(value).__name__}>"
-
-
-def _get(msg: dict[str, Any], key: str, types: type | tuple[type, ...]) -> Any:
-    if key not in msg:
-        raise MessageRejected("schema", f"field {key!r} missing")
-    value = msg[key]
-    if isinstance(value, bool) and bool not in (types if isinstance(types, tuple) else (types,)):
-        raise MessageRejected("schema", f"field {key!r} is a bool")
-    if not isinstance(value, types):
-        raise MessageRejected("schema", f"field {key!r} is {type(value).__name__}")
-    return value
-
-
-def _int(msg: dict[str, Any], key: str, minimum: int = 0, maximum: int = INT64_MAX) -> int:
-    value = _get(msg, key, int)
-    if not minimum <= value <= maximum:
-        raise MessageRejected("schema", f"field {key!r} = {_show(value)} is outside [{minimum}, {maximum}]")
-    return value
-
-
-def _number(msg: dict[str, Any], key: str, allow_inf: bool = False) -> float:
-    """A float (or an integer that is exactly one) that is not NaN, and finite unless ``allow_inf``."""
-    value = _get(msg, key, (int, float))
-    if isinstance(value, int) and abs(value) > MAX_COUNT:
-        raise MessageRejected("schema", f"field {key!r} is an integer too large for a float")
-    value = float(value)
-    if math.isnan(value) or (math.isinf(value) and not allow_inf):
-        raise MessageRejected("not_finite", f"field {key!r} is {value}")
-    return value
-
-
-def _name(msg: dict[str, Any], key: str) -> str:
-    value = _get(msg, key, str)
-    if not NAME_PATTERN.match(value):
-        raise MessageRejected("schema", f"field {key!r} is not a valid name")
-    return value
+MAX_GAIN = 1e6
+"""Most orders of magnitude an island's own moves can have gained (a float64 best spans about 630 per
+fall from its largest to its smallest value; a campaign of a million falls is beyond any budget)."""
 
 
 def _algo(msg: dict[str, Any], key: str) -> str:
@@ -201,206 +83,6 @@ def _algo(msg: dict[str, Any], key: str) -> str:
     if not ALGO_PATTERN.match(value):
         raise MessageRejected("schema", f"field {key!r} is not an algorithm label (a short lower-case name)")
     return value
-
-
-def _text(msg: dict[str, Any], key: str) -> str:
-    value = _get(msg, key, str)
-    if len(value) > MAX_TEXT:
-        raise MessageRejected("schema", f"field {key!r} is longer than {MAX_TEXT} characters")
-    return value
-
-
-def _bytes(msg: dict[str, Any], key: str, size: int) -> bytes:
-    value = _get(msg, key, bytes)
-    if len(value) != size:
-        raise MessageRejected("schema", f"field {key!r} has {len(value)} bytes, not {size}")
-    return value
-
-
-def _array(msg: dict[str, Any], key: str, shape: tuple[int | None, ...], max_size: int) -> np.ndarray:
-    """A float64 array whose shape matches ``shape`` (None = any length, ``max_size`` values in all)."""
-    obj = _get(msg, key, dict)
-    if set(obj) != {"shape", "data"} or not isinstance(obj["shape"], list) or not isinstance(obj["data"], bytes):
-        raise MessageRejected("schema", f"field {key!r} is not an array {{shape, data}}")
-    dims = obj["shape"]
-    if len(dims) != len(shape) or not all(isinstance(d, int) and not isinstance(d, bool) and 0 <= d <= max_size for d in dims):
-        raise MessageRejected("shape", f"field {key!r} has shape {_show_shape(dims)}, expected {len(shape)} dimensions of at most {max_size}")
-    if any(want is not None and got != want for got, want in zip(dims, shape)):
-        raise MessageRejected("shape", f"field {key!r} has shape {dims}, expected {list(shape)}")
-    size = math.prod(dims)  # Python integers: no wrap-around however large the dimensions
-    if size > max_size:
-        raise MessageRejected("oversized", f"field {key!r} holds {size} values, more than {max_size}")
-    if len(obj["data"]) != 8 * size:
-        raise MessageRejected("shape", f"field {key!r} has {len(obj['data'])} bytes for shape {dims}")
-    return np.frombuffer(obj["data"], dtype="<f8").astype(float).reshape(dims)
-
-
-def _show_shape(dims: list[Any]) -> str:
-    return repr(dims)[:80] if len(dims) <= 8 else f"<{len(dims)} dimensions>"
-
-
-def _finite(values: np.ndarray, what: str, allow_inf: bool = False) -> None:
-    bad = np.isnan(values) if allow_inf else ~np.isfinite(values)
-    if np.any(bad):
-        raise MessageRejected("not_finite", f"{what} holds NaN" + ("" if allow_inf else " or inf"))
-
-
-def _in_bounds(x: np.ndarray, bounds: np.ndarray) -> None:
-    _finite(x, "candidate vector")
-    outside = (x < bounds[:, 0]) | (x > bounds[:, 1])
-    if np.any(outside):
-        dim = int(np.flatnonzero(np.any(outside.reshape(-1, bounds.shape[0]), axis=0))[0])
-        raise MessageRejected("out_of_bounds", f"candidate outside the search bounds in parameter {dim}")
-
-
-def _plain(value: Any, depth: int = 0, budget: list[int] | None = None) -> None:
-    """A plain-data tree (maps with string keys, lists, short strings, numbers) no deeper than 16 and
-    of at most 100,000 nodes; raises :class:`MessageRejected` otherwise."""
-    budget = budget if budget is not None else [100_000]
-    budget[0] -= 1
-    if budget[0] < 0 or depth > 16:
-        raise MessageRejected("schema", "metadata nested too deep or too large")
-    if isinstance(value, dict):
-        for k, v in value.items():
-            if not isinstance(k, str) or len(k) > MAX_TEXT:
-                raise MessageRejected("schema", "metadata key is not a short string")
-            _plain(v, depth + 1, budget)
-    elif isinstance(value, list):
-        for v in value:
-            _plain(v, depth + 1, budget)
-    elif isinstance(value, str):
-        if len(value) > 10_000:
-            raise MessageRejected("schema", "metadata string longer than 10,000 characters")
-    elif isinstance(value, float):
-        if not math.isfinite(value):
-            raise MessageRejected("not_finite", "metadata holds NaN or inf")
-    elif isinstance(value, int) and not isinstance(value, bool):
-        if abs(value) > INT64_MAX:
-            raise MessageRejected("schema", "metadata integer outside 64 bits")
-    elif not (value is None or isinstance(value, bool)):
-        raise MessageRejected("schema", f"metadata holds a {type(value).__name__}")
-
-
-# --- sealed messages: sender, run, number, tags -------------------------------------------
-@dataclass(frozen=True)
-class Credentials:
-    """What an island gets when it joins: its run id and run key, and the campaign key that every
-    joined island shares (migrants are tagged with it so that other islands can check them)."""
-
-    island: str
-    run: str
-    key: bytes
-    campaign_key: bytes
-
-    @classmethod
-    def issue(cls, island: str, campaign_key: bytes) -> "Credentials":
-        """New credentials for a run of ``island`` (a fresh run id and key)."""
-        return cls(check_name("island", island), secrets.token_hex(6), secrets.token_bytes(KEY_BYTES), campaign_key)
-
-
-@dataclass(frozen=True)
-class Sealed:
-    """An opened sealed message: who sent it, in which run, its number and its fields."""
-
-    sender: str
-    run: str
-    seq: int
-    fields: dict[str, Any]
-
-
-def _tag(key: bytes, msg_type: str, campaign: str, sender: str, run: str, seq: int, body: bytes) -> bytes:
-    header = _dumps([PROTOCOL_VERSION, msg_type, campaign, sender, run, seq])
-    return hmac.new(key, header + body, hashlib.sha256).digest()
-
-
-def seal(msg_type: str, campaign: str, sender: str, run: str, seq: int, fields: dict[str, Any], keys: dict[str, bytes]) -> bytes:
-    """A sealed message: ``fields`` as the body, tagged with each of ``keys`` (tag name -> key)."""
-    body = _dumps(fields)
-    tags = {name: _tag(key, msg_type, campaign, sender, run, seq, body) for name, key in keys.items()}
-    return _dumps({"v": PROTOCOL_VERSION, "type": msg_type, "campaign": campaign, "sender": sender, "run": run, "seq": seq, "body": body, "tags": tags})
-
-
-KeyLookup = Callable[[str, str], "bytes | None"]
-"""``key_for(sender, run)``: the key to check a sender's tag with, None if that run never joined."""
-
-
-def unseal(data: bytes, msg_type: str, campaign: str, *, tag: str, key_for: KeyLookup, sender: str | None = None) -> Sealed:
-    """Open a sealed message: envelope, sender (``sender`` is the one the Zenoh key names), its key,
-    the tag named ``tag``, then the body. Nothing of the body is read before the tag matches."""
-    env = _unpack(data, msg_type, campaign)
-    source = _name(env, "sender")
-    if sender is not None and source != sender:
-        raise MessageRejected("sender", f"message from the key of {sender!r} claims sender {source!r}")
-    run = _name(env, "run")
-    seq = _int(env, "seq")
-    body = _get(env, "body", bytes)
-    tags = _get(env, "tags", dict)
-    key = key_for(source, run)
-    if key is None:
-        raise MessageRejected("unjoined", f"{source!r} run {run!r} did not join the campaign")
-    got = tags.get(tag)
-    if not isinstance(got, bytes) or not hmac.compare_digest(got, _tag(key, msg_type, campaign, source, run, seq, body)):
-        raise MessageRejected("forged", f"{msg_type} message of {source!r} run {run!r} has no valid tag")
-    fields = _loads(body, f"{msg_type} body")
-    if not isinstance(fields, dict):
-        raise MessageRejected("schema", f"{msg_type} body is {type(fields).__name__}, not a map")
-    return Sealed(source, run, seq, fields)
-
-
-class Counter:
-    """Message numbers of one sender run: 0, 1, 2, ... (thread-safe)."""
-
-    def __init__(self, start: int = 0) -> None:
-        self._next = start
-        self._lock = threading.Lock()
-
-    def __call__(self) -> int:
-        with self._lock:
-            n = self._next
-            self._next += 1
-            return n
-
-
-class ReplayGuard:
-    """Drops replays: remembers, per sender run, which of the last ``window`` message numbers it saw
-    (a bit mask: a few hundred bytes per run).
-
-    A number seen before, or older than the window, is a replay. Messages may
-    arrive out of order within the window (a history re-sent on request passes
-    a newer publication). At most ``runs`` sender runs are tracked; the least
-    recently heard one is forgotten first.
-    """
-
-    def __init__(self, window: int = 4096, runs: int = 2 * MAX_MEMBERS) -> None:
-        self.window = window
-        self.runs = runs
-        self._seen: OrderedDict[tuple[str, ...], tuple[int, int]] = OrderedDict()
-        """key -> (highest number, bit i set when number highest - i was seen)"""
-        self._lock = threading.Lock()
-
-    def fresh(self, key: tuple[str, ...], seq: int) -> bool:
-        """True (and remembered) the first time ``seq`` comes from ``key``; False for a replay."""
-        with self._lock:
-            high, seen = self._seen.pop(key, (-1, 0))
-            if seq > high:
-                shift = seq - high
-                seen = ((seen << shift) | 1) & ((1 << self.window) - 1) if shift < self.window else 1
-                high, fresh = seq, True
-            else:
-                age = high - seq
-                fresh = age < self.window and not (seen >> age) & 1
-                if fresh:
-                    seen |= 1 << age
-            self._seen[key] = (high, seen)
-            while len(self._seen) > self.runs:
-                self._seen.popitem(last=False)
-            return fresh
-
-
-def check_replay(guard: ReplayGuard, kind: str, sender: str, run: str, seq: int) -> None:
-    """:class:`MessageRejected` ("replay") unless message ``seq`` of ``kind`` is new from that sender run."""
-    if not guard.fresh((kind, sender, run), seq):
-        raise MessageRejected("replay", f"{kind} message {seq} of {sender!r} run {run!r} was seen before")
 
 
 # --- campaign configuration ---------------------------------------------------------

@@ -3,6 +3,7 @@
 import signal
 import subprocess
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 
@@ -36,3 +37,16 @@ def spawn() -> Iterator[Callable[..., subprocess.Popen]]:
             p.send_signal(signal.SIGCONT)
             p.kill()
         p.communicate(timeout=30)
+
+
+@pytest.fixture(scope="session")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """CA, coordinator certificate for 127.0.0.1/localhost, client certificates island-1 and island-2
+    (deploy/tls/make-certs.sh; the deploy tests only read them)."""
+    from deploy_support import make_certs, require_openssl
+
+    require_openssl()
+    outdir = tmp_path_factory.mktemp("certs")
+    done = make_certs(outdir, "-s", "127.0.0.1", "-s", "localhost", "island-1", "island-2")
+    assert done.returncode == 0, done.stderr
+    return outdir

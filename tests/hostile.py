@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import msgpack
 import numpy as np
 
-from island.protocol import MAX_BYTES, PROTOCOL_VERSION, Credentials, pack_array, seal
+from island.sealing import Credentials, seal
+from island.wire import MAX_BYTES, PROTOCOL_VERSION, pack_array
 
 HOSTILE_INTS = [-1, 2**53 + 1, 2**62, 2**63, 2**64 - 1, -(2**63)]
 HOSTILE_FLOATS = [float("nan"), float("inf"), -float("inf"), 1e300, -1e300]

@@ -110,7 +110,7 @@ class Peer:
 
     def __init__(self, endpoint: str, campaign: str, island: str, *, joined: bool = True, algo: str = "pso", seed: int = 0) -> None:
         from island.node import join
-        from island.protocol import Counter
+        from island.sealing import Counter
         from island.session import open_session, session_config
 
         self.campaign, self.island = campaign, island

@@ -22,7 +22,6 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
 from island.protocol import (
-    Credentials,
     History,
     JoinRequest,
     Migrants,
@@ -32,6 +31,7 @@ from island.protocol import (
     encode_join,
     encode_migrants,
 )
+from island.sealing import Credentials
 from island.termination import Termination
 
 LOOPS = synth_loops(n_points=30)
@@ -124,7 +124,7 @@ def test_a_liveliness_token_alone_makes_nobody_a_member(tmp_path, link):
 
 
 def test_a_joined_island_whose_token_never_shows_is_lost(tmp_path, link, monkeypatch):
-    monkeypatch.setattr("coordinator.server.TOKEN_WAIT_S", 0.0)
+    monkeypatch.setattr("coordinator.members.TOKEN_WAIT_S", 0.0)
     c = make(tmp_path)
     c.admit("pso-1", "pso", 1)
     c.pump(link, 0.1)
@@ -250,7 +250,7 @@ def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_rep
 
 def test_a_resumed_campaign_nobody_comes_back_to_ends_after_the_orphan_wait(tmp_path, link, monkeypatch):
     monkeypatch.setattr("coordinator.server.ORPHAN_S", 0.2)
-    monkeypatch.setattr("coordinator.server.TOKEN_WAIT_S", 0.5)
+    monkeypatch.setattr("coordinator.members.TOKEN_WAIT_S", 0.5)
     c = make(tmp_path)
     c.admit("pso-0", "pso", 0)  # joined, never finished
     c.store.close()

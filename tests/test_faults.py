@@ -24,8 +24,10 @@ from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config
 from island.node import IslandNode, ZenohTransport, fetch_config
-from island.protocol import MAX_BYTES, Credentials, History, Migrants, encode_history, encode_migrants, pack_array, seal
+from island.protocol import History, Migrants, encode_history, encode_migrants
+from island.sealing import Credentials, seal
 from island.session import open_session, session_config
+from island.wire import MAX_BYTES, pack_array
 from support import Peer, events, query, ready, rows_of, wait_for
 
 pytestmark = pytest.mark.slow  # processes, kills and restarts: the full suite runs these

@@ -18,7 +18,8 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
 from island.node import IslandNode, MemoryBus
-from island.protocol import Counter, Credentials, JoinRequest, decode_joined, encode_join
+from island.protocol import JoinRequest, decode_joined, encode_join
+from island.sealing import Counter, Credentials
 from hostile import Hostile, stream
 
 pytestmark = pytest.mark.slow  # a few seconds of messages

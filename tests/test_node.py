@@ -20,7 +20,6 @@ from island.node import IslandNode, MemoryBus, ZenohTransport, fetch_config
 from island.protocol import (
     Best,
     Control,
-    Credentials,
     MemberState,
     Migrants,
     decode_history,
@@ -30,6 +29,7 @@ from island.protocol import (
     encode_joined,
     encode_migrants,
 )
+from island.sealing import Credentials
 from island.session import open_session, session_config
 from support import wait_for
 

@@ -1,4 +1,4 @@
-"""Campaign messages: round trips, strict rejection of bad input, tags and replays (island/protocol.py)."""
+"""Campaign messages: round trips, strict rejection of bad input, tags and replays (island/protocol.py, sealing.py, wire.py)."""
 
 from __future__ import annotations
 
@@ -11,18 +11,12 @@ from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
 from island.migration import Migration, in_neighbours
 from island.protocol import (
-    MAX_BYTES,
-    PROTOCOL_VERSION,
     Best,
     Control,
-    Credentials,
     History,
     JoinRequest,
     MemberState,
-    MessageRejected,
     Migrants,
-    ReplayGuard,
-    check_replay,
     decode_best,
     decode_control,
     decode_history,
@@ -35,9 +29,9 @@ from island.protocol import (
     encode_join,
     encode_joined,
     encode_migrants,
-    pack_array,
-    seal,
 )
+from island.sealing import Credentials, ReplayGuard, check_replay, seal
+from island.wire import MAX_BYTES, PROTOCOL_VERSION, MessageRejected, pack_array
 
 BOUNDS = np.array([[0.0, 0.1], [-10.0, 10.0], [100.0, 500.0], [-1e4, 1e4]])
 X = np.array([[0.0042, -0.4, 189.1239, -1256.64], [0.01, 1.0, 200.0, 0.0]])

@@ -40,7 +40,8 @@ from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config
 from island.migration import Migration
 from island.node import IslandNode, ZenohTransport, fetch_config, join
-from island.protocol import Credentials, History, Migrants, encode_history, encode_migrants
+from island.protocol import History, Migrants, encode_history, encode_migrants
+from island.sealing import Credentials
 from island.session import open_session, session_config
 from island.termination import Termination
 

@@ -58,8 +58,9 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.ga import GA
 from island.migration import Migration
-from island.protocol import Credentials, Migrants, decode_migrants, encode_migrants
+from island.protocol import Migrants, decode_migrants, encode_migrants
 from island.run import run as run_optimizer
+from island.sealing import Credentials
 from island.session import open_session, session_config
 from island.termination import Termination
 

@@ -34,9 +34,9 @@ from island.algorithms import check_algorithm
 from island.config import MAX_SEED, CampaignConfig, decode_config
 from island.migration import Migration
 from island.node import IslandNode, ZenohTransport, fetch_config
-from island.protocol import check_name
 from island.session import DEFAULT_ENDPOINT, authenticated_name, open_session, session_config
 from island.termination import Termination
+from island.wire import check_name
 
 
 MAX_WAIT_S = 86400.0

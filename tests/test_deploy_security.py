@@ -1,192 +1,46 @@
-"""The Zenoh configurations of deploy/zenoh and deploy/tls/make-certs.sh, used for real.
-
-Every config is opened as a real Zenoh session on 127.0.0.1 (free ports only),
-with only its endpoints, certificate and credential paths pointed at test files;
-everything else (mode, lease, TLS, authentication, access control) is the file's.
-Each wait is bounded.
+"""Deploy security, used for real: TLS (deploy/tls/make-certs.sh certificates, mutual authentication, the
+coordinator's address in its certificate), user/password authentication, the access control lists that
+confine islands to their campaign and their own keys (deploy/secure-campaign.py), quiet logs, and the
+threat model of deploy/GUIDE.md citing the tests that hold it. Helpers: tests/deploy_support.py.
 """
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import os
-import queue
 import re
 import shutil
-import signal
-import socket
 import subprocess
 import sys
-import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 import zenoh
 
+from coordinator.launch import free_port
+from deploy_support import (
+    CAMPAIGN,
+    CREDENTIALS,
+    DEPLOY,
+    MAKE_CERTS,
+    ZENOH_DIR,
+    cannot_connect,
+    collector,
+    localized,
+    make_certs,
+    pair,
+    put_setting,
+    put_until_received,
+    replies,
+    require_openssl,
+    session,
+    setting,
+    wait_until,
+    watching,
+)
+
 pytestmark = pytest.mark.timeout(60)
-
-DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
-ZENOH_DIR = DEPLOY / "zenoh"
-MAKE_CERTS = DEPLOY / "tls" / "make-certs.sh"
-MEMBERS = DEPLOY / "members.py"
-CREDENTIALS = ZENOH_DIR / "credentials.example.txt"
-FLAVOURS = ("", "-tls", "-usrpwd", "-secure")
-CAMPAIGN = "hysid/demo"
-WAIT = 5.0
-REFUSED_AFTER_MS = 1500
-
-TLS_FILES = {
-    "root_ca_certificate": "ca.pem",
-    "listen_certificate": "coordinator/cert.pem",
-    "listen_private_key": "coordinator/key.pem",
-    "connect_certificate": "islands/island-1/cert.pem",
-    "connect_private_key": "islands/island-1/key.pem",
-}
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def setting(config: zenoh.Config, key: str):
-    return json.loads(config.get_json(key))
-
-
-def put_setting(config: zenoh.Config, key: str, value) -> None:
-    config.insert_json5(key, json.dumps(value))
-
-
-def uses_tls(path: Path) -> bool:
-    return "tls" in (setting(zenoh.Config.from_file(path), "transport/link/protocols") or [])
-
-
-def localized(path: Path, port: int, certs: Path | None = None, credentials: Path = CREDENTIALS) -> zenoh.Config:
-    """The config of `path` with its endpoint moved to 127.0.0.1:port and its file paths to test files."""
-    config = zenoh.Config.from_file(path)
-    endpoints_key = "listen/endpoints" if setting(config, "mode") == "router" else "connect/endpoints"
-    protocol = setting(config, endpoints_key)[0].split("/")[0]
-    put_setting(config, endpoints_key, [f"{protocol}/127.0.0.1:{port}"])
-    for key, name in TLS_FILES.items():
-        if setting(config, f"transport/link/tls/{key}") is not None:
-            assert certs is not None, f"{path.name} needs certificates"
-            put_setting(config, f"transport/link/tls/{key}", str(certs / name))
-    if setting(config, "transport/auth/usrpwd/dictionary_file") is not None:
-        put_setting(config, "transport/auth/usrpwd/dictionary_file", str(credentials))
-    return config
-
-
-def refused_quickly(config: zenoh.Config) -> zenoh.Config:
-    """Stop retrying after REFUSED_AFTER_MS instead of the file's 60 s (islands wait for a late coordinator)."""
-    put_setting(config, "connect/timeout_ms", REFUSED_AFTER_MS)
-    return config
-
-
-@contextlib.contextmanager
-def session(config: zenoh.Config) -> Iterator[zenoh.Session]:
-    opened = zenoh.open(config)
-    try:
-        yield opened
-    finally:
-        opened.close()
-
-
-def cannot_connect(config: zenoh.Config) -> bool:
-    try:
-        zenoh.open(refused_quickly(config)).close()
-    except zenoh.ZError:
-        return True
-    return False
-
-
-def require_openssl() -> None:
-    if shutil.which("openssl") is None:
-        pytest.skip("openssl is not installed: make-certs.sh cannot create the TLS certificates")
-
-
-def make_certs(outdir: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["bash", str(MAKE_CERTS), "-o", str(outdir), *args], capture_output=True, text=True, timeout=60)
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """CA, coordinator certificate for 127.0.0.1/localhost, client certificates island-1 and island-2."""
-    require_openssl()
-    outdir = tmp_path_factory.mktemp("certs")
-    done = make_certs(outdir, "-s", "127.0.0.1", "-s", "localhost", "island-1", "island-2")
-    assert done.returncode == 0, done.stderr
-    return outdir
-
-
-def collector(received: list) -> Callable[[zenoh.Sample], None]:
-    return lambda sample: received.append((str(sample.key_expr), sample.payload.to_bytes()))
-
-
-def wait_until(predicate: Callable[[], bool], timeout: float = WAIT) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return predicate()
-
-
-def put_until_received(sender: zenoh.Session, key: str, payload: bytes, received: list, timeout: float = WAIT) -> bool:
-    """Put until the receiver got it: subscriptions reach a new client asynchronously."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        sender.put(key, payload)
-        if wait_until(lambda: (key, payload) in received, 0.2):
-            return True
-    return False
-
-
-def watching(router: zenoh.Session, seen: list, members: list) -> list:
-    """The router's view of everything put and every liveliness token (entities to undeclare)."""
-    return [
-        router.declare_subscriber("**", collector(seen)),
-        router.liveliness().declare_subscriber("**", lambda sample: members.append(str(sample.key_expr))),
-    ]
-
-
-def replies(asker: zenoh.Session, selector: str, timeout: float = WAIT) -> list[bytes]:
-    return [reply.ok.payload.to_bytes() for reply in asker.get(selector, timeout=timeout) if reply.ok is not None]
-
-
-def pair(flavour: str) -> tuple[Path, Path]:
-    return ZENOH_DIR / f"coordinator{flavour}.json5", ZENOH_DIR / f"island{flavour}.json5"
-
-
-def test_every_config_file_is_one_of_the_tested_pairs() -> None:
-    shipped = {path.name for path in ZENOH_DIR.glob("*.json5")}
-    tested = {path.name for flavour in FLAVOURS for path in pair(flavour)}
-    assert shipped == tested
-
-
-@pytest.mark.parametrize("flavour", FLAVOURS)
-def test_config_pair_opens_real_sessions_and_exchanges(flavour: str, request: pytest.FixtureRequest) -> None:
-    coordinator_file, island_file = pair(flavour)
-    for path, mode in ((coordinator_file, "router"), (island_file, "client")):
-        config = zenoh.Config.from_file(path)
-        assert setting(config, "mode") == mode
-        assert setting(config, "scouting/multicast/enabled") is False
-        assert setting(config, "transport/link/tx/lease") == 2000
-    tls_certs = request.getfixturevalue("certs") if uses_tls(coordinator_file) else None
-    port = free_port()
-    with session(localized(coordinator_file, port, tls_certs)) as coordinator:
-        received: list = []
-        subscriber = coordinator.declare_subscriber(f"{CAMPAIGN}/migrants/*", collector(received))
-        queryable = coordinator.declare_queryable(f"{CAMPAIGN}/config", lambda query: query.reply(query.key_expr, b"loop set"))
-        with session(localized(island_file, port, tls_certs)) as island:
-            assert island.info.routers_zid() == [coordinator.zid()]
-            assert put_until_received(island, f"{CAMPAIGN}/migrants/island-1", b"migrant", received)
-            assert replies(island, f"{CAMPAIGN}/config") == [b"loop set"]
-        subscriber.undeclare()
-        queryable.undeclare()
 
 
 def test_tls_island_without_client_certificate_is_refused(certs: Path) -> None:
@@ -314,41 +168,6 @@ def test_acl_denies_everything_to_an_authenticated_user_not_listed(certs: Path, 
         queryable.undeclare()
 
 
-FROZEN_ISLAND = """
-import json, sys, time, zenoh
-config = zenoh.Config.from_file(sys.argv[1])
-config.insert_json5("connect/endpoints", json.dumps([sys.argv[2]]))
-island = zenoh.open(config)
-token = island.liveliness().declare_token(sys.argv[3])
-print("member", flush=True)
-time.sleep(120)
-"""
-
-
-def test_short_lease_notices_a_frozen_island_before_zenoh_default_lease() -> None:
-    """lease 2000 ms: a stopped (SIGSTOP) island's membership ends well before the 10 s default."""
-    coordinator_file, island_file = pair("")
-    port = free_port()
-    member = f"{CAMPAIGN}/members/island-7"
-    with session(localized(coordinator_file, port)) as coordinator:
-        events: queue.Queue = queue.Queue()
-        subscriber = coordinator.liveliness().declare_subscriber(member, lambda sample: events.put(sample.kind))
-        child = subprocess.Popen(
-            [sys.executable, "-c", FROZEN_ISLAND, str(island_file), f"tcp/127.0.0.1:{port}", member],
-            stdout=subprocess.PIPE,
-            text=True,
-        )
-        try:
-            assert events.get(timeout=WAIT + 5) == zenoh.SampleKind.PUT
-            child.send_signal(signal.SIGSTOP)
-            assert events.get(timeout=8.0) == zenoh.SampleKind.DELETE
-        finally:
-            child.kill()
-            child.wait(timeout=10)
-            child.stdout.close()
-        subscriber.undeclare()
-
-
 def test_make_certs_reuses_the_ca_to_add_an_island_later(certs: Path, tmp_path: Path) -> None:
     outdir = tmp_path / "certs"
     shutil.copytree(certs, outdir)
@@ -374,78 +193,6 @@ def test_make_certs_rejects_bad_arguments_with_one_line(args: list[str], tmp_pat
     assert done.returncode == 2
     assert done.stderr.startswith("make-certs.sh: error: ") and done.stderr.count("\n") == 1
     assert not (tmp_path / "hysid-certs").exists()
-
-
-def members_cli(port: int) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, str(MEMBERS), "--connect", f"tcp/127.0.0.1:{port}", "--config", str(pair("")[1]), "--campaign", "demo", "--timeout", "2"],
-        capture_output=True, text=True, timeout=30,
-    )
-
-
-def test_members_script_lists_the_campaign_members_only() -> None:
-    coordinator_file, island_file = pair("")
-    port = free_port()
-    with session(localized(coordinator_file, port)) as coordinator:
-        nobody = members_cli(port)
-        assert nobody.returncode == 1 and "no island is a member of campaign 'demo'" in nobody.stderr
-        with session(localized(island_file, port)) as island:
-            tokens = [
-                island.liveliness().declare_token(f"{CAMPAIGN}/members/island-3"),
-                coordinator.liveliness().declare_token(f"{CAMPAIGN}/members/island-1"),
-                island.liveliness().declare_token("hysid/other/members/island-4"),
-            ]
-            listed = members_cli(port)
-            assert (listed.returncode, listed.stdout) == (0, "island-1\nisland-3\n"), listed.stderr
-            for token in tokens:
-                token.undeclare()
-
-
-def test_members_script_reports_an_unreachable_coordinator_in_one_line() -> None:
-    done = members_cli(free_port())
-    assert done.returncode == 2
-    assert done.stderr.startswith("members.py: error: cannot open Zenoh session") and done.stderr.count("\n") == 1
-
-
-@pytest.mark.parametrize("unit", ["hysid-coordinator.service", "hysid-island@.service"])
-def test_systemd_units_verify_cleanly(unit: str, tmp_path: Path) -> None:
-    if shutil.which("systemd-analyze") is None:
-        pytest.skip("systemd-analyze is not installed")
-    hysid = Path(sys.executable).with_name("hysid")
-    if not hysid.exists():
-        pytest.skip(f"no hysid console script next to {sys.executable}")
-    text = (DEPLOY / "systemd" / unit).read_text()
-    assert "/opt/hysid/venv/bin/hysid" in text
-    (tmp_path / unit).write_text(text.replace("/opt/hysid/venv/bin/hysid", str(hysid)))
-    done = subprocess.run(["systemd-analyze", "verify", str(tmp_path / unit)], capture_output=True, text=True, timeout=60)
-    assert (done.returncode, done.stderr) == (0, "")
-    assert "Restart=on-failure" in text and "NoNewPrivileges=yes" in text and "EnvironmentFile=/etc/hysid/" in text
-
-
-@pytest.mark.parametrize("script", ["slurm/hysid-campaign.sbatch", "local/run-campaign.sh", "tls/make-certs.sh"])
-def test_shell_scripts_parse(script: str) -> None:
-    done = subprocess.run(["bash", "-n", str(DEPLOY / script)], capture_output=True, text=True, timeout=30)
-    assert (done.returncode, done.stderr) == (0, "")
-
-
-@pytest.mark.slow
-def test_local_recipe_runs_a_campaign_of_separate_processes(tmp_path: Path) -> None:
-    hysid = Path(sys.executable).with_name("hysid")
-    if not hysid.exists():
-        pytest.skip(f"no hysid console script next to {sys.executable}")
-    out = tmp_path / "run"
-    done = subprocess.run(
-        ["bash", str(DEPLOY / "local" / "run-campaign.sh"), "-n", "2", "-p", str(free_port()), "-c", "rehearsal", "-o", str(out), "synth",
-         "--", "--time-limit", "4", "--iterations", "100000", "--population", "30", "--initial", "60", "--no-polish", "--quiet"],
-        capture_output=True, text=True, timeout=55, env={**os.environ, "HYSID": str(hysid)},
-    )
-    assert done.returncode == 0, done.stderr + (out / "coordinator.log").read_text()
-    result = json.loads((out / "report" / "result.json").read_text())
-    assert result["settings"]["campaign"] == "rehearsal"
-    assert {island["island"] for island in result["islands"]} == {"island-1", "island-2"}
-    assert {island["algo"] for island in result["islands"]} == {"ga", "pso"}
-    for k in (1, 2):
-        assert "stopped by the coordinator" in (out / f"island-{k}.log").read_text()
 
 
 # --- the secure recipe: identities bound to keys, campaigns apart, listening where told, quiet logs ---------
