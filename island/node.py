@@ -154,7 +154,8 @@ class IslandNode:
         self.rows: list[tuple[int, float, int, float]] = []
         self.migrant_evaluations = 0
         self.moves: list[tuple[int, str, str]] = []
-        """``(iteration, from, to)`` each time the coordinator moved this island to another algorithm."""
+        """``(iteration, from, to)`` each time the coordinator moved this island to another algorithm
+        (the new one runs from the next iteration on)."""
         self.stop_reason = ""
         self.finished = False
         """The run is over (its last history message says so)."""

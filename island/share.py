@@ -45,7 +45,7 @@ WINDOW = 2
 """Rounds over which credit is summed, and the fewest rounds between two moves away from one algorithm."""
 LAGGING = 0.1
 """An algorithm with less than this fraction of the leader's credit per island over the window is lagging."""
-PERSIST = 2
+PERSIST = 1
 """Reviews in a row an algorithm must be lagging before it gives an island away (the count restarts after a move)."""
 
 

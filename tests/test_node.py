@@ -6,6 +6,7 @@ import queue
 import secrets
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from coordinator.launch import free_port
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
+from island.ga import GA
 from island.migration import Migration
 from island.node import IslandNode, MemoryBus, ZenohTransport, fetch_config
 from island.protocol import (
@@ -207,10 +209,13 @@ class Admissions:
         c = self.issued.get(island)
         return c.key if c is not None and c.run == run else None
 
-    def control(self, stored: dict[str, int] | None = None, stop: str = "", keys: dict[str, bytes] | None = None) -> bytes:
-        """A roster of every island issued credentials (all alive), ``stored`` rows confirmed."""
+    def control(self, stored: dict[str, int] | None = None, stop: str = "", keys: dict[str, bytes] | None = None,
+                algos: dict[str, str] | None = None) -> bytes:
+        """A roster of every island issued credentials (all alive, running the algorithm it joined with
+        unless ``algos`` says otherwise), ``stored`` rows confirmed."""
         self.seq += 1
-        members = tuple(MemberState(i, c.run, True, (stored or {}).get(i, -1), self.algos.get(i, "pso")) for i, c in self.issued.items())
+        algo = {**self.algos, **(algos or {})}
+        members = tuple(MemberState(i, c.run, True, (stored or {}).get(i, -1), algo.get(i, "pso")) for i, c in self.issued.items())
         tags = keys if keys is not None else {i: c.key for i, c in self.issued.items()}
         return encode_control(Control(self.campaign, members, stop, self.seq), "test", tags)
 
@@ -270,6 +275,31 @@ def test_zenoh_island_joins_reports_history_backfills_stops_and_leaves_once_conf
             e.undeclare()
         coordinator.close()
         client.close()
+
+
+def test_zenoh_island_moved_to_another_algorithm_by_the_roster_carries_its_search_on(router):
+    endpoint, rsession = router
+    cfg = replace(endless(), algos=["ga", "pso"], options={a: {"population": 10, "initial_population": 10, "iterations": 100_000} for a in ("ga", "pso")})
+    coordinator = Admissions(rsession, cfg)
+    arrived: queue.Queue = queue.Queue()
+    sub = rsession.declare_subscriber("hysid/c1/history/*", lambda s: arrived.put(s.payload.to_bytes()))
+    client, node, worker = start_island(endpoint, cfg)
+    decode = lambda data: decode_history(data, "c1", node.objective.bounds, key_for=coordinator.key_for)  # noqa: E731
+    try:
+        assert decode(arrived.get(timeout=20)).algo == "pso"
+        rsession.put("hysid/c1/control", coordinator.control(algos={"pso-9": "ga"}))
+        h = decode(arrived.get(timeout=10))
+        while h.algo == "pso":
+            h = decode(arrived.get(timeout=10))
+        assert h.algo == "ga" and node.moves and node.moves[0][1:] == ("pso", "ga") and isinstance(node.optimizer, GA)
+        assert np.all(np.diff(h.rows[:, 0]) == 1)
+    finally:
+        rsession.put("hysid/c1/control", coordinator.control(stop="enough", algos={"pso-9": "ga"}, stored={"pso-9": 2**52}))
+        worker.join(20)
+        sub.undeclare()
+        coordinator.close()
+        client.close()
+    assert not worker.is_alive() and [m[1:] for m in node.moves] == [("pso", "ga")]
 
 
 def test_zenoh_island_ignores_forged_and_replayed_control_and_bad_history_queries(router):
