@@ -92,8 +92,8 @@ class Hostile:
     def history_body(self, algo: str, seed: int, implausible: float) -> dict:
         good = {"algo": algo, "seed": seed, "rows": pack_array(np.array([[0, 5.0, 20, 0.1], [1, 4.0, 45, 0.2]])),
                 "best_x": pack_array(self._x(1)[0]), "best_f": 1e9, "stats": {"sent": 0, "received": 0, "taken": 0, "rejected": 0},
-                "final": False}
-        field = self._pick(["rows", "best_x", "best_f", "stats", "seed", "algo", "final", "missing", "implausible"])
+                "final": False, "gain": 0.5}
+        field = self._pick(["rows", "best_x", "best_f", "stats", "seed", "algo", "final", "gain", "missing", "implausible"])
         if field == "missing":
             del good[self._pick(list(good))]
         elif field == "implausible":
@@ -116,6 +116,8 @@ class Hostile:
             good["seed"] = self._pick([2**63, -1, 2**64 - 1, 1.5])
         elif field == "algo":
             good["algo"] = self._pick(["GA", "a" * 17, "de", "", 3])
+        elif field == "gain":
+            good["gain"] = self._pick([-1.0, float("nan"), float("inf"), 1e7, "1", None])
         else:
             good["final"] = self._pick([1, "yes", None])
         return good
@@ -171,13 +173,13 @@ class Hostile:
             return self.rng.bytes(int(self.rng.integers(0, 100)))
         good[field] = self._pick({
             "island": ["someone-else", "", "x" * 65, 7], "algo": ["GA", 3, "x" * 20], "seed": [2**63, -1, 2**64 - 1, "1"],
-            "nonce": [b"short", "n" * 16, None], "v": [1, 3, "2"], "campaign": ["other", 2],
+            "nonce": [b"short", "n" * 16, None], "v": [PROTOCOL_VERSION - 1, PROTOCOL_VERSION + 1, str(PROTOCOL_VERSION)], "campaign": ["other", 2],
         }[field])
         return msgpack.packb(good, use_bin_type=True)
 
     def control(self, target: Credentials) -> bytes:
         """A control message a target island must refuse: forged, or malformed under its own tag."""
-        members = [["a", "r1", True, 3]]
+        members = [["a", "r1", True, 3, "pso"]]
         defect = self._pick(["forged", "members", "stop", "envelope"])
         if defect == "forged":
             return seal("control", self.campaign, "coordinator", "c0", self.seq(), {"members": members, "stop": "forged stop"}, {target.island: b"f" * 32})
@@ -185,7 +187,10 @@ class Hostile:
             return self.rng.bytes(int(self.rng.integers(0, 200)))
         fields = {"members": members, "stop": ""}
         if defect == "members":
-            fields["members"] = self._pick([[["a", "r1", True, 2**63]], [["a/b", "r1", True, 1]], [[1, 2, 3]], "x", [["a", "r1", "yes", 1]], [members[0]] * 5000])
+            fields["members"] = self._pick([
+                [["a", "r1", True, 2**63, "pso"]], [["a/b", "r1", True, 1, "pso"]], [[1, 2, 3]], "x", [["a", "r1", "yes", 1, "pso"]],
+                [["a", "r1", True, 1, "PSO!"]], [["a", "r1", True, 1]], [members[0]] * 5000,
+            ])
         else:
             fields["stop"] = "s" * 1000
         return seal("control", self.campaign, "coordinator", "c0", self.seq(), fields, {target.island: target.key})

@@ -121,6 +121,8 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
         (["campaign", "--algos", "ga,cmaes"], "--algos 'ga,cmaes': give a comma-separated list of ga, pso"),
         (["campaign", "--islands", "0"], "--islands 0: a campaign needs at least one island"),
         (["campaign", "--topology", "star"], "--topology 'star': must be one of ring, full, random"),
+        (["campaign", "--share", "greedy"], "--share 'greedy': share must be one of adaptive, fixed"),
+        (["coordinator", "--share", "greedy"], "--share 'greedy': share must be one of adaptive, fixed"),
         (["campaign", "--initial", "10"], "--initial 10: must be at least --population 200"),
         (["coordinator", "--resume"], "--resume needs --db FILE"),
         (["coordinator", "--campaign", "a/b"], "--campaign 'a/b': must be 1-64 characters"),
@@ -223,11 +225,12 @@ def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, caps
 
 
 def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_the_stop(tmp_path, capsys):
-    argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--population", "20", "--initial", "40", "--interval", "5",
-            "--evaluations", "6000", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--share", "fixed", "--population", "20", "--initial", "40",
+            "--interval", "5", "--evaluations", "6000", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
     assert main(argv) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["settings"]["stop_reason"] == "budget of 6,000 evaluations spent" and doc["settings"]["until_stopped"] is True
+    assert doc["settings"]["share"] == "fixed" and doc["settings"]["moves"] == []
     ga, pso = doc["islands"]
     assert ga["algo"] == "ga" and pso["algo"] == "pso"
     assert abs(ga["iterations"] - pso["iterations"]) <= 5 and ga["iterations"] > 60  # in step to the end, past the old default of 60
