@@ -527,10 +527,7 @@ class Coordinator:
         (:mod:`island.share`): stored, and told to the islands with the next control message."""
         if self.share is None or self.stop_reason is not None:
             return
-        alive = {
-            (island, m.run): (self.assigned[(island, m.run)], self.islands.get((island, m.run), IslandView("")).best)
-            for island, m in self.members.items() if m.status == "alive" and (island, m.run) in self.assigned
-        }
+        alive = {(island, m.run): self.assigned[(island, m.run)] for island, m in self.members.items() if m.status == "alive" and (island, m.run) in self.assigned}
         per_iteration = max(self._optimizer(a).population + self._optimizer(a).addpop_number for a in self.config.algos)
         round_evaluations = len(alive) * (self.config.migration.interval or SHARE_ROUND_ITERATIONS) * per_iteration
         for move in self.share.review(self.evaluations, round_evaluations, alive):

@@ -1,4 +1,4 @@
-"""How a mixed campaign shares its islands between algorithms: credit for the global best, and moves.
+"""How a mixed campaign shares its islands between algorithms: credit for what each algorithm gains, and moves.
 
 GA and PSO islands of one campaign do not search equally well on every model
 (on ``thesis+coulomb_friction`` from scratch the thesis' GA stays three orders
@@ -16,11 +16,12 @@ search breeds in proportion to its recent success), with an island as the unit:
   then improves it near that best says nothing about the algorithm;
 * a *round* is one migration interval of every island's evaluations; after
   each, an algorithm whose credit per island over the last :data:`WINDOW`
-  rounds is less than :data:`LAGGING` of the leading algorithm's, at
-  :data:`PERSIST` reviews in a row, gives one island, its worst, to the
-  leader; it keeps at least ``keep`` islands. Early credit is lumpy (a lucky
-  jump of one island), hence the window, the persistence and one move at a
-  time;
+  rounds is less than :data:`LAGGING` of the leading algorithm's gives all
+  its islands to the leader. Two rounds of credit (about ten iterations of
+  every island) tell a lagging algorithm apart without spending much on it;
+  the earlier the move, the less of the budget the weaker algorithm takes.
+  A campaign whose algorithms keep up with each other keeps its mix, and one
+  where nobody gains (converged, or stuck) moves nobody;
 * the moved island carries its search on
   (:func:`island.algorithms.switch_algorithm`): its population becomes the
   leader's population or swarm, its counters and history go on.
@@ -35,18 +36,15 @@ from collections import deque
 from dataclasses import asdict, dataclass
 from typing import Any
 
-
 from hysid_model.errors import HysidInputError
 
 SHARES = ("adaptive", "fixed")
 """``adaptive``: islands move to the algorithm that improves the global best; ``fixed``: every island
 keeps the algorithm it joined with (as the thesis compared GA and PSO)."""
 WINDOW = 2
-"""Rounds over which credit is summed, and the fewest rounds between two moves away from one algorithm."""
+"""Rounds over which each algorithm's credit is summed before it is compared."""
 LAGGING = 0.1
 """An algorithm with less than this fraction of the leader's credit per island over the window is lagging."""
-PERSIST = 1
-"""Reviews in a row an algorithm must be lagging before it gives an island away (the count restarts after a move)."""
 
 
 def check_share(share: Any) -> str:
@@ -75,15 +73,12 @@ class Move:
 class Share:
     """The ``adaptive`` share policy (module docstring) of one campaign."""
 
-    def __init__(self, algos: list[str], *, keep: int = 0) -> None:
+    def __init__(self, algos: list[str]) -> None:
         self.algos = list(dict.fromkeys(algos))
-        self.keep = keep
         self.rounds: deque[dict[str, float]] = deque([{}], maxlen=WINDOW)
         """Credit per algorithm in the current round (last) and the ones before it."""
         self.closed = 0
         """Rounds closed so far."""
-        self.behind: dict[str, int] = {}
-        """Per algorithm, the reviews in a row at which it was lagging."""
         self.next_review = 0
 
     def credit(self, algo: str, orders: float) -> None:
@@ -91,9 +86,9 @@ class Share:
         if orders > 0:
             self.rounds[-1][algo] = self.rounds[-1].get(algo, 0.0) + float(orders)
 
-    def review(self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], tuple[str, float]]) -> list[Move]:
-        """After ``evaluations`` in all: if a round (``round_evaluations``) is over, close it and return the
-        moves (at most one per lagging algorithm). ``islands``: each alive run's algorithm and best fitness."""
+    def review(self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
+        """After ``evaluations`` in all: if a round (``round_evaluations``) is over, close it and return
+        the moves. ``islands``: the algorithm of each alive island run ``(island, run)``."""
         if evaluations < self.next_review:
             return []
         self.next_review = evaluations + max(int(round_evaluations), 1)
@@ -103,15 +98,14 @@ class Share:
         if self.closed < WINDOW:
             return []
         credit = {a: sum(r.get(a, 0.0) for r in window) for a in self.algos}
-        own = {a: sorted((k for k, (b, _) in islands.items() if b == a), key=lambda k: (-islands[k][1], k)) for a in self.algos}
+        own = {a: sorted(k for k, b in islands.items() if b == a) for a in self.algos}
         per_island = {a: credit[a] / len(own[a]) if own[a] else 0.0 for a in self.algos}
         lead = max(self.algos, key=lambda a: per_island[a])
-        moves = []
-        for algo in self.algos:
-            lagging = algo != lead and per_island[lead] > 0 and per_island[algo] < LAGGING * per_island[lead]
-            self.behind[algo] = self.behind.get(algo, 0) + 1 if lagging else 0
-            if self.behind[algo] >= PERSIST and len(own[algo]) > self.keep:
-                self.behind[algo] = 0
-                island, run = own[algo][0]
-                moves.append(Move(island, run, algo, lead, int(evaluations), {a: round(c, 3) for a, c in credit.items()}))
-        return moves
+        if per_island[lead] <= 0:
+            return []
+        said = {a: round(c, 3) for a, c in credit.items()}
+        return [
+            Move(island, run, algo, lead, int(evaluations), said)
+            for algo in self.algos if algo != lead and per_island[algo] < LAGGING * per_island[lead]
+            for island, run in own[algo]
+        ]
