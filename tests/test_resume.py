@@ -53,7 +53,7 @@ def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own
     island is recorded lost, no history row is lost, the new island takes migrants from the
     survivors, and the campaign ends by its evaluation budget with the right answer."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "r.sqlite"
-    budget = 300_000
+    budget = 400_000
     first = start_coordinator(spawn, endpoint, "back", db, tmp_path / "out1", "--algos", "ga,pso", *SMALL, "--min-islands", "3",
                               "--evaluations", str(budget))
     islands = {name: start_island(spawn, endpoint, "back", name, "--wait", "60") for name in ("a", "b", "c")}
@@ -64,11 +64,15 @@ def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own
     before = {n: iterations(db, n) for n in islands}
     spent_before = query(db, "SELECT sum(evaluations) FROM islands")[0][0]
     assert spent_before < budget / 2
-    for name in ("a", "c"):  # the survivors notice, and wait
+    for name in ("a", "c"):  # the survivors notice, and wait (searching on)
         islands[name][1].wait_for("has been silent", 60)
+    for name in ("a", "c"):  # frozen until the coordinator is back: the outage may last as long as a loaded machine needs, the
+        islands[name][0].send_signal(signal.SIGSTOP)  # survivors do not spend the budget in it before the new island can join
     late, late_err = start_island(spawn, endpoint, "back", "d", "--wait", "60")  # a new island, waiting for the coordinator
     late_err.wait_for("no coordinator of campaign 'back' at", 60)
     second = start_coordinator(spawn, endpoint, "back", db, tmp_path / "out2", "--resume")
+    for name in ("a", "c"):
+        islands[name][0].send_signal(signal.SIGCONT)
     doc = finished(second)
     # (b) it did not stop at once: it stopped by the stored budget, after the islands spent it
     assert doc["settings"]["stop_reason"] == f"budget of {budget:,} evaluations spent"
