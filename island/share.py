@@ -21,7 +21,8 @@ search breeds in proportion to its recent success), with an island as the unit:
   every island) tell a lagging algorithm apart without spending much on it;
   the earlier the move, the less of the budget the weaker algorithm takes.
   A campaign whose algorithms keep up with each other keeps its mix, and one
-  where nobody gains (converged, or stuck) moves nobody;
+  where nobody gains (converged, or stuck: less than :data:`LEADING`) moves
+  nobody;
 * the moved island carries its search on
   (:func:`island.algorithms.switch_algorithm`): its population becomes the
   leader's population or swarm, its counters and history go on.
@@ -45,6 +46,10 @@ WINDOW = 2
 """Rounds over which each algorithm's credit is summed before it is compared."""
 LAGGING = 0.1
 """An algorithm with less than this fraction of the leader's credit per island over the window is lagging."""
+LEADING = 0.1
+"""The least credit per island over the window (orders of magnitude: a best 21 % lower) that makes an
+algorithm a leader to follow; below it nobody is gaining (a converged or stuck campaign), and noise
+would decide."""
 
 
 def check_share(share: Any) -> str:
@@ -101,7 +106,7 @@ class Share:
         own = {a: sorted(k for k, b in islands.items() if b == a) for a in self.algos}
         per_island = {a: credit[a] / len(own[a]) if own[a] else 0.0 for a in self.algos}
         lead = max(self.algos, key=lambda a: per_island[a])
-        if per_island[lead] <= 0:
+        if per_island[lead] < LEADING:
             return []
         said = {a: round(c, 3) for a, c in credit.items()}
         return [

@@ -21,7 +21,7 @@ from island.migration import Migration
 from island.node import IslandNode, MemoryBus
 from island.protocol import History, decode_control, decode_history, encode_history
 from island.pso import PSO
-from island.share import LAGGING, WINDOW, Share, check_share
+from island.share import LAGGING, LEADING, WINDOW, Share, check_share
 from island.termination import Termination
 
 BOUNDS = np.array([[-5.0, 5.0]] * 4)
@@ -83,6 +83,10 @@ def test_no_move_without_credit_or_when_the_other_algorithm_keeps_up():
         close.credit("pso", 1.0)
         close.credit("ga", 1.01 * LAGGING)
         assert close.review(e, 1000, alive) == []
+    converged = Share(["ga", "pso"])
+    for e in range(1000, 8000, 1000):
+        converged.credit("pso", 0.9 * LEADING / WINDOW)  # the last digits of a converged best: nobody to follow
+        assert converged.review(e, 1000, alive) == []
     turns = Share(["ga", "pso"])
     for e in range(1, 12):  # the algorithms gain in turns, each within every window
         turns.credit("ga" if e % 2 else "pso", 1.0)

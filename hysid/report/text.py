@@ -201,10 +201,10 @@ def share_lines(settings: dict[str, Any]) -> list[str]:
     moves = settings.get("moves") or []
     if settings.get("share") != "adaptive":
         return [f"share: fixed (every island kept its algorithm of {', '.join(a.upper() for a in algos)})"]
-    lines = [f"share: adaptive, {len(moves)} island move(s) to the algorithm that improved the global best"]
+    lines = [f"share: adaptive, {len(moves)} island move(s) to the algorithm whose own moves gained more"]
     for m in moves:
         credit = ", ".join(f"{a.upper()} {c:.2g}" for a, c in m["credit"].items())
-        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained lately: {credit})")
+        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained over the last rounds: {credit})")
     return lines
 
 
