@@ -16,10 +16,13 @@ search breeds in proportion to its recent success), with an island as the unit:
   then improves it near that best says nothing about the algorithm;
 * a *round* is one migration interval of every island's evaluations; after
   each, an algorithm whose credit per island over the last :data:`WINDOW`
-  rounds is less than :data:`LAGGING` of the leading algorithm's gives all
-  its islands to the leader. Two rounds of credit (about ten iterations of
-  every island) tell a lagging algorithm apart without spending much on it;
-  the earlier the move, the less of the budget the weaker algorithm takes.
+  rounds is less than :data:`LAGGING` of the leading algorithm's gives one
+  island to the leader, and one more after each round it still lags. Two
+  rounds of credit (about ten iterations of every island) tell a lagging
+  algorithm apart without spending much on it; one island at a time keeps a
+  wrong call (early credit can favour the weaker algorithm: the GA's first
+  offspring gain more than a PSO swarm at rest) from taking the whole
+  campaign, since the islands left show it and the same rule undoes it.
   A campaign whose algorithms keep up with each other keeps its mix, and one
   where nobody gains (converged, or stuck: less than :data:`LEADING`) moves
   nobody;
@@ -93,7 +96,8 @@ class Share:
 
     def review(self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
         """After ``evaluations`` in all: if a round (``round_evaluations``) is over, close it and return
-        the moves. ``islands``: the algorithm of each alive island run ``(island, run)``."""
+        the moves (one island of each lagging algorithm, the first by name). ``islands``: the algorithm
+        of each alive island run ``(island, run)``."""
         if evaluations < self.next_review:
             return []
         self.next_review = evaluations + max(int(round_evaluations), 1)
@@ -112,5 +116,5 @@ class Share:
         return [
             Move(island, run, algo, lead, int(evaluations), said)
             for algo in self.algos if algo != lead and per_island[algo] < LAGGING * per_island[lead]
-            for island, run in own[algo]
+            for island, run in own[algo][:1]
         ]

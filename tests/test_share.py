@@ -44,7 +44,7 @@ def islands(**algos: str) -> dict[tuple[str, str], str]:
 
 
 # --- the policy -------------------------------------------------------------------------------
-def test_a_lagging_algorithm_gives_its_islands_to_the_leader_once_a_window_of_rounds_shows_it():
+def test_a_lagging_algorithm_gives_the_leader_one_island_per_round_once_a_window_shows_it():
     share = Share(["ga", "pso"])
     alive = islands(**{"ga-0": "ga", "ga-2": "ga", "pso-1": "pso", "pso-3": "pso"})
     reviews = []
@@ -54,15 +54,33 @@ def test_a_lagging_algorithm_gives_its_islands_to_the_leader_once_a_window_of_ro
         share.credit("ga", -1.0)  # nothing (a gain never falls; a repeated message adds nothing)
         reviews.append(share.review(1000 * e, 1000, alive))
         assert share.review(1000 * e + 500, 1000, alive) == []  # the round is not over
-    *before, moves = reviews
+    *before, (move,) = reviews
     assert before == [[]] * (WINDOW - 1)  # the window fills first
-    assert [(m.island, m.src, m.dst, m.evaluations) for m in moves] == [("ga-0", "ga", "pso", 1000 * WINDOW), ("ga-2", "ga", "pso", 1000 * WINDOW)]
-    assert moves[0].credit == {"ga": pytest.approx(WINDOW * 0.004), "pso": pytest.approx(WINDOW * 1.0)}
-    alive = islands(**{"ga-0": "pso", "ga-2": "pso", "pso-1": "pso", "pso-3": "pso"})
-    for e in range(WINDOW + 1, 3 * WINDOW):  # nobody left to move
+    assert (move.island, move.src, move.dst, move.evaluations) == ("ga-0", "ga", "pso", 1000 * WINDOW)
+    assert move.credit == {"ga": pytest.approx(WINDOW * 0.004), "pso": pytest.approx(WINDOW * 1.0)}
+    alive[("ga-0", "r")] = "pso"
+    share.credit("pso", 1.0)
+    assert [(m.island, m.dst) for m in share.review(1000 * (WINDOW + 1), 1000, alive)] == [("ga-2", "pso")]  # GA still lags: the next one
+    alive[("ga-2", "r")] = "pso"
+    for e in range(WINDOW + 2, 3 * WINDOW):  # nobody left to move
         share.credit("pso", 1.0)
         assert share.review(1000 * e, 1000, alive) == []
     assert [m.island for m in share.review(1000 * 3 * WINDOW, 1000, {**alive, ("ga-9", "r"): "ga"})] == ["ga-9"]  # a late GA joiner follows
+
+
+def test_a_wrong_call_is_undone_by_the_islands_left():
+    share = Share(["ga", "pso"])
+    alive = islands(**{"ga-0": "ga", "pso-1": "pso", "pso-3": "pso"})
+    share.credit("ga", 2.0)  # a GA's early lucky offspring
+    assert share.review(1000, 1000, alive) == []
+    (wrong,) = share.review(2000, 1000, alive)
+    assert (wrong.island, wrong.dst) == ("pso-1", "ga")
+    alive[("pso-1", "r")] = "ga"
+    share.credit("pso", 1.0)  # the PSO island left gains, the GA islands do not
+    assert [(m.island, m.src, m.dst) for m in share.review(3000, 1000, alive)] == [("ga-0", "ga", "pso")]
+    alive[("ga-0", "r")] = "pso"
+    share.credit("pso", 1.0)
+    assert [(m.island, m.src, m.dst) for m in share.review(4000, 1000, alive)] == [("pso-1", "ga", "pso")]  # and back
 
 
 def test_credit_is_per_island():
