@@ -225,8 +225,8 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     the ring: the campaign still ends because its islands finished, with their own numbers only."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "st.sqlite"
     coord = spawn("coordinator", "--listen", endpoint, "--campaign", "steer", "--db", str(db), "--out", str(tmp_path / "out"), "--json",
-                  "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "1500", "--interval", "5",
-                  "--min-islands", "2", "--budget", "100000000", "--quiet")
+                  "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "6000", "--interval", "5",
+                  "--min-islands", "2", "--budget", "100000000", "--quiet")  # islands run long enough to hear every attack
     ready(endpoint, "steer")
     islands = {name: island(spawn, endpoint, "steer", name) for name in ("a", "c")}
     outsider = Peer(endpoint, "steer", "ghost", joined=False)
@@ -249,6 +249,7 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
         replays = outsider.publisher("migrants", "a")
         for message in captured[:3] * 30:
             replays.put(message)
+        assert not query(db, "SELECT 1 FROM islands WHERE final = 1")  # every attack went out while both islands ran
         doc = finished(coord, timeout=120)
     finally:
         outsider.close()
