@@ -234,7 +234,8 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     captured: list[bytes] = []
     outsider.entities.append(outsider.session.declare_subscriber("hysid/steer/migrants/a", lambda s: captured.append(s.payload.to_bytes())))
     try:
-        wait_for(lambda: rows_of(db, "a") > 10 and len(captured) >= 3, 120, "island a's history and migrants")
+        # both islands search before the attacks (mallory's join makes two members: island a may start before c has joined)
+        wait_for(lambda: rows_of(db, "a") > 10 and rows_of(db, "c") > 10 and len(captured) >= 3, 120, "both islands' history and a's migrants")
         ghost = Credentials.issue("ghost", b"k" * 32)
         outsider.put("history", encode_history(History("steer", "ghost", ghost.run, "pso", 0, np.array([[0, 0.0, 2.0**52, 1.0]]), TRUTH, 0.0,
                                                        dict.fromkeys(("sent", "received", "taken", "rejected"), 0)), ghost))
