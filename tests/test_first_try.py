@@ -23,6 +23,7 @@ from hysid.cli import main
 from hysid.diagnosis.naming import excess_words
 from hysid.report import diagnosis_figures, figures, style
 from hysid.report.style import RC
+from support import interruptible
 from hysid.report.text import band_text, hz_text, mass_text
 from hysid_model.synth import synth_loops
 from support import GA_SMALL, hysid as hysid_argv
@@ -219,7 +220,7 @@ def test_ctrl_c_on_an_island_while_it_starts_is_one_line(delay_s):
 
     (Inside Zenoh's connect the interrupt is only seen when the connect gives up, after --wait.)"""
     island = subprocess.Popen([sys.executable, "-m", "hysid", "island", "--connect", f"tcp/127.0.0.1:{free_port()}", "--wait", "5"],
-                              stderr=subprocess.PIPE, text=True)
+                              stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)  # Ctrl-C reaches it whatever the runner ignores
     time.sleep(delay_s)  # not a wait for readiness: any moment of the start-up must do
     island.send_signal(signal.SIGINT)
     _, err = island.communicate(timeout=60)
