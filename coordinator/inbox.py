@@ -9,7 +9,7 @@ a producer that finds its queue full waits up to ``wait_s`` (back-pressure:
 Zenoh's reader for that link pauses, a publisher with congestion control
 ``BLOCK`` slows down) and then the item is dropped and counted. Honest islands
 lose nothing by a drop: the coordinator asks again for history rows it misses
-(:meth:`coordinator.server.Coordinator._check_gap`).
+(:meth:`coordinator.histories.Gaps.arrived`).
 """
 
 from __future__ import annotations

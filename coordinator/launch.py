@@ -66,7 +66,7 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
     bus = MemoryBus(
         coordinator.name, [s.id for s in specs], lambda key, data: coordinator.receive(key, data, wait_s=MEMORY_WAIT_S), stop,
         admit=lambda island, algo, seed: coordinator.admit(island, algo, seed),
-        assigned=lambda island: coordinator.assigned.get((island, coordinator.current.get(island, ""))),
+        assigned=lambda island: coordinator.sharing.assigned.get((island, coordinator.current.get(island, ""))),
     )
     nodes = [
         IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops), history_every_s=MEMORY_HISTORY_EVERY_S)

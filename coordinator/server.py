@@ -10,7 +10,8 @@ and is handled by one thread, which owns the SQLite store
   stored before the island gets them; only an island that joined may speak:
   its history and migrants must carry its run's tag, a replayed message is
   dropped, and counters it could not have reached (more evaluations than its
-  algorithm, its iterations and the migrants it may take allow) are rejected.
+  algorithm, its iterations and the migrants it may take allow) are rejected
+  (:class:`coordinator.histories.HistoryChecks`).
   A liveliness token of an island that never joined makes nobody a member;
 * records joins, graceful leaves (a final history, then the token goes) and
   losses (the token goes without a final history: crash, kill, or a frozen
@@ -22,9 +23,10 @@ and is handled by one thread, which owns the SQLite store
   claimed fitness is never trusted, neither to take nor to skip one) and
   publishes it for late joiners;
 * in a mixed campaign with the ``adaptive`` share (:mod:`island.share`),
-  credits each improvement of the global best to the finder's algorithm and,
-  after each round, moves an island of a lagging algorithm to the leading one
-  (stored, and told to the island in the roster of the ``control`` message);
+  credits each island's own gains to its algorithm and, after each round,
+  moves an island of a lagging algorithm to the leading one (stored, and told
+  to the island in the roster of the ``control`` message;
+  :class:`coordinator.sharing.Sharing`);
 * commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
   whatever the load, and after each commit publishes the sealed ``control``
   message: the roster, how far each island's history is committed (an island
@@ -32,7 +34,8 @@ and is handled by one thread, which owns the SQLite store
 * after a restart (``--resume``) knows every run that joined, takes up again
   the runs that were alive when it died (lost unless their liveliness token
   returns within :data:`coordinator.members.TOKEN_WAIT_S`), keeps the campaign's stop rules unless
-  new ones are given, and asks every live island for the history rows it missed;
+  new ones are given, and asks every live island for the history rows it missed
+  (:class:`coordinator.histories.Gaps`);
 * stops by the rules of :class:`island.termination.Termination` (a total
   evaluation budget, a target fitness, a stall, a time limit), when every
   island has finished (or finished or was lost), or when no island has been alive for
@@ -60,17 +63,18 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from coordinator.histories import Gaps, HistoryChecks, check_claim
 from coordinator.inbox import Inbox
 from coordinator.members import LEAVE_GRACE_S, STATUS_AFTER, Member, Membership
+from coordinator.sharing import Sharing
 from coordinator.store import IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import MAX_WIDENINGS
 from hysid_model.objective import Objective
-from island.algorithms import ALGORITHMS, make_optimizer
+from island.algorithms import ALGORITHMS
 from island.config import CampaignConfig, decode_config, encode_config
 from island.node import key_prefix
-from island.population import PopulationOptimizer
 from island.protocol import (
     Best,
     Control,
@@ -86,7 +90,6 @@ from island.protocol import (
 )
 from island.run import RunResult, polish_run
 from island.sealing import KEY_BYTES, Credentials, ReplayGuard, check_replay
-from island.share import Move, Share
 from island.termination import Termination
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
 
@@ -96,9 +99,6 @@ STOP_GRACE_S = 10.0
 """After the stop order, how long to wait for islands' final histories."""
 FAULT_ANNOUNCEMENTS = 4
 """After a database fault, how many times (every 0.5 s) the stop order goes out before the coordinator ends."""
-BACKFILL_EVERY_S = 2.0
-BACKFILL_ATTEMPTS = 5
-"""How often, and how many times without progress, to ask an island again for history rows still missing."""
 COMMIT_EVERY_S = 0.5
 COMMIT_ROWS = 20_000
 """The coordinator commits at least this often, and after this many history rows: what a kill can lose."""
@@ -106,12 +106,8 @@ PASS_S = 0.2
 """Longest stretch of message handling between two checks of the stop rules and progress."""
 CONTROL_EVERY_S = 1.0
 """The control message goes out after commits that changed something, and at least this often."""
-SHARE_ROUND_ITERATIONS = 10
-"""Iterations per island in one round of the adaptive share when islands do not migrate."""
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
-FITNESS_TOLERANCE = 1e-6
-"""Relative slack when a claimed best fitness is compared with the coordinator's re-evaluation."""
 EVALUATED_CACHE = 4096
 
 
@@ -226,15 +222,8 @@ class Coordinator:
         for island, run, key, algo, seed in store.runs(self.name):
             self.runs[(island, run)] = RunInfo(key, algo, seed)
             self.current[island] = run
-        self.share = Share(config.algos) if config.share == "adaptive" and len(set(config.algos)) > 1 else None
-        """The adaptive share of a mixed campaign (None: every island keeps its algorithm)."""
-        self.moves: list[Move] = store.moves(self.name)
-        self.gains: dict[tuple[str, str], float] = {}
-        """Per run, the gain of its own moves its last history message reported (:mod:`island.share`)."""
-        self.assigned: dict[tuple[str, str], str] = {key: info.algo for key, info in self.runs.items()}
-        """The algorithm each run is to run: the one it joined with, unless the share moved it."""
-        for move in self.moves:
-            self.assigned[(move.island, move.run)] = move.dst
+        self.checks = HistoryChecks(config, self.objective.bounds, self.runs)
+        self.sharing = Sharing(store, config, {key: info.algo for key, info in self.runs.items()}, self.checks.optimizer)
         self.islands: dict[tuple[str, str], IslandView] = {}
         self.run_evaluations: dict[tuple[str, str], int] = {}
         for rec in store.islands(self.name):
@@ -252,13 +241,8 @@ class Coordinator:
         self.membership.idle_since = self.started if self.runs and not self.members else None
         self.best_trace: list[tuple[float, float, int, np.ndarray]] = []
         """``(time.monotonic(), fitness, total evaluations, x)`` at every improvement of the global best."""
-        self.contiguous: dict[tuple[str, str], int] = {}
-        """Per island run, the last iteration k with 0..k all stored (rows beyond a gap are asked for again)."""
-        self.last_stored: dict[tuple[str, str], int] = {}
-        self._backfill: dict[tuple[str, str], tuple[float, int, int]] = {}
-        """Per island run: when rows were last asked for, from which iteration, how often without progress."""
+        self.gaps = Gaps(store, self.name)
         self._replays = ReplayGuard()
-        self._optimizers: dict[str, PopulationOptimizer] = {}
         self._evaluated: OrderedDict[bytes, float] = OrderedDict()
         self._rejected_log = TokenBucket(REJECTED_PER_S, REJECTED_BURST)
         self._rejected_backlog: Counter[str] = Counter()
@@ -395,7 +379,7 @@ class Coordinator:
         credentials = Credentials.issue(island, self.campaign_key)
         self.store.add_run(self.name, island, credentials.run, credentials.key, algo, seed)
         self.runs[(island, credentials.run)] = RunInfo(credentials.key, algo, seed)
-        self.assigned[(island, credentials.run)] = algo
+        self.sharing.joined((island, credentials.run), algo)
         self.current[island] = credentials.run
         self.membership.joined(island, credentials.run, nonce)
         self.store.commit()
@@ -409,73 +393,9 @@ class Coordinator:
             raise MessageRejected("unjoined", f"liveliness token of {island!r}, which never joined")
         self.membership.token(island, run, alive)
         if alive:
-            link.request_history(island, run, self._contiguous((island, run)))
-
-    def _contiguous(self, key: tuple[str, str]) -> int:
-        if key not in self.contiguous:
-            self.contiguous[key] = self.store.contiguous_iterations(self.name, *key)
-            self.last_stored[key] = self.store.last_iteration(self.name, *key)
-        return self.contiguous[key]
-
-    def _check_gap(self, link: Link, key: tuple[str, str], first: int, last: int) -> None:
-        """Track the stored iterations of an island run after rows ``first..last`` arrived; while
-        some are missing (sent while this coordinator was down), ask the island for them again."""
-        if key in self.contiguous:
-            done, top = self.contiguous[key], self.last_stored[key]
-            if first <= done + 1:
-                self.contiguous[key] = self.store.contiguous_iterations(self.name, *key) if top > last else max(done, last)
-            self.last_stored[key] = max(top, last)
-        else:
-            self._contiguous(key)
-        done, now = self.contiguous[key], time.monotonic()
-        asked_at, asked_from, attempts = self._backfill.get(key, (-np.inf, -2, 0))
-        if done < self.last_stored[key] and now - asked_at >= BACKFILL_EVERY_S:
-            attempts = attempts + 1 if asked_from == done else 1
-            if attempts <= BACKFILL_ATTEMPTS:  # an island that cannot fill the gap is not asked forever
-                self._backfill[key] = (now, done, attempts)
-                link.request_history(key[0], key[1], done)
+            link.request_history(island, run, self.gaps.stored((island, run)))
 
     # --- history and migrants --------------------------------------------------------------
-    def _optimizer(self, algo: str) -> PopulationOptimizer:
-        """An (unused) optimizer with an island's settings: what its evaluation counts may be."""
-        if algo not in self._optimizers:
-            self._optimizers[algo] = make_optimizer(algo, self.objective.bounds, 0, self.config.island_options(algo))
-        return self._optimizers[algo]
-
-    def evaluation_bound(self, algo: str, iterations: np.ndarray) -> np.ndarray:
-        """The most evaluations an island run of ``algo`` can report after each of ``iterations``
-        (floats): its own batches (:meth:`PopulationOptimizer.evaluation_bound`) plus the migrants it
-        may take, ``k`` from each other island that joined per migration, plus the campaign's starting
-        point and the global best once each."""
-        mig = self.config.migration
-        epochs = np.floor_divide(iterations, mig.interval) if mig.interval else np.zeros_like(iterations)
-        return self._optimizer(algo).evaluation_bound(iterations) + epochs * max(len(self.runs) - 1, 0) * mig.k + 2
-
-    def _algos_of(self, key: tuple[str, str]) -> list[str]:
-        """The algorithms a run has been told to run: the one it joined with, then where the share moved it."""
-        return list(dict.fromkeys([self.runs[key].algo] + [m.dst for m in self.moves if (m.island, m.run) == key]))
-
-    def _plausible(self, h: History, info: RunInfo) -> None:
-        """:class:`MessageRejected` ("implausible") for counters the island cannot have reached."""
-        algos = self._algos_of((h.island, h.run))
-        if h.algo not in algos or h.seed != info.seed:
-            raise MessageRejected("implausible", f"history of a {h.algo} run with seed {h.seed}; it joined as {info.algo} with seed {info.seed}")
-        if h.rows.size:
-            iterations = h.rows[:, 0]
-            budget = max(self._optimizer(a).iterations for a in algos)
-            if iterations[-1] > budget:
-                raise MessageRejected("implausible", f"iteration {iterations[-1]:.0f} beyond the island's budget of {budget}")
-            bound = np.max([self.evaluation_bound(a, iterations) for a in algos], axis=0)
-            if np.any(h.rows[:, 2] > bound):
-                i = int(np.argmax(h.rows[:, 2] > bound))
-                raise MessageRejected("implausible", f"{h.rows[i, 2]:.0f} evaluations after iteration {iterations[i]:.0f}, at most {bound[i]:.0f} possible")
-        reached = max(self.islands.get((h.island, h.run), IslandView("")).iteration, int(h.rows[-1, 0]) if h.rows.size else 0)
-        mig = self.config.migration
-        epochs = reached // mig.interval if mig.interval else 0
-        most = {"sent": epochs + 1, "received": epochs * max(len(self.runs) - 1, 0) * mig.k + 1}
-        if h.stats["sent"] > most["sent"] or h.stats["received"] > most["received"] or h.stats["taken"] > h.stats["received"]:
-            raise MessageRejected("implausible", f"migration counters {h.stats} after iteration {reached}")
-
     def evaluate(self, x: np.ndarray) -> np.ndarray:
         """The coordinator's own fitness of candidates ``x (k, D)`` (recently seen ones from a cache)."""
         keys = [row.tobytes() for row in np.ascontiguousarray(x, dtype=float)]
@@ -493,14 +413,12 @@ class Coordinator:
         key = (h.island, h.run)
         info = self.runs[key]
         check_replay(self._replays, "history", h.island, h.run, h.seq)
-        self._plausible(h, info)
+        self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration)
         f = float(self.evaluate(h.best_x[None, :])[0])
-        floor = f * (1 - FITNESS_TOLERANCE)
-        if h.best_f < floor or (h.rows.size and np.min(h.rows[:, 1]) < floor):
-            raise MessageRejected("implausible", f"claims a best fitness below {f:.6g}, what its best vector really has")
+        check_claim(h, f)
         self._rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
         if h.rows.size:
-            self._check_gap(link, key, int(h.rows[0, 0]), int(h.rows[-1, 0]))
+            self.gaps.arrived(key, int(h.rows[0, 0]), int(h.rows[-1, 0]), link.request_history)
         iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
         evaluations = int(h.rows[:, 2].max()) if h.rows.size else 0
         self.store.update_island(self.name, IslandRecord(
@@ -508,9 +426,7 @@ class Coordinator:
             h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final,
         ))
         self.run_evaluations[key] = max(self.run_evaluations.get(key, 0), evaluations)
-        if self.share is not None and key in self.gains:  # (the first message after a join or a restart sets the baseline)
-            self.share.credit(h.algo, h.gain - self.gains[key])
-        self.gains[key] = max(self.gains.get(key, 0.0), h.gain)
+        self.sharing.credit(key, h.algo, h.gain)
         view = self.islands.setdefault(key, IslandView(h.algo))
         view.algo = h.algo
         view.iteration = max(view.iteration, iterations)
@@ -520,21 +436,8 @@ class Coordinator:
         if h.final:
             self.membership.final_history(h.island, h.run)
         self._consider(link, h.island, h.best_x, f)
-        self._review_share()
-
-    def _review_share(self) -> None:
-        """After a round of every alive island's migration interval, the adaptive share's moves
-        (:mod:`island.share`): stored, and told to the islands with the next control message."""
-        if self.share is None or self.stop_reason is not None:
-            return
-        alive = {(island, m.run): self.assigned[(island, m.run)] for island, m in self.members.items() if m.status == "alive" and (island, m.run) in self.assigned}
-        per_iteration = max(self._optimizer(a).population + self._optimizer(a).addpop_number for a in self.config.algos)
-        round_evaluations = len(alive) * (self.config.migration.interval or SHARE_ROUND_ITERATIONS) * per_iteration
-        for move in self.share.review(self.evaluations, round_evaluations, alive):
-            self.store.add_move(self.name, move)
-            self.moves.append(move)
-            self.assigned[(move.island, move.run)] = move.dst
-            self._changed = True
+        if self.stop_reason is None:  # after a round, the adaptive share's moves: told with the next control message
+            self.sharing.review(self.evaluations, self.members)
 
     def _migrants(self, link: Link, m: Migrants) -> None:
         check_replay(self._replays, "migrants", m.island, m.run, m.seq)
@@ -560,7 +463,7 @@ class Coordinator:
         """The sealed roster (every run that joined, alive or not, and how far its rows are committed)
         and the stop order, tagged for every island with its latest run's key."""
         members = tuple(
-            MemberState(island, run, self.membership.alive(island, run), self._contiguous((island, run)), self.assigned[(island, run)])
+            MemberState(island, run, self.membership.alive(island, run), self.gaps.stored((island, run)), self.sharing.assigned[(island, run)])
             for island, run in self.runs
         )
         self._control_seq = max(self._control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
@@ -686,8 +589,7 @@ class Coordinator:
         mark the campaign interrupted if the file lets us."""
         self.store.rollback()
         self.store.release_reserve()
-        self.contiguous.clear()
-        self.last_stored.clear()
+        self.gaps.forget()
         try:
             for _ in range(FAULT_ANNOUNCEMENTS):
                 if self.runs:

@@ -89,7 +89,7 @@ def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link
     island = c.admit("pso-1", "pso", 1)
     x = c.objective.bounds.mean(axis=1)
     f = float(c.objective(x[None, :])[0])
-    most = int(c.evaluation_bound("pso", np.array([3.0]))[0])  # (20 + 3 x 25) x (1 + 100 redraws) + the global best
+    most = int(c.checks.evaluation_bound("pso", np.array([3.0]))[0])  # (20 + 3 x 25) x (1 + 100 redraws) + the global best
     bad = [
         history(island, [[3, f, 2**52, 0.1]], x, f, seq=1),  # 2**52 evaluations after 3 iterations
         history(island, [[3, f, most + 1, 0.1]], x, f, seq=2),

@@ -202,11 +202,11 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
         c.pump(link, 5.0)
 
     rounds = 0
-    while not c.moves and rounds < 3 * WINDOW:  # one round: both islands' five iterations (2 x 5 x 25 evaluations)
+    while not c.sharing.moves and rounds < 3 * WINDOW:  # one round: both islands' five iterations (2 x 5 x 25 evaluations)
         report("ga-0", 5 * rounds, 0.001 * rounds, "ga")  # a GA that hardly gains
         report("pso-1", 5 * rounds, 1.0 * rounds, "pso")  # a PSO that gains an order of magnitude per round
         rounds += 1
-    assert [(m.island, m.src, m.dst) for m in c.moves] == [("ga-0", "ga", "pso")]
+    assert [(m.island, m.src, m.dst) for m in c.sharing.moves] == [("ga-0", "ga", "pso")]
     assert rounds <= WINDOW + 1  # the first history only sets each island's baseline
     assert [(m.island, m.src, m.dst) for m in c.store.moves("c1")] == [("ga-0", "ga", "pso")]
     control = decode_control(c.control_message(), "c1", creds["ga-0"])
@@ -216,6 +216,8 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
     assert c.store.rejected_reasons("c1") == {}
     report("pso-1", 5 * rounds, 1.0 * rounds, "ga")  # PSO was never moved to GA
     assert c.store.rejected_reasons("c1") == {"implausible": 1}
+    taken_up = resume(c.store, "c1")  # a restarted coordinator knows every algorithm each run was told to run
+    assert taken_up.sharing.algos == {("ga-0", creds["ga-0"].run): {"ga", "pso"}, ("pso-1", creds["pso-1"].run): {"pso"}}
     c.store.close()
 
 
@@ -274,7 +276,7 @@ def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_
             assert store.contiguous_iterations(coordinator.name, island, run) == records[island]["iterations"]  # no row missing across a move
         assert store.rejected_reasons(coordinator.name) == {}
         taken_up = resume(store, coordinator.name)
-        assert {k[0]: v for k, v in taken_up.assigned.items() if k[0] in last} == last
+        assert {k[0]: v for k, v in taken_up.sharing.assigned.items() if k[0] in last} == last
     finally:
         store.close()
     summary = CampaignResult.from_database(db).summary()

@@ -210,7 +210,7 @@ def mixed(seeds: int = 60, islands: int = 4, population: int = 20) -> dict[str, 
                     within = [f for _, f, evaluations, _ in c.best_trace if evaluations <= budget]  # the stop overshoots: cut at the budget
                     finals[label][budget].append(within[-1] if within else np.inf)
                 spent[label].append(c.evaluations)
-                for m in c.moves:
+                for m in c.sharing.moves:
                     moves[f"{m.src}->{m.dst}"] = moves.get(f"{m.src}->{m.dst}", 0) + 1
     rates: dict[str, dict[str, dict[str, Any]]] = {}
     for label in MIXES:

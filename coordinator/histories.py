@@ -1,0 +1,137 @@
+"""What the coordinator checks of an island run's history messages, and the gaps in its stored rows.
+
+* :class:`HistoryChecks`: a history whose counters the island cannot have
+  reached (more evaluations than its algorithms, its iterations and the
+  migrants it may take allow; an iteration beyond its budget; more migrants
+  sent or taken than its epochs allow), or that runs an algorithm or seed it
+  was never given, is rejected as ``implausible``; so is a claimed best below
+  what the coordinator's re-evaluation of its vector gives
+  (:func:`check_claim`);
+* :class:`Gaps`: per island run, the last iteration ``k`` with rows ``0..k``
+  all stored; rows missing below the last one stored (sent while this
+  coordinator was down) are asked for again, a bounded number of times.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Collection, Sized
+
+import numpy as np
+
+from coordinator.store import Store
+from island.algorithms import make_optimizer
+from island.config import CampaignConfig
+from island.population import PopulationOptimizer
+from island.protocol import History
+from island.wire import MessageRejected
+
+FITNESS_TOLERANCE = 1e-6
+"""Relative slack when a claimed best fitness is compared with the coordinator's re-evaluation."""
+BACKFILL_EVERY_S = 2.0
+BACKFILL_ATTEMPTS = 5
+"""How often, and how many times without progress, to ask an island again for history rows still missing."""
+
+
+class HistoryChecks:
+    """The counters an island run of one campaign can have reached.
+
+    ``runs``: the runs that joined (the coordinator's, growing as islands
+    join); each other one may send migrants.
+    """
+
+    def __init__(self, config: CampaignConfig, bounds: np.ndarray, runs: Sized) -> None:
+        self.config = config
+        self.bounds = bounds
+        self.runs = runs
+        self._optimizers: dict[str, PopulationOptimizer] = {}
+
+    def optimizer(self, algo: str) -> PopulationOptimizer:
+        """An (unused) optimizer with an island's settings: what its evaluation counts may be."""
+        if algo not in self._optimizers:
+            self._optimizers[algo] = make_optimizer(algo, self.bounds, 0, self.config.island_options(algo))
+        return self._optimizers[algo]
+
+    def evaluation_bound(self, algo: str, iterations: np.ndarray) -> np.ndarray:
+        """The most evaluations an island run of ``algo`` can report after each of ``iterations``
+        (floats): its own batches (:meth:`PopulationOptimizer.evaluation_bound`) plus the migrants it
+        may take, ``k`` from each other island that joined per migration, plus the campaign's starting
+        point and the global best once each."""
+        mig = self.config.migration
+        epochs = np.floor_divide(iterations, mig.interval) if mig.interval else np.zeros_like(iterations)
+        return self.optimizer(algo).evaluation_bound(iterations) + epochs * max(len(self.runs) - 1, 0) * mig.k + 2
+
+    def plausible(self, h: History, joined: str, seed: int, algos: Collection[str], iteration: int) -> None:
+        """:class:`MessageRejected` ("implausible") for counters the island cannot have reached.
+
+        ``joined`` and ``seed``: what the run joined with; ``algos``: every algorithm it has been told
+        to run (:class:`coordinator.sharing.Sharing`); ``iteration``: the furthest one it reported before.
+        """
+        if h.algo not in algos or h.seed != seed:
+            raise MessageRejected("implausible", f"history of a {h.algo} run with seed {h.seed}; it joined as {joined} with seed {seed}")
+        if h.rows.size:
+            iterations = h.rows[:, 0]
+            budget = max(self.optimizer(a).iterations for a in algos)
+            if iterations[-1] > budget:
+                raise MessageRejected("implausible", f"iteration {iterations[-1]:.0f} beyond the island's budget of {budget}")
+            bound = np.max([self.evaluation_bound(a, iterations) for a in algos], axis=0)
+            if np.any(h.rows[:, 2] > bound):
+                i = int(np.argmax(h.rows[:, 2] > bound))
+                raise MessageRejected("implausible", f"{h.rows[i, 2]:.0f} evaluations after iteration {iterations[i]:.0f}, at most {bound[i]:.0f} possible")
+        reached = max(iteration, int(h.rows[-1, 0]) if h.rows.size else 0)
+        mig = self.config.migration
+        epochs = reached // mig.interval if mig.interval else 0
+        most = {"sent": epochs + 1, "received": epochs * max(len(self.runs) - 1, 0) * mig.k + 1}
+        if h.stats["sent"] > most["sent"] or h.stats["received"] > most["received"] or h.stats["taken"] > h.stats["received"]:
+            raise MessageRejected("implausible", f"migration counters {h.stats} after iteration {reached}")
+
+
+def check_claim(h: History, f: float) -> None:
+    """:class:`MessageRejected` ("implausible") if ``h`` claims a best below ``f``, the coordinator's
+    own fitness of its best vector (within :data:`FITNESS_TOLERANCE`)."""
+    floor = f * (1 - FITNESS_TOLERANCE)
+    if h.best_f < floor or (h.rows.size and np.min(h.rows[:, 1]) < floor):
+        raise MessageRejected("implausible", f"claims a best fitness below {f:.6g}, what its best vector really has")
+
+
+class Gaps:
+    """Which history rows of each island run of campaign ``name`` are stored without a gap."""
+
+    def __init__(self, store: Store, name: str) -> None:
+        self.store = store
+        self.name = name
+        self.contiguous: dict[tuple[str, str], int] = {}
+        """Per island run, the last iteration k with 0..k all stored (rows beyond a gap are asked for again)."""
+        self.last_stored: dict[tuple[str, str], int] = {}
+        self._asked: dict[tuple[str, str], tuple[float, int, int]] = {}
+        """Per island run: when rows were last asked for, from which iteration, how often without progress."""
+
+    def stored(self, key: tuple[str, str]) -> int:
+        """The last iteration ``k`` of island run ``key`` with rows ``0..k`` all stored."""
+        if key not in self.contiguous:
+            self.contiguous[key] = self.store.contiguous_iterations(self.name, *key)
+            self.last_stored[key] = self.store.last_iteration(self.name, *key)
+        return self.contiguous[key]
+
+    def arrived(self, key: tuple[str, str], first: int, last: int, ask: Callable[[str, str, int], None]) -> None:
+        """Track the stored iterations of an island run after rows ``first..last`` arrived; while
+        some are missing, ``ask(island, run, since)`` the island for them again."""
+        if key in self.contiguous:
+            done, top = self.contiguous[key], self.last_stored[key]
+            if first <= done + 1:
+                self.contiguous[key] = self.store.contiguous_iterations(self.name, *key) if top > last else max(done, last)
+            self.last_stored[key] = max(top, last)
+        else:
+            self.stored(key)
+        done, now = self.contiguous[key], time.monotonic()
+        asked_at, asked_from, attempts = self._asked.get(key, (-np.inf, -2, 0))
+        if done < self.last_stored[key] and now - asked_at >= BACKFILL_EVERY_S:
+            attempts = attempts + 1 if asked_from == done else 1
+            if attempts <= BACKFILL_ATTEMPTS:  # an island that cannot fill the gap is not asked forever
+                self._asked[key] = (now, done, attempts)
+                ask(key[0], key[1], done)
+
+    def forget(self) -> None:
+        """Forget what is known to be stored (after a rollback it is read from the database again)."""
+        self.contiguous.clear()
+        self.last_stored.clear()
