@@ -4,7 +4,7 @@ Islands run as separate processes (``hysid island``) connected over Zenoh to a
 coordinator in this process, listening on a free loopback port. With
 ``single_node`` (or automatically, with a :class:`HysidWarning`, when Zenoh
 cannot open a session here) the islands are threads of this process
-exchanging migrants in memory (:class:`island.node.MemoryBus`); the
+exchanging migrants in memory (:class:`island.transports.MemoryBus`); the
 coordinator, the database and the outcome are the same.
 """
 
@@ -25,8 +25,9 @@ from typing import TextIO
 from coordinator.links import MemoryLink, ZenohLink
 from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
-from island.node import IslandNode, MemoryBus, MemoryTransport
+from island.node import IslandNode
 from island.session import open_session, session_config
+from island.transports import MemoryBus, MemoryTransport
 from island.wire import MAX_MEMBERS
 
 ISLAND_EXIT_WAIT_S = 15.0

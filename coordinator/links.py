@@ -12,7 +12,7 @@ import threading
 import zenoh
 
 from coordinator.server import Coordinator
-from island.node import key_prefix
+from island.transports import key_prefix
 
 
 class ZenohLink:

@@ -74,7 +74,6 @@ from hysid_model.model import MAX_WIDENINGS
 from hysid_model.objective import Objective
 from island.algorithms import ALGORITHMS
 from island.config import CampaignConfig, decode_config, encode_config
-from island.node import key_prefix
 from island.protocol import (
     Best,
     Control,
@@ -91,6 +90,7 @@ from island.protocol import (
 from island.run import RunResult, polish_run
 from island.sealing import KEY_BYTES, Credentials, ReplayGuard, check_replay
 from island.termination import Termination
+from island.transports import key_prefix
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
 
 ORPHAN_S = 30.0

@@ -72,8 +72,8 @@ def ready(endpoint: str, campaign: str, timeout: float = 90.0) -> None:
     """Wait until the coordinator of ``campaign`` answers its ``config`` query on ``endpoint`` (a
     coordinator process just started may not even listen yet): the readiness wait of every test
     that starts one, instead of a sleep."""
-    from island.node import fetch_config
     from island.session import open_session, session_config
+    from island.transports import fetch_config
 
     deadline = time.monotonic() + timeout
     session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=timeout), endpoint)
@@ -109,9 +109,9 @@ class Peer:
     ``joined=False``), then sends whatever a test wants under any key of the campaign."""
 
     def __init__(self, endpoint: str, campaign: str, island: str, *, joined: bool = True, algo: str = "pso", seed: int = 0) -> None:
-        from island.node import join
         from island.sealing import Counter
         from island.session import open_session, session_config
+        from island.transports import join
 
         self.campaign, self.island = campaign, island
         self.session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=60.0), endpoint)

@@ -23,10 +23,11 @@ from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config
-from island.node import IslandNode, ZenohTransport, fetch_config
+from island.node import IslandNode
 from island.protocol import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials, seal
 from island.session import open_session, session_config
+from island.transports import ZenohTransport, fetch_config
 from island.wire import MAX_BYTES, pack_array
 from support import Peer, events, query, ready, rows_of, wait_for
 

@@ -17,9 +17,10 @@ from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from island.node import IslandNode, MemoryBus
+from island.node import IslandNode
 from island.protocol import JoinRequest, decode_joined, encode_join
 from island.sealing import Counter, Credentials
+from island.transports import MemoryBus
 from hostile import Hostile, stream
 
 pytestmark = pytest.mark.slow  # a few seconds of messages

@@ -18,7 +18,7 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
 from island.ga import GA
 from island.migration import Migration
-from island.node import IslandNode, MemoryBus, ZenohTransport, fetch_config
+from island.node import IslandNode
 from island.protocol import (
     Best,
     Control,
@@ -33,6 +33,7 @@ from island.protocol import (
 )
 from island.sealing import Credentials
 from island.session import open_session, session_config
+from island.transports import MemoryBus, ZenohTransport, fetch_config
 from support import wait_for
 
 LOOPS = synth_loops(n_points=30)

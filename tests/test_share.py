@@ -18,11 +18,12 @@ from island.algorithms import make_optimizer, switch_algorithm
 from island.config import CampaignConfig
 from island.ga import GA
 from island.migration import Migration
-from island.node import IslandNode, MemoryBus
+from island.node import IslandNode
 from island.protocol import History, decode_control, decode_history, encode_history
 from island.pso import PSO
 from island.share import LAGGING, LEADING, WINDOW, Share, check_share
 from island.termination import Termination
+from island.transports import MemoryBus
 
 BOUNDS = np.array([[-5.0, 5.0]] * 4)
 SIZES = {"population": 10, "initial_population": 20, "iterations": 1000}

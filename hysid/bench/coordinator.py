@@ -39,11 +39,12 @@ from coordinator.store import Store
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config
 from island.migration import Migration
-from island.node import IslandNode, ZenohTransport, fetch_config, join
+from island.node import IslandNode
 from island.protocol import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials
 from island.session import open_session, session_config
 from island.termination import Termination
+from island.transports import ZenohTransport, fetch_config, join
 
 ISLANDS = 32
 SIZES = {a: {"population": 20, "initial_population": 40, "iterations": 10**9} for a in ("ga", "pso")}

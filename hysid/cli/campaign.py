@@ -33,9 +33,10 @@ from hysid_model.errors import HysidInputError, HysidWarning
 from island.algorithms import check_algorithm
 from island.config import MAX_SEED, CampaignConfig, decode_config
 from island.migration import Migration
-from island.node import IslandNode, ZenohTransport, fetch_config
+from island.node import IslandNode
 from island.session import DEFAULT_ENDPOINT, authenticated_name, open_session, session_config
 from island.termination import Termination
+from island.transports import ZenohTransport, fetch_config
 from island.wire import check_name
 
 
