@@ -24,7 +24,7 @@ and is handled by one thread, which owns the SQLite store
   publishes it for late joiners;
 * in a mixed campaign with the ``adaptive`` share (:mod:`island.share`),
   credits each island's own gains to its algorithm and, after each round,
-  moves an island of a lagging algorithm to the leading one (stored, and told
+  moves an island of an algorithm above its share to the leading one (stored, and told
   to the island in the roster of the ``control`` message;
   :class:`coordinator.sharing.Sharing`);
 * commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)

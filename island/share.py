@@ -15,23 +15,23 @@ search breeds in proportion to its recent success), with an island as the unit:
   count: with migration every island soon holds the global best, and what
   then improves it near that best says nothing about the algorithm;
 * a *round* is one migration interval of every island's evaluations; after
-  each, an algorithm whose credit per island over the last :data:`WINDOW`
-  rounds is less than :data:`LAGGING` of the leading algorithm's gives one
-  island to the leader, and one more after each round it still lags. Two
-  rounds of credit (about ten iterations of every island) tell a lagging
-  algorithm apart without spending much on it; one island at a time keeps a
-  wrong call (early credit can favour the weaker algorithm: the GA's first
-  offspring gain more than a PSO swarm at rest) from taking the whole
-  campaign, since the islands left show it and the same rule undoes it.
-  A campaign whose algorithms keep up with each other keeps its mix, and one
-  where nobody gains (converged, or stuck: less than :data:`LEADING`) moves
-  nobody;
+  each, every algorithm is due a share of the islands in proportion to its
+  credit per island over the last :data:`WINDOW` rounds (AMALGAM's rule: a
+  method breeds in proportion to its recent success), and an algorithm holding
+  more islands than its share gives one of them to the leading algorithm. One
+  island per round, and an island that moved stays where it went for
+  :data:`WINDOW` rounds: its new algorithm needs a window to show what it
+  does there (a swarm starts at rest), and a wrong call (early credit can
+  favour the weaker algorithm) is undone by the same rule, island by island,
+  rather than taking the whole campaign. Two algorithms that keep up with
+  each other keep their islands; when nobody gains (converged, or stuck: less
+  than :data:`LEADING`), nobody moves;
 * the moved island carries its search on
   (:func:`island.algorithms.switch_algorithm`): its population becomes the
   leader's population or swarm, its counters and history go on.
 
 The policy is data in, moves out; the coordinator feeds it and tells the
-islands (:mod:`coordinator.server`).
+islands (:mod:`coordinator.sharing`).
 """
 
 from __future__ import annotations
@@ -43,12 +43,11 @@ from typing import Any
 from hysid_model.errors import HysidInputError
 
 SHARES = ("adaptive", "fixed")
-"""``adaptive``: islands move to the algorithm that improves the global best; ``fixed``: every island
-keeps the algorithm it joined with (as the thesis compared GA and PSO)."""
+"""``adaptive``: islands are shared between the algorithms in proportion to what their own moves gain;
+``fixed``: every island keeps the algorithm it joined with (as the thesis compared GA and PSO)."""
 WINDOW = 2
-"""Rounds over which each algorithm's credit is summed before it is compared."""
-LAGGING = 0.1
-"""An algorithm with less than this fraction of the leader's credit per island over the window is lagging."""
+"""Rounds over which each algorithm's credit is summed before it is compared, and that a moved island
+stays with its new algorithm."""
 LEADING = 0.1
 """The least credit per island over the window (orders of magnitude: a best 21 % lower) that makes an
 algorithm a leader to follow; below it nobody is gaining (a converged or stuck campaign), and noise
@@ -88,6 +87,8 @@ class Share:
         self.closed = 0
         """Rounds closed so far."""
         self.next_review = 0
+        self.moved_at: dict[tuple[str, str], int] = {}
+        """The round after which each island run last moved."""
 
     def credit(self, algo: str, orders: float) -> None:
         """An island of ``algo`` reports ``orders`` of magnitude more gained by its own moves."""
@@ -96,8 +97,8 @@ class Share:
 
     def review(self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
         """After ``evaluations`` in all: if a round (``round_evaluations``) is over, close it and return
-        the moves (one island of each lagging algorithm, the first by name). ``islands``: the algorithm
-        of each alive island run ``(island, run)``."""
+        the moves (of each algorithm above its share, its first island by name that may move, to the
+        leader). ``islands``: the algorithm of each alive island run ``(island, run)``."""
         if evaluations < self.next_review:
             return []
         self.next_review = evaluations + max(int(round_evaluations), 1)
@@ -112,9 +113,14 @@ class Share:
         lead = max(self.algos, key=lambda a: per_island[a])
         if per_island[lead] < LEADING:
             return []
+        total = sum(per_island.values())
         said = {a: round(c, 3) for a, c in credit.items()}
-        return [
-            Move(island, run, algo, lead, int(evaluations), said)
-            for algo in self.algos if algo != lead and per_island[algo] < LAGGING * per_island[lead]
-            for island, run in own[algo][:1]
-        ]
+        moves = []
+        for algo in self.algos:
+            due = int(len(islands) * per_island[algo] / total + 0.5)
+            free = [k for k in own[algo] if self.closed - self.moved_at.get(k, -WINDOW - 1) > WINDOW]
+            if algo != lead and free and len(own[algo]) > due:
+                island, run = free[0]
+                self.moved_at[(island, run)] = self.closed
+                moves.append(Move(island, run, algo, lead, int(evaluations), said))
+        return moves

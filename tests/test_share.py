@@ -21,7 +21,7 @@ from island.migration import Migration
 from island.node import IslandNode
 from island.protocol import History, decode_control, decode_history, encode_history
 from island.pso import PSO
-from island.share import LAGGING, LEADING, WINDOW, Share, check_share
+from island.share import LEADING, WINDOW, Share, check_share
 from island.termination import Termination
 from island.transports import MemoryBus
 
@@ -69,7 +69,22 @@ def test_a_lagging_algorithm_gives_the_leader_one_island_per_round_once_a_window
     assert [m.island for m in share.review(1000 * 3 * WINDOW, 1000, {**alive, ("ga-9", "r"): "ga"})] == ["ga-9"]  # a late GA joiner follows
 
 
-def test_a_wrong_call_is_undone_by_the_islands_left():
+def test_islands_are_shared_in_proportion_to_the_credit_per_island():
+    share = Share(["ga", "pso"])
+    alive = islands(**{"ga-0": "ga", "ga-2": "ga", "pso-1": "pso", "pso-3": "pso"})
+    for e in range(1, WINDOW + 1):
+        share.credit("ga", 1.0)  # half of PSO's credit per island: one island of four is GA's share
+        share.credit("pso", 2.0)
+        moves = share.review(1000 * e, 1000, alive)
+    assert [(m.island, m.src, m.dst) for m in moves] == [("ga-0", "ga", "pso")]
+    alive[("ga-0", "r")] = "pso"
+    for e in range(WINDOW + 1, 4 * WINDOW):
+        share.credit("ga", 0.5)  # the GA island left keeps gaining half of what a PSO island gains
+        share.credit("pso", 3.0)
+        assert share.review(1000 * e, 1000, alive) == []
+
+
+def test_a_wrong_call_is_undone_by_the_islands_left_once_the_moved_island_had_its_window():
     share = Share(["ga", "pso"])
     alive = islands(**{"ga-0": "ga", "pso-1": "pso", "pso-3": "pso"})
     share.credit("ga", 2.0)  # a GA's early lucky offspring
@@ -80,8 +95,13 @@ def test_a_wrong_call_is_undone_by_the_islands_left():
     share.credit("pso", 1.0)  # the PSO island left gains, the GA islands do not
     assert [(m.island, m.src, m.dst) for m in share.review(3000, 1000, alive)] == [("ga-0", "ga", "pso")]
     alive[("ga-0", "r")] = "pso"
-    share.credit("pso", 1.0)
-    assert [(m.island, m.src, m.dst) for m in share.review(4000, 1000, alive)] == [("pso-1", "ga", "pso")]  # and back
+    reviews = []
+    for e in range(4, 4 + WINDOW):
+        share.credit("pso", 1.0)
+        reviews.append(share.review(1000 * e, 1000, alive))
+    *waiting, (back,) = reviews
+    assert waiting == [[]] * (WINDOW - 1)  # pso-1 stays with the GA for a window
+    assert (back.island, back.src, back.dst) == ("pso-1", "ga", "pso")  # and comes back
 
 
 def test_credit_is_per_island():
@@ -89,7 +109,7 @@ def test_credit_is_per_island():
     alive = islands(**{"ga-0": "ga", "pso-1": "pso", "pso-2": "pso", "pso-3": "pso"})
     for e in range(1, 2 * WINDOW + 2):
         share.credit("pso", 3.0)  # three islands
-        share.credit("ga", 1.2 * LAGGING)  # one island: above LAGGING of PSO's credit per island
+        share.credit("ga", 0.3)  # one island: a tenth of PSO's credit in all, but its share is still one island of four
         assert share.review(1000 * e, 1000, alive) == []
 
 
@@ -100,7 +120,7 @@ def test_no_move_without_credit_or_when_the_other_algorithm_keeps_up():
     close = Share(["ga", "pso"])
     for e in range(1000, 8000, 1000):
         close.credit("pso", 1.0)
-        close.credit("ga", 1.01 * LAGGING)
+        close.credit("ga", 0.4)  # its share of two islands: 2 x 0.4 / 1.4, one
         assert close.review(e, 1000, alive) == []
     converged = Share(["ga", "pso"])
     for e in range(1000, 8000, 1000):
