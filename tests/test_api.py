@@ -54,6 +54,7 @@ def test_models_compose_and_a_known_value_is_one_fixed_parameter(loops):
     assert "meq" in unknown.params
 
 
+@pytest.mark.slow  # over 3 s
 def test_diagnosis_and_campaign_report_themselves_like_a_fit(loops, tmp_path, capsys):
     subset = loops.subset(np.arange(0, loops.n_loops, 4))
     diagnosis = hysid.diagnose(subset, "baseline", cross_validate=False)
@@ -93,6 +94,7 @@ def test_library_errors_name_python_parameters_not_flags(loops, call, words):
     assert words in message and "--" not in message and "\n" not in message
 
 
+@pytest.mark.slow  # over 3 s
 def test_the_example_script_runs(tmp_path):
     done = subprocess.run([sys.executable, str(ROOT / "examples" / "quickstart.py"), "synth", str(tmp_path)],
                           capture_output=True, text=True, timeout=300)

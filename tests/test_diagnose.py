@@ -169,6 +169,7 @@ def test_transducer_mass_is_not_identifiable_when_the_mass_is_fitted(branch_sigm
     assert "meq" in result.not_identifiable["transducer_mass"]
 
 
+@pytest.mark.slow  # over 3 s
 def test_control_without_hidden_effect_adds_nothing():
     model = build_model("baseline").fix(meq=MEQ)
     theta = model.from_dict(BASE)
@@ -190,6 +191,7 @@ def test_two_hidden_effects_are_both_named(branch_sigma):
     assert sum(outcomes) >= REQUIRED, outcomes
 
 
+@pytest.mark.slow  # over 3 s
 def test_effect_outside_the_library_is_unexplained_and_not_named(branch_sigma):
     model = Model([Oscillator(), QuadraticStiffness()], spec="baseline+quadratic_stiffness").fix(meq=MEQ)
     k2 = 1e5
@@ -225,6 +227,7 @@ def write_raw_dataset(tmp_path, effects: dict[str, float]):
     return write_dataset(tmp_path / "data", records, name="hidden-coulomb", meq_kg=MEQ)
 
 
+@pytest.mark.slow  # over 3 s
 def test_cli_writes_the_report_and_prints_json(tmp_path, capsys):
     data = write_raw_dataset(tmp_path, {"coulomb_friction": 0.02})
     out = tmp_path / "report"

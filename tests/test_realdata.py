@@ -146,6 +146,7 @@ def test_fit_campaign_and_diagnose_take_their_bounds_by_one_rule():
     assert start == rule
 
 
+@pytest.mark.slow  # over 3 s
 def test_bounds_and_known_values_from_the_command_line_are_hard(tmp_path, capsys):
     """--bound is a given bound (kept, never widened, the report says so), --fix a known value, in fit and diagnose."""
     from hysid_model.readers.tidy import write_loops
