@@ -23,7 +23,8 @@ from pathlib import Path
 from typing import TextIO
 
 from coordinator.links import MemoryLink, ZenohLink
-from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
+from coordinator.outcome import CampaignOutcome
+from coordinator.server import CampaignProgress, Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
 from island.node import IslandNode
 from island.session import open_session, session_config

@@ -65,13 +65,12 @@ import numpy as np
 
 from coordinator.histories import Gaps, HistoryChecks, check_claim
 from coordinator.inbox import Inbox
-from coordinator.members import LEAVE_GRACE_S, STATUS_AFTER, Member, Membership
+from coordinator.members import LEAVE_GRACE_S, Member, Membership
+from coordinator.outcome import CampaignOutcome, campaign_outcome
 from coordinator.sharing import Sharing
 from coordinator.store import IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
-from hysid_model.model import MAX_WIDENINGS
-from hysid_model.objective import Objective
 from island.algorithms import ALGORITHMS
 from island.config import CampaignConfig, decode_config, encode_config
 from island.protocol import (
@@ -87,7 +86,6 @@ from island.protocol import (
     encode_control,
     encode_joined,
 )
-from island.run import RunResult, polish_run
 from island.sealing import KEY_BYTES, Credentials, ReplayGuard, check_replay
 from island.termination import Termination
 from island.transports import key_prefix
@@ -109,19 +107,6 @@ CONTROL_EVERY_S = 1.0
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
 EVALUATED_CACHE = 4096
-
-
-@dataclass
-class CampaignOutcome:
-    """What a finished campaign leaves: the objective, every island run (best re-evaluated, the global
-    best polished), the settings, and the islands, migrations and membership events as stored."""
-
-    objective: Objective
-    runs: list[RunResult]
-    settings: dict[str, Any]
-    islands: list[dict[str, Any]]
-    migrations: dict[str, Any]
-    members: list[dict[str, Any]]
 
 
 class Link(Protocol):
@@ -606,87 +591,8 @@ class Coordinator:
 
     # --- the outcome ----------------------------------------------------------------
     def outcome(self, *, polish_best: bool = True) -> CampaignOutcome:
-        """Every island run with its best re-evaluated here, the global best polished (as ``hysid fit`` does)."""
-        objective = replace(self.config, objective_kind="closed_form").objective(self.loops)
-        records = self.store.islands(self.name)
-        history: dict[tuple[str, str], list[dict[str, float]]] = {}
-        for island, run, it, f, ev, wall in self.store.history(self.name):
-            history.setdefault((island, run), []).append({"iteration": it, "best_fitness": f, "evaluations": ev, "wall_s": wall})
-        several = {r.island for r in records if sum(q.island == r.island for q in records) > 1}
-        runs = []
-        for rec in records:
-            f = float(objective(rec.best_x[None, :])[0])
-            rows = history.get((rec.island, rec.run), [])
-            runs.append(RunResult(
-                label=f"{rec.island}/{rec.run}" if rec.island in several else rec.island, algo=rec.algo, seed=rec.seed,
-                theta=rec.best_x, fitness=f, evaluations=rec.evaluations, history=rows, search_theta=rec.best_x,
-                search_fitness=f, wall_s=rows[-1]["wall_s"] if rows else 0.0,
-            ))
-        global_best = None if self.best is None else float(objective(self.best.x[None, :])[0])
-        if global_best is not None and (not runs or global_best < min(r.fitness for r in runs)):
-            runs.append(RunResult(
-                label=f"global best (from {self.best.island})", algo=runs[0].algo if runs else self.config.algos[0], seed=self.config.seed,
-                theta=self.best.x, fitness=global_best, evaluations=0, history=[], search_theta=self.best.x,
-                search_fitness=global_best, wall_s=0.0,
-            ))
-        if not runs:
-            raise HysidInputError(f"campaign {self.name!r}: no island reported any result ({self.stop_reason or 'not run'})")
-        best = int(np.argmin([r.fitness for r in runs]))
-        widened: list[dict[str, Any]] = []
-        if polish_best:
-            runs[best] = polish_run(objective, runs[best])
-            for _ in range(MAX_WIDENINGS):  # a best on a bound derived from the data: widen it and refit
-                wider, changed = objective.model.widen_at(runs[best].theta)
-                if not changed:
-                    break
-                old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
-                widened += [{"param": n, "from": old[n], "to": [float(b) for b in pair]} for n, pair in changed.items()]
-                objective = Objective(objective.loops, wider, weights=objective.weights)
-                runs[best] = polish_run(objective, runs[best])
-        settings = {
-            "campaign": self.name,
-            "algo": "/".join(self.config.algos),
-            "polish": polish_best,
-            "algos": self.config.algos,
-            "options": self.config.options,
-            "migration": self.config.migration.as_dict(),
-            "until_stopped": self.config.until_stopped,
-            "share": self.config.share,
-            "moves": [m.as_dict() for m in self.store.moves(self.name)],
-            "seed": self.config.seed,
-            "stop_rules": self.termination.as_dict(),
-            "stop_reason": self.stop_reason or self.store.stop_reason(self.name),
-            "db": self.store.path,
-            "bounds_from_data": list(self.config.soft),
-            "bounds_widened": widened,
-        }
-        return CampaignOutcome(
-            objective=objective,
-            runs=runs,
-            settings=settings,
-            islands=self.island_summaries(records, runs),
-            migrations=self.migration_summary(records),
-            members=[{"island": i, "event": e, "t": t} for i, e, t in self.store.members(self.name)],
-        )
-
-    def island_summaries(self, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
-        """Each island run's record with its re-evaluated best and its membership status (as last recorded)."""
-        recorded = {island: STATUS_AFTER[event] for island, event, _ in self.store.members(self.name)}
-        status = recorded | {i: m.status for i, m in self.members.items()}
-        return [
-            {**rec.as_dict(), "best_fitness": run.search_fitness, "status": status.get(rec.island, "unknown")}
-            for rec, run in zip(records, runs)
-        ]
-
-    def migration_summary(self, records: list[IslandRecord]) -> dict[str, Any]:
-        return {
-            **self.config.migration.as_dict(),
-            "messages": self.store.count("migrations", self.name),
-            "received": sum(r.received for r in records),
-            "taken": sum(r.taken for r in records),
-            "rejected": self.store.count("rejected", self.name),
-            "rejected_reasons": self.store.rejected_reasons(self.name),
-        }
+        """What the campaign leaves (:func:`coordinator.outcome.campaign_outcome`)."""
+        return campaign_outcome(self, polish_best=polish_best)
 
 
 def resume(store: Store, name: str, termination: Termination | None = None) -> Coordinator:

@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from coordinator.launch import island_specs, run_campaign
-from coordinator.server import CampaignOutcome, CampaignProgress, Coordinator
+from coordinator.outcome import CampaignOutcome
+from coordinator.server import CampaignProgress, Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
 from hysid.report import jsondoc, markdown, tables, text

@@ -1,0 +1,122 @@
+"""What a finished campaign leaves (Eq. 4.8-4.10's fit, from the islands' stored results).
+
+:func:`campaign_outcome` re-evaluates every island run's best here (a
+claimed fitness is never trusted), polishes the global best as ``hysid fit``
+does (widening bounds derived from the data when the best sits on one), and
+gathers the settings, the islands, the migrations and the membership events
+as stored; :class:`hysid.campaigns.CampaignResult` reports it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from coordinator.members import STATUS_AFTER
+from coordinator.store import IslandRecord
+from hysid_model.errors import HysidInputError
+from hysid_model.model import MAX_WIDENINGS
+from hysid_model.objective import Objective
+from island.run import RunResult, polish_run
+
+if TYPE_CHECKING:
+    from coordinator.server import Coordinator
+
+
+@dataclass
+class CampaignOutcome:
+    """What a finished campaign leaves: the objective, every island run (best re-evaluated, the global
+    best polished), the settings, and the islands, migrations and membership events as stored."""
+
+    objective: Objective
+    runs: list[RunResult]
+    settings: dict[str, Any]
+    islands: list[dict[str, Any]]
+    migrations: dict[str, Any]
+    members: list[dict[str, Any]]
+
+
+def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOutcome:
+    """Every island run with its best re-evaluated here, the global best polished (as ``hysid fit`` does)."""
+    objective = replace(c.config, objective_kind="closed_form").objective(c.loops)
+    records = c.store.islands(c.name)
+    history: dict[tuple[str, str], list[dict[str, float]]] = {}
+    for island, run, it, f, ev, wall in c.store.history(c.name):
+        history.setdefault((island, run), []).append({"iteration": it, "best_fitness": f, "evaluations": ev, "wall_s": wall})
+    several = {r.island for r in records if sum(q.island == r.island for q in records) > 1}
+    runs = []
+    for rec in records:
+        f = float(objective(rec.best_x[None, :])[0])
+        rows = history.get((rec.island, rec.run), [])
+        runs.append(RunResult(
+            label=f"{rec.island}/{rec.run}" if rec.island in several else rec.island, algo=rec.algo, seed=rec.seed,
+            theta=rec.best_x, fitness=f, evaluations=rec.evaluations, history=rows, search_theta=rec.best_x,
+            search_fitness=f, wall_s=rows[-1]["wall_s"] if rows else 0.0,
+        ))
+    global_best = None if c.best is None else float(objective(c.best.x[None, :])[0])
+    if global_best is not None and (not runs or global_best < min(r.fitness for r in runs)):
+        runs.append(RunResult(
+            label=f"global best (from {c.best.island})", algo=runs[0].algo if runs else c.config.algos[0], seed=c.config.seed,
+            theta=c.best.x, fitness=global_best, evaluations=0, history=[], search_theta=c.best.x,
+            search_fitness=global_best, wall_s=0.0,
+        ))
+    if not runs:
+        raise HysidInputError(f"campaign {c.name!r}: no island reported any result ({c.stop_reason or 'not run'})")
+    best = int(np.argmin([r.fitness for r in runs]))
+    widened: list[dict[str, Any]] = []
+    if polish_best:
+        runs[best] = polish_run(objective, runs[best])
+        for _ in range(MAX_WIDENINGS):  # a best on a bound derived from the data: widen it and refit
+            wider, changed = objective.model.widen_at(runs[best].theta)
+            if not changed:
+                break
+            old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
+            widened += [{"param": n, "from": old[n], "to": [float(b) for b in pair]} for n, pair in changed.items()]
+            objective = Objective(objective.loops, wider, weights=objective.weights)
+            runs[best] = polish_run(objective, runs[best])
+    settings = {
+        "campaign": c.name,
+        "algo": "/".join(c.config.algos),
+        "polish": polish_best,
+        "algos": c.config.algos,
+        "options": c.config.options,
+        "migration": c.config.migration.as_dict(),
+        "until_stopped": c.config.until_stopped,
+        "share": c.config.share,
+        "moves": [m.as_dict() for m in c.store.moves(c.name)],
+        "seed": c.config.seed,
+        "stop_rules": c.termination.as_dict(),
+        "stop_reason": c.stop_reason or c.store.stop_reason(c.name),
+        "db": c.store.path,
+        "bounds_from_data": list(c.config.soft),
+        "bounds_widened": widened,
+    }
+    return CampaignOutcome(
+        objective=objective,
+        runs=runs,
+        settings=settings,
+        islands=island_summaries(c, records, runs),
+        migrations=migration_summary(c, records),
+        members=[{"island": i, "event": e, "t": t} for i, e, t in c.store.members(c.name)],
+    )
+
+def island_summaries(c: Coordinator, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
+    """Each island run's record with its re-evaluated best and its membership status (as last recorded)."""
+    recorded = {island: STATUS_AFTER[event] for island, event, _ in c.store.members(c.name)}
+    status = recorded | {i: m.status for i, m in c.members.items()}
+    return [
+        {**rec.as_dict(), "best_fitness": run.search_fitness, "status": status.get(rec.island, "unknown")}
+        for rec, run in zip(records, runs)
+    ]
+
+def migration_summary(c: Coordinator, records: list[IslandRecord]) -> dict[str, Any]:
+    return {
+        **c.config.migration.as_dict(),
+        "messages": c.store.count("migrations", c.name),
+        "received": sum(r.received for r in records),
+        "taken": sum(r.taken for r in records),
+        "rejected": c.store.count("rejected", c.name),
+        "rejected_reasons": c.store.rejected_reasons(c.name),
+    }
