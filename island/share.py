@@ -117,9 +117,10 @@ class Share:
         said = {a: round(c, 3) for a, c in credit.items()}
         moves = []
         for algo in self.algos:
-            due = int(len(islands) * per_island[algo] / total + 0.5)
+            if algo == lead or len(own[algo]) <= int(len(islands) * per_island[algo] / total + 0.5):
+                continue  # the leader, or an algorithm within its share
             free = [k for k in own[algo] if self.closed - self.moved_at.get(k, -WINDOW - 1) > WINDOW]
-            if algo != lead and free and len(own[algo]) > due:
+            if free:
                 island, run = free[0]
                 self.moved_at[(island, run)] = self.closed
                 moves.append(Move(island, run, algo, lead, int(evaluations), said))
