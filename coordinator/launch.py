@@ -36,7 +36,7 @@ MEMORY_WAIT_S = 5.0
 """How long an island thread waits for room in the coordinator's inbox before its message is dropped."""
 MEMORY_HISTORY_EVERY_S = 0.02
 """How often an island thread sends its history: in memory a message costs little, and the
-coordinator's count of evaluations (budget, adaptive share) follows the islands closely."""
+coordinator's count of evaluations (budget, the share of a mixed campaign) follows the islands closely."""
 
 
 @dataclass(frozen=True)

@@ -22,11 +22,12 @@ and is handled by one thread, which owns the SQLite store
 * keeps the global best, **re-evaluating** every candidate it receives (a
   claimed fitness is never trusted, neither to take nor to skip one) and
   publishes it for late joiners;
-* in a mixed campaign with the ``adaptive`` share (:mod:`island.share`),
-  credits each island's own gains to its algorithm and, after each round,
-  moves an island of an algorithm above its share to the leading one (stored, and told
-  to the island in the roster of the ``control`` message;
-  :class:`coordinator.sharing.Sharing`);
+* in a mixed campaign (:mod:`island.share`), credits each island's own
+  gains to its algorithm and, after each round, moves islands: with the
+  ``staged`` share the GA islands that searched a round to the PSO, with the
+  ``adaptive`` one an island of an algorithm above its share to the leading
+  one (stored, and told to the island in the roster of the ``control``
+  message; :class:`coordinator.sharing.Sharing`);
 * commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
   whatever the load, and after each commit publishes the sealed ``control``
   message: the roster, how far each island's history is committed (an island
@@ -421,7 +422,7 @@ class Coordinator:
         if h.final:
             self.membership.final_history(h.island, h.run)
         self._consider(link, h.island, h.best_x, f)
-        if self.stop_reason is None:  # after a round, the adaptive share's moves: told with the next control message
+        if self.stop_reason is None:  # after a round, the share's moves: told with the next control message
             self.sharing.review(self.evaluations, self.members)
 
     def _migrants(self, link: Link, m: Migrants) -> None:

@@ -1,6 +1,7 @@
 """The coordinator's bookkeeping of how a mixed campaign shares its islands between algorithms.
 
-The policy (credit, rounds, which island moves where) is :class:`island.share.Share`;
+The policy (credit, rounds, which island moves where) is :class:`island.share.Staged` or
+:class:`island.share.Share` (the ``staged`` and ``adaptive`` shares);
 :class:`Sharing` feeds it and keeps what follows from it: the algorithm each
 run is to run (told to the islands in the roster of the ``control``
 message), every algorithm a run has been told to run (what its histories may
@@ -16,10 +17,12 @@ from coordinator.members import Member
 from coordinator.store import Store
 from island.config import CampaignConfig
 from island.population import PopulationOptimizer
-from island.share import Move, Share
+from island.share import Move, Share, Staged
 
 SHARE_ROUND_ITERATIONS = 10
-"""Iterations per island in one round of the adaptive share when islands do not migrate."""
+"""Iterations per island in one round of the share when islands do not migrate."""
+POLICIES = {"staged": Staged, "adaptive": Share}
+"""The share policy of each :data:`island.share.SHARES` that moves islands."""
 
 
 class Sharing:
@@ -32,8 +35,9 @@ class Sharing:
     ) -> None:
         self.store = store
         self.name = config.name
-        self.policy = Share(config.algos) if config.share == "adaptive" and len(set(config.algos)) > 1 else None
-        """The adaptive share of a mixed campaign (None: every island keeps its algorithm)."""
+        moving = POLICIES.get(config.share) if len(set(config.algos)) > 1 else None
+        self.policy = moving(config.algos) if moving is not None else None
+        """The staged or adaptive share of a mixed campaign (None: every island keeps its algorithm)."""
         self.assigned: dict[tuple[str, str], str] = {}
         """The algorithm each run is to run: the one it joined with, unless the share moved it."""
         self.algos: dict[tuple[str, str], set[str]] = {}

@@ -336,7 +336,7 @@ class Store:
 
     @_writes
     def add_move(self, campaign: str, move: Move) -> None:
-        """An island run the adaptive share moved to another algorithm (:mod:`island.share`)."""
+        """An island run the share of a mixed campaign moved to another algorithm (:mod:`island.share`)."""
         self.db.execute(
             "INSERT INTO moves (campaign, island, run, src, dst, evaluations, credit, t) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
             (campaign, move.island, move.run, move.src, move.dst, move.evaluations, json.dumps(move.credit), time.time()),

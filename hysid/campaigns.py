@@ -163,7 +163,7 @@ def campaign(
     polish: bool = True,
     progress: Callable[[CampaignProgress], None] | None = None,
     until_stopped: bool | None = None,
-    share: str = "adaptive",
+    share: str = "staged",
 ) -> CampaignResult:
     """Run ``islands`` GA/PSO islands on ``loops`` to a stop rule and report the polished global best.
 
@@ -180,8 +180,9 @@ def campaign(
     whole campaign. By default (None) that holds when ``termination`` has an
     evaluation budget or a time limit and no ``options`` give ``iterations``.
 
-    ``share``: with several ``algos``, ``adaptive`` (default) moves islands to the
-    algorithm that improves the global best (:mod:`island.share`; the moves are in
+    ``share``: with several ``algos``, ``staged`` (default) moves the GA islands to
+    the PSO once they have searched one round, ``adaptive`` moves islands to the
+    algorithm whose own moves gain more (:mod:`island.share`; the moves are in
     ``result.fit.settings["moves"]``), ``fixed`` keeps every island's algorithm.
     """
     check_name("name", name)

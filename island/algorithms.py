@@ -18,6 +18,21 @@ from island.pso import PSO
 
 ALGORITHMS: dict[str, type[PopulationOptimizer]] = {"ga": GA, "pso": PSO}
 """The thesis' optimizers (section 5.1) by name."""
+ROLES: dict[str, str] = {"ga": "explore", "pso": "converge"}
+"""What each algorithm does best in a mixed campaign (the ``staged`` share, :mod:`island.share`).
+
+``converge``: the PSO. The thesis found its convergence much faster than the
+GA's on every data set ("the slopes of the convergence plots in the initial
+iterations ... much steeper in PSO than in GA", chapter 6, on Figs. 5.6-5.9 and
+5.18-5.20), and from scratch hysid's PSO islands end lower than its GA islands
+on every model tried (``thesis`` + Coulomb friction, Bouc-Wen, cubic
+stiffness, Zener, channel delay; the real damper).
+
+``explore``: the GA. Early in a search its crossover finds good regions: at
+the end of the first round of a half-GA campaign (about 1,100 evaluations on
+4 islands) its islands hold a lower best than the PSO islands in 38 of 60
+seeds; a campaign whose GA islands hand over to the PSO then beats a PSO-only
+one (``hysid bench islands mixed``)."""
 
 
 def check_algorithm(algo: Any, param: str = "algo") -> str:

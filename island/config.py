@@ -77,9 +77,10 @@ class CampaignConfig:
     """Islands search until the coordinator's stop order (their own iteration budget is off): with a
     campaign budget in evaluations or time, fast (GA) and slow (PSO) islands overlap, and migrate,
     for the whole campaign instead of the fast ones leaving early."""
-    share: str = "adaptive"
-    """How the islands are shared between :attr:`algos` (:mod:`island.share`): ``adaptive`` moves
-    islands to the algorithm that improves the global best, ``fixed`` keeps each island's algorithm."""
+    share: str = "staged"
+    """How the islands are shared between :attr:`algos` (:mod:`island.share`): ``staged`` moves the
+    exploring (GA) islands to the converging algorithm (PSO) after their first round, ``adaptive``
+    moves islands to the algorithm whose own moves gain more, ``fixed`` keeps each island's algorithm."""
     stop_rules: dict[str, Any] = field(default_factory=dict)
     """The coordinator's :class:`~island.termination.Termination` as plain data (kept with the
     campaign, so that ``--resume`` stops by the same rules)."""
@@ -149,7 +150,7 @@ class CampaignConfig:
         objective_kind: str = "closed_form",
         displacement: str = "measured",
         until_stopped: bool = False,
-        share: str = "adaptive",
+        share: str = "staged",
     ) -> "CampaignConfig":
         """The configuration of a campaign on ``loops``: the bounds and fixed values ``hysid fit`` would use."""
         m = prepare_model(displaced(loops, displacement), model, bounds=bounds, fixed=fixed)

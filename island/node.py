@@ -20,7 +20,7 @@ evaluate -> tell) and uses its hooks:
   ``control`` messages (a liveliness token alone makes nobody a member);
 * a late joiner takes the coordinator's current global best the same way;
 * when the roster assigns its run another algorithm (a mixed campaign's
-  adaptive share, :mod:`island.share`), it carries its search on with that
+  staged or adaptive share, :mod:`island.share`), it carries its search on with that
   algorithm from the next iteration;
 * it stops at the coordinator's stop order or when its own budget is spent,
   then waits (bounded) until the coordinator confirms it has committed every
@@ -210,7 +210,7 @@ class IslandNode:
 
     def _follow_assignment(self) -> PopulationOptimizer:
         """The optimizer to go on with: this one, or its search carried on by the algorithm the
-        coordinator now assigns this run (a mixed campaign's adaptive share, :mod:`island.share`)."""
+        coordinator now assigns this run (a mixed campaign's staged or adaptive share, :mod:`island.share`)."""
         assert self._transport is not None
         algo = self._transport.assigned_algo()
         if algo is not None and algo != self.algo and algo in self.config.algos:

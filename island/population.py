@@ -130,7 +130,7 @@ class PopulationOptimizer(AskTell):
         self.gain = 0.0
         """Orders of magnitude (log10) by which the algorithm's own moves (GA offspring, PSO particle
         moves) improved the best; the additional population and migrants do not count. What the
-        adaptive share of a mixed campaign credits (:mod:`island.share`)."""
+        share of a mixed campaign credits (:mod:`island.share`)."""
 
     # --- subclass hooks ---------------------------------------------------------
     @abstractmethod

@@ -1,11 +1,23 @@
-"""How a mixed campaign shares its islands between algorithms: credit for what each algorithm gains, and moves.
+"""How a mixed campaign shares its islands between algorithms: moves of islands from one algorithm to another.
 
-GA and PSO islands of one campaign do not search equally well on every model
-(on ``thesis+coulomb_friction`` from scratch the thesis' GA stays three orders
-of magnitude behind its PSO). With a fixed share, a half-GA campaign spends
-half its budget on the weaker algorithm. The ``adaptive`` share follows
-AMALGAM (Vrugt and Robinson, PNAS 104, 2007: each method of a multi-method
-search breeds in proportion to its recent success), with an island as the unit:
+GA and PSO islands of one campaign do not search equally well at every stage
+(on ``thesis+coulomb_friction`` from scratch, a PSO-only campaign ends three
+orders of magnitude below a GA-only one, while early on the GA islands often
+hold the lower best). With a fixed share, a half-GA campaign spends half its
+budget on the GA long after it stopped helping. Two policies move islands:
+
+``staged`` (the default): the GA explores, the PSO converges
+(:data:`island.algorithms.ROLES`, with the thesis' and hysid's evidence). Every
+island starts with the algorithm it joined with; once it has searched one
+full round (its first migrations), an island of an exploring algorithm moves
+to the campaign's converging one. On the bench (``hysid bench islands
+mixed``) this beats PSO-only campaigns: the GA's first round is worth its
+evaluations, its later ones are not.
+
+``adaptive``: learned from the search, for algorithms whose strengths are not
+known (other settings than the thesis', other models), following AMALGAM
+(Vrugt and Robinson, PNAS 104, 2007: each method of a multi-method search
+breeds in proportion to its recent success), with an island as the unit:
 
 * an algorithm is credited with what its own moves gain: each island counts
   the orders of magnitude, ``log10(old / new)``, by which its GA offspring or
@@ -14,24 +26,25 @@ search breeds in proportion to its recent success), with an island as the unit:
   population around the best (both algorithms have it) and migrants do not
   count: with migration every island soon holds the global best, and what
   then improves it near that best says nothing about the algorithm;
-* a *round* is one migration interval of every island's evaluations; after
-  each, every algorithm is due a share of the islands in proportion to its
-  credit per island over the last :data:`WINDOW` rounds (AMALGAM's rule: a
-  method breeds in proportion to its recent success), and an algorithm holding
-  more islands than its share gives one of them to the leading algorithm. One
-  island per round, and an island that moved stays where it went for
-  :data:`WINDOW` rounds: its new algorithm needs a window to show what it
-  does there (a swarm starts at rest), and a wrong call (early credit can
-  favour the weaker algorithm) is undone by the same rule, island by island,
-  rather than taking the whole campaign. Two algorithms that keep up with
-  each other keep their islands; when nobody gains (converged, or stuck: less
-  than :data:`LEADING`), nobody moves;
-* the moved island carries its search on
-  (:func:`island.algorithms.switch_algorithm`): its population becomes the
-  leader's population or swarm, its counters and history go on.
+* after each round, every algorithm is due a share of the islands in
+  proportion to its credit per island over the last :data:`WINDOW` rounds
+  (AMALGAM's rule), and an algorithm holding more islands than its share gives
+  one of them to the leading algorithm. One island per round, and an island
+  that moved stays where it went for :data:`WINDOW` rounds: its new algorithm
+  needs a window to show what it does there (a swarm starts at rest), and a
+  wrong call (early credit can favour the weaker algorithm) is undone by the
+  same rule, island by island, rather than taking the whole campaign. Two
+  algorithms that keep up with each other keep their islands; when nobody
+  gains (converged, or stuck: less than :data:`LEADING`), nobody moves.
+  Measured on the bench it loses to the staged share: a GA island's own gains
+  around the migrated best keep it longer than it helps.
 
-The policy is data in, moves out; the coordinator feeds it and tells the
-islands (:mod:`coordinator.sharing`).
+A *round* is one migration interval of every island's evaluations. A moved
+island carries its search on (:func:`island.algorithms.switch_algorithm`): its
+population becomes the new algorithm's population or swarm, its counters and
+history go on. Every move records each algorithm's credit over the last
+rounds. The policies are data in, moves out; the coordinator feeds them and
+tells the islands (:mod:`coordinator.sharing`).
 """
 
 from __future__ import annotations
@@ -41,9 +54,11 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from hysid_model.errors import HysidInputError
+from island.algorithms import ROLES
 
-SHARES = ("adaptive", "fixed")
-"""``adaptive``: islands are shared between the algorithms in proportion to what their own moves gain;
+SHARES = ("staged", "adaptive", "fixed")
+"""``staged``: the exploring algorithm's islands move to the converging one after their first round;
+``adaptive``: islands are shared between the algorithms in proportion to what their own moves gain;
 ``fixed``: every island keeps the algorithm it joined with (as the thesis compared GA and PSO)."""
 WINDOW = 2
 """Rounds over which each algorithm's credit is summed before it is compared, and that a moved island
@@ -78,7 +93,7 @@ class Move:
 
 
 class Share:
-    """The ``adaptive`` share policy (module docstring) of one campaign."""
+    """The ``adaptive`` share policy (module docstring) of one campaign; :class:`Staged` decides otherwise."""
 
     def __init__(self, algos: list[str]) -> None:
         self.algos = list(dict.fromkeys(algos))
@@ -97,17 +112,20 @@ class Share:
 
     def review(self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
         """After ``evaluations`` in all: if a round (``round_evaluations``) is over, close it and return
-        the moves (of each algorithm above its share, its first island by name that may move, to the
-        leader). ``islands``: the algorithm of each alive island run ``(island, run)``."""
+        the moves. ``islands``: the algorithm of each alive island run ``(island, run)``."""
         if evaluations < self.next_review:
             return []
         self.next_review = evaluations + max(int(round_evaluations), 1)
         self.closed += 1
         window = self.rounds
         self.rounds = deque(list(window) + [{}], maxlen=WINDOW)
+        credit = {a: sum(r.get(a, 0.0) for r in window) for a in self.algos}
+        return self._moves(credit, int(evaluations), islands)
+
+    def _moves(self, credit: dict[str, float], evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
+        """Of each algorithm above its share, its first island by name that may move, to the leader."""
         if self.closed < WINDOW:
             return []
-        credit = {a: sum(r.get(a, 0.0) for r in window) for a in self.algos}
         own = {a: sorted(k for k, b in islands.items() if b == a) for a in self.algos}
         per_island = {a: credit[a] / len(own[a]) if own[a] else 0.0 for a in self.algos}
         lead = max(self.algos, key=lambda a: per_island[a])
@@ -123,5 +141,31 @@ class Share:
             if free:
                 island, run = free[0]
                 self.moved_at[(island, run)] = self.closed
-                moves.append(Move(island, run, algo, lead, int(evaluations), said))
+                moves.append(Move(island, run, algo, lead, evaluations, said))
         return moves
+
+
+class Staged(Share):
+    """The ``staged`` share policy (module docstring) of one campaign: rounds and credit as
+    :class:`Share`, moves by the algorithms' :data:`~island.algorithms.ROLES`."""
+
+    def __init__(self, algos: list[str]) -> None:
+        super().__init__(algos)
+        self.converger = next((a for a in self.algos if ROLES[a] == "converge"), None)
+        """The campaign's converging algorithm (None: nobody to hand over to, nobody moves)."""
+        self.listed: dict[tuple[str, str], int] = {}
+        """The round at whose close each island run was first listed alive."""
+
+    def _moves(self, credit: dict[str, float], evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
+        """Every exploring island listed at an earlier close (it searched a full round since) moves to
+        the converger."""
+        for key in islands:
+            self.listed.setdefault(key, self.closed)
+        if self.converger is None:
+            return []
+        said = {a: round(c, 3) for a, c in credit.items()}
+        return [
+            Move(island, run, algo, self.converger, evaluations, said)
+            for (island, run), algo in sorted(islands.items())
+            if ROLES[algo] == "explore" and self.listed[(island, run)] < self.closed
+        ]

@@ -143,7 +143,7 @@ class ZenohTransport:
             algo = next((m.algo for m in control.members if (m.island, m.run) == (self.node.island, self.credentials.run)), self._algo)
             if algo is not None and algo != self._algo and algo != self.node.algo:
                 self.notify(f"island {self.node.island}: campaign {self.node.config.name!r} moves this island from "
-                            f"{self.node.algo.upper()} to {algo.upper()} (the adaptive share); its search carries on")
+                            f"{self.node.algo.upper()} to {algo.upper()} (the share of a mixed campaign); its search carries on")
             self._algo = algo
             self._stop = self._stop or control.stop
             silent_s, self._heard_at = time.monotonic() - self._heard_at, time.monotonic()

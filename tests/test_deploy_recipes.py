@@ -169,6 +169,7 @@ def test_local_recipe_runs_a_campaign_of_separate_processes(tmp_path: Path) -> N
     result = json.loads((out / "report" / "result.json").read_text())
     assert result["settings"]["campaign"] == "rehearsal"
     assert {island["island"] for island in result["islands"]} == {"island-1", "island-2"}
-    assert {island["algo"] for island in result["islands"]} == {"ga", "pso"}
+    moved = {m["island"]: m["src"] for m in result["settings"]["moves"]}  # the staged share hands the GA island over to PSO
+    assert {island["island"]: moved.get(island["island"], island["algo"]) for island in result["islands"]} == {"island-1": "ga", "island-2": "pso"}
     for k in (1, 2):
         assert "stopped by the coordinator" in (out / f"island-{k}.log").read_text()

@@ -32,7 +32,10 @@ ISLAND_MESSAGES = 2500
 
 
 def config() -> CampaignConfig:
-    return CampaignConfig.create(LOOPS, name="fz", options=SIZES, migration=Migration(interval=5, k=2, topology="ring"), seed=4, min_islands=3)
+    """Islands keep their algorithm (``share="fixed"``): a move lands at whichever iteration the island
+    hears of it, so only a fixed share makes two campaigns the same search, message for message."""
+    return CampaignConfig.create(LOOPS, name="fz", options=SIZES, migration=Migration(interval=5, k=2, topology="ring"), seed=4, min_islands=3,
+                                 share="fixed")
 
 
 def campaign(tmp_path, name: str, fuzz=None) -> Coordinator:

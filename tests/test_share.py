@@ -1,4 +1,4 @@
-"""The adaptive share of a mixed campaign (island/share.py): credit, moves, and a search carried on by another algorithm."""
+"""The shares of a mixed campaign (island/share.py): credit, moves (staged and adaptive), and a search carried on by another algorithm."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from island.migration import Migration
 from island.node import IslandNode
 from island.protocol import History, decode_control, decode_history, encode_history
 from island.pso import PSO
-from island.share import LEADING, WINDOW, Share, check_share
+from island.share import LEADING, WINDOW, Share, Staged, check_share
 from island.termination import Termination
 from island.transports import MemoryBus
 
@@ -135,9 +135,27 @@ def test_no_move_without_credit_or_when_the_other_algorithm_keeps_up():
     assert [only.review(e, 1000, islands(**{"pso-0": "pso"})) for e in (1000, 2000, 3000)] == [[]] * 3
 
 
+def test_the_staged_share_moves_every_ga_island_to_pso_once_it_searched_a_full_round():
+    staged = Staged(["ga", "pso"])
+    alive = islands(**{"ga-0": "ga", "ga-2": "ga", "pso-1": "pso", "pso-3": "pso"})
+    staged.credit("ga", 2.0)  # the GA gains more: the staged share moves by the algorithms' roles, not by credit
+    staged.credit("pso", 0.5)
+    assert staged.review(40, 1000, alive) == []  # the first close (the first history) lists the islands
+    assert staged.review(900, 1000, alive) == []  # the round is not over
+    moves = staged.review(1040, 1000, alive)
+    assert [(m.island, m.src, m.dst, m.evaluations) for m in moves] == [("ga-0", "ga", "pso", 1040), ("ga-2", "ga", "pso", 1040)]
+    assert moves[0].credit == {"ga": 2.0, "pso": 0.5}  # what each algorithm had gained, for the record
+    late = {**{k: "pso" for k in alive}, ("ga-4", "r"): "ga"}  # after the moves, an island joins with GA
+    assert staged.review(2040, 1000, late) == []  # listed: its round starts
+    assert [(m.island, m.dst) for m in staged.review(3040, 1000, late)] == [("ga-4", "pso")]
+    assert staged.review(4040, 1000, {k: "pso" for k in late}) == []  # nobody left to move
+    lone = Staged(["ga"])  # no converging algorithm in the campaign: nobody to hand over to
+    assert [lone.review(e, 1000, islands(**{"ga-0": "ga"})) for e in (40, 1040, 2040)] == [[]] * 3
+
+
 def test_share_names_are_checked():
     assert check_share("fixed") == "fixed"
-    with pytest.raises(HysidInputError, match="share must be one of adaptive, fixed"):
+    with pytest.raises(HysidInputError, match="share must be one of staged, adaptive, fixed"):
         check_share("greedy")
     with pytest.raises(HysidInputError, match="share"):
         CampaignConfig(name="c", share="greedy")
@@ -303,6 +321,15 @@ def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_
     summary = CampaignResult.from_database(db).summary()
     assert f"share: adaptive, {len(moves)} island move(s)" in summary
     assert all(f"{m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations" in summary for m in moves)
+
+
+def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_round(tmp_path):
+    _, outcome, db = mixed_campaign(tmp_path, "staged", budget=4_000)
+    moves = outcome.settings["moves"]
+    assert sorted((m["island"], m["src"], m["dst"]) for m in moves) == [("ga-0", "ga", "pso"), ("ga-2", "ga", "pso")]
+    assert all(m["evaluations"] < 2_000 for m in moves)  # one round: every island's first migration interval
+    assert {r["island"]: r["algo"] for r in outcome.islands} == dict.fromkeys(["ga-0", "pso-1", "ga-2", "pso-3"], "pso")
+    assert "share: staged, 2 island move(s) of the exploring algorithm (GA) to the converging one (PSO)" in CampaignResult.from_database(db).summary()
 
 
 def test_a_fixed_share_moves_nobody(tmp_path):

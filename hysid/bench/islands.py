@@ -16,13 +16,13 @@ Each part is a ratio (or a rate) measured in one run on the Synth set (section 5
   fitness threshold, before any polish) over at least 20 seeds; target:
   migration wins;
 * **mixed**: at equal total evaluations (a campaign budget; every island
-  searches until the coordinator stops, so GA and PSO islands overlap for the
-  whole campaign), half GA and half PSO islands, with the adaptive share
-  (:mod:`island.share`) and with a fixed one, against GA-only and PSO-only
-  ones: success rates over 60 seeds (at least 20; in-process islands) with
-  95 % Wilson intervals, at three budgets and two thresholds cut from one
-  campaign each; target: at the middle budget and the upper threshold the
-  adaptive mix at least as good as the better of the two;
+  searches until the coordinator stops), half GA and half PSO islands with
+  each share of :mod:`island.share` (staged, the default; adaptive; fixed, so
+  that GA and PSO islands overlap for the whole campaign) against GA-only and
+  PSO-only ones: success rates over 100 seeds (at least 20; in-process
+  islands) with 95 % Wilson intervals, at three budgets and two thresholds
+  cut from one campaign each; target: at the middle budget and the upper
+  threshold the default mix at least as good as the better of the two;
 * **pygmo**: hysid's PSO islands over Zenoh against a pygmo archipelago of PSO
   islands (``pygmo.pso`` with constriction and velocity memory, ring topology,
   multiprocessing islands, migration after every 5 generations), same
@@ -69,9 +69,13 @@ from island.termination import Termination
 
 SPEEDUP_TARGET = 1.7
 PARTS = ("speedup", "migration", "mixed", "pygmo", "latency")
-MIXES = {"ga": (["ga"], "fixed"), "pso": (["pso"], "fixed"), "mixed_fixed": (["ga", "pso"], "fixed"), "mixed": (["ga", "pso"], "adaptive")}
-"""The campaigns of the mixed part, as (algorithms, share): GA islands only, PSO islands only, half and
-half with a fixed share, half and half with the adaptive share."""
+MIXES = {
+    "ga": (["ga"], "fixed"), "pso": (["pso"], "fixed"),
+    "mixed_fixed": (["ga", "pso"], "fixed"), "mixed_adaptive": (["ga", "pso"], "adaptive"), "mixed": (["ga", "pso"], "staged"),
+}
+"""The campaigns of the mixed part, as (algorithms, share): GA islands only, PSO islands only, and half
+and half with each share (``mixed``: the default one, staged)."""
+MIX_LABELS = {"mixed": "GA+PSO staged", "mixed_adaptive": "GA+PSO adaptive", "mixed_fixed": "GA+PSO fixed", "ga": "GA only", "pso": "PSO only"}
 
 
 def campaign(
@@ -187,17 +191,18 @@ def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 
 MIXED_FIRST_SEED = 1000
-"""The mixed part's seeds start here, away from those the share policy was tried on (0-59, 200-259 and
-300-359): the bench judges the policy out of sample."""
+"""The mixed part's seeds start here, away from those the share policies were tried on (0-59, 200-259,
+300-359 and 3000-3099; the adaptive share's last version also on these): the bench judges the staged
+share out of sample."""
 
 
 def mixed(seeds: int = 100, islands: int = 4, population: int = 20) -> dict[str, Any]:
-    """Part mixed: GA+PSO islands (adaptive and fixed share) against GA-only and PSO-only ones at
+    """Part mixed: GA+PSO islands (each share) against GA-only and PSO-only ones at
     equal total evaluations (a campaign budget; every island searches until the coordinator stops) on
     :data:`MIXED_MODEL`: success rates (the global best the coordinator knew when the islands had
     reported at most ``budget`` evaluations, before any polish, below a threshold) at each of
     :data:`MIXED_BUDGETS` and :data:`MIXED_THRESHOLDS`, cut from one campaign per seed and mix of the
-    largest budget; target at :data:`MIXED_TARGET`: the adaptive mix at least as good as the better
+    largest budget; target at :data:`MIXED_TARGET`: the default (staged) mix at least as good as the better
     of GA-only and PSO-only. ``evaluations_at_stop`` is what the islands had spent when they heard
     the stop order (it overshoots the largest budget a little)."""
     if seeds < 20:
@@ -205,7 +210,7 @@ def mixed(seeds: int = 100, islands: int = 4, population: int = 20) -> dict[str,
     options = {"population": population, "initial_population": 2 * population}
     finals: dict[str, dict[int, list[float]]] = {k: {b: [] for b in MIXED_BUDGETS} for k in MIXES}
     spent: dict[str, list[int]] = {k: [] for k in MIXES}
-    moves: dict[str, int] = {}
+    moves: dict[str, dict[str, int]] = {k: {} for k, (algos, share) in MIXES.items() if len(algos) > 1 and share != "fixed"}
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
         for seed in range(MIXED_FIRST_SEED, MIXED_FIRST_SEED + seeds):
             for label, (algos, share) in MIXES.items():
@@ -216,7 +221,7 @@ def mixed(seeds: int = 100, islands: int = 4, population: int = 20) -> dict[str,
                     finals[label][budget].append(within[-1] if within else np.inf)
                 spent[label].append(c.evaluations)
                 for m in c.sharing.moves:
-                    moves[f"{m.src}->{m.dst}"] = moves.get(f"{m.src}->{m.dst}", 0) + 1
+                    moves[label][f"{m.src}->{m.dst}"] = moves[label].get(f"{m.src}->{m.dst}", 0) + 1
     rates: dict[str, dict[str, dict[str, Any]]] = {}
     for label in MIXES:
         rates[label] = {}
@@ -409,14 +414,14 @@ def to_text(result: dict[str, Any]) -> str:
         lines.append(success_line(f"migration ({r['islands']} PSO islands", r, {"migration": "with migration", "isolated": "isolated"}))
     if "mixed" in result:
         r = result["mixed"]
-        labels = {"mixed": "GA+PSO adaptive", "mixed_fixed": "GA+PSO fixed", "ga": "GA only", "pso": "PSO only"}
-        lines.append(success_line(f"mixed ({r['model']}, {r['islands']} islands", r, labels) + " (the adaptive mix at least as good as the better one)")
+        labels = MIX_LABELS
+        lines.append(success_line(f"mixed ({r['model']}, {r['islands']} islands", r, labels) + " (the staged mix at least as good as the better one)")
         for key in r["grid"]["mixed"]:
             if not key.endswith("@median"):
                 lines.append(f"  {key.replace('@', ' evaluations, <= ')}: " + ", ".join(
                     f"{label} {100 * r['grid'][k][key]['rate']:.0f} % [{100 * r['grid'][k][key]['wilson95'][0]:.0f}-{100 * r['grid'][k][key]['wilson95'][1]:.0f}]"
                     for k, label in labels.items()))
-        lines.append(f"  moves of the adaptive share: {r['moves'] or 'none'}")
+        lines.append("  moves: " + "; ".join(f"{labels[k]} {v or 'none'}" for k, v in r["moves"].items()))
     if "pygmo" in result:
         r = result["pygmo"]
         if "skipped" in r:

@@ -107,8 +107,9 @@ ITERATIONS = typer.Option(
     f"(every island searches and migrates until the campaign stops), else {ISLAND_ITERATIONS}.",
 )
 SHARE = typer.Option(
-    "adaptive", "--share",
-    help="With several --algos: adaptive moves islands to the algorithm that improves the global best; fixed keeps each island's algorithm.",
+    "staged", "--share",
+    help="With several --algos: staged moves GA islands to PSO after their first round (GA explores, PSO converges); "
+    "adaptive moves islands to the algorithm whose own moves gain more; fixed keeps each island's algorithm.",
 )
 TOPOLOGY = typer.Option("ring", "--topology", help="Who takes migrants from whom: ring, full or random.")
 INTERVAL = typer.Option(5, "--interval", help="Migrate every N iterations (0: isolated islands).")

@@ -193,15 +193,23 @@ def campaign_summary(result: "CampaignResult") -> str:
     return "\n".join(lines)
 
 
+SHARE_RULES = {
+    "staged": "of the exploring algorithm (GA) to the converging one (PSO) after their first round",
+    "adaptive": "to the algorithm whose own moves gained more",
+}
+"""What the moves of each share that moves islands (:mod:`island.share`) follow, as the summary says it."""
+
+
 def share_lines(settings: dict[str, Any]) -> list[str]:
-    """How a mixed campaign shared its islands between algorithms, and each move of the adaptive share."""
+    """How a mixed campaign shared its islands between algorithms, and each move of its share."""
     algos = list(dict.fromkeys(settings.get("algos") or []))
     if len(algos) < 2:
         return []
     moves = settings.get("moves") or []
-    if settings.get("share") != "adaptive":
+    share = settings.get("share")
+    if share not in SHARE_RULES:
         return [f"share: fixed (every island kept its algorithm of {', '.join(a.upper() for a in algos)})"]
-    lines = [f"share: adaptive, {len(moves)} island move(s) to the algorithm whose own moves gained more"]
+    lines = [f"share: {share}, {len(moves)} island move(s) {SHARE_RULES[share]}"]
     for m in moves:
         credit = ", ".join(f"{a.upper()} {c:.2g}" for a, c in m["credit"].items())
         lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained over the last rounds: {credit})")
