@@ -422,8 +422,8 @@ class Coordinator:
         if h.final:
             self.membership.final_history(h.island, h.run)
         self._consider(link, h.island, h.best_x, f)
-        if self.stop_reason is None:  # after a round, the share's moves: told with the next control message
-            self.sharing.review(self.evaluations, self.members)
+        if self.stop_reason is None and self.rule_stop() is None:  # the share's moves (none once a rule says stop): told with the next control message
+            self.sharing.review(self.evaluations, self.members, self.islands)
 
     def _migrants(self, link: Link, m: Migrants) -> None:
         check_replay(self._replays, "migrants", m.island, m.run, m.seq)
@@ -457,14 +457,18 @@ class Coordinator:
         return encode_control(Control(self.name, members, stop, self._control_seq), self.run_id, keys)
 
     # --- the loop -----------------------------------------------------------------
-    def check_stop(self) -> str | None:
+    def rule_stop(self) -> str | None:
+        """The stop rule (budget, target, stall, time) that holds now, if any."""
         best = self.best
-        reason = self.termination.reason(
+        return self.termination.reason(
             evaluations=self.evaluations,
             best=np.inf if best is None else best.fitness,
             best_at=0 if best is None else best.evaluations,
             elapsed_s=time.monotonic() - self.started,
         )
+
+    def check_stop(self) -> str | None:
+        reason = self.rule_stop()
         if reason:
             return reason
         alive = self.membership.any_alive()

@@ -11,7 +11,8 @@ the campaign database as they are made and read back on ``--resume``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Protocol
 
 from coordinator.members import Member
 from coordinator.store import Store
@@ -19,10 +20,16 @@ from island.config import CampaignConfig
 from island.population import PopulationOptimizer
 from island.share import Move, Share, Staged
 
+class RunView(Protocol):
+    """What the coordinator knows of an island run from its histories."""
+
+    iteration: int
+    final: bool
+
+
 SHARE_ROUND_ITERATIONS = 10
-"""Iterations per island in one round of the share when islands do not migrate."""
-POLICIES = {"staged": Staged, "adaptive": Share}
-"""The share policy of each :data:`island.share.SHARES` that moves islands."""
+"""When islands do not migrate: iterations per island in one round of the adaptive share, and those an
+exploring run searches before the staged share moves it."""
 
 
 class Sharing:
@@ -35,9 +42,15 @@ class Sharing:
     ) -> None:
         self.store = store
         self.name = config.name
-        moving = POLICIES.get(config.share) if len(set(config.algos)) > 1 else None
-        self.policy = moving(config.algos) if moving is not None else None
+        self._round_iterations = config.migration.interval or SHARE_ROUND_ITERATIONS
+        """A run's migration interval: its iterations in a round (adaptive), its survey (staged)."""
+        mixed = len(set(config.algos)) > 1
+        self.policy: Share | Staged | None = None
         """The staged or adaptive share of a mixed campaign (None: every island keeps its algorithm)."""
+        if mixed and config.share == "staged":
+            self.policy = Staged(config.algos, survey=self._round_iterations)
+        elif mixed and config.share == "adaptive":
+            self.policy = Share(config.algos)
         self.assigned: dict[tuple[str, str], str] = {}
         """The algorithm each run is to run: the one it joined with, unless the share moved it."""
         self.algos: dict[tuple[str, str], set[str]] = {}
@@ -49,7 +62,6 @@ class Sharing:
         self.moves: list[Move] = store.moves(self.name)
         for move in self.moves:
             self._follow(move)
-        self._round_iterations = config.migration.interval or SHARE_ROUND_ITERATIONS
         self._per_iteration = 0 if self.policy is None else max(optimizer(a).population + optimizer(a).addpop_number for a in config.algos)
         """Evaluations of one island's iteration (the largest of the campaign's algorithms)."""
 
@@ -70,13 +82,21 @@ class Sharing:
             self.policy.credit(algo, gain - self.gains[key])
         self.gains[key] = max(self.gains.get(key, 0.0), gain)
 
-    def review(self, evaluations: int, members: dict[str, Member]) -> list[Move]:
-        """After ``evaluations`` in all, once a round of every alive island's migration interval is over:
-        the policy's moves, stored (committed with the next commit) and assigned."""
+    def review(self, evaluations: int, members: dict[str, Member], runs: Mapping[tuple[str, str], RunView]) -> list[Move]:
+        """After ``evaluations`` in all (the adaptive share: once a round of every alive island's
+        migration interval is over): the policy's moves, stored (committed with the next commit) and
+        assigned. Only runs that can still move are offered: alive members whose liveliness token was
+        seen (a run taken up after a restart may never come back) and whose history was not final."""
         if self.policy is None or evaluations < self.policy.next_review:
             return []
-        alive = {(island, m.run): self.assigned[(island, m.run)] for island, m in members.items() if m.status == "alive" and (island, m.run) in self.assigned}
-        moves = self.policy.review(evaluations, len(alive) * self._round_iterations * self._per_iteration, alive)
+        alive: dict[tuple[str, str], str] = {}
+        iterations: dict[tuple[str, str], int] = {}
+        for island, m in members.items():
+            key, view = (island, m.run), runs.get((island, m.run))
+            if m.status == "alive" and m.token and key in self.assigned and not (view is not None and view.final):
+                alive[key] = self.assigned[key]
+                iterations[key] = view.iteration if view is not None else 0
+        moves = self.policy.review(evaluations, len(alive) * self._round_iterations * self._per_iteration, alive, iterations)
         for move in moves:
             self.store.add_move(self.name, move)
             self.moves.append(move)

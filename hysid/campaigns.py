@@ -176,12 +176,12 @@ def campaign(
     recorded in the SQLite file ``db`` (in memory by default).
 
     ``until_stopped``: every island searches (and migrates) until the coordinator's
-    stop order, its ``iterations`` off, so that GA and PSO islands overlap for the
-    whole campaign. By default (None) that holds when ``termination`` has an
+    stop order, its ``iterations`` off, so that no island leaves early (which
+    algorithm each island runs meanwhile is the ``share``'s). By default (None) that holds when ``termination`` has an
     evaluation budget or a time limit and no ``options`` give ``iterations``.
 
     ``share``: with several ``algos``, ``staged`` (default) moves the GA islands to
-    the PSO once they have searched one round, ``adaptive`` moves islands to the
+    the PSO once they have searched one migration interval, ``adaptive`` moves islands to the
     algorithm whose own moves gain more (:mod:`island.share`; the moves are in
     ``result.fit.settings["moves"]``), ``fixed`` keeps every island's algorithm.
     """

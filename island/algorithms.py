@@ -24,15 +24,12 @@ ROLES: dict[str, str] = {"ga": "explore", "pso": "converge"}
 ``converge``: the PSO. The thesis found its convergence much faster than the
 GA's on every data set ("the slopes of the convergence plots in the initial
 iterations ... much steeper in PSO than in GA", chapter 6, on Figs. 5.6-5.9 and
-5.18-5.20), and from scratch hysid's PSO islands end lower than its GA islands
-on every model tried (``thesis`` + Coulomb friction, Bouc-Wen, cubic
-stiffness, Zener, channel delay; the real damper).
+5.18-5.20), and from scratch hysid's PSO-only campaigns end orders of magnitude
+below GA-only ones (``hysid bench islands mixed``).
 
-``explore``: the GA. Early in a search its crossover finds good regions: at
-the end of the first round of a half-GA campaign (about 1,100 evaluations on
-4 islands) its islands hold a lower best than the PSO islands in 38 of 60
-seeds; a campaign whose GA islands hand over to the PSO then beats a PSO-only
-one (``hysid bench islands mixed``)."""
+``explore``: the GA, which hysid gives the first migration interval of each
+of its runs: on the bench, half-GA campaigns whose GA runs then move to PSO
+match PSO-only ones, where a fixed half-GA share falls far behind."""
 
 
 def check_algorithm(algo: Any, param: str = "algo") -> str:

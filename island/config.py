@@ -75,11 +75,12 @@ class CampaignConfig:
     they start, so that islands launched together also search together."""
     until_stopped: bool = False
     """Islands search until the coordinator's stop order (their own iteration budget is off): with a
-    campaign budget in evaluations or time, fast (GA) and slow (PSO) islands overlap, and migrate,
-    for the whole campaign instead of the fast ones leaving early."""
+    campaign budget in evaluations or time, fast (GA) and slow (PSO) islands search, and migrate,
+    until the campaign stops instead of the fast ones leaving early (which algorithm each runs
+    meanwhile is the :attr:`share`'s)."""
     share: str = "staged"
     """How the islands are shared between :attr:`algos` (:mod:`island.share`): ``staged`` moves the
-    exploring (GA) islands to the converging algorithm (PSO) after their first round, ``adaptive``
+    exploring (GA) islands to the converging algorithm (PSO) after their first migration interval, ``adaptive``
     moves islands to the algorithm whose own moves gain more, ``fixed`` keeps each island's algorithm."""
     stop_rules: dict[str, Any] = field(default_factory=dict)
     """The coordinator's :class:`~island.termination.Termination` as plain data (kept with the

@@ -7,12 +7,13 @@ hold the lower best). With a fixed share, a half-GA campaign spends half its
 budget on the GA long after it stopped helping. Two policies move islands:
 
 ``staged`` (the default): the GA explores, the PSO converges
-(:data:`island.algorithms.ROLES`, with the thesis' and hysid's evidence). Every
-island starts with the algorithm it joined with; once it has searched one
-full round (its first migrations), an island of an exploring algorithm moves
-to the campaign's converging one. On the bench (``hysid bench islands
-mixed``) this beats PSO-only campaigns: the GA's first round is worth its
-evaluations, its later ones are not.
+(:data:`island.algorithms.ROLES`: the thesis' finding that its PSO converges
+much faster, and hysid's measurements of the GA early on). Every island starts
+with the algorithm it joined with; once a run of an exploring algorithm has
+searched its first migration interval of iterations, it moves to the
+campaign's converging one. On the bench (``hysid bench islands mixed``) this
+matches PSO-only campaigns, where a fixed half-GA share falls far behind: the
+GA's first iterations cost nothing there, its later ones do.
 
 ``adaptive``: learned from the search, for algorithms whose strengths are not
 known (other settings than the thesis', other models), following AMALGAM
@@ -39,11 +40,11 @@ breeds in proportion to its recent success), with an island as the unit:
   Measured on the bench it loses to the staged share: a GA island's own gains
   around the migrated best keep it longer than it helps.
 
-A *round* is one migration interval of every island's evaluations. A moved
-island carries its search on (:func:`island.algorithms.switch_algorithm`): its
+A *round* of the adaptive share is one migration interval of every island's
+evaluations. A moved island carries its search on (:func:`island.algorithms.switch_algorithm`): its
 population becomes the new algorithm's population or swarm, its counters and
-history go on. Every move records each algorithm's credit over the last
-rounds. The policies are data in, moves out; the coordinator feeds them and
+history go on. Every move records each algorithm's credit (over the last
+rounds, or so far with the staged share). The policies are data in, moves out; the coordinator feeds them and
 tells the islands (:mod:`coordinator.sharing`).
 """
 
@@ -79,7 +80,7 @@ def check_share(share: Any) -> str:
 @dataclass(frozen=True)
 class Move:
     """Island run ``island/run`` goes from algorithm ``src`` to ``dst`` after ``evaluations`` in all;
-    ``credit``: each algorithm's credit over the window (orders of magnitude)."""
+    ``credit``: each algorithm's credit (orders of magnitude) over the window, or so far (staged)."""
 
     island: str
     run: str
@@ -92,38 +93,53 @@ class Move:
         return asdict(self)
 
 
-class Share:
-    """The ``adaptive`` share policy (module docstring) of one campaign; :class:`Staged` decides otherwise."""
+class Policy:
+    """What both share policies keep: the campaign's algorithms, the credit their own moves earn
+    (per round, the current one last), and the evaluations at which to review next."""
 
     def __init__(self, algos: list[str]) -> None:
         self.algos = list(dict.fromkeys(algos))
         self.rounds: deque[dict[str, float]] = deque([{}], maxlen=WINDOW)
         """Credit per algorithm in the current round (last) and the ones before it."""
-        self.closed = 0
-        """Rounds closed so far."""
         self.next_review = 0
-        self.moved_at: dict[tuple[str, str], int] = {}
-        """The round after which each island run last moved."""
 
     def credit(self, algo: str, orders: float) -> None:
         """An island of ``algo`` reports ``orders`` of magnitude more gained by its own moves."""
         if orders > 0:
             self.rounds[-1][algo] = self.rounds[-1].get(algo, 0.0) + float(orders)
 
-    def review(self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
+    def gained(self) -> dict[str, float]:
+        """Each algorithm's credit over the rounds kept."""
+        return {a: sum(r.get(a, 0.0) for r in self.rounds) for a in self.algos}
+
+    def said(self) -> dict[str, float]:
+        """:meth:`gained` as a move records it."""
+        return {a: round(c, 3) for a, c in self.gained().items()}
+
+
+class Share(Policy):
+    """The ``adaptive`` share policy (module docstring) of one campaign."""
+
+    def __init__(self, algos: list[str]) -> None:
+        super().__init__(algos)
+        self.closed = 0
+        """Rounds closed so far."""
+        self.moved_at: dict[tuple[str, str], int] = {}
+        """The round after which each island run last moved."""
+
+    def review(
+        self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str], iterations: dict[tuple[str, str], int]
+    ) -> list[Move]:
         """After ``evaluations`` in all: if a round (``round_evaluations``) is over, close it and return
-        the moves. ``islands``: the algorithm of each alive island run ``(island, run)``."""
+        the moves (of each algorithm above its share, its first island by name that may move, to the
+        leader). ``islands``: the algorithm of each alive island run ``(island, run)``; ``iterations``
+        (each run's, not needed here) as :meth:`Staged.review`."""
         if evaluations < self.next_review:
             return []
         self.next_review = evaluations + max(int(round_evaluations), 1)
         self.closed += 1
-        window = self.rounds
-        self.rounds = deque(list(window) + [{}], maxlen=WINDOW)
-        credit = {a: sum(r.get(a, 0.0) for r in window) for a in self.algos}
-        return self._moves(credit, int(evaluations), islands)
-
-    def _moves(self, credit: dict[str, float], evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
-        """Of each algorithm above its share, its first island by name that may move, to the leader."""
+        credit, said = self.gained(), self.said()
+        self.rounds = deque(list(self.rounds) + [{}], maxlen=WINDOW)
         if self.closed < WINDOW:
             return []
         own = {a: sorted(k for k, b in islands.items() if b == a) for a in self.algos}
@@ -132,7 +148,6 @@ class Share:
         if per_island[lead] < LEADING:
             return []
         total = sum(per_island.values())
-        said = {a: round(c, 3) for a, c in credit.items()}
         moves = []
         for algo in self.algos:
             if algo == lead or len(own[algo]) <= int(len(islands) * per_island[algo] / total + 0.5):
@@ -141,31 +156,30 @@ class Share:
             if free:
                 island, run = free[0]
                 self.moved_at[(island, run)] = self.closed
-                moves.append(Move(island, run, algo, lead, evaluations, said))
+                moves.append(Move(island, run, algo, lead, int(evaluations), said))
         return moves
 
 
-class Staged(Share):
-    """The ``staged`` share policy (module docstring) of one campaign: rounds and credit as
-    :class:`Share`, moves by the algorithms' :data:`~island.algorithms.ROLES`."""
+class Staged(Policy):
+    """The ``staged`` share policy (module docstring) of one campaign: a run of an exploring algorithm
+    moves to the converging one once it has searched ``survey`` iterations. Its credit is kept (in one
+    round, never closed) for the record of the moves."""
 
-    def __init__(self, algos: list[str]) -> None:
+    def __init__(self, algos: list[str], survey: int) -> None:
         super().__init__(algos)
-        self.converger = next((a for a in self.algos if ROLES[a] == "converge"), None)
-        """The campaign's converging algorithm (None: nobody to hand over to, nobody moves)."""
-        self.listed: dict[tuple[str, str], int] = {}
-        """The round at whose close each island run was first listed alive."""
+        self.survey = int(survey)
+        self.converger = next(a for a in self.algos if ROLES[a] == "converge")
+        """The campaign's converging algorithm (a mixed campaign of :data:`~island.algorithms.ALGORITHMS` has one)."""
 
-    def _moves(self, credit: dict[str, float], evaluations: int, islands: dict[tuple[str, str], str]) -> list[Move]:
-        """Every exploring island listed at an earlier close (it searched a full round since) moves to
-        the converger."""
-        for key in islands:
-            self.listed.setdefault(key, self.closed)
-        if self.converger is None:
-            return []
-        said = {a: round(c, 3) for a, c in credit.items()}
+    def review(
+        self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str], iterations: dict[tuple[str, str], int]
+    ) -> list[Move]:
+        """The moves after ``evaluations`` in all: every run of ``islands`` (the algorithm of each alive
+        island run) whose algorithm explores and whose ``iterations`` (each run's, as its histories
+        said) reached :attr:`survey`. Reviewed at every history (``round_evaluations`` is not needed)."""
+        said = self.said()
         return [
-            Move(island, run, algo, self.converger, evaluations, said)
+            Move(island, run, algo, self.converger, int(evaluations), said)
             for (island, run), algo in sorted(islands.items())
-            if ROLES[algo] == "explore" and self.listed[(island, run)] < self.closed
+            if ROLES[algo] == "explore" and iterations.get((island, run), 0) >= self.survey
         ]

@@ -14,7 +14,7 @@ from coordinator.store import Store
 from hysid.campaigns import CampaignResult
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS, synth_loops
-from island.algorithms import make_optimizer, switch_algorithm
+from island.algorithms import ALGORITHMS, ROLES, make_optimizer, switch_algorithm
 from island.config import CampaignConfig
 from island.ga import GA
 from island.migration import Migration
@@ -53,20 +53,20 @@ def test_a_lagging_algorithm_gives_the_leader_one_island_per_round_once_a_window
         share.credit("pso", 1.0)
         share.credit("ga", 0.004)  # against PSO's 1 order of magnitude per round
         share.credit("ga", -1.0)  # nothing (a gain never falls; a repeated message adds nothing)
-        reviews.append(share.review(1000 * e, 1000, alive))
-        assert share.review(1000 * e + 500, 1000, alive) == []  # the round is not over
+        reviews.append(share.review(1000 * e, 1000, alive, {}))
+        assert share.review(1000 * e + 500, 1000, alive, {}) == []  # the round is not over
     *before, (move,) = reviews
     assert before == [[]] * (WINDOW - 1)  # the window fills first
     assert (move.island, move.src, move.dst, move.evaluations) == ("ga-0", "ga", "pso", 1000 * WINDOW)
     assert move.credit == {"ga": pytest.approx(WINDOW * 0.004), "pso": pytest.approx(WINDOW * 1.0)}
     alive[("ga-0", "r")] = "pso"
     share.credit("pso", 1.0)
-    assert [(m.island, m.dst) for m in share.review(1000 * (WINDOW + 1), 1000, alive)] == [("ga-2", "pso")]  # GA still lags: the next one
+    assert [(m.island, m.dst) for m in share.review(1000 * (WINDOW + 1), 1000, alive, {})] == [("ga-2", "pso")]  # GA still lags: the next one
     alive[("ga-2", "r")] = "pso"
     for e in range(WINDOW + 2, 3 * WINDOW):  # nobody left to move
         share.credit("pso", 1.0)
-        assert share.review(1000 * e, 1000, alive) == []
-    assert [m.island for m in share.review(1000 * 3 * WINDOW, 1000, {**alive, ("ga-9", "r"): "ga"})] == ["ga-9"]  # a late GA joiner follows
+        assert share.review(1000 * e, 1000, alive, {}) == []
+    assert [m.island for m in share.review(1000 * 3 * WINDOW, 1000, {**alive, ("ga-9", "r"): "ga"}, {})] == ["ga-9"]  # a late GA joiner follows
 
 
 def test_islands_are_shared_in_proportion_to_the_credit_per_island():
@@ -75,30 +75,30 @@ def test_islands_are_shared_in_proportion_to_the_credit_per_island():
     for e in range(1, WINDOW + 1):
         share.credit("ga", 1.0)  # half of PSO's credit per island: one island of four is GA's share
         share.credit("pso", 2.0)
-        moves = share.review(1000 * e, 1000, alive)
+        moves = share.review(1000 * e, 1000, alive, {})
     assert [(m.island, m.src, m.dst) for m in moves] == [("ga-0", "ga", "pso")]
     alive[("ga-0", "r")] = "pso"
     for e in range(WINDOW + 1, 4 * WINDOW):
         share.credit("ga", 0.5)  # the GA island left keeps gaining half of what a PSO island gains
         share.credit("pso", 3.0)
-        assert share.review(1000 * e, 1000, alive) == []
+        assert share.review(1000 * e, 1000, alive, {}) == []
 
 
 def test_a_wrong_call_is_undone_by_the_islands_left_once_the_moved_island_had_its_window():
     share = Share(["ga", "pso"])
     alive = islands(**{"ga-0": "ga", "pso-1": "pso", "pso-3": "pso"})
     share.credit("ga", 2.0)  # a GA's early lucky offspring
-    assert share.review(1000, 1000, alive) == []
-    (wrong,) = share.review(2000, 1000, alive)
+    assert share.review(1000, 1000, alive, {}) == []
+    (wrong,) = share.review(2000, 1000, alive, {})
     assert (wrong.island, wrong.dst) == ("pso-1", "ga")
     alive[("pso-1", "r")] = "ga"
     share.credit("pso", 1.0)  # the PSO island left gains, the GA islands do not
-    assert [(m.island, m.src, m.dst) for m in share.review(3000, 1000, alive)] == [("ga-0", "ga", "pso")]
+    assert [(m.island, m.src, m.dst) for m in share.review(3000, 1000, alive, {})] == [("ga-0", "ga", "pso")]
     alive[("ga-0", "r")] = "pso"
     reviews = []
     for e in range(4, 4 + WINDOW):
         share.credit("pso", 1.0)
-        reviews.append(share.review(1000 * e, 1000, alive))
+        reviews.append(share.review(1000 * e, 1000, alive, {}))
     *waiting, (back,) = reviews
     assert waiting == [[]] * (WINDOW - 1)  # pso-1 stays with the GA for a window
     assert (back.island, back.src, back.dst) == ("pso-1", "ga", "pso")  # and comes back
@@ -110,47 +110,48 @@ def test_credit_is_per_island():
     for e in range(1, 2 * WINDOW + 2):
         share.credit("pso", 3.0)  # three islands
         share.credit("ga", 0.3)  # one island: a tenth of PSO's credit in all, but its share is still one island of four
-        assert share.review(1000 * e, 1000, alive) == []
+        assert share.review(1000 * e, 1000, alive, {}) == []
 
 
 def test_no_move_without_credit_or_when_the_other_algorithm_keeps_up():
     alive = islands(**{"ga-0": "ga", "pso-1": "pso"})
     idle = Share(["ga", "pso"])
-    assert [idle.review(e, 1000, alive) for e in range(1000, 8000, 1000)] == [[]] * 7  # nobody improved: nothing to follow
+    assert [idle.review(e, 1000, alive, {}) for e in range(1000, 8000, 1000)] == [[]] * 7  # nobody improved: nothing to follow
     close = Share(["ga", "pso"])
     for e in range(1000, 8000, 1000):
         close.credit("pso", 1.0)
         close.credit("ga", 0.4)  # its share of two islands: 2 x 0.4 / 1.4, one
-        assert close.review(e, 1000, alive) == []
+        assert close.review(e, 1000, alive, {}) == []
     converged = Share(["ga", "pso"])
     for e in range(1000, 8000, 1000):
         converged.credit("pso", 0.9 * LEADING / WINDOW)  # the last digits of a converged best: nobody to follow
-        assert converged.review(e, 1000, alive) == []
+        assert converged.review(e, 1000, alive, {}) == []
     turns = Share(["ga", "pso"])
     for e in range(1, 12):  # the algorithms gain in turns, each within every window
         turns.credit("ga" if e % 2 else "pso", 1.0)
-        assert turns.review(1000 * e, 1000, alive) == []
+        assert turns.review(1000 * e, 1000, alive, {}) == []
     only = Share(["pso"])
     only.credit("pso", 1.0)
-    assert [only.review(e, 1000, islands(**{"pso-0": "pso"})) for e in (1000, 2000, 3000)] == [[]] * 3
+    assert [only.review(e, 1000, islands(**{"pso-0": "pso"}), {}) for e in (1000, 2000, 3000)] == [[]] * 3
 
 
-def test_the_staged_share_moves_every_ga_island_to_pso_once_it_searched_a_full_round():
-    staged = Staged(["ga", "pso"])
+def test_the_staged_share_moves_each_ga_run_to_pso_once_it_searched_its_survey():
+    staged = Staged(["pso", "ga"], survey=5)
     alive = islands(**{"ga-0": "ga", "ga-2": "ga", "pso-1": "pso", "pso-3": "pso"})
     staged.credit("ga", 2.0)  # the GA gains more: the staged share moves by the algorithms' roles, not by credit
     staged.credit("pso", 0.5)
-    assert staged.review(40, 1000, alive) == []  # the first close (the first history) lists the islands
-    assert staged.review(900, 1000, alive) == []  # the round is not over
-    moves = staged.review(1040, 1000, alive)
-    assert [(m.island, m.src, m.dst, m.evaluations) for m in moves] == [("ga-0", "ga", "pso", 1040), ("ga-2", "ga", "pso", 1040)]
-    assert moves[0].credit == {"ga": 2.0, "pso": 0.5}  # what each algorithm had gained, for the record
-    late = {**{k: "pso" for k in alive}, ("ga-4", "r"): "ga"}  # after the moves, an island joins with GA
-    assert staged.review(2040, 1000, late) == []  # listed: its round starts
-    assert [(m.island, m.dst) for m in staged.review(3040, 1000, late)] == [("ga-4", "pso")]
-    assert staged.review(4040, 1000, {k: "pso" for k in late}) == []  # nobody left to move
-    lone = Staged(["ga"])  # no converging algorithm in the campaign: nobody to hand over to
-    assert [lone.review(e, 1000, islands(**{"ga-0": "ga"})) for e in (40, 1040, 2040)] == [[]] * 3
+    early = {k: 4 for k in alive}
+    assert staged.review(400, 1000, alive, early) == []  # four iterations each: still exploring
+    moves = staged.review(500, 1000, alive, {**early, ("ga-2", "r"): 5})  # each run on its own count
+    assert [(m.island, m.src, m.dst, m.evaluations, m.credit) for m in moves] == [("ga-2", "ga", "pso", 500, {"pso": 0.5, "ga": 2.0})]
+    after = {**alive, ("ga-2", "r"): "pso"}  # the coordinator's assignment after the move
+    assert staged.review(510, 1000, after, {**early, ("ga-2", "r"): 6}) == []
+    assert [m.island for m in staged.review(600, 1000, after, {k: 6 for k in alive})] == ["ga-0"]
+    assert staged.review(700, 1000, {k: "pso" for k in alive}, {k: 9 for k in alive}) == []  # nobody left to move
+
+
+def test_every_algorithm_has_a_role():
+    assert ROLES.keys() == ALGORITHMS.keys() and set(ROLES.values()) == {"explore", "converge"}
 
 
 def test_share_names_are_checked():
@@ -260,6 +261,44 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
     c.store.close()
 
 
+def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_it_can_still_move(tmp_path):
+    sizes = {"population": 10, "initial_population": 20}
+    config = CampaignConfig.create(LOOPS, name="c2", algos=["ga", "pso"], options={"ga": sizes, "pso": sizes}, migration=Migration(interval=5, k=2),
+                                   until_stopped=True)  # the default share: staged, a survey of 5 iterations
+    c = Coordinator(Store(tmp_path / "c.sqlite"), config, LOOPS, Termination(budget=10**6))
+    link = MemoryLink(threading.Event())
+    seeds = {"ga-0": 0, "pso-1": 1, "ga-2": 2, "ga-4": 4}
+    creds = {island: c.admit(island, island[:-2], seed) for island, seed in seeds.items()}
+    for island in ("ga-0", "pso-1", "ga-2"):
+        c.member(island, True, wait_s=None)  # ga-4's liveliness token has not shown yet
+    x = c.objective.model.from_dict(TRUE_PARAMS)
+    f = float(c.objective(x[None, :])[0])
+    seq = dict.fromkeys(creds, 0)
+
+    def report(island: str, first: int, last: int, final: bool = False) -> list[str]:
+        """Honest rows of iterations ``first..last`` (10 + 15 evaluations each); the runs moved so far."""
+        cred = creds[island]
+        rows = [[i, f, 20 + 25 * i, 0.01 * i] for i in range(first, last + 1)]
+        payload = encode_history(History("c2", island, cred.run, island[:-2], seeds[island], np.array(rows, dtype=float), x, f,
+                                         {"sent": 0, "received": 0, "taken": 0, "rejected": 0}, final, seq[island], 0.0), cred)
+        seq[island] += 1
+        assert c.receive(f"hysid/c2/history/{island}", payload)
+        c.pump(link, 5.0)
+        return [m.island for m in c.sharing.moves]
+
+    assert report("ga-0", 0, 4) == []  # four iterations: still exploring
+    assert report("ga-2", 0, 9, final=True) == []  # done before the survey counted: nothing left to move
+    assert report("ga-4", 0, 7) == []  # not seen alive yet (after a restart it may never come back)
+    assert report("ga-0", 5, 6) == ["ga-0"]
+    c.member("ga-4", True, wait_s=None)
+    assert report("ga-4", 8, 8) == ["ga-0", "ga-4"]
+    assert report("pso-1", 0, 9) == ["ga-0", "ga-4"]  # PSO converges: it stays
+    assert {m.island: m.algo for m in decode_control(c.control_message(), "c2", creds["ga-0"]).members}["ga-0"] == "pso"
+    taken_up = resume(c.store, "c2")  # a restarted coordinator follows the moves stored, and makes none again
+    assert {k[0]: v for k, v in taken_up.sharing.assigned.items()} == {"ga-0": "pso", "pso-1": "pso", "ga-2": "ga", "ga-4": "pso"}
+    c.store.close()
+
+
 def test_an_island_told_another_algorithm_carries_its_search_on_with_it():
     config = CampaignConfig(name="c1", algos=["ga", "pso"], options={a: {"population": 10, "initial_population": 20, "iterations": 40} for a in ("ga", "pso")},
                             migration=Migration(interval=5, k=2))
@@ -302,12 +341,15 @@ def mixed_campaign(tmp_path, share: str, budget: int):
     return coordinator, outcome, db
 
 
-def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_path):
-    coordinator, outcome, db = mixed_campaign(tmp_path, "adaptive", budget=12_000)
+@pytest.mark.parametrize("share", ["staged", "adaptive"])
+def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_path, share):
+    coordinator, outcome, db = mixed_campaign(tmp_path, share, budget=12_000)
     moves = outcome.settings["moves"]
-    last = {m["island"]: m["dst"] for m in moves}
+    assert moves
+    last = {m["island"]: m for m in moves}
     records = {r["island"]: r for r in outcome.islands}
-    assert all(records[i]["algo"] == algo for i, algo in last.items())  # each moved island's own history says where it went
+    heard = {i: m["dst"] for i, m in last.items() if m["evaluations"] <= 10_000}  # a move ordered in the last round may meet the stop first
+    assert all(records[i]["algo"] == algo for i, algo in heard.items())  # each moved island's own history says where it went
     assert all(records[i]["algo"] == i.split("-")[0] for i in records if i not in last)
     store = Store(db)
     try:
@@ -315,11 +357,11 @@ def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_
             assert store.contiguous_iterations(coordinator.name, island, run) == records[island]["iterations"]  # no row missing across a move
         assert store.rejected_reasons(coordinator.name) == {}
         taken_up = resume(store, coordinator.name)
-        assert {k[0]: v for k, v in taken_up.sharing.assigned.items() if k[0] in last} == last
+        assert {k[0]: v for k, v in taken_up.sharing.assigned.items() if k[0] in last} == {i: m["dst"] for i, m in last.items()}
     finally:
         store.close()
     summary = CampaignResult.from_database(db).summary()
-    assert f"share: adaptive, {len(moves)} island move(s)" in summary
+    assert f"share: {share}, {len(moves)} island move(s)" in summary
     assert all(f"{m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations" in summary for m in moves)
 
 

@@ -108,7 +108,7 @@ ITERATIONS = typer.Option(
 )
 SHARE = typer.Option(
     "staged", "--share",
-    help="With several --algos: staged moves GA islands to PSO after their first round (GA explores, PSO converges); "
+    help="With several --algos: staged moves GA islands to PSO after their first migration interval (GA explores, PSO converges); "
     "adaptive moves islands to the algorithm whose own moves gain more; fixed keeps each island's algorithm.",
 )
 TOPOLOGY = typer.Option("ring", "--topology", help="Who takes migrants from whom: ring, full or random.")

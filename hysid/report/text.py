@@ -194,7 +194,7 @@ def campaign_summary(result: "CampaignResult") -> str:
 
 
 SHARE_RULES = {
-    "staged": "of the exploring algorithm (GA) to the converging one (PSO) after their first round",
+    "staged": "of the exploring algorithm (GA) to the converging one (PSO) after their first migration interval",
     "adaptive": "to the algorithm whose own moves gained more",
 }
 """What the moves of each share that moves islands (:mod:`island.share`) follow, as the summary says it."""
