@@ -210,9 +210,10 @@ def share_lines(settings: dict[str, Any]) -> list[str]:
     if share not in SHARE_RULES:
         return [f"share: fixed (every island kept its algorithm of {', '.join(a.upper() for a in algos)})"]
     lines = [f"share: {share}, {len(moves)} island move(s) {SHARE_RULES[share]}"]
+    over = " over the last rounds" if share == "adaptive" else " so far"
     for m in moves:
         credit = ", ".join(f"{a.upper()} {c:.2g}" for a, c in m["credit"].items())
-        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained over the last rounds: {credit})")
+        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained by each algorithm's own moves{over}: {credit})")
     return lines
 
 
