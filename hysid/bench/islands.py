@@ -19,10 +19,12 @@ Each part is a ratio (or a rate) measured in one run on the Synth set (section 5
   searches until the coordinator stops), half GA and half PSO islands with
   each share of :mod:`island.share` (staged, the default; adaptive; fixed, so
   that GA and PSO islands overlap for the whole campaign) against GA-only and
-  PSO-only ones: success rates over 100 seeds (at least 20; in-process
+  PSO-only ones: success rates over 300 seeds (at least 20; in-process
   islands) with 95 % Wilson intervals, at three budgets and two thresholds
-  cut from one campaign each; target: at the middle budget and the upper
-  threshold the default mix at least as good as the better of the two;
+  cut from one campaign each, and each mix against the better of the two
+  seed by seed (the difference with its interval, a sign test); target: at
+  the middle budget and the upper threshold the default mix at least as
+  good as the better of the two;
 * **pygmo**: hysid's PSO islands over Zenoh against a pygmo archipelago of PSO
   islands (``pygmo.pso`` with constriction and velocity memory, ring topology,
   multiprocessing islands, migration after every 5 generations), same
@@ -51,6 +53,7 @@ from typing import Any
 
 import numpy as np
 import zenoh
+from scipy.stats import binomtest
 
 from coordinator.launch import free_port, island_specs, run_campaign
 from coordinator.server import Coordinator
@@ -180,6 +183,9 @@ MIXED_THRESHOLDS = (1e-5, 1e-6)
 MIXED_TARGET = (15_000, 1e-5)
 """Where the target is judged: PSO-only islands succeed there about three times in four, so that a
 better or a worse mix can show (at 20,000 evaluations and 1e-5 every PSO-only campaign succeeds)."""
+MIXED_SEEDS = 300
+"""Seeds of the mixed part: the islands are threads, so the same seed gives another campaign from run to
+run, and at 100 seeds that spread alone moved a rate by several points."""
 
 
 def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -196,7 +202,18 @@ MIXED_FIRST_SEED = 1000
 share's result on them was known when the staged share was designed)."""
 
 
-def mixed(seeds: int = 100, islands: int = 4, population: int = 20) -> dict[str, Any]:
+def paired(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
+    """Two campaigns' successes compared seed by seed: how many seeds only ``a`` or only ``b`` passed,
+    the difference of their success rates with its 95 % (Wald, paired) interval, and the exact
+    two-sided sign-test (McNemar) p-value of the seeds only one of them passed."""
+    only_a, only_b, n = int(np.sum(a & ~b)), int(np.sum(b & ~a)), a.size
+    d = (only_a - only_b) / n
+    half = 1.96 * np.sqrt(max(only_a + only_b - n * d * d, 0.0)) / n
+    p = binomtest(only_a, only_a + only_b).pvalue if only_a + only_b else 1.0
+    return {"only_a": only_a, "only_b": only_b, "difference": d, "difference95": (d - half, d + half), "sign_test_p": float(p)}
+
+
+def mixed(seeds: int = MIXED_SEEDS, islands: int = 4, population: int = 20) -> dict[str, Any]:
     """Part mixed: GA+PSO islands (each share) against GA-only and PSO-only ones at
     equal total evaluations (a campaign budget; every island searches until the coordinator stops) on
     :data:`MIXED_MODEL`: success rates (the global best the coordinator knew when the islands had
@@ -233,11 +250,14 @@ def mixed(seeds: int = 100, islands: int = 4, population: int = 20) -> dict[str,
             rates[label][f"{budget}@median"] = float(np.median(f))
     at = f"{MIXED_TARGET[0]}@{MIXED_TARGET[1]:g}"
     rate = {k: rates[k][at]["rate"] for k in MIXES}
+    better = max(("ga", "pso"), key=lambda k: rate[k])
+    success = {k: np.array(finals[k][MIXED_TARGET[0]]) <= MIXED_TARGET[1] for k in MIXES}
     return {
         "model": MIXED_MODEL, "islands": islands, "population": population, "seeds": seeds, "first_seed": MIXED_FIRST_SEED,
         "budget_evaluations": MIXED_TARGET[0], "threshold": MIXED_TARGET[1],
         "mixes": {k: "+".join(a) + f" ({s} share)" for k, (a, s) in MIXES.items()}, "success_rate": rate,
-        "grid": rates, "moves": moves, "mean_evaluations_at_stop": {k: float(np.mean(v)) for k, v in spent.items()},
+        "grid": rates, "better_single": better,
+        "paired": {k: paired(success[k], success[better]) for k, (algos, _) in MIXES.items() if len(algos) > 1}, "moves": moves, "mean_evaluations_at_stop": {k: float(np.mean(v)) for k, v in spent.items()},
         "ok": rate["mixed"] >= max(rate["ga"], rate["pso"]),
     }
 
@@ -420,6 +440,10 @@ def to_text(result: dict[str, Any]) -> str:
                 lines.append(f"  {key.replace('@', ' evaluations, <= ')}: " + ", ".join(
                     f"{label} {100 * r['grid'][k][key]['rate']:.0f} % [{100 * r['grid'][k][key]['wilson95'][0]:.0f}-{100 * r['grid'][k][key]['wilson95'][1]:.0f}]"
                     for k, label in MIX_LABELS.items()))
+        lines.append(f"  paired at the target, seed by seed, against {MIX_LABELS[r['better_single']]}: " + "; ".join(
+            f"{MIX_LABELS[k]} {100 * p['difference']:+.0f} points [{100 * p['difference95'][0]:+.0f}, {100 * p['difference95'][1]:+.0f}] "
+            f"(only it {p['only_a']} seeds, only {MIX_LABELS[r['better_single']]} {p['only_b']}, sign test p {p['sign_test_p']:.2g})"
+            for k, p in r["paired"].items()))
         lines.append("  moves: " + "; ".join(f"{MIX_LABELS[k]} {v or 'none'}" for k, v in r["moves"].items()))
     if "pygmo" in result:
         r = result["pygmo"]
