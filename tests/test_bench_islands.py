@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hysid.bench.islands import paired, wilson
+from hysid.bench.islands import ended_lower, paired, wilson
 
 
 def test_paired_counts_the_seeds_only_one_campaign_passed_and_tests_them() -> None:
@@ -29,3 +29,11 @@ def test_wilson_interval_holds_the_rate_and_stays_in_0_1() -> None:
     assert wilson(0, 20)[0] == 0.0 and 0 < wilson(0, 20)[1] < 0.2
     low, high = wilson(15, 20)
     assert low < 0.75 < high and high <= 1.0
+
+
+def test_ended_lower_counts_seeds_and_tests_the_log_ratios() -> None:
+    rng = np.random.default_rng(0)
+    b = 10.0 ** rng.uniform(-7, -4, 40)
+    e = ended_lower(b / 10, b)
+    assert (e["lower"], e["higher"]) == (40, 0) and e["wilcoxon_p"] < 1e-6
+    assert ended_lower(b, b) == {"lower": 0, "higher": 0, "wilcoxon_p": 1.0}
