@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import TextIO
 
 from coordinator.links import MemoryLink, ZenohLink
+from coordinator.loop import serve
 from coordinator.outcome import CampaignOutcome
 from coordinator.server import CampaignProgress, Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
@@ -93,7 +94,7 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
     for t in threads:
         t.start()
     try:
-        reason = coordinator.serve(MemoryLink(stop), on_progress)
+        reason = serve(coordinator, MemoryLink(stop), on_progress)
     finally:
         stop.set()
         for t in threads:
@@ -130,7 +131,7 @@ def run_processes(
             return "every island process exited" + (f"; failed: {'; '.join(failed)}" if failed else "")
 
         try:
-            reason = coordinator.serve(link, on_progress, extra_stop=all_exited)
+            reason = serve(coordinator, link, on_progress, extra_stop=all_exited)
         finally:
             deadline = time.monotonic() + ISLAND_EXIT_WAIT_S
             for _, p, log in procs:

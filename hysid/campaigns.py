@@ -4,7 +4,7 @@
     result = hysid.campaign(loops, islands=4, single_node=True)   # island threads, migrating in memory
 
 The coordinator (:mod:`coordinator.server`) serves the loop set, records every
-island's history in SQLite and stops by its rules; :class:`CampaignResult` is
+island's history in SQLite and stops by its rules (:mod:`coordinator.loop`); :class:`CampaignResult` is
 the ``hysid fit`` result of its islands (the global best polished) plus the
 islands, migrations and membership events.
 """
