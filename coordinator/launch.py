@@ -25,7 +25,8 @@ from typing import TextIO
 from coordinator.links import MemoryLink, ZenohLink
 from coordinator.loop import serve
 from coordinator.outcome import CampaignOutcome
-from coordinator.server import CampaignProgress, Coordinator
+from coordinator.progress import CampaignProgress
+from coordinator.server import Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
 from island.node import IslandNode
 from island.session import open_session, session_config

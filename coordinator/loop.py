@@ -27,7 +27,8 @@ import time
 from collections.abc import Callable
 
 from coordinator.members import LEAVE_GRACE_S, Member
-from coordinator.server import CampaignProgress, Coordinator, Link
+from coordinator.progress import CampaignProgress
+from coordinator.server import Coordinator, Link
 from coordinator.store import StoreError
 from island.protocol import Control, MemberState, encode_control
 
@@ -53,9 +54,9 @@ def control_message(c: Coordinator, stop: str = "") -> bytes:
         MemberState(island, run, c.membership.alive(island, run), c.gaps.stored((island, run)), c.sharing.assigned[(island, run)])
         for island, run in c.runs
     )
-    c._control_seq = max(c._control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
+    c.control_seq = max(c.control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
     keys = {island: c.runs[(island, run)].key for island, run in c.current.items()}
-    return encode_control(Control(c.name, members, stop, c._control_seq), c.run_id, keys)
+    return encode_control(Control(c.name, members, stop, c.control_seq), c.run_id, keys)
 
 
 def check_stop(c: Coordinator) -> str | None:
@@ -85,16 +86,16 @@ def commit(c: Coordinator, link: Link, *, announce: bool = False) -> None:
     dropped = c.inbox.take_dropped()
     if dropped:
         c.rejected += sum(dropped.values())
-        c._rejected_backlog["overflow"] += sum(dropped.values())
-    for reason, n in c._rejected_backlog.items():
+        c.rejected_backlog["overflow"] += sum(dropped.values())
+    for reason, n in c.rejected_backlog.items():
         c.store.add_rejected(c.name, "*", reason, f"{n} rejected messages not recorded one by one (a flood)", 0, n)
-    c._rejected_backlog.clear()
+    c.rejected_backlog.clear()
     c.store.commit(c.name)
-    c._committed_at, c._rows_since_commit = time.monotonic(), 0
-    changed = c._changed or c.membership.events != c._announced_events
-    if c.runs and (announce or changed or c._committed_at - c._control_at >= CONTROL_EVERY_S):
+    c.committed_at, c.rows_since_commit = time.monotonic(), 0
+    changed = c.changed or c.membership.events != c.announced_events
+    if c.runs and (announce or changed or c.committed_at - c.control_at >= CONTROL_EVERY_S):
         link.publish_control(control_message(c, c.stop_reason or ""), c.stop_reason is not None)
-        c._control_at, c._changed, c._announced_events = time.monotonic(), False, c.membership.events
+        c.control_at, c.changed, c.announced_events = time.monotonic(), False, c.membership.events
 
 
 def pump(c: Coordinator, link: Link, seconds: float, first_wait: float = 0.05) -> int:
@@ -111,7 +112,7 @@ def pump(c: Coordinator, link: Link, seconds: float, first_wait: float = 0.05) -
             handled += 1
         now = time.monotonic()
         done = item is None or now >= deadline
-        if done or now - c._committed_at >= COMMIT_EVERY_S or c._rows_since_commit >= COMMIT_ROWS:
+        if done or now - c.committed_at >= COMMIT_EVERY_S or c.rows_since_commit >= COMMIT_ROWS:
             c.membership.settle()
             commit(c, link)
         if done:

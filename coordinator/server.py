@@ -62,6 +62,7 @@ from coordinator.histories import Gaps, HistoryChecks, check_claim
 from coordinator.inbox import Inbox
 from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignOutcome, campaign_outcome
+from coordinator.progress import CampaignProgress, IslandView
 from coordinator.sharing import Sharing
 from coordinator.store import IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
@@ -107,29 +108,6 @@ class RunInfo:
     key: bytes
     algo: str
     seed: int
-
-
-@dataclass
-class IslandView:
-    """What progress shows of one island run."""
-
-    algo: str
-    iteration: int = 0
-    best: float = np.inf
-    final: bool = False
-
-
-@dataclass
-class CampaignProgress:
-    """A snapshot of a running campaign, for a live view."""
-
-    elapsed_s: float
-    evaluations: int
-    best: float
-    members: dict[str, str]
-    islands: dict[str, IslandView]
-    migrations: int
-    rejected: int
 
 
 class TokenBucket:
@@ -209,14 +187,19 @@ class Coordinator:
         self._replays = ReplayGuard()
         self._evaluated: OrderedDict[bytes, float] = OrderedDict()
         self._rejected_log = TokenBucket(REJECTED_PER_S, REJECTED_BURST)
-        self._rejected_backlog: Counter[str] = Counter()
-        self._committed_at = time.monotonic()
-        self._rows_since_commit = 0
-        self._changed = True
-        self._announced_events = 0
+        # what the run loop (:mod:`coordinator.loop`) reads and resets at each commit
+        self.rejected_backlog: Counter[str] = Counter()
+        """Rejected messages not yet stored (beyond the log's rate), by reason."""
+        self.committed_at = time.monotonic()
+        self.rows_since_commit = 0
+        """History rows stored since the last commit."""
+        self.changed = True
+        """Whether the roster changed since the control message last went out."""
+        self.announced_events = 0
         """Membership events when the control message last went out."""
-        self._control_at = -np.inf
-        self._control_seq = 0
+        self.control_at = -np.inf
+        self.control_seq = 0
+        """Sequence number of the last control message."""
 
     # --- state -------------------------------------------------------------------
     @property
@@ -307,7 +290,7 @@ class Coordinator:
         if self._rejected_log.take():
             self.store.add_rejected(self.name, key, reason, detail, size)
         else:
-            self._rejected_backlog[reason] += 1
+            self.rejected_backlog[reason] += 1
 
     def _key_for(self, island: str, run: str) -> bytes | None:
         info = self.runs.get((island, run))
@@ -380,7 +363,7 @@ class Coordinator:
         self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration)
         f = float(self.evaluate(h.best_x[None, :])[0])
         check_claim(h, f)
-        self._rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
+        self.rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
         if h.rows.size:
             self.gaps.arrived(key, int(h.rows[0, 0]), int(h.rows[-1, 0]), link.request_history)
         iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
@@ -396,7 +379,7 @@ class Coordinator:
         view.iteration = max(view.iteration, iterations)
         view.best = min(view.best, f)
         view.final = view.final or h.final
-        self._changed = True
+        self.changed = True
         if h.final:
             self.membership.final_history(h.island, h.run)
         self._consider(link, h.island, h.best_x, f)

@@ -18,7 +18,8 @@ from typing import Any
 
 from coordinator.launch import island_specs, run_campaign
 from coordinator.outcome import CampaignOutcome
-from coordinator.server import CampaignProgress, Coordinator
+from coordinator.progress import CampaignProgress
+from coordinator.server import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
 from hysid.report import jsondoc, markdown, tables, text
