@@ -24,10 +24,10 @@ The coordinator
   claimed fitness is never trusted, neither to take nor to skip one) and
   publishes it for late joiners;
 * in a mixed campaign (:mod:`island.share`), credits each island's own
-  gains to its algorithm and, after each round, moves islands: with the
-  ``staged`` share the GA islands that searched a round to the PSO, with the
-  ``adaptive`` one an island of an algorithm above its share to the leading
-  one (stored, and told to the island in the roster of the ``control``
+  gains to its algorithm and moves islands: with the ``staged`` share each GA
+  run, once its histories show it searched its survey (its first migration
+  interval), to the PSO; with the ``adaptive`` one, after each round, an
+  island of an algorithm above its share to the leading one (stored, and told to the island in the roster of the ``control``
   message; :class:`coordinator.sharing.Sharing`), none once a stop rule
   (:meth:`Coordinator.rule_stop`) holds;
 * after a restart (:func:`resume`, ``--resume``) knows every run that joined, takes up again
