@@ -23,8 +23,10 @@ from pathlib import Path
 from typing import TextIO
 
 from coordinator.links import MemoryLink, ZenohLink
+from coordinator.loop import serve
 from coordinator.outcome import CampaignOutcome
-from coordinator.server import CampaignProgress, Coordinator
+from coordinator.progress import CampaignProgress
+from coordinator.server import Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
 from island.node import IslandNode
 from island.session import open_session, session_config
@@ -93,7 +95,7 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
     for t in threads:
         t.start()
     try:
-        reason = coordinator.serve(MemoryLink(stop), on_progress)
+        reason = serve(coordinator, MemoryLink(stop), on_progress)
     finally:
         stop.set()
         for t in threads:
@@ -130,7 +132,7 @@ def run_processes(
             return "every island process exited" + (f"; failed: {'; '.join(failed)}" if failed else "")
 
         try:
-            reason = coordinator.serve(link, on_progress, extra_stop=all_exited)
+            reason = serve(coordinator, link, on_progress, extra_stop=all_exited)
         finally:
             deadline = time.monotonic() + ISLAND_EXIT_WAIT_S
             for _, p, log in procs:

@@ -1,9 +1,10 @@
-"""The campaign coordinator: admits islands, records everything, decides when to stop.
+"""The campaign coordinator's state and message handling: admits islands, records everything, keeps the best.
 
 All incoming traffic (join requests, island histories and migrants,
 membership changes) lands in one bounded, fair inbox (:mod:`coordinator.inbox`)
-and is handled by one thread, which owns the SQLite store
-(:mod:`coordinator.store`). The coordinator
+and is handled (:meth:`Coordinator.handle`) by one thread, the run loop of
+:mod:`coordinator.loop`, which owns the SQLite store (:mod:`coordinator.store`).
+The coordinator
 
 * serves ``config`` (campaign configuration + loop set) and ``best``;
 * admits islands (the join handshake): each island run gets a run id and a key,
@@ -23,29 +24,23 @@ and is handled by one thread, which owns the SQLite store
   claimed fitness is never trusted, neither to take nor to skip one) and
   publishes it for late joiners;
 * in a mixed campaign (:mod:`island.share`), credits each island's own
-  gains to its algorithm and, after each round, moves islands: with the
-  ``staged`` share the GA islands that searched a round to the PSO, with the
-  ``adaptive`` one an island of an algorithm above its share to the leading
-  one (stored, and told to the island in the roster of the ``control``
-  message; :class:`coordinator.sharing.Sharing`);
-* commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
-  whatever the load, and after each commit publishes the sealed ``control``
-  message: the roster, how far each island's history is committed (an island
-  waits for that before it leaves) and, at the end, the stop order;
-* after a restart (``--resume``) knows every run that joined, takes up again
+  gains to its algorithm and moves islands: with the ``staged`` share each GA
+  run, once its histories show it searched its survey (its first migration
+  interval), to the PSO; with the ``adaptive`` one, after each round, an
+  island of an algorithm above its share to the leading one (stored, and told to the island in the roster of the ``control``
+  message; :class:`coordinator.sharing.Sharing`), none once a stop rule
+  (:meth:`Coordinator.rule_stop`) holds;
+* after a restart (:func:`resume`, ``--resume``) knows every run that joined, takes up again
   the runs that were alive when it died (lost unless their liveliness token
   returns within :data:`coordinator.members.TOKEN_WAIT_S`), keeps the campaign's stop rules unless
   new ones are given, and asks every live island for the history rows it missed
-  (:class:`coordinator.histories.Gaps`);
-* stops by the rules of :class:`island.termination.Termination` (a total
-  evaluation budget, a target fitness, a stall, a time limit), when every
-  island has finished (or finished or was lost), or when no island has been alive for
-  :data:`ORPHAN_S`; then re-evaluates every island's best and polishes the
-  global best (section 3.1's calculus-based refinement):
-  :meth:`Coordinator.outcome` is the raw material of the report that
-  :mod:`hysid.campaigns` builds, the same as ``hysid fit``'s. A database that
-  cannot be written stops the campaign cleanly (:class:`StoreError`): the
-  islands are told to stop and the campaign is marked ``interrupted``.
+  (:class:`coordinator.histories.Gaps`).
+
+Committing, the ``control`` message and the stop rules are the run loop's
+(:func:`coordinator.loop.serve`). Once it stopped, :meth:`Coordinator.outcome`
+re-evaluates every island's best and polishes the global best (section 3.1's
+calculus-based refinement): the raw material of the report that
+:mod:`hysid.campaigns` builds, the same as ``hysid fit``'s.
 
 :class:`coordinator.links.ZenohLink` wires a coordinator to a Zenoh session;
 single-node campaigns feed the same inbox from island threads
@@ -55,7 +50,6 @@ single-node campaigns feed the same inbox from island threads
 from __future__ import annotations
 
 import secrets
-import sqlite3
 import time
 from collections import Counter, OrderedDict
 from collections.abc import Callable
@@ -66,8 +60,9 @@ import numpy as np
 
 from coordinator.histories import Gaps, HistoryChecks, check_claim
 from coordinator.inbox import Inbox
-from coordinator.members import LEAVE_GRACE_S, Member, Membership
+from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignOutcome, campaign_outcome
+from coordinator.progress import CampaignProgress, IslandView
 from coordinator.sharing import Sharing
 from coordinator.store import IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
@@ -76,15 +71,12 @@ from island.algorithms import ALGORITHMS
 from island.config import CampaignConfig, decode_config, encode_config
 from island.protocol import (
     Best,
-    Control,
     History,
-    MemberState,
     Migrants,
     decode_history,
     decode_join,
     decode_migrants,
     encode_best,
-    encode_control,
     encode_joined,
 )
 from island.sealing import KEY_BYTES, Credentials, ReplayGuard, check_replay
@@ -92,19 +84,6 @@ from island.termination import Termination
 from island.transports import key_prefix
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
 
-ORPHAN_S = 30.0
-"""Once islands have joined, a campaign with none alive for this long ends."""
-STOP_GRACE_S = 10.0
-"""After the stop order, how long to wait for islands' final histories."""
-FAULT_ANNOUNCEMENTS = 4
-"""After a database fault, how many times (every 0.5 s) the stop order goes out before the coordinator ends."""
-COMMIT_EVERY_S = 0.5
-COMMIT_ROWS = 20_000
-"""The coordinator commits at least this often, and after this many history rows: what a kill can lose."""
-PASS_S = 0.2
-"""Longest stretch of message handling between two checks of the stop rules and progress."""
-CONTROL_EVERY_S = 1.0
-"""The control message goes out after commits that changed something, and at least this often."""
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
 EVALUATED_CACHE = 4096
@@ -129,29 +108,6 @@ class RunInfo:
     key: bytes
     algo: str
     seed: int
-
-
-@dataclass
-class IslandView:
-    """What progress shows of one island run."""
-
-    algo: str
-    iteration: int = 0
-    best: float = np.inf
-    final: bool = False
-
-
-@dataclass
-class CampaignProgress:
-    """A snapshot of a running campaign, for a live view."""
-
-    elapsed_s: float
-    evaluations: int
-    best: float
-    members: dict[str, str]
-    islands: dict[str, IslandView]
-    migrations: int
-    rejected: int
 
 
 class TokenBucket:
@@ -231,14 +187,19 @@ class Coordinator:
         self._replays = ReplayGuard()
         self._evaluated: OrderedDict[bytes, float] = OrderedDict()
         self._rejected_log = TokenBucket(REJECTED_PER_S, REJECTED_BURST)
-        self._rejected_backlog: Counter[str] = Counter()
-        self._committed_at = time.monotonic()
-        self._rows_since_commit = 0
-        self._changed = True
-        self._announced_events = 0
+        # what the run loop (:mod:`coordinator.loop`) reads and resets at each commit
+        self.rejected_backlog: Counter[str] = Counter()
+        """Rejected messages not yet stored (beyond the log's rate), by reason."""
+        self.committed_at = time.monotonic()
+        self.rows_since_commit = 0
+        """History rows stored since the last commit."""
+        self.changed = True
+        """Whether the roster changed since the control message last went out."""
+        self.announced_events = 0
         """Membership events when the control message last went out."""
-        self._control_at = -np.inf
-        self._control_seq = 0
+        self.control_at = -np.inf
+        self.control_seq = 0
+        """Sequence number of the last control message."""
 
     # --- state -------------------------------------------------------------------
     @property
@@ -329,7 +290,7 @@ class Coordinator:
         if self._rejected_log.take():
             self.store.add_rejected(self.name, key, reason, detail, size)
         else:
-            self._rejected_backlog[reason] += 1
+            self.rejected_backlog[reason] += 1
 
     def _key_for(self, island: str, run: str) -> bytes | None:
         info = self.runs.get((island, run))
@@ -402,7 +363,7 @@ class Coordinator:
         self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration)
         f = float(self.evaluate(h.best_x[None, :])[0])
         check_claim(h, f)
-        self._rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
+        self.rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
         if h.rows.size:
             self.gaps.arrived(key, int(h.rows[0, 0]), int(h.rows[-1, 0]), link.request_history)
         iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
@@ -418,7 +379,7 @@ class Coordinator:
         view.iteration = max(view.iteration, iterations)
         view.best = min(view.best, f)
         view.final = view.final or h.final
-        self._changed = True
+        self.changed = True
         if h.final:
             self.membership.final_history(h.island, h.run)
         self._consider(link, h.island, h.best_x, f)
@@ -444,19 +405,7 @@ class Coordinator:
         self.best_message = self._best_message()
         link.publish_best(self.best_message)
 
-    # --- control ---------------------------------------------------------------------------
-    def control_message(self, stop: str = "") -> bytes:
-        """The sealed roster (every run that joined, alive or not, and how far its rows are committed)
-        and the stop order, tagged for every island with its latest run's key."""
-        members = tuple(
-            MemberState(island, run, self.membership.alive(island, run), self.gaps.stored((island, run)), self.sharing.assigned[(island, run)])
-            for island, run in self.runs
-        )
-        self._control_seq = max(self._control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
-        keys = {island: self.runs[(island, run)].key for island, run in self.current.items()}
-        return encode_control(Control(self.name, members, stop, self._control_seq), self.run_id, keys)
-
-    # --- the loop -----------------------------------------------------------------
+    # --- the stop rules (checked by the run loop, coordinator.loop) ------------------------
     def rule_stop(self) -> str | None:
         """The stop rule (budget, target, stall, time) that holds now, if any."""
         best = self.best
@@ -466,133 +415,6 @@ class Coordinator:
             best_at=0 if best is None else best.evaluations,
             elapsed_s=time.monotonic() - self.started,
         )
-
-    def check_stop(self) -> str | None:
-        reason = self.rule_stop()
-        if reason:
-            return reason
-        alive = self.membership.any_alive()
-        finished = bool(self.islands) and all(v.final for v in self.islands.values()) and not alive
-        enough = len({island for island, _ in self.islands} | set(self.members)) >= self.config.min_islands
-        if finished and (enough or self.resumed):
-            return "every island finished"
-        if not alive and enough and any(v.final for v in self.islands.values()) and all(
-            v.final or self.members.get(island, Member("lost")).status == "lost" or self.current.get(island) != run
-            for (island, run), v in self.islands.items()
-        ):
-            return "every island finished or was lost"
-        idle_since = self.membership.idle_since
-        if not alive and idle_since is not None and time.monotonic() - idle_since >= ORPHAN_S:
-            return f"no island alive for {ORPHAN_S:g} s"
-        return None
-
-    def commit(self, link: Link, *, announce: bool = False) -> None:
-        """Commit (with the summary of rejects not recorded one by one), then publish the control
-        message if something changed, every :data:`CONTROL_EVERY_S`, or with ``announce``. Only
-        committed rows are ever reported to islands as stored."""
-        dropped = self.inbox.take_dropped()
-        if dropped:
-            self.rejected += sum(dropped.values())
-            self._rejected_backlog["overflow"] += sum(dropped.values())
-        for reason, n in self._rejected_backlog.items():
-            self.store.add_rejected(self.name, "*", reason, f"{n} rejected messages not recorded one by one (a flood)", 0, n)
-        self._rejected_backlog.clear()
-        self.store.commit(self.name)
-        self._committed_at, self._rows_since_commit = time.monotonic(), 0
-        changed = self._changed or self.membership.events != self._announced_events
-        if self.runs and (announce or changed or self._committed_at - self._control_at >= CONTROL_EVERY_S):
-            link.publish_control(self.control_message(self.stop_reason or ""), self.stop_reason is not None)
-            self._control_at, self._changed, self._announced_events = time.monotonic(), False, self.membership.events
-
-    def pump(self, link: Link, seconds: float, first_wait: float = 0.05) -> int:
-        """Handle what arrives for up to ``seconds`` (waiting up to ``first_wait`` for the first item),
-        committing whenever :data:`COMMIT_EVERY_S` or :data:`COMMIT_ROWS` is reached, and at the end;
-        returns the items handled."""
-        deadline = time.monotonic() + seconds
-        handled = 0
-        wait = first_wait
-        while True:
-            item = self.inbox.get(timeout=wait)
-            if item is not None:
-                self.handle(link, item)
-                handled += 1
-            now = time.monotonic()
-            done = item is None or now >= deadline
-            if done or now - self._committed_at >= COMMIT_EVERY_S or self._rows_since_commit >= COMMIT_ROWS:
-                self.membership.settle()
-                self.commit(link)
-            if done:
-                return handled
-            wait = 0.0
-
-    def serve(
-        self,
-        link: Link,
-        on_progress: Callable[[CampaignProgress], None] | None = None,
-        *,
-        extra_stop: Callable[[], str | None] | None = None,
-        progress_every_s: float = 1.0,
-    ) -> str:
-        """Run until a stop rule, ``extra_stop()`` or Ctrl-C; announce the stop, collect final histories; returns the reason.
-
-        A database that cannot be written ends the campaign: islands are told to
-        stop, the campaign is marked ``interrupted`` if the file lets us, and
-        :class:`StoreError` says what happened.
-        """
-        last, shown_events = 0.0, -1
-        fault: StoreError | None = None
-        try:
-            while self.stop_reason is None:
-                self.pump(link, PASS_S)
-                self.stop_reason = self.check_stop() or (extra_stop() if extra_stop is not None else None)
-                if on_progress is not None and (time.monotonic() - last >= progress_every_s or self.membership.events != shown_events):
-                    on_progress(self.progress())
-                    last, shown_events = time.monotonic(), self.membership.events
-        except KeyboardInterrupt:  # Ctrl-C (SIGINT) stops the campaign like a stop rule; a second one aborts
-            self.stop_reason = "interrupted"
-        except StoreError as exc:
-            fault, self.stop_reason = exc, "interrupted"
-        try:
-            if fault is None:
-                self.store.set_status(self.name, "stopping", self.stop_reason)
-                self._stop_islands(link)
-        except StoreError as exc:
-            fault = exc
-        if fault is not None:
-            raise self._interrupted(link, fault)
-        self.store.set_status(self.name, "stopped", self.stop_reason)
-        if on_progress is not None:
-            on_progress(self.progress())
-        return self.stop_reason
-
-    def _stop_islands(self, link: Link) -> None:
-        """Announce the stop until every island left (at most :data:`STOP_GRACE_S`), storing their
-        final histories and confirming them."""
-        deadline = time.monotonic() + STOP_GRACE_S
-        while time.monotonic() < deadline and self.membership.any_alive():
-            self.commit(link, announce=True)
-            self.pump(link, 0.5)
-        self.pump(link, LEAVE_GRACE_S, first_wait=LEAVE_GRACE_S)
-
-    def _interrupted(self, link: Link, fault: StoreError) -> StoreError:
-        """After a database fault: tell the islands to stop (reporting only rows really committed),
-        mark the campaign interrupted if the file lets us."""
-        self.store.rollback()
-        self.store.release_reserve()
-        self.gaps.forget()
-        try:
-            for _ in range(FAULT_ANNOUNCEMENTS):
-                if self.runs:
-                    link.publish_control(self.control_message(f"interrupted: {fault.detail}"), True)
-                time.sleep(0.5)
-        except sqlite3.Error:
-            pass  # the file cannot even be read: islands end on their own after their wait
-        try:
-            self.store.set_status(self.name, "interrupted", f"interrupted: {fault.detail}")
-            marked = "it is marked interrupted"
-        except StoreError as exc:
-            marked = f"it could not be marked interrupted ({exc.detail.rsplit(': ', 1)[-1]})"
-        return StoreError(f"campaign {self.name!r} stopped: {fault.detail}; what was committed before is kept and {marked} (--resume carries on)")
 
     # --- the outcome ----------------------------------------------------------------
     def outcome(self, *, polish_best: bool = True) -> CampaignOutcome:

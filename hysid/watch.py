@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from coordinator.members import STATUS_AFTER
-from coordinator.server import CampaignProgress, IslandView
+from coordinator.progress import CampaignProgress, IslandView
 from coordinator.store import Store
 from hysid.campaigns import pick_campaign
 

@@ -1,4 +1,4 @@
-"""The coordinator in one process (coordinator/server.py, inbox.py) on a real SQLite file: who may speak,
+"""The coordinator in one process (coordinator/server.py, loop.py, inbox.py) on a real SQLite file: who may speak,
 what it may claim, replays, re-evaluation, commits under load, stop rules with a backlog, resumed ends.
 
 Messages go in through the same entry points the Zenoh link uses (``receive``, ``member``,
@@ -16,7 +16,8 @@ import pytest
 
 from coordinator.inbox import Inbox
 from coordinator.links import MemoryLink
-from coordinator.server import COMMIT_ROWS, Coordinator, resume
+from coordinator.loop import COMMIT_ROWS, check_stop, control_message, pump, serve
+from coordinator.server import Coordinator, resume
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
@@ -67,7 +68,7 @@ def honest_rows(c: Coordinator, n: int) -> list[list[float]]:
 
 def deliver(c: Coordinator, link: MemoryLink, kind: str, sender: str, payload: bytes) -> None:
     assert c.receive(f"hysid/c1/{kind}/{sender}", payload)
-    c.pump(link, 5.0)
+    pump(c, link, 5.0)
 
 
 def reasons(c: Coordinator) -> dict[str, int]:
@@ -81,7 +82,7 @@ def test_history_of_an_island_that_never_joined_is_rejected_and_spends_no_budget
     deliver(c, link, "history", "ghost", history(ghost, [[0, 1.0, 2**52, 0.1]], x, 0.0))
     deliver(c, link, "history", "ghost", history(ghost, [[0, 1.0, 2**52, 0.1]], x, 0.0, final=False, seq=1))
     assert reasons(c) == {"unjoined": 2}
-    assert c.evaluations == 0 and c.check_stop() is None and c.best is None and not c.islands
+    assert c.evaluations == 0 and check_stop(c) is None and c.best is None and not c.islands
 
 
 def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link):
@@ -103,7 +104,7 @@ def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link
     deliver(c, link, "history", "pso-1", history(island, [[3, f, 2.0**62, 0.1]], x, f, seq=8))  # not even a count a float holds exactly
     assert reasons(c) == {"implausible": 6, "schema": 1} and c.evaluations == 0
     deliver(c, link, "history", "pso-1", history(island, [[i, 2 * f, 20 + 25 * i, 0.0] for i in range(4)], x, f, seq=7))
-    assert c.evaluations == 95 and c.check_stop() is None and reasons(c) == {"implausible": 6, "schema": 1}
+    assert c.evaluations == 95 and check_stop(c) is None and reasons(c) == {"implausible": 6, "schema": 1}
     deliver(c, link, "history", "pso-1", history(island, [[i, 2 * f, 20 + 25 * i, 0.0] for i in range(4)], x, f, seq=7))
     assert reasons(c)["replay"] == 1
 
@@ -112,22 +113,22 @@ def test_a_liveliness_token_alone_makes_nobody_a_member(tmp_path, link):
     c = make(tmp_path)
     c.member("ghost", True)
     c.member("bad name/with slash", True)
-    c.pump(link, 1.0)
+    pump(c, link, 1.0)
     assert c.members == {} and reasons(c) == {"unjoined": 1, "sender": 1}
     island = c.admit("pso-1", "pso", 1)
     c.member("pso-1", True)
     x = truth(c)
     deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 3), x, float(c.objective(x[None, :])[0]), final=True))
     c.member("pso-1", False)
-    c.pump(link, 1.0)
-    assert c.members["pso-1"].status == "left" and c.check_stop() == "every island finished"
+    pump(c, link, 1.0)
+    assert c.members["pso-1"].status == "left" and check_stop(c) == "every island finished"
 
 
 def test_a_joined_island_whose_token_never_shows_is_lost(tmp_path, link, monkeypatch):
     monkeypatch.setattr("coordinator.members.TOKEN_WAIT_S", 0.0)
     c = make(tmp_path)
     c.admit("pso-1", "pso", 1)
-    c.pump(link, 0.1)
+    pump(c, link, 0.1)
     assert c.members["pso-1"].status == "lost" and c.store.members("c1")[-1][:2] == ("pso-1", "lost")
 
 
@@ -177,13 +178,13 @@ def test_joining_is_refused_while_the_id_is_alive_and_a_repeated_request_gets_th
     other = JoinRequest("c1", "pso-1", "pso", 1, b"o" * 16)
     c.join_request("pso-1", encode_join(other), answers.append)
     c.join_request("pso-1", b"\xc1 not a join request", answers.append)
-    c.pump(link, 1.0)
+    pump(c, link, 1.0)
     first, second = (decode_joined(a, "c1", "pso-1", request.nonce) for a in answers[:2])
     assert first == second and len(c.runs) == 1
     with pytest.raises(Exception, match="taken by a running island"):
         decode_joined(answers[2], "c1", "pso-1", other.nonce)
     assert len(answers) == 3 and reasons(c) == {"undecodable": 1}
-    control = decode_control(c.control_message(), "c1", first)
+    control = decode_control(control_message(c), "c1", first)
     assert [(m.island, m.run, m.alive) for m in control.members] == [("pso-1", first.run, True)]
 
 
@@ -207,7 +208,7 @@ def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link):
             committed.append(reader.execute("SELECT count(*) FROM history").fetchone()[0])
 
     c.store.commit = observed_commit
-    c.pump(link, 600.0)
+    pump(c, link, 600.0)
     assert committed[-1] == messages * per_message
     steps = np.diff([0, *committed])
     assert len(committed) >= 3 and steps.max() <= COMMIT_ROWS + per_message  # never more than one window at risk
@@ -225,7 +226,7 @@ def test_stop_rules_and_progress_are_checked_while_a_backlog_of_32_islands_waits
             rows = [[it, 1.0, 20 + 25 * it, 0.0] for it in range(m * 10, m * 10 + 10)]
             c.receive(f"hysid/c1/history/{cred.island}", history(cred, rows, x, f, seq=m, seed=i))
     shown: list[tuple[int, int]] = []
-    reason = c.serve(link, lambda p: shown.append((p.evaluations, len(c.inbox))), progress_every_s=0.0)
+    reason = serve(c, link, lambda p: shown.append((p.evaluations, len(c.inbox))), progress_every_s=0.0)
     assert reason == "budget of 400,000 evaluations spent"
     assert len(shown) >= 2
     waiting_at_stop = next(queued for evaluations, queued in shown if evaluations >= 400_000)
@@ -241,7 +242,7 @@ def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_rep
     c.store.close()  # the coordinator died; nobody is left
     again = resume(Store(tmp_path / "c.sqlite"), "c1")
     started = time.monotonic()
-    assert again.serve(MemoryLink(threading.Event())) == "every island finished"
+    assert serve(again, MemoryLink(threading.Event())) == "every island finished"
     assert time.monotonic() - started < 5.0
     outcome = again.outcome(polish_best=False)
     assert {i["island"] for i in outcome.islands} == {"pso-0", "pso-1"}
@@ -249,14 +250,14 @@ def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_rep
 
 
 def test_a_resumed_campaign_nobody_comes_back_to_ends_after_the_orphan_wait(tmp_path, link, monkeypatch):
-    monkeypatch.setattr("coordinator.server.ORPHAN_S", 0.2)
+    monkeypatch.setattr("coordinator.loop.ORPHAN_S", 0.2)
     monkeypatch.setattr("coordinator.members.TOKEN_WAIT_S", 0.5)
     c = make(tmp_path)
     c.admit("pso-0", "pso", 0)  # joined, never finished
     c.store.close()
     again = resume(Store(tmp_path / "c.sqlite"), "c1")
     assert again.progress().members == {"pso-0": "alive"}  # alive when the coordinator died: waited for, not forgotten
-    assert again.serve(MemoryLink(threading.Event())) == "no island alive for 0.2 s"
+    assert serve(again, MemoryLink(threading.Event())) == "no island alive for 0.2 s"
     assert [e for i, e, _ in again.store.members("c1")] == ["join", "lost"]  # not listed alive forever
 
 
@@ -294,7 +295,7 @@ def test_a_database_locked_by_another_process_stops_the_campaign_cleanly(tmp_pat
     release = threading.Timer(1.5, lambda: other.execute("COMMIT"))
     release.start()
     with pytest.raises(Exception, match=r"campaign 'c1' stopped: cannot write the campaign database .*database is locked.*it is marked interrupted"):
-        c.serve(link)
+        serve(c, link)
     release.join()
     assert link.stop.is_set()
     with sqlite3.connect(tmp_path / "c.sqlite") as reader:

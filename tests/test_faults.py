@@ -270,7 +270,7 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
 
 def test_a_killed_coordinator_loses_at_most_its_commit_window(spawn, tmp_path):
     """A steady stream of history rows; SIGKILL; what was committed is at most COMMIT_EVERY_S old."""
-    from coordinator.server import COMMIT_EVERY_S
+    from coordinator.loop import COMMIT_EVERY_S
 
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "kl.sqlite"
     coord = coordinator(spawn, endpoint, "loss", db)

@@ -9,6 +9,7 @@ import pytest
 
 from coordinator.launch import island_specs, run_campaign
 from coordinator.links import MemoryLink
+from coordinator.loop import control_message, pump
 from coordinator.server import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
@@ -239,7 +240,7 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
                                          {"sent": 0, "received": 0, "taken": 0, "rejected": 0}, False, seq[island], gain), cred)
         seq[island] += 1
         assert c.receive(f"hysid/c1/history/{island}", payload)
-        c.pump(link, 5.0)
+        pump(c, link, 5.0)
 
     rounds = 0
     while not c.sharing.moves and rounds < 3 * WINDOW:  # one round: both islands' five iterations (2 x 5 x 25 evaluations)
@@ -249,7 +250,7 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
     assert [(m.island, m.src, m.dst) for m in c.sharing.moves] == [("ga-0", "ga", "pso")]
     assert rounds <= WINDOW + 1  # the first history only sets each island's baseline
     assert [(m.island, m.src, m.dst) for m in c.store.moves("c1")] == [("ga-0", "ga", "pso")]
-    control = decode_control(c.control_message(), "c1", creds["ga-0"])
+    control = decode_control(control_message(c), "c1", creds["ga-0"])
     assert {m.island: m.algo for m in control.members} == {"ga-0": "pso", "pso-1": "pso"}
     report("ga-0", 5 * rounds, 0.001 * rounds, "ga")  # rows sent before the island heard of its move
     report("ga-0", 5 * rounds + 5, 0.3 * rounds, "pso")  # and after
@@ -283,7 +284,7 @@ def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_i
                                          {"sent": 0, "received": 0, "taken": 0, "rejected": 0}, final, seq[island], 0.0), cred)
         seq[island] += 1
         assert c.receive(f"hysid/c2/history/{island}", payload)
-        c.pump(link, 5.0)
+        pump(c, link, 5.0)
         return [m.island for m in c.sharing.moves]
 
     assert report("ga-0", 0, 4) == []  # four iterations: still exploring
@@ -293,7 +294,7 @@ def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_i
     c.member("ga-4", True, wait_s=None)
     assert report("ga-4", 8, 8) == ["ga-0", "ga-4"]
     assert report("pso-1", 0, 9) == ["ga-0", "ga-4"]  # PSO converges: it stays
-    assert {m.island: m.algo for m in decode_control(c.control_message(), "c2", creds["ga-0"]).members}["ga-0"] == "pso"
+    assert {m.island: m.algo for m in decode_control(control_message(c), "c2", creds["ga-0"]).members}["ga-0"] == "pso"
     taken_up = resume(c.store, "c2")  # a restarted coordinator follows the moves stored, and makes none again
     assert {k[0]: v for k, v in taken_up.sharing.assigned.items()} == {"ga-0": "pso", "pso-1": "pso", "ga-2": "ga", "ga-4": "pso"}
     c.store.close()

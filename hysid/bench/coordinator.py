@@ -34,6 +34,7 @@ import numpy as np
 
 from coordinator.launch import free_port
 from coordinator.links import MemoryLink
+from coordinator.loop import serve
 from coordinator.server import Coordinator
 from coordinator.store import Store
 from hysid_model.synth import synth_loops
@@ -143,7 +144,7 @@ def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, A
         threads += [threading.Thread(target=feed, args=(c, cred, i, stop, sent[i]), daemon=True) for i, cred in enumerate(creds)]
         for t in threads:
             t.start()
-        c.serve(MemoryLink(threading.Event()), shown, progress_every_s=0.0)
+        serve(c, MemoryLink(threading.Event()), shown, progress_every_s=0.0)
         elapsed = time.monotonic() - started  # the time limit plus the wait for the islands' final rows
         stop.set()
         sampled.set()
@@ -221,7 +222,7 @@ def backlog(rounds: int = 200, budget: int = 400_000) -> dict[str, Any]:
         queued = len(c.inbox)
         seen: list[tuple[float, int, int]] = []
         started = time.monotonic()
-        reason = c.serve(MemoryLink(threading.Event()), lambda p: seen.append((time.monotonic() - started, p.evaluations, len(c.inbox))), progress_every_s=0.0)
+        reason = serve(c, MemoryLink(threading.Event()), lambda p: seen.append((time.monotonic() - started, p.evaluations, len(c.inbox))), progress_every_s=0.0)
         decided_s, _, left = next(s for s in seen if s[1] >= budget)
         return {"queued": queued, "budget": budget, "stop_reason": reason, "stop_decided_s": decided_s, "still_queued_at_stop": left,
                 "stop_checks_before": sum(1 for s in seen if s[1] < budget)}

@@ -22,7 +22,9 @@ import typer
 
 from coordinator.launch import island_specs
 from coordinator.links import ZenohLink
-from coordinator.server import CampaignProgress, Coordinator, resume
+from coordinator.loop import serve
+from coordinator.progress import CampaignProgress
+from coordinator.server import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import campaign, finish
 from hysid.cli import options as o
@@ -226,7 +228,7 @@ def register(app: typer.Typer) -> None:
             link = ZenohLink(session, coordinator)
             print(f"coordinator of campaign {name!r} ready (database {store.path})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
             try:
-                coordinator.serve(link, None if quiet else print_progress)
+                serve(coordinator, link, None if quiet else print_progress)
             finally:
                 link.close()
                 session.close()

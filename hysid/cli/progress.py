@@ -25,7 +25,7 @@ from hysid.report.text import campaign_progress_line
 from island.termination import Termination
 
 if TYPE_CHECKING:
-    from coordinator.server import CampaignProgress
+    from coordinator.progress import CampaignProgress
 
 PLAIN_STEPS = 10
 """Plain lines per run of work when stderr is not a terminal (one at each tenth)."""

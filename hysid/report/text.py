@@ -18,7 +18,7 @@ from hysid_model.loops import LoopSet
 from hysid_model.survey import survey
 
 if TYPE_CHECKING:
-    from coordinator.server import CampaignProgress
+    from coordinator.progress import CampaignProgress
     from hysid.campaigns import CampaignResult
     from hysid.diagnosis.selection import Diagnosis
     from hysid.fitting import FitResult

@@ -1,0 +1,192 @@
+"""The coordinator's run loop and its stop rules: :func:`serve` runs a campaign's coordinator to its end.
+
+One thread runs the loop, which owns the SQLite store: it feeds the
+inbox (:func:`pump`) through :meth:`coordinator.server.Coordinator.handle` and
+
+* commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
+  whatever the load, and after each commit publishes the sealed ``control``
+  message (:func:`control_message`): the roster, how far each island's history
+  is committed (an island waits for that before it leaves) and, at the end,
+  the stop order;
+* stops (:func:`check_stop`) by the rules of :class:`island.termination.Termination`
+  (a total evaluation budget, a target fitness, a stall, a time limit:
+  :meth:`coordinator.server.Coordinator.rule_stop`), when every island has
+  finished (or finished or was lost), or when no island has been alive for
+  :data:`ORPHAN_S`; then announces the stop and stores the islands' final
+  histories (for at most :data:`STOP_GRACE_S`). A database that cannot be
+  written stops the campaign cleanly (:class:`StoreError`): the islands are
+  told to stop and the campaign is marked ``interrupted``.
+
+What the campaign leaves is :meth:`coordinator.server.Coordinator.outcome`.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import time
+from collections.abc import Callable
+
+from coordinator.members import LEAVE_GRACE_S, Member
+from coordinator.progress import CampaignProgress
+from coordinator.server import Coordinator, Link
+from coordinator.store import StoreError
+from island.protocol import Control, MemberState, encode_control
+
+ORPHAN_S = 30.0
+"""Once islands have joined, a campaign with none alive for this long ends."""
+STOP_GRACE_S = 10.0
+"""After the stop order, how long to wait for islands' final histories."""
+FAULT_ANNOUNCEMENTS = 4
+"""After a database fault, how many times (every 0.5 s) the stop order goes out before the coordinator ends."""
+COMMIT_EVERY_S = 0.5
+COMMIT_ROWS = 20_000
+"""The coordinator commits at least this often, and after this many history rows: what a kill can lose."""
+PASS_S = 0.2
+"""Longest stretch of message handling between two checks of the stop rules and progress."""
+CONTROL_EVERY_S = 1.0
+"""The control message goes out after commits that changed something, and at least this often."""
+
+
+def control_message(c: Coordinator, stop: str = "") -> bytes:
+    """The sealed roster (every run that joined, alive or not, and how far its rows are committed)
+    and the stop order, tagged for every island with its latest run's key."""
+    members = tuple(
+        MemberState(island, run, c.membership.alive(island, run), c.gaps.stored((island, run)), c.sharing.assigned[(island, run)])
+        for island, run in c.runs
+    )
+    c.control_seq = max(c.control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
+    keys = {island: c.runs[(island, run)].key for island, run in c.current.items()}
+    return encode_control(Control(c.name, members, stop, c.control_seq), c.run_id, keys)
+
+
+def check_stop(c: Coordinator) -> str | None:
+    reason = c.rule_stop()
+    if reason:
+        return reason
+    alive = c.membership.any_alive()
+    finished = bool(c.islands) and all(v.final for v in c.islands.values()) and not alive
+    enough = len({island for island, _ in c.islands} | set(c.members)) >= c.config.min_islands
+    if finished and (enough or c.resumed):
+        return "every island finished"
+    if not alive and enough and any(v.final for v in c.islands.values()) and all(
+        v.final or c.members.get(island, Member("lost")).status == "lost" or c.current.get(island) != run
+        for (island, run), v in c.islands.items()
+    ):
+        return "every island finished or was lost"
+    idle_since = c.membership.idle_since
+    if not alive and idle_since is not None and time.monotonic() - idle_since >= ORPHAN_S:
+        return f"no island alive for {ORPHAN_S:g} s"
+    return None
+
+
+def commit(c: Coordinator, link: Link, *, announce: bool = False) -> None:
+    """Commit (with the summary of rejects not recorded one by one), then publish the control
+    message if something changed, every :data:`CONTROL_EVERY_S`, or with ``announce``. Only
+    committed rows are ever reported to islands as stored."""
+    dropped = c.inbox.take_dropped()
+    if dropped:
+        c.rejected += sum(dropped.values())
+        c.rejected_backlog["overflow"] += sum(dropped.values())
+    for reason, n in c.rejected_backlog.items():
+        c.store.add_rejected(c.name, "*", reason, f"{n} rejected messages not recorded one by one (a flood)", 0, n)
+    c.rejected_backlog.clear()
+    c.store.commit(c.name)
+    c.committed_at, c.rows_since_commit = time.monotonic(), 0
+    changed = c.changed or c.membership.events != c.announced_events
+    if c.runs and (announce or changed or c.committed_at - c.control_at >= CONTROL_EVERY_S):
+        link.publish_control(control_message(c, c.stop_reason or ""), c.stop_reason is not None)
+        c.control_at, c.changed, c.announced_events = time.monotonic(), False, c.membership.events
+
+
+def pump(c: Coordinator, link: Link, seconds: float, first_wait: float = 0.05) -> int:
+    """Handle what arrives for up to ``seconds`` (waiting up to ``first_wait`` for the first item),
+    committing whenever :data:`COMMIT_EVERY_S` or :data:`COMMIT_ROWS` is reached, and at the end;
+    returns the items handled."""
+    deadline = time.monotonic() + seconds
+    handled = 0
+    wait = first_wait
+    while True:
+        item = c.inbox.get(timeout=wait)
+        if item is not None:
+            c.handle(link, item)
+            handled += 1
+        now = time.monotonic()
+        done = item is None or now >= deadline
+        if done or now - c.committed_at >= COMMIT_EVERY_S or c.rows_since_commit >= COMMIT_ROWS:
+            c.membership.settle()
+            commit(c, link)
+        if done:
+            return handled
+        wait = 0.0
+
+
+def serve(
+    c: Coordinator,
+    link: Link,
+    on_progress: Callable[[CampaignProgress], None] | None = None,
+    *,
+    extra_stop: Callable[[], str | None] | None = None,
+    progress_every_s: float = 1.0,
+) -> str:
+    """Run until a stop rule, ``extra_stop()`` or Ctrl-C; announce the stop, collect final histories; returns the reason.
+
+    A database that cannot be written ends the campaign: islands are told to
+    stop, the campaign is marked ``interrupted`` if the file lets us, and
+    :class:`StoreError` says what happened.
+    """
+    last, shown_events = 0.0, -1
+    fault: StoreError | None = None
+    try:
+        while c.stop_reason is None:
+            pump(c, link, PASS_S)
+            c.stop_reason = check_stop(c) or (extra_stop() if extra_stop is not None else None)
+            if on_progress is not None and (time.monotonic() - last >= progress_every_s or c.membership.events != shown_events):
+                on_progress(c.progress())
+                last, shown_events = time.monotonic(), c.membership.events
+    except KeyboardInterrupt:  # Ctrl-C (SIGINT) stops the campaign like a stop rule; a second one aborts
+        c.stop_reason = "interrupted"
+    except StoreError as exc:
+        fault, c.stop_reason = exc, "interrupted"
+    try:
+        if fault is None:
+            c.store.set_status(c.name, "stopping", c.stop_reason)
+            _stop_islands(c, link)
+    except StoreError as exc:
+        fault = exc
+    if fault is not None:
+        raise _interrupted(c, link, fault)
+    c.store.set_status(c.name, "stopped", c.stop_reason)
+    if on_progress is not None:
+        on_progress(c.progress())
+    return c.stop_reason
+
+
+def _stop_islands(c: Coordinator, link: Link) -> None:
+    """Announce the stop until every island left (at most :data:`STOP_GRACE_S`), storing their
+    final histories and confirming them."""
+    deadline = time.monotonic() + STOP_GRACE_S
+    while time.monotonic() < deadline and c.membership.any_alive():
+        commit(c, link, announce=True)
+        pump(c, link, 0.5)
+    pump(c, link, LEAVE_GRACE_S, first_wait=LEAVE_GRACE_S)
+
+
+def _interrupted(c: Coordinator, link: Link, fault: StoreError) -> StoreError:
+    """After a database fault: tell the islands to stop (reporting only rows really committed),
+    mark the campaign interrupted if the file lets us."""
+    c.store.rollback()
+    c.store.release_reserve()
+    c.gaps.forget()
+    try:
+        for _ in range(FAULT_ANNOUNCEMENTS):
+            if c.runs:
+                link.publish_control(control_message(c, f"interrupted: {fault.detail}"), True)
+            time.sleep(0.5)
+    except sqlite3.Error:
+        pass  # the file cannot even be read: islands end on their own after their wait
+    try:
+        c.store.set_status(c.name, "interrupted", f"interrupted: {fault.detail}")
+        marked = "it is marked interrupted"
+    except StoreError as exc:
+        marked = f"it could not be marked interrupted ({exc.detail.rsplit(': ', 1)[-1]})"
+    return StoreError(f"campaign {c.name!r} stopped: {fault.detail}; what was committed before is kept and {marked} (--resume carries on)")
