@@ -204,7 +204,7 @@ NON_INFERIORITY_MARGIN = 0.10
 """How far below the better single algorithm's success rate the default mix may lie and still count as
 at least as good: its seed-by-seed difference's 95 % interval must lie above minus this margin. Two
 searches that are equally good tie, and a plain "rate >= rate" then decides by the seeds' luck (this
-bench's earlier runs: met twice and missed twice, by one to two seeds in a hundred); a margin of 10
+bench's earlier runs: met twice and missed twice, by two seeds in 100 and by one in 300); a margin of 10
 points is the usual one for non-inferiority of success rates (e.g. the FDA's for antibacterial trials),
 and with 300 seeds the interval's half-width is about 6 points, so only a real deficit fails."""
 
