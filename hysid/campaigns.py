@@ -22,6 +22,7 @@ from coordinator.progress import CampaignProgress
 from coordinator.server import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
+from hysid.motion import choose_motion
 from hysid.report import jsondoc, markdown, tables, text
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
@@ -152,7 +153,7 @@ def campaign(
     bounds: Mapping[str, tuple[float, float]] | None = None,
     fixed: Mapping[str, float] | None = None,
     weights: str | None = None,
-    displacement: str = "measured",
+    displacement: str = "auto",
     algos: list[str] | tuple[str, ...] = ("ga", "pso"),
     options: dict[str, dict[str, Any]] | None = None,
     migration: Migration | None = None,
@@ -188,14 +189,17 @@ def campaign(
     """
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
+    motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
-        options=options, migration=migration, seed=seed, min_islands=islands, displacement=displacement,
+        options=options, migration=migration, seed=seed, min_islands=islands, displacement=motion.displacement,
         until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped, share=share,
     )
     store = Store(db)
     try:
         coordinator = Coordinator(store, config, loops, termination, dataset=dataset or loops.name)
-        return finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish))
+        result = finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish))
+        result.fit.settings["displacement_model"] = motion.as_dict()
+        return result
     finally:
         store.close()

@@ -33,6 +33,8 @@ from hysid_model.terms import (
 if TYPE_CHECKING:
     from hysid_model.sampled import SampledMemory
 
+PHYSICAL_LIMIT = "physical"
+"""The kind of a bound that is the end of a parameter's physical range (:meth:`Model.bound_kinds`)."""
 MAX_WIDENINGS = 3
 """How often a fit widens the data-derived bounds its best ends on (:meth:`Model.widen_at`) and refits."""
 
@@ -189,12 +191,24 @@ class Model:
     def at_bounds(self, theta: np.ndarray) -> list[str]:
         """Free parameters of ``theta`` that sit on a bound of the search space that is not a physical
         limit (the optimum may lie beyond it; a friction force of 0 is an answer, not a search artifact)."""
+        return [name for name, kind, _, _ in self._on_bounds(theta) if kind != PHYSICAL_LIMIT]
+
+    def bound_kinds(self, theta: np.ndarray) -> dict[str, str]:
+        """Every free parameter of ``theta`` on a bound, with which (``"physical lower bound 0"``, ``"data-derived
+        upper bound 0.15"``, ``"given lower bound 100"``): its physical limit (a damping ratio of 0), a bound
+        derived from the data, or a bound that was given (by the user or the dataset)."""
+        return {name: f"{kind} {where} bound {side:g}" for name, kind, where, side in self._on_bounds(theta)}
+
+    def _on_bounds(self, theta: np.ndarray) -> list[tuple[str, str, str, float]]:
+        """(name, kind, "lower"/"upper", bound) of every free parameter of ``theta`` on a bound."""
         theta = np.asarray(theta, dtype=float).reshape(-1)
         out = []
         for p, value, hit in zip(self._params, theta, on_bounds(self.bounds, theta)):
-            side = p.lower if value - p.lower <= p.upper - value else p.upper
-            if hit and side not in p.physical:
-                out.append(p.name)
+            if hit:
+                low = value - p.lower <= p.upper - value
+                side = p.lower if low else p.upper
+                kind = PHYSICAL_LIMIT if side in p.physical else ("data-derived" if p.soft else "given")
+                out.append((p.name, kind, "lower" if low else "upper", side))
         return out
 
     def __add__(self, other: "Term | Model") -> "Model":

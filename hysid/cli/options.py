@@ -127,8 +127,10 @@ BOUND = typer.Option(
     help="A hard search bound (repeatable): kept as given, never widened; overrides the dataset's and the data-derived bound.",
 )
 DISPLACEMENT = typer.Option(
-    "measured", "--displacement",
-    help="measured: the model sees each loop's measured displacement harmonics; sine: the ideal X0 sin(wt) of Eq. 4.5 (as the thesis).",
+    "auto", "--displacement",
+    help="auto: the data decide whether the displacement's harmonics are the motion or the sensor's distortion; "
+    "measured: the model is driven by each loop's measured waveform; fundamental: by its fundamental (the harmonics are the "
+    "sensor's); sine: the ideal X0 sin(wt) of Eq. 4.5 (as the thesis).",
 )
 FIX = typer.Option(None, "--fix", metavar="NAME=VALUE", help="A parameter known, not searched (repeatable), e.g. --fix meq=0.2.")
 

@@ -102,7 +102,8 @@ def summary_lines(result: "FitResult") -> list[str]:
         f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
         f"after {result.evaluations:,} evaluations in total.",
         f"- **Fit quality**: {quality_text(result)}.",
-    ]
+    ] + ([f"- **Displacement model**: {result.displacement_model['meaning']} ({result.displacement_model['reason']})."]
+         if result.displacement_model and result.displacement_model["decided_by"] != "none" else [])
 
 
 def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hysid import thesis_tables as tt
+from hysid.diagnosis.plausible import mass_note
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
 from hysid_model.survey import survey
@@ -97,20 +98,26 @@ def fit_warnings(result: "FitResult") -> list[str]:
                 f"note: the equivalent mass is fitted, but the survey cannot estimate it ({found.mass_source.removeprefix('unknown: ')}): "
                 "meq, w0 and xi0 stand for each amplitude's stiffness k and damping c (given below) more than for a resonance"
             )
+    implausible = mass_note(result.model, result.theta, result.loops)
+    if implausible:
+        out.append(f"warning: {implausible}")
     misfit = result.misfit
     if misfit is not None and misfit > MISFIT:
         out.append(
             f"warning: the model does not describe these loops: the residual is {misfit:.3g} x the noise; a diagnosis "
             "(hysid diagnose, or hysid.diagnose) tells what it is missing"
         )
-    elif misfit is not None and misfit > STDERR_TRUST:
+    if misfit is not None and misfit > STDERR_TRUST:
         out.append(
             f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
             f"understate the uncertainty, by a factor of about {misfit:.2g}"
         )
     soft = {p.name for p in result.model.parameters if p.soft}
-    given = [n for n in result.at_bounds if n not in soft]
-    derived = [n for n in result.at_bounds if n in soft]
+    searched = result.model.at_bounds(result.theta)
+    given = [n for n in searched if n not in soft]
+    derived = [n for n in searched if n in soft]
+    if result.bound_kinds:
+        out.append(bounds_sentence(result.bound_kinds))
     if given:
         out.append(
             f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
@@ -126,6 +133,17 @@ def fit_warnings(result: "FitResult") -> list[str]:
     return out
 
 
+def bounds_sentence(kinds: dict[str, str]) -> str:
+    """The parameters on a bound, each with which (:meth:`hysid_model.model.Model.bound_kinds`), in one sentence."""
+    return "on a bound: " + "; ".join(f"{name} on its {kind}" for name, kind in kinds.items()) + (
+        " (a physical limit is an answer, e.g. no damping of that kind; any other bound means the optimum may lie beyond it)")
+
+
+def displacement_text(model: dict[str, Any]) -> str:
+    """Which displacement drove the model and why (:class:`hysid.motion.MotionChoice` as a dict)."""
+    return f"displacement model: {model['meaning']} ({model['reason']})"
+
+
 def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     """What a user reads after ``hysid fit`` (or ``command``): what was fitted, how well, and where the report is."""
     s = result.settings
@@ -139,8 +157,10 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
         f"model {result.model.spec} ({', '.join(result.model.names)}{fixed_text(result.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
         f"fit quality: {quality_text(result)}",
-        "",
     ]
+    if result.displacement_model and result.displacement_model["decided_by"] != "none":
+        lines.append(displacement_text(result.displacement_model))
+    lines.append("")
     se = result.stderr
     headers = ["parameter", "value", "std. error", "unit"] + (["true"] if true else [])
     rows = []
@@ -272,6 +292,8 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     """The gap after each step, the status, and what cannot be identified."""
     doc = diagnosis.to_dict()
     lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"]
+    if doc["displacement_model"] and doc["displacement_model"]["decided_by"] != "none":
+        lines.append(displacement_text(doc["displacement_model"]))
     gap = doc["gap"]
     labels = []
     for step in doc["steps"]:
@@ -288,6 +310,11 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
         lines.append(reference_text(doc))
     for name in doc["not_identifiable"]:
         lines.append(f"not identifiable here: {name} ({doc['not_identifiable_reasons'][name]})")
+    for effect, why in doc["impossible"].items():
+        lines.append(f"impossible here: {effect} ({why})")
+    if doc["at_bounds_kind"]:
+        lines.append(bounds_sentence(doc["at_bounds_kind"]))
+    lines += [f"note: {note}" for note in doc["notes"]]
     if diagnosis.report:
         lines.append(f"report: {diagnosis.report}")
     return "\n".join(lines)
