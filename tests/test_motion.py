@@ -111,3 +111,18 @@ def test_cli_fit_and_diagnose_say_which_and_why(tmp_path, capsys):
     assert diagnosis["steps"] == []
     assert main(["fit", str(tmp_path / "sensor"), "--model", "baseline", "--displacement", "measured", "--json", "--out", str(tmp_path / "f2")]) == 0
     assert json.loads(capsys.readouterr().out)["displacement_model"]["decided_by"] == "user"
+
+
+@pytest.mark.slow  # over 3 s
+def test_a_campaign_reads_the_displacement_as_fit_does_and_keeps_it_in_its_database(tmp_path):
+    loops = loops_of("sensor", tmp_path)
+    db = tmp_path / "c.sqlite"
+    result = hysid.campaign(loops, 2, model="baseline", single_node=True, db=db, seed=1,
+                            options={"pso": {"initial_population": 300, "population": 30, "iterations": 8},
+                                     "ga": {"initial_population": 300, "population": 30, "iterations": 8}})
+    assert result.fit.displacement_model["displacement"] == "fundamental"
+    assert result.to_dict()["displacement_model"]["decided_by"] == "data"
+    assert abs(result.fit.params["meq"] - TRUTH["meq"]) < 4 * result.fit.stderr["meq"]
+    again = hysid.CampaignResult.from_database(db)
+    assert again.fit.displacement_model["displacement"] == "fundamental"
+    assert again.fit.params["meq"] == pytest.approx(result.fit.params["meq"], rel=1e-6)

@@ -37,6 +37,9 @@ from hysid_model.uncertainty import jacobian_covariance
 VISIBLE_Z = 3.0
 """Standard deviations (of what the force noise alone would make of it) a rise of the loop NRMSE or the energy
 error must exceed to count: two models equally far from the truth differ in both by their noise only."""
+VISIBLE_FLOOR_PCT = 1.0
+"""A loop NRMSE or energy error that stays below this (per cent of the peak-to-peak force, of the energy per
+cycle) is within what a user reads off a loop plot or its area: its rise does not count."""
 
 
 def binding(fit: Fit, j: int) -> bool:
@@ -78,7 +81,7 @@ def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
 
 def visible_error(before: Fit, after: Fit, harmonics: Harmonics) -> str | None:
     """Why ``after`` looks worse to a user than ``before``, or None: a loop NRMSE or energy error that rises by
-    more than ``VISIBLE_Z`` times what the noise makes of the rise.
+    more than ``VISIBLE_Z`` times what the noise makes of the rise, to above ``VISIBLE_FLOOR_PCT``.
 
     For squared errors of two predictions p_a, p_b against data y = truth + e, the difference
     sum (p_a - y)^2 - (p_b - y)^2 varies with the noise e by 4 sum (p_a - p_b)^2 sigma^2; the
@@ -93,14 +96,14 @@ def visible_error(before: Fit, after: Fit, harmonics: Harmonics) -> str | None:
     var = 4.0 * sigma**2 * np.sum((pa - pb) ** 2, axis=1) / (n * span2) ** 2
     base = np.maximum(np.sqrt(lb), 1e-300)
     rise, spread = float(np.mean((la - lb) / (2.0 * base))), float(np.sqrt(np.sum(var / (4.0 * base**2)))) / la.size
-    if rise > VISIBLE_Z * spread:
+    if rise > VISIBLE_Z * spread and np.mean(nrmse_pct(after)) > VISIBLE_FLOOR_PCT:
         return f"raises the loop NRMSE from {np.mean(nrmse_pct(before)):.4g} % to {np.mean(nrmse_pct(after)):.4g} % (by {rise / max(spread, 1e-300):.3g} x its noise)"
     energy = [harmonics.energy_per_cycle(harmonics.project(p)) for p in (pa, pb)]
     truth = harmonics.energy_per_cycle(harmonics.coef)
     noise = np.pi * harmonics.loops.x0 * harmonics.stderr[:, harmonics.names.index("c1")]
     rise = float(np.sum((energy[0] - truth) ** 2) - np.sum((energy[1] - truth) ** 2))
     spread = float(np.sqrt(4.0 * np.sum((energy[0] - energy[1]) ** 2 * noise**2)))
-    if rise > VISIBLE_Z * spread:
+    if rise > VISIBLE_Z * spread and energy_error_pct(after, harmonics) > VISIBLE_FLOOR_PCT:
         return (f"raises the energy error from {energy_error_pct(before, harmonics):.4g} % to {energy_error_pct(after, harmonics):.4g} % "
                 f"(by {rise / max(spread, 1e-300):.3g} x its noise)")
     return None
