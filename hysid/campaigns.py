@@ -11,6 +11,7 @@ islands, migrations and membership events.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -198,8 +199,10 @@ def campaign(
     store = Store(db)
     try:
         coordinator = Coordinator(store, config, loops, termination, dataset=dataset or loops.name)
+        began = time.perf_counter()
         result = finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish))
         result.fit.settings["displacement_model"] = motion.as_dict()
+        result.fit.settings["wall_s"] = time.perf_counter() - began
         return result
     finally:
         store.close()

@@ -17,6 +17,7 @@ and the half-power cross-check of the damping (Eq. 2.7, Fig. 6.1).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -71,7 +72,7 @@ class FitResult:
         theta = runs[best].theta
         loops, model = objective.loops, objective.model
         if objective.weights == "ml":
-            method = "Cramer-Rao bound of the ML weights, noise sigma known"
+            method = f"Cramer-Rao bound of the ML weights, noise sigma {loops.sigma_source}"
         else:
             source = "known" if loops.has_sigma else "estimated from the residuals"
             method = f"sandwich covariance of the thesis-weighted least squares, noise sigma {source}"
@@ -275,6 +276,7 @@ def fit(
         raise HysidInputError("the number of runs must be at least 1", param="runs", value=runs)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise HysidInputError("seeds must be non-negative integers", param="seed", value=seed)
+    began = time.perf_counter()
     motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
     objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=motion.displacement)
     first = starting_point(objective.loops, objective.model) if start else None
@@ -317,6 +319,7 @@ def fit(
         "seeds": list(range(seed, seed + runs)),
         "polish": polish,
         "weights": objective.weights,
+        "wall_s": time.perf_counter() - began,
         "displacement": motion.displacement,
         "displacement_model": motion.as_dict(),
         "model": objective.model.spec,

@@ -128,6 +128,16 @@ class LoopSet:
         return bool(np.all(np.isfinite(self.sigma)) and np.all(self.sigma > 0))
 
     @property
+    def sigma_source(self) -> str:
+        """Where ``sigma`` comes from, in words: estimated from the records' scatter (loops extracted from raw
+        records), given (a loops file, the noise added to the Synth set), or unknown."""
+        if not self.has_sigma:
+            return "unknown"
+        if "sigma_raw_n" in (self.meta.get("per_loop") or {}):
+            return "estimated from the scatter of the records' cycles"
+        return "given"
+
+    @property
     def measured_displacement(self) -> bool:
         """True when the loops carry their measured displacement harmonics (not the ideal sine)."""
         return self.x_harmonics is not None

@@ -10,6 +10,11 @@ from pathlib import Path
 from hysid.bench.sites import query  # noqa: F401  (read a campaign database while a coordinator writes it)
 from island.run import run
 
+ROOT = Path(__file__).resolve().parents[1]
+"""The clone's root, wherever it is."""
+DAMPER = ROOT / "data" / "arts-friction-damper"
+"""The real friction damper's ten records (CC BY-SA 4.0, see its README), kept with the clone."""
+
 GA_SMALL = dict(initial_population=200, population=40, iterations=5)
 """A GA that runs in well under a second on the Synth set."""
 PSO_SMALL = dict(initial_population=200, population=30, iterations=5)

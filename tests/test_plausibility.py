@@ -15,7 +15,7 @@ from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.errors import HysidWarning
 from hysid_model.synth import RawRecord
 
-REAL = Path("/work/shared/data/arts-friction-damper")
+from support import DAMPER as REAL
 FS = 4096.7
 
 
@@ -62,7 +62,6 @@ def test_a_clipped_displacement_warns_and_loops_reports_it(tmp_path, capsys):
     assert "clipped: clipped: displacement flat at +0.8 mm" in out and "hysid: warning:" in err and "x_thd_%" in out
 
 
-@pytest.mark.skipif(not REAL.is_dir(), reason="the shared friction-damper data is not on this machine")
 def test_the_real_damper_1hz_1_5in_record_is_velocity_limited_and_distorted(capsys):
     """The actuator cannot reach 1.5 in at 1 Hz: its speed flattens at 0.17 m/s, X0 stops at 31.6 mm, THD 10.9 %.
     No other record of the set is clipped or that distorted."""

@@ -84,7 +84,8 @@ def quality_text(result: "FitResult") -> str:
     q = result.quality
     out = f"RMS residual {q['rms_residual_pct']:.3g} % of each loop's force amplitude |F1|"
     if q["noise_sigma_pct"] is not None:
-        out += f" (known noise sigma: {q['noise_sigma_pct']:.3g} %)"
+        source = result.loops.sigma_source
+        out += f" (noise sigma {'given' if source == 'given' else 'estimated from the records'}: {q['noise_sigma_pct']:.3g} %)"
     return out
 
 
@@ -151,7 +152,7 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     true = result.loops.meta.get("true_params") or {}
     algo = str(s.get("algo", best.algo)).upper()
     polish = " + least-squares polish" if s.get("polish") else ""
-    wall = sum(r.wall_s for r in result.runs)
+    wall = s.get("wall_s", sum(r.wall_s for r in result.runs))  # a campaign's islands search side by side
     lines = [
         f"{command} {result.loops.name}: {loops_description(result)}",
         f"model {result.model.spec} ({', '.join(result.model.names)}{fixed_text(result.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
