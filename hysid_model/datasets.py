@@ -157,13 +157,16 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     ``estimated_manifest``, the ``manifest.csv`` that would fix those frequencies.
     """
     extracted = []
-    for source in sources:
-        series = source.read()
-        extracted.append(extract_loop(
-            series.t, series.x, series.force, source=series.source, n_points=n_points,
-            nominal_freq_hz=source.nominal_hz, steady_window=config.window(source.window_key),
-        ))
-        del series
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", HysidWarning)
+        for source in sources:
+            series = source.read()
+            extracted.append(extract_loop(
+                series.t, series.x, series.force, source=series.source, n_points=n_points,
+                nominal_freq_hz=source.nominal_hz, steady_window=config.window(source.window_key),
+            ))
+            del series
+    once_each(caught, len(sources))
     labels = [s.label for s in sources]
     per_loop: dict[str, list[Any]] = {
         "file": [s.file for s in sources], "nominal_frequency_hz": [math.nan if s.nominal_hz is None else s.nominal_hz for s in sources],
@@ -202,6 +205,19 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
         meta=meta,
         x_harmonics=stack_harmonics([e.x_harmonics for e in extracted]),
     )
+
+
+def once_each(caught: list[warnings.WarningMessage], records: int) -> None:
+    """Warn again what reading ``records`` records warned, each message once, with how many records said it
+    (a header without units in 32 files is one warning, not 32)."""
+    counts: dict[str, int] = {}
+    for w in caught:
+        if issubclass(w.category, HysidWarning):
+            counts[str(w.message)] = counts.get(str(w.message), 0) + 1
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    for message, count in counts.items():
+        warnings.warn(HysidWarning(message + (f" (in {count} of {records} records)" if count > 1 else "")), stacklevel=4)
 
 
 def stack_harmonics(rows: list[np.ndarray]) -> np.ndarray:
