@@ -232,7 +232,7 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         table(r_head, r_rows),
         image(figs["convergence"], out_dir, "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "
               "stars: after the least-squares polish"),
-        "## Model vs trial loops",
+        "## Model vs measured loops",
         image(figs["loops"], out_dir, "Trial and model loops; rows: amplitudes, columns: frequencies across the band "
               "(as Figs. 5.10-5.13)"),
         "## Residuals",
