@@ -77,22 +77,4 @@ def __dir__() -> list[str]:
     return sorted(list(globals()) + list(_EXPORTS))
 
 
-__all__ = [
-    "CampaignResult",
-    "Diagnosis",
-    "FitResult",
-    "HysidInputError",
-    "HysidWarning",
-    "LoopSet",
-    "Migration",
-    "Model",
-    "Parameter",
-    "Termination",
-    "campaign",
-    "diagnose",
-    "effects",
-    "fit",
-    "load",
-    "models",
-    "__version__",
-]
+__all__ = sorted(_EXPORTS) + ["__version__"]
