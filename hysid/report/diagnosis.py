@@ -20,7 +20,7 @@ from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
-    from hysid.diagnosis.selection import Diagnosis
+    from hysid.diagnosis.result import Diagnosis
 
 
 def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:

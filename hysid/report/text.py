@@ -21,7 +21,7 @@ from hysid_model.survey import survey
 if TYPE_CHECKING:
     from coordinator.progress import CampaignProgress
     from hysid.campaigns import CampaignResult
-    from hysid.diagnosis.selection import Diagnosis
+    from hysid.diagnosis.result import Diagnosis
     from hysid.fitting import FitResult
     from hysid.reproduce import Reproduction
     from hysid_model.survey import Survey
