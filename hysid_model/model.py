@@ -305,7 +305,13 @@ class Model:
         self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int, sgn: np.ndarray | None, memory_terms: list[Term]
     ) -> np.ndarray:
         """u(wt - w tau_d) + Re sum_k (G_k - 1) U_k exp(j k (wt - w tau_d)): the non-harmonic force u
-        (Coulomb's sgn, memory forces) through the chain's delay tau_d (exact) and gain G (Eq. 4.1-4.2)."""
+        (Coulomb's sgn, memory forces) through the chain's delay tau_d (exact) and gain G (Eq. 4.1-4.2).
+
+        sgn(x') jumps by +-2 at the reversals: where the delay moves a jump into a sample's cell
+        (:func:`hysid_model.waveform.sample_cells`) the sample sees it averaged over the cell, so that
+        the force, and chi^2, are continuously differentiable in the delay (a point sample would flip
+        as a reversal crosses it). Where no jump is in a cell (every sample at zero delay) that is sgn
+        at the sample itself."""
         n_pop = state.xi.shape[0]
         delay = np.broadcast_to(sum(np.asarray(t.delay(v, kin), dtype=float) for t in self._sensors), (n_pop, 1))[:, :, None]
         shifted = phase[None] - kin.omega[None, :, None] * delay
@@ -313,7 +319,13 @@ class Model:
         if sgn is not None:
             velocity = kin.displacement(shifted, 1)
             branch = np.where(np.arange(phase.shape[-1]) < n_top, 1.0, -1.0)
-            out += sgn[:, :, None] * np.where(np.abs(velocity) < 1e-9 * kin.x0[:, None], branch, np.sign(velocity))
+            sign = np.where(np.abs(velocity) < 1e-9 * kin.x0[:, None], branch, np.sign(velocity))
+            before, after = waveform.sample_cells(phase, n_top, *kin.reversals)
+            for reversal, jump, past in zip(kin.reversals, (2.0, -2.0), (sign > 0, sign < 0)):
+                offset = np.mod(reversal[None, :, None] + kin.omega[None, :, None] * delay - phase[None] + np.pi, 2 * np.pi) - np.pi
+                inside = (offset > -before) & (offset < after)
+                sign = sign + jump * np.where(inside, waveform.past_jump(offset, before, after) - past, 0.0)
+            out += sgn[:, :, None] * sign
         if memory_terms:
             out += sum(t.time_force(v, state, kin, shifted) for t in memory_terms)
         gain = np.ones((1, 1, CHAIN_ORDERS.size), dtype=complex)

@@ -81,6 +81,13 @@ class Kinematics:
         """(x_min, x_max) of each loop's displacement, ``(L,)`` each."""
         return (-self.x0, self.x0) if self.xh is None else waveform.extremes(self.xh)
 
+    @cached_property
+    def reversals(self) -> tuple[np.ndarray, np.ndarray]:
+        """Phases (theta_lo, theta_hi) of each loop's displacement minimum and maximum, ``(L,)`` each."""
+        if self.xh is None:
+            return np.full(self.x0.size, -0.5 * np.pi), np.full(self.x0.size, 0.5 * np.pi)
+        return waveform.reversals(self.xh)
+
     def power_harmonics(self, power: int) -> np.ndarray:
         """Complex amplitudes of x^power at orders 1..power*K, ``(L, power*K)`` (x^power = sum Re[A_k e^{ik wt}] + mean)."""
         xh = self.harmonics
