@@ -343,7 +343,7 @@ def judge(before: Fit, after: Fit, effect: str) -> str | None:
     if abs(values[i]) < MIN_Z * errors[i]:
         return f"{term.strength} = {values[i]:.4g} +- {errors[i]:.2g} is not significant"
     for p in term.params:
-        if p.name != term.strength and binding(after, names.index(p.name)):
+        if p.name != term.strength and p.name in names and binding(after, names.index(p.name)):  # a fixed one (bw_n) binds nothing
             return f"{p.name} is pushed against its bound ({values[names.index(p.name)]:.4g}): the effect degenerates here"
     excess = before.chi2 - before.dof
     if excess > 0 and before.chi2 - after.chi2 < MIN_SHARE * excess:
