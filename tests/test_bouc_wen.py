@@ -1,4 +1,5 @@
-"""Bouc-Wen as practitioners use it (issue 21): the exponent n free, starting points read off the loops."""
+"""Bouc-Wen as practitioners use it (issue 21): the exponent n free, the mr_damper preset, starting points
+read off the loops."""
 
 from __future__ import annotations
 
@@ -8,14 +9,16 @@ import numpy as np
 import pytest
 
 from hysid.bench.objective import distorted_synth
+from hysid.cli import main
 from hysid_model import bouc_wen_orbit
 from hysid_model.effects.bouc_wen import BoucWen, _closed_form, _any_exponent
 from hysid_model.errors import HysidInputError
-from hysid_model.model import Model, build_model
+from hysid_model.model import PRESET_EXPLANATIONS, PRESETS, Model, build_model, spec_of
 from hysid_model.objective import Objective
 from hysid_model.problem import prepare_model
 from hysid_model.synth import MEQ_KG, synth_loops
 from hysid_model.terms import Kinematics
+from island.config import CampaignConfig
 from timedomain_reference import odd_periodic_orbit, periodic_steady_state
 
 BASE = {"xi0": 0.01, "S_xi": 0.0, "w0": 2 * np.pi * 30.0, "S_w": 0.0}
@@ -172,6 +175,41 @@ def test_shape_grid_tries_exponents_only_where_n_is_free(ideal):
     assert len(fixed) == 12 and all("bw_n" not in s for s in fixed)
     assert len(free) == 24 and {s["bw_n"] for s in free} == {1.0, 2.0}
     assert [{k: v for k, v in s.items() if k != "bw_n"} for s in free[::2]] == fixed
+
+
+def test_mr_damper_preset_frees_the_exponent_and_is_listed():
+    model = build_model("mr_damper")
+    assert PRESETS["mr_damper"] == ("bouc_wen",) and model.names == ["xi0", "w0", "meq", "bw_k", "bw_zy", "bw_r", "bw_n"]
+    assert build_model("mr_damper+coulomb_friction").names[-2:] == ["bw_n", "F_d"]
+    with pytest.raises(HysidInputError, match="already in the model"):
+        build_model("mr_damper+bouc_wen")
+    assert set(PRESET_EXPLANATIONS) == set(PRESETS)
+
+
+def test_hysid_models_lists_the_mr_damper(capsys):
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    assert "model mr_damper:" in out and "Spencer" in out and "bw_n [1] in [1, 6]" in out
+    assert "bw_n [1] fixed at 1 (search [1, 6] when freed)" in out
+
+
+@pytest.mark.parametrize("how", ["mr_damper", "mr_damper+coulomb_friction", "freed", "pinned"])
+def test_model_strings_rebuild_the_same_model_in_another_process(how, ideal):
+    """A campaign sends its model string, bounds (soft ones marked) and fixed values to its islands: the island
+    rebuilds the same search space."""
+    model = {"freed": build_model("thesis+bouc_wen").vary("bw_n"), "pinned": build_model("mr_damper").fix(bw_n=2.0)}.get(how, how)
+    config = CampaignConfig.create(ideal, name="bw", model=model)
+    island = CampaignConfig.from_dict(config.as_dict()).objective(ideal).model
+    assert island.names == list(config.bounds) and island.fixed == config.fixed
+    assert [(p.lower, p.upper, p.soft) for p in island.parameters] == [(*config.bounds[n], n in config.soft) for n in island.names]
+    assert ("bw_n" in island.names) == (how != "pinned")
+
+
+def test_spec_of_names_the_preset_that_frees_the_exponent():
+    terms = build_model("baseline+bouc_wen").terms
+    assert spec_of(terms) == "baseline+bouc_wen"
+    freed = Model(terms, overrides={"bw_n": build_model("mr_damper").parameters[-1]})
+    assert freed.spec == "mr_damper" and build_model(freed.spec).names == freed.names
 
 
 def simulated(truth: dict[str, float], loops, xi: float = 0.02, noise: float = 0.0, seed: int = 0):
