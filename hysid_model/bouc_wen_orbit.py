@@ -13,7 +13,8 @@ travel still to go to z = 0), whose inverse is a quadrature,
 
 summed exactly (:func:`travel`): directly for |x| <= 1/2; for x > 1/2 (a = 1/n,
 eps = 1 - x) as a c^-a [-log eps - psi(a) - gamma_E - sum_m (1 - a)_m / m! eps^m / m];
-for x < -1/2 as w a (1 - x)^-a sum_m (a)_m / m! q^m / (m + a), q = -x / (1 - x).
+for -2 <= x < -1/2 as w a (1 - x)^-a sum_m (a)_m / m! q^m / (m + a), q = -x / (1 - x);
+beyond (a large r) from w1 with c w1^n = -2 on in powers of 1 / (-c v^n) <= 1/2.
 The peak state u_m of the orbit under a half span S (in z_y) solves
 T_-r(u_m) + T_1(u_m) = 2 S (:func:`orbit`): the loading branch climbs from -u_m
 to 0 and relaxes from 0 to u_m over the travel 2 S from one reversal to the other.
@@ -49,7 +50,10 @@ TAIL_DEFICIT = 1e-8
 LINEAR_HEAD = 1e-10
 """Relative error of w = sigma below the first node (|c| w^n / (n + 1) there)."""
 MAX_NODES = 1024
-"""Nodes per table (the grading below needs about 60 to 400)."""
+"""Nodes per table (the grading below needs about 30 to 450, the most for n = 1/2 and r >> 1; a table is cut
+short at this size rather than overrun)."""
+DEFICIT_NODES = 96
+"""Nodes kept for the relaxing table's saturating part (it needs at most about 80)."""
 NODE_RATIO = 0.2
 """Largest relative change of w' = 1 - c w^n between neighbouring nodes."""
 HEAD_RATIO = 0.15
@@ -108,6 +112,22 @@ def travel(w: float, c: float, n: float, a: float, psi: float) -> float:
             power *= x
     if x > 0.5:
         return a * c ** (-a) * (-math.log1p(-x) - psi - EULER_GAMMA - _log_part(1.0 - x, a))
+    if x < -2.0:  # T_c(w1) at c w1^n = -2, then the integrand 1 / (1 - c v^n) in powers of 1 / (-c v^n) <= 1/2
+        w1 = (-2.0 / c) ** a
+        span, total, k = math.log(w / w1), 0.0, 0
+        while True:
+            e = 1.0 - n * (k + 1)
+            term = 0.5 ** (k + 1) * (span if e == 0.0 else math.expm1(e * span) / e)
+            total += -term if k % 2 else term
+            if abs(term) < 1e-17 * abs(total):
+                return _euler(w1, -2.0, a) + w1 * total
+            k += 1
+    return _euler(w, x, a)
+
+
+@njit(cache=True, nogil=True)
+def _euler(w: float, x: float, a: float) -> float:
+    """T_c(w) = w a (1 - x)^-a sum_m (a)_m / m! q^m / (m + a), q = -x / (1 - x), for x = c w^n < 0."""
     q = -x / (1.0 - x)
     total, coef, m = 0.0, 1.0, 0
     while True:
@@ -270,9 +290,9 @@ def _node(w: float, x: float, g: float, n: float, nodes: np.ndarray, i: int, sig
 def _node_step(w: float, x: float, n: float) -> float:
     """The step from node w (x = c w^n): w' = 1 - x changes by at most ``NODE_RATIO`` of itself, and
     towards w = 0 (where w^n is not smooth for a non-integer n) the steps grow geometrically as the
-    sixth derivative of w(sigma), about max(n, 1)^5 |x| / w^5, allows (``HEAD_RATIO``)."""
+    sixth derivative of w(sigma), about max(n, 1)^5 |x| / w^5 while |x| < 1, allows (``HEAD_RATIO``)."""
     m = max(n, 1.0)
-    grow = HEAD_RATIO / (m**5 * abs(x) + 1e-300) ** (1.0 / 6.0)
+    grow = HEAD_RATIO / (m**5 * min(abs(x), 1.0) + 1e-300) ** (1.0 / 6.0)
     return w * min(1.0, grow, NODE_RATIO * abs(1.0 - x) / (m * abs(x) + 1e-300))
 
 
@@ -298,13 +318,13 @@ def build_table(c: float, n: float, a: float, psi: float, relaxing: bool, top: f
         x = c * w**n
         _node(w, x, 1.0 - x, n, table, count, travel(w, c, n, a, psi))
         count += 1
-        if w >= end or w >= top:
+        if w >= end or w >= top or count == MAX_NODES - DEFICIT_NODES:
             break
         h = _node_step(w, x, n)
         w = end if w + h >= end * (1.0 - 1e-12) else w + h
     if relaxing and w < top:  # the saturating part, in the deficit eps = 1 - u^n
         eps = 0.5
-        while eps > TAIL_DEFICIT and w < top:
+        while eps > TAIL_DEFICIT and w < top and count < MAX_NODES:
             h = _node_step(w, 1.0 - eps, n)
             eps = max(eps * DEFICIT_RATIO, -math.expm1(n * math.log(w + h)), TAIL_DEFICIT)
             w = math.exp(a * math.log1p(-eps))
