@@ -151,6 +151,8 @@ class BoucWen(Term):
         return BoucWenSampler(kin, phase)
 
     def data_starts(self, loops: LoopSet, free: Collection[str] = ()) -> list[dict[str, float]]:
+        """bw_k, bw_zy, bw_r (and bw_n where it is free) read off the loops' shape, up to 6 starts, best first;
+        none where no loop is saturated above its noise (:mod:`hysid_model.effects.bouc_wen_starts`)."""
         from hysid_model.effects.bouc_wen_starts import read_starts
 
         return read_starts(loops, "bw_n" in free)
