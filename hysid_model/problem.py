@@ -90,9 +90,13 @@ def prepare_model(
     derived: Bounds | None = None,
 ) -> Model:
     """``model`` ready for ``loops``: the known mass fixed, soft bounds from the data (or ``derived``,
-    e.g. a campaign's, as they were), the dataset's and the caller's hard ``bounds``, then ``fixed`` values."""
+    e.g. a campaign's, as they were: its parameters were searched, so one that is fixed by default, such
+    as a freed Bouc-Wen exponent, is searched again), the dataset's and the caller's hard ``bounds``,
+    then ``fixed`` values."""
     m = as_model(model)
     bounds, fixed = dict(bounds or {}), dict(fixed or {})
+    if derived is not None:
+        m = m.vary(*(n for n in derived if n in m.fixed and n not in fixed))
     if loops.meq_kg is not None and "meq" in m.names and "meq" not in bounds and "meq" not in fixed:
         m = m.fix(meq=loops.meq_kg)
     given = dataset_bounds(loops)

@@ -14,8 +14,10 @@ import numpy as np
 
 from hysid import thesis_tables as tt
 from hysid.diagnosis.plausible import mass_note
+from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
+from hysid_model.model import PRESET_EXPLANATIONS, PRESETS, build_model
 from hysid_model.survey import survey
 
 if TYPE_CHECKING:
@@ -36,6 +38,23 @@ def text_table(headers: Sequence[str], rows: Sequence[Sequence[str]], indent: st
         return indent + "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
 
     return "\n".join([line(headers)] + [line(r) for r in rows])
+
+
+def models_text() -> str:
+    """``hysid models``: every preset (what it models, its terms and parameters) and the effect library, with
+    every parameter's unit and default bounds (or fixed value)."""
+    lines = []
+    for spec in PRESETS:
+        lines += [build_model(spec).describe(), f"  ({PRESET_EXPLANATIONS[spec]})"]
+    lines.append("effects (add with MODEL+EFFECT, e.g. thesis+coulomb_friction):")
+    for effect_id, term_type in sorted(EFFECTS.items()):
+        term = term_type()
+        shown = ", ".join(
+            f"{p.name} [{p.unit}] " + (f"in [{p.lower:g}, {p.upper:g}]" if p.vary else f"fixed at {p.value:g} (search [{p.lower:g}, {p.upper:g}] when freed)")
+            for p in term.params
+        )
+        lines.append(f"  {effect_id}: {shown}\n      {term.explanation}")
+    return "\n".join(lines)
 
 
 def mass_text(meq_kg: float | None) -> str:
