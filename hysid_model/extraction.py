@@ -24,8 +24,10 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
    for the ideal sine arcsin(x_i / X0) and pi - arcsin(x_i / X0)), exactly the
    phases :meth:`LoopSet.phases` gives the model.
    Each branch value is a local-quadratic fit of the force over all cycles
-   in a phase window around theta_i, or, where the samples fall on too few
-   distinct phases, the force's harmonics at theta_i (:mod:`hysid_model.branches`).
+   in a phase window around theta_i, widened where its samples do not
+   determine the fit (a sample rate that is a ratio of small integers times
+   the frequency bunches them on a few phases), or, where the samples fall on
+   too few distinct phases, the force's harmonics at theta_i (:mod:`hysid_model.branches`).
    The displacement's harmonics (orders 1-7) are kept with the loop,
    so that the model sees the measured waveform, and their distortion (rms of
    harmonics 2..7 over the fundamental) is reported;
@@ -36,8 +38,9 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
 6. noise: sigma_raw, the std of one raw force sample about the mean cycle,
    from the scatter about the local fits (:mod:`hysid_model.branches`); the
    loop's ``sigma`` is sigma_raw sqrt(mean v_i), the noise of the branch
-   samples *as stored* (v_i: each value's variance factor), which
-   maximum-likelihood weights and Cramer-Rao bounds need;
+   samples *as stored* (v_i: each value's variance factor, counting the
+   samples that overlapping windows share), which maximum-likelihood weights
+   and Cramer-Rao bounds need;
 7. checks (:mod:`hysid_model.plausibility`): displacement distortion,
    clipping of the displacement or its velocity, amplitude drift.
 
@@ -52,7 +55,7 @@ import warnings
 import numpy as np
 
 from hysid_model import plausibility, steady, waveform
-from hysid_model.branches import branch_values, harmonic_design
+from hysid_model.branches import branch_values, half_cycle_phases, harmonic_design, reversal_guard, smooth_part
 from hysid_model.errors import HysidInputError, HysidWarning
 
 FREQ_TOLERANCE = 0.02
@@ -201,7 +204,8 @@ def _auto_window(t: np.ndarray, x: np.ndarray, force: np.ndarray, f0: float, sou
     if n_cycles < 2:
         raise HysidInputError(f"{source}: fewer than 2 steady cycles: the whole record holds {(t[-1] - t[0]) * f0:.2f} cycles at {f0:.6g} Hz")
     fits = steady.cycle_fits(t, [x, force], t[0], f0, n_cycles)
-    start, length = steady.steady_run(fits.amplitude, fits.amplitude_noise())
+    sampling = steady.sampling_error(t, [x, force], t[0], f0, n_cycles)
+    start, length = steady.steady_run(fits.amplitude, fits.amplitude_noise(), sampling)
     if length < 2:
         raise _too_few_cycles(source, length, n_cycles)
     freq = steady.phase_slope_frequency(fits, f0, start, start + length)
@@ -315,20 +319,27 @@ def extract_loop(
     theta = w * (ts - t_a)
     harmonics = max(1, min(X_HARMONICS, int((ts.size / cycles - 1) // 2)))  # below the Nyquist frequency
     design = harmonic_design(theta, harmonics)
-    cx, cf = np.linalg.solve(design @ design.T, np.stack([design @ xs, design @ fs], axis=1)).T
+    gram = design @ design.T
+    projection = np.stack([design @ xs, design @ fs], axis=1)
+    cx, cf = np.linalg.solve(gram, projection).T
     x0 = float(np.hypot(cx[1], cx[2]))
     phi = float(np.arctan2(cx[2], cx[1]))
     phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
     force_mean = _cycle_mean(t, force, t_a, t_end)
     x_residual = xs - cx @ design
-    del design
     x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - (2 * harmonics + 1), 1)))
     xh, thd = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
     lo, hi = (float(r[0]) for r in waveform.reversals(xh))
     x_min, x_max = (float(e[0]) for e in waveform.extremes(xh))
     grid = np.linspace(x_min, x_max, n_points)
     sample_phases = waveform.branch_phases(xh, grid[None], grid[None])[0]
-    values, var, sigma_raw, overlap, force_harmonics = branch_values(theta + phi, fs - force_mean, sample_phases, (lo, hi), ts.size / cycles)
+    psi = half_cycle_phases(theta + phi, (lo, hi))
+    force = fs - force_mean
+    values, var, sigma_raw, overlap, force_harmonics = branch_values(
+        psi, force, sample_phases, (lo, hi), ts.size / cycles, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
+        lambda: smooth_part(design, gram, projection[:, 1] - force_mean * gram[0], psi, hi, force, harmonic_design(sample_phases - phi, harmonics)),
+    )
+    del design
     first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
     used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]
     return ExtractedLoop(
