@@ -69,6 +69,9 @@ DISTORTION_FLOOR = 1e-5
 """...and so is one below 10 ppm of the fundamental (rounding, and leakage from a frequency known to ~1e-6)."""
 CYCLE_SLACK = 0.02
 """Fraction of a period by which the whole cycles may overrun a given window."""
+LARGEST = 1e100
+"""Largest displacement (m) or force (N) a record may hold: squared and summed over millions of samples a larger
+value overflows (1e300 did, into NaN cycle counts); no physical record comes anywhere near it."""
 
 
 @dataclass
@@ -89,6 +92,8 @@ class ExtractedLoop:
     x_offset: float
     x_peak: float
     x_distortion: float
+    force_distortion: float
+    """THD of the force (rms of its harmonics 2..7 over the first): a check of swapped columns."""
     force_mean: float
     window_s: tuple[float, float]
     samples_per_point: float
@@ -111,6 +116,7 @@ class ExtractedLoop:
             "x_offset_m": self.x_offset,
             "x_peak_m": self.x_peak,
             "x_distortion": self.x_distortion,
+            "force_distortion": self.force_distortion,
             "force_mean_n": self.force_mean,
             "steady_t0_s": self.window_s[0],
             "steady_t1_s": self.window_s[1],
@@ -188,6 +194,19 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
         den = a - 2 * b + c
         k = k + (0.5 * (a - c) / den if den < 0 else 0.0)
     return float(k / (nfft * dt))
+
+
+def _check_values(x: np.ndarray, force: np.ndarray, source: str) -> None:
+    """Records no loop can come from: a value beyond ``LARGEST`` in size, or a force that never changes."""
+    for values, what, unit in ((x, "displacement", "m"), (force, "force", "N")):
+        peak = float(np.max(np.abs(values))) if values.size else 0.0
+        if peak > LARGEST:
+            raise HysidInputError(
+                f"{source}: the {what} reaches {peak:.3g} {unit}, beyond any physical {what} and beyond what the fits' "
+                "sums of squares keep in floating point (a corrupt file, or a column of another quantity?)"
+            )
+    if force.size and np.ptp(force) == 0:
+        raise HysidInputError(f"{source}: the force is {force[0]:g} N in every sample: no loop to extract (a load cell not connected?)")
 
 
 def _too_few_cycles(source: str, found: int, of: int) -> HysidInputError:
@@ -291,6 +310,7 @@ def extract_loop(
     automatically.
     """
     t, x, force = (np.asarray(a, dtype=float) for a in (t, x, force))
+    _check_values(x, force, source)
     f0 = _spectral_frequency(t, x, source)
     if steady_window is None:
         t_a, t_b, freq, fits = _auto_window(t, x, force, f0, source)
@@ -356,11 +376,13 @@ def extract_loop(
         x_offset=float(cx[0]),
         x_peak=float(np.abs(xs - cx[0]).max()),
         x_distortion=thd,
+        force_distortion=float(np.sqrt(np.sum(np.hypot(cf[3::2], cf[4::2]) ** 2)) / max(float(np.hypot(cf[1], cf[2])), 1e-300)),
         force_mean=force_mean,
         window_s=(float(ts[0]), float(ts[-1])),
         samples_per_point=float(np.mean(1.0 / var)),
         window_overlap=overlap,
         force_harmonics=force_harmonics,
         drift=tuple(float(d) for d in plausibility.amplitude_drift(used)),
-        clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), xh, freq),
+        clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), plausibility.mean_cycle(theta / (2 * np.pi), fs),
+                                       plausibility.saturation(fs), xh, freq),
     )
