@@ -76,6 +76,8 @@ VARIANCE_SPREAD = 2.0
 DISTINCT = 1e-3
 """Sample phases closer than this fraction of a window apart count as one in the force's harmonics (averaged
 first: a rate locked to the excitation repeats them, so the cost does not grow with the cycles)."""
+CHUNK = 1 << 16
+"""Samples whose harmonic design rows are built at once (:func:`smooth_part`)."""
 SNAP = 1e-9
 """Phases (rad) this close to a reversal are at the reversal (a record sampled exactly at its peaks)."""
 GUARD_SIGMAS = 6.0
@@ -166,25 +168,29 @@ def reversal_guard(xh: np.ndarray, reversal: tuple[float, float], x_sigma: float
     return float(GUARD_SIGMAS * slope_sd / max(float(curvature.min()), 1e-300))
 
 
-def smooth_part(design: np.ndarray, gram: np.ndarray, projection: np.ndarray, psi: np.ndarray, hi: float, force: np.ndarray,
-                at_branches: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def smooth_part(theta: np.ndarray, harmonics: int, gram: np.ndarray, projection: np.ndarray, psi: np.ndarray, hi: float,
+                force: np.ndarray, at_branches: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(the force less its smooth part, the smooth part at the 2n branch samples).
 
-    The smooth part is the least-squares fit of the force's harmonics 0..K (``design`` ``(2K + 1, N)`` at the
-    samples, ``gram`` = design design^T, ``projection`` = design force, ``at_branches`` ``(2K + 1, 2n)`` at the
-    branch samples, top then bottom) and of sgn(x'), +1 on the loading half cycle (half-cycle phases ``psi``
-    below ``hi``) and -1 on the unloading one: a friction jump at the reversals, which harmonics alone would
-    ring around. The branch values are the local fits of what is left, plus the smooth part: a local
-    quadratic is then biased only by what the smooth part misses (force content above order K other than a
-    jump at the reversals), so its windows may widen without bias where a record's few distinct sample phases
-    need it, and the force's harmonics (:func:`_harmonic_branches`) are those of a force without the jump.
+    The smooth part is the least-squares fit of the force's harmonics 0..K (``harmonics``; the samples at phases
+    ``theta``, whose design rows give ``gram`` = design design^T and ``projection`` = design force;
+    ``at_branches`` ``(2K + 1, 2n)`` at the branch samples, top then bottom) and of sgn(x'), +1 on the loading
+    half cycle (half-cycle phases ``psi`` below ``hi``) and -1 on the unloading one: a friction jump at the
+    reversals, which harmonics alone would ring around. The branch values are the local fits of what is left,
+    plus the smooth part: a local quadratic is then biased only by what the smooth part misses (force content
+    above order K other than a jump at the reversals), so its windows may widen without bias where a record's
+    few distinct sample phases need it, and the force's harmonics (:func:`_harmonic_branches`) are those of a
+    force without the jump. The design rows are rebuilt ``CHUNK`` samples at a time, so the memory stays that of
+    a few copies of the record.
     """
     side = np.where(psi < hi, 1.0, -1.0)
-    cross = design @ side
+    blocks = [slice(i, i + CHUNK) for i in range(0, theta.size, CHUNK)]
+    cross = sum(harmonic_design(theta[b], harmonics) @ side[b] for b in blocks)
     full = np.block([[gram, cross[:, None]], [cross[None, :], np.array([[float(side.size)]])]])
     coef = np.linalg.lstsq(full, np.append(projection, side @ force), rcond=None)[0]
-    residual = force - coef[:-1] @ design
-    residual -= coef[-1] * side
+    residual = force - coef[-1] * side
+    for b in blocks:
+        residual[b] -= coef[:-1] @ harmonic_design(theta[b], harmonics)
     n = at_branches.shape[1] // 2
     return residual, coef[:-1] @ at_branches + coef[-1] * np.repeat([1.0, -1.0], n)
 
@@ -228,6 +234,7 @@ def branch_values(
     harmonics = bool(np.any(np.isnan(lo)))
     if not harmonics:
         _even_out_variance(sums, centre, start, width, half_lo, half_hi, lo, hi, chosen_r, widest)
+    del sums  # its prefix sums are five copies of the record
     at_branches = np.zeros(centre.size)
     if harmonics or np.any(chosen_r > 1.0):
         force, at_branches = smooth()
@@ -237,31 +244,46 @@ def branch_values(
         keep = (ps >= lo_phase + guard) & (np.abs(ps - hi_phase) >= guard) & (ps <= lo_phase + 2 * np.pi - guard)
         values, var, sigma_raw, overlap, k = _harmonic_branches(ps[keep], ys[keep], sample_phases, h, samples_per_cycle)
         return values + at_branches, var, sigma_raw, overlap, k
-    win, pos, u, moments, inverse = _window_fits(ps, centre, h, lo, hi)
-    y = ys[pos]
-    starts = _starts(win)
-    yu = y * u
-    rhs = np.stack([np.add.reduceat(w, starts) for w in (y, yu, yu * u)], axis=-1)
-    coef = np.einsum("wij,wj->wi", inverse, rhs)
-    resid = y - coef[win, 0] - coef[win, 1] * u - coef[win, 2] * u * u
-    ss = np.add.reduceat(resid * resid, starts)
-    dof = moments[0] - 3
+    value, v, ss, dof = _local_fits(ps, ys, centre, h, lo, hi)
     sigma_raw = float(np.sqrt(np.median(ss / dof) / _chi2_median_ratio(float(np.median(dof)))))
-    shares = np.bincount(pos)
-    overlap = pos.size / np.count_nonzero(shares)
-    return coef[:, 0] + at_branches, inverse[:, 0, 0] * _shared_variance(shares, pos, starts, moments[0]), sigma_raw, float(overlap), None
+    shared, overlap = _shared_variance(ps, lo, hi)
+    return value + at_branches, v * shared, sigma_raw, overlap, None
 
 
-def _shared_variance(shares: np.ndarray, pos: np.ndarray, starts: np.ndarray, count: np.ndarray) -> np.ndarray:
-    """Per window, the mean number of windows its samples belong to (1 for disjoint windows).
+def _local_fits(ps: np.ndarray, ys: np.ndarray, centre: np.ndarray, h: float, lo: np.ndarray, hi: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(value at the centre, variance factor v, residual sum of squares, degrees of freedom) of the local-quadratic
+    fit in each window [lo, hi), windows taken in groups that hold about as many samples as the record (widened
+    windows overlap, and their samples would otherwise be copied many times over)."""
+    size = np.searchsorted(ps, hi) - np.searchsorted(ps, lo)
+    group = np.cumsum(size) // max(ps.size, int(size.max()))
+    out = []
+    for g in np.split(np.arange(centre.size), np.flatnonzero(np.diff(group)) + 1):
+        win, pos, u, moments, inverse = _window_fits(ps, centre[g], h, lo[g], hi[g])
+        y = ys[pos]
+        starts = _starts(win)
+        yu = y * u
+        rhs = np.stack([np.add.reduceat(w, starts) for w in (y, yu, yu * u)], axis=-1)
+        coef = np.einsum("wij,wj->wi", inverse, rhs)
+        resid = y - coef[win, 0] - coef[win, 1] * u - coef[win, 2] * u * u
+        out.append((coef[:, 0], inverse[:, 0, 0], np.add.reduceat(resid * resid, starts), moments[0] - 3))
+    return tuple(np.concatenate(parts) for parts in zip(*out))
+
+
+def _shared_variance(ps: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """(per window, the mean number of windows its samples belong to; that number over all samples used).
 
     Windows widened until they overlap share their samples: the 2n values then carry fewer independent
     numbers than 2n, and a value's variance times this factor is the variance that the raw samples'
     information gives it (as the force's harmonics' values are scaled, :func:`_harmonic_branches`), so that
     the loop's sigma gives chi^2 and the Fisher information of the samples used, not of each one counted
-    several times.
+    several times. 1 for disjoint windows. Each window is a range of the sorted samples, so the count per
+    sample is a running sum of the windows' starts and ends.
     """
-    return np.add.reduceat(shares[pos].astype(float), starts) / count
+    a, b = np.searchsorted(ps, lo), np.searchsorted(ps, hi)
+    shares = np.cumsum(np.bincount(a, minlength=ps.size + 1) - np.bincount(b, minlength=ps.size + 1))[:-1]
+    total = np.concatenate([[0.0], np.cumsum(shares, dtype=float)])
+    return (total[b] - total[a]) / (b - a), float(np.sum(b - a) / np.count_nonzero(shares))
 
 
 def _harmonic_branches(

@@ -347,6 +347,7 @@ def extract_loop(
     phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
     force_mean = _cycle_mean(t, force, t_a, t_end)
     x_residual = xs - cx @ design
+    del design  # (2K + 1) x N: rebuilt in pieces for the smooth part, where a record needs it
     x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - (2 * harmonics + 1), 1)))
     xh, thd = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
     lo, hi = (float(r[0]) for r in waveform.reversals(xh))
@@ -354,12 +355,12 @@ def extract_loop(
     grid = np.linspace(x_min, x_max, n_points)
     sample_phases = waveform.branch_phases(xh, grid[None], grid[None])[0]
     psi = half_cycle_phases(theta + phi, (lo, hi))
-    force = fs - force_mean
+    centred = fs - force_mean
     values, var, sigma_raw, overlap, force_harmonics = branch_values(
-        psi, force, sample_phases, (lo, hi), ts.size / cycles, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
-        lambda: smooth_part(design, gram, projection[:, 1] - force_mean * gram[0], psi, hi, force, harmonic_design(sample_phases - phi, harmonics)),
+        psi, centred, sample_phases, (lo, hi), ts.size / cycles, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
+        lambda: smooth_part(theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred,
+                            harmonic_design(sample_phases - phi, harmonics)),
     )
-    del design
     first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
     used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]
     return ExtractedLoop(
