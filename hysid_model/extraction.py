@@ -41,8 +41,11 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
    samples *as stored* (v_i: each value's variance factor, counting the
    samples that overlapping windows share), which maximum-likelihood weights
    and Cramer-Rao bounds need;
-7. checks (:mod:`hysid_model.plausibility`): displacement distortion,
-   clipping of the displacement or its velocity, amplitude drift.
+7. checks (:mod:`hysid_model.plausibility`): displacement and force
+   distortion, clipping of the displacement, the force or the velocity,
+   amplitude drift; the set's unit slips and swapped columns are checked
+   when every record is extracted. A record no loop can come from (values
+   beyond ``LARGEST``, a force that never changes) is an error.
 
 Every step is linear in the record length (no sliding windows over cycles).
 """
