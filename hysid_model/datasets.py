@@ -173,11 +173,9 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     }
     for key in extracted[0].meta():
         per_loop[key] = [e.meta()[key] for e in extracted]
-    plausibility.warn_loops(
-        labels, np.array([e.x0 for e in extracted]), np.array([e.force_amplitude for e in extracted]),
-        np.array([e.x_distortion for e in extracted]), np.array([e.drift for e in extracted]),
-        [e.clipping for e in extracted], str(config.directory),
-    )
+    facts = plausibility.Measured(*(np.array([getattr(e, name) for e in extracted]) for name in (
+        "freq_hz", "x0", "force_amplitude", "phase_deg", "x_distortion", "force_distortion", "drift")))
+    plausibility.warn_loops(labels, facts, [e.clipping for e in extracted], str(config.directory))
     meta = config.meta()
     meta.update({"format": fmt, "per_loop": per_loop})
     estimated = [k for k, s in enumerate(sources) if s.nominal_hz is None]

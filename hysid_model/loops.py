@@ -177,7 +177,7 @@ class LoopSet:
 
     def rows(self) -> list[dict[str, Any]]:
         """One dict per loop: label, frequency, X0, peak force, noise sigma, cycles (+ phase, displacement
-        distortion and clipping, ``clipped`` "displacement"/"velocity" at ``clip_level`` m or m/s, when extracted
+        distortion and clipping, ``clipped`` "displacement"/"force"/"velocity" at ``clip_level`` m, N or m/s, when extracted
         from raw records); ``hysid loops --json``."""
         per_loop = self.meta.get("per_loop", {})
         out = []

@@ -291,7 +291,7 @@ def half_power_figure(
         ax2.plot([hp.f1_hz, hp.f2_hz], [level, level], linestyle="none", marker="D", markersize=4.5, color=HALF_POWER, markeredgecolor=color)
         ax2.plot([hp.f_peak_hz], [hp.peak_compliance * 1e3], linestyle="none", marker="v", markersize=6, color=PEAK, markeredgecolor=color)
     ax2.set_xlim(lo, hi)
-    in_view = (loops.freq_hz >= lo) & (loops.freq_hz <= hi)
+    in_view = (loops.freq_hz >= lo) & (loops.freq_hz <= hi) & np.isfinite(comp) & (comp > 0)  # a log axis' limits
     if np.any(in_view):
         top = max([hp.peak_compliance for hp in ok] + [float(comp[in_view].max())]) * 1e3
         ax2.set_ylim(float(comp[in_view].min()) * 1e3 / 1.3, top * 1.3)
