@@ -5,7 +5,8 @@ measured in consistent SI units. Real records break that quietly, so hysid
 measures each record and warns (:class:`HysidWarning`, the work goes on):
 
 * displacement distortion: THD (rms of harmonics 2-7 over the fundamental)
-  above ``THD_WARN``; the loops keep the measured waveform, so the fit uses it;
+  above ``THD_WARN``; the loops keep the measured waveform, and the fits decide
+  from the force whether it is the motion or the sensor's (``hysid.motion``);
 * clipping: a flat displacement peak (stroke or sensor limit), a flat force
   peak (a load cell or its amplifier at the end of its range), or a
   flattened velocity (an actuator at its speed limit, which then cannot reach
@@ -235,7 +236,8 @@ def warn_loops(labels: list[str], m: Measured, clips: list[Clipping], where: str
     if high.size:
         warnings.warn(HysidWarning(
             f"{where}: displacement THD above {100 * THD_WARN:g} % in {_names(labels, high, 100 * m.x_distortion, '{:.3g} %')}: "
-            "the shaker does not impose a pure sine; the loops keep the measured waveform"
+            "the shaker does not impose a pure sine, or the sensor distorts; the loops keep the measured waveform, and fit, "
+            "campaign and diagnose decide from the force whether it is the motion (displacement_model)"
         ), stacklevel=3)
     clipped = [i for i, c in enumerate(clips) if c.kind]
     if clipped:

@@ -319,8 +319,10 @@ class Oscillator(Term):
 
     def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
         """A decade either side of the survey's natural frequency (or of the band), damping ratios up to
-        10 x the survey's (at least 2), two decades either side of its mass."""
-        xi = 10.0 * scale.xi if scale.xi is not None else 0.0
+        10 x the survey's (at least 2; without a mass, 10 x the ratio its equivalent damping gives at the mass
+        that stands in, c w / 2 k: a damper's viscous force far above its spring's needs xi >> 1), two decades
+        either side of its mass."""
+        xi = 10.0 * (scale.xi if scale.xi is not None else scale.damping * scale.wn_scale / (2.0 * scale.stiffness))
         return {
             "xi0": (0.0, max(2.0, xi)),
             "w0": (scale.wn_scale / 10.0, 10.0 * scale.wn_scale) if scale.wn is not None else (scale.w_min / 10.0, 10.0 * scale.w_max),

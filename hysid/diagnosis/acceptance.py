@@ -94,8 +94,8 @@ def visible_error(before: Fit, after: Fit, harmonics: Harmonics) -> str | None:
     la, lb = (np.sum((p - data) ** 2, axis=1) / (n * span2) for p in (pa, pb))
     sigma = harmonics.sigma
     var = 4.0 * sigma**2 * np.sum((pa - pb) ** 2, axis=1) / (n * span2) ** 2
-    base = np.maximum(np.sqrt(lb), 1e-300)
-    rise, spread = float(np.mean((la - lb) / (2.0 * base))), float(np.sqrt(np.sum(var / (4.0 * base**2)))) / la.size
+    base = np.maximum(np.sqrt(0.5 * (la + lb)), 1e-300)  # d sqrt(l) = dl / (2 sqrt(l)), at the middle of the two
+    rise, spread = float(np.mean(np.sqrt(la) - np.sqrt(lb))), float(np.sqrt(np.sum(var / (4.0 * base**2)))) / la.size
     if rise > VISIBLE_Z * spread and np.mean(nrmse_pct(after)) > VISIBLE_FLOOR_PCT:
         return f"raises the loop NRMSE from {np.mean(nrmse_pct(before)):.4g} % to {np.mean(nrmse_pct(after)):.4g} % (by {rise / max(spread, 1e-300):.3g} x its noise)"
     energy = [harmonics.energy_per_cycle(harmonics.project(p)) for p in (pa, pb)]

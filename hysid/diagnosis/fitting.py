@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hysid_model.harmonics import HarmonicObjective, Harmonics
-from hysid_model.model import MAX_WIDENINGS, Model
+from hysid_model.model import MAX_WIDENINGS, Model, spec_of
 from hysid_model.problem import prepare_model, starting_point
 from hysid_model.uncertainty import jacobian_covariance
 from island.polish import polish
@@ -49,8 +49,15 @@ class Fit:
         return self.objective.model
 
     @property
+    def freed(self) -> list[str]:
+        """Parameters the effects fix by default that this fit searches (Bouc-Wen's exponent ``bw_n``)."""
+        return [p.name for t in self.model.terms for p in t.params if not p.vary and p.name in self.model.names]
+
+    @property
     def spec(self) -> str:
-        return "+".join((self.start,) + self.effects)
+        """The model string: the start preset plus the effects (:func:`hysid_model.model.spec_of` where a
+        parameter fixed by default is searched: ``mr_damper``, Bouc-Wen with its exponent free)."""
+        return spec_of(self.model.terms, self.model.names) if self.freed else "+".join((self.start,) + self.effects)
 
     @property
     def chi2(self) -> float:

@@ -14,12 +14,19 @@ by their chi^2 among:
   (:meth:`hysid_model.terms.Term.data_starts`, e.g. a Bouc-Wen spring's
   initial stiffness and yield from the reversals and the plateau), on the
   previous model's optimum.
+
+An effect with a parameter it fixes by default (Bouc-Wen's exponent, n = 1,
+the closed form) is refitted with it free as well, from that refit's optimum,
+the shapes with n = 2 and the loops' own starts; the free variant is kept
+where its BIC is lower by ``BIC_MARGIN`` (Bouc-Wen as practitioners fit it,
+the ``mr_damper`` preset where the start is the baseline).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from hysid.diagnosis.criteria import BIC_MARGIN
 from hysid.diagnosis.fitting import Fit, fit_objective, make_model
 from hysid.diagnosis.scoring import Candidate
 from hysid_model.effects import EFFECTS
@@ -32,11 +39,10 @@ STARTS = 3
 """Starting points polished per refit (the best by chi^2, distinct)."""
 
 
-def data_starts(effect: str, harmonics: Harmonics) -> list[dict[str, float]]:
-    """The starting points ``effect``'s term reads off the loops (none where it reads nothing)."""
-    term = EFFECTS[effect]()
-    reader = getattr(term, "data_starts", None)
-    return list(reader(harmonics.loops)) if reader is not None else []
+def data_starts(effect: str, harmonics: Harmonics, free: list[str]) -> list[dict[str, float]]:
+    """The starting points ``effect``'s term reads off the loops (none where it reads nothing), with values for
+    the parameters of ``free`` it fixes by default."""
+    return EFFECTS[effect]().data_starts(harmonics.loops, free)
 
 
 def starting_rows(fit: Fit, model: Model, harmonics: Harmonics, candidates: tuple[Candidate, ...], joint: np.ndarray | None) -> np.ndarray:
@@ -56,7 +62,7 @@ def starting_rows(fit: Fit, model: Model, harmonics: Harmonics, candidates: tupl
                     line[:, strengths[j]] = s * scale
             rows.append(line)
     for c in candidates:
-        for point in data_starts(c.effect, harmonics):
+        for point in data_starts(c.effect, harmonics, model.names):
             shapes = {k: v for other in candidates if other.starts for k, v in other.starts[0][0].items()}
             rows.append(model.from_dict({**base, **shapes, **point})[None, :])
     if not rows:
@@ -69,8 +75,22 @@ def refit(fit: Fit, harmonics: Harmonics, candidates: tuple[Candidate, ...], bou
     polished from its ``STARTS`` best distinct starting points (module docstring); the best polish is the refit."""
     effects = fit.effects + tuple(c.effect for c in candidates)
     model = make_model(harmonics, fit.start, effects, bounds)
-    objective = HarmonicObjective(harmonics, model)
-    rows = starting_rows(fit, model, harmonics, candidates, joint)
+    fixed = best_of(HarmonicObjective(harmonics, model), fit.start, effects, starting_rows(fit, model, harmonics, candidates, joint))
+    freeable = [p.name for c in candidates for p in EFFECTS[c.effect].params if not p.vary and p.name in model.fixed]
+    if not freeable:
+        return fixed
+    wider = model.vary(*freeable)
+    values = fixed.params()
+    rows = [wider.from_dict({**values, **{n: model.fixed[n] for n in freeable}})]
+    rows += [wider.from_dict({**values, **{n: float(np.clip(2.0 * model.fixed[n], *wider.bounds[wider.names.index(n)])) for n in freeable}})]
+    rows += [wider.from_dict({**values, **point}) for c in candidates for point in data_starts(c.effect, harmonics, wider.names)
+             if set(freeable) <= set(point)]
+    free = best_of(HarmonicObjective(harmonics, wider), fit.start, effects, np.clip(np.array(rows), wider.bounds[:, 0], wider.bounds[:, 1]))
+    return free if free.bic < fixed.bic - BIC_MARGIN else fixed
+
+
+def best_of(objective: HarmonicObjective, start: str, effects: tuple[str, ...], rows: np.ndarray) -> Fit:
+    """The fit polished from the ``STARTS`` best distinct ``rows`` (by chi^2) of ``objective``."""
     rows = np.unique(rows, axis=0)
     order = np.argsort(objective(rows), kind="stable")
-    return fit_objective(objective, fit.start, effects, [rows[j] for j in order[:STARTS]])
+    return fit_objective(objective, start, effects, [rows[j] for j in order[:STARTS]])

@@ -164,6 +164,7 @@ class Diagnosis:
                     "delta_bic": s.after.bic - s.before.bic,
                     "rejected": s.rejected,
                     "joint_with": s.joint_with,
+                    "freed": [n for n in s.after.freed if n in {p.name for p in EFFECTS[s.effect].params}],
                 }
                 for s in self.steps
             ],

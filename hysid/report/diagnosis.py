@@ -28,7 +28,9 @@ def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
     term = EFFECTS[step.effect]()
     units = {p.name: p.unit for p in term.params}
     rows = [[name, with_error(value, step.errors[name]), units[name]] for name, value in step.params.items()]
-    lines = [f"### Step {i + 1}: {step.effect}", "", term.explanation, "", table(["parameter", "value +- std. error", "unit"], rows), ""]
+    freed = [n for n in step.after.freed if n in units]
+    heading = f"### Step {i + 1}: {step.effect}" + (f" ({', '.join(freed)} free)" if freed else "")
+    lines = [heading, "", term.explanation, "", table(["parameter", "value +- std. error", "unit"], rows), ""]
     lines.append(
         f"Score {num(step.score, 4)} (chi^2 the effect removes to first order); after refitting, the BIC changes by "
         f"{num(step.after.bic - step.before.bic, 5)} and the whitened RMS falls from {num(step.before.whitened_rms, 4)} "

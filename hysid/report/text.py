@@ -318,11 +318,15 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     labels = []
     for step in doc["steps"]:
         also = f" (confusable with {', '.join(step['confusable_with'])})" if step["confusable_with"] else ""
-        labels.append(step["effect"] + also + (f" (with {step['joint_with']})" if step["joint_with"] else ""))
+        freed = f" ({', '.join(step['freed'])} free)" if step["freed"] else ""
+        labels.append(step["effect"] + freed + also + (f" (with {step['joint_with']})" if step["joint_with"] else ""))
     width = max([38, *map(len, labels)])
     lines.append(f"  {'start':<{width + 2}} whitened RMS {gap[0]['whitened_rms']:10.4g}")
     for label, step, after in zip(labels, doc["steps"], gap[1:]):
         lines.append(f"  + {label:<{width}} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
+    preset = doc["final_model"].split("+")[0]
+    if preset != doc["start_model"] and preset in PRESET_EXPLANATIONS:
+        lines.append(f"the final model is the {preset} preset: {PRESET_EXPLANATIONS[preset]}")
     if doc["status"] == "adequate":
         lines.append(f"status: adequate, the final model {doc['final_model']} leaves only noise")
     else:

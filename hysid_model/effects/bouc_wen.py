@@ -122,9 +122,12 @@ class BoucWen(Term):
     )
 
     def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
-        """Hysteretic stiffness up to 10 x the survey's, yield from 1/1000 of the smallest to 10 x the largest
-        amplitude; the exponent (where it is free) from 1 to 6, soft: a fit that ends on 6 (or 1) widens it."""
-        return {"bw_k": (0.0, 10.0 * scale.stiffness), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max), "bw_n": (1.0, 6.0)}
+        """Hysteretic stiffness up to 10 x the survey's or the stiffness that carries the largest peak force at a
+        yield of 1 % of the smallest amplitude, whichever is higher (a damper whose force is mostly friction-like
+        has a small dynamic stiffness but a stiff, early-yielding hysteretic spring), yield from 1/1000 of the
+        smallest to 10 x the largest amplitude; the shape r from -0.9 to 3 and the exponent (where it is free) from 1 to 6, soft: a fit that
+        ends on 3 (a knee sharper than r = 3 draws, beta < 0) or on 6 (or 1) widens it."""
+        return {"bw_k": (0.0, max(10.0 * scale.stiffness, scale.force / (0.01 * scale.x_min))), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max), "bw_r": (-0.9, 3.0), "bw_n": (1.0, 6.0)}
 
     def shape_grid(self, kin: Kinematics, free: Collection[str] = ()) -> list[dict[str, float]]:
         """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes r; times the
