@@ -48,15 +48,14 @@ CONTROL_EVERY_S = 1.0
 
 
 def control_message(c: Coordinator, stop: str = "") -> bytes:
-    """The sealed roster (every run that joined, alive or not, and how far its rows are committed)
-    and the stop order, tagged for every island with its latest run's key."""
+    """The signed roster (every run that joined, in that order, alive or not, how far its rows are
+    committed, its algorithm and public key) and the stop order."""
     members = tuple(
-        MemberState(island, run, c.membership.alive(island, run), c.gaps.stored((island, run)), c.sharing.assigned[(island, run)])
-        for island, run in c.runs
+        MemberState(island, run, c.membership.alive(island, run), c.gaps.stored((island, run)), c.sharing.assigned[(island, run)], info.key)
+        for (island, run), info in c.runs.items()
     )
     c.control_seq = max(c.control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
-    keys = {island: c.runs[(island, run)].key for island, run in c.current.items()}
-    return encode_control(Control(c.name, members, stop, c.control_seq), c.run_id, keys)
+    return encode_control(Control(c.name, members, stop, c.control_seq), c.run_id, c.signing)
 
 
 def check_stop(c: Coordinator) -> str | None:

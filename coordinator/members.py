@@ -2,11 +2,16 @@
 
 An island run is a member once it joined (:meth:`Membership.joined`, the join
 handshake of :meth:`coordinator.server.Coordinator.admit`); its Zenoh
-liveliness token says it is there (:meth:`Membership.token`). A token that goes
-after the run's final history is a graceful leave; one that goes without it
-for :data:`LEAVE_GRACE_S`, or never shows within :data:`TOKEN_WAIT_S`, is a
-loss (:meth:`Membership.settle`): crash, kill, or a frozen process whose Zenoh
-lease expired. A token that returns brings the island back as the same run.
+liveliness token says it is there (:meth:`Membership.token`). A liveliness
+token proves nothing (anyone who reaches the router can declare one under any
+name), so it only ever counts for a run that joined, and only as far as the
+run's signed messages bear it out: the run's final history is its leave
+(:meth:`Membership.final_history`), whatever token stays; a token that goes
+without it for :data:`LEAVE_GRACE_S`, or never shows within :data:`TOKEN_WAIT_S`,
+is a loss (:meth:`Membership.settle`): crash, kill, or a frozen process whose
+Zenoh lease expired. A lost run is back when its token returns *and* a signed
+message of the run arrived since it was lost (:meth:`Membership.heard`); a
+run that left never comes back (a new run of the island joins anew).
 After a restart (``--resume``) the runs that were alive when the previous
 coordinator died are taken up again (:meth:`Membership.take_up`), lost unless
 their token returns. Every event is stored as it happens
@@ -43,6 +48,9 @@ class Member:
     resumed: bool = False
     """Alive when the previous coordinator died: taken up by this one, lost unless its token shows
     within :data:`TOKEN_WAIT_S`."""
+    lost_at: float = 0.0
+    heard_at: float = 0.0
+    """``time.monotonic()`` of the run's last message whose signature verified."""
 
 
 class Membership:
@@ -95,22 +103,35 @@ class Membership:
             if member is None or (member.resumed and member.status == "alive"):  # joined before this coordinator (re)started
                 self.members[island] = Member("alive", run, token=True, joined_at=time.monotonic())
                 self._event(island, "join")
-            elif member.status != "alive":
-                member.status, member.gone_at, member.token = "alive", None, True
-                self._event(island, "back")
-            else:
+                self._now_alive()
+            elif member.status == "lost":
+                member.token = True
+                self._back(island, member)
+            elif member.status == "alive":
                 member.gone_at, member.token = None, True
-            self._now_alive()
-        elif member is not None and member.status == "alive":
-            if self.finished(island, member.run):
-                self._leave(island, member, "left")
-            else:
+        elif member is not None:
+            member.token = False
+            if member.status == "alive":
                 member.gone_at = time.monotonic()
 
-    def final_history(self, island: str, run: str) -> None:
-        """The final history of ``run`` of ``island`` arrived: if its token went already, it left."""
+    def heard(self, island: str, run: str) -> None:
+        """A message of run ``run`` of ``island`` whose signature verified: a lost run whose token is back is back."""
         member = self.members.get(island)
-        if member is not None and member.run == run and member.status == "alive" and member.gone_at is not None:
+        if member is not None and member.run == run:
+            member.heard_at = time.monotonic()
+            if member.status == "lost":
+                self._back(island, member)
+
+    def _back(self, island: str, member: Member) -> None:
+        if member.token and member.heard_at > member.lost_at:
+            member.status, member.gone_at = "alive", None
+            self._event(island, "back")
+            self._now_alive()
+
+    def final_history(self, island: str, run: str) -> None:
+        """The final history of ``run`` of ``island`` arrived: it left (its token may go later, or be held by someone else)."""
+        member = self.members.get(island)
+        if member is not None and member.run == run and member.status == "alive":
             self._leave(island, member, "left")
 
     def settle(self) -> None:
@@ -130,7 +151,7 @@ class Membership:
             self.full_at = time.monotonic()
 
     def _leave(self, island: str, member: Member, event: str) -> None:
-        member.status = event
+        member.status, member.lost_at = event, time.monotonic()
         self._event(island, event)
         if not self.any_alive():
             self.idle_since = time.monotonic()

@@ -65,13 +65,15 @@ CREATE TABLE IF NOT EXISTS runs (
 CREATE TABLE IF NOT EXISTS moves (
     id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, src TEXT NOT NULL,
     dst TEXT NOT NULL, evaluations INTEGER NOT NULL, credit TEXT NOT NULL, t REAL NOT NULL);
-CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL);
+CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL, admission BLOB, signing BLOB);
 CREATE TABLE IF NOT EXISTS commits (campaign TEXT PRIMARY KEY, t REAL NOT NULL);
 """
-UPGRADES = {
-    "migrations": ("seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
-    "rejected": ("n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
-}
+UPGRADES = (
+    ("migrations", "seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
+    ("rejected", "n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
+    ("secrets", "admission", "ALTER TABLE secrets ADD COLUMN admission BLOB"),
+    ("secrets", "signing", "ALTER TABLE secrets ADD COLUMN signing BLOB"),
+)
 """Columns added since the first schema: a database written by an earlier hysid gets them on open."""
 INDEXES = "CREATE UNIQUE INDEX IF NOT EXISTS migration_once ON migrations (campaign, island, run, seq);"
 """A migrant message (sender run and number) is stored once, also when it is replayed after a restart."""
@@ -86,7 +88,7 @@ rewrites the whole campaign row, loop set included, when its status changes)."""
 def prepare(db: sqlite3.Connection) -> None:
     """Create the tables, and add to a database of an earlier hysid the columns it lacks."""
     db.executescript(SCHEMA)
-    for table, (column, upgrade) in UPGRADES.items():
+    for table, column, upgrade in UPGRADES:
         if column not in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}:
             db.execute(upgrade)
     db.executescript(INDEXES)
@@ -325,14 +327,19 @@ class Store:
 
     # --- who joined ---------------------------------------------------------------------
     @_writes
-    def campaign_key(self, campaign: str, new: bytes) -> bytes:
-        """The campaign key every joined island shares: stored once (``new`` the first time)."""
-        self.db.execute("INSERT OR IGNORE INTO secrets VALUES (?, ?)", (campaign, new))
-        return bytes(self.db.execute("SELECT campaign_key FROM secrets WHERE campaign = ?", (campaign,)).fetchone()[0])
+    def campaign_secrets(self, campaign: str, admission: bytes, signing: bytes) -> tuple[bytes, bytes]:
+        """The campaign's admission secret and the coordinator's private signing key: stored once (the
+        given ones the first time; a campaign of an earlier hysid gets them on its first resume)."""
+        self.db.execute("INSERT OR IGNORE INTO secrets (campaign, campaign_key) VALUES (?, x'')", (campaign,))
+        self.db.execute("UPDATE secrets SET admission = coalesce(admission, ?), signing = coalesce(signing, ?) WHERE campaign = ?",
+                        (admission, signing, campaign))
+        row = self.db.execute("SELECT admission, signing FROM secrets WHERE campaign = ?", (campaign,)).fetchone()
+        return bytes(row[0]), bytes(row[1])
 
     @_writes
-    def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int) -> None:
-        self.db.execute("INSERT INTO runs VALUES (?, ?, ?, ?, ?, ?, ?)", (campaign, island, run, key, algo, seed, time.time()))
+    def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int, joined: float) -> None:
+        """A run admitted, with the public key it signs with and when it joined (Unix time)."""
+        self.db.execute("INSERT INTO runs VALUES (?, ?, ?, ?, ?, ?, ?)", (campaign, island, run, key, algo, seed, joined))
 
     @_writes
     def add_move(self, campaign: str, move: Move) -> None:
@@ -347,10 +354,10 @@ class Store:
         rows = self.db.execute("SELECT island, run, src, dst, evaluations, credit FROM moves WHERE campaign = ? ORDER BY id", (campaign,))
         return [Move(i, r, a, b, int(e), json.loads(c)) for i, r, a, b, e, c in rows]
 
-    def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int]]:
-        """Every run that joined: ``(island, run, key, algo, seed)`` in the order they joined."""
-        rows = self.db.execute("SELECT island, run, key, algo, seed FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
-        return [(i, r, bytes(k), a, s) for i, r, k, a, s in rows]
+    def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int, float]]:
+        """Every run that joined: ``(island, run, public key, algo, seed, joined)`` in the order they joined."""
+        rows = self.db.execute("SELECT island, run, key, algo, seed, joined FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
+        return [(i, r, bytes(k), a, s, float(j)) for i, r, k, a, s, j in rows]
 
     @_writes
     def set_best(self, campaign: str, best: StoredBest) -> None:
