@@ -193,7 +193,7 @@ class Coordinator:
         for island, run, key, algo, seed, joined in store.runs(self.name):
             self.runs[(island, run)] = RunInfo(key, algo, seed, joined)
             self.current[island] = run
-        self.checks = HistoryChecks(config, self.objective.bounds, self.runs)
+        self.checks = HistoryChecks(config, self.objective, self.runs)
         self.sharing = Sharing(store, config, {key: info.algo for key, info in self.runs.items()}, self.checks.optimizer)
         self.islands: dict[tuple[str, str], IslandView] = {}
         self.run_evaluations: dict[tuple[str, str], int] = {}
@@ -420,7 +420,7 @@ class Coordinator:
         info = self.runs[key]
         check_replay(self._replays, "history", h.island, h.run, h.seq)
         self.membership.heard(h.island, h.run)
-        self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration)
+        self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration, time.time() - info.joined)
         f = float(self.evaluate(h.best_x[None, :])[0])
         check_claim(h, f)
         self.rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)

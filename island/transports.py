@@ -47,7 +47,7 @@ least) says so and waits for it, searching on, up to its ``wait_s`` more; then i
 HISTORY_QUERIES_PER_S = 4.0
 """History queries an island answers per second (the coordinator asks every 2 s at most)."""
 QUERY_TIMEOUT_S = 5.0
-SILENT_MEMBER_S = 10.0
+SILENT_MEMBER_S = 5.0
 """A ring member whose migrants have not arrived for this long is skipped by the island after it
 (:meth:`island.node.IslandNode._sending`): a member that sends nothing cannot starve its successor."""
 

@@ -104,7 +104,7 @@ class Hostile:
         elif field == "rows":
             col, bad_value = self._pick([
                 *((c, v) for c in (0, 2) for v in (1e300, float("nan"), -1.0, 0.5, 2.0**62, float("inf"))),
-                (1, float("nan")), (1, -1.0), (1, 1e300), (3, float("nan")), (3, -1.0), (3, float("inf")),
+                (1, float("nan")), (1, -1.0), (1, 1e300), (1, float("inf")), (3, float("nan")), (3, -1.0), (3, float("inf")), (3, 1e300),
             ])
             rows = np.array([[0, 5.0, 20, 0.1], [1, 4.0, 45, 0.2]])
             rows[1, col] = bad_value

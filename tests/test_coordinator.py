@@ -111,6 +111,27 @@ def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link
     assert reasons(c)["replay"] == 1
 
 
+def test_claimed_effort_is_bounded_by_the_time_since_the_join_at_the_rate_measured_here(tmp_path, link):
+    """A member claiming 434 million evaluations (within what its iterations would allow) just after it
+    joined, or a wall time of 1e300 s, is rejected with its reason: the budget and the stall rule count
+    only effort it could have spent."""
+    c = make(tmp_path, Termination(budget=200_000_000, stall=1_000_000), iterations=10**6)
+    island = c.join("pso-1", "pso", 1)
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    iterations = 175_000.0
+    assert c.checks.evaluation_bound("pso", np.array([iterations]))[0] > 434e6  # what the counters alone allow
+    most, _ = c.checks.effort_bound(["pso"], 60.0)
+    assert most < 434e6 / 10  # what a minute allows, measured here, with room for a host several times faster
+    deliver(c, link, "history", "pso-1", history(island, [[iterations, f, 434e6, 1.0]], x, f, seq=1))
+    deliver(c, link, "history", "pso-1", history(island, [[iterations, f, 100, 1.0]], x, f, seq=2))  # iterations no population makes that fast
+    deliver(c, link, "history", "pso-1", history(island, [[0, 2 * f, 20, 1e300]], x, f, seq=3))
+    assert reasons(c) == {"implausible": 2, "out_of_range": 1}
+    assert c.evaluations == 0 and check_stop(c) is None
+    deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 4), x, f, seq=4))
+    assert c.evaluations == 95 and check_stop(c) is None
+
+
 def test_a_liveliness_token_alone_makes_nobody_a_member(tmp_path, link):
     c = make(tmp_path)
     c.member("ghost", True)
@@ -124,6 +145,33 @@ def test_a_liveliness_token_alone_makes_nobody_a_member(tmp_path, link):
     c.member("pso-1", False)
     pump(c, link, 1.0)
     assert c.members["pso-1"].status == "left" and check_stop(c) == "every island finished"
+
+
+def test_a_token_counts_only_as_far_as_the_runs_signed_messages_bear_it_out(tmp_path, link, monkeypatch):
+    """Anyone may declare a liveliness token under any name: a run that sent its final history has left
+    whatever token stays, and a lost run is back only once a message signed by it arrives."""
+    monkeypatch.setattr("coordinator.members.LEAVE_GRACE_S", 0.0)
+    c = make(tmp_path)
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    a, b = c.join("a", "pso", 1), c.join("b", "pso", 2)
+    for island in "ab":
+        c.member(island, True)
+    deliver(c, link, "history", "a", history(a, honest_rows(c, 3), x, f, final=True))
+    assert c.members["a"].status == "left"  # its goodbye, while a token (its own, or a stranger's) is still there
+    c.member("a", False)
+    c.member("a", True)  # a stranger declares the token of the finished island
+    deliver(c, link, "history", "b", history(b, honest_rows(c, 3), x, f, seed=2))
+    c.member("b", False)  # b crashes
+    pump(c, link, 0.1)
+    assert c.members["b"].status == "lost"
+    c.member("b", True)  # a stranger holds b's token
+    pump(c, link, 0.1)
+    assert (c.members["a"].status, c.members["b"].status) == ("left", "lost") and not c.membership.any_alive()
+    deliver(c, link, "history", "b", history(b, honest_rows(c, 5), x, f, seq=1, seed=2))  # b itself, thawed: signed
+    assert c.members["b"].status == "alive"
+    assert [e for i, e, _ in c.store.members("c1") if i == "b"] == ["join", "lost", "back"]
+    assert [e for i, e, _ in c.store.members("c1") if i == "a"] == ["join", "left"]
 
 
 def test_a_joined_island_whose_token_never_shows_is_lost(tmp_path, link, monkeypatch):
@@ -226,8 +274,9 @@ def test_only_islands_that_prove_the_secret_are_admitted_and_each_id_has_bounded
     assert len(c.runs) == 3
 
 
-def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link):
+def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link, monkeypatch):
     """A burst bigger than COMMIT_ROWS is committed in steps, not only once the queue is empty."""
+    monkeypatch.setattr("coordinator.histories.SPEEDUP", 1e9)  # an island that ran for long before (here: at once)
     c = make(tmp_path, iterations=10**6)
     island = c.join("pso-1", "pso", 1)
     x = truth(c)
@@ -252,7 +301,8 @@ def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link):
     assert len(committed) >= 3 and steps.max() <= COMMIT_ROWS + per_message  # never more than one window at risk
 
 
-def test_stop_rules_and_progress_are_checked_while_a_backlog_of_32_islands_waits(tmp_path, link):
+def test_stop_rules_and_progress_are_checked_while_a_backlog_of_32_islands_waits(tmp_path, link, monkeypatch):
+    monkeypatch.setattr("coordinator.histories.SPEEDUP", 1e9)  # islands that ran for long before (here: at once)
     c = make(tmp_path, Termination(budget=400_000), iterations=10**6)
     x = truth(c)
     f = float(c.objective(x[None, :])[0])
