@@ -11,6 +11,7 @@ coordinator, the database and the outcome are the same.
 
 from __future__ import annotations
 
+import math
 import os
 import socket
 import subprocess
@@ -79,6 +80,7 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
         IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops), history_every_s=MEMORY_HISTORY_EVERY_S)
         for s in specs
     ]
+    coordinator.membership.stale_s = math.inf  # threads of this process: nobody can pose as them, and a slow iteration is no loss
     transports = [bus.transport(node.island, node.algo, node.seed) for node in nodes]
     errors: list[BaseException] = []
 

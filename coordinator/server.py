@@ -38,7 +38,7 @@ The coordinator
   (:meth:`Coordinator.rule_stop`) holds;
 * after a restart (:func:`resume`, ``--resume``) knows every run that joined, takes up again
   the runs that were alive when it died (lost unless their liveliness token
-  returns within :data:`coordinator.members.TOKEN_WAIT_S`), keeps the campaign's stop rules unless
+  is heard from within :data:`coordinator.members.STALE_S`), keeps the campaign's stop rules unless
   new ones are given, and asks every live island for the history rows it missed
   (:class:`coordinator.histories.Gaps`).
 
@@ -72,7 +72,7 @@ from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignOutcome, campaign_outcome
 from coordinator.progress import CampaignProgress, IslandView
 from coordinator.sharing import Sharing
-from coordinator.store import IslandRecord, Store, StoredBest, StoreError
+from coordinator.store import RUN_LOCK_WAIT_S, IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from island.algorithms import ALGORITHMS
@@ -208,6 +208,9 @@ class Coordinator:
         self.migrations = store.count("migrations", self.name)
         self.rejected = store.count("rejected", self.name)
         self.started = time.monotonic()
+        self.elapsed_before = store.elapsed(self.name) if resume else 0.0
+        """Seconds the campaign ran before this process took it up (``--resume``: the time rule carries on)."""
+        store.set_lock_wait(RUN_LOCK_WAIT_S)
         self.stop_reason: str | None = None
         self.membership.idle_since = self.started if self.runs and not self.members else None
         self.best_trace: list[tuple[float, float, int, np.ndarray]] = []
@@ -220,6 +223,10 @@ class Coordinator:
         self.rejected_backlog: Counter[str] = Counter()
         """Rejected messages not yet stored (beyond the log's rate), by reason."""
         self.committed_at = time.monotonic()
+        self.commit_s = 0.0
+        """How long the last commit took."""
+        self.slowest_item_s = 0.0
+        """The longest a message took to handle lately (halved at each commit)."""
         self.rows_since_commit = 0
         """History rows stored since the last commit."""
         self.changed = True
@@ -241,6 +248,10 @@ class Coordinator:
         """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
         return self.membership.full_at
 
+    def elapsed(self) -> float:
+        """Seconds the campaign has run, across ``--resume`` (the time a coordinator was down not counted)."""
+        return self.elapsed_before + time.monotonic() - self.started
+
     def _finished(self, island: str, run: str) -> bool:
         return self.islands.get((island, run), IslandView("")).final
 
@@ -250,7 +261,7 @@ class Coordinator:
 
     def progress(self) -> CampaignProgress:
         return CampaignProgress(
-            elapsed_s=time.monotonic() - self.started,
+            elapsed_s=self.elapsed(),
             evaluations=self.evaluations,
             best=np.inf if self.best is None else self.best.fitness,
             members={i: m.status for i, m in self.members.items()},
@@ -391,6 +402,11 @@ class Coordinator:
         self.query_seq = max(self.query_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
         return encode_history_query(HistoryQuery(self.name, island, run, since, self.query_seq), self.signing)
 
+    def _heard(self, island: str, run: str) -> None:
+        """A signed message of that run: its latest run is alive (:meth:`Membership.heard`)."""
+        if self.current.get(island) == run:
+            self.membership.heard(island, run)
+
     def _member(self, link: Link, island: str, alive: bool) -> None:
         if not NAME_PATTERN.match(island):
             raise MessageRejected("sender", "liveliness token with an invalid island name")
@@ -419,8 +435,10 @@ class Coordinator:
         key = (h.island, h.run)
         info = self.runs[key]
         check_replay(self._replays, "history", h.island, h.run, h.seq)
-        self.membership.heard(h.island, h.run)
+        self._heard(h.island, h.run)
         self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration, time.time() - info.joined)
+        if not h.rows.size and not h.final:
+            return  # a heartbeat: alive, nothing new to store
         f = float(self.evaluate(h.best_x[None, :])[0])
         check_claim(h, f)
         self.rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
@@ -448,7 +466,7 @@ class Coordinator:
 
     def _migrants(self, link: Link, m: Migrants) -> None:
         check_replay(self._replays, "migrants", m.island, m.run, m.seq)
-        self.membership.heard(m.island, m.run)
+        self._heard(m.island, m.run)
         if not self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at, m.seq):
             raise MessageRejected("replay", f"migrant message {m.seq} of {m.island!r} run {m.run!r} is stored already")
         self.migrations += 1
@@ -474,7 +492,7 @@ class Coordinator:
             evaluations=self.evaluations,
             best=np.inf if best is None else best.fitness,
             best_at=0 if best is None else best.evaluations,
-            elapsed_s=time.monotonic() - self.started,
+            elapsed_s=self.elapsed(),
         )
 
     # --- the outcome ----------------------------------------------------------------

@@ -17,7 +17,7 @@ evaluate -> tell) and uses its hooks:
   newest message is kept: an epoch takes at most ``k`` migrants from each
   in-neighbour, so a flood cannot starve the evolution. A message from a run
   the roster does not list yet waits (up to :data:`JOIN_GRACE_S`, the newest of
-  each sender) for it; one that is replaced or expires counts as rejected.
+  each sender) for it; one that waited in vain counts as rejected.
   Every migrant's fitness is **re-evaluated locally** (the claimed value is
   never used), and the optimizer's migrant policy decides what to replace;
 * who is a member, and the stop order, come from the coordinator's signed
@@ -218,13 +218,10 @@ class IslandNode:
         key = None if self._transport is None else self._transport.key_for(env.sender, env.run)
         if key is None:
             with self._lock:
-                dropped = self._pending.pop(env.sender, None) is not None
+                self._pending.pop(env.sender, None)  # a newer one of a joiner: the older was never checked, and need not be
                 self._pending[env.sender] = (time.monotonic(), env)
                 while len(self._pending) > MAX_SENDERS:
                     self._pending.popitem(last=False)
-                    dropped = True
-                if dropped:  # a newer one, or room for another sender: never checked, never taken
-                    self.stats["rejected"] += 1
             return
         self._open(env, key)
 
@@ -367,6 +364,16 @@ class IslandNode:
             ), self.credentials)
             for i, chunk in enumerate(chunks)
         ]
+
+    def heartbeat(self) -> bytes:
+        """A history message without rows (from any thread): the island is alive while it has no new row."""
+        assert self.credentials is not None
+        x, f = self._snapshot
+        with self._lock:
+            stats = dict(self.stats)
+        return encode_history(History(
+            self.config.name, self.island, self.run_id, self.algo, self.seed, np.zeros((0, 4)), x, f, stats, False, self._seq(), self.optimizer.gain,
+        ), self.credentials)
 
     def _flush(self, final: bool = False) -> None:
         assert self._transport is not None

@@ -47,6 +47,9 @@ least) says so and waits for it, searching on, up to its ``wait_s`` more; then i
 HISTORY_QUERIES_PER_S = 4.0
 """History queries an island answers per second (the coordinator asks every 2 s at most)."""
 QUERY_TIMEOUT_S = 5.0
+HEARTBEAT_S = 1.0
+"""An island with no new history row for this long sends a heartbeat (a signed history without rows):
+the coordinator counts an island alive by what it signs, not by its liveliness token."""
 SILENT_MEMBER_S = 5.0
 """A ring member whose migrants have not arrived for this long is skipped by the island after it
 (:meth:`island.node.IslandNode._sending`): a member that sends nothing cannot starve its successor."""
@@ -106,8 +109,9 @@ class ZenohTransport:
     then publishes on ``migrants/<id>`` and ``history/<id>``, subscribes to
     ``migrants/*`` and ``control``, answers ``history/<id>?run=R;since=N;...``
     with the rows the coordinator is missing (after a coordinator restart; only
-    queries the coordinator signed, each once), and declares the liveliness
-    token ``members/<id>`` (last: it tells the coordinator the island is up).
+    queries the coordinator signed, each once), declares the liveliness
+    token ``members/<id>`` (last: it tells the coordinator the island is up),
+    and sends a heartbeat whenever it published no history for :data:`HEARTBEAT_S`.
     Only control messages signed by the coordinator of ``secret`` count; their
     roster gives the members in the order they joined and the public key of
     each run (:meth:`key_for`, with which migrants are checked).
@@ -157,6 +161,16 @@ class ZenohTransport:
             session.declare_queryable(f"{prefix}/history/{node.island}", self._on_history_query),
         ]
         self._token = session.liveliness().declare_token(f"{prefix}/members/{node.island}")
+        self._published_at = time.monotonic()
+        self._closing = threading.Event()
+        self._heartbeat = threading.Thread(target=self._beat, name=f"heartbeat-{node.island}", daemon=True)
+        self._heartbeat.start()
+
+    def _beat(self) -> None:
+        """Every :data:`HEARTBEAT_S` without a history publication, until the island finished: a heartbeat."""
+        while not self._closing.wait(HEARTBEAT_S / 2):
+            if not self.node.finished and time.monotonic() - self._published_at >= HEARTBEAT_S:
+                self.publish_history(self.node.heartbeat())
 
     def _on_migrants(self, sample: zenoh.Sample) -> None:
         self.node.receive(str(sample.key_expr).rsplit("/", 1)[-1], sample.payload.to_bytes())
@@ -219,6 +233,7 @@ class ZenohTransport:
         return []
 
     def publish_history(self, payload: bytes) -> None:
+        self._published_at = time.monotonic()
         self._history.put(payload)
 
     def members(self) -> list[str]:
@@ -277,6 +292,8 @@ class ZenohTransport:
 
     def close(self) -> None:
         """Leave the campaign: the token goes last, after the final history was sent."""
+        self._closing.set()
+        self._heartbeat.join()
         for entity in self._entities + [self._migrants, self._history]:
             entity.undeclare()
         self._token.undeclare()

@@ -20,7 +20,7 @@ import time
 import msgpack
 import numpy as np
 
-from island.protocol import JoinRequest, encode_prove
+from island.protocol import JoinRequest, encode_control, encode_join, encode_prove
 from island.sealing import Credentials, new_key, public_key, seal
 from island.wire import MAX_BYTES, PROTOCOL_VERSION, pack_array
 
@@ -229,3 +229,105 @@ def stream(h: Hostile, n: int, algo: str, seed: int, implausible: float, islands
             yield "join", h._pick(islands + ["someone"]), h.join(h._pick(islands + ["someone"]))
         else:
             yield "member", h._pick([f"ghost-{int(h.rng.integers(10**6))}", "x" * 70, "no.such-island"]), b""
+
+
+# --- attacks from a party's own Zenoh session (tests/test_attacks.py) ------------------------------
+class RogueCoordinator:
+    """A stranger posing as the coordinator of ``campaign`` on its own ``session``, with a key of its own:
+    it answers join requests (a challenge, then a run), the config query with ``config`` (a loop set of
+    its making), the best query, and publishes a stop order every ``every_s``; ``answered`` counts what
+    it answered, by key."""
+
+    def __init__(self, session, campaign: str, config: bytes, best_x: np.ndarray, every_s: float = 0.2) -> None:
+        import threading
+
+        from island.protocol import Best, Control, decode_join_step, encode_best, encode_challenge, encode_joined, encode_signed_config
+
+        self.session, self.campaign, self.key = session, campaign, new_key()
+        self.answered: dict[str, int] = {}
+        signed_config = encode_signed_config(config, campaign, "rogue", self.key)
+        best = encode_best(Best(campaign, "rogue", best_x, 0.0), "rogue", self.key)
+
+        def answer(kind: str, query, payload: bytes) -> None:
+            self.answered[kind] = self.answered.get(kind, 0) + 1
+            query.reply(query.key_expr, payload)
+
+        def on_join(query) -> None:
+            step = decode_join_step(query.payload.to_bytes(), campaign)
+            if isinstance(step, JoinRequest):
+                answer("challenge", query, encode_challenge(campaign, step.island, step.nonce, b"r" * 16, "rogue", self.key))
+            else:
+                answer("joined", query, encode_joined(campaign, step.request.nonce, step.request.island, "rogue-run", "rogue", self.key))
+
+        prefix = f"hysid/{campaign}"
+        self.entities = [
+            session.declare_queryable(f"{prefix}/join/*", on_join),
+            session.declare_queryable(f"{prefix}/config", lambda q: answer("config", q, signed_config)),
+            session.declare_queryable(f"{prefix}/best", lambda q: answer("best", q, best)),
+        ]
+        self._stop = threading.Event()
+        control = session.declare_publisher(f"{prefix}/control")
+
+        def stop_orders() -> None:
+            seq = time.time_ns() // 1000 + 10**12  # ahead of the real coordinator's numbers
+            while not self._stop.wait(every_s):
+                seq += 1
+                control.put(encode_control(Control(campaign, (), "stopped by a stranger", seq), "rogue", self.key))
+                self.answered["control"] = self.answered.get("control", 0) + 1
+
+        self._thread = threading.Thread(target=stop_orders, daemon=True)
+        self._thread.start()
+        self.entities.append(control)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
+        for entity in self.entities:
+            entity.undeclare()
+
+
+def join_flood(session, campaign: str, n: int, timeout_s: float = 120.0) -> dict[str, int]:
+    """``n`` joins under fresh ids from a party without the campaign secret: each asks, takes the
+    coordinator's challenge and sends a proof made with a guessed secret. Returns how many challenges
+    and how many runs it got, once every query of both steps ended."""
+    import threading
+
+    import zenoh
+
+    got = {"challenges": 0, "runs": 0}
+    cond = threading.Condition()
+    open_queries = [0]
+    key = new_key()
+
+    def ended() -> None:
+        with cond:
+            open_queries[0] -= 1
+            cond.notify_all()
+
+    def ask(request: JoinRequest, payload: bytes, on_reply) -> None:
+        with cond:
+            open_queries[0] += 1
+        session.get(f"hysid/{campaign}/join/{request.island}", zenoh.handlers.Callback(on_reply, ended), payload=payload, timeout=10.0)
+
+    def on_challenge(request: JoinRequest):
+        def on_reply(reply) -> None:
+            if reply.ok is None:
+                return
+            fields = msgpack.unpackb(msgpack.unpackb(reply.ok.payload.to_bytes())["body"])  # read unchecked: an attacker trusts anything
+            with cond:
+                got["challenges"] += 1
+            ask(request, encode_prove(request, fields["challenge"], b"guessed secret".ljust(32), key), on_joined)
+
+        return on_reply
+
+    def on_joined(reply) -> None:
+        if reply.ok is not None:
+            with cond:
+                got["runs"] += 1
+
+    for i in range(n):
+        request = JoinRequest(campaign, f"fresh-{i}", "pso", i, i.to_bytes(16, "big"), public_key(key))
+        ask(request, encode_join(request), on_challenge(request))
+    with cond:
+        cond.wait_for(lambda: open_queries[0] == 0, timeout=timeout_s)
+    return dict(got)

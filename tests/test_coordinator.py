@@ -174,8 +174,8 @@ def test_a_token_counts_only_as_far_as_the_runs_signed_messages_bear_it_out(tmp_
     assert [e for i, e, _ in c.store.members("c1") if i == "a"] == ["join", "left"]
 
 
-def test_a_joined_island_whose_token_never_shows_is_lost(tmp_path, link, monkeypatch):
-    monkeypatch.setattr("coordinator.members.TOKEN_WAIT_S", 0.0)
+def test_a_joined_island_never_heard_from_is_lost(tmp_path, link, monkeypatch):
+    monkeypatch.setattr("coordinator.members.STALE_S", 0.0)
     c = make(tmp_path)
     c.join("pso-1", "pso", 1)
     pump(c, link, 0.1)
@@ -289,8 +289,8 @@ def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link, monk
     committed: list[int] = []
     commit = c.store.commit
 
-    def observed_commit(campaign=None):
-        commit(campaign)
+    def observed_commit(campaign=None, elapsed_s=0.0):
+        commit(campaign, elapsed_s)
         with sqlite3.connect(tmp_path / "c.sqlite") as reader:  # what another process sees
             committed.append(reader.execute("SELECT count(*) FROM history").fetchone()[0])
 
@@ -339,7 +339,7 @@ def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_rep
 
 def test_a_resumed_campaign_nobody_comes_back_to_ends_after_the_orphan_wait(tmp_path, link, monkeypatch):
     monkeypatch.setattr("coordinator.loop.ORPHAN_S", 0.2)
-    monkeypatch.setattr("coordinator.members.TOKEN_WAIT_S", 0.5)
+    monkeypatch.setattr("coordinator.members.STALE_S", 0.5)
     c = make(tmp_path)
     c.join("pso-0", "pso", 0)  # joined, never finished
     c.store.close()
@@ -357,6 +357,32 @@ def test_a_resumed_coordinator_keeps_the_stop_rules_of_its_campaign(tmp_path, li
     again.store.close()
     other = resume(Store(tmp_path / "c.sqlite"), "c1", Termination(time_limit_s=5.0))  # rules given again replace them
     assert other.termination == Termination(time_limit_s=5.0)
+
+
+def test_a_resumed_campaign_carries_its_elapsed_time_on(tmp_path, link):
+    """The elapsed time goes into every commit; a resumed coordinator starts from it, so that a campaign
+    that had run past its time limit stops at once instead of running the limit again."""
+    c = make(tmp_path, Termination(time_limit_s=60.0))
+    c.store.commit("c1", 61.5)  # the last commit of a coordinator killed 61.5 s into its campaign
+    c.store.close()
+    again = resume(Store(tmp_path / "c.sqlite"), "c1")
+    assert again.elapsed() >= 61.5 and again.progress().elapsed_s >= 61.5
+    assert again.rule_stop() == again.termination.reason(evaluations=0, best=np.inf, best_at=0, elapsed_s=61.5) is not None
+    assert serve(again, MemoryLink(threading.Event())) == again.rule_stop()
+
+
+def test_a_database_deleted_mid_run_stops_the_campaign_with_one_line(tmp_path, link):
+    c = make(tmp_path)
+    island = c.join("pso-1", "pso", 1)
+    x = truth(c)
+    deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 3), x, float(c.objective(x[None, :])[0])))
+    for suffix in ("", "-wal", "-shm"):
+        (tmp_path / f"c.sqlite{suffix}").unlink(missing_ok=True)
+    with pytest.raises(Exception, match=r"^campaign 'c1' stopped: cannot write the campaign database .*c.sqlite: the file was deleted; "
+                                        r"what it recorded went with the file \(nothing to resume\)$"):
+        serve(c, link)
+    assert link.stop.is_set()
+    assert not c.inbox.put("late", "anything", wait_s=None)  # closed: nothing arriving can block a producer any more
 
 
 def test_the_inbox_serves_sources_in_turn_and_bounds_each():

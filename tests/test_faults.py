@@ -263,7 +263,7 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     assert migrations_are_unique(db) and not query(db, "SELECT 1 FROM migrations WHERE island IN ('b', 'ghost', 'mallory')")
     assert {e for e, in query(db, "SELECT DISTINCT island FROM members")} == {"a", "c", "mallory"}
     a_doc, c_doc = (next(i for i in doc["islands"] if i["island"] == name) for name in ("a", "c"))
-    assert c_doc["rejected"] >= 300  # the decoy's flood, counted by the island it meant to cut off
+    assert c_doc["rejected"] >= 1  # the decoy's flood: never listed, so never checked, and rejected once it waited in vain
     assert 0 < c_doc["received"] <= 2 * a_doc["sent"] + 1  # c kept taking from its real predecessor a, and only from a
     assert all(p.wait(30) == 0 for p in islands.values())
 
