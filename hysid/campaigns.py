@@ -30,6 +30,7 @@ from hysid_model.model import Model
 from hysid_model.errors import HysidInputError
 from island.config import CampaignConfig, decode_config
 from island.migration import Migration
+from island.secret import secret_path
 from island.termination import Termination
 from island.wire import MessageRejected, check_name
 
@@ -199,6 +200,8 @@ def campaign(
     store = Store(db)
     try:
         coordinator = Coordinator(store, config, loops, termination, dataset=dataset or loops.name)
+        if str(db) != ":memory:":
+            coordinator.secret.write(secret_path(db, name))
         began = time.perf_counter()
         result = finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish))
         result.fit.settings["displacement_model"] = motion.as_dict()
