@@ -21,7 +21,6 @@ import threading
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
@@ -31,6 +30,7 @@ from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
 from coordinator.server import Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
+from island.host import IslandSpec
 from island.node import IslandNode
 from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret
 from island.session import open_session, session_config
@@ -43,13 +43,6 @@ MEMORY_WAIT_S = 5.0
 MEMORY_HISTORY_EVERY_S = 0.02
 """How often an island thread sends its history: in memory a message costs little, and the
 coordinator's count of evaluations (budget, the share of a mixed campaign) follows the islands closely."""
-
-
-@dataclass(frozen=True)
-class IslandSpec:
-    id: str
-    algo: str
-    seed: int
 
 
 def island_specs(n: int, algos: list[str], seed: int) -> list[IslandSpec]:

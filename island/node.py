@@ -7,17 +7,14 @@ evaluate -> tell) and uses its hooks:
   (:class:`island.sealing.Credentials`), and every message it sends is sealed
   with them;
 * after every iteration the history row goes to the coordinator (in batches,
-  every ``history_every_s``; iteration, best fitness, evaluations, wall time);
+  every ``history_every_s``, less often in a large campaign: :meth:`IslandNode.history_period`;
+  iteration, best fitness, evaluations, wall time);
 * every ``migration.interval`` iterations (the *epoch*) it publishes its ``k``
   best candidates and takes what its in-neighbours (:mod:`island.migration`)
-  sent. Each message is validated as it arrives (:mod:`island.protocol`:
-  form, the signature of its sender's run with the public key the roster
-  lists for it, then replays: nobody can sign as another island, nor move
-  another's replay window), rejects are counted, and of each sender only the
-  newest message is kept: an epoch takes at most ``k`` migrants from each
-  in-neighbour, so a flood cannot starve the evolution. A message from a run
-  the roster does not list yet waits (up to :data:`JOIN_GRACE_S`, the newest of
-  each sender) for it; one that waited in vain counts as rejected.
+  sent: each message is validated as it arrives (:mod:`island.arrivals`, once
+  for every island of a process), of each sender only the newest is kept, and
+  an epoch takes at most ``k`` migrants from each in-neighbour, so a flood
+  cannot starve the evolution.
   Every migrant's fitness is **re-evaluated locally** (the claimed value is
   never used), and the optimizer's migrant policy decides what to replace;
 * who is a member, and the stop order, come from the coordinator's signed
@@ -25,7 +22,9 @@ evaluate -> tell) and uses its hooks:
   ring follows the roster's order of joining, and skips a member that sent no
   migrants for the transport's ``silent_s``, so that a silent member cannot
   starve the island after it;
-* a late joiner takes the coordinator's current global best the same way;
+* a late joiner takes the coordinator's current global best the same way
+  (unless the islands are isolated, migration interval 0: they take nothing
+  from others, so that an island's seed alone decides its search);
 * when the roster assigns its run another algorithm (a mixed campaign's
   staged or adaptive share, :mod:`island.share`), it carries its search on with that
   algorithm from the next iteration;
@@ -34,22 +33,22 @@ evaluate -> tell) and uses its hooks:
   history row, serving the rows it asks for again (e.g. after a restart).
 
 A :class:`Transport` carries the bytes (:mod:`island.transports`: over
-Zenoh, one process per island, or in memory, islands as threads of one
-process).
+Zenoh, any number of islands per process, or in memory, islands as threads of
+one process).
 """
 
 from __future__ import annotations
 
 import threading
 import time
-from collections import OrderedDict
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer, switch_algorithm
+from island.arrivals import Arrivals
 from island.config import CampaignConfig
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
@@ -61,24 +60,24 @@ from island.protocol import (
     decode_best,
     encode_history,
     encode_migrants,
-    migrants_of,
 )
 from island.run import HistoryRow, run
-from island.sealing import Counter, Credentials, Envelope, ReplayGuard, check_replay, envelope, open_envelope
+from island.sealing import Counter, Credentials
 from island.wire import MessageRejected, check_name
+
+if TYPE_CHECKING:
+    from island.host import Turns
 
 START_TIMEOUT_S = 60.0
 """Longest wait for ``min_islands`` members before an island starts anyway."""
 HISTORY_CHUNK = 20_000
 """History rows per message (well under :data:`island.protocol.MAX_ROWS`)."""
-MAX_SENDERS = 1024
-"""Senders whose newest migrant message an island keeps between two epochs."""
-JOIN_GRACE_S = 5.0
-"""How long migrants from a sender that is not (yet) a member wait for the roster to list it.
-
-Zenoh does not order the coordinator's roster before a joiner's first
-publications, so a joiner's first migrants can arrive before the island knows
-it is a member."""
+HISTORY_MESSAGES_PER_S = 1000.0
+"""History messages a second a coordinator is asked to take from all its islands together: an island of a
+large campaign sends its rows less often than ``history_every_s`` (:meth:`IslandNode.history_period`)."""
+HISTORY_PERIOD_MAX_S = 0.75
+"""The longest an island holds its rows back: below the transports' heartbeat period (1 s), so that a running
+island's history is its heartbeat."""
 
 
 class Transport(Protocol):
@@ -86,6 +85,9 @@ class Transport(Protocol):
 
     credentials: Credentials
     """The island run's identity: issued when it joined."""
+    arrivals: Arrivals | None
+    """The migrant messages this island takes from, if the transport shares them between the islands of a
+    process (None: the island keeps its own)."""
     silent_s: float | None
     """A ring member that sent no migrants for this long is skipped (None: every member sends at every epoch)."""
 
@@ -132,7 +134,10 @@ class IslandNode:
         objective: Objective | ThesisObjective,
         *,
         history_every_s: float = 0.25,
+        turns: Turns | None = None,
     ) -> None:
+        """``turns``: shared with the other islands of a process, how many of them compute at once
+        (:class:`island.host.Turns`; None: this island computes whenever it can)."""
         self.island = check_name("island", island)
         self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.island_options(algo))
         self.algo = algo
@@ -141,6 +146,7 @@ class IslandNode:
         self.objective = objective
         self.credentials: Credentials | None = None
         self.history_every_s = history_every_s
+        self.turns = turns
         self.stats = dict.fromkeys(STAT_NAMES, 0)
         self.rows: list[tuple[int, float, int, float]] = []
         self.migrant_evaluations = 0
@@ -157,13 +163,9 @@ class IslandNode:
         self._snapshot: tuple[np.ndarray, float] = (objective.bounds.mean(axis=1), np.inf)
         self._best_in: Best | None = None
         self._transport: Transport | None = None
+        self.arrivals: Arrivals | None = None
         self._seq = Counter()
         self._lock = threading.Lock()
-        self._replays = ReplayGuard()
-        self._latest: OrderedDict[str, tuple[float, Migrants]] = OrderedDict()
-        """Each sender's newest valid migrant message and when it arrived (see :data:`JOIN_GRACE_S`)."""
-        self._pending: OrderedDict[str, tuple[float, Envelope]] = OrderedDict()
-        """Each sender's newest message from a run the roster does not list yet (checked once it does)."""
         self._taken: dict[str, tuple[str, int]] = {}
         """Per sender, the (run, seq) of the message last taken in."""
 
@@ -180,16 +182,31 @@ class IslandNode:
         """Take messages through ``transport`` from now on (its credentials are the island's)."""
         self._transport = transport
         self.credentials = transport.credentials
+        self.arrivals = transport.arrivals or Arrivals(
+            self.config.name, self.objective.bounds, transport.key_for, transport.members, self.count_rejected
+        )
 
     def run(self, transport: Transport) -> list[tuple[int, float, int, float]]:
         """Optimize until done or stopped; returns the rows ``(iteration, best, evaluations, wall s)``."""
         self.attach(transport)
         transport.wait_for_members(self.config.min_islands, START_TIMEOUT_S)
-        self._best_in = next((b for b in map(self._decode_best, transport.global_best()) if b is not None), None)
+        if self.config.migration.interval:  # isolated islands take nothing from others, the global best neither
+            self._best_in = next((b for b in map(self._decode_best, transport.global_best()) if b is not None), None)
+        turns = self.turns
+
+        def should_stop() -> bool:
+            if turns is not None:
+                turns.next()  # an iteration at a time, in turn with the other islands of the process
+            return transport.stop_requested()
+
+        if turns is not None:
+            turns.acquire()
         try:
-            run(self.optimizer, self.objective, callback=self._record, should_stop=transport.stop_requested, migrate=self._migrate)
+            run(self.optimizer, self.objective, callback=self._record, should_stop=should_stop, migrate=self._migrate)
             self.stop_reason = transport.stop_reason() if transport.stop_requested() else "own budget spent"
         finally:
+            if turns is not None:
+                turns.release()
             self.finished = True
             self._flush(final=True)
         self.confirmed = transport.confirm(self.rows[-1][0] if self.rows else -1)
@@ -199,66 +216,23 @@ class IslandNode:
         self.rows.append((row.iteration, row.best_fitness, row.evaluations + self.migrant_evaluations, row.wall_s))
         x, f = self.optimizer.best(1)
         self._snapshot = (x[0].copy(), float(f[0]))
-        if time.monotonic() - self._last_flush >= self.history_every_s:
+        since = time.monotonic() - self._last_flush
+        if since >= self.history_every_s and since >= self.history_period():
             self._flush()
+
+    def history_period(self) -> float:
+        """Seconds between two history messages: ``history_every_s``, or in a campaign of many islands
+        long enough for all of them to send :data:`HISTORY_MESSAGES_PER_S` together (at most
+        :data:`HISTORY_PERIOD_MAX_S`)."""
+        members = len(self._transport.members()) if self._transport is not None else 1
+        return min(max(self.history_every_s, members / HISTORY_MESSAGES_PER_S), max(self.history_every_s, HISTORY_PERIOD_MAX_S))
 
     # --- migrants -----------------------------------------------------------------
     def receive(self, sender: str, data: bytes) -> None:
-        """A migrant message as it arrives (from any thread): checked against the public key of its
-        sender's run and for replays, counted if rejected, else kept as ``sender``'s newest; a run the
-        roster does not list yet waits for it (:meth:`_listed`)."""
-        assert self.credentials is not None
-        if sender == self.island:
-            return  # our own publication, back through the subscription to every island's migrants
-        try:
-            env = envelope(data, "migrants", self.config.name, sender)
-        except MessageRejected:
-            self.count_rejected()
-            return
-        key = None if self._transport is None else self._transport.key_for(env.sender, env.run)
-        if key is None:
-            with self._lock:
-                self._pending.pop(env.sender, None)  # a newer one of a joiner: the older was never checked, and need not be
-                self._pending[env.sender] = (time.monotonic(), env)
-                while len(self._pending) > MAX_SENDERS:
-                    self._pending.popitem(last=False)
-            return
-        self._open(env, key)
-
-    def _open(self, env: Envelope, key: bytes) -> None:
-        try:
-            m = migrants_of(open_envelope(env, key), self.config.name, self.objective.bounds, time.time())
-            check_replay(self._replays, "migrants", m.island, m.run, m.seq)
-        except MessageRejected:
-            self.count_rejected()
-            return
-        members = set(self._transport.members()) if self._transport is not None else set()
-        with self._lock:
-            if m.island not in self._latest and len(self._latest) >= MAX_SENDERS:
-                strangers = [s for s in self._latest if s not in members]
-                if not strangers and m.island not in members:
-                    return  # no room for yet another stranger
-                del self._latest[strangers[0] if strangers else next(iter(self._latest))]
-            self._latest.pop(m.island, None)
-            self._latest[m.island] = (time.monotonic(), m)
-
-    def _listed(self) -> None:
-        """Check the waiting messages whose run the roster lists by now; those older than :data:`JOIN_GRACE_S`
-        are rejected (their run never joined)."""
-        assert self._transport is not None
-        now = time.monotonic()
-        with self._lock:
-            waiting = list(self._pending.items())
-        for sender, (at, env) in waiting:
-            key = self._transport.key_for(env.sender, env.run)
-            if key is not None or now - at >= JOIN_GRACE_S:
-                with self._lock:
-                    if self._pending.get(sender, (None, None))[1] is env:
-                        del self._pending[sender]
-                if key is not None:
-                    self._open(env, key)
-                else:
-                    self.count_rejected()
+        """A migrant message as it arrives (from any thread): see :class:`island.arrivals.Arrivals`."""
+        assert self.arrivals is not None
+        if sender != self.island:  # not our own publication, back through a subscription to every island's migrants
+            self.arrivals.receive(sender, data)
 
     def _follow_assignment(self) -> PopulationOptimizer:
         """The optimizer to go on with: this one, or its search carried on by the algorithm the
@@ -274,7 +248,7 @@ class IslandNode:
     def _migrate(self, optimizer: PopulationOptimizer) -> PopulationOptimizer:
         """After an iteration: follow a new assignment, take the starting point and the global best
         in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
-        assert self._transport is not None and self.credentials is not None
+        assert self._transport is not None and self.credentials is not None and self.arrivals is not None
         optimizer = self._follow_assignment()
         if optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
             x = np.array(self.config.start, dtype=float)[None, :]
@@ -295,7 +269,7 @@ class IslandNode:
             self.receive(sender, data)
         with self._lock:
             self.stats["sent"] += 1
-        self._listed()
+        self.arrivals.listed()
         roster = self._transport.members()
         senders = in_neighbours(mig.topology, self._sending(roster), self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k)
         self._take(self._intake(senders, set(roster), mig.k))
@@ -305,26 +279,19 @@ class IslandNode:
         """The members (in the order they joined) that sent migrants within the transport's ``silent_s``,
         and this island: a member that sends nothing is no ring neighbour."""
         silent_s = self._transport.silent_s if self._transport is not None else None
-        if silent_s is None:
+        if silent_s is None or self.arrivals is None:
             return members
-        now = time.monotonic()
-        with self._lock:
-            heard = {sender for sender, (at, _) in self._latest.items() if now - at <= silent_s}
+        heard = self.arrivals.heard(silent_s)
         return [m for m in members if m == self.island or m in heard]
 
     def _intake(self, senders: set[str], members: set[str], k: int) -> list[np.ndarray]:
-        """The newest untaken message of each in-neighbour (at most ``k`` migrants from each); migrants
-        of non-members older than :data:`JOIN_GRACE_S` are forgotten."""
-        now = time.monotonic()
+        """The newest untaken message of each in-neighbour (at most ``k`` migrants from each)."""
+        assert self.arrivals is not None
         batches = []
-        with self._lock:
-            for sender, (at, m) in list(self._latest.items()):
-                if sender in senders:
-                    if self._taken.get(sender) != (m.run, m.seq):
-                        batches.append(m.x[:k])
-                        self._taken[sender] = (m.run, m.seq)
-                elif sender not in members and now - at >= JOIN_GRACE_S:
-                    del self._latest[sender]
+        for m in self.arrivals.newest(senders, members):
+            if self._taken.get(m.island) != (m.run, m.seq):
+                batches.append(m.x[:k])
+                self._taken[m.island] = (m.run, m.seq)
         return batches
 
     def _take(self, batches: list[np.ndarray]) -> None:

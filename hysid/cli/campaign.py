@@ -18,7 +18,6 @@ import sys
 import threading
 import time
 import warnings
-import zlib
 from pathlib import Path
 from typing import Optional
 
@@ -40,12 +39,12 @@ from hysid_model.errors import HysidInputError, HysidWarning
 from island.algorithms import check_algorithm
 from island.config import MAX_SEED, CampaignConfig, decode_config
 from island.migration import Migration
-from island.node import IslandNode
+from island.host import cores, describe, host_specs, run_islands
 from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret, secret_path
 from island.session import DEFAULT_ENDPOINT, authenticated_name, open_session, session_config
 from island.termination import Termination
-from island.transports import ZenohTransport, fetch_config
-from island.wire import check_name
+from island.transports import fetch_config
+from island.wire import MAX_MEMBERS, check_name
 
 
 MAX_WAIT_S = 86400.0
@@ -268,9 +267,14 @@ def register(app: typer.Typer) -> None:
             help=f"The campaign secret its coordinator wrote (DB-CAMPAIGN.secret beside its database; waited for up to --wait); "
                  f"or give its text in ${SECRET_ENV}, or the file in ${SECRET_FILE_ENV}.",
         ),
+        count: str = typer.Option(
+            "1", "--count",
+            help="Islands in this process, threads over one Zenoh session: a number, or 'cores' for one per core the process may run on "
+                 "(under SLURM its task's CPUs). Several islands are ID-0, ID-1, ... with seeds SEED, SEED+1, ...",
+        ),
         quiet: bool = typer.Option(False, "--quiet", help="Print nothing but errors."),
     ) -> None:
-        """Join a campaign: fetch its loop set, optimize, migrate, report history until told to stop."""
+        """Join a campaign: fetch its loop set, optimize, migrate, report history until told to stop (--count: many islands)."""
         check_name("campaign", name)
         if algo is not None:
             check_algorithm(algo)
@@ -278,6 +282,7 @@ def register(app: typer.Typer) -> None:
             raise HysidInputError("seeds must be from 0 to 2**62", param="seed", value=seed)
         if not 0 <= wait <= MAX_WAIT_S:  # also NaN
             raise HysidInputError(f"must be from 0 to {MAX_WAIT_S:g} seconds", param="wait", value=wait)
+        islands = island_count(count)
         zconfig = session_config("client", connect=connect, config_file=config_file, connect_timeout_s=wait)
         identity = authenticated_name(zconfig)
         if island_id is not None and identity is not None and island_id != identity:
@@ -298,31 +303,50 @@ def register(app: typer.Typer) -> None:
             waiting.cancel()
         try:
             config, loops = decode_config(message, name)
-            seed_ = seed if seed is not None else config.seed + zlib.crc32(island.encode()) % (1 << 20)
-            algo_ = algo or config.algo_for(seed_)
-            node = IslandNode(island, algo_, seed_, config, config.objective(loops))
-            transport = ZenohTransport(session, node, secret, wait, notify=say)
-            try:
-                node.run(transport)
-            finally:
-                transport.close()
+            specs = host_specs(island, islands, config, algo, seed)
+            hosted = run_islands(session, secret, config, loops, specs, wait_s=wait, notify=say)
         finally:
             session.close()
-        if node.confirmed is False:
-            warnings.warn(HysidWarning(
-                f"island {node.island}: the coordinator did not confirm its history within {wait:g} s; rows sent since its last "
-                "confirmation may be missing from the campaign database"
-            ), stacklevel=1)
-        if not quiet:
-            rows = node.rows
-            best = rows[-1][1] if rows else float("inf")
-            s = node.stats
-            print(
-                f"island {node.island} ({algo_.upper()}, seed {seed_}): best {best:.6g} after {rows[-1][0] if rows else 0} iterations, "
-                f"{rows[-1][2] if rows else 0:,} evaluations; {node.stop_reason}; migrant messages sent {s['sent']}, "
-                f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}",
-                file=sys.stderr,
+        failed = [h for h in hosted if h.error is not None]
+        if len(hosted) == 1 and failed:
+            raise failed[0].error  # one island: its error as it is
+        for h in hosted:
+            if h.error is not None or h.node is None:
+                continue
+            node = h.node
+            if node.confirmed is False:
+                warnings.warn(HysidWarning(
+                    f"island {node.island}: the coordinator did not confirm its history within {wait:g} s; rows sent since its last "
+                    "confirmation may be missing from the campaign database"
+                ), stacklevel=1)
+            if not quiet:
+                rows = node.rows
+                best = rows[-1][1] if rows else float("inf")
+                s = node.stats
+                print(
+                    f"island {node.island} ({node.algo.upper()}, seed {node.seed}): best {best:.6g} after {rows[-1][0] if rows else 0} iterations, "
+                    f"{rows[-1][2] if rows else 0:,} evaluations; {node.stop_reason}; migrant messages sent {s['sent']}, "
+                    f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}",
+                    file=sys.stderr,
+                )
+        if failed:
+            raise HysidInputError(
+                f"{len(failed)} of {len(hosted)} islands of this process failed: "
+                + "; ".join(f"{h.spec.id}: {describe(h.error)}" for h in failed[:3]) + ("; ..." if len(failed) > 3 else "")
             )
+
+
+def island_count(text: str) -> int:
+    """``--count``: a number of islands, or ``cores`` (one per core this process may run on)."""
+    if text.strip().lower() == "cores":
+        return cores()
+    try:
+        n = int(text)
+    except ValueError:
+        raise HysidInputError("must be a number of islands or 'cores'", param="count", value=text) from None
+    if not 1 <= n <= MAX_MEMBERS:
+        raise HysidInputError(f"must be from 1 to {MAX_MEMBERS} islands (or 'cores')", param="count", value=text)
+    return n
 
 
 def keep_secret(secret: CampaignSecret, path: Path) -> Path:

@@ -33,6 +33,7 @@ FLAGS = {
     "noise_seeds": "--seeds-noise",
     "n_points": "--points",
     "islands": "--islands",
+    "count": "--count",
     "campaign": "--campaign",
     "name": "--campaign",
     "island": "--id",
