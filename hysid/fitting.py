@@ -34,6 +34,7 @@ from hysid_model.objective import Objective
 from hysid_model.problem import build_objective, starting_point
 from hysid_model.uncertainty import covariance, fisher_information, scaled_inverse
 from island.algorithms import check_algorithm
+from island.memetic import BUDGET, TIME_LIMIT_S, memetic_search, needs_islands
 from island.run import HistoryRow, RunResult, optimize
 from island.termination import Termination
 
@@ -235,6 +236,7 @@ def fit(
     options: dict[str, Any] | None = None,
     termination: Termination | None = None,
     progress: RunCallback | None = None,
+    islands: bool | None = None,
 ) -> FitResult:
     """Identify ``model``'s parameters from ``loops``: ``runs`` independent runs (seeds ``seed .. seed+runs-1``); the best is the result.
 
@@ -245,6 +247,12 @@ def fit(
     measured waveform, where the loops carry it) or ``"sine"`` (Eq. 4.5); ``start`` adds the
     survey's linear estimate to every run's population (:func:`hysid_model.problem.starting_point`);
     ``termination`` may end runs early; ``progress(run, row)`` is called after every iteration.
+
+    ``islands``: each run is a search of memetic islands in this process (:func:`island.memetic.memetic_search`:
+    several cooperating populations, refined by least squares, as a campaign's islands) instead of one
+    GA/PSO run and its polish; by default (None) on models with memory or a non-smooth force
+    (:func:`island.memetic.needs_islands`) unless ``options`` are given, within ``termination``'s budget
+    and time limit (else :data:`island.memetic.BUDGET` evaluations, :data:`island.memetic.TIME_LIMIT_S` s).
 
     Bounds the data suggested (soft, see :mod:`hysid_model.problem`) that the best run ends on are
     widened and every run repeated from that best, up to ``MAX_WIDENINGS`` times, before the result
@@ -258,13 +266,20 @@ def fit(
     objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement)
     first = starting_point(objective.loops, objective.model) if start else None
     widened: list[dict[str, Any]] = []
+    memetic = needs_islands(objective.model) and options is None if islands is None else bool(islands)
+    budget = BUDGET if termination is None or not termination.bounded else termination.budget
+    seconds = TIME_LIMIT_S if termination is None or not termination.bounded else termination.time_limit_s
 
     def search(objective: Objective, first: np.ndarray | None) -> list[RunResult]:
         out = []
         for i in range(runs):
             callback = None if progress is None else (lambda row, i=i: progress(i, row))
-            out.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options,
-                                termination=termination, callback=callback, start=first))
+            if memetic:
+                out.append(memetic_search(objective, [] if first is None else [first], seed + i, budget=budget, time_limit_s=seconds,
+                                          label=f"run {i + 1}", callback=callback))
+            else:
+                out.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options,
+                                    termination=termination, callback=callback, start=first))
         return out
 
     results = search(objective, first)
@@ -280,7 +295,7 @@ def fit(
         results = search(objective, best.theta)
         results[0].evaluations += spent  # what the narrower searches cost counts too
     settings = {
-        "algo": algo,
+        "algo": "memetic islands" if memetic else algo,
         "runs": runs,
         "seeds": list(range(seed, seed + runs)),
         "polish": polish,
