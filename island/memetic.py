@@ -65,8 +65,9 @@ STALL = 3
 """Refinement rounds without improvement after which an island that is not the best restarts."""
 FINAL_POLISH_NFEV = 2000
 """Residual calls of the final polish of the global best: enough to converge on a memory model."""
-BUDGET = 40_000
-"""Default evaluations of a search."""
+BUDGET = 10_000
+"""Default evaluations of a search (and of a campaign on such a model): enough for the hard problems of
+``hysid bench search``, a few seconds on ten loops."""
 TIME_LIMIT_S = 40.0
 """Default time limit of ``hysid fit``'s search (the final polish comes after it): a fit within a minute."""
 ISLAND_OPTIONS = {"population": POPULATION, "initial_population": 2 * POPULATION, "addpop_level": 1}

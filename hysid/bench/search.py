@@ -56,6 +56,7 @@ from coordinator.store import Store
 from hysid.bench.islands import NON_INFERIORITY_MARGIN, SPEEDUP_TARGET, paired, wilson
 from hysid.bench.search_peers import PEERS, pygmo_available
 from hysid.bench.search_problems import PROBLEMS, Problem, build
+from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
 from hysid_model.problem import build_objective
 from island.config import CampaignConfig
@@ -153,8 +154,10 @@ def speedup(budget: int, problem: Problem) -> dict[str, Any]:
 
 
 def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] = PROBLEMS, methods: tuple[str, ...] = METHODS,
-        budget: int = BUDGET, speedup_budget: int = SPEEDUP_BUDGET) -> dict[str, Any]:
-    """Search where it is hard: hysid's fit and campaigns against least squares, DE, CMA-ES and pygmo at equal budgets."""
+        budget: int = BUDGET, speedup_budget: int = SPEEDUP_BUDGET, partial: Path | None = None) -> dict[str, Any]:
+    """Search where it is hard: hysid's fit and campaigns against least squares, DE, CMA-ES and pygmo at equal budgets.
+
+    ``partial``: a file the results so far are written to after every problem (a long run's progress)."""
     if quick:
         seeds, problems, budget, speedup_budget = QUICK["seeds"], QUICK["problems"], QUICK["budget"], QUICK["speedup_budget"]
     elif seeds < MIN_SEEDS:
@@ -181,12 +184,14 @@ def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] =
             "samples_per_branch": problem.loops.n_samples, "parameters": len(problem.bounds), "memory": problem.memory,
             **summarize(runs), "fit_seed_spread": float(max(fits) / min(fits) - 1.0) if fits else None,
         }
-    peers = [m for m in methods if m in PEERS]
-    if CAMPAIGN in methods and peers:
-        out["judgement"] = judge(out["problems"], peers)
-        out["ok"] = out["judgement"]["ok"]
-    if "fit" in methods:
-        out["fit_seeds_agree"] = all(p["fit_seed_spread"] <= 0.01 for p in out["problems"].values())
+        peers = [m for m in methods if m in PEERS]
+        if CAMPAIGN in methods and peers:
+            out["judgement"] = judge(out["problems"], peers)
+            out["ok"] = out["judgement"]["ok"]
+        if "fit" in methods:
+            out["fit_seeds_agree"] = all(p["fit_seed_spread"] <= 0.01 for p in out["problems"].values())
+        if partial is not None:  # what a long run has so far, problem by problem
+            partial.write_text(jsondoc.dumps({**out, "bench_s": time.perf_counter() - began}, indent=2))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         target = built.get(SPEEDUP_PROBLEM) or build(SPEEDUP_PROBLEM)

@@ -53,8 +53,6 @@ CYCLES = 4
 NOISE_PCT = 1.0
 """Force noise, per cent of each record's peak force (the thesis' convention, Appendix A)."""
 DATA_SEED = 0
-import os
-WIDEN = os.environ.get("WIDEN", "1") == "1"
 
 MR_LEVELS = {
     "mr_damper_0v": {"c0": 1800.0, "k0": 1500.0, "f_y": 60.0, "zy": 0.05e-3},
@@ -224,9 +222,9 @@ def build(name: str) -> Problem:
         description = "the thesis model on 30 Synth loops, 1 % noise (easy control)"
     else:
         raise KeyError(name)
-    wide = [p.widened(True, True) if p.soft and WIDEN else p for p in prepare_model(loops, model).parameters]
+    wide = [p.widened(True, True) if p.soft else p for p in prepare_model(loops, model).parameters]
     bounds = {p.name: (p.lower, p.upper) for p in wide}
     return Problem(name, description, loops, model, bounds, truth)
 
 
-PROBLEMS = ("mr_damper_0v", "mr_damper_1v", "mr_damper_2v", "friction_bouc_wen", "wire_rope_sensor", "synth_bouc_wen_distorted", "thesis_easy")
+PROBLEMS = ("synth_bouc_wen_distorted", "mr_damper_0v", "friction_bouc_wen", "mr_damper_1v", "mr_damper_2v", "wire_rope_sensor", "thesis_easy")

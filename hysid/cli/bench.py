@@ -11,7 +11,8 @@ stores that JSON under ``bench/results/``.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from pathlib import Path
+from typing import Any, Optional
 
 import typer
 
@@ -63,9 +64,10 @@ def search_command(
     quick: bool = typer.Option(False, "--quick", help="3 seeds on two problems with small budgets: the machinery, not a verdict."),
     problems: str = typer.Option(",".join(search.PROBLEMS), "--problems", help="Comma-separated problems to run."),
     budget: int = typer.Option(search.BUDGET, "--budget", help="Evaluations of every search."),
+    partial: Optional[Path] = typer.Option(None, "--partial", help="Write the results so far to this JSON file after every problem."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    emit(search.run(seeds, quick, tuple(p for p in problems.split(",") if p), budget=budget), search.to_text, as_json)
+    emit(search.run(seeds, quick, tuple(p for p in problems.split(",") if p), budget=budget, partial=partial), search.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
