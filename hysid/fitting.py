@@ -16,6 +16,7 @@ and the half-power cross-check of the damping (Eq. 2.7, Fig. 6.1).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +39,10 @@ from island.memetic import BUDGET, TIME_LIMIT_S, memetic_search, needs_islands
 from island.run import HistoryRow, RunResult, optimize
 from island.termination import Termination
 
+WIDENED_SHARE = 0.25
+"""The share of the budget of a memetic search after a widening: it starts from the best so far."""
+MIN_SEARCH_S = 1.0
+"""The least time a memetic run is given once the fit's time limit is spent (its final polish follows)."""
 RunCallback = Callable[[int, HistoryRow], None]
 """Called with (run index, history row) after every iteration of a run."""
 
@@ -269,14 +274,17 @@ def fit(
     memetic = needs_islands(objective.model) and options is None if islands is None else bool(islands)
     budget = BUDGET if termination is None or not termination.bounded else termination.budget
     seconds = TIME_LIMIT_S if termination is None or not termination.bounded else termination.time_limit_s
+    deadline = None if seconds is None else time.monotonic() + seconds
+    """The memetic runs share the time limit, the searches after a widening included."""
 
-    def search(objective: Objective, first: np.ndarray | None) -> list[RunResult]:
+    def search(objective: Objective, first: np.ndarray | None, share: float = 1.0) -> list[RunResult]:
         out = []
         for i in range(runs):
             callback = None if progress is None else (lambda row, i=i: progress(i, row))
             if memetic:
-                out.append(memetic_search(objective, [] if first is None else [first], seed + i, budget=budget, time_limit_s=seconds,
-                                          label=f"run {i + 1}", callback=callback))
+                left = None if deadline is None else max((deadline - time.monotonic()) / (runs - i), MIN_SEARCH_S)
+                out.append(memetic_search(objective, [] if first is None else [first], seed + i, budget=None if budget is None else max(int(share * budget), 1),
+                                          time_limit_s=left, label=f"run {i + 1}", callback=callback))
             else:
                 out.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options,
                                     termination=termination, callback=callback, start=first))
@@ -292,7 +300,7 @@ def fit(
         widened += [{"param": name, "from": old[name], "to": [float(b) for b in pair]} for name, pair in changed.items()]
         spent = sum(r.evaluations for r in results)
         objective = Objective(objective.loops, wider, weights=objective.weights)
-        results = search(objective, best.theta)
+        results = search(objective, best.theta, WIDENED_SHARE)
         results[0].evaluations += spent  # what the narrower searches cost counts too
     settings = {
         "algo": "memetic islands" if memetic else algo,
