@@ -160,8 +160,8 @@ def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] =
     ``partial``: a file the results so far are written to after every problem (a long run's progress)."""
     if quick:
         seeds, problems, budget, speedup_budget = QUICK["seeds"], QUICK["problems"], QUICK["budget"], QUICK["speedup_budget"]
-    elif seeds < MIN_SEEDS:
-        raise HysidInputError(f"the success rates need at least {MIN_SEEDS} seeds (--quick for a look)", param="seeds", value=seeds)
+    elif seeds < 3:
+        raise HysidInputError("the success rates need at least 3 seeds (--quick for a look)", param="seeds", value=seeds)
     unknown = [p for p in problems if p not in PROBLEMS]
     if unknown:
         raise HysidInputError(f"unknown problem; choose from {', '.join(PROBLEMS)}", param="problems", value=unknown[0])
@@ -171,7 +171,7 @@ def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] =
         methods, skipped["pygmo"] = tuple(m for m in methods if m != "pygmo"), why
     began = time.perf_counter()
     out: dict[str, Any] = {"problems": {}, "budget_evaluations": budget, "seeds": seeds, "quick": quick, "skipped": skipped,
-                           "success_rtol": SUCCESS_RTOL}
+                           "success_rtol": SUCCESS_RTOL, "preliminary": quick or seeds < MIN_SEEDS}
     built = {}
     for name in problems:
         with warnings.catch_warnings():
@@ -187,7 +187,7 @@ def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] =
         peers = [m for m in methods if m in PEERS]
         if CAMPAIGN in methods and peers:
             out["judgement"] = judge(out["problems"], peers)
-            out["ok"] = out["judgement"]["ok"]
+            out["ok"] = None if out["preliminary"] else out["judgement"]["ok"]
         if "fit" in methods:
             out["fit_seeds_agree"] = all(p["fit_seed_spread"] <= 0.01 for p in out["problems"].values())
         if partial is not None:  # what a long run has so far, problem by problem
@@ -207,7 +207,8 @@ LABELS = {"fit": "hysid fit", "campaign_2_processes": "campaign 2 proc", "campai
 
 def to_text(result: dict[str, Any]) -> str:
     lines = [f"search ({result['seeds']} seeds, {result['budget_evaluations']:,} evaluations each, success = within "
-             f"{result['success_rtol']:g} of the best fitness found){' QUICK' if result['quick'] else ''}"]
+             f"{result['success_rtol']:g} of the best fitness found){' QUICK' if result['quick'] else ''}"
+             f"{f' PRELIMINARY (fewer than {MIN_SEEDS} seeds: no verdict)' if result.get('preliminary') else ''}"]
     for name, p in result["problems"].items():
         lines.append(f"{name}: {p['description']} ({p['model']}, {p['loops']} loops x {p['samples_per_branch']} samples, best {p['best_fitness']:.8g})")
         for m, s in p["methods"].items():

@@ -60,7 +60,7 @@ def islands_command(
 
 @bench_app.command("search", help=(search.run.__doc__ or "").strip().splitlines()[0])
 def search_command(
-    seeds: int = typer.Option(search.MIN_SEEDS, "--seeds", help=f"Search seeds per problem and method (at least {search.MIN_SEEDS})."),
+    seeds: int = typer.Option(search.MIN_SEEDS, "--seeds", help=f"Search seeds per problem and method ({search.MIN_SEEDS} for a verdict; fewer: preliminary)."),
     quick: bool = typer.Option(False, "--quick", help="3 seeds on two problems with small budgets: the machinery, not a verdict."),
     problems: str = typer.Option(",".join(search.PROBLEMS), "--problems", help="Comma-separated problems to run."),
     budget: int = typer.Option(search.BUDGET, "--budget", help="Evaluations of every search."),
