@@ -23,8 +23,9 @@ populations, is done here in one process, deterministically for a seed:
 * ring migration of each island's :data:`MIGRANTS` best every
   :data:`MIGRATE_EVERY` iterations, as a campaign's islands do;
 * restarts: an island whose best has not improved for :data:`STALL` refinement
-  rounds and lies above the global best (it sits in a basin the others beat)
-  starts afresh from a new uniform draw, so the budget keeps exploring;
+  rounds (other than the island holding the global best, which the search also
+  keeps) starts afresh from a new uniform draw and takes no migrants for
+  :data:`QUIET` iterations, so the budget keeps exploring other basins;
 * the global best is polished to convergence at the end, with a budget that
   does not run out on memory models (:data:`FINAL_POLISH_NFEV` residual calls).
 
@@ -62,7 +63,11 @@ REFINE_NFEV = 30
 MIGRATE_EVERY = 3
 MIGRANTS = 2
 STALL = 3
-"""Refinement rounds without improvement after which an island that is not the best restarts."""
+"""Refinement rounds without improvement after which an island restarts (all but the one holding the best:
+with migration the others soon hold the same best, and a basin that every island shares is the one a
+restart must be free to leave)."""
+QUIET = 9
+"""Iterations for which a restarted island takes no migrants: else the old best pulls it back at once."""
 FINAL_POLISH_NFEV = 2000
 """Residual calls of the final polish of the global best: enough to converge on a memory model."""
 BUDGET = 10_000
@@ -139,8 +144,9 @@ class Island:
 
     @property
     def best(self) -> tuple[np.ndarray, float]:
+        """The island's best and its fitness (inf, at the bounds' centre, before its first population)."""
         x, f = self.optimizer.best(1)
-        return x[0], float(f[0])
+        return (x[0], float(f[0])) if f.size else (self.bounds.mean(axis=1), np.inf)
 
 
 def memetic_search(
@@ -212,14 +218,15 @@ def memetic_search(
         if round_ % MIGRATE_EVERY == 0 and len(pool) > 1:
             outgoing = [island.optimizer.best(MIGRANTS) for island in pool]
             for i, island in enumerate(pool):
-                x, f = outgoing[i - 1]
-                island.optimizer.inject(x, f)  # the fitness was evaluated here, in this process
+                if island.restarts == 0 or island.optimizer.iteration >= QUIET:
+                    x, f = outgoing[i - 1]
+                    island.optimizer.inject(x, f)  # the fitness was evaluated here, in this process
         leader = min(range(len(pool)), key=lambda i: pool[i].best[1])
         x, f = pool[leader].best
         if f < best_f:
             best_u, best_f = x.copy(), f
         for i, island in enumerate(pool):
-            if i != leader and island.stalled >= STALL and island.best[1] > best_f * (1 + 1e-6):
+            if i != leader and island.stalled >= STALL:
                 island.restart()
         row = HistoryRow(round_, best_f, space.evaluations, time.perf_counter() - began)
         rows.append(row)

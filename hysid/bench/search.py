@@ -112,7 +112,7 @@ def summarize(runs: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
             "median_evaluations_to_success": float(np.median([e for e, _ in reached])) if reached else None,
             "median_s_to_success": float(np.median([t for _, t in reached])) if reached else None,
             "median_s": float(np.median([r["wall_s"] for r in rs])), "median_evaluations": float(np.median([r["evaluations"] for r in rs])),
-            "fitness_over_best_quantiles": {q: float(np.quantile(f / best - 1.0, q / 100)) for q in (0, 25, 50, 75, 100)},
+            "fitness_over_best_quantiles": {str(q): float(np.quantile(f / best - 1.0, q / 100)) for q in (0, 25, 50, 75, 100)},
             "success": ok.tolist(),
         }
     return out
@@ -215,7 +215,7 @@ def to_text(result: dict[str, Any]) -> str:
             e, t = s["median_evaluations_to_success"], s["median_s_to_success"]
             lines.append(f"  {LABELS.get(m, m):26s} {100 * s['success_rate']:5.1f} % [{100 * s['wilson95'][0]:.0f}-{100 * s['wilson95'][1]:.0f}]"
                          f"  to success: {'-' if e is None else f'{e:,.0f} evaluations, {t:.2f} s'}"
-                         f"  median fitness/best - 1: {s['fitness_over_best_quantiles'][50]:.2g} (worst {s['fitness_over_best_quantiles'][100]:.2g})")
+                         f"  median fitness/best - 1: {s['fitness_over_best_quantiles']['50']:.2g} (worst {s['fitness_over_best_quantiles']['100']:.2g})")
         if p.get("fit_seed_spread") is not None:
             lines.append(f"  fit's seeds agree within {100 * p['fit_seed_spread']:.3g} % of the fitness")
     for peer, why in result["skipped"].items():
