@@ -28,7 +28,7 @@ from hysid_model.model import Model
 from hysid_model.errors import HysidInputError
 from hysid_model.problem import prepare_model
 from island.config import CampaignConfig, decode_config
-from island.memetic import BUDGET, ISLAND_OPTIONS, needs_islands
+from island.memetic import BUDGET, ISLAND_OPTIONS
 from island.migration import Migration
 from island.termination import Termination
 from island.wire import MessageRejected, check_name
@@ -147,10 +147,11 @@ def islands_until_stopped(termination: Termination | None, options: Mapping[str,
 
 def default_options(loops: LoopSet, model: str | Model, bounds: Mapping[str, tuple[float, float]] | None = None,
                     algos: list[str] | tuple[str, ...] = ("ga", "pso")) -> dict[str, dict[str, Any]] | None:
-    """The islands' settings when none are given: on a model with memory or a non-smooth force the small
-    swarms of memetic islands (:data:`island.memetic.ISLAND_OPTIONS`, the PSO moving as one swarm), else
-    None (the thesis' settings)."""
-    if not needs_islands(prepare_model(loops, model, bounds=bounds)):
+    """The islands' settings when none are given: on a model with memory (whose islands refine their best,
+    :mod:`island.node`) the small swarms of memetic islands (:data:`island.memetic.ISLAND_OPTIONS`, the PSO
+    moving as one swarm), else None (the thesis' settings; a campaign on a memoryless model, Coulomb
+    friction's included, searches as before)."""
+    if not prepare_model(loops, model, bounds=bounds).has_memory:
         return None
     return {a: {**ISLAND_OPTIONS, **({"synchronous": True} if a == "pso" else {})} for a in algos}
 
@@ -193,8 +194,7 @@ def campaign(
     algorithm each island runs meanwhile is the ``share``'s). By default (None) that holds when ``termination`` has an
     evaluation budget or a time limit and no ``options`` give ``iterations``.
 
-    On a model with memory or a non-smooth force (:func:`island.memetic.needs_islands`) the islands are
-    memetic by default: small swarms (:func:`default_options`) whose best each island refines by least
+    On a model with memory (Bouc-Wen) the islands are memetic by default: small swarms (:func:`default_options`) whose best each island refines by least
     squares (:mod:`island.node`), within a budget of :data:`island.memetic.BUDGET` evaluations unless
     ``termination`` says otherwise.
 

@@ -19,7 +19,7 @@ evaluate -> tell) and uses its hooks:
 * who is a member, and the stop order, come from the coordinator's sealed
   ``control`` messages (a liveliness token alone makes nobody a member);
 * a late joiner takes the coordinator's current global best the same way;
-* on a model with memory or a non-smooth force, every ``REFINE_EVERY`` iterations its best is
+* on a model with memory (Bouc-Wen), every ``REFINE_EVERY`` iterations its best is
   refined by a short bounded least-squares polish (memetic islands, :mod:`island.memetic`); the
   refinement's evaluations count with its own;
 * when the roster assigns its run another algorithm (a mixed campaign's
@@ -47,7 +47,7 @@ from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer, switch_algorithm
 from island.config import CampaignConfig
-from island.memetic import REFINE_EVERY, Refiner, needs_islands
+from island.memetic import REFINE_EVERY, Refiner
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
@@ -127,8 +127,8 @@ class IslandNode:
     ) -> None:
         self.island = check_name("island", island)
         self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.island_options(algo))
-        self.refiner = Refiner(objective) if isinstance(objective, Objective) and needs_islands(objective.model) else None
-        """Memetic refinement of the island's best on models with memory or a non-smooth force (:mod:`island.memetic`)."""
+        self.refiner = Refiner(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
+        """Memetic refinement of the island's best on models with memory (:mod:`island.memetic`)."""
         self.algo = algo
         self.seed = seed
         self.config = config
