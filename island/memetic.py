@@ -27,7 +27,7 @@ populations, is done here in one process, deterministically for a seed:
   keeps) starts afresh from a new uniform draw and takes no migrants for
   :data:`QUIET` iterations, so the budget keeps exploring other basins;
 * the global best is polished to convergence at the end, with a budget that
-  does not run out on memory models (:data:`FINAL_POLISH_NFEV` residual calls).
+  does not run out on memory models (:data:`island.polish.MEMORY_NFEV` residual calls).
 
 The budget (``budget`` evaluations and/or ``time_limit_s``) counts every model
 evaluation: candidates, residual vectors and Jacobian probes
@@ -47,7 +47,7 @@ import numpy as np
 from hysid_model.errors import HysidInputError
 from hysid_model.model import Model
 from hysid_model.terms import Kinematics
-from island.polish import polish
+from island.polish import MEMORY_NFEV, polish
 from island.population import MAX_ITERATIONS, PopulationOptimizer
 from island.pso import PSO
 from island.run import HistoryRow, RunResult
@@ -68,8 +68,6 @@ with migration the others soon hold the same best, and a basin that every island
 restart must be free to leave)."""
 QUIET = 9
 """Iterations for which a restarted island takes no migrants: else the old best pulls it back at once."""
-FINAL_POLISH_NFEV = 2000
-"""Residual calls of the final polish of the global best: enough to converge on a memory model."""
 BUDGET = 10_000
 """Default evaluations of a search (and of a campaign on such a model): enough for the hard problems of
 ``hysid bench search``, a few seconds on ten loops."""
@@ -234,7 +232,7 @@ def memetic_search(
             callback(row)
     assert best_u is not None
     search_theta, search_f = space.space.to_theta(best_u), best_f
-    final = polish(space, best_u, max_nfev=FINAL_POLISH_NFEV)
+    final = polish(space, best_u, max_nfev=MEMORY_NFEV)
     theta = space.space.to_theta(final.theta if final.fitness <= best_f else best_u)
     fitness = float(objective(theta[None, :])[0])
     return RunResult(
