@@ -116,3 +116,14 @@ def test_fit_runs_memetic_islands_on_memory_models_and_the_thesis_run_elsewhere(
 def test_run_method_runs_a_peer_on_a_problem(problem):
     out = run_method(problem, "least_squares", 0, 300)
     assert out["evaluations"] == 300 and np.isfinite(out["fitness"])
+
+
+def test_memetic_search_takes_the_diagnosis_objective(problem, objective):
+    """The diagnosis' refits call it on the harmonic objective (same contract as the Objective)."""
+    from hysid_model.harmonics import HarmonicObjective, Harmonics
+
+    harmonic = HarmonicObjective(Harmonics.from_loops(problem.loops), objective.model)
+    start = starting_point(problem.loops, objective.model)
+    result = memetic_search(harmonic, [start], 1, budget=400)
+    assert result.fitness <= float(harmonic(start[None, :])[0]) and np.all(np.isfinite(result.theta))
+    assert np.all((result.theta >= harmonic.bounds[:, 0]) & (result.theta <= harmonic.bounds[:, 1]))
