@@ -90,6 +90,7 @@ def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOut
         "stop_rules": c.termination.as_dict(),
         "stop_reason": c.stop_reason or c.store.stop_reason(c.name),
         "db": c.store.path,
+        "displacement": c.config.displacement,
         "bounds_from_data": list(c.config.soft),
         "bounds_widened": widened,
     }

@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from hysid import effects, models
     from hysid.campaigns import CampaignResult, campaign
-    from hysid.diagnosis.selection import Diagnosis, diagnose
+    from hysid.diagnosis.result import Diagnosis
+    from hysid.diagnosis.selection import diagnose
     from hysid.fitting import FitResult, fit
     from hysid_model.datasets import load_dataset as load
     from hysid_model.errors import HysidInputError, HysidWarning
@@ -39,7 +40,7 @@ _EXPORTS = {
     "models": ("hysid.models", None),
     "CampaignResult": ("hysid.campaigns", "CampaignResult"),
     "campaign": ("hysid.campaigns", "campaign"),
-    "Diagnosis": ("hysid.diagnosis.selection", "Diagnosis"),
+    "Diagnosis": ("hysid.diagnosis.result", "Diagnosis"),
     "diagnose": ("hysid.diagnosis.selection", "diagnose"),
     "FitResult": ("hysid.fitting", "FitResult"),
     "fit": ("hysid.fitting", "fit"),
@@ -77,22 +78,4 @@ def __dir__() -> list[str]:
     return sorted(list(globals()) + list(_EXPORTS))
 
 
-__all__ = [
-    "CampaignResult",
-    "Diagnosis",
-    "FitResult",
-    "HysidInputError",
-    "HysidWarning",
-    "LoopSet",
-    "Migration",
-    "Model",
-    "Parameter",
-    "Termination",
-    "campaign",
-    "diagnose",
-    "effects",
-    "fit",
-    "load",
-    "models",
-    "__version__",
-]
+__all__ = sorted(_EXPORTS) + ["__version__"]

@@ -11,6 +11,7 @@ islands, migrations and membership events.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +23,7 @@ from coordinator.progress import CampaignProgress
 from coordinator.server import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
+from hysid.motion import choose_motion
 from hysid.report import jsondoc, markdown, tables, text
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
@@ -165,7 +167,7 @@ def campaign(
     bounds: Mapping[str, tuple[float, float]] | None = None,
     fixed: Mapping[str, float] | None = None,
     weights: str | None = None,
-    displacement: str = "measured",
+    displacement: str = "auto",
     algos: list[str] | tuple[str, ...] = ("ga", "pso"),
     options: dict[str, dict[str, Any]] | None = None,
     migration: Migration | None = None,
@@ -205,16 +207,21 @@ def campaign(
     """
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
+    motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
     if options is None and (options := default_options(loops, model, bounds, algos)) is not None and termination is None:
         termination = Termination(budget=BUDGET)
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
-        options=options, migration=migration, seed=seed, min_islands=islands, displacement=displacement,
+        options=options, migration=migration, seed=seed, min_islands=islands, displacement=motion.displacement,
         until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped, share=share,
     )
     store = Store(db)
     try:
         coordinator = Coordinator(store, config, loops, termination, dataset=dataset or loops.name)
-        return finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish))
+        began = time.perf_counter()
+        result = finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish))
+        result.fit.settings["displacement_model"] = motion.as_dict()
+        result.fit.settings["wall_s"] = time.perf_counter() - began
+        return result
     finally:
         store.close()

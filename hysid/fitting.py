@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from hysid.identifiability import Identifiability, assess, one_amplitude
+from hysid.motion import MotionChoice, choose_motion, confirm_motion
 from hysid.report import markdown, tables, text
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
@@ -76,7 +77,7 @@ class FitResult:
         theta = runs[best].theta
         loops, model = objective.loops, objective.model
         if objective.weights == "ml":
-            method = "Cramer-Rao bound of the ML weights, noise sigma known"
+            method = f"Cramer-Rao bound of the ML weights, noise sigma {loops.sigma_source}"
         else:
             source = "known" if loops.has_sigma else "estimated from the residuals"
             method = f"sandwich covariance of the thesis-weighted least squares, noise sigma {source}"
@@ -141,9 +142,24 @@ class FitResult:
         return None if not noise else float(self.quality["rms_residual_pct"]) / noise  # type: ignore[arg-type]
 
     @property
+    def displacement_model(self) -> dict[str, Any] | None:
+        """Which displacement drove the model (the measured waveform, its fundamental, the ideal sine), how
+        that was decided and the evidence (:class:`hysid.motion.MotionChoice`)."""
+        stored = self.settings.get("displacement_model")
+        if stored is None and "displacement" in self.settings:  # a campaign rebuilt from its database
+            return MotionChoice(self.settings["displacement"], "stored", "as the campaign was configured").as_dict()
+        return stored
+
+    @property
     def at_bounds(self) -> list[str]:
-        """Parameters that ended on a bound of the search space (the optimum may lie beyond it)."""
-        return self.model.at_bounds(self.theta)
+        """Parameters that ended on a bound: a physical limit (an answer: no damping of that kind), or a bound
+        of the search space, derived from the data or given (the optimum may lie beyond it); :attr:`bound_kinds` says which."""
+        return list(self.bound_kinds)
+
+    @property
+    def bound_kinds(self) -> dict[str, str]:
+        """Each parameter on a bound with which bound it is (:meth:`hysid_model.model.Model.bound_kinds`)."""
+        return self.model.bound_kinds(self.theta)
 
     def objective(self) -> Objective:
         """A fresh objective of this fit (same loops, model and weights)."""
@@ -163,6 +179,8 @@ class FitResult:
             "bounds": {p.name: [p.lower, p.upper] for p in self.model.parameters},
             "fixed": self.model.fixed,
             "at_bounds": self.at_bounds,
+            "at_bounds_kind": self.bound_kinds,
+            "displacement_model": self.displacement_model,
             **self.identifiability.to_dict(),
             "derived": [a.as_dict() for a in self.amplitudes],
             "half_power": [
@@ -235,7 +253,7 @@ def fit(
     runs: int = 1,
     seed: int = 0,
     weights: str | None = None,
-    displacement: str = "measured",
+    displacement: str = "auto",
     polish: bool = True,
     start: bool = True,
     options: dict[str, Any] | None = None,
@@ -248,8 +266,10 @@ def fit(
     ``model`` is a string (``"thesis+coulomb_friction"``) or a :class:`~hysid_model.model.Model`;
     ``bounds`` (``{"w0": (10, 200)}``) and ``fixed`` (``{"meq": 0.2}``) override the dataset's and
     the model's; ``options`` are the algorithm's settings (``population``, ``initial_population``,
-    ``iterations``, ...; the thesis' by default); ``displacement`` is ``"measured"`` (each loop's
-    measured waveform, where the loops carry it) or ``"sine"`` (Eq. 4.5); ``start`` adds the
+    ``iterations``, ...; the thesis' by default); ``displacement`` is ``"auto"`` (the data decide
+    whether each loop's measured waveform is the motion or the sensor's distortion of its fundamental,
+    :mod:`hysid.motion`; the choice and its evidence are ``result.displacement_model``), ``"measured"``,
+    ``"fundamental"`` or ``"sine"`` (Eq. 4.5, as the thesis); ``start`` adds the
     survey's linear estimate to every run's population (:func:`hysid_model.problem.starting_point`);
     ``termination`` may end runs early; ``progress(run, row)`` is called after every iteration.
 
@@ -268,7 +288,9 @@ def fit(
         raise HysidInputError("the number of runs must be at least 1", param="runs", value=runs)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise HysidInputError("seeds must be non-negative integers", param="seed", value=seed)
-    objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement)
+    began = time.perf_counter()
+    motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
+    objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=motion.displacement)
     first = starting_point(objective.loops, objective.model) if start else None
     widened: list[dict[str, Any]] = []
     memetic = needs_islands(objective.model) and options is None if islands is None else bool(islands)
@@ -290,25 +312,38 @@ def fit(
                                     termination=termination, callback=callback, start=first))
         return out
 
-    results = search(objective, first)
-    for _ in range(MAX_WIDENINGS):
-        best = min(results, key=lambda r: r.fitness)
-        wider, changed = objective.model.widen_at(best.theta)
-        if not changed:
-            break
-        old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
-        widened += [{"param": name, "from": old[name], "to": [float(b) for b in pair]} for name, pair in changed.items()]
-        spent = sum(r.evaluations for r in results)
-        objective = Objective(objective.loops, wider, weights=objective.weights)
-        results = search(objective, best.theta, WIDENED_SHARE)
-        results[0].evaluations += spent  # what the narrower searches cost counts too
+    def identify(objective: Objective, first: np.ndarray | None) -> tuple[Objective, list[RunResult]]:
+        results = search(objective, first)
+        for _ in range(MAX_WIDENINGS):
+            best = min(results, key=lambda r: r.fitness)
+            wider, changed = objective.model.widen_at(best.theta)
+            if not changed:
+                break
+            old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
+            widened.extend({"param": name, "from": old[name], "to": [float(b) for b in pair]} for name, pair in changed.items())
+            spent = sum(r.evaluations for r in results)
+            objective = Objective(objective.loops, wider, weights=objective.weights)
+            results = search(objective, best.theta, WIDENED_SHARE)
+            results[0].evaluations += spent  # what the narrower searches cost counts too
+        return objective, results
+
+    objective, results = identify(objective, first)
+    best = min(results, key=lambda r: r.fitness)
+    flipped = confirm_motion(loops, objective.model, best.theta, motion)
+    if flipped is not None:  # the fitted model reads the displacement the other way: refit under that reading
+        motion, spent = flipped, sum(r.evaluations for r in results)
+        objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=motion.displacement)
+        objective, results = identify(objective, np.clip(best.theta, objective.bounds[:, 0], objective.bounds[:, 1]))
+        results[0].evaluations += spent
     settings = {
         "algo": "memetic islands" if memetic else algo,
         "runs": runs,
         "seeds": list(range(seed, seed + runs)),
         "polish": polish,
         "weights": objective.weights,
-        "displacement": "measured" if objective.loops.measured_displacement else "sine",
+        "wall_s": time.perf_counter() - began,
+        "displacement": motion.displacement,
+        "displacement_model": motion.as_dict(),
         "model": objective.model.spec,
         "options": dict(options or {}),
         "bounds_from_dataset": sorted(n for n in (loops.meta.get("bounds") or {}) if n in objective.model.names),

@@ -18,6 +18,12 @@ standard errors (a pseudo-inverse of a singular Fisher matrix) misleads. So:
    parameter whose profile rises is identifiable after all (the singularity
    was local) and is not named.
 
+4. correlation: a parameter whose correlation with another exceeds
+   ``CORRELATION_LIMIT`` in magnitude (the covariance's condition at unit
+   diagonal beyond 1 / (1 - 0.999)) is named too, by the same priority: its
+   standard error would be the other's in disguise (an MR damper's xi0, w0 and
+   meq at 0.9997 say only what its stiffness and damping are).
+
 Standard errors and the correlation matrix come from the covariance with the
 named parameters held at their values; the named ones get none. Loops at a
 single amplitude level never search S_xi, S_w (they are fixed at 0 before the
@@ -45,6 +51,8 @@ PROFILE_POINTS = (-0.5, 0.5)
 PROFILE_NFEV = 60
 FLAT = 1.0
 """Largest rise of the profile's chi^2 (noise units) for the parameter to count as undetermined."""
+CORRELATION_LIMIT = 0.999
+"""|correlation| beyond which one of the two parameters is named as not identifiable (step 4 of the module docstring)."""
 
 
 @dataclass
@@ -168,9 +176,30 @@ def assess(objective: Any, theta: np.ndarray, covariance_of: Callable[[Any, np.n
         if profile_rise(objective, theta, name, noise, rebuild) < FLAT:
             with_what = f" with {', '.join(partners)}" if partners else ""
             named[name] = f"trades off{with_what}: the data determine only their combination (flat profile)"
-    cov = np.full((len(names), len(names)), np.nan)
-    keep = [i for i, n in enumerate(names) if n not in named]
-    if keep:
-        reduced = rebuild(model.fix({n: float(theta[names.index(n)]) for n in named})) if named else objective
-        cov[np.ix_(keep, keep)] = covariance_of(reduced, theta[keep])
-    return Identifiability(names=names, not_identifiable=named, covariance=cov)
+    while True:
+        cov = np.full((len(names), len(names)), np.nan)
+        keep = [i for i, n in enumerate(names) if n not in named]
+        if keep:
+            reduced = rebuild(model.fix({n: float(theta[names.index(n)]) for n in named})) if named else objective
+            cov[np.ix_(keep, keep)] = covariance_of(reduced, theta[keep])
+        found = correlated(cov, names, naming_priority(model))
+        if found is None:
+            return Identifiability(names=names, not_identifiable=named, covariance=cov)
+        name, others, r = found
+        named[name] = f"is correlated with {', '.join(others)} (|r| up to {r:.4f}): the data determine only their combination"
+
+
+def correlated(cov: np.ndarray, names: list[str], priority: list[str]) -> tuple[str, list[str], float] | None:
+    """The first parameter by ``priority`` whose correlation with another exceeds ``CORRELATION_LIMIT``, the
+    parameters it is so correlated with, and the largest |r|; None if no pair does."""
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.abs(cov / np.outer(se, se))
+    np.fill_diagonal(r, 0.0)
+    r = np.where(np.isfinite(r), r, 0.0)
+    for name in priority:
+        i = names.index(name)
+        partners = [names[j] for j in np.argsort(-r[i]) if r[i, j] > CORRELATION_LIMIT]
+        if partners:
+            return name, partners, float(r[i].max())
+    return None

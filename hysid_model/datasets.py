@@ -157,24 +157,25 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     ``estimated_manifest``, the ``manifest.csv`` that would fix those frequencies.
     """
     extracted = []
-    for source in sources:
-        series = source.read()
-        extracted.append(extract_loop(
-            series.t, series.x, series.force, source=series.source, n_points=n_points,
-            nominal_freq_hz=source.nominal_hz, steady_window=config.window(source.window_key),
-        ))
-        del series
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", HysidWarning)
+        for source in sources:
+            series = source.read()
+            extracted.append(extract_loop(
+                series.t, series.x, series.force, source=series.source, n_points=n_points,
+                nominal_freq_hz=source.nominal_hz, steady_window=config.window(source.window_key),
+            ))
+            del series
+    once_each(caught, len(sources))
     labels = [s.label for s in sources]
     per_loop: dict[str, list[Any]] = {
         "file": [s.file for s in sources], "nominal_frequency_hz": [math.nan if s.nominal_hz is None else s.nominal_hz for s in sources],
     }
     for key in extracted[0].meta():
         per_loop[key] = [e.meta()[key] for e in extracted]
-    plausibility.warn_loops(
-        labels, np.array([e.x0 for e in extracted]), np.array([e.force_amplitude for e in extracted]),
-        np.array([e.x_distortion for e in extracted]), np.array([e.drift for e in extracted]),
-        [e.clipping for e in extracted], str(config.directory),
-    )
+    facts = plausibility.Measured(*(np.array([getattr(e, name) for e in extracted]) for name in (
+        "freq_hz", "x0", "force_amplitude", "phase_deg", "x_distortion", "force_distortion", "drift")))
+    plausibility.warn_loops(labels, facts, [e.clipping for e in extracted], str(config.directory))
     meta = config.meta()
     meta.update({"format": fmt, "per_loop": per_loop})
     estimated = [k for k, s in enumerate(sources) if s.nominal_hz is None]
@@ -202,6 +203,19 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
         meta=meta,
         x_harmonics=stack_harmonics([e.x_harmonics for e in extracted]),
     )
+
+
+def once_each(caught: list[warnings.WarningMessage], records: int) -> None:
+    """Warn again what reading ``records`` records warned, each message once, with how many records said it
+    (a header without units in 32 files is one warning, not 32)."""
+    counts: dict[str, int] = {}
+    for w in caught:
+        if issubclass(w.category, HysidWarning):
+            counts[str(w.message)] = counts.get(str(w.message), 0) + 1
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    for message, count in counts.items():
+        warnings.warn(HysidWarning(message + (f" (in {count} of {records} records)" if count > 1 else "")), stacklevel=4)
 
 
 def stack_harmonics(rows: list[np.ndarray]) -> np.ndarray:

@@ -24,8 +24,10 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
    for the ideal sine arcsin(x_i / X0) and pi - arcsin(x_i / X0)), exactly the
    phases :meth:`LoopSet.phases` gives the model.
    Each branch value is a local-quadratic fit of the force over all cycles
-   in a phase window around theta_i, or, where the samples fall on too few
-   distinct phases, the force's harmonics at theta_i (:mod:`hysid_model.branches`).
+   in a phase window around theta_i, widened where its samples do not
+   determine the fit (a sample rate that is a ratio of small integers times
+   the frequency bunches them on a few phases), or, where the samples fall on
+   too few distinct phases, the force's harmonics at theta_i (:mod:`hysid_model.branches`).
    The displacement's harmonics (orders 1-7) are kept with the loop,
    so that the model sees the measured waveform, and their distortion (rms of
    harmonics 2..7 over the fundamental) is reported;
@@ -36,10 +38,14 @@ x (``reinterpolate``); those samples are what Eq. 3.3 / Fig. 5.1 compares.
 6. noise: sigma_raw, the std of one raw force sample about the mean cycle,
    from the scatter about the local fits (:mod:`hysid_model.branches`); the
    loop's ``sigma`` is sigma_raw sqrt(mean v_i), the noise of the branch
-   samples *as stored* (v_i: each value's variance factor), which
-   maximum-likelihood weights and Cramer-Rao bounds need;
-7. checks (:mod:`hysid_model.plausibility`): displacement distortion,
-   clipping of the displacement or its velocity, amplitude drift.
+   samples *as stored* (v_i: each value's variance factor, counting the
+   samples that overlapping windows share), which maximum-likelihood weights
+   and Cramer-Rao bounds need;
+7. checks (:mod:`hysid_model.plausibility`): displacement and force
+   distortion, clipping of the displacement, the force or the velocity,
+   amplitude drift; the set's unit slips and swapped columns are checked
+   when every record is extracted. A record no loop can come from (values
+   beyond ``LARGEST``, a force that never changes) is an error.
 
 Every step is linear in the record length (no sliding windows over cycles).
 """
@@ -52,7 +58,7 @@ import warnings
 import numpy as np
 
 from hysid_model import plausibility, steady, waveform
-from hysid_model.branches import branch_values, harmonic_design
+from hysid_model.branches import branch_values, half_cycle_phases, harmonic_design, reversal_guard, smooth_part
 from hysid_model.errors import HysidInputError, HysidWarning
 
 FREQ_TOLERANCE = 0.02
@@ -66,6 +72,9 @@ DISTORTION_FLOOR = 1e-5
 """...and so is one below 10 ppm of the fundamental (rounding, and leakage from a frequency known to ~1e-6)."""
 CYCLE_SLACK = 0.02
 """Fraction of a period by which the whole cycles may overrun a given window."""
+LARGEST = 1e100
+"""Largest displacement (m) or force (N) a record may hold: squared and summed over millions of samples a larger
+value overflows (1e300 did, into NaN cycle counts); no physical record comes anywhere near it."""
 
 
 @dataclass
@@ -86,6 +95,8 @@ class ExtractedLoop:
     x_offset: float
     x_peak: float
     x_distortion: float
+    force_distortion: float
+    """THD of the force (rms of its harmonics 2..7 over the first): a check of swapped columns."""
     force_mean: float
     window_s: tuple[float, float]
     samples_per_point: float
@@ -108,6 +119,7 @@ class ExtractedLoop:
             "x_offset_m": self.x_offset,
             "x_peak_m": self.x_peak,
             "x_distortion": self.x_distortion,
+            "force_distortion": self.force_distortion,
             "force_mean_n": self.force_mean,
             "steady_t0_s": self.window_s[0],
             "steady_t1_s": self.window_s[1],
@@ -187,6 +199,19 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     return float(k / (nfft * dt))
 
 
+def _check_values(x: np.ndarray, force: np.ndarray, source: str) -> None:
+    """Records no loop can come from: a value beyond ``LARGEST`` in size, or a force that never changes."""
+    for values, what, unit in ((x, "displacement", "m"), (force, "force", "N")):
+        peak = float(np.max(np.abs(values))) if values.size else 0.0
+        if peak > LARGEST:
+            raise HysidInputError(
+                f"{source}: the {what} reaches {peak:.3g} {unit}, beyond any physical {what} and beyond what the fits' "
+                "sums of squares keep in floating point (a corrupt file, or a column of another quantity?)"
+            )
+    if force.size and np.ptp(force) == 0:
+        raise HysidInputError(f"{source}: the force is {force[0]:g} N in every sample: no loop to extract (a load cell not connected?)")
+
+
 def _too_few_cycles(source: str, found: int, of: int) -> HysidInputError:
     return HysidInputError(
         f"{source}: fewer than 2 steady cycles (longest run of steady cycles: {found} of {of}); "
@@ -201,7 +226,8 @@ def _auto_window(t: np.ndarray, x: np.ndarray, force: np.ndarray, f0: float, sou
     if n_cycles < 2:
         raise HysidInputError(f"{source}: fewer than 2 steady cycles: the whole record holds {(t[-1] - t[0]) * f0:.2f} cycles at {f0:.6g} Hz")
     fits = steady.cycle_fits(t, [x, force], t[0], f0, n_cycles)
-    start, length = steady.steady_run(fits.amplitude, fits.amplitude_noise())
+    sampling = steady.sampling_error(t, [x, force], t[0], f0, n_cycles)
+    start, length = steady.steady_run(fits.amplitude, fits.amplitude_noise(), sampling)
     if length < 2:
         raise _too_few_cycles(source, length, n_cycles)
     freq = steady.phase_slope_frequency(fits, f0, start, start + length)
@@ -287,6 +313,7 @@ def extract_loop(
     automatically.
     """
     t, x, force = (np.asarray(a, dtype=float) for a in (t, x, force))
+    _check_values(x, force, source)
     f0 = _spectral_frequency(t, x, source)
     if steady_window is None:
         t_a, t_b, freq, fits = _auto_window(t, x, force, f0, source)
@@ -315,20 +342,28 @@ def extract_loop(
     theta = w * (ts - t_a)
     harmonics = max(1, min(X_HARMONICS, int((ts.size / cycles - 1) // 2)))  # below the Nyquist frequency
     design = harmonic_design(theta, harmonics)
-    cx, cf = np.linalg.solve(design @ design.T, np.stack([design @ xs, design @ fs], axis=1)).T
+    gram = design @ design.T
+    projection = np.stack([design @ xs, design @ fs], axis=1)
+    cx, cf = np.linalg.solve(gram, projection).T
     x0 = float(np.hypot(cx[1], cx[2]))
     phi = float(np.arctan2(cx[2], cx[1]))
     phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
     force_mean = _cycle_mean(t, force, t_a, t_end)
     x_residual = xs - cx @ design
-    del design
+    del design  # (2K + 1) x N: rebuilt in pieces for the smooth part, where a record needs it
     x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - (2 * harmonics + 1), 1)))
     xh, thd = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
     lo, hi = (float(r[0]) for r in waveform.reversals(xh))
     x_min, x_max = (float(e[0]) for e in waveform.extremes(xh))
     grid = np.linspace(x_min, x_max, n_points)
     sample_phases = waveform.branch_phases(xh, grid[None], grid[None])[0]
-    values, var, sigma_raw, overlap, force_harmonics = branch_values(theta + phi, fs - force_mean, sample_phases, (lo, hi), ts.size / cycles)
+    psi = half_cycle_phases(theta + phi, (lo, hi))
+    centred = fs - force_mean
+    values, var, sigma_raw, overlap, force_harmonics = branch_values(
+        psi, centred, sample_phases, (lo, hi), ts.size / cycles, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
+        lambda: smooth_part(theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred,
+                            harmonic_design(sample_phases - phi, harmonics)),
+    )
     first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
     used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]
     return ExtractedLoop(
@@ -345,11 +380,13 @@ def extract_loop(
         x_offset=float(cx[0]),
         x_peak=float(np.abs(xs - cx[0]).max()),
         x_distortion=thd,
+        force_distortion=float(np.sqrt(np.sum(np.hypot(cf[3::2], cf[4::2]) ** 2)) / max(float(np.hypot(cf[1], cf[2])), 1e-300)),
         force_mean=force_mean,
         window_s=(float(ts[0]), float(ts[-1])),
         samples_per_point=float(np.mean(1.0 / var)),
         window_overlap=overlap,
         force_harmonics=force_harmonics,
         drift=tuple(float(d) for d in plausibility.amplitude_drift(used)),
-        clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), xh, freq),
+        clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), plausibility.mean_cycle(theta / (2 * np.pi), fs),
+                                       plausibility.saturation(fs), xh, freq),
     )

@@ -179,6 +179,8 @@ def half_power(freq_hz: np.ndarray, comp: np.ndarray, x0: float = float("nan")) 
 
     if f.size < 3:
         return unavailable(f"needs at least 3 frequencies, has {f.size}")
+    if not np.all(np.isfinite(h) & (h > 0)):
+        return unavailable("a loop's compliance is zero or infinite (no displacement or no force)")
     u = (2.0 * np.pi * f) ** 2
     q = 1.0 / h**2
     k = int(np.argmin(q))
@@ -188,8 +190,9 @@ def half_power(freq_hz: np.ndarray, comp: np.ndarray, x0: float = float("nan")) 
     u_peak, q_peak = u[k], q[k]
     if coef[0] > 0:
         vertex = -coef[1] / (2.0 * coef[0]) * u[k]
-        if u[k - 1] <= vertex <= u[k + 1]:
-            u_peak, q_peak = vertex, float(np.polyval(coef, vertex / u[k]))
+        refined = float(np.polyval(coef, vertex / u[k]))
+        if u[k - 1] <= vertex <= u[k + 1] and refined > 0:  # a parabola through a sharp peak may dip below 0
+            u_peak, q_peak = vertex, refined
     level = 2.0 * q_peak
     below = np.flatnonzero(q[:k] >= level)
     above = np.flatnonzero(q[k + 1 :] >= level) + k + 1
@@ -198,9 +201,11 @@ def half_power(freq_hz: np.ndarray, comp: np.ndarray, x0: float = float("nan")) 
     if above.size == 0:
         return unavailable("no -3 dB point above the peak (sweep ends too close to resonance)", f[k], h[k])
     i1, i2 = int(below[-1]), int(above[0])
-    w1 = np.sqrt(_crossing(u, q, i1, i1 + 1, level))
-    w2 = np.sqrt(_crossing(u, q, i2, i2 - 1, level))
+    w1 = np.sqrt(max(_crossing(u, q, i1, i1 + 1, level), 0.0))
+    w2 = np.sqrt(max(_crossing(u, q, i2, i2 - 1, level), 0.0))
     w_peak = np.sqrt(u_peak)
+    if not (np.isfinite(w2) and w1 < w_peak < w2):
+        return unavailable("the -3 dB points do not bracket the peak (too few frequencies across the resonance)", f[k], h[k])
     f_peak = w_peak / (2.0 * np.pi)
     resolution = ((f[i1 + 1] - f[i1]) + (f[i2] - f[i2 - 1])) / (4.0 * f_peak)
     return HalfPower(

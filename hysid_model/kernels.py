@@ -327,10 +327,30 @@ def bouc_wen_shifted(
                 out[p, l, n] += kp * (z - mn)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _past_jump(offset: float, before: float, after: float) -> float:
+    """:func:`hysid_model.waveform.past_jump` for one sample (``offset`` strictly inside its cell)."""
+    peak = -0.5 * before if after <= 0.0 else (0.5 * after if before <= 0.0 else 0.0)
+    width = 0.5 * (before + after)
+    if offset >= peak:
+        return (after - offset) ** 2 / (2.0 * (after - peak)) / width
+    return 1.0 - (offset + before) ** 2 / (2.0 * (peak + before)) / width
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _jump_in_cell(reversal: float, shift: float, theta: float, before: float, after: float, jump: float, past: bool) -> float:
+    """What averaging the jump ``jump`` at ``reversal`` + ``shift`` over the cell of the sample at ``theta``
+    adds to its point value (which is past the jump if ``past``): 0 unless the jump is inside the cell."""
+    offset = (reversal + shift - theta + math.pi) % TWO_PI - math.pi
+    if offset <= -before or offset >= after:
+        return 0.0
+    return jump * (_past_jump(offset, before, after) - (1.0 if past else 0.0))
+
+
 @njit(cache=True, nogil=True)
 def velocity_sign_chain(
     amplitude: np.ndarray, shift: np.ndarray, rho: np.ndarray, xh: np.ndarray, waves: np.ndarray, phase: np.ndarray,
-    x0: np.ndarray, theta_lo: np.ndarray, theta_hi: np.ndarray, n_top: int, out: np.ndarray,
+    x0: np.ndarray, theta_lo: np.ndarray, theta_hi: np.ndarray, n_top: int, before: np.ndarray, after: np.ndarray, out: np.ndarray,
 ) -> None:
     """out[p, l, n] += amplitude[p, l] y(theta_n - shift[p, l]): sgn(x') delayed by ``shift`` and, where
     ``rho[p, l]`` = w_c / w > 0, through the single-pole high-pass G = s / (s + w_c) (Eq. 4.1-4.2).
@@ -341,7 +361,10 @@ def velocity_sign_chain(
     A = 2 (1 - E2) / (1 - E1 E2) after the jump up and -B = -2 (1 - E1) / (1 - E1 E2) after the
     jump down, E_i = exp(-rho T_i). Where the velocity at the shifted phase vanishes
     (|x'| < 1e-9 X0: the sample is at a reversal) the branch is the sample's own, loading for the
-    first ``n_top`` samples, as :meth:`hysid_model.model.Model.memory_force` decides.
+    first ``n_top`` samples, as :meth:`hysid_model.model.Model.memory_force` decides. A jump of +-2 that
+    the shift moves into a sample's cell (``before`` and ``after`` it, ``(L, N)``:
+    :func:`hysid_model.waveform.sample_cells`) is averaged over the cell (:func:`_jump_in_cell`), as the
+    reference does.
     """
     xs = np.empty((2, xh.shape[2]))
     for p in range(amplitude.shape[0]):
@@ -358,6 +381,10 @@ def velocity_sign_chain(
                 _, v = _motion(waves, l, n, xs)
                 tie = abs(v) < 1e-9 * x0[l]
                 loading = (n < n_top) if tie else v > 0.0
+                theta, b, a = phase[l, n], before[l, n], after[l, n]
+                cell = _jump_in_cell(theta_lo[l], shift[p, l], theta, b, a, 2.0, loading)
+                cell += _jump_in_cell(theta_hi[l], shift[p, l], theta, b, a, -2.0, not loading)
+                out[p, l, n] += f * cell
                 if rh <= 0.0:
                     out[p, l, n] += f if loading else -f
                     continue

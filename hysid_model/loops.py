@@ -16,8 +16,12 @@ import numpy as np
 
 from hysid_model import waveform
 from hysid_model.errors import HysidInputError
+from hysid_model.terms import Kinematics
 
 
+MOTIONS = ("measured", "fundamental")
+"""What a loop set's displacement harmonics are: the specimen's motion, or the sensor's distortion of a motion
+that is the fundamental alone (:attr:`LoopSet.motion`)."""
 INERTIA_LIMIT = 1e6
 """A known mass whose inertia force exceeds the measured forces a million times is a typo (a specimen at
 resonance with a damping ratio of 1e-4 stays at 5e3)."""
@@ -33,7 +37,11 @@ class LoopSet:
     (then it is fitted). ``x_harmonics`` ``(L, K)`` complex is each loop's
     measured displacement as harmonics of its fundamental
     (:mod:`hysid_model.waveform`), None where the displacement is taken as the
-    ideal sine X0 sin(wt) of Eq. 4.5. ``meta["per_loop"]``, when present, maps
+    ideal sine X0 sin(wt) of Eq. 4.5. ``motion`` says what those harmonics are:
+    ``"measured"``, the specimen's motion (the model is driven by the whole
+    waveform), or ``"fundamental"``, the displacement sensor's distortion (the
+    motion is the fundamental X0 sin(theta); the harmonics still place every
+    sample at its phase, :meth:`phases`). ``meta["per_loop"]``, when present, maps
     names to lists with one entry per loop (kept aligned by :meth:`subset`).
     """
 
@@ -48,6 +56,7 @@ class LoopSet:
     labels: list[str] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
     x_harmonics: np.ndarray | None = None
+    motion: str = "measured"
 
     def __post_init__(self) -> None:
         self.freq_hz = np.asarray(self.freq_hz, dtype=float).reshape(-1)
@@ -87,6 +96,8 @@ class LoopSet:
                     f"{self.name}: meq_kg = {self.meq_kg:g} kg is not plausible: its inertia force m w^2 X0 reaches {inertia:.3g} N, "
                     f"more than {INERTIA_LIMIT:g} times the largest measured force ({measured:.3g} N)"
                 )
+        if self.motion not in MOTIONS:
+            raise HysidInputError(f"{self.name}: the motion must be one of {', '.join(MOTIONS)}, not {self.motion!r}")
         if self.x_harmonics is not None:
             self.x_harmonics = waveform.check(self.x_harmonics, self.name)
             if self.x_harmonics.shape[0] != n_loops:
@@ -117,13 +128,34 @@ class LoopSet:
         return bool(np.all(np.isfinite(self.sigma)) and np.all(self.sigma > 0))
 
     @property
+    def sigma_source(self) -> str:
+        """Where ``sigma`` comes from, in words: estimated from the records' scatter (loops extracted from raw
+        records), given (a loops file, the noise added to the Synth set), or unknown."""
+        if not self.has_sigma:
+            return "unknown"
+        if "sigma_raw_n" in (self.meta.get("per_loop") or {}):
+            return "estimated from the scatter of the records' cycles"
+        return "given"
+
+    @property
     def measured_displacement(self) -> bool:
         """True when the loops carry their measured displacement harmonics (not the ideal sine)."""
         return self.x_harmonics is not None
 
+    @property
+    def sensor_distortion(self) -> bool:
+        """True when the displacement's harmonics are the sensor's and the motion is the fundamental."""
+        return self.x_harmonics is not None and self.motion == "fundamental"
+
     def displacement_harmonics(self) -> np.ndarray:
-        """``(L, K)`` displacement harmonics: the measured ones, else the ideal sine's (K = 1)."""
-        return waveform.ideal(self.x0) if self.x_harmonics is None else self.x_harmonics
+        """``(L, K)`` harmonics of the motion: the measured ones, else (the ideal sine, or a sensor's
+        distortion of it) the fundamental's (K = 1)."""
+        return self.x_harmonics if self.x_harmonics is not None and self.motion == "measured" else waveform.ideal(self.x0)
+
+    def kinematics(self) -> Kinematics:
+        """The motion a model of these loops is driven by (:class:`~hysid_model.terms.Kinematics`): X0, w and,
+        where the measured waveform is the motion, its harmonics."""
+        return Kinematics(x0=self.x0, omega=self.omega, xh=self.x_harmonics if self.motion == "measured" else None)
 
     def phases(self) -> np.ndarray:
         """Phase wt of every sample, shape ``(L, 2n)``: top branch first, then bottom.
@@ -145,7 +177,7 @@ class LoopSet:
 
     def rows(self) -> list[dict[str, Any]]:
         """One dict per loop: label, frequency, X0, peak force, noise sigma, cycles (+ phase, displacement
-        distortion and clipping, ``clipped`` "displacement"/"velocity" at ``clip_level`` m or m/s, when extracted
+        distortion and clipping, ``clipped`` "displacement"/"force"/"velocity" at ``clip_level`` m, N or m/s, when extracted
         from raw records); ``hysid loops --json``."""
         per_loop = self.meta.get("per_loop", {})
         out = []
@@ -183,6 +215,7 @@ class LoopSet:
             labels=[self.labels[i] for i in idx],
             meta=self._meta_subset(idx),
             x_harmonics=None if self.x_harmonics is None else self.x_harmonics[idx],
+            motion=self.motion,
         )
 
     def _meta_subset(self, idx: np.ndarray) -> dict[str, Any]:
@@ -195,7 +228,14 @@ class LoopSet:
     def as_ideal_sine(self) -> "LoopSet":
         """These loops with the displacement taken as the ideal sine X0 sin(wt) (the thesis' Eq. 4.5)."""
         out = self.subset(np.arange(self.n_loops))
-        out.x_harmonics = None
+        out.x_harmonics, out.motion = None, "measured"
+        return out
+
+    def with_motion(self, motion: str) -> "LoopSet":
+        """These loops with their displacement harmonics read as ``motion`` (:data:`MOTIONS`)."""
+        out = self.subset(np.arange(self.n_loops))
+        out.motion = motion
+        out.__post_init__()
         return out
 
     def with_meq(self, meq_kg: float | None) -> "LoopSet":

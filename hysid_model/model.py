@@ -1,13 +1,15 @@
 """A model is an ordered list of terms; this module evaluates it for a population.
 
-Presets: ``baseline`` = the oscillator of Eq. 4.4/4.6 with constant xi and wn;
-``thesis`` = the final model of Eq. 4.8-4.10 (xi0, S_xi, w0, S_w). Any effect
-of :data:`hysid_model.effects.EFFECTS` can be appended, ``thesis+<effect id>``.
+Presets (:data:`PRESETS`): ``baseline`` = the oscillator of Eq. 4.4/4.6 with
+constant xi and wn; ``thesis`` = the final model of Eq. 4.8-4.10 (xi0, S_xi,
+w0, S_w); ``mr_damper`` = the oscillator plus a Bouc-Wen spring with its
+exponent free, the simple Bouc-Wen model of a magnetorheological damper. Any
+effect of :data:`hysid_model.effects.EFFECTS` can be appended, ``thesis+<effect id>``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -15,6 +17,7 @@ import numpy as np
 from hysid_model import waveform
 from hysid_model.basis import design_matrix
 from hysid_model.effects import EFFECTS
+from hysid_model.effects.bouc_wen import BoucWen
 from hysid_model.errors import HysidInputError
 from hysid_model.params import Parameter, on_bounds
 from hysid_model.terms import (
@@ -33,6 +36,8 @@ from hysid_model.terms import (
 if TYPE_CHECKING:
     from hysid_model.sampled import SampledMemory
 
+PHYSICAL_LIMIT = "physical"
+"""The kind of a bound that is the end of a parameter's physical range (:meth:`Model.bound_kinds`)."""
 MAX_WIDENINGS = 3
 """How often a fit widens the data-derived bounds its best ends on (:meth:`Model.widen_at`) and refits."""
 
@@ -51,7 +56,31 @@ _SQUARE_WAVE = np.where(CHAIN_ORDERS % 2 == 1, 4.0 / (np.pi * np.maximum(CHAIN_O
 PRESETS: dict[str, tuple[str, ...]] = {
     "baseline": (),
     "thesis": (AmplitudeDependentDamping.id, AmplitudeDependentFrequency.id),
+    "mr_damper": (BoucWen.id,),
 }
+"""Preset -> the effects it adds to the oscillator."""
+
+PRESET_FREES: dict[str, tuple[str, ...]] = {"mr_damper": ("bw_n",)}
+"""Preset -> parameters its effects fix by default that it searches (the Bouc-Wen exponent of ``mr_damper``)."""
+
+PRESET_EXPLANATIONS: dict[str, str] = {
+    "baseline": "The 1-DOF oscillator of Eq. 4.4 / 4.6: mass, constant viscous damping ratio and natural frequency.",
+    "thesis": "The thesis' final model (Eq. 4.8-4.10): damping ratio and natural frequency linear in the amplitude.",
+    "mr_damper": (
+        "A magnetorheological damper as Spencer et al. (1997) model it without the internal dashpot: "
+        "F = c x' + k x + k_bw z, a Bouc-Wen spring (Eq. 2.1, exponent n free) beside the oscillator's "
+        "dashpot and spring (and mass)."
+    ),
+}
+"""Preset -> what it models (``hysid models``).
+
+``mr_damper`` is the simple Bouc-Wen model of Spencer et al. (1997), F = c0 x' + k0 x + alpha z: the
+oscillator's dashpot and spring are c0 and k0, the Bouc-Wen spring alpha z with the exponent n free.
+Their 'modified' model's internal dashpot c1 (with the spring k1 of the accumulator) is left out: it
+drives z by an internal displacement y with y' = (alpha z + c0 x' + k0 (x - y)) / (c0 + c1), which
+makes the damper a two-state system whose loops depend on the rate, so the orbit is no longer a
+function of the travel (:mod:`hysid_model.bouc_wen_orbit`) but would need a time integration per
+candidate, and c1 trades off with c0 and the shape of z on loops at one frequency."""
 
 
 class Model:
@@ -80,7 +109,7 @@ class Model:
         self._all: list[Parameter] = [self._overrides.get(params[i].name, params[i]) for i in order]
         self._params = [p for p in self._all if p.vary]
         self._fixed = {p.name: float(p.value) for p in self._all if not p.vary}  # type: ignore[arg-type]
-        self.spec = spec or spec_of(self.terms)
+        self.spec = spec or spec_of(self.terms, [p.name for p in self._params])
         self._sensors = [t for t in self.terms if isinstance(t, MeasurementTerm)]
         probe_kin = Kinematics(x0=np.ones(1), omega=np.ones(1))
         v, state = self.modal_state(self.bounds.mean(axis=1)[None, :], probe_kin)
@@ -189,12 +218,24 @@ class Model:
     def at_bounds(self, theta: np.ndarray) -> list[str]:
         """Free parameters of ``theta`` that sit on a bound of the search space that is not a physical
         limit (the optimum may lie beyond it; a friction force of 0 is an answer, not a search artifact)."""
+        return [name for name, kind, _, _ in self._on_bounds(theta) if kind != PHYSICAL_LIMIT]
+
+    def bound_kinds(self, theta: np.ndarray) -> dict[str, str]:
+        """Every free parameter of ``theta`` on a bound, with which (``"physical lower bound 0"``, ``"data-derived
+        upper bound 0.15"``, ``"given lower bound 100"``): its physical limit (a damping ratio of 0), a bound
+        derived from the data, or a bound that was given (by the user or the dataset)."""
+        return {name: f"{kind} {where} bound {side:g}" for name, kind, where, side in self._on_bounds(theta)}
+
+    def _on_bounds(self, theta: np.ndarray) -> list[tuple[str, str, str, float]]:
+        """(name, kind, "lower"/"upper", bound) of every free parameter of ``theta`` on a bound."""
         theta = np.asarray(theta, dtype=float).reshape(-1)
         out = []
         for p, value, hit in zip(self._params, theta, on_bounds(self.bounds, theta)):
-            side = p.lower if value - p.lower <= p.upper - value else p.upper
-            if hit and side not in p.physical:
-                out.append(p.name)
+            if hit:
+                low = value - p.lower <= p.upper - value
+                side = p.lower if low else p.upper
+                kind = PHYSICAL_LIMIT if side in p.physical else ("data-derived" if p.soft else "given")
+                out.append((p.name, kind, "lower" if low else "upper", side))
         return out
 
     def __add__(self, other: "Term | Model") -> "Model":
@@ -305,7 +346,13 @@ class Model:
         self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int, sgn: np.ndarray | None, memory_terms: list[Term]
     ) -> np.ndarray:
         """u(wt - w tau_d) + Re sum_k (G_k - 1) U_k exp(j k (wt - w tau_d)): the non-harmonic force u
-        (Coulomb's sgn, memory forces) through the chain's delay tau_d (exact) and gain G (Eq. 4.1-4.2)."""
+        (Coulomb's sgn, memory forces) through the chain's delay tau_d (exact) and gain G (Eq. 4.1-4.2).
+
+        sgn(x') jumps by +-2 at the reversals: where the delay moves a jump into a sample's cell
+        (:func:`hysid_model.waveform.sample_cells`) the sample sees it averaged over the cell, so that
+        the force, and chi^2, are continuously differentiable in the delay (a point sample would flip
+        as a reversal crosses it). Where no jump is in a cell (every sample at zero delay) that is sgn
+        at the sample itself."""
         n_pop = state.xi.shape[0]
         delay = np.broadcast_to(sum(np.asarray(t.delay(v, kin), dtype=float) for t in self._sensors), (n_pop, 1))[:, :, None]
         shifted = phase[None] - kin.omega[None, :, None] * delay
@@ -313,7 +360,13 @@ class Model:
         if sgn is not None:
             velocity = kin.displacement(shifted, 1)
             branch = np.where(np.arange(phase.shape[-1]) < n_top, 1.0, -1.0)
-            out += sgn[:, :, None] * np.where(np.abs(velocity) < 1e-9 * kin.x0[:, None], branch, np.sign(velocity))
+            sign = np.where(np.abs(velocity) < 1e-9 * kin.x0[:, None], branch, np.sign(velocity))
+            before, after = waveform.sample_cells(phase, n_top, *kin.reversals)
+            for reversal, jump, past in zip(kin.reversals, (2.0, -2.0), (sign > 0, sign < 0)):
+                offset = np.mod(reversal[None, :, None] + kin.omega[None, :, None] * delay - phase[None] + np.pi, 2 * np.pi) - np.pi
+                inside = (offset > -before) & (offset < after)
+                sign = sign + jump * np.where(inside, waveform.past_jump(offset, before, after) - past, 0.0)
+            out += sgn[:, :, None] * sign
         if memory_terms:
             out += sum(t.time_force(v, state, kin, shifted) for t in memory_terms)
         gain = np.ones((1, 1, CHAIN_ORDERS.size), dtype=complex)
@@ -357,19 +410,24 @@ class Model:
         return f"Model({self.spec!r}: {', '.join(self.names)}{fixed})"
 
 
-def spec_of(terms: Sequence[Term]) -> str:
-    """The model string of ``terms``: a preset, then ``+effect`` for every other term."""
+def spec_of(terms: Sequence[Term], free: Collection[str] = ()) -> str:
+    """The model string of ``terms`` with the parameters ``free`` searched: the preset that holds the most of
+    them, first the parameters it frees (so that :func:`build_model` frees them again), then ``+effect`` for
+    every other term."""
     ids = [t.id for t in terms if not isinstance(t, Oscillator)]
-    preset = "thesis" if all(i in ids for i in PRESETS["thesis"]) else "baseline"
+    fits = [name for name, effects in PRESETS.items() if set(effects) <= set(ids) and set(PRESET_FREES.get(name, ())) <= set(free)]
+    preset = max(fits, key=lambda name: (len(PRESET_FREES.get(name, ())), len(PRESETS[name])))
     return "+".join([preset] + [i for i in ids if i not in PRESETS[preset]])
 
 
 def build_model(spec: str = "thesis") -> Model:
-    """Build a model from ``baseline``/``thesis`` plus ``+effect`` ids (``thesis+coulomb_friction``).
+    """Build a model from a preset (:data:`PRESETS`) plus ``+effect`` ids (``thesis+coulomb_friction``).
 
-    Every parameter is free, the equivalent mass ``meq`` too; fix what is known
-    with :meth:`Model.fix` (:func:`hysid_model.problem.prepare_model` fixes a
-    dataset's known mass).
+    Every parameter is free, the equivalent mass ``meq`` too, except those an
+    effect fixes by default (the Bouc-Wen exponent ``bw_n`` = 1) and its preset
+    does not free (:data:`PRESET_FREES`); fix what is known with
+    :meth:`Model.fix` (:func:`hysid_model.problem.prepare_model` fixes a
+    dataset's known mass), free a fixed one with :meth:`Model.vary`.
     """
     if not isinstance(spec, str):
         raise HysidInputError("a model is a string such as 'thesis+coulomb_friction' or a hysid Model", param="model", value=spec)
@@ -384,7 +442,7 @@ def build_model(spec: str = "thesis") -> Model:
             raise HysidInputError(f"effect {part!r} is already in the model", param="model", value=spec)
         effect_ids.append(part)
     terms: list[Term] = [Oscillator()] + [EFFECTS[e]() for e in effect_ids]
-    return Model(terms, "+".join(parts))
+    return Model(terms, "+".join(parts)).vary(*PRESET_FREES.get(parts[0], ()))
 
 
 def as_model(model: "str | Model") -> Model:

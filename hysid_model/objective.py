@@ -7,9 +7,10 @@ summed with a loop weight (Appendix A, ``erreval``/``loopsweights``):
 * ``thesis``: w_j = (maxF_all / maxF_j) / NOS_j, NOS_j = samples of loop j;
 * ``ml``: w_j = 1 / sigma_j^2 (maximum likelihood for Gaussian force noise).
 
-The model sees each loop's displacement as the loop set holds it: the
-measured harmonics (:mod:`hysid_model.waveform`) where extraction found them,
-else the ideal sine of Eq. 4.5. Because the force is linear in basis features
+The model is driven by each loop's motion as the loop set holds it
+(:meth:`~hysid_model.loops.LoopSet.kinematics`): the measured harmonics
+(:mod:`hysid_model.waveform`) where extraction found them and they are the
+motion, else the fundamental, the ideal sine of Eq. 4.5. Because the force is linear in basis features
 with parameter-dependent
 coefficients a (:mod:`hysid_model.basis`), each loop's sum of squares is exact
 in closed form, ||Phi a - y||^2 = (a - a*)^T G (a - a*) + r_min, with the Gram
@@ -31,7 +32,7 @@ from hysid_model.basis import design_matrix
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from hysid_model.terms import Kinematics, ModalState, Values
+from hysid_model.terms import ModalState, Values
 
 Modal = tuple[Values, ModalState]
 """Parameter values and modal state of a population (:meth:`hysid_model.model.Model.modal_state`)."""
@@ -89,7 +90,7 @@ class Objective(ModelSpace):
         self.loops = loops
         self.model = model
         self.weights = weights
-        self.kin = Kinematics(x0=loops.x0, omega=loops.omega, xh=loops.x_harmonics)
+        self.kin = loops.kinematics()
         self.phase = loops.phases()
         self.y = loops.forces()
         self.loop_weight = loop_weights(loops, weights)

@@ -23,8 +23,9 @@ their islands, the diagnosis and the benches all come here):
 * the loop weights of Eq. 3.3 are the thesis' (Appendix A) or maximum
   likelihood (1/sigma^2), by default ML when every loop's noise is known;
 * the displacement is each loop's measured waveform where the loops carry it
-  (``displacement="measured"``, the default) or the ideal sine of Eq. 4.5
-  (``"sine"``, as the thesis assumed).
+  (``displacement="measured"``), the same samples driven by its fundamental alone
+  where the harmonics are the displacement sensor's (``"fundamental"``), or the
+  ideal sine of Eq. 4.5 (``"sine"``, as the thesis assumed); see :data:`DISPLACEMENTS`.
 """
 
 from __future__ import annotations
@@ -42,8 +43,11 @@ from hysid_model.survey import survey
 from hysid_model.synth import BOUNDS as TABLE_5_4
 from hysid_model.thesis_port import ThesisObjective
 
-DISPLACEMENTS = ("measured", "sine")
-"""How the model sees each loop's displacement: its measured harmonics, or the ideal sine X0 sin(wt) (Eq. 4.5)."""
+DISPLACEMENTS = ("measured", "fundamental", "sine")
+"""How the model sees each loop's displacement: its measured harmonics are the motion (``measured``); they are
+the sensor's distortion and the motion is their fundamental (``fundamental``: the harmonics only place the
+samples at their phases); or the ideal sine X0 sin(wt) of Eq. 4.5 on the samples as they are (``sine``, the
+thesis' assumption). ``hysid.motion`` decides between the first two from the data."""
 OBJECTIVES = ("closed_form", "thesis_port")
 """``closed_form``: the vectorized objective of Eq. 3.3 (:class:`~hysid_model.objective.Objective`);
 ``thesis_port``: the thesis' own loop-by-loop ``erreval`` (the expensive objective of the benchmarks)."""
@@ -64,7 +68,11 @@ def displaced(loops: LoopSet, displacement: str) -> LoopSet:
     """``loops`` with the displacement the model should see (see :data:`DISPLACEMENTS`)."""
     if displacement not in DISPLACEMENTS:
         raise HysidInputError(f"choose one of {', '.join(DISPLACEMENTS)}", param="displacement", value=displacement)
-    return loops.as_ideal_sine() if displacement == "sine" and loops.measured_displacement else loops
+    if not loops.measured_displacement:
+        return loops
+    if displacement == "sine":
+        return loops.as_ideal_sine()
+    return loops if loops.motion == displacement else loops.with_motion(displacement)
 
 
 def dataset_bounds(loops: LoopSet) -> dict[str, tuple[float, float]]:
@@ -82,9 +90,13 @@ def prepare_model(
     derived: Bounds | None = None,
 ) -> Model:
     """``model`` ready for ``loops``: the known mass fixed, soft bounds from the data (or ``derived``,
-    e.g. a campaign's, as they were), the dataset's and the caller's hard ``bounds``, then ``fixed`` values."""
+    e.g. a campaign's, as they were: its parameters were searched, so one that is fixed by default, such
+    as a freed Bouc-Wen exponent, is searched again), the dataset's and the caller's hard ``bounds``,
+    then ``fixed`` values."""
     m = as_model(model)
     bounds, fixed = dict(bounds or {}), dict(fixed or {})
+    if derived is not None:
+        m = m.vary(*(n for n in derived if n in m.fixed and n not in fixed))
     if loops.meq_kg is not None and "meq" in m.names and "meq" not in bounds and "meq" not in fixed:
         m = m.fix(meq=loops.meq_kg)
     given = dataset_bounds(loops)

@@ -12,7 +12,9 @@ once and evaluates a population through the kernels:
 * F sgn(x') delayed and through a single-pole high-pass exactly: the periodic
   response of G = s / (s + w_c) to the square wave sgn(x') is exponential
   between the reversals (:func:`hysid_model.kernels.velocity_sign_chain`);
-  the reference sums its first 128 harmonics (``CHAIN_ORDERS``) instead.
+  the reference sums its first 128 harmonics (``CHAIN_ORDERS``) instead. A
+  jump the delay moves into a sample's cell is averaged over the cell in both
+  (:func:`hysid_model.waveform.sample_cells`).
 
 What the kernels do not cover is evaluated by the reference, whole: a memory
 term without a sampler, a memory term behind a chain with a gain (the
@@ -59,8 +61,9 @@ class SampledMemory:
         self.gain = gains[0] if gains and self.compiled else None
         if self.compiled and model.filters_sgn:
             self.motion = kernels.motion_tables(kin.harmonics, self.phase)
-            lo, hi = (-0.5 * np.pi * np.ones(kin.x0.size), 0.5 * np.pi * np.ones(kin.x0.size)) if kin.xh is None else waveform.reversals(kin.xh)
+            lo, hi = kin.reversals
             self.theta_lo, self.theta_hi = np.ascontiguousarray(lo, dtype=float), np.ascontiguousarray(hi, dtype=float)
+            self.cells = tuple(np.ascontiguousarray(c) for c in waveform.sample_cells(self.phase, self.n_top, lo, hi))
             self.x0 = np.ascontiguousarray(kin.x0, dtype=float)
 
     def sum_of_squares(self, modal: tuple[Values, ModalState], coef: np.ndarray, features: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -94,5 +97,5 @@ class SampledMemory:
             if self.gain is not None:
                 rho = np.ascontiguousarray(np.broadcast_to(self.gain.corner(v) / self.kin.omega[None, :], state.xi.shape), dtype=float)
             assert shift is not None
-            kernels.velocity_sign_chain(sgn, shift, rho, *self.motion, self.phase, self.x0, self.theta_lo, self.theta_hi, self.n_top, out)
+            kernels.velocity_sign_chain(sgn, shift, rho, *self.motion, self.phase, self.x0, self.theta_lo, self.theta_hi, self.n_top, *self.cells, out)
         return out

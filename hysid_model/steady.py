@@ -5,11 +5,13 @@ hysid uses every steady whole cycle, found in two stages, both linear in the
 record length:
 
 1. amplitude (:func:`steady_run`): first-harmonic amplitudes of x and F in
-   every cycle (:func:`cycle_fits`, one batched 3-term least squares); the
+   every cycle (:func:`cycle_fits`, one batched 3-term least squares over
+   exactly one period each, its ends interpolated between samples); the
    steady cycles are the longest run whose amplitudes lie within a band
    (but for a few isolated cycles: scatter) around a straight line through them: +-``STEADY_TOLERANCE`` of the line
    or ``NOISE_SIGMAS`` robust standard deviations of the cycle-to-cycle
-   scatter, whichever is wider, with the line changing by at most
+   scatter, or what sampling a jumping force may put on an amplitude
+   (:func:`sampling_error`), whichever is wider, with the line changing by at most
    ``DRIFT_LIMIT`` over the run and bending by at most ``CURVATURE`` (a
    settling transient is curved, a drift straight). The reference is the run itself, not the
    largest amplitude, so the start-up overshoot and beating of a lightly
@@ -93,35 +95,67 @@ def per_cycle_sums(rows: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     return sums
 
 
-def cycle_fits(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: float, n_cycles: int) -> CycleFits:
-    """One 3-term least-squares fit per cycle [t_a + k/f, t_a + (k+1)/f), k < ``n_cycles``, of every signal (batched)."""
-    bounds = cycle_bounds(t, t_a, freq, n_cycles)
-    span = slice(bounds[0], bounds[-1])
-    n = bounds[-1] - bounds[0]
-    rows = np.empty((6 + 4 * len(signals), n + 1))
-    rows[:, n] = 0.0
-    sin, cos = rows[0, :n], rows[1, :n]
-    np.multiply(2 * np.pi * freq, t[span] - t_a, out=rows[2, :n])
-    np.sin(rows[2, :n], out=sin)
-    np.cos(rows[2, :n], out=cos)
-    np.multiply(sin, sin, out=rows[2, :n])
-    np.multiply(sin, cos, out=rows[3, :n])
-    np.multiply(cos, cos, out=rows[4, :n])
-    rows[5, :n] = t[span]
+def _fit_rows(t: np.ndarray, signals: list[np.ndarray], index: np.ndarray | slice, t_a: float, freq: float) -> np.ndarray:
+    """``(6 + 4 S, m + 1)``: sin, cos, their products and t, then y, y sin, y cos, y^2 per signal, at the samples
+    ``index`` (theta = 2 pi f (t - t_a)), and one zero column (:func:`per_cycle_sums`)."""
+    ts = t[index]
+    m = ts.size
+    rows = np.empty((6 + 4 * len(signals), m + 1))
+    rows[:, m] = 0.0
+    sin, cos = rows[0, :m], rows[1, :m]
+    np.multiply(2 * np.pi * freq, ts - t_a, out=rows[2, :m])
+    np.sin(rows[2, :m], out=sin)
+    np.cos(rows[2, :m], out=cos)
+    np.multiply(sin, sin, out=rows[2, :m])
+    np.multiply(sin, cos, out=rows[3, :m])
+    np.multiply(cos, cos, out=rows[4, :m])
+    rows[5, :m] = ts
     for k, y in enumerate(signals):
-        yk = rows[6 + 4 * k, :n]
-        yk[:] = y[span]
-        np.multiply(yk, sin, out=rows[7 + 4 * k, :n])
-        np.multiply(yk, cos, out=rows[8 + 4 * k, :n])
-        np.multiply(yk, yk, out=rows[9 + 4 * k, :n])
-    sums = per_cycle_sums(rows, bounds)
-    del rows
+        yk = rows[6 + 4 * k, :m]
+        yk[:] = y[index]
+        np.multiply(yk, sin, out=rows[7 + 4 * k, :m])
+        np.multiply(yk, cos, out=rows[8 + 4 * k, :m])
+        np.multiply(yk, yk, out=rows[9 + 4 * k, :m])
+    return rows
+
+
+def _exact_ends(t: np.ndarray, signals: list[np.ndarray], bounds: np.ndarray, t_a: float, freq: float,
+                sums: np.ndarray) -> np.ndarray:
+    """Turn the per-cycle sums of the samples in [T_k, T_k+1) into trapezoid sums over exactly that period (in place;
+    returns each cycle's weight in samples).
+
+    A cycle of a sample rate that is a ratio of small integers times the frequency holds one sample more every few
+    cycles (102.4 samples per cycle: 103 every fifth); a plain sum over its samples then covers 1 % more than a
+    period, and a force with strong harmonics leaks a few percent into that cycle's first harmonic, a pattern
+    repeating every few cycles that looks like an unsteady amplitude. With the ends of each period interpolated
+    between the samples on either side (alpha: where T_k falls between them), sample j before T_k moves
+    (1 - alpha)^2 / 2 of its row to the cycle after, sample j + 1 moves alpha^2 / 2 to the cycle before.
+    """
+    n = bounds.size - 1
+    before, after = np.clip(bounds - 1, 0, t.size - 1), np.clip(bounds, 0, t.size - 1)  # samples j and j + 1
+    t_k = t_a + np.arange(n + 1) / freq
+    inside = before < after
+    alpha = np.where(bounds == 0, 1.0, 0.0)  # no sample before the record's start: T_k is the first sample; none after: the last
+    alpha[inside] = np.clip((t_k[inside] - t[before[inside]]) / (t[after[inside]] - t[before[inside]]), 0.0, 1.0)
+    both = _fit_rows(t, signals, np.concatenate([before, after]), t_a, freq)[:, :-1]
+    move = 0.5 * (1 - alpha) ** 2 * both[:, : n + 1] - 0.5 * alpha**2 * both[:, n + 1 :]  # from cycle k - 1 to cycle k
+    sums[:, :n] -= move[:, 1:]
+    sums[:, :n] += move[:, :-1]
+    return np.diff(bounds) + (0.5 - alpha[:-1]) - (0.5 - alpha[1:])
+
+
+def cycle_fits(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: float, n_cycles: int) -> CycleFits:
+    """One 3-term least-squares fit per cycle [t_a + k/f, t_a + (k+1)/f), k < ``n_cycles``, of every signal (batched),
+    each over exactly its period (:func:`_exact_ends`)."""
+    bounds = cycle_bounds(t, t_a, freq, n_cycles)
+    sums = per_cycle_sums(_fit_rows(t, signals, slice(bounds[0], bounds[-1]), t_a, freq), bounds)
+    weight = _exact_ends(t, signals, bounds, t_a, freq, sums)
     count = np.diff(bounds).astype(float)
     s, c, ss, sc, cc = sums[:5]
-    gram = np.stack([np.stack([count, s, c], axis=-1), np.stack([s, ss, sc], axis=-1), np.stack([c, sc, cc], axis=-1)], axis=-2)
+    gram = np.stack([np.stack([weight, s, c], axis=-1), np.stack([s, ss, sc], axis=-1), np.stack([c, sc, cc], axis=-1)], axis=-2)
     few = count < 4  # a cycle cut short by the end of the record: no fit
     gram[few] = np.eye(3)
-    t_mid = sums[5] / np.maximum(count, 1.0)
+    t_mid = sums[5] / np.where(few, 1.0, weight)
     z, offset, resid = [], [], []
     for k in range(len(signals)):
         rhs = sums[6 + 4 * k : 9 + 4 * k].T
@@ -130,7 +164,7 @@ def cycle_fits(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: float
         ss_res = sums[9 + 4 * k] - np.sum(coef * rhs, axis=1)
         z.append(coef[:, 1] + 1j * coef[:, 2])
         offset.append(coef[:, 0])
-        resid.append(np.where(few, 0.0, np.maximum(ss_res, 0.0) / np.maximum(count - 3.0, 1.0)))
+        resid.append(np.where(few, 0.0, np.maximum(ss_res, 0.0) / np.maximum(weight - 3.0, 1.0)))
     return CycleFits(np.array(z), np.array(offset), np.array(resid), count, t_mid)
 
 
@@ -149,6 +183,28 @@ def phase_slope_frequency(fits: CycleFits, freq: float, first: int, stop: int) -
     return freq if den <= 0 else float(freq + (w @ (tc * psi)) / den / (2 * np.pi))
 
 
+def sampling_error(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: float, n_cycles: int) -> np.ndarray:
+    """``(S,)``: the most that sampling puts on one cycle's first-harmonic amplitude of each signal.
+
+    A cycle's amplitude is a quadrature over its samples (:func:`cycle_fits`), exact to O(dt^2) for a smooth
+    signal but not for one that jumps (a friction force at each reversal): the jump J falls somewhere between two
+    samples, and where it falls moves the amplitude by up to J / (samples per cycle) per jump. When the samples'
+    phases drift slowly against the excitation (a rate near a multiple of the frequency) that error is a slow
+    sawtooth over the cycles, which the band and curvature tests would take for a transient. J is the typical
+    cycle's largest second difference (a median over the cycles, so that one glitch does not count).
+    """
+    bounds = cycle_bounds(t, t_a, freq, n_cycles)
+    per_cycle = (bounds[-1] - bounds[0]) / max(n_cycles, 1)
+    out = np.zeros(len(signals))
+    if bounds[-1] - bounds[0] < 3:
+        return out
+    for k, y in enumerate(signals):
+        second = np.abs(np.diff(y[bounds[0] : bounds[-1]], 2))
+        starts = np.minimum(bounds[:-1] - bounds[0], second.size - 1)
+        out[k] = 2.0 * float(np.median(np.maximum.reduceat(second, starts))) / per_cycle
+    return out
+
+
 def line_through(values: np.ndarray, start: int, stop: int) -> np.ndarray:
     """``(S, 2)``: each row's least-squares line (alpha, beta) through its cycles start..stop-1 (value alpha + beta k)."""
     v = values[:, start : max(stop, start + 1)]
@@ -158,30 +214,33 @@ def line_through(values: np.ndarray, start: int, stop: int) -> np.ndarray:
     return np.stack([v.mean(axis=1) - beta * k.mean(), beta], axis=1)
 
 
-def steady_run(amp: np.ndarray, noise: np.ndarray) -> tuple[int, int]:
+def steady_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray | None = None) -> tuple[int, int]:
     """(start, length) of the longest run of cycles whose amplitudes ``amp`` ``(S, n)`` are steady (stage 1).
 
     ``noise`` ``(S,)`` is a first guess of each amplitude's cycle-to-cycle std;
     it is re-estimated from the run found (robust std of successive
     differences), and the run searched again, until it no longer changes.
+    ``sampling`` ``(S,)`` bounds what the sampling itself puts on an amplitude
+    (:func:`sampling_error`); departures within it are neither scatter nor a transient.
     """
-    start, length = _longest_band_run(amp, noise)
+    sampling = np.zeros(amp.shape[0]) if sampling is None else sampling
+    start, length = _longest_band_run(amp, noise, sampling)
     for _ in range(3):
         if length < WAVEFORM_MIN_CYCLES:
             break
         run = amp[:, start : start + length]
         scatter = MAD_TO_STD * np.median(np.abs(np.diff(run, axis=1)), axis=1) / np.sqrt(2.0)
-        found = _longest_band_run(amp, scatter)
+        found = _longest_band_run(amp, scatter, sampling)
         if found == (start, length):
             break
         start, length = found
     return start, length
 
 
-def _band_test(amp: np.ndarray, noise: np.ndarray) -> Callable[[int, int], bool]:
+def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Callable[[int, int], bool]:
     """Whether cycles i..j-1 are steady: within the band around their line, drifting at most ``DRIFT_LIMIT``,
     and not curved (a settling transient is curved, a drift is straight)."""
-    floor = NOISE_SIGMAS * noise[:, None]
+    floor = np.maximum(NOISE_SIGMAS * noise, sampling)[:, None]
     index = np.arange(amp.shape[1], dtype=float)
 
     def fits(i: int, j: int) -> bool:
@@ -204,16 +263,17 @@ def _band_test(amp: np.ndarray, noise: np.ndarray) -> Callable[[int, int], bool]
         q = u * u - (u @ u) / n  # orthogonal to 1 and u
         qq = q @ q
         bend = np.abs(resid @ q) / qq * np.abs(q).max()  # the largest departure of the best parabola from the line
-        return bool(np.all(bend <= np.maximum(CURVATURE * np.abs(level), NOISE_SIGMAS * noise * np.abs(q).max() / np.sqrt(qq))))
+        allowed = np.maximum(CURVATURE * np.abs(level), NOISE_SIGMAS * noise * np.abs(q).max() / np.sqrt(qq))
+        return bool(np.all(bend <= np.maximum(allowed, sampling)))
 
     return fits
 
 
-def _longest_band_run(amp: np.ndarray, noise: np.ndarray) -> tuple[int, int]:
+def _longest_band_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> tuple[int, int]:
     """Longest window of cycles that passes :func:`_band_test`. A window that passes holds only windows that pass,
     so a window that never shrinks, slid over the cycles and grown by galloping, finds it."""
     n = amp.shape[1]
-    fits = _band_test(amp, noise)
+    fits = _band_test(amp, noise, sampling)
     if n <= 1 or fits(0, n):
         return 0, n
     best_start, best_length, i = 0, 1, 0

@@ -123,19 +123,15 @@ def secant_stiffness(loops: LoopSet) -> np.ndarray:
     return (f_hi - f_lo) / (loops.top[:, -1, 0] - loops.top[:, 0, 0])
 
 
-def estimate_mass(loops: LoopSet, k_dyn: np.ndarray) -> tuple[float | None, str]:
-    """m from k_dyn = k_level - m w^2 (one k per amplitude level, one m for all), or None and why not.
-
-    The mass counts when it is ``MASS_SIGNIFICANCE`` standard errors above
-    zero, and when amplitude levels that each span frequencies agree on it: a
-    frequency dependence that is not inertia (friction, rate effects) gives
-    levels that disagree, and then no mass is claimed.
-    """
+def inertia(loops: LoopSet, k_dyn: np.ndarray) -> tuple[float, float, np.ndarray] | None:
+    """(m, its standard error, each amplitude level's own m) from k_dyn = k_level - m w^2 (one k per amplitude
+    level, one m for all), or None where no amplitude level spans frequencies. The standard error grows to the
+    levels' disagreement: a frequency dependence that is not inertia (friction, rate effects) makes them differ."""
     levels, index = amplitude_levels(loops.x0)
     w2 = loops.omega**2
     spanning = [k for k in range(levels.size) if np.ptp(w2[index == k]) > 0]
     if not spanning:
-        return None, "unknown: every amplitude has a single frequency, so stiffness and inertia cannot be told apart"
+        return None
     design = np.column_stack([(index == k).astype(float) for k in range(levels.size)] + [-w2])
     scale = np.abs(design).max(axis=0)
     coef, *_ = np.linalg.lstsq(design / scale, k_dyn, rcond=None)
@@ -147,6 +143,16 @@ def estimate_mass(loops: LoopSet, k_dyn: np.ndarray) -> tuple[float | None, str]
     per_level = np.array([-np.polyfit(w2[index == k], k_dyn[index == k], 1)[0] for k in spanning])
     if per_level.size > 1:
         se = max(se, float(np.std(per_level, ddof=1) / np.sqrt(per_level.size)))
+    return m, se, per_level
+
+
+def estimate_mass(loops: LoopSet, k_dyn: np.ndarray) -> tuple[float | None, str]:
+    """m of :func:`inertia`, or None and why not: the mass counts when it is ``MASS_SIGNIFICANCE`` standard
+    errors above zero and every amplitude level that spans frequencies sees a positive one."""
+    found = inertia(loops, k_dyn)
+    if found is None:
+        return None, "unknown: every amplitude has a single frequency, so stiffness and inertia cannot be told apart"
+    m, se, per_level = found
     if not (m > MASS_SIGNIFICANCE * se and np.all(per_level > 0)):
         estimates = ", ".join(f"{v:.3g}" for v in per_level)
         return None, f"unknown: the loops do not show a consistent inertia (estimate {m:.3g} +- {se:.2g} kg; per amplitude {estimates} kg)"

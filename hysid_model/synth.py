@@ -145,6 +145,15 @@ def model_force(model: Model, theta: np.ndarray, freq_hz: float, x0: float, phas
     return out
 
 
+def harmonics(x0: float, ratios: dict[int, complex] | None) -> np.ndarray:
+    """``(K,)`` displacement harmonics with X_1 = -i X0 and X_k = r_k X_1 for ``ratios`` ``{k: r_k}``."""
+    xh = np.zeros(1 + max(ratios or {0: 0}), dtype=complex)
+    xh[0] = -1j * x0
+    for k, r in (ratios or {}).items():
+        xh[k - 1] = r * xh[0]
+    return xh
+
+
 def simulate_raw(
     model: Model,
     theta: np.ndarray,
@@ -157,13 +166,16 @@ def simulate_raw(
     cycles: int = 8,
     x_noise: float = 1e-4,
     distortion: dict[int, complex] | None = None,
+    sensor: dict[int, complex] | None = None,
 ) -> list[RawRecord]:
     """Raw steady-state records of any model: ``cycles`` periods sampled at ``sample_rate_hz``.
 
     Each record starts at a random phase; the force gets Gaussian noise of std
     ``noise_n`` (N, scalar or per record), the displacement noise of std
     ``x_noise`` times X0. ``distortion`` ``{k: r_k}`` adds displacement
-    harmonics X_k = r_k X_1 (a real r_k is r_k X0 sin(k wt)), as a shaker does.
+    harmonics X_k = r_k X_1 (a real r_k is r_k X0 sin(k wt)) to the motion, as a
+    shaker does; ``sensor`` ``{k: r_k}`` adds them to the recorded displacement
+    only, as a distorting displacement sensor does (the force follows the motion).
     For hidden-effect tests of ``hysid diagnose``.
     """
     freq_hz = np.asarray(freq_hz, dtype=float).reshape(-1)
@@ -177,12 +189,10 @@ def simulate_raw(
         w = 2.0 * np.pi * f
         t = np.arange(int(round(cycles * sample_rate_hz / f))) / sample_rate_hz
         phase = w * t + rng.uniform(0.0, 2.0 * np.pi)
-        xh = np.zeros(1 + max(distortion or {0: 0}), dtype=complex)
-        xh[0] = -1j * a
-        for k, r in (distortion or {}).items():
-            xh[k - 1] = r * xh[0]
+        xh = harmonics(a, distortion)
         clean = model_force(model, theta, f, a, phase, xh if distortion else None)
-        x = displacement(xh[None, :], phase[None, :])[0] + x_noise * a * rng.standard_normal(t.size)
+        recorded = harmonics(a, {**(distortion or {}), **{k: (distortion or {}).get(k, 0.0) + r for k, r in (sensor or {}).items()}})
+        x = displacement(recorded[None, :], phase[None, :])[0] + x_noise * a * rng.standard_normal(t.size)
         label = f"SIM_{a * 1e3:.4g}mm_{f:g}Hz"
         records.append(RawRecord(label, float(f), float(a), t, x, clean + sigma * rng.standard_normal(t.size), float(sigma)))
     return records

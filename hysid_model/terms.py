@@ -29,9 +29,10 @@ this module holds the base classes and the thesis' own terms (Eq. 4.4-4.10).
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Callable, ClassVar, Protocol
+from typing import TYPE_CHECKING, Callable, ClassVar, Protocol
 
 import math
 
@@ -39,6 +40,9 @@ import numpy as np
 
 from hysid_model import waveform
 from hysid_model.params import Parameter
+
+if TYPE_CHECKING:
+    from hysid_model.loops import LoopSet
 
 Values = dict[str, np.ndarray]
 """Parameter values by name, each of shape ``(P, 1)`` so they broadcast over loops."""
@@ -80,6 +84,13 @@ class Kinematics:
     def extremes(self) -> tuple[np.ndarray, np.ndarray]:
         """(x_min, x_max) of each loop's displacement, ``(L,)`` each."""
         return (-self.x0, self.x0) if self.xh is None else waveform.extremes(self.xh)
+
+    @cached_property
+    def reversals(self) -> tuple[np.ndarray, np.ndarray]:
+        """Phases (theta_lo, theta_hi) of each loop's displacement minimum and maximum, ``(L,)`` each."""
+        if self.xh is None:
+            return np.full(self.x0.size, -0.5 * np.pi), np.full(self.x0.size, 0.5 * np.pi)
+        return waveform.reversals(self.xh)
 
     def power_harmonics(self, power: int) -> np.ndarray:
         """Complex amplitudes of x^power at orders 1..power*K, ``(L, power*K)`` (x^power = sum Re[A_k e^{ik wt}] + mean)."""
@@ -142,7 +153,8 @@ class Term:
     value 0 switches the effect off (the nested null a diagnosis tests). If its
     lower bound is 0 the effect has a physical sign (one-sided). Parameters
     that only shape the effect and are unidentified when it is off (e.g. a
-    relaxation time) get candidate values from :meth:`shape_grid`.
+    relaxation time) get candidate values from :meth:`shape_grid`; a term may
+    also read starting values off the loops themselves (:meth:`data_starts`).
     """
 
     id: ClassVar[str] = ""
@@ -154,9 +166,20 @@ class Term:
     only from one amplitude to another, so loops at a single amplitude cannot tell the two apart."""
     params: tuple[Parameter, ...] = ()
 
-    def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
-        """Values of the shape parameters worth testing on loops ``kin`` (default: none to choose)."""
+    def shape_grid(self, kin: Kinematics, free: Collection[str] = ()) -> list[dict[str, float]]:
+        """Values of the shape parameters worth testing on loops ``kin`` (default: none to choose).
+
+        ``free`` names the parameters searched in the model being scored: a shape parameter that is
+        fixed there (e.g. Bouc-Wen's exponent ``bw_n``, fixed at 1 unless freed) gets no grid values,
+        which the model would ignore."""
         return [{}]
+
+    def data_starts(self, loops: "LoopSet", free: Collection[str] = ()) -> list[dict[str, float]]:
+        """Starting points for this term's parameters read off the measured ``loops`` (e.g. Bouc-Wen's
+        stiffness and yield displacement from the loops' slopes and height), a few, best first; default
+        none. Like :meth:`shape_grid` it gives values for a parameter fixed by default only where ``free``
+        names it. The values need not lie within the model's bounds (clip them)."""
+        return []
 
     def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
         """Search bounds of this term's parameters that hold the data's ``scale`` with generous
@@ -296,8 +319,10 @@ class Oscillator(Term):
 
     def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
         """A decade either side of the survey's natural frequency (or of the band), damping ratios up to
-        10 x the survey's (at least 2), two decades either side of its mass."""
-        xi = 10.0 * scale.xi if scale.xi is not None else 0.0
+        10 x the survey's (at least 2; without a mass, 10 x the ratio its equivalent damping gives at the mass
+        that stands in, c w / 2 k: a damper's viscous force far above its spring's needs xi >> 1), two decades
+        either side of its mass."""
+        xi = 10.0 * (scale.xi if scale.xi is not None else scale.damping * scale.wn_scale / (2.0 * scale.stiffness))
         return {
             "xi0": (0.0, max(2.0, xi)),
             "w0": (scale.wn_scale / 10.0, 10.0 * scale.wn_scale) if scale.wn is not None else (scale.w_min / 10.0, 10.0 * scale.w_max),

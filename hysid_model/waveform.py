@@ -134,6 +134,45 @@ def extremes(xh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return displacement(xh, lo[:, None])[:, 0], displacement(xh, hi[:, None])[:, 0]
 
 
+CELL_SNAP = 1e-9
+"""A sample this close in phase (rad) to a reversal is at it (the end of its branch's cells)."""
+
+
+def sample_cells(phase: np.ndarray, n_top: int, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far each sample's cell reaches back and ahead in phase, ``(L, N)`` each: to the neighbouring
+    samples of its branch (the first ``n_top`` of ``phase`` ``(L, N)`` loading, ``lo`` -> ``hi``; the rest
+    unloading, ``hi`` -> ``lo`` + 2 pi), and at a branch's ends to its reversal (0 for a sample at one).
+    Where a delay moves a jump of the force (at a reversal) into a sample's cell, the sample sees it
+    averaged with the cell's hat function (:func:`past_jump`), so that the force is continuously
+    differentiable in the delay."""
+    lo, hi = np.asarray(lo, dtype=float)[:, None], np.asarray(hi, dtype=float)[:, None]
+    before, after = np.empty(phase.shape), np.empty(phase.shape)
+    for start, length, cols in ((lo, hi - lo, slice(0, n_top)), (hi, 2 * np.pi - (hi - lo), slice(n_top, phase.shape[1]))):
+        u = np.mod(phase[:, cols] - start, 2 * np.pi)
+        u = np.clip(np.where(u > 0.5 * (length + 2 * np.pi), u - 2 * np.pi, u), 0.0, length)  # rounding before the start
+        u = np.where(u < CELL_SNAP, 0.0, np.where(length - u < CELL_SNAP, length, u))
+        order = np.argsort(u, axis=1, kind="stable")
+        ordered = np.take_along_axis(u, order, axis=1)
+        edges = np.concatenate([np.zeros_like(length), ordered, length], axis=1)
+        np.put_along_axis(before[:, cols], order, ordered - edges[:, :-2], axis=1)
+        np.put_along_axis(after[:, cols], order, edges[:, 2:] - ordered, axis=1)
+    return before, after
+
+
+def past_jump(offset: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """The share of a sample's cell past a jump at phase ``offset`` from the sample, weighted by the cell's hat
+    function: 0 ``before`` behind and ``after`` ahead of the sample and 1 at its peak, the sample itself, or for
+    a sample at a reversal (one side 0) the middle of its one-sided cell, so that a jump leaving the cell over
+    the reversal (a delay crossing 0) changes nothing to first order either. 1 for a jump at or before the
+    cell's start, 0 at or beyond its end, continuously differentiable in between."""
+    peak = np.where(after <= 0.0, -0.5 * before, np.where(before <= 0.0, 0.5 * after, 0.0))
+    rise, fall = peak + before, after - peak
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(offset >= peak, (after - offset) ** 2 / (2.0 * fall), 0.5 * (before + after) - (offset + before) ** 2 / (2.0 * rise))
+        share = share / (0.5 * (before + after))
+    return np.where(offset <= -before, 1.0, np.where(offset >= after, 0.0, share))
+
+
 def velocity_sign_harmonics(xh: np.ndarray, max_order: int) -> np.ndarray:
     """Complex amplitudes A_k (k = 0..max_order-1) of sgn(x'(theta)), ``(L, max_order)``.
 

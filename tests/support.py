@@ -7,13 +7,40 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from hysid.bench.sites import query  # noqa: F401  (read a campaign database while a coordinator writes it)
 from island.run import run
+
+ROOT = Path(__file__).resolve().parents[1]
+"""The clone's root, wherever it is."""
+DAMPER = ROOT / "data" / "arts-friction-damper"
+"""The real friction damper's ten records (CC BY-SA 4.0, see its README), kept with the clone."""
 
 GA_SMALL = dict(initial_population=200, population=40, iterations=5)
 """A GA that runs in well under a second on the Synth set."""
 PSO_SMALL = dict(initial_population=200, population=30, iterations=5)
 """A PSO that runs in well under a second on the Synth set."""
+
+
+def cell_average(u, theta: np.ndarray, before: np.ndarray, after: np.ndarray, jumps: np.ndarray) -> np.ndarray:
+    """A piecewise-constant u (vectorized over phases) averaged over each sample's cell [theta - before,
+    theta + after] ``(L, N)`` with its hat function (peak 1 at theta; for a sample at a reversal, a cell side
+    of 0, in the middle of the other side), exactly: on every piece between the cell's ends, its peak and the
+    jumps of u (``jumps`` ``(L, J)`` phases) the hat is linear, so its integral is the piece's length times its
+    value at the midpoint. A cell of zero width is the point value."""
+    out = u(theta)
+    for l, n in np.ndindex(theta.shape):
+        t, b, a = theta[l, n], before[l, n], after[l, n]
+        peak = t - 0.5 * b if a == 0 else (t + 0.5 * a if b == 0 else t)
+        inside = [t + np.mod(j - t + np.pi, 2 * np.pi) - np.pi for j in jumps[l]]
+        edges = np.unique([t - b, peak, t + a] + [j for j in inside if t - b < j < t + a])
+        mid, length = 0.5 * (edges[1:] + edges[:-1]), np.diff(edges)
+        hat = np.where(mid < peak, (mid - (t - b)) / max(peak - (t - b), 1e-300), ((t + a) - mid) / max(t + a - peak, 1e-300)) * length
+        if hat.sum() > 0:
+            values = u(np.broadcast_to(mid, (theta.shape[0], mid.size)))[l]
+            out[l, n] = np.dot(hat, values) / hat.sum()
+    return out
 
 
 def drive(opt, objective):

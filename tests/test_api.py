@@ -142,3 +142,11 @@ def test_data_flows_one_way_between_the_packages():
     }
     for module, host in below.items():
         assert host not in {**island, **coordinator}[module], module
+
+
+def test_every_name_the_front_door_exports_resolves():
+    """``hysid.__all__`` is the export table itself, and every name in it imports (a subprocess: a fresh interpreter)."""
+    script = "import hysid\nfor name in hysid.__all__:\n    assert getattr(hysid, name) is not None, name\nprint(len(hysid.__all__))"
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert set(hysid.__all__) == set(hysid._EXPORTS) | {"__version__"} and int(done.stdout) == len(hysid.__all__)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,9 @@ import scipy.io
 from hysid.cli import main
 from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError
+from hysid_model.readers.csv_series import write_series
 from hysid_model.synth import synth_loops
+from support import hysid
 
 FREQ = 10.0
 HEADER = "time_s,displacement_m,force_n"
@@ -199,3 +202,92 @@ def test_synth_never_overwrites(tmp_path, capsys):
     assert (out / "keep.txt").read_text() == "mine" and len(list(out.iterdir())) == 1
     assert "noise must be a percentage from 0 to 100" in cli_error(["loops", "synth", "--noise", "150"], capsys)
     assert "points per branch must be an integer >= 2" in cli_error(["loops", "synth", "--points", "1"], capsys)
+
+
+# The outside probe's bad files (issue 23): each a real file through the real command line, in a process of its own
+# (so that a traceback or a RuntimeWarning would reach its stderr as a user sees it).
+
+PROBE_FS = 2000.0
+
+
+def sweep_records(directory: Path, freqs: list[float], force_of=None, *, damping: float = 20.0, clip: float | None = None,
+                  swap: bool = False) -> Path:
+    """Records of a 0.5 kg, 2e4 N/m specimen (resonance 31.8 Hz) at 1 mm, written as CSV files with a manifest;
+    ``force_of(k, force)`` spoils record k's force; ``clip`` clips every force at that share of the set's largest
+    (noise after the clip, as a converter after a saturated amplifier adds it); ``swap`` swaps the columns."""
+    directory.mkdir()
+    rng = np.random.default_rng(0)
+    w_all = 2 * np.pi * np.asarray(freqs)
+    peak = float(np.max(np.hypot(2e4 - 0.5 * w_all**2, damping * w_all))) * 1e-3
+    lines = ["file,frequency_hz"]
+    for k, f in enumerate(freqs):
+        t = np.arange(int(20 / f * PROBE_FS)) / PROBE_FS
+        w = 2 * np.pi * f
+        x = 1e-3 * np.sin(w * t)
+        force = (2e4 - 0.5 * w * w) * x + damping * w * 1e-3 * np.cos(w * t)
+        if clip is not None:
+            force = np.clip(force, -clip * peak, clip * peak)
+        force = force + 1e-4 * peak * rng.standard_normal(t.size)
+        x = x + 1e-7 * rng.standard_normal(t.size)
+        if force_of is not None:
+            force = force_of(k, force)
+        write_series(directory / f"r{k}.csv", t, force * 1e-4 if swap else x, x * 1e4 if swap else force)
+        lines.append(f"r{k}.csv,{f!r}")
+    (directory / "manifest.csv").write_text("\n".join(lines) + "\n")
+    return directory
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    done = subprocess.run(hysid(*args), capture_output=True, text=True, timeout=600)
+    assert "Traceback" not in done.stderr and "RuntimeWarning" not in done.stderr, done.stderr
+    return done
+
+
+def one_error_line(done: subprocess.CompletedProcess) -> str:
+    assert done.returncode == 2 and done.stderr.startswith("hysid: error: ") and done.stderr.count("\n") == 1, done.stderr
+    return done.stderr
+
+
+def test_values_near_1e300_are_one_line(tmp_path):
+    """They overflowed into a NaN cycle count in the steady window's search (a traceback)."""
+    d = sweep_records(tmp_path / "d", [20.0, 25.0, 30.0], force_of=lambda k, force: force * 1e300)
+    err = one_error_line(run_cli("loops", str(d)))
+    assert "r0.csv: the force reaches 1.24e+301 N, beyond any physical force" in err
+
+
+def test_one_record_with_zero_force_is_one_line(tmp_path):
+    """Four lines of RuntimeWarning (log10 of 0, in the unit-slip check) came before the error of the fit."""
+    d = sweep_records(tmp_path / "d", [20.0, 25.0, 30.0], force_of=lambda k, force: force * 0.0 if k == 1 else force)
+    err = one_error_line(run_cli("loops", str(d)))
+    assert "r1.csv: the force is 0 N in every sample: no loop to extract" in err
+
+
+def test_a_force_clipped_at_a_fifth_of_its_largest_is_named(tmp_path):
+    """A force channel saturated at 20 % of the sweep's largest force: the loops are usable but their force tops are
+    the sensor's, which the warning says (as for a clipped displacement)."""
+    d = sweep_records(tmp_path / "d", [25.7, 30.2, 31.7, 36.2, 37.2, 39.2], damping=0.58, clip=0.2)
+    done = run_cli("loops", str(d))
+    assert done.returncode == 0 and done.stderr.count("\n") == 1
+    assert "clipped: r0: force flat at +2.068 N; r3: force flat at +2.068 N" in done.stderr
+    assert "(a load cell or its amplifier at the end of its range?)" in done.stderr
+
+
+@pytest.mark.slow
+def test_a_fit_of_force_clipped_loops_writes_its_report(tmp_path):
+    """The same clipped sweep through `hysid fit`: the parabola through the peak of its compliance dipped below zero,
+    the half-power figure's axis limits became NaN (a traceback) and no report.md was written."""
+    d = sweep_records(tmp_path / "d", [25.7, 30.2, 31.7, 36.2, 37.2, 39.2], damping=0.58, clip=0.2)
+    out = tmp_path / "out"
+    done = run_cli("fit", str(d), "--model", "baseline", "--out", str(out), "--quiet")
+    assert done.returncode == 0 and "clipped: r0: force flat at" in done.stderr
+    assert (out / "report.md").is_file() and (out / "half_power.png").is_file()
+
+
+def test_columns_swapped_with_plausible_magnitudes_are_named(tmp_path):
+    """Force (about 10 N) and displacement (1 mm) swapped and scaled to look like a mm and tens of N: the fit gave
+    xi0 at its bound with a generic warning. The loops generate energy, and their lag grows with frequency."""
+    d = sweep_records(tmp_path / "d", [25.0, 28.0, 31.0, 34.0, 37.0], swap=True)
+    done = run_cli("loops", str(d))
+    assert done.returncode == 0 and done.stderr.count("\n") == 1
+    assert "the loops generate energy in r0 (a lag of 22.3 deg), r1 (a lag of 37.9 deg)" in done.stderr
+    assert "the lag grows with frequency, a passive specimen's mirrored: force and displacement look swapped" in done.stderr

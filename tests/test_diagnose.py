@@ -210,14 +210,16 @@ def test_effect_outside_the_library_is_unexplained_and_not_named(branch_sigma):
 def test_too_narrow_a_band_names_both_confusable_effects(branch_sigma):
     """Over 10-12 Hz, well below resonance, the in-phase force is the spring's, so the quadrature force of a
     constant loss factor (Eq. 2.3) and of the amplifier's phase lead ~ 1/w (Eq. 4.2) differ only in a slight
-    curvature: the data cannot tell them apart, and both are named."""
+    curvature: the data cannot tell them apart, and both are named (a Zener relaxation, Eq. 2.6, refitted
+    from starts that put its peak far from the band, looks the same and may be named with them)."""
     narrow = np.linspace(10.0, 12.0, 12)
     model, theta = with_effects({"hysteretic_damping": calibrated("hysteretic_damping", branch_sigma, narrow)})
     outcomes = []
     for seed in SEEDS:
         result = diagnose(hidden(model, theta, seed, narrow), "baseline")
         names = [(s.effect, *s.confusable_with) for s in result.steps]
-        outcomes.append(len(names) == 1 and set(names[0]) == {"hysteretic_damping", "charge_amplifier_highpass"})
+        outcomes.append(len(names) == 1 and {"hysteretic_damping", "charge_amplifier_highpass"} <= set(names[0]) <= {
+            "hysteretic_damping", "charge_amplifier_highpass", "zener_thermoelastic"})
     assert sum(outcomes) >= REQUIRED, outcomes
 
 

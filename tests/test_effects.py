@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
+from hysid_model import waveform
 from hysid_model.effects import EFFECTS
 from hysid_model.harmonics import HarmonicObjective, Harmonics, estimate_sigma
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS, model_force, simulate_raw, synth_loops, thesis_force
+from support import cell_average
 from timedomain_reference import periodic_steady_state
 from island.polish import polish
 
@@ -125,6 +129,8 @@ def test_charge_amplifier_on_a_friction_jump_is_the_exponential_step_response():
 
 
 def test_channel_delay_shifts_the_whole_force():
+    """F(t - delay) at every sample, except that the friction's jumps, where the delay moves them into a
+    sample's cell, are averaged over the cell (so that the force is smooth in the delay)."""
     data = loops(every=17)
     delay = 4e-4
     values = {**BASE, "F_d": 0.05}
@@ -133,7 +139,62 @@ def test_channel_delay_shifts_the_whole_force():
     theta = model.from_dict(values)
     phase = data.phases()
     shifted = np.stack([model_force(model, theta, f, a, p - 2 * np.pi * f * delay) for f, a, p in zip(data.freq_hz, data.x0, phase)])
-    np.testing.assert_allclose(delayed, shifted, atol=1e-12)
+    lag = (data.omega * delay)[:, None]
+
+    def sign(t: np.ndarray) -> np.ndarray:
+        return np.where(np.cos(t - lag) >= 0.0, 1.0, -1.0)
+
+    reversals = np.array([-0.5 * np.pi, 0.5 * np.pi])
+    cells = waveform.sample_cells(phase, data.n_samples, *np.broadcast_to(reversals[:, None], (2, data.n_loops)))
+    averaged = cell_average(sign, phase, *cells, reversals[None, :] + lag)
+    assert np.count_nonzero(averaged != sign(phase)) >= data.n_loops  # a jump sits in a cell of every loop
+    np.testing.assert_allclose(delayed, shifted + values["F_d"] * (averaged - sign(phase)), atol=1e-12)
+
+
+def delayed_friction_loops(delay: float, noise: float = 0.01):
+    """Synth loops (every amplitude, the band) of an oscillator with friction recorded ``delay`` late, with noise."""
+    model = build_model("baseline+coulomb_friction+channel_delay").fix(meq=MEQ_KG)
+    truth = {**BASE, "F_d": 0.5, "delay_s": delay}
+    base = synth_loops(0.0, 0, 40).subset(np.arange(0, 120, 8))
+    force = Objective(base, model).predict(model.from_dict(truth))[0] + noise * np.random.default_rng(4).standard_normal((base.n_loops, 2 * base.n_samples))
+    n = base.n_samples
+    top, bottom = base.top.copy(), base.bottom.copy()
+    top[:, :, 1], bottom[:, :, 1] = force[:, :n], force[:, n:]
+    return replace(base, top=top, bottom=bottom, sigma=np.full(base.n_loops, noise)), model, model.from_dict(truth)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_chi2_is_continuously_differentiable_in_the_channel_delay(compiled):
+    """A delay moves sgn(x')'s jumps across the samples; averaged over the samples' cells they change chi^2
+    smoothly: one-sided slopes agree at delays across a period, at 0 (every jump on a turning point) and where
+    a jump sits exactly on a sample of one loop."""
+    loops, model, truth = delayed_friction_loops(3e-4)
+    objective = Objective(loops, model, "ml", compiled=compiled)
+    i = model.names.index("delay_s")
+    phase, w = loops.phases()[0], loops.omega[0]
+    on_samples = [(phase[k] + 0.5 * np.pi) / w for k in (1, 2)] + [(phase[loops.n_samples + k] - 0.5 * np.pi) / w for k in (-2, -3)]
+    delays = np.concatenate([np.linspace(-6e-4, 9e-4, 11), [0.0], on_samples])
+    h = 1e-9
+    probes = np.repeat(truth[None, :], 3 * delays.size, axis=0)
+    probes[:, i] = (delays[:, None] + [-h, 0.0, h]).reshape(-1)
+    left, centre, right = objective(probes).reshape(-1, 3).T
+    slope_left, slope_right = (centre - left) / h, (right - centre) / h
+    scale = np.abs(slope_right).max()
+    np.testing.assert_allclose(slope_left, slope_right, rtol=0, atol=1e-5 * scale)
+    assert np.abs(slope_right).min() < 0.1 * scale  # the minimum near the true delay is among them
+
+
+def test_a_polish_recovers_a_known_channel_delay():
+    loops, model, truth = delayed_friction_loops(3e-4)
+    objective = Objective(loops, model, "ml")
+    i = model.names.index("delay_s")
+    for start in (0.0, 1e-4, 6e-4):
+        theta = truth.copy()
+        theta[[i, model.names.index("F_d")]] = start, 0.3
+        found = polish(objective, theta).theta
+        jacobian = objective.jacobian(found)
+        stderr = np.sqrt(np.linalg.inv(jacobian.T @ jacobian)[i, i])
+        assert 1e-7 < stderr < 2e-5 and abs(found[i] - 3e-4) < 3 * stderr
 
 
 def test_zener_loss_factor_is_eq_2_6_and_peaks_at_w_tau_1():

@@ -14,6 +14,7 @@ from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS, synth_loops
+from support import cell_average
 from timedomain_reference import periodic_steady_state
 
 BASE = {**TRUE_PARAMS}
@@ -121,7 +122,8 @@ def test_velocity_sign_through_the_high_pass_is_the_exact_exponential_step_respo
 def test_velocity_sign_through_delay_and_high_pass_on_a_measured_waveform_is_the_time_domain_filter(distorted):
     """The high-pass state integrated in time (tau dl/dt + l = u, y = u - l) over the distorted waveform's own
     reversals, delayed: the compiled force matches to the integration's accuracy (the exact form is
-    checked to 1e-12 on the ideal sine above)."""
+    checked to 1e-12 on the ideal sine above); where the delay moves a jump of u into a sample's cell, the
+    sample sees u averaged over the cell with its hat function (here by quadrature)."""
     loops = distorted.subset([0, 5])
     model = build_model("baseline+coulomb_friction+charge_amplifier_highpass+channel_delay").fix(meq=MEQ_KG)
     values = {"xi0": 0.0, "w0": 100.0, "F_d": 0.7, "f_c": 4.0, "delay_s": 3e-4}
@@ -139,7 +141,9 @@ def test_velocity_sign_through_delay_and_high_pass_on_a_measured_waveform_is_the
 
     shifted = loops.phases() - loops.omega[:, None] * values["delay_s"]
     low = periodic_steady_state(rhs, np.zeros((1, loops.n_loops, 1)), shifted[:, None, :], steps_per_cycle=1 << 15, max_cycles=200)[0][:, 0]
-    expected = values["F_d"] * (square(shifted[None])[0] - low)
+    cells = waveform.sample_cells(loops.phases(), loops.n_samples, lo, hi)
+    jumps = np.stack([lo, hi], axis=1) + loops.omega[:, None] * values["delay_s"]
+    expected = values["F_d"] * (cell_average(lambda t: square(t[None] - loops.omega[None, :, None] * values["delay_s"])[0], loops.phases(), *cells, jumps) - low)
     # RK4 steps across the square wave's jumps are first-order accurate: ~rho h of the jump (h = 2 pi / 2^15)
     np.testing.assert_allclose(on - off, expected, rtol=0, atol=5e-5 * values["F_d"])
 

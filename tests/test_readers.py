@@ -18,8 +18,7 @@ from hysid_model.readers.lvm import read_lvm
 from hysid_model.readers.tidy import read_loops, write_loops
 from hysid_model.synth import AMPLITUDES_M, FREQUENCIES_HZ, MEQ_KG, RawRecord, synth_loops
 
-REAL = Path("/work/shared/data/arts-friction-damper")
-REAL_SUBSET = Path(__file__).parent / "data" / "arts-friction-damper-subset"
+from support import DAMPER as REAL
 
 
 def sine_record(label: str, freq: float, x0: float, seed: int, fs: float = 4000.0, cycles: int = 8) -> RawRecord:
@@ -222,10 +221,10 @@ def test_subset_keeps_per_loop_meta_aligned(tmp_path):
 
 
 def test_cli_loops_on_the_real_friction_damper(capsys):
-    dataset = REAL if REAL.is_dir() else REAL_SUBSET
+    dataset = REAL
     assert main(["loops", str(dataset), "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
-    assert len(rows) == (10 if dataset == REAL else 1)
+    assert len(rows) == 10
     for row in rows:
         assert row["cycles"] == 3  # the constant-amplitude window of every record is 3 periods
         assert 45.0 < row["phase_deg"] < 75.0  # dataset.toml: force leads displacement by +48..+71 deg

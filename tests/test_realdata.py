@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +19,7 @@ from hysid_model.synth import TRUE_PARAMS
 from hysid_model.objective import Objective
 from support import GA_SMALL
 
-DAMPER = Path(__file__).resolve().parents[2] / "shared" / "data" / "arts-friction-damper"
+from support import DAMPER
 SURVEY_KEYS = {"k_dyn", "c_eq", "loss_factor", "energy_per_cycle", "k_secant", "fn_hz", "xi"}
 POINTS = 40
 
@@ -88,7 +87,6 @@ def test_a_mass_the_loops_do_not_show_is_not_claimed():
     assert all(r["fn_hz"] is None and r["k_dyn"] is not None for r in s.rows())
 
 
-@pytest.mark.skipif(not DAMPER.is_dir(), reason=f"the shared friction damper is not at {DAMPER}")
 def test_the_friction_damper_shows_no_consistent_inertia():
     s = survey(hysid.load(DAMPER))
     assert s.meq_kg is None and "do not show a consistent inertia" in s.mass_source

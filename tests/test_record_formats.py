@@ -6,6 +6,7 @@ each format must give the same loops as the plain CSV record of the same samples
 from __future__ import annotations
 
 import json
+import warnings
 import sys
 from pathlib import Path
 
@@ -101,8 +102,14 @@ def test_headers_without_units_are_read_as_si_with_a_warning(tmp_path, reference
     def write(path: Path, rec: RawRecord) -> None:
         np.savetxt(path, np.column_stack([rec.t, rec.x, rec.force]), delimiter=",", fmt="%.15g", header="t,x,force", comments="")
 
-    with pytest.warns(HysidWarning, match=r"channel 'x' states no unit: read as m \(set displacement_unit in dataset.toml"):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         same_loops(load_dataset(csv_dataset(tmp_path / "bare", write)), reference)
+    units = [str(w.message) for w in caught if "states no unit" in str(w.message)]
+    assert units == [  # once per dataset, with how many records said it
+        "channel 'x' states no unit: read as m (set displacement_unit in dataset.toml if it is not) (in 2 of 2 records)",
+        "channel 'force' states no unit: read as N (set force_unit in dataset.toml if it is not) (in 2 of 2 records)",
+    ]
 
 
 def test_a_header_without_a_force_column_names_what_it_has_and_the_dataset_toml_keys(tmp_path):
@@ -196,6 +203,34 @@ def test_hdf5_records_from_datasets_and_compound_fields(tmp_path, reference):
         ds.attrs["sample_rate_hz"] = FS
     manifest(d, ["run1.h5", "run2.hdf5"])
     same_loops(load_dataset(d), reference)
+
+
+def test_tdms_and_hdf5_channels_in_a_group_named_as_daq_software_names_them(tmp_path, reference):
+    """Channels inside a group, named by the words of the README (Weg, Kraft), with or without a unit in the
+    name: ``Messung/Weg [mm]`` and ``Messung/Kraft`` (unit stated by the file) in TDMS, ``Messung/Weg`` and
+    ``Messung/Kraft [kN]`` in HDF5."""
+    nptdms = pytest.importorskip("nptdms")
+    h5py = pytest.importorskip("h5py")
+    d = tmp_path / "grouped"
+    d.mkdir()
+    dt = float(RECORDS[0].t[1] - RECORDS[0].t[0])
+    with nptdms.TdmsWriter(d / "run1.tdms") as writer:
+        writer.write_segment([
+            nptdms.ChannelObject("Messung", "Weg [mm]", RECORDS[0].x * 1e3, properties={"wf_increment": dt, "wf_start_offset": 0.0}),
+            nptdms.ChannelObject("Messung", "Kraft", RECORDS[0].force / 1e3, properties={"unit_string": "kN"}),
+        ])
+    with h5py.File(d / "run2.h5", "w") as f:
+        g = f.create_group("Messung")
+        g["Zeit [s]"] = RECORDS[1].t
+        g["Weg"] = RECORDS[1].x
+        g["Kraft [kN]"] = RECORDS[1].force / 1e3
+    manifest(d, ["run1.tdms", "run2.h5"])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        same_loops(load_dataset(d), reference)
+    assert [str(w.message) for w in caught if "states no unit" in str(w.message)] == [
+        "channel 'Messung/Weg' states no unit: read as m (set displacement_unit in dataset.toml if it is not)"
+    ]
 
 
 def test_daq_files_that_cannot_be_records(tmp_path):

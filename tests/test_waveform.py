@@ -155,3 +155,27 @@ def test_a_distorted_shaker_is_fitted_at_the_cramer_rao_bound_and_the_ideal_sine
     rms = np.sqrt(np.mean(np.square(ratios), axis=0))
     assert np.all(rms < 1.6), dict(zip(names, rms))  # an efficient estimator: 1 +- 0.25 over 8 draws
     assert np.max(np.abs(np.mean(bias, axis=0))) > 10.0, np.mean(bias, axis=0)
+
+
+def test_sample_cells_reach_to_the_neighbours_of_each_branch_and_the_hat_averages_a_jump():
+    """Cells on the ideal sine's branches (unsorted, as the unloading branch is stored), and the share of a
+    cell past a jump against quadrature of the hat function (peak at the sample, or mid-cell at a reversal)."""
+    from scipy.integrate import quad
+
+    x = np.array([-1.0, -0.5, 0.0, 0.6, 1.0])
+    phase = np.concatenate([np.arcsin(x), np.pi - np.arcsin(x)])[None, :]
+    before, after = waveform.sample_cells(phase, 5, np.array([-0.5 * np.pi]), np.array([0.5 * np.pi]))
+    top = np.arcsin(x)
+    np.testing.assert_allclose(before[0, :5], np.diff(top, prepend=top[0]))
+    np.testing.assert_allclose(after[0, :5], np.diff(top, append=top[-1]))
+    np.testing.assert_allclose(before[0, 5:], after[0, :5])  # the unloading branch runs the other way
+    for b, a in ((1.0, 0.5), (1.0, 0.0), (0.0, 0.7)):
+        peak = -0.5 * b if a == 0 else (0.5 * a if b == 0 else 0.0)
+
+        def hat(u):
+            return (u + b) / (peak + b) if u < peak else (a - u) / (a - peak)
+
+        total = quad(hat, -b, a, points=[peak])[0]
+        for offset in np.linspace(-b - 0.1, a + 0.1, 13):
+            expected = quad(hat, min(max(offset, -b), a), a, points=[peak])[0] / total
+            assert waveform.past_jump(np.array(offset), b, a) == pytest.approx(expected, abs=1e-12)

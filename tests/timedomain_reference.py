@@ -137,3 +137,61 @@ def periodic_steady_state(
         out = np.full((z.shape[0], phase.size), np.nan)
         _rk4_cycle(rhs, z, k1, steps_per_cycle, _hermite_recorder(phase, steps_per_cycle, out))
     return out.reshape(z.shape + phase.shape[-1:])
+
+
+ScalarRhs = Callable[[float, float], float]
+
+
+def _half_period(rhs: ScalarRhs, theta0: float, z0: float, rtol: float, atol: float) -> list:
+    """Dense solutions of dz/dtheta = rhs over [theta0, theta0 + pi] from z0, restarted at every zero of z
+    (where a law like |z|^n is not smooth) so that no step straddles one."""
+    from scipy.integrate import solve_ivp
+
+    def crossing(theta: float, z: np.ndarray) -> float:
+        return z[0]
+
+    crossing.terminal = True
+    pieces, start, z = [], theta0, z0
+    while True:
+        with np.errstate(all="ignore"):  # a rejected trial step may overflow
+            sol = solve_ivp(lambda t, y: [rhs(t, y[0])], (start, theta0 + np.pi), [z], method="DOP853", rtol=rtol, atol=atol,
+                            dense_output=True, events=crossing if z != 0.0 else None)
+        pieces.append((start, sol.t[-1], sol.sol))
+        if sol.status != 1:
+            return pieces
+        start, z = float(sol.t_events[0][0]), 0.0
+        if start >= theta0 + np.pi:
+            return pieces
+
+
+def odd_periodic_orbit(rhs: ScalarRhs, theta0: float, bracket: tuple[float, float], phase_out: np.ndarray, *, rtol: float = 1e-12,
+                       atol: float = 1e-15) -> np.ndarray:
+    """The periodic orbit of a scalar dz/dtheta = rhs(theta, z) that is odd, rhs(theta + pi, -z) = -rhs(theta, z)
+    (e.g. a rate-independent law driven by x = X0 sin(theta)), so that z(theta + pi) = -z(theta): its state z0 at
+    ``theta0`` solves z0 + z(theta0 + pi; z0) = 0, found by Brent's method in ``bracket`` with each half period
+    integrated by an adaptive 8th-order Runge-Kutta method (scipy's DOP853, restarted at every zero of z),
+    or ``bracket[0]`` where that end already maps onto itself within rounding (a saturated orbit).
+    Returns z at ``phase_out`` (any phases).
+
+    Unlike :func:`periodic_steady_state` it does not wait for transients to die out: an orbit that forgets its
+    start slowly (weak hysteresis) is found as accurately as any."""
+    from scipy.optimize import brentq
+
+    def end(z0: float) -> float:
+        start, stop, sol = _half_period(rhs, theta0, z0, rtol, atol)[-1]
+        return float(sol(stop)[0])
+
+    lo, hi = bracket
+    if lo + end(lo) >= 0.0:  # saturated: the orbit is at the bracket's end to double precision
+        z0 = lo
+    else:
+        z0 = brentq(lambda z: z + end(z), lo, hi, xtol=1e-15 * max(abs(lo), abs(hi)), rtol=1e-15)
+    pieces = _half_period(rhs, theta0, z0, rtol, atol)
+    phase = np.mod(np.asarray(phase_out, dtype=float) - theta0, 2.0 * np.pi)
+    second = phase >= np.pi
+    local = theta0 + np.where(second, phase - np.pi, phase)
+    out = np.empty(local.shape)
+    for lo, hi, sol in pieces:
+        inside = (local >= lo) & (local <= hi)
+        out[inside] = sol(local[inside])[0]
+    return np.where(second, -out, out)

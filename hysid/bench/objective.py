@@ -19,7 +19,10 @@ alternately in the same run, and ``memory_waveform_evals_per_s`` on the Synth
 set under a measured, distorted displacement (10.6 % THD, :func:`distorted_synth`),
 with ``memory_waveform_cost`` the cost of the memory force there relative to
 the ideal sine (``memory_waveform_objective_cost`` for the whole objective,
-whose linear part has 10 harmonic features there instead of 2). On one core:
+whose linear part has 10 harmonic features there instead of 2), and
+``memory_exponent_evals_per_s`` with the Bouc-Wen exponent n free in [1, 6]
+(the tabulated orbit of :mod:`hysid_model.bouc_wen_orbit` instead of n = 1's
+closed form), ``memory_exponent_cost`` its cost relative to n = 1. On one core:
 a Bouc-Wen fit of the 5 % noise Synth set with the default budget
 (``bouc_wen_fit_s``, as ``hysid fit synth --noise 5 --model thesis+bouc_wen``;
 ``bouc_wen_search_s`` the same search without the least-squares polish) and the diagnosis of the Synth set from the baseline (``diagnose_s``).
@@ -57,6 +60,8 @@ MEMORY_ROUNDS = 7
 MEMORY_BATCH = 515
 """Candidates per round: one GA ask of the thesis' budget (500 offspring + 15 of the additional population)."""
 REFERENCE_BATCH = 60
+EXPONENT_BOUNDS = {"bw_n": (1.0, 6.0)}
+"""The Bouc-Wen exponent n free (its default search range) for ``memory_exponent_*``."""
 DISTORTION = {2: 0.03 * np.exp(0.7j), 3: 0.1 * np.exp(0.4j), 5: 0.02j}
 """Displacement harmonics X_k / X_1 of the measured-waveform set: a shaker's 10 % third, 3 % second, 2 % fifth."""
 TARGET_MEMORY_RATIO = 20.0
@@ -154,27 +159,32 @@ def distorted_synth() -> LoopSet:
 
 
 def memory_rates(rounds: int = MEMORY_ROUNDS) -> dict[str, float]:
-    """Evaluations per second of ``thesis+bouc_wen``: compiled, numpy reference and compiled under the
-    measured waveform, timed in alternating rounds so that a change of load hits all three alike."""
+    """Evaluations per second of ``thesis+bouc_wen``: compiled, numpy reference, compiled under the
+    measured waveform and compiled with the exponent n free, timed in alternating rounds so that a change
+    of load hits all four alike."""
     loops, distorted = synth_loops(0.0), distorted_synth()
     model = prepare_model(loops, MEMORY_MODEL)
+    free = prepare_model(loops, MEMORY_MODEL, bounds=EXPONENT_BOUNDS)
     objectives = {
         "compiled": Objective(loops, model, "thesis"),
         "reference": Objective(loops, model, "thesis", compiled=False),
         "waveform": Objective(distorted, prepare_model(distorted, MEMORY_MODEL), "thesis"),
+        "exponent": Objective(loops, free, "thesis"),
     }
     rng = np.random.default_rng(2)
-    low, span = model.bounds[:, 0], model.bounds[:, 1] - model.bounds[:, 0]
-    batch = low + span * rng.random((MEMORY_BATCH, model.dim))
-    sizes = {"compiled": MEMORY_BATCH, "reference": REFERENCE_BATCH, "waveform": MEMORY_BATCH}
+    low, span = free.bounds[:, 0], free.bounds[:, 1] - free.bounds[:, 0]
+    batch_free = low + span * rng.random((MEMORY_BATCH, free.dim))
+    batch = batch_free[:, [free.names.index(name) for name in model.names]]  # the same candidates, n = 1
+    batches = {"compiled": batch, "reference": batch, "waveform": batch, "exponent": batch_free}
+    sizes = {"compiled": MEMORY_BATCH, "reference": REFERENCE_BATCH, "waveform": MEMORY_BATCH, "exponent": MEMORY_BATCH}
     for name, objective in objectives.items():  # compile, warm caches
-        objective(batch[:5])
+        objective(batches[name][:5])
     forces = {"ideal_force": objectives["compiled"], "waveform_force": objectives["waveform"]}
     seconds: dict[str, list[float]] = {name: [] for name in (*objectives, *forces)}
     for _ in range(rounds):
         for name, objective in objectives.items():
             start = time.perf_counter()
-            objective(batch[: sizes[name]])
+            objective(batches[name][: sizes[name]])
             seconds[name].append((time.perf_counter() - start) / sizes[name])
         for name, objective in forces.items():
             start = time.perf_counter()
@@ -188,6 +198,8 @@ def memory_rates(rounds: int = MEMORY_ROUNDS) -> dict[str, float]:
         "memory_waveform_evals_per_s": 1.0 / per_eval["waveform"],
         "memory_waveform_cost": per_eval["waveform_force"] / per_eval["ideal_force"],
         "memory_waveform_objective_cost": per_eval["waveform"] / per_eval["compiled"],
+        "memory_exponent_evals_per_s": 1.0 / per_eval["exponent"],
+        "memory_exponent_cost": per_eval["exponent"] / per_eval["compiled"],
         "memory_rounds": rounds,
     }
 
@@ -283,6 +295,8 @@ def to_text(result: dict[str, Any]) -> str:
         f"{result['memory_waveform_objective_cost']:.2f} x the ideal sine's cost (10 linear features instead of 2); "
         f"its memory force {result['memory_waveform_cost']:.2f} x (target <= {targets['memory_waveform_cost_max']:g}: "
         f"{verdict(result['memory_waveform_cost'] <= targets['memory_waveform_cost_max'])})",
+        f"  exponent n free in [1, 6]         {result['memory_exponent_evals_per_s']:>14,.0f} evaluations/s = "
+        f"{result['memory_exponent_cost']:.2f} x the cost with n = 1 (same candidates)",
         f"on one core: Bouc-Wen fit of Synth 5 % ({result['bouc_wen_fit_evaluations']:,} evaluations, polish included) "
         f"{result['bouc_wen_fit_s']:.2f} s (target < {targets['bouc_wen_fit_s_max']:g} s: {verdict(result['bouc_wen_fit_s'] < targets['bouc_wen_fit_s_max'])}), "
         f"the PSO search alone, without the polish ({result['bouc_wen_search_evaluations']:,} evaluations) {result['bouc_wen_search_s']:.2f} s",

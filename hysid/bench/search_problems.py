@@ -10,9 +10,9 @@ fitness any method found is one number per problem.
   Mech. 123, 1997) at three control levels: a Bouc-Wen hysteretic force with
   exponent n = 2, a viscous damper and a linear spring, no mass; 9 loops at
   1-3 Hz and 5-15 mm, 1 % force noise. The records are integrated in time here
-  (RK4 of z' = x' - gamma |x'| |z| z - beta x' z^2); the model fitted is
-  ``baseline+bouc_wen`` with its exponent at 1 until the library has the
-  exponent as a parameter;
+  (RK4 of z' = x' - gamma |x'| |z| z - beta x' z^2, independently of the
+  library's orbit); the model fitted is the ``mr_damper`` preset (oscillator
+  + Bouc-Wen with its exponent ``bw_n`` free);
 * ``friction_bouc_wen``: a damper with Bouc-Wen hysteresis and Coulomb friction
   (``baseline+coulomb_friction+bouc_wen``), 9 loops at 2-8 Hz and 2-6 mm;
 * ``wire_rope_sensor``: a softening wire-rope-like Bouc-Wen isolator
@@ -195,8 +195,8 @@ def build(name: str) -> Problem:
     """One problem of :data:`PROBLEMS` (its data simulated and extracted now)."""
     if name in MR_LEVELS:
         loops = extracted(name, mr_damper_records(MR_LEVELS[name]), None)
-        model, truth = "baseline+bouc_wen", {k: v for k, v in MR_LEVELS[name].items()}
-        description = f"Spencer-type MR damper (Bouc-Wen n = 2, viscous, spring), f_y {MR_LEVELS[name]['f_y']:g} N; fitted with n = 1"
+        model, truth = "mr_damper", {k: v for k, v in MR_LEVELS[name].items()}
+        description = f"Spencer-type MR damper (Bouc-Wen n = 2, viscous, spring), f_y {MR_LEVELS[name]['f_y']:g} N; exponent free"
     elif name == "friction_bouc_wen":
         freq, amp = grid(np.array([2.0, 4.0, 8.0]), np.array([2e-3, 4e-3, 6e-3]))
         loops = extracted(name, simulated("baseline+coulomb_friction+bouc_wen", FRICTION_BW, freq, amp, rate_hz=1000.0), None)

@@ -17,9 +17,7 @@ import typer
 
 from hysid.cli import bench, campaign, data, diagnose, fit, router, watch
 from hysid.cli.options import error_line
-from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError, HysidWarning
-from hysid_model.model import PRESETS, build_model
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as shells report it."""
@@ -61,13 +59,9 @@ for module in (data, fit, bench, campaign, router, diagnose, watch):
 @app.command("models")
 def models_command() -> None:
     """List the model presets and the effect library, with every parameter's unit and default bounds."""
-    for spec in PRESETS:
-        print(build_model(spec).describe())
-    print("effects (add with MODEL+EFFECT, e.g. thesis+coulomb_friction):")
-    for effect_id, term_type in sorted(EFFECTS.items()):
-        term = term_type()
-        plist = ", ".join(f"{p.name} [{p.unit}] in [{p.lower:g}, {p.upper:g}]" for p in term.params)
-        print(f"  {effect_id}: {plist}\n      {term.explanation}")
+    from hysid.report.text import models_text
+
+    print(models_text())
 
 
 def fail(message: str) -> None:

@@ -29,6 +29,7 @@ from coordinator.store import Store
 from hysid.campaigns import campaign, finish
 from hysid.cli import options as o
 from hysid.cli.progress import Progress, campaign_reporter
+from hysid.motion import choose_motion
 from hysid.report.text import campaign_progress_line
 from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError, HysidWarning
@@ -213,7 +214,8 @@ def register(app: typer.Typer) -> None:
             migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
             loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
             config = CampaignConfig.create(
-                loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
+                loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed,
+                displacement=choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed).displacement,
                 algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands,
                 until_stopped=until_stopped, share=share,
             )

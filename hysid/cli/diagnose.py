@@ -23,6 +23,8 @@ def register(app: typer.Typer) -> None:
         out: Optional[Path] = o.OUT,
         as_json: bool = o.JSON,
         points: Optional[int] = o.POINTS,
+        noise: float = o.NOISE,
+        noise_seed: int = o.NOISE_SEED,
         csv: bool = o.CSV,
         quiet: bool = o.QUIET,
         bound: Optional[list[str]] = o.BOUND,
@@ -31,7 +33,7 @@ def register(app: typer.Typer) -> None:
         """Find which effects of the library the model misses, step by step, and write a report."""
         bounds = o.parse_bounds(bound)
         target = o.report_dir(out, "diagnose")
-        loops = load_dataset(dataset, n_points=points)
+        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
         with Progress("diagnosing", 2, enabled=not (quiet or as_json)) as progress:
             result = diagnose(loops, model, bounds=bounds, displacement=displacement, progress=lambda done, total, what: progress.update(done, what, total))
         o.show_result(result, target, as_json, csv, dataset)

@@ -81,7 +81,7 @@ def error_line(exc: HysidInputError) -> str:
 DATASET_HELP = "Dataset directory, loops file, .mat or .lvm directory, or 'synth' (the thesis' Synth set)."
 DATASET = typer.Argument(..., help=DATASET_HELP)
 DATASET_OR_SYNTH = typer.Argument(None, help=DATASET_HELP + " Default: synth.")
-MODEL = typer.Option("thesis", "--model", help="thesis, baseline, or a preset with +effects (see 'hysid models').")
+MODEL = typer.Option("thesis", "--model", help="A preset (thesis, baseline, mr_damper) with +effects (see 'hysid models').")
 START_MODEL = typer.Option("baseline", "--model", help=f"Start model: {' or '.join(PRESETS)}.")
 WEIGHTS = typer.Option(None, "--weights", help="thesis or ml (1/sigma^2); default: ml when every loop's noise sigma is known.")
 NOISE = typer.Option(0.0, "--noise", help="Gaussian force noise, % of each loop's peak force (as the thesis' Synth tests).")
@@ -127,8 +127,10 @@ BOUND = typer.Option(
     help="A hard search bound (repeatable): kept as given, never widened; overrides the dataset's and the data-derived bound.",
 )
 DISPLACEMENT = typer.Option(
-    "measured", "--displacement",
-    help="measured: the model sees each loop's measured displacement harmonics; sine: the ideal X0 sin(wt) of Eq. 4.5 (as the thesis).",
+    "auto", "--displacement",
+    help="auto: the data decide whether the displacement's harmonics are the motion or the sensor's distortion; "
+    "measured: the model is driven by each loop's measured waveform; fundamental: by its fundamental (the harmonics are the "
+    "sensor's); sine: the ideal X0 sin(wt) of Eq. 4.5 (as the thesis).",
 )
 FIX = typer.Option(None, "--fix", metavar="NAME=VALUE", help="A parameter known, not searched (repeatable), e.g. --fix meq=0.2.")
 

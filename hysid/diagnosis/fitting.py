@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hysid_model.harmonics import HarmonicObjective, Harmonics
-from hysid_model.model import MAX_WIDENINGS, Model
+from hysid_model.model import MAX_WIDENINGS, Model, spec_of
 from hysid_model.problem import prepare_model, starting_point
 from hysid_model.uncertainty import jacobian_covariance
 from island.polish import polish
 
-MAX_NFEV = 100
-"""Residual evaluations per polish."""
+NFEV_PER_PARAMETER = 40
+"""Residual evaluations per polish and free parameter (a memory model's polish must not run out of them)."""
 
 
 @dataclass
@@ -33,6 +33,10 @@ class Fit:
     residual: np.ndarray
     jacobian: np.ndarray
     stderr: np.ndarray = field(init=False)
+    held_out: dict[str, float | None] = field(default_factory=dict, init=False, repr=False)
+    """The leave-one-frequency-out whitened RMS once computed (:func:`hysid.diagnosis.metrics.cross_validated_rms`)."""
+    profiled: dict[str, float] = field(default_factory=dict, init=False)
+    """Standard errors from the chi^2 profile, where the curvature at the optimum cannot be trusted (:func:`profile_errors`)."""
 
     def __post_init__(self) -> None:
         """Standard errors from the Fisher information J^T J of the whitened residuals (the
@@ -45,8 +49,15 @@ class Fit:
         return self.objective.model
 
     @property
+    def freed(self) -> list[str]:
+        """Parameters the effects fix by default that this fit searches (Bouc-Wen's exponent ``bw_n``)."""
+        return [p.name for t in self.model.terms for p in t.params if not p.vary and p.name in self.model.names]
+
+    @property
     def spec(self) -> str:
-        return "+".join((self.start,) + self.effects)
+        """The model string: the start preset plus the effects (:func:`hysid_model.model.spec_of` where a
+        parameter fixed by default is searched: ``mr_damper``, Bouc-Wen with its exponent free)."""
+        return spec_of(self.model.terms, self.model.names) if self.freed else "+".join((self.start,) + self.effects)
 
     @property
     def chi2(self) -> float:
@@ -74,7 +85,7 @@ class Fit:
         return self.model.as_dict(self.theta)
 
     def errors(self) -> dict[str, float]:
-        return self.model.as_dict(self.stderr)
+        return {**self.model.as_dict(self.stderr), **self.profiled}
 
 
 def soft_bounds(model: Model) -> dict[str, tuple[float, float]]:
@@ -93,14 +104,15 @@ def make_model(harmonics: Harmonics, start: str, effects: tuple[str, ...], bound
 def fit_objective(objective: HarmonicObjective, start: str, effects: tuple[str, ...], starts: list[np.ndarray]) -> Fit:
     """Polish every start and keep the best (lowest chi^2); where it ends on a soft bound, widen that bound
     and polish again (up to ``MAX_WIDENINGS`` times): a bound the data suggested decides nothing."""
-    results = [polish(objective, s, max_nfev=MAX_NFEV) for s in starts]
+    nfev = NFEV_PER_PARAMETER * objective.dim
+    results = [polish(objective, s, max_nfev=nfev) for s in starts]
     best = min(results, key=lambda r: r.fitness)
     for _ in range(MAX_WIDENINGS):
         wider, changed = objective.model.widen_at(best.theta)
         if not changed:
             break
         objective = HarmonicObjective(objective.harmonics, wider)
-        best = polish(objective, best.theta, max_nfev=MAX_NFEV)
+        best = polish(objective, best.theta, max_nfev=nfev)
     return Fit(effects, start, objective, best.theta, objective.weighted_residuals(best.theta), objective.jacobian(best.theta))
 
 
@@ -108,3 +120,39 @@ def initial_fit(harmonics: Harmonics, start: str) -> Fit:
     """Fit the preset ``start`` (baseline or thesis) from the survey's linear estimate."""
     model = prepare_model(harmonics.loops, start)
     return fit_objective(HarmonicObjective(harmonics, model), start, (), [starting_point(harmonics.loops, model)])
+
+
+PROFILED = ("delay_s",)
+"""Parameters whose standard error comes from the chi^2 profile: a delay moves non-smooth forces (a friction
+jump) across the samples, so the chi^2's curvature at the optimum says little about its spread."""
+PROFILE_STEPS = (1.0, 10.0, 100.0)
+"""Multiples of the curvature's standard error tried, in turn, until the profile rises by one unit."""
+
+
+def profile_errors(fit: Fit) -> Fit:
+    """``fit`` with the standard error of each of its :data:`PROFILED` parameters from the profile of its
+    chi^2: the parameter moved either way with the others refitted, the rise taken as quadratic on each side,
+    the half-width where it reaches one unit (chi^2 / dof where the model misses the noise floor), the wider
+    side counted."""
+    unit = max(1.0, fit.whitened_rms**2)
+    for name in PROFILED:
+        if name not in fit.model.names:
+            continue
+        i = fit.model.names.index(name)
+        lower, upper = fit.model.bounds[i]
+        value, se = float(fit.theta[i]), float(fit.stderr[i])
+        step = se if np.isfinite(se) and se > 0 else 1e-3 * (upper - lower)
+        widths = []
+        for side in (-1.0, 1.0):
+            for k in PROFILE_STEPS:
+                target = float(np.clip(value + side * k * step, lower, upper))
+                if target == value:
+                    break
+                reduced = HarmonicObjective(fit.objective.harmonics, fit.model.fix({name: target}))
+                rise = polish(reduced, np.delete(fit.theta, i), max_nfev=NFEV_PER_PARAMETER * reduced.dim).fitness - fit.chi2
+                if rise >= unit or k == PROFILE_STEPS[-1]:
+                    widths.append(abs(target - value) * np.sqrt(unit / max(rise, 1e-300)))
+                    break
+        if widths:
+            fit.profiled[name] = float(max(widths))
+    return fit

@@ -152,7 +152,14 @@ def frequency_groups(harmonics: Harmonics) -> list[np.ndarray]:
 
 
 def cross_validated_rms(fit: Fit, harmonics: Harmonics) -> float | None:
-    """Leave-one-frequency-out whitened RMS of the held-out predictions, or None with under 3 frequencies."""
+    """Leave-one-frequency-out whitened RMS of the held-out predictions, or None with under 3 frequencies
+    (computed once per fit: the acceptance rules and the gap table both ask)."""
+    if "rms" not in fit.held_out:
+        fit.held_out["rms"] = _cross_validated_rms(fit, harmonics)
+    return fit.held_out["rms"]
+
+
+def _cross_validated_rms(fit: Fit, harmonics: Harmonics) -> float | None:
     groups = frequency_groups(harmonics)
     if len(groups) < 3:
         return None

@@ -1,55 +1,60 @@
-"""The diagnosis loop: score, name, add, refit, accept, until nothing is left to explain.
+"""The diagnosis loop: score, refit the best contenders from several starts, judge, take the best, until nothing is left.
 
-From the start model (baseline or thesis) fitted to the loops' harmonics:
+From the start model (baseline or thesis) fitted to the loops' harmonics, under
+the displacement the data read (:mod:`hysid.motion`: the measured waveform is
+the motion, or the sensor's distortion of its fundamental):
 
-1. score every library effect not in the model (:mod:`.scoring`); the ones
-   above the family-wise significance level (Bonferroni over all effects and
-   shapes) are contenders;
+1. score every library effect not in the model (:mod:`.scoring`); an effect
+   that cannot be at work on these loops whatever its values is set aside with
+   why (:mod:`.plausible`, e.g. a force high-pass where the force keeps its
+   mean); the ones above the family-wise significance level are contenders;
 2. refit the model plus each of the best few contenders (and of any contender
-   whose projected signature is nearly parallel to the best one's), from the
-   one-step estimate after a short line search along the strength;
-3. where two contenders other than the top one together remove significantly
-   more chi^2 (to first order) than the top one with any partner, refit them together as
-   well: greedy selection never finds a pair whose members each explain less
-   than a third effect alone (an amplitude-dependent stiffness with a constant
-   dashpot needs both slopes of Eq. 4.8-4.9; either alone loses to a cubic
-   spring). A pair that is acceptable and beats every single refit by
-   ``BIC_MARGIN`` is named as two steps, the better member first;
-4. accept the refit with the lowest BIC if it lowers the BIC by at least
-   ``BIC_MARGIN``, it makes no harmonic order significantly worse (:func:`created_order`),
-   its strength is significant (``MIN_Z`` standard errors) and
-   has the physical sign, no parameter is pushed against a bound (:func:`binding`), and it
-   removes at least ``MIN_SHARE`` of the chi^2 above the noise floor; every
-   other acceptable refit within ``BIC_MARGIN`` of it is named as confusable
-   with it (this data set cannot tell them apart);
-5. repeat until no contender is left or none is accepted.
+   whose projected signature is nearly parallel to the best one's), and plus
+   the best pair of the others (by the chi^2 they remove together to first
+   order), each from several starts (:mod:`.refits`): an effect is judged at
+   its best fit, never at one poor optimum. The pair is there because greedy
+   selection never finds two effects whose members each explain less than a
+   third alone (an amplitude-dependent stiffness with a constant dashpot needs
+   both slopes of Eq. 4.8-4.9), and because a leading effect must beat two
+   others together (a Bouc-Wen spring against friction plus a delay);
+3. judge every refit by the rules of :mod:`.acceptance` (information
+   criterion, shape, sign, bounds, share of the excess, the visible loop and
+   energy errors, plausible values); of those that pass, in BIC order, the
+   first that also predicts held-out frequencies better is taken. A pair is
+   named as two steps, its better member first. Every other passing refit
+   within ``BIC_MARGIN`` of the one taken is named as confusable with it (this
+   data set cannot tell them apart);
+4. repeat until no contender is left or none is taken.
 
-The result is ``adequate`` when the final residual is noise (:mod:`.naming`),
-else ``unexplained`` with a description of what is left.
+The reading of the displacement is then confirmed with the final model; if
+that model reads it the other way (:func:`hysid.motion.confirm_motion`), the
+diagnosis runs again under the other reading and the final model with the
+lower BIC is kept. The result is ``adequate`` when the final residual is noise
+(:mod:`.naming`), else ``unexplained`` with a description of what is left.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from itertools import combinations
-from dataclasses import dataclass, field, replace
-from pathlib import Path
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
-from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
-from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
-from hysid.diagnosis.metrics import GapMetrics, References, gap_metrics, references
+from hysid.diagnosis.acceptance import held_out, judge
+from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
+from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
+from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
 from hysid.diagnosis.naming import adequacy, residual_signature
+from hysid.diagnosis.plausible import implausible_effect
+from hysid.diagnosis.refits import refit
+from hysid.diagnosis.result import Diagnosis, Step
 from hysid.diagnosis.scoring import Candidate, joint_score, score_candidates
 from hysid.identifiability import Identifiability, assess
-from hysid.report import diagnosis as diagnosis_report
-from hysid.report import tables, text
+from hysid.motion import choose_motion, confirm_motion
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
-from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import PRESETS, build_model
@@ -60,157 +65,11 @@ TRIALS = 4
 """Contenders refitted per round (plus those parallel to the best)."""
 PARALLEL = 0.9
 """|cos| between projected signatures above which two contenders are refitted together."""
-LINE_SEARCH = (0.25, 0.5, 1.0, 2.0, 4.0)
-"""Multiples of the one-step estimate tried before polishing."""
 MAX_STEPS = 6
 PAIRS = 5
 """Best contenders whose pairs are scored together."""
 
-
-@dataclass
-class Step:
-    """One accepted effect."""
-
-    effect: str
-    confusable_with: list[str]
-    score: float
-    before: Fit
-    after: Fit
-    rejected: dict[str, str]
-    """Other contenders of this round and why they were not taken."""
-    joint_with: str | None = None
-    """The effect named together with this one (neither alone explains what both do)."""
-
-    @property
-    def params(self) -> dict[str, float]:
-        names = [p.name for p in EFFECTS[self.effect]().params]
-        return {n: v for n, v in self.after.params().items() if n in names}
-
-    @property
-    def errors(self) -> dict[str, float]:
-        return {n: v for n, v in self.after.errors().items() if n in self.params}
-
-
-@dataclass
-class Diagnosis:
-    """What :func:`diagnose` found: the start fit, every accepted step, the final fit and its gap to the data."""
-
-    harmonics: Harmonics
-    start: Fit
-    steps: list[Step]
-    final: Fit
-    status: str
-    unexplained: dict | None
-    not_identifiable: dict[str, list[str]]
-    rejected: dict[str, str]
-    """Contenders of the last round and why none was taken."""
-    gap: list[GapMetrics]
-    """The gap between model and data at the start and after every step."""
-    references: References
-    """Model-free levels the gap is held against (linear per loop, repeatability)."""
-    identifiability: Identifiability
-    """What the data cannot determine of the final model, and its correlations."""
-    last_scores: list[Candidate] = field(default_factory=list)
-    report: str | None = None
-    """The report written last (:meth:`write_report`)."""
-
-    def effects_not_identifiable(self) -> dict[str, str]:
-        """Why each effect of ``not_identifiable`` cannot be identified from these loops."""
-        levels = amplitude_levels(self.harmonics.loops.x0)[0]
-        out = {}
-        for effect, absorbed in self.not_identifiable.items():
-            if levels.size == 1 and EFFECTS[effect].slope_of:
-                out[effect] = f"one amplitude level (X0 = {levels[0] * 1e3:.4g} mm) cannot show a change with amplitude: it is {', '.join(absorbed)} again"
-            else:
-                out[effect] = f"whatever it does, the model already does with {', '.join(absorbed)}"
-        return out
-
-    def fits(self) -> list[tuple[str, Fit]]:
-        """(label, fit) for the start and after every step."""
-        return [("start: " + self.start.spec, self.start)] + [("+ " + s.effect, s.after) for s in self.steps]
-
-    @property
-    def params(self) -> dict[str, float]:
-        """The final model's parameters."""
-        return self.final.params()
-
-    @property
-    def stderr(self) -> dict[str, float]:
-        """The final model's standard errors (NaN where the data cannot determine a parameter)."""
-        return self.final.model.as_dict(self.identifiability.stderr * max(1.0, self.final.whitened_rms))
-
-    @property
-    def reaches(self) -> str:
-        """Which reference the final model reaches: noise floor, repeatability, linear per loop, or none."""
-        return self.references.reached(self.final.whitened_rms, self.status == "adequate")
-
-    def tables(self) -> dict[str, list[dict[str, Any]]]:
-        """``parameters`` of the final model, ``steps`` (the effects named, with their parameters) and ``gap``."""
-        return tables.diagnosis_tables(self)
-
-    def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
-        """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
-        return tables.write_tables(self.tables(), out_dir)
-
-    def to_dataframes(self) -> dict[str, Any]:
-        """Each table of :meth:`tables` as a pandas DataFrame (needs pandas, an optional dependency)."""
-        return tables.data_frames(self.tables())
-
-    def summary(self) -> str:
-        """The gap after each step, the status and what cannot be identified, as text."""
-        return text.diagnosis_summary(self)
-
-    def write_report(self, out_dir: str | Path, dataset: str | None = None) -> Path:
-        """``diagnosis.md`` with its figures and ``diagnosis.json`` in ``out_dir``; returns the Markdown path.
-
-        ``dataset`` is how the reader reloads the data (default: the loop set's name).
-        """
-        return diagnosis_report.write_diagnosis_report(self, out_dir, dataset or self.harmonics.loops.name)
-
-    def _repr_markdown_(self) -> str:
-        return diagnosis_report.overview(self)
-
-    def __repr__(self) -> str:
-        return f"<Diagnosis of {self.harmonics.loops.name}: {self.start.spec} -> {self.final.spec}, {self.status}>"
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON document of ``hysid diagnose --json``."""
-        return {
-            "dataset": self.harmonics.loops.name,
-            "start_model": self.start.spec,
-            "final_model": self.final.spec,
-            "steps": [
-                {
-                    "effect": s.effect,
-                    "confusable_with": s.confusable_with,
-                    "params": s.params,
-                    "stderr": s.errors,
-                    "score": s.score,
-                    "whitened_rms_before": s.before.whitened_rms,
-                    "whitened_rms_after": s.after.whitened_rms,
-                    "delta_bic": s.after.bic - s.before.bic,
-                    "rejected": s.rejected,
-                    "joint_with": s.joint_with,
-                }
-                for s in self.steps
-            ],
-            "status": self.status,
-            "unexplained_signature": self.unexplained,
-            "not_identifiable": sorted(self.not_identifiable) + list(self.identifiability.not_identifiable),
-            "not_identifiable_reasons": {**self.effects_not_identifiable(), **self.identifiability.not_identifiable},
-            "correlation": self.identifiability.correlation_dict(),
-            "rejected": self.rejected,
-            "final_params": self.final.params(),
-            "final_stderr": self.stderr,
-            "final_bounds": {p.name: [p.lower, p.upper] for p in self.final.model.parameters},
-            "final_fixed": self.final.model.fixed,
-            "bounds_from_data": sorted(p.name for p in self.final.model.parameters if p.soft),
-            "whitened_rms": self.final.whitened_rms,
-            "references": self.references.as_dict(),
-            "reaches": self.reaches,
-            "noise_sigma": "known" if np.all(self.harmonics.sigma_known) else "estimated from the data",
-            "gap": [g.as_dict() for g in self.gap],
-        }
+Progress = Callable[[str], None]
 
 
 def threshold(candidates: list[Candidate]) -> float:
@@ -233,122 +92,28 @@ def contenders(candidates: list[Candidate]) -> list[Candidate]:
     return [c for i, c in enumerate(ok) if i < TRIALS or abs(float(c.direction @ top.direction)) > PARALLEL]
 
 
-def best_pair(candidates: list[Candidate], residual: np.ndarray) -> tuple[tuple[Candidate, Candidate], np.ndarray, float] | None:
-    """The pair of contenders without the top one that together remove the most chi^2 (to first order),
-    if that exceeds by a significant amount what the top one removes with any partner (where greedy
-    selection would go); (pair, joint one-step strengths, chi^2 removed)."""
+Pair = tuple[tuple[Candidate, Candidate], np.ndarray]
+"""Two contenders and their joint one-step strengths (:func:`hysid.diagnosis.scoring.joint_score`)."""
+
+
+def best_pairs(candidates: list[Candidate], residual: np.ndarray) -> tuple[Pair, Pair] | None:
+    """The pair of contenders other than the top one that together remove the most chi^2 to first order, if
+    that exceeds by a significant amount (the round's score threshold) what the top one removes with its best
+    partner, and that greedy pair: (others, greedy), or None. Both are refitted and the pair of others is
+    taken only if it beats the greedy pair, two effects against two, and every single refit."""
     ok = passing(candidates)[:PAIRS]
     if len(ok) < 3:
         return None
     top, level = ok[0], threshold(candidates)
-    greedy = max(joint_score(top, c, residual)[0] for c in ok[1:])
-    best = None
-    for a, b in combinations(ok[1:], 2):
-        removed, step = joint_score(a, b, residual)
-        if removed > greedy + level and (best is None or removed > best[2]):
-            best = ((a, b), step, removed)
-    return best
+    (greedy_removed, greedy_step), partner = max(((joint_score(top, c, residual), c) for c in ok[1:]), key=lambda item: item[0][0])
+    (removed, step), pair = max(((joint_score(a, b, residual), (a, b)) for a, b in combinations(ok[1:], 2)), key=lambda item: item[0][0])
+    if removed <= greedy_removed + level:
+        return None
+    return (pair, step), ((top, partner), greedy_step)
 
 
-def refit(fit: Fit, harmonics: Harmonics, candidate: Candidate, bounds: dict[str, tuple[float, float]]) -> Fit:
-    """The current model plus ``candidate``, polished from the best two points (one for a model
-    with memory, whose evaluations cost more) of a line search along the one-step estimate of
-    each of its best shapes."""
-    effects = fit.effects + (candidate.effect,)
-    model = make_model(harmonics, fit.start, effects, bounds)
-    objective = HarmonicObjective(harmonics, model)
-    term = EFFECTS[candidate.effect]()
-    i = model.names.index(term.strength)
-    rows = []
-    for shape, one_step in candidate.starts:
-        base = model.from_dict({**{p.name: 0.0 for p in term.params}, **fit.params(), **shape})
-        line = np.repeat(base[None, :], len(LINE_SEARCH), axis=0)
-        line[:, i] = one_step * np.array(LINE_SEARCH)
-        rows.append(line)
-    rows = np.clip(np.concatenate(rows), model.bounds[:, 0], model.bounds[:, 1])
-    order = np.argsort(objective(rows))
-    return fit_objective(objective, fit.start, effects, [rows[j] for j in order[: 1 if model.has_memory else 2]])
-
-
-def refit_pair(fit: Fit, harmonics: Harmonics, pair: tuple[Candidate, Candidate], step: np.ndarray, bounds: dict[str, tuple[float, float]]) -> Fit:
-    """The current model plus both effects of ``pair`` (each at its best shape), polished from the best
-    points of a line search along their joint one-step estimate (:func:`.scoring.joint_score`)."""
-    effects = fit.effects + tuple(c.effect for c in pair)
-    model = make_model(harmonics, fit.start, effects, bounds)
-    objective = HarmonicObjective(harmonics, model)
-    terms = [EFFECTS[c.effect]() for c in pair]
-    base = model.from_dict(
-        {**{p.name: 0.0 for t in terms for p in t.params}, **fit.params(), **pair[0].starts[0][0], **pair[1].starts[0][0]}
-    )
-    rows = np.repeat(base[None, :], len(LINE_SEARCH), axis=0)
-    for t, strength in zip(terms, step):
-        rows[:, model.names.index(t.strength)] = strength * np.array(LINE_SEARCH)
-    rows = np.clip(rows, model.bounds[:, 0], model.bounds[:, 1])
-    order = np.argsort(objective(rows))
-    return fit_objective(objective, fit.start, effects, [rows[j] for j in order[: 1 if model.has_memory else 2]])
-
-
-def binding(fit: Fit, j: int) -> bool:
-    """True if parameter ``j`` sits on a bound that the data push against (the fit wants out of the range).
-
-    One-parameter score test at the bound: the chi^2 gradient 2 J^T e along
-    parameter j, with the others free, gives LM = (J^T e)_j^2 [(J^T J)^-1]_jj;
-    the bound binds if that points outward and exceeds MIN_Z^2. A weakly
-    determined shape that merely wanders onto its bound does not bind.
-    """
-    name = fit.model.names[j]
-    if name not in fit.model.at_bounds(fit.theta):
-        return False
-    lower, upper = fit.model.bounds[j]
-    value = fit.theta[j]
-    gradient = (fit.jacobian.T @ fit.residual)[j]
-    lm = gradient**2 * jacobian_covariance(fit.jacobian)[j, j]
-    outward = gradient > 0 if value - lower <= upper - value else gradient < 0
-    return bool(outward and lm > MIN_Z**2)
-
-
-def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
-    """A harmonic order that ``before`` fits at the noise and ``after`` significantly worse, no longer at the
-    noise (the family-wise ``SIGNIFICANCE`` of chi^2 over that order's coefficients): (order, chi^2 before,
-    after), or None. An effect that buys a better first harmonic with content the loops do not have
-    (a hysteretic spring fitting how a linear stiffness changes with amplitude) has the wrong shape."""
-    orders = before.objective.harmonics.orders()
-    n_loops = before.objective.harmonics.loops.n_loops
-    r0, r1 = (f.residual.reshape(n_loops, -1) for f in (before, after))
-    levels = np.unique(orders)
-    for k in levels:
-        n = int(np.count_nonzero(orders == k)) * n_loops
-        c0, c1 = float(np.sum(r0[:, orders == k] ** 2)), float(np.sum(r1[:, orders == k] ** 2))
-        limit = float(chi2_dist.isf(SIGNIFICANCE / levels.size, n))
-        if c0 <= limit < c1 and c1 - c0 > limit - n:
-            return int(k), c0, c1
-    return None
-
-
-def judge(before: Fit, after: Fit, effect: str) -> str | None:
-    """Why ``after`` (``before`` plus ``effect``) is not accepted, or None."""
-    delta = after.bic - before.bic
-    if delta > -BIC_MARGIN:
-        return f"BIC changes by only {delta:+.1f}"
-    created = created_order(before, after)
-    if created is not None:
-        k, c0, c1 = created
-        return f"adds order-{k} content the loops do not have (chi^2 of order {k}: {c0:.4g} -> {c1:.4g})"
-    term = EFFECTS[effect]()
-    names = after.model.names
-    values, errors, bounds = after.theta, after.stderr, after.model.bounds
-    i = names.index(term.strength)
-    if bounds[i, 0] == 0.0 and values[i] <= 0.0:
-        return f"{term.strength} has the unphysical sign"
-    if abs(values[i]) < MIN_Z * errors[i]:
-        return f"{term.strength} = {values[i]:.4g} +- {errors[i]:.2g} is not significant"
-    for p in term.params:
-        if p.name != term.strength and binding(after, names.index(p.name)):
-            return f"{p.name} is pushed against its bound ({values[names.index(p.name)]:.4g}): the effect degenerates here"
-    excess = before.chi2 - before.dof
-    if excess > 0 and before.chi2 - after.chi2 < MIN_SHARE * excess:
-        return f"removes only {100 * (before.chi2 - after.chi2) / excess:.0f}% of the chi^2 above the noise floor"
-    return None
+def label(effects: tuple[str, ...]) -> str:
+    return " with ".join(effects)
 
 
 def with_given_bounds(loops: LoopSet, start: str, bounds: Mapping[str, tuple[float, float]] | None) -> LoopSet:
@@ -366,7 +131,7 @@ def diagnose(
     model: str = "baseline",
     *,
     bounds: Mapping[str, tuple[float, float]] | None = None,
-    displacement: str = "measured",
+    displacement: str = "auto",
     max_steps: int = MAX_STEPS,
     cross_validate: bool = True,
     progress: Callable[[int, int, str], None] | None = None,
@@ -375,22 +140,39 @@ def diagnose(
 
     ``bounds`` (``{"w0": (10, 200)}``, any parameter of the start model or of a library effect) are
     hard, as the dataset's: every model the diagnosis fits keeps them (:func:`hysid_model.problem.prepare_model`).
-    ``displacement``: each loop's measured waveform or the ideal sine (as :func:`hysid.fit`);
-    ``cross_validate`` adds the leave-one-frequency-out gap of every step (a refit per frequency).
-    ``progress(done, total, what)`` is called after every fit; ``total`` is what is known so far (it
-    grows while effects are found). It does not change the result.
+    ``displacement``: ``auto`` (the data decide whether the displacement's harmonics are the motion or the
+    sensor's, :mod:`hysid.motion`), ``measured``, ``fundamental`` or ``sine``, as :func:`hysid.fit`;
+    ``cross_validate`` adds the leave-one-frequency-out gap of every step and judges every effect by it
+    (a refit per frequency). ``progress(done, total, what)`` is called after every fit; ``total`` is what is
+    known so far (it grows while effects are found). It does not change the result.
     """
     if model not in PRESETS:
         raise HysidInputError(f"the start model must be one of {', '.join(PRESETS)}", param="model", value=model)
     count = [0, 2]  # fits done, fits known to come (the start fit, and the gap of the start model)
 
-    def done(what: str) -> None:
+    def done(what: str, more: int = 0) -> None:
         count[0] += 1
+        count[1] += more
         if progress is not None:
             progress(count[0], count[1], what)
 
-    start = model
-    harmonics = Harmonics.from_loops(displaced(with_given_bounds(loops, start, bounds), displacement))
+    given = with_given_bounds(loops, model, bounds)
+    motion = choose_motion(given, model, displacement, bounds=bounds)
+    result = search(Harmonics.from_loops(displaced(given, motion.displacement)), model, max_steps, cross_validate, done, count)
+    flipped = confirm_motion(given, result.final.model, result.final.theta, motion)
+    if flipped is not None:
+        count[1] += 2
+        other = search(Harmonics.from_loops(displaced(given, flipped.displacement)), model, max_steps, cross_validate, done, count)
+        if other.final.bic < result.final.bic:
+            result, motion = other, flipped
+        else:
+            motion.reason += f"; read the other way the diagnosis ends {other.final.bic - result.final.bic:.4g} higher in BIC"
+    result.motion = motion
+    return result
+
+
+def search(harmonics: Harmonics, start: str, max_steps: int, cross_validate: bool, done: Callable[..., None], count: list[int]) -> Diagnosis:
+    """The diagnosis loop of the module docstring on ``harmonics`` from the preset ``start``."""
     fit = initial_fit(harmonics, start)
     bounds = soft_bounds(fit.model)
     done(f"start model {start} fitted")
@@ -398,34 +180,50 @@ def diagnose(
     steps: list[Step] = []
     while True:
         candidates = score_candidates(fit, harmonics, bounds)
+        impossible = {c.effect: why for c in candidates if (why := implausible_effect(c.effect, harmonics.loops)) is not None}
+        candidates = [c for c in candidates if c.effect not in impossible]
         not_identifiable = {c.effect: c.absorbed_by for c in candidates if not c.identifiable}
-        trials = contenders(candidates) if len(steps) < max_steps else []
-        count[1] += len(trials)
-        refits = {}
-        for c in trials:
-            refits[c.effect] = refit(fit, harmonics, c, bounds)
-            done(f"step {len(steps) + 1}: refitted with {c.effect}")
-        verdicts = {e: judge(fit, r, e) for e, r in refits.items()}
-        rejected = {e: v for e, v in verdicts.items() if v is not None}
-        accepted = sorted((r.bic, e) for e, r in refits.items() if verdicts[e] is None)
-        pair = best_pair(candidates, fit.residual) if trials else None
-        if pair is not None:
-            joint = pair_step(fit, harmonics, pair, bounds, refits, accepted, done, count)
-            if joint is not None:
-                steps += joint
-                fit = joint[-1].after
-                bounds.update(soft_bounds(fit.model))
-                continue
-        if not accepted:
+        trials: list[tuple[tuple[Candidate, ...], np.ndarray | None]] = [((c,), None) for c in contenders(candidates)] if len(steps) < max_steps else []
+        pairs = best_pairs(candidates, fit.residual) if trials else None
+        if pairs is not None:
+            trials.append(pairs[0])
+        count[1] += len(trials) + (pairs is not None)
+        refits: dict[tuple[str, ...], Fit] = {}
+        scores = {c.effect: c.score for c in candidates}
+        for members, joint in trials:
+            effects = tuple(c.effect for c in members)
+            refits[effects] = profile_errors(refit(fit, harmonics, members, bounds, joint))
+            done(f"step {len(steps) + 1}: refitted with {label(effects)}")
+        verdicts = {effects: judge(fit, r, effects, harmonics) for effects, r in refits.items()}
+        if pairs is not None:  # the pair of others counts only where it beats the greedy pair and every single by BIC_MARGIN
+            others, (members, joint) = tuple(c.effect for c in pairs[0][0]), pairs[1]
+            greedy = refit(fit, harmonics, members, bounds, joint)
+            done(f"step {len(steps) + 1}: refitted with {label(tuple(c.effect for c in members))} (the greedy pair)")
+            rivals = [greedy.bic] + [r.bic for e, r in refits.items() if len(e) == 1 and verdicts[e] is None]
+            if verdicts[others] is None and refits[others].bic > min(rivals) - BIC_MARGIN:
+                verdicts[others] = (f"fits no better than {label(tuple(c.effect for c in members))} together or one effect alone "
+                                    f"(BIC {refits[others].bic - min(rivals):+.1f})")
+        ranked = sorted((r.bic, effects) for effects, r in refits.items() if verdicts[effects] is None)
+        chosen = None
+        for _, effects in ranked:
+            verdicts[effects] = held_out(fit, refits[effects], harmonics) if cross_validate else None
+            if verdicts[effects] is None:
+                chosen = effects
+                break
+        rejected = {label(e): v for e, v in verdicts.items() if v is not None}
+        if chosen is None:
             break
-        best_bic, best = accepted[0]
-        confusable = [e for b, e in accepted[1:] if b - best_bic < BIC_MARGIN]
-        others = {e: v for e, v in verdicts.items() if e != best and e not in confusable}
-        reasons = {e: v or f"fits worse than {best} (BIC +{refits[e].bic - best_bic:.1f})" for e, v in others.items()}
-        score = next(c.score for c in trials if c.effect == best)
-        steps.append(Step(effect=best, confusable_with=confusable, score=score, before=fit, after=refits[best], rejected=reasons))
-        count[1] += 1  # the gap after this step
-        fit = refits[best]
+        best = refits[chosen]
+        passed = [e for _, e in ranked if e != chosen and verdicts[e] is None]
+        confusable = [label(e) for e in passed if refits[e].bic - best.bic < BIC_MARGIN]
+        reasons = {label(e): v or f"fits worse than {label(chosen)} (BIC +{refits[e].bic - best.bic:.1f})"
+                   for e, v in verdicts.items() if e != chosen and label(e) not in confusable}
+        if len(chosen) == 1:
+            steps.append(Step(effect=chosen[0], confusable_with=confusable, score=scores[chosen[0]], before=fit, after=best, rejected=reasons))
+        else:
+            steps += pair_steps(fit, harmonics, chosen, refits, bounds, candidates, confusable, reasons, done)
+        count[1] += len(chosen)  # the gap after each step
+        fit = steps[-1].after
         bounds.update(soft_bounds(fit.model))
     check = adequacy(fit, harmonics)
     fits = [first] + [s.after for s in steps]
@@ -448,47 +246,33 @@ def diagnose(
         references=references(harmonics),
         identifiability=final_identifiability(fit, harmonics),
         last_scores=candidates,
+        impossible=impossible,
     )
 
 
-def pair_step(
+def pair_steps(
     fit: Fit,
     harmonics: Harmonics,
-    pair: tuple[tuple[Candidate, Candidate], np.ndarray, float],
+    pair: tuple[str, ...],
+    refits: dict[tuple[str, ...], Fit],
     bounds: dict[str, tuple[float, float]],
-    refits: dict[str, Fit],
-    accepted: list[tuple[float, str]],
-    done: Callable[[str], None],
-    count: list[int],
-) -> list[Step] | None:
-    """The two steps that name ``pair`` together, if its joint refit is acceptable for both effects and
-    beats every acceptable single refit by ``BIC_MARGIN``; else None. The member whose single refit fits
-    better comes first, its single refit in between."""
-    members, step, removed = pair
-    names = tuple(c.effect for c in members)
-    count[1] += 1
-    joint = refit_pair(fit, harmonics, members, step, bounds)
-    done(f"refitted with {' and '.join(names)} together")
-    if any(judge(fit, joint, e) is not None for e in names):
-        return None
-    if accepted and joint.bic > accepted[0][0] - BIC_MARGIN:
-        return None
-    for c in members:
-        if c.effect not in refits:
-            count[1] += 1
-            refits[c.effect] = refit(fit, harmonics, c, bounds)
-            done(f"refitted with {c.effect} alone")
-    first, second = sorted(members, key=lambda c: refits[c.effect].bic)
-    both = f"{first.effect} with {second.effect} together"
-    reasons = {
-        e: f"fits worse than {both} (BIC +{r.bic - joint.bic:.1f})" for e, r in refits.items() if e not in names
-    }
-    count[1] += 2  # the gaps after both steps
+    candidates: list[Candidate],
+    confusable: list[str],
+    reasons: dict[str, str],
+    done: Callable[..., None],
+) -> list[Step]:
+    """The two steps that name ``pair``: the member whose refit alone fits better first (its single refit in
+    between, refitted here if this round did not), then the joint refit."""
+    by_effect = {c.effect: c for c in candidates}
+    for effect in pair:
+        if (effect,) not in refits:
+            refits[(effect,)] = profile_errors(refit(fit, harmonics, (by_effect[effect],), bounds))
+            done(f"refitted with {effect} alone", more=1)
+    first, second = sorted(pair, key=lambda e: refits[(e,)].bic)
+    scores = {c.effect: c.score for c in candidates}
     return [
-        Step(effect=first.effect, confusable_with=[], score=first.score, before=fit, after=refits[first.effect], rejected=reasons,
-             joint_with=second.effect),
-        Step(effect=second.effect, confusable_with=[], score=removed - first.score, before=refits[first.effect], after=joint,
-             rejected={}, joint_with=first.effect),
+        Step(effect=first, confusable_with=confusable, score=scores[first], before=fit, after=refits[(first,)], rejected=reasons, joint_with=second),
+        Step(effect=second, confusable_with=[], score=scores[second], before=refits[(first,)], after=refits[pair], rejected={}, joint_with=first),
     ]
 
 

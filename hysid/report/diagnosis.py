@@ -20,7 +20,7 @@ from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
-    from hysid.diagnosis.selection import Diagnosis
+    from hysid.diagnosis.result import Diagnosis
 
 
 def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
@@ -28,15 +28,17 @@ def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
     term = EFFECTS[step.effect]()
     units = {p.name: p.unit for p in term.params}
     rows = [[name, with_error(value, step.errors[name]), units[name]] for name, value in step.params.items()]
-    lines = [f"### Step {i + 1}: {step.effect}", "", term.explanation, "", table(["parameter", "value +- std. error", "unit"], rows), ""]
+    freed = [n for n in step.after.freed if n in units]
+    heading = f"### Step {i + 1}: {step.effect}" + (f" ({', '.join(freed)} free)" if freed else "")
+    lines = [heading, "", term.explanation, "", table(["parameter", "value +- std. error", "unit"], rows), ""]
     lines.append(
         f"Score {num(step.score, 4)} (chi^2 the effect removes to first order); after refitting, the BIC changes by "
         f"{num(step.after.bic - step.before.bic, 5)} and the whitened RMS falls from {num(step.before.whitened_rms, 4)} "
         f"to {num(step.after.whitened_rms, 4)}."
     )
     if step.joint_with:
-        lines += ["", f"**Named together with {step.joint_with}**: the two explain together significantly more than any "
-                  "effect with a partner chosen one at a time (alone, each explains less than another effect would)."]
+        lines += ["", f"**Named together with {step.joint_with}**: the two, refitted together, fit better than any single "
+                  "effect refitted alone, so they are taken as a pair."]
     if step.confusable_with:
         lines += ["", f"**Confusable with** {', '.join(step.confusable_with)}: on this data set they fit within "
                   f"{BIC_MARGIN:g} BIC of it, so the data cannot tell them apart (e.g. too narrow a band of frequencies or amplitudes)."]
@@ -98,6 +100,8 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         f"force noise {sigma}. Each loop is reduced to its harmonics of orders 0-{int(h.orders().max())} "
         f"({h.coef.shape[1]} coefficients, in phase and in quadrature with the measured displacement).",
         "",
+        *([f"**Displacement model**: {diagnosis.motion.as_dict()['meaning']} ({diagnosis.motion.reason}).", ""]
+          if diagnosis.motion is not None and diagnosis.motion.decided_by != "none" else []),
         f"**Status: {diagnosis.status}.** {_summary(diagnosis)}",
         "",
         "## The gap, step by step",
@@ -125,6 +129,12 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         lines += ["", f"Against references that need no physical model, {reference_text(diagnosis.to_dict())}."]
     if diagnosis.rejected:
         lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in diagnosis.rejected.items()) + "."]
+    for effect, why in diagnosis.impossible.items():
+        lines += ["", f"**{effect} is impossible here**: {why}."]
+    if diagnosis.at_bounds:
+        lines += ["", "**On a bound**: " + "; ".join(f"`{n}` on its {kind}" for n, kind in diagnosis.at_bounds.items()) + "."]
+    for note in diagnosis.notes:
+        lines += ["", f"**Note**: {note}."]
     for effect, why in diagnosis.effects_not_identifiable().items():
         lines += ["", f"**{effect} cannot be identified with this setup**: {why}."]
     for name, why in diagnosis.identifiability.not_identifiable.items():
@@ -147,10 +157,14 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         "",
         "Every effect of the library is scored by a Lagrange-multiplier (score) test: its derivative on all harmonic "
         "coefficients, with whatever the current model can absorb projected out, against the whitened residual "
-        f"(Bonferroni level {SIGNIFICANCE:g}). The best few are refitted; one is accepted when the BIC improves by at "
-        f"least {BIC_MARGIN:g}, its strength is {MIN_Z:g} standard errors from zero with the physical sign, no parameter "
-        f"is pushed against a bound, and it removes at least {100 * MIN_SHARE:.0f}% of the chi^2 above the noise floor. Effects "
-        "fitting within the BIC margin of the accepted one are named as confusable.",
+        f"(Bonferroni level {SIGNIFICANCE:g}). Effects that cannot be at work on these loops (a force high-pass where the "
+        "force keeps its mean) are set aside. The best few, and the best pair of the others, are refitted from several "
+        f"starts each, so that every effect is judged at its best fit. One is taken when the BIC improves by at least "
+        f"{BIC_MARGIN:g}, it adds no harmonic content the loops lack, its strength has the physical sign, no parameter is "
+        f"pushed against a bound (a score test of {MIN_Z:g} standard errors), it removes at least {100 * MIN_SHARE:.0f}% of "
+        "the chi^2 above the noise floor, neither the loop NRMSE nor the energy error rises, its values are physically "
+        "possible, and it predicts held-out frequencies better (leave one frequency out); of those, the lowest BIC. "
+        "Effects fitting within the BIC margin of the one taken are named as confusable.",
         "",
         "## Reproduce",
         "",

@@ -16,7 +16,7 @@ from hysid.report.text import hz_text
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
-    from hysid.diagnosis.selection import Diagnosis
+    from hysid.diagnosis.result import Diagnosis
 
 START = "#999999"
 """The start model in loop plots (grey, dashed)."""

@@ -2,8 +2,8 @@
 
 * :func:`convergence_figure`: best fitness vs iteration, semilog, all runs
   overlaid, one panel per algorithm with matching scales (Figs. 5.6-5.9);
-* :func:`loops_figure`: trial vs model loops, rows = amplitudes, columns = a
-  few frequencies across the band (Figs. 5.10-5.13);
+* :func:`loops_figure`: measured vs model loops, rows = amplitudes, columns = a
+  few frequencies across the band, the subset named (Figs. 5.10-5.13);
 * :func:`residuals_figure`: per-loop RMS residual vs frequency and residual vs
   phase (structure there means physics the model is missing);
 * :func:`half_power_figure`: compliance FRF per amplitude with the half-power
@@ -24,7 +24,7 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
+from matplotlib.ticker import FormatStrFormatter, LogLocator, MaxNLocator, NullFormatter
 
 from hysid.report.style import (
     HALF_POWER,
@@ -48,6 +48,8 @@ from hysid_model.survey import Survey
 from island.run import RunResult
 
 MAX_LOOP_ROWS = 5
+LONG_RUN = 40
+"""Iterations beyond which the convergence figure puts the iterations on a log scale and draws step lines."""
 
 
 def _mm(x0: float) -> str:
@@ -75,6 +77,8 @@ def convergence_figure(path: Path, panels: Sequence[tuple[str, Sequence[RunResul
             floor = lowest / 10.0  # polish far below the search: keep the search readable, clip the stars
         else:
             floor = min([lowest] + polished) / 1.5
+    longest = max((len(r.history) for _, runs in panels for r in runs), default=0)
+    many = longest > LONG_RUN
     for ax, (label, runs) in zip(axes, panels):
         last = 0
         clipped = []
@@ -82,26 +86,32 @@ def convergence_figure(path: Path, panels: Sequence[tuple[str, Sequence[RunResul
             it = np.array([h["iteration"] for h in r.history], dtype=float)
             f = np.array([h["best_fitness"] for h in r.history], dtype=float)
             color = series_color(i)
-            ax.plot(it, f, marker="o", markersize=2.5, color=color, label=r.label)
+            ax.plot(it + many, f, marker="none" if many else "o", markersize=2.5, color=color, label=r.label, drawstyle="steps-post" if many else "default")
             last = max(last, int(it[-1]))
             if r.polish is not None and 0 < r.fitness < r.search_fitness:
                 shown = max(r.fitness, floor * 1.05) if floor else r.fitness
-                ax.plot([it[-1], it[-1] + 1], [f[-1], shown], linestyle=":", color=color)
-                ax.plot(it[-1] + 1, shown, marker="*", markersize=8, color=color, linestyle="none", clip_on=False)
+                end = it[-1] + many
+                ax.plot([end, end * 1.15 if many else end + 1], [f[-1], shown], linestyle=":", color=color)
+                ax.plot(end * 1.15 if many else end + 1, shown, marker="*", markersize=8, color=color, linestyle="none", clip_on=False)
                 if shown > r.fitness:
                     clipped.append(r.fitness)
         if clipped:
             low, high = f"{min(clipped):.2g}", f"{max(clipped):.2g}"
             ax.annotate(
                 f"polish: {low}" + (f" to {high}" if high != low else "") + "\n(below the axis)",
-                xy=(last + 1, floor * 1.05), xytext=(-6, 10), textcoords="offset points", ha="right", va="bottom", fontsize=7,
+                xy=((last + 1) * 1.15 if many else last + 1, floor * 1.05), xytext=(-6, 10), textcoords="offset points", ha="right", va="bottom", fontsize=7,
             )
         ax.set_yscale("log")
         if floor:
             ax.set_ylim(bottom=floor)
-        ax.set_xlabel("iteration")
-        ax.set_xlim(-0.5, last + 1.5)
-        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        if many:  # hundreds of iterations: the early descent spread out, each island a step line
+            ax.set_xscale("log")
+            ax.set_xlabel("iteration + 1 (log scale)")
+            ax.set_xlim(0.9, (last + 1) * 1.3)
+        else:
+            ax.set_xlabel("iteration")
+            ax.set_xlim(-0.5, last + 1.5)
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         if label:
             ax.set_title(label)
         handles, labels = ax.get_legend_handles_labels()
@@ -124,14 +134,16 @@ def _closed(top: np.ndarray, bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 @styled
 def loops_figure(path: Path, loops: LoopSet, predicted: np.ndarray, columns: int = 4, title: str = "") -> Path:
-    """Trial (dots) and model (line) loops: one row per amplitude, ``columns`` frequencies across the band."""
+    """Measured (dots) and model (line) loops: one row per amplitude, ``columns`` frequencies across the band."""
     return save(draw_loops(loops, predicted, columns, title), path)
 
 
 def draw_loops(loops: LoopSet, predicted: np.ndarray, columns: int = 4, title: str = "") -> Figure:
-    """The figure of :func:`loops_figure` (drawn under its style); the legend sits below the panels, clear of the title."""
+    """The figure of :func:`loops_figure` (drawn under its style); the legend sits below the panels, clear of the title,
+    and says which of the loops are shown when not all are."""
     levels, index = amplitude_levels(loops.x0)
     rows = np.unique(np.round(np.linspace(0, levels.size - 1, min(levels.size, MAX_LOOP_ROWS))).astype(int))
+    shown = 0
     n = loops.n_samples
     fig = new_figure(1.55 * rows.size + 0.45)
     axes = fig.subplots(rows.size, columns, squeeze=False)
@@ -139,6 +151,7 @@ def draw_loops(loops: LoopSet, predicted: np.ndarray, columns: int = 4, title: s
         members = np.flatnonzero(index == k)
         members = members[np.argsort(loops.freq_hz[members], kind="stable")]
         picks = members[np.unique(np.round(np.linspace(0, members.size - 1, min(columns, members.size))).astype(int))]
+        shown += picks.size
         for c in range(columns):
             ax = axes[r, c]
             if c >= picks.size:
@@ -159,7 +172,10 @@ def draw_loops(loops: LoopSet, predicted: np.ndarray, columns: int = 4, title: s
         Line2D([], [], linestyle="none", marker=".", markersize=6, color=TRIAL),
         Line2D([], [], color=MODEL),
     ]
-    fig.legend(handles, ["trial", "model"], loc="outside lower center", ncol=2)
+    labels = ["measured", "model"]
+    if shown < loops.n_loops:
+        labels[0] = f"measured ({shown} of {loops.n_loops} loops shown: {rows.size} of {levels.size} amplitudes, frequencies across the band)"
+    fig.legend(handles, labels, loc="outside lower center", ncol=2)
     if title:
         fig.suptitle(title)
     return fig
@@ -275,7 +291,7 @@ def half_power_figure(
         ax2.plot([hp.f1_hz, hp.f2_hz], [level, level], linestyle="none", marker="D", markersize=4.5, color=HALF_POWER, markeredgecolor=color)
         ax2.plot([hp.f_peak_hz], [hp.peak_compliance * 1e3], linestyle="none", marker="v", markersize=6, color=PEAK, markeredgecolor=color)
     ax2.set_xlim(lo, hi)
-    in_view = (loops.freq_hz >= lo) & (loops.freq_hz <= hi)
+    in_view = (loops.freq_hz >= lo) & (loops.freq_hz <= hi) & np.isfinite(comp) & (comp > 0)  # a log axis' limits
     if np.any(in_view):
         top = max([hp.peak_compliance for hp in ok] + [float(comp[in_view].max())]) * 1e3
         ax2.set_ylim(float(comp[in_view].min()) * 1e3 / 1.3, top * 1.3)
@@ -397,6 +413,7 @@ def survey_figure(path: Path, survey: Survey) -> Path:
         ax_ea.set_xscale("log")
         ax_ea.set_yscale("log")
         ax_ea.xaxis.set_major_formatter(FormatStrFormatter("%.3g"))
+        ax_ea.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))  # labelled minor ticks that never collide ("0.60.7")
         ax_ea.xaxis.set_minor_formatter(FormatStrFormatter("%.3g"))
     for ax in (ax_ka, ax_ea):
         ax.set_xlabel("amplitude $X_0$ (mm)")

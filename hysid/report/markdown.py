@@ -102,7 +102,8 @@ def summary_lines(result: "FitResult") -> list[str]:
         f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
         f"after {result.evaluations:,} evaluations in total.",
         f"- **Fit quality**: {quality_text(result)}.",
-    ]
+    ] + ([f"- **Displacement model**: {result.displacement_model['meaning']} ({result.displacement_model['reason']})."]
+         if result.displacement_model and result.displacement_model["decided_by"] != "none" else [])
 
 
 def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
@@ -231,7 +232,7 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         table(r_head, r_rows),
         image(figs["convergence"], out_dir, "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "
               "stars: after the least-squares polish"),
-        "## Model vs trial loops",
+        "## Model vs measured loops",
         image(figs["loops"], out_dir, "Trial and model loops; rows: amplitudes, columns: frequencies across the band "
               "(as Figs. 5.10-5.13)"),
         "## Residuals",

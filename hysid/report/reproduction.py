@@ -91,7 +91,7 @@ def write_reproduction_report(rep: "Reproduction", out_dir: Path | str) -> Path:
         path = figures.convergence_figure(out_dir / f"fig5_{n_fig}_convergence_{noise}pct.png", panels, FITNESS_LABEL["thesis"], f"{noise} % noise")
         parts.append(image(path, out_dir, f"Fig. 5.{n_fig}: convergence at {noise} % noise, all runs overlaid, matching scales"))
         n_fig += 1
-    parts.append("## Figs. 5.10-5.13: trial vs model loops (thesis-faithful PSO, run 1)")
+    parts.append("## Figs. 5.10-5.13: measured vs model loops (thesis-faithful PSO, run 1)")
     for noise in tt.NOISE_LEVELS:
         result = rep.results[("thesis", "pso", noise)][0]
         predicted = result.objective().predict(result.theta)[0]

@@ -43,7 +43,7 @@ RC = {
 }
 
 TRIAL = "#0072B2"
-"""Measured ('trial') data: blue, as the thesis' loop plots."""
+"""Measured data: blue, as the thesis' loop plots (the thesis' 'trial')."""
 MODEL = "#D55E00"
 """Model: vermilion."""
 TRUE = "#CC0000"

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 from hysid_model.errors import HysidInputError
 
 if TYPE_CHECKING:
-    from hysid.diagnosis.selection import Diagnosis
+    from hysid.diagnosis.result import Diagnosis
     from hysid.fitting import FitResult
 
 Rows = list[dict[str, Any]]

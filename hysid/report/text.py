@@ -13,14 +13,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hysid import thesis_tables as tt
+from hysid.diagnosis.plausible import mass_note
+from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
+from hysid_model.model import PRESET_EXPLANATIONS, PRESETS, build_model
 from hysid_model.survey import survey
 
 if TYPE_CHECKING:
     from coordinator.progress import CampaignProgress
     from hysid.campaigns import CampaignResult
-    from hysid.diagnosis.selection import Diagnosis
+    from hysid.diagnosis.result import Diagnosis
     from hysid.fitting import FitResult
     from hysid.reproduce import Reproduction
     from hysid_model.survey import Survey
@@ -35,6 +38,23 @@ def text_table(headers: Sequence[str], rows: Sequence[Sequence[str]], indent: st
         return indent + "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
 
     return "\n".join([line(headers)] + [line(r) for r in rows])
+
+
+def models_text() -> str:
+    """``hysid models``: every preset (what it models, its terms and parameters) and the effect library, with
+    every parameter's unit and default bounds (or fixed value)."""
+    lines = []
+    for spec in PRESETS:
+        lines += [build_model(spec).describe(), f"  ({PRESET_EXPLANATIONS[spec]})"]
+    lines.append("effects (add with MODEL+EFFECT, e.g. thesis+coulomb_friction):")
+    for effect_id, term_type in sorted(EFFECTS.items()):
+        term = term_type()
+        shown = ", ".join(
+            f"{p.name} [{p.unit}] " + (f"in [{p.lower:g}, {p.upper:g}]" if p.vary else f"fixed at {p.value:g} (search [{p.lower:g}, {p.upper:g}] when freed)")
+            for p in term.params
+        )
+        lines.append(f"  {effect_id}: {shown}\n      {term.explanation}")
+    return "\n".join(lines)
 
 
 def mass_text(meq_kg: float | None) -> str:
@@ -83,7 +103,8 @@ def quality_text(result: "FitResult") -> str:
     q = result.quality
     out = f"RMS residual {q['rms_residual_pct']:.3g} % of each loop's force amplitude |F1|"
     if q["noise_sigma_pct"] is not None:
-        out += f" (known noise sigma: {q['noise_sigma_pct']:.3g} %)"
+        source = result.loops.sigma_source
+        out += f" (noise sigma {'given' if source == 'given' else 'estimated from the records'}: {q['noise_sigma_pct']:.3g} %)"
     return out
 
 
@@ -97,20 +118,26 @@ def fit_warnings(result: "FitResult") -> list[str]:
                 f"note: the equivalent mass is fitted, but the survey cannot estimate it ({found.mass_source.removeprefix('unknown: ')}): "
                 "meq, w0 and xi0 stand for each amplitude's stiffness k and damping c (given below) more than for a resonance"
             )
+    implausible = mass_note(result.model, result.theta, result.loops)
+    if implausible:
+        out.append(f"warning: {implausible}")
     misfit = result.misfit
     if misfit is not None and misfit > MISFIT:
         out.append(
             f"warning: the model does not describe these loops: the residual is {misfit:.3g} x the noise; a diagnosis "
             "(hysid diagnose, or hysid.diagnose) tells what it is missing"
         )
-    elif misfit is not None and misfit > STDERR_TRUST:
+    if misfit is not None and misfit > STDERR_TRUST:
         out.append(
             f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
             f"understate the uncertainty, by a factor of about {misfit:.2g}"
         )
     soft = {p.name for p in result.model.parameters if p.soft}
-    given = [n for n in result.at_bounds if n not in soft]
-    derived = [n for n in result.at_bounds if n in soft]
+    searched = result.model.at_bounds(result.theta)
+    given = [n for n in searched if n not in soft]
+    derived = [n for n in searched if n in soft]
+    if result.bound_kinds:
+        out.append(bounds_sentence(result.bound_kinds))
     if given:
         out.append(
             f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
@@ -126,6 +153,17 @@ def fit_warnings(result: "FitResult") -> list[str]:
     return out
 
 
+def bounds_sentence(kinds: dict[str, str]) -> str:
+    """The parameters on a bound, each with which (:meth:`hysid_model.model.Model.bound_kinds`), in one sentence."""
+    return "on a bound: " + "; ".join(f"{name} on its {kind}" for name, kind in kinds.items()) + (
+        " (a physical limit is an answer, e.g. no damping of that kind; any other bound means the optimum may lie beyond it)")
+
+
+def displacement_text(model: dict[str, Any]) -> str:
+    """Which displacement drove the model and why (:class:`hysid.motion.MotionChoice` as a dict)."""
+    return f"displacement model: {model['meaning']} ({model['reason']})"
+
+
 def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     """What a user reads after ``hysid fit`` (or ``command``): what was fitted, how well, and where the report is."""
     s = result.settings
@@ -133,14 +171,16 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     true = result.loops.meta.get("true_params") or {}
     algo = str(s.get("algo", best.algo)).upper()
     polish = " + least-squares polish" if s.get("polish") else ""
-    wall = sum(r.wall_s for r in result.runs)
+    wall = s.get("wall_s", sum(r.wall_s for r in result.runs))  # a campaign's islands search side by side
     lines = [
         f"{command} {result.loops.name}: {loops_description(result)}",
         f"model {result.model.spec} ({', '.join(result.model.names)}{fixed_text(result.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
         f"fit quality: {quality_text(result)}",
-        "",
     ]
+    if result.displacement_model and result.displacement_model["decided_by"] != "none":
+        lines.append(displacement_text(result.displacement_model))
+    lines.append("")
     se = result.stderr
     headers = ["parameter", "value", "std. error", "unit"] + (["true"] if true else [])
     rows = []
@@ -272,15 +312,21 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     """The gap after each step, the status, and what cannot be identified."""
     doc = diagnosis.to_dict()
     lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"]
+    if doc["displacement_model"] and doc["displacement_model"]["decided_by"] != "none":
+        lines.append(displacement_text(doc["displacement_model"]))
     gap = doc["gap"]
     labels = []
     for step in doc["steps"]:
         also = f" (confusable with {', '.join(step['confusable_with'])})" if step["confusable_with"] else ""
-        labels.append(step["effect"] + also + (f" (with {step['joint_with']})" if step["joint_with"] else ""))
+        freed = f" ({', '.join(step['freed'])} free)" if step["freed"] else ""
+        labels.append(step["effect"] + freed + also + (f" (with {step['joint_with']})" if step["joint_with"] else ""))
     width = max([38, *map(len, labels)])
     lines.append(f"  {'start':<{width + 2}} whitened RMS {gap[0]['whitened_rms']:10.4g}")
     for label, step, after in zip(labels, doc["steps"], gap[1:]):
         lines.append(f"  + {label:<{width}} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
+    preset = doc["final_model"].split("+")[0]
+    if preset != doc["start_model"] and preset in PRESET_EXPLANATIONS:
+        lines.append(f"the final model is the {preset} preset: {PRESET_EXPLANATIONS[preset]}")
     if doc["status"] == "adequate":
         lines.append(f"status: adequate, the final model {doc['final_model']} leaves only noise")
     else:
@@ -288,6 +334,11 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
         lines.append(reference_text(doc))
     for name in doc["not_identifiable"]:
         lines.append(f"not identifiable here: {name} ({doc['not_identifiable_reasons'][name]})")
+    for effect, why in doc["impossible"].items():
+        lines.append(f"impossible here: {effect} ({why})")
+    if doc["at_bounds_kind"]:
+        lines.append(bounds_sentence(doc["at_bounds_kind"]))
+    lines += [f"note: {note}" for note in doc["notes"]]
     if diagnosis.report:
         lines.append(f"report: {diagnosis.report}")
     return "\n".join(lines)

@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Collection
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hysid_model.params import Parameter
 from hysid_model.terms import DataScale, Kinematics, ModalState, Term, Values
+
+if TYPE_CHECKING:
+    from hysid_model.loops import LoopSet
 
 BISECTIONS = 60
 """Bisection steps for the orbit's peak state (to double precision)."""
@@ -69,19 +74,35 @@ class BoucWen(Term):
 
     Eq. 2.1b prints the last term as ``a x``; the Bouc-Wen law has A x' (z is a
     'fictitious displacement' driven by the velocity). Since k_bw and A trade
-    off (only k_bw A is identifiable) A = 1, and n = 1. The shape is set by
-    the yield displacement z_y = 1 / (gamma + beta) (|z| < z_y, the force
-    saturates at k_bw z_y) and r = (gamma - beta) / (gamma + beta): Fig. 2.6
-    (a) is r > 0, (b) r = 0, (c) -1 < r < 0; r > 1 means beta < 0. At r = -1
+    off (only k_bw A is identifiable) A = 1. The shape is set by the yield
+    displacement z_y = (gamma + beta)^(-1/n) (|z| < z_y, the force saturates at
+    k_bw z_y for every n; k_bw is the stiffness right where z = 0), by
+    r = (gamma - beta) / (gamma + beta): Fig. 2.6 (a) is r > 0, (b) r = 0,
+    (c) -1 < r < 0; r > 1 means beta < 0, and by the exponent n, the sharpness of
+    the knee between the two (n -> inf: elastic-perfectly plastic). At r = -1
     (gamma = 0) the law loses its hysteresis (dz/dx is the same both ways) and
     the orbit is ill-posed, so r >= -0.9. The oscillator keeps its linear
     spring, the alpha wn^2 x of Eq. 2.1a; k_bw is the (1 - alpha) wn^2 part times
     the mass.
 
+    The exponent ``bw_n`` is fixed at n = 1 (the thesis' form) unless a model
+    frees it (``model.vary("bw_n")``, bounds for it, or the ``mr_damper``
+    preset); practitioners' fits of MR dampers and wire-rope isolators take n
+    from about 1 to 6. Its physical range is n >= 1/2: the law is well posed
+    for any n > 0 (dz/dx = 1 where z = 0, so the orbit crosses it however
+    rough |z|^n is), but below n = 1 the tangent stiffness falls with an
+    infinite slope after every zero crossing of z, the references use n >= 1
+    (OpenSees: 'usually greater or equal to 1'), and as n -> 0 z creeps
+    towards z_y over a travel of z_y / n, so that k_bw, z_y and n trade off;
+    1/2 is as low as hysid's solver is verified.
+
     The law is rate independent, so under x = X0 sin(wt) the state is a
-    function of the phase only, and for n = 1 its periodic orbit is piecewise
-    exponential in x (:func:`loading_orbit`): the steady state is evaluated
-    exactly; the tests integrate Eq. 2.1b over cycles to the same orbit.
+    function of the phase only. For n = 1 the periodic orbit is piecewise
+    exponential in x (:func:`loading_orbit`), evaluated in closed form; for
+    any other n each branch is an autonomous ODE in the travel whose orbit
+    :mod:`hysid_model.bouc_wen_orbit` finds (exactly per point here, from
+    tables in the compiled sampler). The tests integrate Eq. 2.1b over cycles
+    to the same orbits.
     """
 
     id = "bouc_wen"
@@ -90,50 +111,106 @@ class BoucWen(Term):
     explanation = (
         "A Bouc-Wen hysteretic spring (Eq. 2.1): a force k z whose internal displacement z follows the "
         "motion with memory and saturates at the yield displacement z_y, giving smooth, rate-independent "
-        "loops between a spring (z_y >> X0) and dry friction (z_y << X0)."
+        "loops between a spring (z_y >> X0) and dry friction (z_y << X0); the exponent n (fixed at 1 "
+        "unless freed) sets how sharp the knee between the two is."
     )
     params = (
         Parameter("bw_k", "N/m", 0.0, 1.0e9, "stiffness of the hysteretic spring ((1 - alpha) k)", physical=(0.0, math.inf)),
-        Parameter("bw_zy", "m", 1.0e-9, 1.0, "yield displacement 1 / (gamma + beta)", physical=(0.0, math.inf)),
+        Parameter("bw_zy", "m", 1.0e-9, 1.0, "yield displacement (gamma + beta)^(-1/n)", physical=(0.0, math.inf)),
         Parameter("bw_r", "1", -0.9, 3.0, "shape (gamma - beta) / (gamma + beta)", physical=(-0.9, math.inf)),
+        Parameter("bw_n", "1", 1.0, 6.0, "exponent n of Eq. 2.1b", vary=False, value=1.0, physical=(0.5, math.inf)),
     )
 
     def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
-        """Hysteretic stiffness up to 10 x the survey's, yield from 1/1000 of the smallest to 10 x the largest amplitude."""
-        return {"bw_k": (0.0, 10.0 * scale.stiffness), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max)}
+        """Hysteretic stiffness up to 10 x the survey's or the stiffness that carries the largest peak force at a
+        yield of 1 % of the smallest amplitude, whichever is higher (a damper whose force is mostly friction-like
+        has a small dynamic stiffness but a stiff, early-yielding hysteretic spring), yield from 1/1000 of the
+        smallest to 10 x the largest amplitude; the shape r from -0.9 to 3 and the exponent (where it is free) from 1 to 6, soft: a fit that
+        ends on 3 (a knee sharper than r = 3 draws, beta < 0) or on 6 (or 1) widens it."""
+        return {"bw_k": (0.0, max(10.0 * scale.stiffness, scale.force / (0.01 * scale.x_min))), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max), "bw_r": (-0.9, 3.0), "bw_n": (1.0, 6.0)}
 
-    def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
-        """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes r."""
+    def shape_grid(self, kin: Kinematics, free: Collection[str] = ()) -> list[dict[str, float]]:
+        """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes r; times the
+        exponents 1 and 2 where n is free."""
         x0 = float(np.median(kin.x0))
-        return [{"bw_zy": f * x0, "bw_r": r} for f in (0.03, 0.1, 0.3, 1.0) for r in (-0.5, 0.5, 2.0)]
+        shapes = [{"bw_zy": f * x0, "bw_r": r} for f in (0.03, 0.1, 0.3, 1.0) for r in (-0.5, 0.5, 2.0)]
+        return [{**s, "bw_n": n} for s in shapes for n in (1.0, 2.0)] if "bw_n" in free else shapes
 
     def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
         """k_bw z on the periodic orbit; being rate independent, z depends only on the travel since the
         last reversal, so the orbit of a sine with the same extremes holds for any measured displacement
-        whose branches are monotonic."""
-        gamma = (1.0 + v["bw_r"]) / (2.0 * v["bw_zy"])
-        beta = (1.0 - v["bw_r"]) / (2.0 * v["bw_zy"])
-        x_min, x_max = kin.extremes
-        half_span = 0.5 * (x_max - x_min)
-        spans, which = np.unique(half_span, return_inverse=True)
-        z_max, run = (a[:, which.reshape(-1)] for a in loading_orbit(spans[None, :], gamma, beta))
-        a, b = (gamma - beta)[:, :, None], (gamma + beta)[:, :, None]
-        z_max, run = z_max[:, :, None], run[:, :, None]
-        def z(phase: np.ndarray) -> np.ndarray:
-            x = kin.displacement(phase)
-            loading = kin.displacement(phase, 1) >= 0.0
-            with np.errstate(all="ignore"):
-                up = _loading(x - x_min[:, None], z_max, run, a, b)
-                down = -_loading(x_max[:, None] - x, z_max, run, a, b)
-            return np.where(loading, up, down)
-
-        state_z = z(phase)
-        if kin.xh is not None:  # the orbit of an asymmetric waveform has a mean: removed, as from the loops
-            state_z = state_z - z(mean_grid(kin.x0.size)).mean(axis=-1, keepdims=True)
-        return v["bw_k"][:, :, None] * state_z
+        whose branches are monotonic. Candidates with n = 1 take the closed form, the others
+        :func:`hysid_model.bouc_wen_orbit.bouc_wen_exact`."""
+        one = v["bw_n"][:, 0] == 1.0
+        if one.all():
+            return _closed_form(v, kin, phase)
+        out = np.empty((one.size,) + phase.shape[-2:])
+        for mask, part in ((one, _closed_form), (~one, _any_exponent)):
+            if mask.any():
+                out[mask] = part({name: value[mask] for name, value in v.items()}, kin, phase[mask] if phase.ndim == 3 else phase)
+        return out
 
     def sampler(self, kin: Kinematics, phase: np.ndarray) -> "BoucWenSampler":
         return BoucWenSampler(kin, phase)
+
+    def data_starts(self, loops: LoopSet, free: Collection[str] = ()) -> list[dict[str, float]]:
+        """bw_k, bw_zy, bw_r (and bw_n where it is free) read off the loops' shape, up to 6 starts, best first;
+        none where no loop is saturated above its noise (:mod:`hysid_model.effects.bouc_wen_starts`)."""
+        from hysid_model.effects.bouc_wen_starts import read_starts
+
+        return read_starts(loops, "bw_n" in free)
+
+
+def _closed_form(v: Values, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
+    """k_bw z on the n = 1 orbit (:func:`loading_orbit`) at ``phase`` ``(L, N)`` or ``(P, L, N)``."""
+    gamma = (1.0 + v["bw_r"]) / (2.0 * v["bw_zy"])
+    beta = (1.0 - v["bw_r"]) / (2.0 * v["bw_zy"])
+    x_min, x_max = kin.extremes
+    half_span = 0.5 * (x_max - x_min)
+    spans, which = np.unique(half_span, return_inverse=True)
+    z_max, run = (a[:, which.reshape(-1)] for a in loading_orbit(spans[None, :], gamma, beta))
+    a, b = (gamma - beta)[:, :, None], (gamma + beta)[:, :, None]
+    z_max, run = z_max[:, :, None], run[:, :, None]
+
+    def z(phase: np.ndarray) -> np.ndarray:
+        x = kin.displacement(phase)
+        loading = kin.displacement(phase, 1) >= 0.0
+        with np.errstate(all="ignore"):
+            up = _loading(x - x_min[:, None], z_max, run, a, b)
+            down = -_loading(x_max[:, None] - x, z_max, run, a, b)
+        return np.where(loading, up, down)
+
+    return v["bw_k"][:, :, None] * _centred(z, kin, phase)
+
+
+def _any_exponent(v: Values, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
+    """k_bw z on the orbit of any exponent, exactly per point (:func:`hysid_model.bouc_wen_orbit.bouc_wen_exact`)."""
+    from hysid_model import bouc_wen_orbit
+
+    x_min, x_max = kin.extremes
+    spans, which = np.unique(0.5 * (x_max - x_min), return_inverse=True)
+    columns = [np.ascontiguousarray(v[name][:, 0], dtype=float) for name in ("bw_n", "bw_r", "bw_zy")]
+
+    def z(phase: np.ndarray) -> np.ndarray:
+        travel, sign = travels(kin, phase)
+        shape = (columns[0].size,) + travel.shape[-2:]
+        out = np.empty(shape)
+        bouc_wen_orbit.bouc_wen_exact(
+            *columns, spans.astype(float), which.reshape(-1).astype(np.int64),
+            np.ascontiguousarray(np.broadcast_to(travel, shape)), np.ascontiguousarray(np.broadcast_to(sign, shape)), out,
+        )
+        return out
+
+    return v["bw_k"][:, :, None] * _centred(z, kin, phase)
+
+
+def _centred(z: Callable[[np.ndarray], np.ndarray], kin: Kinematics, phase: np.ndarray) -> np.ndarray:
+    """z at ``phase``; under a measured displacement less its cycle mean (the orbit of an asymmetric waveform
+    has one: removed, as from the loops)."""
+    state = z(phase)
+    if kin.xh is not None:
+        state = state - z(mean_grid(kin.x0.size)).mean(axis=-1, keepdims=True)
+    return state
 
 
 def mean_grid(n_loops: int) -> np.ndarray:
@@ -185,7 +262,8 @@ def travel_runs(travel: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 class BoucWenSampler:
-    """:meth:`BoucWen.time_force` at fixed phases through the compiled kernels of :mod:`hysid_model.kernels`.
+    """:meth:`BoucWen.time_force` at fixed phases through the compiled kernels of :mod:`hysid_model.kernels`
+    (n = 1) and :mod:`hysid_model.bouc_wen_orbit` (any other n).
 
     What depends only on the loops is prepared once: each sample's travel since
     the last reversal, the samples of each branch by increasing travel and the
@@ -235,13 +313,42 @@ class BoucWenSampler:
         return (self.travel, self.runs, self.loop_runs, self.step, self.spread, self.deviation)
 
     def add(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
-        """Add the force k_bw z of candidates ``v`` to ``out`` ``(P, L, N)``, at the phases less ``shift`` ``(P, L)`` if given."""
+        """Add the force k_bw z of candidates ``v`` to ``out`` ``(P, L, N)``, at the phases less ``shift`` ``(P, L)`` if given:
+        the closed form for candidates with n = 1, the tabulated orbit (:mod:`hysid_model.bouc_wen_orbit`) for the others."""
+        one = v["bw_n"][:, 0] == 1.0
+        if one.all() or not one.any():
+            (self._add_one if one.all() else self._add_any)(v, shift, out)
+            return
+        for mask, add in ((one, self._add_one), (~one, self._add_any)):
+            part = np.zeros((int(mask.sum()),) + out.shape[1:])
+            add({name: value[mask] for name, value in v.items()}, None if shift is None else shift[mask], part)
+            out[mask] += part
+
+    def _motion_tables(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._motion is None:
+            self._motion = self.kernels.motion_tables(self.kin.harmonics, self.phase)
+        return self._motion
+
+    def _add_one(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
         z_max, run, a, b, k, mean = self._orbit(v)
         if shift is None:
             self.kernels.bouc_wen_samples(z_max, run, self.which, a, b, k, mean, *self._samples(), out)
             return
-        if self._motion is None:
-            self._motion = self.kernels.motion_tables(self.kin.harmonics, self.phase)
         self.kernels.bouc_wen_shifted(
-            z_max, run, self.which, a, b, k, mean, np.ascontiguousarray(shift, dtype=float), *self._motion, self.x_min, self.x_max, out
+            z_max, run, self.which, a, b, k, mean, np.ascontiguousarray(shift, dtype=float), *self._motion_tables(), self.x_min, self.x_max, out
+        )
+
+    def _add_any(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
+        from hysid_model import bouc_wen_orbit
+
+        columns = [np.ascontiguousarray(v[name][:, 0], dtype=float) for name in ("bw_n", "bw_r", "bw_zy", "bw_k")]
+        if self.mean_nodes is None:
+            mean = (np.zeros((self.which.size, 0)), np.zeros(self.which.size, dtype=np.int64))
+        else:
+            mean = self.mean_nodes
+        if shift is None:
+            bouc_wen_orbit.bouc_wen_samples(*columns, self.spans, self.which, *self._samples(), *mean, out)
+            return
+        bouc_wen_orbit.bouc_wen_shifted(
+            *columns, self.spans, self.which, *mean, np.ascontiguousarray(shift, dtype=float), *self._motion_tables(), self.x_min, self.x_max, out
         )

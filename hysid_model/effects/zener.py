@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 
 import numpy as np
 
@@ -46,7 +47,7 @@ class ZenerThermoelastic(Term):
 
         return linear_response(kin, stiffness)
 
-    def shape_grid(self, kin: Kinematics) -> list[dict[str, float]]:
+    def shape_grid(self, kin: Kinematics, free: Collection[str] = ()) -> list[dict[str, float]]:
         """Relaxation times around the band: w tau from 1/3 at the top to 3 at the bottom frequency."""
         taus = np.geomspace(1.0 / (3.0 * kin.omega.max()), 3.0 / kin.omega.min(), 7)
         return [{"zener_tau": float(t)} for t in taus]

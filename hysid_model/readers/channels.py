@@ -79,17 +79,20 @@ def _suffix_unit(name: str, quantity: str) -> str | None:
 def label(name: str, quantity: str) -> tuple[bool, str | None]:
     """Whether a header ``name`` is one of ``quantity``'s words (``SYNONYMS``) with a unit of it or none, and that
     unit: ``"Time [s]"`` -> (True, "s"), ``"DISP_MM"`` -> (True, "mm"), ``"x"`` -> (True, None), ``"f [Hz]"`` ->
-    (False, None) for force (Hz is not a force unit)."""
-    text = name.rsplit("/", 1)[-1] if name.count("/") > 1 else name
-    match = _LABEL.fullmatch(text.strip().lower())
-    if match is None:
-        return False, None
-    word, unit_label = match["word"], match["bracket"] or match["slash"] or match["suffix"]
-    if word in SYNONYMS[quantity] and unit_label is None:
-        return True, None
-    if unit_label is not None and word.rstrip("_") in SYNONYMS[quantity]:
-        unit = _unit_of(unit_label, quantity)
-        return (True, unit) if unit else (False, None)
+    (False, None) for force (Hz is not a force unit). A name with a slash is read whole first (``t/s``: a unit
+    after the slash), then as a channel in a group (``Messung/Weg``, ``Messung/Weg [mm]``, TDMS and HDF5)."""
+    texts = [name] + ([name.rsplit("/", 1)[-1]] if "/" in name else [])
+    for text in texts:
+        match = _LABEL.fullmatch(text.strip().lower())
+        if match is None:
+            continue
+        word, unit_label = match["word"], match["bracket"] or match["slash"] or match["suffix"]
+        if word in SYNONYMS[quantity] and unit_label is None:
+            return True, None
+        if unit_label is not None and word.rstrip("_") in SYNONYMS[quantity]:
+            unit = _unit_of(unit_label, quantity)
+            if unit:
+                return True, unit
     return False, None
 
 

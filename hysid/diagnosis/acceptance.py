@@ -1,0 +1,150 @@
+"""When a refit with a new effect is taken: the rules a diagnosis judges every contender by.
+
+An effect is judged from its best fit (refitted from several starts,
+:func:`hysid.diagnosis.refits.refit`), never from one poor optimum, and by what it
+explains, not by how precisely one of its parameters is known there:
+
+1. information: the BIC falls by at least ``BIC_MARGIN`` (:func:`judge`);
+2. shape: no harmonic order the current model fits at the noise is made
+   significantly worse (:func:`created_order`);
+3. sign: a one-sided effect's strength ends positive;
+4. degeneracy: no shape parameter is pushed against a bound by the data
+   (:func:`binding`);
+5. share: it removes at least ``MIN_SHARE`` of the chi^2 above the noise floor;
+6. visible error: the loop NRMSE and the energy dissipated per cycle get no
+   worse beyond their noise (the whitened chi^2 weighs loops by their noise; a
+   user reads the loops and their areas), :func:`visible_error`;
+7. plausibility: every fitted value is physically possible
+   (:mod:`hysid.diagnosis.plausible`);
+8. held-out error: the leave-one-frequency-out error falls
+   (:func:`held_out`, with three frequencies or more); judged last, on the
+   contenders that pass the rest, in BIC order.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.diagnosis.fitting import Fit
+from hysid.diagnosis.metrics import cross_validated_rms, energy_error_pct, nrmse_pct
+from hysid.diagnosis.plausible import implausible_values
+from hysid_model.effects import EFFECTS
+from hysid_model.harmonics import Harmonics
+from hysid_model.uncertainty import jacobian_covariance
+
+VISIBLE_Z = 3.0
+"""Standard deviations (of what the force noise alone would make of it) a rise of the loop NRMSE or the energy
+error must exceed to count: two models equally far from the truth differ in both by their noise only."""
+VISIBLE_FLOOR_PCT = 1.0
+"""A loop NRMSE or energy error that stays below this (per cent of the peak-to-peak force, of the energy per
+cycle) is within what a user reads off a loop plot or its area: its rise does not count."""
+
+
+def binding(fit: Fit, j: int) -> bool:
+    """True if parameter ``j`` sits on a bound that the data push against (the fit wants out of the range).
+
+    One-parameter score test at the bound: the chi^2 gradient 2 J^T e along
+    parameter j, with the others free, gives LM = (J^T e)_j^2 [(J^T J)^-1]_jj;
+    the bound binds if that points outward and exceeds MIN_Z^2. A weakly
+    determined shape that merely wanders onto its bound does not bind.
+    """
+    name = fit.model.names[j]
+    if name not in fit.model.at_bounds(fit.theta):
+        return False
+    lower, upper = fit.model.bounds[j]
+    value = fit.theta[j]
+    gradient = (fit.jacobian.T @ fit.residual)[j]
+    lm = gradient**2 * jacobian_covariance(fit.jacobian)[j, j]
+    outward = gradient > 0 if value - lower <= upper - value else gradient < 0
+    return bool(outward and lm > MIN_Z**2)
+
+
+def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
+    """A harmonic order that ``before`` fits at the noise and ``after`` significantly worse, no longer at the
+    noise (the family-wise ``SIGNIFICANCE`` of chi^2 over that order's coefficients): (order, chi^2 before,
+    after), or None. An effect that buys a better first harmonic with content the loops do not have
+    (a hysteretic spring fitting how a linear stiffness changes with amplitude) has the wrong shape."""
+    orders = before.objective.harmonics.orders()
+    n_loops = before.objective.harmonics.loops.n_loops
+    r0, r1 = (f.residual.reshape(n_loops, -1) for f in (before, after))
+    levels = np.unique(orders)
+    for k in levels:
+        n = int(np.count_nonzero(orders == k)) * n_loops
+        c0, c1 = float(np.sum(r0[:, orders == k] ** 2)), float(np.sum(r1[:, orders == k] ** 2))
+        limit = float(chi2_dist.isf(SIGNIFICANCE / levels.size, n))
+        if c0 <= limit < c1 and c1 - c0 > limit - n:
+            return int(k), c0, c1
+    return None
+
+
+def visible_error(before: Fit, after: Fit, harmonics: Harmonics) -> str | None:
+    """Why ``after`` looks worse to a user than ``before``, or None: a loop NRMSE or energy error that rises by
+    more than ``VISIBLE_Z`` times what the noise makes of the rise, to above ``VISIBLE_FLOOR_PCT``.
+
+    For squared errors of two predictions p_a, p_b against data y = truth + e, the difference
+    sum (p_a - y)^2 - (p_b - y)^2 varies with the noise e by 4 sum (p_a - p_b)^2 sigma^2; the
+    loop NRMSE (a mean of per-loop square roots) and the energy error (the loop area, pi X0 c1,
+    with the noise of c1) carry that through to first order."""
+    data = before.objective.objective.y
+    pa, pb = (f.objective.objective.predict(f.theta)[0] for f in (after, before))
+    n = data.shape[1]
+    span2 = (data.max(axis=1) - data.min(axis=1)) ** 2
+    la, lb = (np.sum((p - data) ** 2, axis=1) / (n * span2) for p in (pa, pb))
+    sigma = harmonics.sigma
+    var = 4.0 * sigma**2 * np.sum((pa - pb) ** 2, axis=1) / (n * span2) ** 2
+    base = np.maximum(np.sqrt(0.5 * (la + lb)), 1e-300)  # d sqrt(l) = dl / (2 sqrt(l)), at the middle of the two
+    rise, spread = float(np.mean(np.sqrt(la) - np.sqrt(lb))), float(np.sqrt(np.sum(var / (4.0 * base**2)))) / la.size
+    if rise > VISIBLE_Z * spread and np.mean(nrmse_pct(after)) > VISIBLE_FLOOR_PCT:
+        return f"raises the loop NRMSE from {np.mean(nrmse_pct(before)):.4g} % to {np.mean(nrmse_pct(after)):.4g} % (by {rise / max(spread, 1e-300):.3g} x its noise)"
+    energy = [harmonics.energy_per_cycle(harmonics.project(p)) for p in (pa, pb)]
+    truth = harmonics.energy_per_cycle(harmonics.coef)
+    noise = np.pi * harmonics.loops.x0 * harmonics.stderr[:, harmonics.names.index("c1")]
+    rise = float(np.sum((energy[0] - truth) ** 2) - np.sum((energy[1] - truth) ** 2))
+    spread = float(np.sqrt(4.0 * np.sum((energy[0] - energy[1]) ** 2 * noise**2)))
+    if rise > VISIBLE_Z * spread and energy_error_pct(after, harmonics) > VISIBLE_FLOOR_PCT:
+        return (f"raises the energy error from {energy_error_pct(before, harmonics):.4g} % to {energy_error_pct(after, harmonics):.4g} % "
+                f"(by {rise / max(spread, 1e-300):.3g} x its noise)")
+    return None
+
+
+def judge(before: Fit, after: Fit, effects: tuple[str, ...], harmonics: Harmonics) -> str | None:
+    """Why ``after`` (``before`` plus ``effects``) is not taken by rules 1-7 of the module docstring, or None."""
+    delta = after.bic - before.bic
+    if delta > -BIC_MARGIN:
+        return f"BIC changes by only {delta:+.1f}"
+    created = created_order(before, after)
+    if created is not None:
+        k, c0, c1 = created
+        return f"adds order-{k} content the loops do not have (chi^2 of order {k}: {c0:.4g} -> {c1:.4g})"
+    names, values, bounds = after.model.names, after.theta, after.model.bounds
+    for effect in effects:
+        term = EFFECTS[effect]()
+        if term.strength in names:
+            i = names.index(term.strength)
+            if bounds[i, 0] == 0.0 and values[i] <= 0.0:
+                return f"{term.strength} has the unphysical sign"
+        for p in term.params:
+            if p.name != term.strength and p.name in names and binding(after, names.index(p.name)):
+                return f"{p.name} is pushed against its bound ({values[names.index(p.name)]:.4g}): the effect degenerates here"
+    excess = before.chi2 - before.dof
+    if excess > 0 and before.chi2 - after.chi2 < MIN_SHARE * excess:
+        return f"removes only {100 * (before.chi2 - after.chi2) / excess:.0f}% of the chi^2 above the noise floor"
+    worse = visible_error(before, after, harmonics)
+    if worse is not None:
+        return worse
+    impossible = implausible_values(after, harmonics.loops)
+    if impossible:
+        name, why = next(iter(impossible.items()))
+        return f"{name}: {why}"
+    return None
+
+
+def held_out(before: Fit, after: Fit, harmonics: Harmonics) -> str | None:
+    """Why ``after`` predicts held-out frequencies no better than ``before`` (rule 8), or None (also with
+    fewer than three frequencies, where there is nothing to hold out)."""
+    old, new = cross_validated_rms(before, harmonics), cross_validated_rms(after, harmonics)
+    if old is None or new is None or new < old:
+        return None
+    return f"predicts held-out frequencies no better (leave-one-frequency-out whitened RMS {old:.4g} -> {new:.4g})"

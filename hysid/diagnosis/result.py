@@ -1,0 +1,191 @@
+"""What a diagnosis found: :class:`Diagnosis` (the result of :func:`hysid.diagnosis.selection.diagnose`, reporting
+itself like :class:`hysid.fitting.FitResult`) and its :class:`Step` s, one per effect named."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hysid.diagnosis.fitting import Fit
+from hysid.diagnosis.metrics import GapMetrics, References
+from hysid.diagnosis.plausible import mass_note
+from hysid.diagnosis.scoring import Candidate
+from hysid.identifiability import Identifiability
+from hysid.motion import MotionChoice
+from hysid.report import diagnosis as diagnosis_report
+from hysid.report import tables, text
+from hysid_model.effects import EFFECTS
+from hysid_model.frf import amplitude_levels
+from hysid_model.harmonics import Harmonics
+
+
+@dataclass
+class Step:
+    """One accepted effect."""
+
+    effect: str
+    confusable_with: list[str]
+    score: float
+    before: Fit
+    after: Fit
+    rejected: dict[str, str]
+    """Other contenders of this step and why they were not taken."""
+    joint_with: str | None = None
+    """The effect named together with this one (the two were taken as a pair)."""
+
+    @property
+    def params(self) -> dict[str, float]:
+        names = [p.name for p in EFFECTS[self.effect]().params]
+        return {n: v for n, v in self.after.params().items() if n in names}
+
+    @property
+    def errors(self) -> dict[str, float]:
+        return {n: v for n, v in self.after.errors().items() if n in self.params}
+
+
+@dataclass
+class Diagnosis:
+    """What :func:`diagnose` found: the start fit, every accepted step, the final fit and its gap to the data."""
+
+    harmonics: Harmonics
+    start: Fit
+    steps: list[Step]
+    final: Fit
+    status: str
+    unexplained: dict | None
+    not_identifiable: dict[str, list[str]]
+    rejected: dict[str, str]
+    """Contenders of the last round and why none was taken."""
+    gap: list[GapMetrics]
+    """The gap between model and data at the start and after every step."""
+    references: References
+    """Model-free levels the gap is held against (linear per loop, repeatability)."""
+    identifiability: Identifiability
+    """What the data cannot determine of the final model, and its correlations."""
+    last_scores: list[Candidate] = field(default_factory=list)
+    impossible: dict[str, str] = field(default_factory=dict)
+    """Effects set aside as impossible on these loops, and why (:mod:`hysid.diagnosis.plausible`)."""
+    motion: MotionChoice | None = None
+    """Which displacement drove the models, how that was decided and the evidence (:mod:`hysid.motion`)."""
+    report: str | None = None
+    """The report written last (:meth:`write_report`)."""
+
+    def effects_not_identifiable(self) -> dict[str, str]:
+        """Why each effect of ``not_identifiable`` cannot be identified from these loops."""
+        levels = amplitude_levels(self.harmonics.loops.x0)[0]
+        out = {}
+        for effect, absorbed in self.not_identifiable.items():
+            if levels.size == 1 and EFFECTS[effect].slope_of:
+                out[effect] = f"one amplitude level (X0 = {levels[0] * 1e3:.4g} mm) cannot show a change with amplitude: it is {', '.join(absorbed)} again"
+            else:
+                out[effect] = f"whatever it does, the model already does with {', '.join(absorbed)}"
+        return out
+
+    def fits(self) -> list[tuple[str, Fit]]:
+        """(label, fit) for the start and after every step."""
+        return [("start: " + self.start.spec, self.start)] + [("+ " + s.effect, s.after) for s in self.steps]
+
+    @property
+    def params(self) -> dict[str, float]:
+        """The final model's parameters."""
+        return self.final.params()
+
+    @property
+    def stderr(self) -> dict[str, float]:
+        """The final model's standard errors (NaN where the data cannot determine a parameter; a profile's
+        half-width where the chi^2 is not quadratic, :func:`hysid.diagnosis.fitting.profile_errors`)."""
+        errors = self.final.model.as_dict(self.identifiability.stderr * max(1.0, self.final.whitened_rms))
+        return {**errors, **{n: e for n, e in self.final.profiled.items() if n in errors and np.isfinite(errors[n])}}
+
+    @property
+    def at_bounds(self) -> dict[str, str]:
+        """The final model's parameters on a bound, each with which (:meth:`hysid_model.model.Model.bound_kinds`)."""
+        return self.final.model.bound_kinds(self.final.theta)
+
+    @property
+    def notes(self) -> list[str]:
+        """What a reader must know about the final values: a mass the loops' inertia does not support."""
+        note = mass_note(self.final.model, self.final.theta, self.harmonics.loops)
+        return [note] if note else []
+
+    @property
+    def reaches(self) -> str:
+        """Which reference the final model reaches: noise floor, repeatability, linear per loop, or none."""
+        return self.references.reached(self.final.whitened_rms, self.status == "adequate")
+
+    def tables(self) -> dict[str, list[dict[str, Any]]]:
+        """``parameters`` of the final model, ``steps`` (the effects named, with their parameters) and ``gap``."""
+        return tables.diagnosis_tables(self)
+
+    def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
+        """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
+        return tables.write_tables(self.tables(), out_dir)
+
+    def to_dataframes(self) -> dict[str, Any]:
+        """Each table of :meth:`tables` as a pandas DataFrame (needs pandas, an optional dependency)."""
+        return tables.data_frames(self.tables())
+
+    def summary(self) -> str:
+        """The gap after each step, the status and what cannot be identified, as text."""
+        return text.diagnosis_summary(self)
+
+    def write_report(self, out_dir: str | Path, dataset: str | None = None) -> Path:
+        """``diagnosis.md`` with its figures and ``diagnosis.json`` in ``out_dir``; returns the Markdown path.
+
+        ``dataset`` is how the reader reloads the data (default: the loop set's name).
+        """
+        return diagnosis_report.write_diagnosis_report(self, out_dir, dataset or self.harmonics.loops.name)
+
+    def _repr_markdown_(self) -> str:
+        return diagnosis_report.overview(self)
+
+    def __repr__(self) -> str:
+        return f"<Diagnosis of {self.harmonics.loops.name}: {self.start.spec} -> {self.final.spec}, {self.status}>"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document of ``hysid diagnose --json``."""
+        return {
+            "dataset": self.harmonics.loops.name,
+            "start_model": self.start.spec,
+            "final_model": self.final.spec,
+            "displacement_model": self.motion.as_dict() if self.motion else None,
+            "steps": [
+                {
+                    "effect": s.effect,
+                    "confusable_with": s.confusable_with,
+                    "params": s.params,
+                    "stderr": s.errors,
+                    "score": s.score,
+                    "whitened_rms_before": s.before.whitened_rms,
+                    "whitened_rms_after": s.after.whitened_rms,
+                    "delta_bic": s.after.bic - s.before.bic,
+                    "rejected": s.rejected,
+                    "joint_with": s.joint_with,
+                    "freed": [n for n in s.after.freed if n in {p.name for p in EFFECTS[s.effect].params}],
+                }
+                for s in self.steps
+            ],
+            "status": self.status,
+            "unexplained_signature": self.unexplained,
+            "not_identifiable": sorted(self.not_identifiable) + list(self.identifiability.not_identifiable),
+            "not_identifiable_reasons": {**self.effects_not_identifiable(), **self.identifiability.not_identifiable},
+            "impossible": self.impossible,
+            "correlation": self.identifiability.correlation_dict(),
+            "rejected": self.rejected,
+            "final_params": self.final.params(),
+            "final_stderr": self.stderr,
+            "final_bounds": {p.name: [p.lower, p.upper] for p in self.final.model.parameters},
+            "final_fixed": self.final.model.fixed,
+            "at_bounds": sorted(self.at_bounds),
+            "at_bounds_kind": self.at_bounds,
+            "notes": self.notes,
+            "bounds_from_data": sorted(p.name for p in self.final.model.parameters if p.soft),
+            "whitened_rms": self.final.whitened_rms,
+            "references": self.references.as_dict(),
+            "reaches": self.reaches,
+            "noise_sigma": "known" if np.all(self.harmonics.sigma_known) else "estimated from the data",
+            "gap": [g.as_dict() for g in self.gap],
+        }

@@ -1,0 +1,128 @@
+"""Sensor distortion or motion (hysid/motion.py): the data decide which displacement drives the model.
+
+A specimen far from the thesis' beams (0.5 kg, 40 Hz, 3 % damping, driven at
+15-55 Hz) is recorded twice with the same displacement harmonics (10 % second,
+5 % third): once as the sensor's distortion of a pure-sine motion (the force
+follows the sine), once as the motion itself (the force follows the whole
+waveform). Each must be read its own way, and the mass, stiffness and damping
+recovered within their standard errors.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+import hysid
+from hysid.cli import main
+from hysid.motion import choose_motion, confirm_motion
+from hysid_model.datasets import write_dataset
+from hysid_model.model import build_model, to_physical
+from hysid_model.synth import simulate_raw
+
+HARMONICS = {2: 0.10, 3: 0.05}
+TRUTH = {"xi0": 0.03, "w0": 2 * np.pi * 40.0, "meq": 0.5}
+
+
+def records(where: str, seed: int = 3):
+    model = build_model("baseline")
+    theta = model.from_dict(TRUTH)
+    f, x0 = np.repeat([15.0, 25.0, 35.0, 45.0, 55.0], 2), np.tile([0.5e-3, 1e-3], 5)
+    kind = {"sensor": HARMONICS} if where == "sensor" else {"distortion": HARMONICS}
+    return simulate_raw(model, theta, f, x0, noise_n=0.5, seed=seed, sample_rate_hz=5000.0, cycles=10, **kind)
+
+
+def loops_of(where: str, tmp_path, seed: int = 3):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        write_dataset(tmp_path / where, records(where, seed), name=where)
+        return hysid.load(tmp_path / where)
+
+
+def physical(values: dict[str, float]) -> dict[str, float]:
+    state = build_model("baseline").modal(build_model("baseline").from_dict(values), 1e-3)
+    return {k: float(v[0]) for k, v in to_physical(state).items()}
+
+
+@pytest.mark.parametrize("where, reading", [("sensor", "fundamental"), ("motion", "measured")])
+def test_the_data_decide_and_the_fit_recovers_mass_stiffness_and_damping(where, reading, tmp_path):
+    loops = loops_of(where, tmp_path)
+    choice = choose_motion(loops, "baseline")
+    assert choice.displacement == reading and choice.decided_by == "data"
+    assert (choice.delta_bic < 0) == (reading == "fundamental") and abs(choice.delta_bic) > 1000
+    result = hysid.fit(loops, "baseline")
+    assert result.displacement_model["displacement"] == reading
+    for name, true in TRUTH.items():
+        assert abs(result.params[name] - true) < 4 * result.stderr[name], (name, result.params[name], true, result.stderr[name])
+    fitted, true = physical(result.params), physical(TRUTH)
+    for name in ("k", "c", "m"):
+        assert fitted[name] == pytest.approx(true[name], rel=0.02)
+
+
+def test_the_other_reading_is_many_standard_errors_off(tmp_path):
+    """Reading the sensor's harmonics as motion drives the model with content the force does not have: the
+    mass comes out far off (the failure this module exists to prevent)."""
+    loops = loops_of("sensor", tmp_path)
+    wrong = hysid.fit(loops, "baseline", displacement="measured")
+    assert wrong.displacement_model["decided_by"] == "user"
+    assert abs(wrong.params["meq"] - TRUTH["meq"]) > 20 * wrong.stderr["meq"]
+
+
+def test_evidence_order_by_order(tmp_path):
+    """The evidence says, order by order, how strongly the force carries the displacement's harmonics."""
+    sensor, motion = (choose_motion(loops_of(w, tmp_path), "baseline") for w in ("sensor", "motion"))
+    for choice, far in ((sensor, False), (motion, True)):
+        shares = {e["order"]: e for e in choice.orders}
+        assert shares[2]["displacement_share"] == pytest.approx(0.10, rel=0.01)
+        assert (shares[2]["response"] > 1.0) == far
+
+
+def test_forced_readings_and_data_without_distortion(tmp_path):
+    loops = loops_of("sensor", tmp_path)
+    for asked in ("measured", "fundamental", "sine"):
+        choice = choose_motion(loops, "baseline", asked)
+        assert (choice.displacement, choice.decided_by) == (asked, "user")
+    assert choose_motion(hysid.load("synth"), "thesis").displacement == "sine"
+    with pytest.raises(hysid.HysidInputError, match="displacement"):
+        choose_motion(loops, "baseline", "wobbly")
+
+
+def test_confirmation_with_the_fitted_model_keeps_a_right_reading(tmp_path):
+    loops = loops_of("sensor", tmp_path)
+    choice = choose_motion(loops, "baseline")
+    result = hysid.fit(loops, "baseline")
+    assert confirm_motion(loops, result.model, result.theta, choice) is None
+
+
+@pytest.mark.slow  # over 3 s
+def test_cli_fit_and_diagnose_say_which_and_why(tmp_path, capsys):
+    loops_of("sensor", tmp_path)
+    assert main(["fit", str(tmp_path / "sensor"), "--model", "baseline", "--out", str(tmp_path / "fit")]) == 0
+    out = capsys.readouterr().out
+    assert "displacement model: the motion is the fundamental" in out and "does not respond" in out
+    document = json.loads((tmp_path / "fit" / "result.json").read_text())
+    assert document["displacement_model"]["displacement"] == "fundamental"
+    assert main(["diagnose", str(tmp_path / "sensor"), "--json", "--out", str(tmp_path / "diag")]) == 0
+    diagnosis = json.loads(capsys.readouterr().out)
+    assert diagnosis["displacement_model"]["displacement"] == "fundamental" and diagnosis["status"] == "adequate"
+    assert diagnosis["steps"] == []
+    assert main(["fit", str(tmp_path / "sensor"), "--model", "baseline", "--displacement", "measured", "--json", "--out", str(tmp_path / "f2")]) == 0
+    assert json.loads(capsys.readouterr().out)["displacement_model"]["decided_by"] == "user"
+
+
+@pytest.mark.slow  # over 3 s
+def test_a_campaign_reads_the_displacement_as_fit_does_and_keeps_it_in_its_database(tmp_path):
+    loops = loops_of("sensor", tmp_path)
+    db = tmp_path / "c.sqlite"
+    result = hysid.campaign(loops, 2, model="baseline", single_node=True, db=db, seed=1,
+                            options={"pso": {"initial_population": 300, "population": 30, "iterations": 8},
+                                     "ga": {"initial_population": 300, "population": 30, "iterations": 8}})
+    assert result.fit.displacement_model["displacement"] == "fundamental"
+    assert result.to_dict()["displacement_model"]["decided_by"] == "data"
+    assert abs(result.fit.params["meq"] - TRUTH["meq"]) < 4 * result.fit.stderr["meq"]
+    again = hysid.CampaignResult.from_database(db)
+    assert again.fit.displacement_model["displacement"] == "fundamental"
+    assert again.fit.params["meq"] == pytest.approx(result.fit.params["meq"], rel=1e-6)
