@@ -31,7 +31,9 @@ populations, is done here in one process, deterministically for a seed:
 
 The budget (``budget`` evaluations and/or ``time_limit_s``) counts every model
 evaluation: candidates, residual vectors and Jacobian probes
-(:class:`island.space.SpaceObjective`). The result is a
+(:class:`island.space.SpaceObjective`); it is checked between steps, so the
+search may overshoot it by one refinement or one population, and the final
+polish comes on top. The result is a
 :class:`island.run.RunResult` in the model's parameters; its history has one
 row per round (every island one iteration).
 """
