@@ -114,7 +114,16 @@ def campaign(tmp_path: Path) -> Iterator[Campaign]:
     running.end()
 
 
-def test_each_island_of_a_process_joins_as_its_own_run_with_its_own_key_and_reports_everything(campaign: Campaign) -> None:
+@pytest.fixture
+def trio(tmp_path: Path) -> Iterator[Campaign]:
+    """A campaign whose islands start once three have joined (so that they search, and migrate, together)."""
+    running = Campaign(tmp_path, config(min_islands=3))
+    yield running
+    running.end()
+
+
+def test_each_island_of_a_process_joins_as_its_own_run_with_its_own_key_and_reports_everything(trio: Campaign) -> None:
+    campaign = trio
     specs = host_specs("h", 3, campaign.c.config, seed=20)
     hosted = campaign.islands(specs, turns=2)
     assert all(h.error is None and h.node is not None and h.node.confirmed for h in hosted)
