@@ -39,7 +39,7 @@ import zenoh
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from island.config import CampaignConfig
-from island.node import IslandNode
+from island.node import HISTORY_EVERY_S, IslandNode
 from island.secret import CampaignSecret
 from island.transports import ZenohHost, ZenohTransport
 from island.wire import MAX_MEMBERS, check_name
@@ -127,7 +127,7 @@ def run_islands(
     *,
     wait_s: float = 30.0,
     notify: Callable[[str], None] | None = None,
-    history_every_s: float = 0.25,
+    history_every_s: float = HISTORY_EVERY_S,
     turns: int | None = None,
 ) -> list[Hosted]:
     """Run the islands ``specs`` of the campaign of ``config`` (its loop set ``loops``) over ``session``,

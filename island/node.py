@@ -76,12 +76,23 @@ START_TIMEOUT_S = 60.0
 """Longest wait for ``min_islands`` members before an island starts anyway."""
 HISTORY_CHUNK = 20_000
 """History rows per message (well under :data:`island.protocol.MAX_ROWS`)."""
+HISTORY_EVERY_S = 0.25
+"""How often an island sends its history rows by default."""
 HISTORY_MESSAGES_PER_S = 1000.0
 """History messages a second a coordinator is asked to take from all its islands together: an island of a
-large campaign sends its rows less often than ``history_every_s`` (:meth:`IslandNode.history_period`)."""
+campaign of more than 250 islands sends its rows less often than every :data:`HISTORY_EVERY_S`
+(:meth:`IslandNode.history_period`)."""
 HISTORY_PERIOD_MAX_S = 0.75
 """The longest an island holds its rows back: below the transports' heartbeat period (1 s), so that a running
 island's history is its heartbeat."""
+
+
+def history_period(every_s: float, members: int) -> float:
+    """Seconds between two history messages of an island of a campaign of ``members`` islands: ``every_s``; in
+    a campaign whose islands would send more than :data:`HISTORY_MESSAGES_PER_S` together at
+    :data:`HISTORY_EVERY_S`, long enough for them to send that many (at most :data:`HISTORY_PERIOD_MAX_S`)."""
+    scaled = members / HISTORY_MESSAGES_PER_S
+    return every_s if scaled <= HISTORY_EVERY_S else max(every_s, min(scaled, HISTORY_PERIOD_MAX_S))
 
 
 class Transport(Protocol):
@@ -137,7 +148,7 @@ class IslandNode:
         config: CampaignConfig,
         objective: Objective | ThesisObjective,
         *,
-        history_every_s: float = 0.25,
+        history_every_s: float = HISTORY_EVERY_S,
         turns: Turns | None = None,
     ) -> None:
         """``turns``: shared with the other islands of a process, how many of them compute at once
@@ -227,11 +238,8 @@ class IslandNode:
             self._flush()
 
     def history_period(self) -> float:
-        """Seconds between two history messages: ``history_every_s``, or in a campaign of many islands
-        long enough for all of them to send :data:`HISTORY_MESSAGES_PER_S` together (at most
-        :data:`HISTORY_PERIOD_MAX_S`)."""
-        members = len(self._transport.members()) if self._transport is not None else 1
-        return min(max(self.history_every_s, members / HISTORY_MESSAGES_PER_S), max(self.history_every_s, HISTORY_PERIOD_MAX_S))
+        """Seconds between two history messages (:func:`history_period`, with the members alive now)."""
+        return history_period(self.history_every_s, len(self._transport.members()) if self._transport is not None else 1)
 
     # --- migrants -----------------------------------------------------------------
     def receive(self, sender: str, data: bytes) -> None:

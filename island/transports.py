@@ -55,6 +55,10 @@ QUERY_TIMEOUT_S = 5.0
 HEARTBEAT_S = 1.0
 """An island with no new history row for this long sends a heartbeat (a signed history without rows):
 the coordinator counts an island alive by what it signs, not by its liveliness token."""
+CONTROL_RING = 4
+"""Control messages waiting to be taken (only the newest counts)."""
+QUERY_QUEUE = 16
+"""History queries waiting for an island to answer them (the coordinator asks every 2 s at most)."""
 MIGRANT_RING = 1024
 """Migrant messages waiting for a process' islands to take them in; when more arrive, the oldest go
 (an island takes only each sender's newest)."""
@@ -115,9 +119,7 @@ class ZenohHost:
 
     It subscribes to ``migrants/*`` (into one :class:`island.arrivals.Arrivals`:
     each message read and its signature verified once, however many islands of
-    the process take from its sender; the newest :data:`MIGRANT_RING` wait in a
-    ring that Zenoh fills without Python, and one thread takes them in, so that
-    islands busy computing never hold up the session) and to ``control`` (checked once: only
+    the process take from its sender) and to ``control`` (checked once: only
     messages signed by the coordinator of ``secret`` count; their roster gives
     the members in the order they joined, the public key of each run, the
     algorithm each is to run and how far its history is committed, and the
@@ -132,6 +134,12 @@ class ZenohHost:
     silence the islands stop. ``notify`` hears (one line each) when the
     coordinator falls silent, when it is back and when it moves an island to
     another algorithm. :meth:`stop` ends every island of the host (Ctrl-C).
+
+    What arrives waits in channels that Zenoh fills without Python (the newest
+    :data:`MIGRANT_RING` migrant messages, the newest control messages, each
+    island's history queries), and threads of this process take it in: islands
+    busy computing never hold up the session, and no Zenoh thread runs Python
+    code (one that still did when the interpreter exits would abort the process).
     """
 
     def __init__(
@@ -162,10 +170,11 @@ class ZenohHost:
         self._islands: dict[str, ZenohTransport] = {}
         self.arrivals = Arrivals(self.campaign, bounds, self.key_for, self.members, self._reject)
         self._migrants = session.declare_subscriber(f"{self.prefix}/migrants/*", zenoh.handlers.RingChannel(MIGRANT_RING))
-        self._control = session.declare_subscriber(f"{self.prefix}/control", self._on_control)
+        self._control = session.declare_subscriber(f"{self.prefix}/control", zenoh.handlers.RingChannel(CONTROL_RING))
         self._closing = threading.Event()
         self._threads = [threading.Thread(target=self._beat, name="heartbeat", daemon=True),
-                         threading.Thread(target=self._take_migrants, name="migrants", daemon=True)]
+                         threading.Thread(target=self._take_migrants, name="migrants", daemon=True),
+                         threading.Thread(target=self._take_control, name="control", daemon=True)]
         for t in self._threads:
             t.start()
 
@@ -204,13 +213,15 @@ class ZenohHost:
         for sample in self._migrants:
             self.arrivals.receive(str(sample.key_expr).rsplit("/", 1)[-1], sample.payload.to_bytes())
 
-    def _on_control(self, sample: zenoh.Sample) -> None:
-        try:
-            control = decode_control(sample.payload.to_bytes(), self.campaign, self.secret.coordinator)
-        except MessageRejected:
-            self._reject()
-            return
-        self.apply(control)
+    def _take_control(self) -> None:
+        """Take the control messages as they come (the newest few wait: only the newest one counts)."""
+        for sample in self._control:
+            try:
+                control = decode_control(sample.payload.to_bytes(), self.campaign, self.secret.coordinator)
+            except MessageRejected:
+                self._reject()
+                continue
+            self.apply(control)
 
     def apply(self, control: Control) -> None:
         """Take a (validated) control message: the newest one wins, an older one is a replay."""
@@ -337,7 +348,9 @@ class ZenohTransport:
         node.attach(self)  # migrants are taken from the moment they can arrive
         self._migrants = session.declare_publisher(f"{prefix}/migrants/{node.island}")
         self._history = session.declare_publisher(f"{prefix}/history/{node.island}", congestion_control=zenoh.CongestionControl.BLOCK)
-        self._queryable = session.declare_queryable(f"{prefix}/history/{node.island}", self._on_history_query)
+        self._queryable = session.declare_queryable(f"{prefix}/history/{node.island}", zenoh.handlers.FifoChannel(QUERY_QUEUE))
+        self._answering = threading.Thread(target=self._take_queries, name=f"queries-{node.island}", daemon=True)
+        self._answering.start()
         self._token = session.liveliness().declare_token(f"{prefix}/members/{node.island}")
         self._published_at = time.monotonic()
         self.host.add(self)
@@ -355,7 +368,15 @@ class ZenohTransport:
                         f"{self.node.algo.upper()} to {algo.upper()} (the share of a mixed campaign); its search carries on")
         self._algo = algo
 
-    def _on_history_query(self, query: zenoh.Query) -> None:
+    def _take_queries(self) -> None:
+        """Answer the history queries as they come (until the queryable goes)."""
+        for query in self._queryable:
+            try:
+                self._answer(query)
+            finally:
+                query.drop()  # the asker's last answer: it need not wait for its timeout
+
+    def _answer(self, query: zenoh.Query) -> None:
         """Rows for the coordinator only: its signature, a number it never used before, at most
         :data:`HISTORY_QUERIES_PER_S` a second; anything else is counted as rejected and not answered."""
         now = time.monotonic()
@@ -423,6 +444,7 @@ class ZenohTransport:
         self.host.remove(self)
         for entity in (self._queryable, self._migrants, self._history):
             entity.undeclare()
+        self._answering.join()
         self._token.undeclare()
         if self._own_host:
             self.host.close()
