@@ -11,8 +11,8 @@
   below what the coordinator's re-evaluation of its vector gives is
   ``implausible`` (:func:`check_claim`). Budgets and the stall rule count only
   what passed: effort an island could really have spent;
-* :class:`Gaps`: per island run, the last iteration ``k`` with rows ``0..k``
-  all stored; rows missing below the last one stored (sent while this
+* :class:`Gaps`: per island run, the iterations handled (stored, or thinned
+  over capacity); rows missing below the last one handled (sent while this
   coordinator was down) are asked for again, a bounded number of times.
 """
 
@@ -23,7 +23,7 @@ from collections.abc import Callable, Collection, Sized
 
 import numpy as np
 
-from coordinator.store import Store
+from coordinator.store import Span, Store, merged
 from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer
@@ -161,43 +161,39 @@ def check_claim(h: History, f: float) -> None:
 
 
 class Gaps:
-    """Which history rows of each island run of campaign ``name`` are stored without a gap."""
+    """Which iterations of each island run of campaign ``name`` the coordinator handled (stored, or thinned:
+    :mod:`coordinator.thinning`), kept in memory as spans (read from the database at a run's first sight)."""
 
     def __init__(self, store: Store, name: str) -> None:
         self.store = store
         self.name = name
-        self.contiguous: dict[tuple[str, str], int] = {}
-        """Per island run, the last iteration k with 0..k all stored (rows beyond a gap are asked for again)."""
-        self.last_stored: dict[tuple[str, str], int] = {}
+        self.spans: dict[tuple[str, str], list[Span]] = {}
+        """Per island run, the iterations handled as disjoint sorted spans (rows beyond a gap are asked for again)."""
         self._asked: dict[tuple[str, str], tuple[float, int, int]] = {}
         """Per island run: when rows were last asked for, from which iteration, how often without progress."""
 
+    def _spans(self, key: tuple[str, str]) -> list[Span]:
+        if key not in self.spans:
+            self.spans[key] = self.store.handled(self.name, *key)
+        return self.spans[key]
+
     def stored(self, key: tuple[str, str]) -> int:
-        """The last iteration ``k`` of island run ``key`` with rows ``0..k`` all stored."""
-        if key not in self.contiguous:
-            self.contiguous[key] = self.store.contiguous_iterations(self.name, *key)
-            self.last_stored[key] = self.store.last_iteration(self.name, *key)
-        return self.contiguous[key]
+        """The last iteration ``k`` of island run ``key`` with rows ``0..k`` all handled (-1: not iteration 0)."""
+        spans = self._spans(key)
+        return spans[0][1] if spans and spans[0][0] == 0 else -1
 
     def arrived(self, key: tuple[str, str], first: int, last: int, ask: Callable[[str, str, int], None]) -> None:
-        """Track the stored iterations of an island run after rows ``first..last`` arrived; while
+        """Track the handled iterations of an island run after rows ``first..last`` arrived; while
         some are missing, ``ask(island, run, since)`` the island for them again."""
-        if key in self.contiguous:
-            done, top = self.contiguous[key], self.last_stored[key]
-            if first <= done + 1:
-                self.contiguous[key] = self.store.contiguous_iterations(self.name, *key) if top > last else max(done, last)
-            self.last_stored[key] = max(top, last)
-        else:
-            self.stored(key)
-        done, now = self.contiguous[key], time.monotonic()
+        self.spans[key] = merged([*self._spans(key), (first, last)])
+        done, now = self.stored(key), time.monotonic()
         asked_at, asked_from, attempts = self._asked.get(key, (-np.inf, -2, 0))
-        if done < self.last_stored[key] and now - asked_at >= BACKFILL_EVERY_S:
+        if done < self.spans[key][-1][1] and now - asked_at >= BACKFILL_EVERY_S:
             attempts = attempts + 1 if asked_from == done else 1
             if attempts <= BACKFILL_ATTEMPTS:  # an island that cannot fill the gap is not asked forever
                 self._asked[key] = (now, done, attempts)
                 ask(key[0], key[1], done)
 
     def forget(self) -> None:
-        """Forget what is known to be stored (after a rollback it is read from the database again)."""
-        self.contiguous.clear()
-        self.last_stored.clear()
+        """Forget what is known to be handled (after a rollback it is read from the database again)."""
+        self.spans.clear()

@@ -9,7 +9,16 @@ a producer that finds its queue full waits up to ``wait_s`` (back-pressure:
 Zenoh's reader for that link pauses, a publisher with congestion control
 ``BLOCK`` slows down) and then the item is dropped and counted. Honest islands
 lose nothing by a drop: the coordinator asks again for history rows it misses
-(:meth:`coordinator.histories.Gaps.arrived`). Once the coordinator is done
+(:meth:`coordinator.histories.Gaps.arrived`).
+
+Items that only the newest of matters (an island's migrant messages: the
+coordinator takes them for the global best, and an island's best never gets
+worse) are *replaceable*: while the coordinator keeps up (fewer than
+:data:`CROWDED` other items waiting) they queue like any other and every one is
+handled; when it falls behind, each source has one slot for them, a newer one
+replaces the one waiting (counted as superseded, per source), and slots are
+served after the other items (at least every :data:`SLOT_EVERY` th item),
+so that they never delay what must all be handled, the history rows. Once the coordinator is done
 (:meth:`Inbox.close`) every producer returns at once, those waiting included:
 nothing that arrives on the network can hold a Zenoh callback, and with it the
 process, any longer.
@@ -27,19 +36,32 @@ PER_SOURCE = 4096
 MAX_SOURCES = 8192
 MAX_BYTES = 256 << 20
 """Payload bytes waiting in all."""
+SLOT_EVERY = 4
+"""While other items wait, a replaceable one is served every this many items."""
+CROWDED = 256
+"""Items waiting from which on a replaceable item supersedes its source's one waiting (the coordinator is behind)."""
 
 
 class Inbox:
     """See the module docstring; thread-safe."""
 
-    def __init__(self, per_source: int = PER_SOURCE, max_sources: int = MAX_SOURCES, max_bytes: int = MAX_BYTES) -> None:
+    def __init__(
+        self, per_source: int = PER_SOURCE, max_sources: int = MAX_SOURCES, max_bytes: int = MAX_BYTES, crowded: int = CROWDED
+    ) -> None:
         self.per_source = per_source
         self.max_sources = max_sources
         self.max_bytes = max_bytes
+        self.crowded = crowded
         self._queues: OrderedDict[str, deque[tuple[Any, int]]] = OrderedDict()
         """Sources with items waiting, in the order they are served next."""
+        self._slots: OrderedDict[str, tuple[Any, int]] = OrderedDict()
+        """Each source's replaceable item waiting, in the order the slots filled."""
+        self._served = 0
+        self._waiting = 0
+        """Items in the queues (not the slots)."""
         self._bytes = 0
         self._dropped: Counter[str] = Counter()
+        self._superseded: Counter[str] = Counter()
         self._closed = False
         self._cond = threading.Condition()
 
@@ -49,9 +71,13 @@ class Inbox:
             return len(self._queues) >= self.max_sources or self._bytes + size > self.max_bytes
         return len(queue) >= self.per_source or (self._bytes + size > self.max_bytes and bool(queue))
 
-    def put(self, source: str, item: Any, size: int = 0, wait_s: float | None = 1.0) -> bool:
+    def put(self, source: str, item: Any, size: int = 0, wait_s: float | None = 1.0, replace: bool = False) -> bool:
         """Queue ``item`` (``size`` payload bytes) from ``source``; waits up to ``wait_s`` (None: as
-        long as it takes) while that source's queue is full, then drops it. False if dropped."""
+        long as it takes) while that source's queue is full, then drops it. False if dropped.
+        A ``replace`` able item, while :attr:`crowded` items or more wait, takes the source's slot, superseding
+        the one waiting there."""
+        if replace and self._waiting >= self.crowded:  # read without the lock: a measure of load, not a count to keep
+            return self._replace(source, item, size)
         deadline = None if wait_s is None else time.monotonic() + wait_s
         with self._cond:
             while self._closed or self._full(source, size):
@@ -61,17 +87,40 @@ class Inbox:
                     return False
                 self._cond.wait(remaining)
             self._queues.setdefault(source, deque()).append((item, size))
+            self._waiting += 1
+            self._bytes += size
+            self._cond.notify_all()
+            return True
+
+    def _replace(self, source: str, item: Any, size: int) -> bool:
+        with self._cond:
+            old = self._slots.get(source)
+            if self._closed or (old is None and (len(self._slots) >= self.max_sources or self._bytes + size > self.max_bytes)):
+                self._dropped[source] += 1
+                return False
+            if old is not None:
+                self._bytes -= old[1]
+                self._superseded[source] += 1
+            self._slots[source] = (item, size)
             self._bytes += size
             self._cond.notify_all()
             return True
 
     def get(self, timeout: float = 0.0) -> Any | None:
-        """The next item, taking one from each source in turn; None if nothing came within ``timeout``."""
+        """The next item, taking one from each source in turn (a replaceable one when nothing else waits,
+        or every :data:`SLOT_EVERY` th); None if nothing came within ``timeout``."""
         with self._cond:
-            if not self._queues and not self._cond.wait_for(lambda: bool(self._queues), timeout=timeout):
+            if not (self._queues or self._slots) and not self._cond.wait_for(lambda: bool(self._queues or self._slots), timeout=timeout):
                 return None
+            self._served += 1
+            if self._slots and (not self._queues or self._served % SLOT_EVERY == 0):
+                _, (item, size) = self._slots.popitem(last=False)
+                self._bytes -= size
+                self._cond.notify_all()
+                return item
             source, queue = next(iter(self._queues.items()))
             item, size = queue.popleft()
+            self._waiting -= 1
             del self._queues[source]
             if queue:
                 self._queues[source] = queue  # to the back of the round
@@ -87,7 +136,7 @@ class Inbox:
 
     def __len__(self) -> int:
         with self._cond:
-            return sum(len(q) for q in self._queues.values())
+            return self._waiting + len(self._slots)
 
     def take_dropped(self) -> dict[str, int]:
         """Items dropped per source since the last call."""
@@ -95,3 +144,10 @@ class Inbox:
             dropped = dict(self._dropped)
             self._dropped.clear()
             return dropped
+
+    def take_superseded(self) -> dict[str, int]:
+        """Replaceable items superseded per source since the last call."""
+        with self._cond:
+            superseded = dict(self._superseded)
+            self._superseded.clear()
+            return superseded

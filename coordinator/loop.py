@@ -3,14 +3,17 @@
 One thread runs the loop, which owns the SQLite store: it feeds the
 inbox (:func:`pump`) through :meth:`coordinator.server.Coordinator.handle` and
 
-* commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
+* writes the history rows it keeps in batches (every :data:`FLUSH_EVERY_S`, or
+  :data:`FLUSH_ROWS` rows), and commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
   whatever the load (early by as long as its slowest recent message and commit
   took, so that no message started just before the deadline pushes the commit
   past it), with the campaign's elapsed time (``--resume`` carries the time
   rule on from there), and after each commit publishes the signed ``control``
   message (:func:`control_message`): the roster, how far each island's history
   is committed (an island waits for that before it leaves) and, at the end,
-  the stop order;
+  the stop order; every :data:`coordinator.thinning.REVIEW_EVERY_S` it measures what storage holds (the time its
+  work and the writing of rows took: :meth:`coordinator.thinning.HistoryPolicy.review`)
+  and stores the counts of migrant messages superseded in the inbox;
 * stops (:func:`check_stop`) by the rules of :class:`island.termination.Termination`
   (a total evaluation budget, a target fitness, a stall, a time limit:
   :meth:`coordinator.server.Coordinator.rule_stop`), when every island has
@@ -36,6 +39,7 @@ from coordinator.members import LEAVE_GRACE_S, Member
 from coordinator.progress import CampaignProgress
 from coordinator.server import Coordinator, Link
 from coordinator.store import StoreError
+from coordinator.thinning import REVIEW_EVERY_S
 from island.protocol import Control, MemberState, encode_control
 
 ORPHAN_S = 30.0
@@ -49,6 +53,10 @@ MAX_COMMIT_MARGIN_S = 0.3
 """The most a commit is brought forward (the slowest recent message plus the last commit's time)."""
 COMMIT_ROWS = 20_000
 """The coordinator commits at least this often, and after this many history rows: what a kill can lose."""
+FLUSH_EVERY_S = 0.1
+FLUSH_ROWS = 5000
+"""History rows (with the island records and thinned stretches) are written in one batch at least this
+often, or once this many wait: a row is in the database a tenth of a second after it was handled."""
 PASS_S = 0.2
 """Longest stretch of message handling between two checks of the stop rules and progress."""
 CONTROL_EVERY_S = 1.0
@@ -97,14 +105,33 @@ def commit(c: Coordinator, link: Link, *, announce: bool = False) -> None:
     for reason, n in c.rejected_backlog.items():
         c.store.add_rejected(c.name, "*", reason, f"{n} rejected messages not recorded one by one (a flood)", 0, n)
     c.rejected_backlog.clear()
+    superseded = c.inbox.take_superseded()
+    if superseded:
+        c.store.add_superseded(c.name, superseded)
+        c.superseded += sum(superseded.values())
+    flush(c)
     started = time.monotonic()
     c.store.commit(c.name, c.elapsed())
     c.committed_at, c.rows_since_commit = time.monotonic(), 0
     c.commit_s, c.slowest_item_s = c.committed_at - started, c.slowest_item_s / 2
+    c.busy_s += c.commit_s
+    if c.committed_at - c.window_at >= REVIEW_EVERY_S:
+        c.policy.review(c.committed_at - c.window_at, c.busy_s, c.writing_s, c.written)
+        c.window_at, c.busy_s, c.writing_s, c.written = c.committed_at, 0.0, 0.0, 0
     changed = c.changed or c.membership.events != c.announced_events
     if c.runs and (announce or changed or c.committed_at - c.control_at >= CONTROL_EVERY_S):
         link.publish_control(control_message(c, c.stop_reason or ""), c.stop_reason is not None)
         c.control_at, c.changed, c.announced_events = time.monotonic(), False, c.membership.events
+
+
+def flush(c: Coordinator) -> None:
+    """Write the queued history rows (and island records, thinned stretches), timing it."""
+    began = time.monotonic()
+    c.written += c.store.flush()
+    spent = time.monotonic() - began
+    c.writing_s += spent
+    c.busy_s += spent
+    c.flushed_at = time.monotonic()
 
 
 def pump(c: Coordinator, link: Link, seconds: float, first_wait: float = 0.05) -> int:
@@ -119,7 +146,9 @@ def pump(c: Coordinator, link: Link, seconds: float, first_wait: float = 0.05) -
         if item is not None:
             began = time.monotonic()
             c.handle(link, item)
-            c.slowest_item_s = max(c.slowest_item_s, time.monotonic() - began)
+            spent = time.monotonic() - began
+            c.slowest_item_s = max(c.slowest_item_s, spent)
+            c.busy_s += spent
             handled += 1
         now = time.monotonic()
         done = item is None or now >= deadline
@@ -127,6 +156,8 @@ def pump(c: Coordinator, link: Link, seconds: float, first_wait: float = 0.05) -
         if done or now - c.committed_at >= COMMIT_EVERY_S - margin or c.rows_since_commit >= COMMIT_ROWS:
             c.membership.settle()
             commit(c, link)
+        elif now - c.flushed_at >= FLUSH_EVERY_S or c.store.pending_rows >= FLUSH_ROWS:
+            flush(c)
         if done:
             return handled
         wait = 0.0

@@ -36,6 +36,7 @@ class CampaignOutcome:
     islands: list[dict[str, Any]]
     migrations: dict[str, Any]
     members: list[dict[str, Any]]
+    stored: dict[str, Any]
 
 
 def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOutcome:
@@ -101,16 +102,25 @@ def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOut
         islands=island_summaries(c, records, runs),
         migrations=migration_summary(c, records),
         members=[{"island": i, "event": e, "t": t} for i, e, t in c.store.members(c.name)],
+        stored=stored_summary(c),
     )
 
 def island_summaries(c: Coordinator, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
     """Each island run's record with its re-evaluated best and its membership status (as last recorded)."""
     recorded = {island: STATUS_AFTER[event] for island, event, _ in c.store.members(c.name)}
     status = recorded | {i: m.status for i, m in c.members.items()}
+    thinned = c.store.thinned(c.name)
     return [
-        {**rec.as_dict(), "best_fitness": run.search_fitness, "status": status.get(rec.island, "unknown")}
+        {**rec.as_dict(), "best_fitness": run.search_fitness, "status": status.get(rec.island, "unknown"), "thinned": thinned.get((rec.island, rec.run), 0)}
         for rec, run in zip(records, runs)
     ]
+
+
+def stored_summary(c: Coordinator) -> dict[str, Any]:
+    """History rows stored, those the coordinator did not keep over capacity (:mod:`coordinator.thinning`), and
+    migrant messages superseded before it handled them."""
+    return {"history_rows": c.store.count("history", c.name), "thinned_rows": sum(c.store.thinned(c.name).values()),
+            "superseded_migrant_messages": c.store.superseded(c.name)}
 
 def migration_summary(c: Coordinator, records: list[IslandRecord]) -> dict[str, Any]:
     return {

@@ -24,7 +24,11 @@ The coordinator
   losses (the token goes without a final history: crash, kill, or a frozen
   process whose Zenoh lease expired; or a joined island whose token never
   shows) through :class:`coordinator.members.Membership`;
-* stores every history row and migrant message, and every rejected message
+* stores the history rows (every one while it keeps up; over capacity every
+  improvement and a thinned rest, the rows left out counted:
+  :class:`coordinator.thinning.HistoryPolicy`), every migrant message it handles
+  (when it falls behind, of an island's migrant messages waiting only the newest is
+  handled, the others counted as superseded: :mod:`coordinator.inbox`), and every rejected message
   with its reason (a flood as counted summaries);
 * keeps the global best, **re-evaluating** every candidate it receives (a
   claimed fitness is never trusted, neither to take nor to skip one) and
@@ -73,6 +77,7 @@ from coordinator.outcome import CampaignOutcome, campaign_outcome
 from coordinator.progress import CampaignProgress, IslandView
 from coordinator.sharing import Sharing
 from coordinator.store import RUN_LOCK_WAIT_S, IslandRecord, Store, StoredBest, StoreError
+from coordinator.thinning import HistoryPolicy
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from island.algorithms import ALGORITHMS
@@ -200,6 +205,8 @@ class Coordinator:
         for rec in store.islands(self.name):
             self.run_evaluations[(rec.island, rec.run)] = rec.evaluations
             self.islands[(rec.island, rec.run)] = IslandView(rec.algo, rec.iterations, rec.best_fitness, rec.final)
+        self.evaluations = int(sum(self.run_evaluations.values()))
+        """Evaluations of every run together (each run's as its histories last said)."""
         self.membership = Membership(store, self.name, config.min_islands, self._finished)
         if resume:
             self.membership.take_up(self.current)
@@ -216,6 +223,9 @@ class Coordinator:
         self.best_trace: list[tuple[float, float, int, np.ndarray]] = []
         """``(time.monotonic(), fitness, total evaluations, x)`` at every improvement of the global best."""
         self.gaps = Gaps(store, self.name)
+        self.policy = HistoryPolicy()
+        self.superseded = store.superseded(self.name)
+        """Migrant messages superseded in the inbox (a newer one of the island replaced them) before they were handled."""
         self._replays = ReplayGuard()
         self._evaluated: OrderedDict[bytes, float] = OrderedDict()
         self._rejected_log = TokenBucket(REJECTED_PER_S, REJECTED_BURST)
@@ -229,6 +239,11 @@ class Coordinator:
         """The longest a message took to handle lately (halved at each commit)."""
         self.rows_since_commit = 0
         """History rows stored since the last commit."""
+        self.window_at = self.flushed_at = time.monotonic()
+        self.busy_s = self.writing_s = 0.0
+        self.written = 0
+        """Since ``window_at``: seconds the run loop worked, of them writing history rows, and the rows written
+        (what :meth:`coordinator.thinning.HistoryPolicy.review` measures storage by)."""
         self.changed = True
         """Whether the roster changed since the control message last went out."""
         self.announced_events = 0
@@ -255,10 +270,6 @@ class Coordinator:
     def _finished(self, island: str, run: str) -> bool:
         return self.islands.get((island, run), IslandView("")).final
 
-    @property
-    def evaluations(self) -> int:
-        return int(sum(self.run_evaluations.values()))
-
     def progress(self) -> CampaignProgress:
         return CampaignProgress(
             elapsed_s=self.elapsed(),
@@ -280,8 +291,11 @@ class Coordinator:
         return island if island in self.current else "?"
 
     def receive(self, key: str, payload: bytes, wait_s: float | None = 1.0) -> bool:
-        """A publication (``hysid/<c>/<kind>/<sender>``) for the coordinator's thread; False if dropped."""
-        return self.inbox.put(self._source(key.rsplit("/", 1)[-1]), ("msg", key, payload), len(payload), wait_s)
+        """A publication (``hysid/<c>/<kind>/<sender>``) for the coordinator's thread; False if dropped. A
+        joined island's migrant message may replace its one still waiting (only its newest matters: :mod:`coordinator.inbox`)."""
+        kind, sender = key.rsplit("/", 2)[-2:] if key.count("/") >= 2 else ("", key)
+        source = self._source(sender)
+        return self.inbox.put(source, ("msg", key, payload), len(payload), wait_s, replace=kind == "migrants" and source != "?")
 
     def member(self, island: str, alive: bool, wait_s: float | None = 1.0) -> bool:
         """A liveliness token of ``members/<island>`` appeared (``alive``) or went."""
@@ -441,16 +455,24 @@ class Coordinator:
             return  # a heartbeat: alive, nothing new to store
         f = float(self.evaluate(h.best_x[None, :])[0])
         check_claim(h, f)
-        self.rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
         if h.rows.size:
-            self.gaps.arrived(key, int(h.rows[0, 0]), int(h.rows[-1, 0]), link.request_history)
+            kept = h.rows[self.policy.keep(key, h.rows)]
+            self.store.queue_history(self.name, h.island, h.run, kept)
+            span = (int(h.rows[0, 0]), int(h.rows[-1, 0]))
+            if kept.shape[0] < h.rows.shape[0]:
+                self.store.queue_thinned(self.name, h.island, h.run, span, h.rows.shape[0] - kept.shape[0])
+            self.rows_since_commit += kept.shape[0]
+            self.gaps.arrived(key, *span, link.request_history)
         iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
         evaluations = int(h.rows[:, 2].max()) if h.rows.size else 0
-        self.store.update_island(self.name, IslandRecord(
+        self.store.queue_island(self.name, IslandRecord(
             h.island, h.run, h.algo, h.seed, iterations, evaluations, f, h.best_x,
             h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final,
         ))
-        self.run_evaluations[key] = max(self.run_evaluations.get(key, 0), evaluations)
+        before = self.run_evaluations.get(key, 0)
+        if evaluations > before:
+            self.run_evaluations[key] = evaluations
+            self.evaluations += evaluations - before
         self.sharing.credit(key, h.algo, h.gain)
         view = self.islands.setdefault(key, IslandView(h.algo))
         view.algo = h.algo
@@ -460,9 +482,10 @@ class Coordinator:
         self.changed = True
         if h.final:
             self.membership.final_history(h.island, h.run)
+            self.policy.forget(key)
         self._consider(link, h.island, h.best_x, f)
         if self.stop_reason is None and self.rule_stop() is None:  # the share's moves (none once a rule says stop): told with the next control message
-            self.sharing.review(self.evaluations, self.members, self.islands)
+            self.sharing.review(self.evaluations, self.members, self.islands, key)
 
     def _migrants(self, link: Link, m: Migrants) -> None:
         check_replay(self._replays, "migrants", m.island, m.run, m.seq)

@@ -82,16 +82,23 @@ class Sharing:
             self.policy.credit(algo, gain - self.gains[key])
         self.gains[key] = max(self.gains.get(key, 0.0), gain)
 
-    def review(self, evaluations: int, members: dict[str, Member], runs: Mapping[tuple[str, str], RunView]) -> list[Move]:
+    def review(
+        self, evaluations: int, members: dict[str, Member], runs: Mapping[tuple[str, str], RunView], sender: tuple[str, str] | None = None
+    ) -> list[Move]:
         """After ``evaluations`` in all (the adaptive share: once a round of every alive island's
         migration interval is over): the policy's moves, stored (committed with the next commit) and
         assigned. Only runs that can still move are offered: alive members whose liveliness token was
-        seen (a run taken up after a restart may never come back) and whose history was not final."""
+        seen (a run taken up after a restart may never come back) and whose history was not final. With
+        the staged share, after a history of run ``sender``, only that run is offered (only its progress
+        is new: a campaign of thousands of islands is not gone through at every message)."""
         if self.policy is None or evaluations < self.policy.next_review:
             return []
         alive: dict[tuple[str, str], str] = {}
         iterations: dict[tuple[str, str], int] = {}
-        for island, m in members.items():
+        offered = members.items()
+        if sender is not None and isinstance(self.policy, Staged):
+            offered = [(sender[0], members[sender[0]])] if sender[0] in members else []
+        for island, m in offered:
             key, view = (island, m.run), runs.get((island, m.run))
             if m.status == "alive" and m.token and key in self.assigned and not (view is not None and view.final):
                 alive[key] = self.assigned[key]

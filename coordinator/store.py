@@ -2,17 +2,23 @@
 
 One file holds any number of campaigns. Tables: ``campaigns`` (configuration
 message with the loop set, status, stop reason, final result), ``members``
-(join / leave / lost / back events), ``history`` (every island's convergence
+(join / leave / lost / back events), ``history`` (the islands' convergence
 rows, keyed by island, run and iteration so that a row sent twice is stored
-once), ``islands`` (each island run's algorithm, evaluations and migration
-counters), ``migrations`` (every migrant message seen), ``rejected`` (every
-message that failed validation, with the reason) and ``best`` (the global
-best, as re-evaluated by the coordinator).
+once), ``thinned`` (the stretches of a run's history whose rows the coordinator
+did not keep, over capacity, and how many: :mod:`coordinator.thinning`),
+``islands`` (each island run's algorithm, evaluations and migration
+counters), ``migrations`` (every migrant message handled), ``superseded``
+(per island, migrant messages a newer one replaced before they were handled),
+``rejected`` (every message that failed validation, with the reason) and
+``best`` (the global best, as re-evaluated by the coordinator).
 
-The journal is WAL with ``synchronous=NORMAL``; the coordinator commits after
-each batch of messages it handles, so a crash (or kill) of the coordinator
-process loses nothing it has committed and ``--resume`` carries on from the
-file (only a power loss of the machine may drop the last commits).
+History rows, island records and thinned stretches are written in batches
+(:meth:`Store.queue_history` and its siblings, one ``executemany`` each at
+:meth:`Store.flush`), the rest as it comes. The journal is WAL with
+``synchronous=NORMAL``; the coordinator commits (flushing first) at least every
+half second, so a crash (or kill) of the coordinator process loses nothing it
+has committed and ``--resume`` carries on from the file (only a power loss of
+the machine may drop the last commits).
 """
 
 from __future__ import annotations
@@ -33,6 +39,8 @@ from hysid_model.errors import HysidInputError
 from island.share import Move
 
 T = TypeVar("T")
+Span = tuple[int, int]
+"""Iterations ``first..last`` of an island run (both included)."""
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS campaigns (
@@ -67,6 +75,11 @@ CREATE TABLE IF NOT EXISTS moves (
     dst TEXT NOT NULL, evaluations INTEGER NOT NULL, credit TEXT NOT NULL, t REAL NOT NULL);
 CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL, admission BLOB, signing BLOB);
 CREATE TABLE IF NOT EXISTS commits (campaign TEXT PRIMARY KEY, t REAL NOT NULL, elapsed_s REAL NOT NULL DEFAULT 0);
+CREATE TABLE IF NOT EXISTS thinned (
+    campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, first INTEGER NOT NULL, last INTEGER NOT NULL,
+    rows INTEGER NOT NULL, t REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS superseded (
+    campaign TEXT NOT NULL, island TEXT NOT NULL, messages INTEGER NOT NULL, PRIMARY KEY (campaign, island));
 """
 UPGRADES = (
     ("migrations", "seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
@@ -76,8 +89,12 @@ UPGRADES = (
     ("commits", "elapsed_s", "ALTER TABLE commits ADD COLUMN elapsed_s REAL NOT NULL DEFAULT 0"),
 )
 """Columns added since the first schema: a database written by an earlier hysid gets them on open."""
-INDEXES = "CREATE UNIQUE INDEX IF NOT EXISTS migration_once ON migrations (campaign, island, run, seq);"
-"""A migrant message (sender run and number) is stored once, also when it is replayed after a restart."""
+INDEXES = """
+CREATE UNIQUE INDEX IF NOT EXISTS migration_once ON migrations (campaign, island, run, seq);
+CREATE INDEX IF NOT EXISTS thinned_runs ON thinned (campaign, island, run, first);
+"""
+"""A migrant message (sender run and number) is stored once, also when it is replayed after a restart; a run's
+thinned stretches are found in order."""
 LOCK_WAIT_S = 10.0
 """How long a write waits for another process' lock on the database before it fails (when it opens)."""
 RUN_LOCK_WAIT_S = 2.0
@@ -87,6 +104,17 @@ RESERVE_BYTES = 256 << 10
 """Disk space held next to the database (``<db>-reserve``) and given back when the disk is full, so
 that the campaign can still be marked interrupted (plus twice its configuration message: SQLite
 rewrites the whole campaign row, loop set included, when its status changes)."""
+
+
+UPSERT_ISLAND = """INSERT INTO islands VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+    ON CONFLICT (campaign, island, run) DO UPDATE SET
+    algo = CASE WHEN excluded.iterations >= iterations THEN excluded.algo ELSE algo END,
+    iterations = max(iterations, excluded.iterations), evaluations = max(evaluations, excluded.evaluations),
+    best_x = CASE WHEN excluded.best_fitness < best_fitness THEN excluded.best_x ELSE best_x END,
+    best_fitness = min(best_fitness, excluded.best_fitness), sent = max(sent, excluded.sent),
+    received = max(received, excluded.received), taken = max(taken, excluded.taken),
+    rejected = max(rejected, excluded.rejected), final = max(final, excluded.final)"""
+"""An island run's record: counters only grow, the best vector follows the best fitness (messages may come late)."""
 
 
 def _identity(path: str) -> tuple[int, int]:
@@ -101,6 +129,17 @@ def prepare(db: sqlite3.Connection) -> None:
         if column not in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}:
             db.execute(upgrade)
     db.executescript(INDEXES)
+
+
+def merged(spans: list[Span]) -> list[Span]:
+    """Spans of iterations joined where they overlap or touch, in order."""
+    out: list[list[int]] = []
+    for first, last in sorted(spans):
+        if out and first <= out[-1][1] + 1:
+            out[-1][1] = max(out[-1][1], last)
+        else:
+            out.append([first, last])
+    return [(a, b) for a, b in out]
 
 
 class StoreError(HysidInputError):
@@ -167,8 +206,17 @@ class Store:
             self.reserve = None if self.path == ":memory:" else Path(f"{self.path}-reserve")
             self.hold(0)
             self.identity = None if self.path == ":memory:" else _identity(self.path)
+            self._pending()
         except (sqlite3.DatabaseError, OSError) as exc:
             raise HysidInputError(f"{self.path}: not a usable campaign database ({exc})") from None
+
+    def _pending(self) -> None:
+        """Nothing waits for the next :meth:`flush`."""
+        self._rows: list[tuple[str, str, str, np.ndarray]] = []
+        self._records: list[tuple[Any, ...]] = []
+        self._thinned: list[tuple[Any, ...]] = []
+        self.pending_rows = 0
+        """History rows queued for the next flush."""
 
     def set_lock_wait(self, seconds: float) -> None:
         """How long a write waits for another process' lock from now on."""
@@ -207,6 +255,7 @@ class Store:
             raise HysidInputError(f"{path}: not a campaign database ({exc})") from None
         store = cls.__new__(cls)
         store.path, store.db, store.reserve, store.identity = str(path), db, None, None
+        store._pending()
         return store
 
     @classmethod
@@ -222,6 +271,7 @@ class Store:
         prepare(copy)  # a database of an earlier hysid gets today's tables, in the copy only
         store = cls.__new__(cls)
         store.path, store.db, store.reserve, store.identity = source.path, copy, None, None
+        store._pending()
         return store
 
     def release_reserve(self) -> None:
@@ -240,14 +290,35 @@ class Store:
 
     @_writes
     def _commit(self) -> None:
+        self.flush()
         self.db.commit()
 
     @_writes
+    def flush(self) -> int:
+        """Write what is queued (one ``executemany`` for each table), in the open transaction; returns the
+        history rows that were new. Each row's ``t`` is now: when it was written."""
+        now = time.time()
+        before = self.db.total_changes
+        if self._rows:
+            self.db.executemany(
+                "INSERT OR IGNORE INTO history VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                [(c, i, r, int(it), f, int(ev), w, now) for c, i, r, rows in self._rows for it, f, ev, w in rows.tolist()],
+            )
+        written = self.db.total_changes - before
+        if self._records:
+            self.db.executemany(UPSERT_ISLAND, self._records)
+        if self._thinned:
+            self.db.executemany("INSERT INTO thinned VALUES (?, ?, ?, ?, ?, ?, ?)", [(*t, now) for t in self._thinned])
+        self._pending()
+        return written
+
+    @_writes
     def commit(self, campaign: str | None = None, elapsed_s: float = 0.0) -> None:
-        """Commit; with ``campaign``, stamp the time and the campaign's elapsed seconds in ``commits`` first
-        (how old the last commit is tells what a kill right now would lose; the elapsed time is where
-        ``--resume`` carries the time rule on). A file deleted meanwhile is a :class:`StoreError`."""
+        """Commit (what is queued first); with ``campaign``, stamp the time and the campaign's elapsed seconds
+        in ``commits`` first (how old the last commit is tells what a kill right now would lose; the elapsed
+        time is where ``--resume`` carries the time rule on). A file deleted meanwhile is a :class:`StoreError`."""
         self.check_file()
+        self.flush()
         if campaign is not None:
             self.db.execute("INSERT OR REPLACE INTO commits (campaign, t, elapsed_s) VALUES (?, ?, ?)", (campaign, time.time(), elapsed_s))
         self.db.commit()
@@ -258,7 +329,8 @@ class Store:
         return 0.0 if row is None else float(row[0])
 
     def rollback(self) -> None:
-        """Drop what was not committed (after a failed write)."""
+        """Drop what was not committed (after a failed write), queued or written."""
+        self._pending()
         try:
             self.db.rollback()
         except sqlite3.Error:
@@ -315,32 +387,39 @@ class Store:
     def member_event(self, campaign: str, island: str, event: str) -> None:
         self.db.execute("INSERT INTO members (campaign, island, event, t) VALUES (?, ?, ?, ?)", (campaign, island, event, time.time()))
 
-    @_writes
+    def queue_history(self, campaign: str, island: str, run: str, rows: np.ndarray) -> None:
+        """Rows ``[iteration, best_fitness, evaluations, wall_s]`` of an island run, for the next :meth:`flush`
+        (a row already stored is stored once)."""
+        if rows.size:
+            self._rows.append((campaign, island, run, np.asarray(rows, dtype=float).reshape(-1, 4)))
+            self.pending_rows += rows.shape[0]
+
     def add_history(self, campaign: str, island: str, run: str, rows: np.ndarray) -> int:
-        """Store rows ``[iteration, best_fitness, evaluations, wall_s]``; returns how many were new."""
-        now = time.time()
-        before = self.db.total_changes
-        self.db.executemany(
-            "INSERT OR IGNORE INTO history VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-            [(campaign, island, run, int(r[0]), float(r[1]), int(r[2]), float(r[3]), now) for r in rows],
-        )
-        return self.db.total_changes - before
+        """Store rows now (with what else is queued); returns how many were new."""
+        self.queue_history(campaign, island, run, rows)
+        return self.flush()
+
+    def queue_thinned(self, campaign: str, island: str, run: str, span: Span, rows: int) -> None:
+        """``rows`` rows of iterations ``span`` of an island run that the coordinator handled and did not keep."""
+        self._thinned.append((campaign, island, run, span[0], span[1], rows))
+
+    def queue_island(self, campaign: str, record: IslandRecord) -> None:
+        """Upsert an island run's counters (iterations and evaluations only grow) and its latest algorithm, at the next flush."""
+        r = record
+        self._records.append((campaign, r.island, r.run, r.algo, r.seed, r.iterations, r.evaluations, r.best_fitness,
+                              np.asarray(r.best_x, dtype="<f8").tobytes(), r.sent, r.received, r.taken, r.rejected, int(r.final)))
+
+    def update_island(self, campaign: str, record: IslandRecord) -> None:
+        """:meth:`queue_island`, written now."""
+        self.queue_island(campaign, record)
+        self.flush()
 
     @_writes
-    def update_island(self, campaign: str, record: IslandRecord) -> None:
-        """Upsert an island run's counters (iterations and evaluations only grow) and its latest algorithm."""
-        r = record
-        self.db.execute(
-            """INSERT INTO islands VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
-               ON CONFLICT (campaign, island, run) DO UPDATE SET
-               algo = CASE WHEN excluded.iterations >= iterations THEN excluded.algo ELSE algo END,
-               iterations = max(iterations, excluded.iterations), evaluations = max(evaluations, excluded.evaluations),
-               best_x = CASE WHEN excluded.best_fitness < best_fitness THEN excluded.best_x ELSE best_x END,
-               best_fitness = min(best_fitness, excluded.best_fitness), sent = max(sent, excluded.sent),
-               received = max(received, excluded.received), taken = max(taken, excluded.taken),
-               rejected = max(rejected, excluded.rejected), final = max(final, excluded.final)""",
-            (campaign, r.island, r.run, r.algo, r.seed, r.iterations, r.evaluations, r.best_fitness,
-             np.asarray(r.best_x, dtype="<f8").tobytes(), r.sent, r.received, r.taken, r.rejected, int(r.final)),
+    def add_superseded(self, campaign: str, counts: dict[str, int]) -> None:
+        """Migrant messages of each island that a newer one replaced before the coordinator handled them."""
+        self.db.executemany(
+            "INSERT INTO superseded VALUES (?, ?, ?) ON CONFLICT (campaign, island) DO UPDATE SET messages = messages + excluded.messages",
+            [(campaign, island, n) for island, n in counts.items()],
         )
 
     @_writes
@@ -424,25 +503,35 @@ class Store:
     def total_evaluations(self, campaign: str) -> int:
         return int(self.db.execute("SELECT coalesce(sum(evaluations), 0) FROM islands WHERE campaign = ?", (campaign,)).fetchone()[0])
 
-    def contiguous_iterations(self, campaign: str, island: str, run: str) -> int:
-        """The largest k such that iterations 0..k of an island run are all stored (-1 if iteration 0 is not)."""
-        row = self.db.execute(
-            """SELECT min(h.iteration) FROM history h WHERE h.campaign = ? AND h.island = ? AND h.run = ? AND NOT EXISTS
-               (SELECT 1 FROM history g WHERE g.campaign = h.campaign AND g.island = h.island AND g.run = h.run
-                AND g.iteration = h.iteration + 1)""",
-            (campaign, island, run),
-        ).fetchone()
-        has_first = self.db.execute(
-            "SELECT 1 FROM history WHERE campaign = ? AND island = ? AND run = ? AND iteration = 0", (campaign, island, run)
-        ).fetchone()
-        return int(row[0]) if has_first and row[0] is not None else -1
+    def handled(self, campaign: str, island: str, run: str) -> list[Span]:
+        """The iterations of an island run the coordinator handled, stored or thinned, as disjoint sorted spans."""
+        where = "campaign = ? AND island = ? AND run = ?"
+        key = (campaign, island, run)
+        starts = self.db.execute(f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
+            g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration - 1) ORDER BY iteration""", key)
+        ends = self.db.execute(f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
+            g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration + 1) ORDER BY iteration""", key)
+        spans = list(zip((s for (s,) in starts.fetchall()), (e for (e,) in ends.fetchall())))
+        if self._has("thinned"):
+            spans += self.db.execute(f"SELECT first, last FROM thinned WHERE {where}", key).fetchall()
+        return merged(spans)
 
-    def last_iteration(self, campaign: str, island: str, run: str) -> int:
-        """Highest stored iteration of an island run, -1 if none."""
-        row = self.db.execute(
-            "SELECT coalesce(max(iteration), -1) FROM history WHERE campaign = ? AND island = ? AND run = ?", (campaign, island, run)
-        ).fetchone()
-        return int(row[0])
+    def thinned(self, campaign: str) -> dict[tuple[str, str], int]:
+        """History rows the coordinator did not keep, per island run."""
+        if not self._has("thinned"):
+            return {}
+        rows = self.db.execute("SELECT island, run, sum(rows) FROM thinned WHERE campaign = ? GROUP BY island, run", (campaign,))
+        return {(i, r): int(n) for i, r, n in rows}
+
+    def superseded(self, campaign: str) -> int:
+        """Migrant messages a newer one of the same island replaced before the coordinator handled them."""
+        if not self._has("superseded"):
+            return 0
+        return int(self.db.execute("SELECT coalesce(sum(messages), 0) FROM superseded WHERE campaign = ?", (campaign,)).fetchone()[0])
+
+    def _has(self, table: str) -> bool:
+        """Whether the file has ``table`` (a file of an earlier hysid opened read-only may lack it)."""
+        return self.db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,)).fetchone() is not None
 
     def history(self, campaign: str) -> list[tuple[str, str, int, float, int, float]]:
         """All rows ``(island, run, iteration, best_fitness, evaluations, wall_s)``."""

@@ -45,6 +45,9 @@ class CampaignResult:
     islands: list[dict[str, Any]]
     migrations: dict[str, Any]
     members: list[dict[str, Any]]
+    stored: dict[str, Any]
+    """What the coordinator stored: history rows, rows thinned over capacity (every improvement kept), and the
+    migrant messages a newer one superseded before it handled them."""
 
     @classmethod
     def from_outcome(cls, outcome: CampaignOutcome) -> "CampaignResult":
@@ -53,6 +56,7 @@ class CampaignResult:
             islands=outcome.islands,
             migrations=outcome.migrations,
             members=outcome.members,
+            stored=outcome.stored,
         )
 
     @classmethod
@@ -92,8 +96,8 @@ class CampaignResult:
         return self.fit.stderr
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``hysid fit --json`` document plus ``islands``, ``migrations`` and membership ``members``."""
-        return {**self.fit.to_dict(), "islands": self.islands, "migrations": self.migrations, "members": self.members}
+        """The ``hysid fit --json`` document plus ``islands``, ``migrations``, membership ``members`` and what was ``stored``."""
+        return {**self.fit.to_dict(), "islands": self.islands, "migrations": self.migrations, "members": self.members, "stored": self.stored}
 
     def tables(self) -> dict[str, list[dict[str, Any]]]:
         """The fit's tables (``parameters``, ``amplitudes``) plus ``islands`` (one row per island run)."""

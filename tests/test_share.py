@@ -355,7 +355,7 @@ def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_
     store = Store(db)
     try:
         for island, run, *_ in store.runs(coordinator.name):
-            assert store.contiguous_iterations(coordinator.name, island, run) == records[island]["iterations"]  # no row missing across a move
+            assert store.handled(coordinator.name, island, run) == [(0, records[island]["iterations"])]  # no row missing across a move
         assert store.rejected_reasons(coordinator.name) == {}
         taken_up = resume(store, coordinator.name)
         assert {k[0]: v for k, v in taken_up.sharing.assigned.items() if k[0] in last} == {i: m["dst"] for i, m in last.items()}

@@ -33,22 +33,29 @@ def test_history_rows_are_stored_once_per_island_run_and_iteration(tmp_path):
     assert store.add_history("c1", "ga-0", "r1", rows) == 2
     assert store.add_history("c1", "ga-0", "r1", np.vstack([rows, [[2, 3.0, 300, 0.3]]])) == 1
     assert store.add_history("c1", "ga-0", "r2", rows) == 2
-    assert store.last_iteration("c1", "ga-0", "r1") == 2
-    assert store.last_iteration("c1", "ga-0", "r3") == -1
-    assert store.contiguous_iterations("c1", "ga-0", "r1") == 2
+    assert store.handled("c1", "ga-0", "r1") == [(0, 2)]
+    assert store.handled("c1", "ga-0", "r3") == []
     assert [r[2] for r in store.history("c1") if r[1] == "r1"] == [0, 1, 2]
 
 
-def test_contiguous_iterations_stop_at_the_first_gap(tmp_path):
+def test_the_iterations_handled_are_the_rows_stored_and_the_stretches_thinned(tmp_path):
     store = Store(tmp_path / "c.sqlite")
     row = lambda i: [i, 1.0, 10 * i, 0.1 * i]  # noqa: E731
     store.add_history("c1", "a", "r", np.array([row(i) for i in (1, 2, 3)]))
-    assert store.contiguous_iterations("c1", "a", "r") == -1  # iteration 0 missing
+    assert store.handled("c1", "a", "r") == [(1, 3)]  # iteration 0 missing
     store.add_history("c1", "a", "r", np.array([row(i) for i in (0, 7, 8)]))
-    assert store.contiguous_iterations("c1", "a", "r") == 3
+    assert store.handled("c1", "a", "r") == [(0, 3), (7, 8)]
+    store.queue_history("c1", "a", "r", np.array([row(i) for i in (9, 16, 20)]))  # of 9..20, 9 rows thinned
+    store.queue_thinned("c1", "a", "r", (9, 20), 9)
+    assert store.handled("c1", "a", "r") == [(0, 3), (7, 8)]  # queued, not written yet
+    store.flush()
+    assert store.handled("c1", "a", "r") == [(0, 3), (7, 20)] and store.thinned("c1") == {("a", "r"): 9}
     store.add_history("c1", "a", "r", np.array([row(i) for i in (4, 5, 6)]))
-    assert store.contiguous_iterations("c1", "a", "r") == 8
-    assert store.contiguous_iterations("c1", "a", "other") == -1
+    assert store.handled("c1", "a", "r") == [(0, 20)]
+    assert store.handled("c1", "a", "other") == []
+    store.add_superseded("c1", {"a": 2, "b": 1})
+    store.add_superseded("c1", {"a": 3})
+    assert store.superseded("c1") == 6
 
 
 def test_island_counters_only_grow_and_the_best_vector_follows_the_best_fitness(tmp_path):
@@ -84,7 +91,7 @@ def test_everything_committed_survives_a_killed_process(tmp_path):
     assert proc.exitcode == -signal.SIGKILL
     store = Store(path)
     assert store.count("history", "c1") == 50
-    assert store.last_iteration("c1", "ga-0", "r1") == 49
+    assert store.handled("c1", "ga-0", "r1") == [(0, 49)]
     assert store.members("c1")[0][:2] == ("ga-0", "join")
     assert store.rejected_reasons("c1") == {"oversized": 1}
     assert store.count("migrations", "c1") == 1

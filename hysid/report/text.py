@@ -223,14 +223,26 @@ def campaign_summary(result: "CampaignResult") -> str:
         f"campaign {fit.settings['campaign']!r}: stopped because {fit.settings['stop_reason']}",
         f"migrations: {m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
         f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected",
+        stored_line(result.stored),
     ]
     lines += share_lines(fit.settings)
     for isl in result.islands:
         lines.append(
             f"  {isl['island']:<12} {isl['algo'].upper():<4} seed {isl['seed']:<4} {isl['status']:<6} best {isl['best_fitness']:.4g} "
-            f"after {isl['iterations']} iterations, {isl['evaluations']:,} evaluations"
+            f"after {isl['iterations']} iterations, {isl['evaluations']:,} evaluations" + (f", {isl['thinned']:,} rows thinned" if isl["thinned"] else "")
         )
     return "\n".join(lines)
+
+
+def stored_line(h: dict[str, Any]) -> str:
+    """How much history the coordinator stored, and what it left out when it could not keep up."""
+    line = f"history: {h['history_rows']:,} rows stored"
+    if h["thinned_rows"]:
+        line += (f"; {h['thinned_rows']:,} rows thinned while the islands offered more than the coordinator's storage held "
+                 "(every improvement kept; per island in the islands table)")
+    if h["superseded_migrant_messages"]:
+        line += f"; {h['superseded_migrant_messages']:,} migrant messages superseded by a newer one of their island before it handled them"
+    return line
 
 
 SHARE_RULES = {
