@@ -222,19 +222,22 @@ class Model:
 
     def bound_kinds(self, theta: np.ndarray) -> dict[str, str]:
         """Every free parameter of ``theta`` on a bound, with which (``"physical lower bound 0"``, ``"data-derived
-        upper bound 0.15"``, ``"given lower bound 100"``): its physical limit (a damping ratio of 0), a bound
-        derived from the data, or a bound that was given (by the user or the dataset)."""
+        upper bound 0.15"``, ``"default upper bound 3"``, ``"given lower bound 100"``): its physical limit (a
+        damping ratio of 0), a bound derived from the data, its term's default search bound, or a bound that
+        was given (by the user or the dataset)."""
         return {name: f"{kind} {where} bound {side:g}" for name, kind, where, side in self._on_bounds(theta)}
 
     def _on_bounds(self, theta: np.ndarray) -> list[tuple[str, str, str, float]]:
         """(name, kind, "lower"/"upper", bound) of every free parameter of ``theta`` on a bound."""
         theta = np.asarray(theta, dtype=float).reshape(-1)
+        defaults = {q.name: (q.lower, q.upper) for t in self.terms for q in t.params}
         out = []
         for p, value, hit in zip(self._params, theta, on_bounds(self.bounds, theta)):
             if hit:
                 low = value - p.lower <= p.upper - value
                 side = p.lower if low else p.upper
-                kind = PHYSICAL_LIMIT if side in p.physical else ("data-derived" if p.soft else "given")
+                default = side == defaults[p.name][0 if low else 1]
+                kind = PHYSICAL_LIMIT if side in p.physical else ("data-derived" if p.soft else "default" if default else "given")
                 out.append((p.name, kind, "lower" if low else "upper", side))
         return out
 

@@ -62,10 +62,10 @@ def effects_in(fit: Fit) -> tuple[str, ...]:
 
 def signature(fit: Fit, harmonics: Harmonics, effect: str, bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, list[dict[str, float]], bool]:
     """d(whitened residual)/d(strength) at strength 0, ``(n_shapes, N)``, the shapes, and whether the strength is one-sided (>= 0)."""
-    model = make_model(harmonics, fit.start, fit.effects + (effect,), bounds)
+    model = make_model(harmonics, fit.start, fit.effects + (effect,), bounds, fit.freed)
     term = EFFECTS[effect]()
     objective = HarmonicObjective(harmonics, model)
-    shapes = term.shape_grid(objective.objective.kin)
+    shapes = term.shape_grid(objective.objective.kin, model.names)
     base = {**{p.name: 0.5 * (p.lower + p.upper) for p in term.params}, **fit.params(), term.strength: 0.0}
     strength = model.names.index(term.strength)
     lo, hi = model.bounds[strength]

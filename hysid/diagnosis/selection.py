@@ -42,7 +42,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.stats import chi2 as chi2_dist
 
-from hysid.diagnosis.acceptance import held_out, judge
+from hysid.diagnosis.acceptance import degenerate, held_out, judge
 from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
@@ -195,6 +195,10 @@ def search(harmonics: Harmonics, start: str, max_steps: int, cross_validate: boo
             refits[effects] = profile_errors(refit(fit, harmonics, members, bounds, joint))
             done(f"step {len(steps) + 1}: refitted with {label(effects)}")
         verdicts = {effects: judge(fit, r, effects, harmonics) for effects, r in refits.items()}
+        for effects, why in [(e, degenerate(refits[e], e)) for e, v in verdicts.items() if v is None]:
+            rivals = [r.bic for e, r in refits.items() if e != effects and verdicts[e] is None and degenerate(r, e) is None]
+            if why is not None and rivals and min(rivals) < refits[effects].bic + BIC_MARGIN:  # another explains as much without degenerating
+                verdicts[effects] = why
         if pairs is not None:  # the pair of others counts only where it beats the greedy pair and every single by BIC_MARGIN
             others, (members, joint) = tuple(c.effect for c in pairs[0][0]), pairs[1]
             greedy = refit(fit, harmonics, members, bounds, joint)
