@@ -10,6 +10,7 @@ coordinator, the database and the outcome are the same.
 
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 import sys
@@ -28,6 +29,8 @@ from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
 from coordinator.server import Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
+from hysid_model.model import Model
+from hysid_model.user_terms import module_roots
 from island.node import IslandNode
 from island.session import open_session, session_config
 from island.transports import MemoryBus, MemoryTransport
@@ -114,15 +117,27 @@ def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
     ]
 
 
+def island_environment(model: Model) -> dict[str, str]:
+    """This process' environment with the directories of ``model``'s own terms' modules added to
+    ``PYTHONPATH``: an island process imports them by their model string (``-P`` keeps its working
+    directory off its path)."""
+    env = dict(os.environ)
+    roots = [r for r in module_roots(model) if r not in env.get("PYTHONPATH", "").split(os.pathsep)]
+    if roots:
+        env["PYTHONPATH"] = os.pathsep.join(([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []) + roots)
+    return env
+
+
 def run_processes(
     coordinator: Coordinator, specs: list[IslandSpec], endpoint: str, link: ZenohLink, on_progress: Callable[[CampaignProgress], None] | None = None
 ) -> str:
     """One ``hysid island`` process per spec, connected to ``endpoint``; returns the stop reason."""
     with tempfile.TemporaryDirectory(prefix="hysid-islands-") as logs:
         procs = []
+        env = island_environment(coordinator.objective.model)
         for spec in specs:
             log = open(Path(logs) / f"{spec.id}.log", "w+")
-            procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log), log))
+            procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log, env=env), log))
 
         def all_exited() -> str | None:
             codes = [p.poll() for _, p, _ in procs]
