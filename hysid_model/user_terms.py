@@ -25,7 +25,9 @@
 Either force enters the model less its cycle mean, as every term's does (:mod:`hysid_model.terms`).
 A term's parameters are the function's arguments after ``x, v`` (after ``z, x, v`` for a rate), each
 with a unit and bounds (hard, never widened: nothing derives them from the data); ``strength`` names
-the parameter whose 0 switches the term off, which a diagnosis needs to score it as a candidate.
+the parameter whose 0 switches the term off, which a diagnosis needs to score it as a candidate. A
+lower bound of 0 on it is the effect's physical sign, as on the library's strengths: its physical
+range is then [0, inf), so a fit that ends there reads "no such effect", not "search further".
 Every mistake is a one-line :class:`HysidInputError` when the term is made: ``fn`` is evaluated at its
 bounds' midpoint (and around it) on a probe motion and must return finite forces of the right shape,
 row by row the same as for one candidate and one loop alone (vectorized, not mixing them).
@@ -42,10 +44,12 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import math
 import re
 import sys
 import warnings
 from collections.abc import Callable, Collection, Mapping
+from dataclasses import replace
 from itertools import product
 from pathlib import Path
 from types import ModuleType
@@ -343,6 +347,7 @@ def term(
     names = law_parameters(law, what, ("z", "x", "v") if rate is not None else ("x", "v"))
     params = parameters(name, what, names, units, bounds)
     strength = check_strength(name, params, strength)
+    params = tuple(replace(p, physical=(0.0, math.inf)) if p.name == strength and p.lower == 0.0 else p for p in params)
     if explanation is not None and not isinstance(explanation, str):
         raise HysidInputError("must be a sentence (a string)", param="explanation", value=explanation)
     doc = inspect.getdoc(law) or ""

@@ -283,6 +283,7 @@ def test_a_model_string_names_a_users_term_by_module_and_attribute(labterms):
     assert build_model("thesis+drag").spec == model.spec  # in this process also by its name
     local = hysid.term(lambda x, v, c9: c9 * v, name="local_probe", units={"c9": "N s/m"}, bounds={"c9": (0.0, 1.0)})
     assert isinstance(local, FunctionTerm) and (hysid.models.baseline + local).spec == "baseline+local_probe"  # no module holds it
+    assert labterms.drag.params[0].physical == (0.0, np.inf) and labterms.spring.params[0].physical == (-np.inf, np.inf)  # a strength's sign
 
 
 @pytest.mark.parametrize(
