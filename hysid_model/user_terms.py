@@ -234,12 +234,11 @@ class RateTerm(UserTerm):
     oscillating, as an explicit Runge-Kutta step would).
     """
 
-    def cycle_map(self, z0: np.ndarray, cycle: Cycle, params: dict[str, np.ndarray], trace: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """z after one cycle from ``z0`` ``(P, L)``; with ``trace`` also z at the start of every step and at the end,
-        ``(STEPS + 1, P, L)``. The law is called as it is (the probe checked it when the term was made): this loop
-        is the term's cost."""
+    def cycle_map(self, z0: np.ndarray, cycle: Cycle, params: dict[str, np.ndarray], nodes: np.ndarray | None = None) -> np.ndarray:
+        """z after one cycle from ``z0`` ``(P, L)``; z at the start of every step and at the end written to ``nodes``
+        ``(STEPS + 1, P, L)`` if given. The law is called as it is (the probe checked it when the term was made):
+        this loop is the term's cost."""
         z, dt, rate = z0, cycle.dt, self.law
-        nodes = np.empty((STEPS + 1,) + z0.shape) if trace else None
         for j in range(STEPS):
             if nodes is not None:
                 nodes[j] = z
@@ -250,7 +249,7 @@ class RateTerm(UserTerm):
             z = z + dt * phi1(dt * jac) * f
         if nodes is not None:
             nodes[STEPS] = z
-        return z, nodes
+        return z
 
     def orbit(self, v: Values, cycle: Cycle) -> tuple[np.ndarray, np.ndarray]:
         """The periodic orbit of candidates ``v``: z at the steps' ends ``(P, L, STEPS + 1)`` and dz/d(wt) there (the
@@ -265,12 +264,11 @@ class RateTerm(UserTerm):
         n_pop, n_loops = next(iter(v.values())).shape[0], cycle.dt.size
         with np.errstate(all="ignore"):
             z_prev = np.zeros((n_pop, n_loops))
-            g_prev = self.cycle_map(z_prev, cycle, params)[0] - z_prev
+            g_prev = self.cycle_map(z_prev, cycle, params) - z_prev
             z = z_prev + g_prev
+            nodes = np.empty((STEPS + 1, n_pop, n_loops))
             for _ in range(MAX_CYCLES):
-                end, nodes = self.cycle_map(z, cycle, params, trace=True)
-                assert nodes is not None
-                g = end - z
+                g = self.cycle_map(z, cycle, params, nodes) - z
                 span = np.ptp(nodes, axis=0)
                 done = np.abs(g) <= ORBIT_RTOL * span
                 if done.all():
