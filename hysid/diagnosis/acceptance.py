@@ -116,7 +116,7 @@ def degenerate(after: Fit, effects: tuple[str, ...]) -> str | None:
     """Which shape parameter of ``effects`` the data push against a bound in ``after`` (rule 4), in words, or None."""
     names = after.model.names
     for effect in effects:
-        term = EFFECTS[effect]()
+        term = effect_term(effect)
         for p in term.params:
             if p.name != term.strength and p.name in names and binding(after, names.index(p.name)):
                 return f"{p.name} is pushed against its bound ({after.theta[names.index(p.name)]:.4g}): the effect degenerates here"
