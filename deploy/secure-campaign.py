@@ -18,6 +18,10 @@ writes, in the output directory (mode 700, files 600):
   CA and island names still do not share passwords;
 * ``islands/<island>.json5``: each island's client config (its certificate, user and password).
 
+A process of many islands (``hysid island --id node7 --count 64``: islands ``node7-0`` ..
+``node7-63`` over one connection) is named ``node7:64``: one identity (certificate CN, user and
+config ``node7``) that may speak for exactly those islands' keys, and for no other.
+
 The certificates come from ``deploy/tls/make-certs.sh`` (CN = island id); ``--certs`` is the
 directory it wrote, as the machines will see it. Secrets stay in these files: nothing is printed.
 """
@@ -35,14 +39,21 @@ from pathlib import Path
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 ENDPOINT = re.compile(r"(tls|quic)/\S+:\d{1,5}\Z")
 LEASE = {"lease": 2000, "keep_alive": 4}
+MAX_COUNT = 4096
+"""Islands one process may run (hysid island --count)."""
 
 
 def rule(rule_id: str, messages: list[str], keys: list[str], flow: str = "ingress") -> dict:
     return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": keys}
 
 
-def access_control(campaign: str, islands: list[str]) -> dict:
-    """Deny by default; each island's own keys for the subject with its certificate CN and user name."""
+def hosted_islands(host: str, count: int) -> list[str]:
+    """The islands of ``hysid island --id host --count count`` (as island/host.py names them)."""
+    return [host] if count == 1 else [f"{host}-{k}" for k in range(count)]
+
+
+def access_control(campaign: str, hosts: dict[str, list[str]]) -> dict:
+    """Deny by default; each host's islands' own keys for the subject with the host's certificate CN and user name."""
     p = f"hysid/{campaign}"
     shared = [
         rule("listen", ["declare_subscriber"], [f"{p}/migrants/*", f"{p}/control", f"{p}/best"]),
@@ -52,20 +63,22 @@ def access_control(campaign: str, islands: list[str]) -> dict:
         rule("see-members", ["declare_liveliness_subscriber", "liveliness_query"], [f"{p}/members/*"]),
     ]
     rules, subjects, policies = list(shared), [], []
-    for island in islands:
-        own = [
-            rule(f"{island}-publish", ["put"], [f"{p}/migrants/{island}", f"{p}/history/{island}"]),
-            rule(f"{island}-join", ["query"], [f"{p}/join/{island}"]),
-            rule(f"{island}-serve", ["declare_queryable", "reply"], [f"{p}/history/{island}"]),
-            rule(f"{island}-token", ["liveliness_token"], [f"{p}/members/{island}"]),
-        ]
+    for host, islands in hosts.items():
+        own = []
+        for island in islands:
+            own += [
+                rule(f"{island}-publish", ["put"], [f"{p}/migrants/{island}", f"{p}/history/{island}"]),
+                rule(f"{island}-join", ["query"], [f"{p}/join/{island}"]),
+                rule(f"{island}-serve", ["declare_queryable", "reply"], [f"{p}/history/{island}"]),
+                rule(f"{island}-token", ["liveliness_token"], [f"{p}/members/{island}"]),
+            ]
         rules += own
-        subjects.append({"id": island, "cert_common_names": [island], "usernames": [island]})
-        policies.append({"rules": [r["id"] for r in shared + own], "subjects": [island]})
+        subjects.append({"id": host, "cert_common_names": [host], "usernames": [host]})
+        policies.append({"rules": [r["id"] for r in shared + own], "subjects": [host]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
 
 
-def coordinator_config(campaign: str, listen: str, certs: str, credentials: str, islands: list[str]) -> dict:
+def coordinator_config(campaign: str, listen: str, certs: str, credentials: str, hosts: dict[str, list[str]]) -> dict:
     return {
         "mode": "router",
         "listen": {"endpoints": [listen]},
@@ -84,7 +97,7 @@ def coordinator_config(campaign: str, listen: str, certs: str, credentials: str,
             },
             "auth": {"usrpwd": {"dictionary_file": credentials}},
         },
-        "access_control": access_control(campaign, islands),
+        "access_control": access_control(campaign, hosts),
     }
 
 
@@ -132,12 +145,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--certs", required=True, help="the make-certs.sh directory, as the machines see it")
     parser.add_argument("--credentials", help="where the coordinator reads credentials.txt (default: OUTDIR/credentials.txt)")
     parser.add_argument("-o", "--outdir", required=True, type=Path)
-    parser.add_argument("islands", nargs="+", help="island ids (each needs a certificate with CN=<id>)")
+    parser.add_argument("islands", nargs="+", help="island ids (each needs a certificate with CN=<id>), or ID:COUNT for a process of "
+                        "COUNT islands ID-0 .. ID-<COUNT-1> (hysid island --id ID --count COUNT; the certificate CN=ID)")
     args = parser.parse_args(argv)
     problems = [f"--campaign {args.campaign!r}" for _ in [0] if not NAME.match(args.campaign)]
-    problems += [f"island id {i!r}" for i in args.islands if not NAME.match(i)]
+    given = [(host, count) for host, _, count in (i.partition(":") for i in args.islands)]
+    problems += [f"island id {h + (':' if c else '') + c!r}" + (f" (ID:COUNT, COUNT from 1 to {MAX_COUNT})" if c else "")
+                 for h, c in given if not NAME.match(h) or (c and not (c.isdigit() and 1 <= int(c) <= MAX_COUNT))]
+    hosts = {h: hosted_islands(h, int(c or 1)) for h, c in given if not problems}
+    every = [i for islands in hosts.values() for i in islands]
+    problems += [f"island id {i!r}" for i in every if not NAME.match(i)]
     problems += [f"{flag} {value!r} (use tls/HOST:PORT)" for flag, value in (("--listen", args.listen), ("--connect", args.connect)) if not ENDPOINT.match(value)]
-    if len(set(args.islands)) != len(args.islands):
+    if len(hosts) != len(given) and hosts or len(set(every)) != len(every):
         problems.append("island ids repeat")
     if problems:
         print(f"secure-campaign.py: error: invalid {'; '.join(problems)}", file=sys.stderr)
@@ -146,14 +165,15 @@ def main(argv: list[str] | None = None) -> int:
     (out / "islands").mkdir(parents=True, exist_ok=True, mode=0o700)
     out.chmod(0o700)
     credentials = args.credentials or str((out / "credentials.txt").resolve())
-    passwords = {island: secrets.token_urlsafe(24) for island in args.islands}
+    passwords = {host: secrets.token_urlsafe(24) for host in hosts}
     write_private(out / "credentials.txt", "".join(f"{i}:{pw}\n" for i, pw in passwords.items()))
-    coordinator = coordinator_config(args.campaign, args.listen, args.certs, credentials, args.islands)
+    coordinator = coordinator_config(args.campaign, args.listen, args.certs, credentials, hosts)
     write_private(out / "coordinator.json5", HEADER.format(campaign=args.campaign, what="the coordinator") + json.dumps(coordinator, indent=2) + "\n")
     for island, password in passwords.items():
         text = HEADER.format(campaign=args.campaign, what=f"island {island}") + json.dumps(island_config(island, args.connect, args.certs, password), indent=2)
         write_private(out / "islands" / f"{island}.json5", text + "\n")
-    print(f"wrote {out}/coordinator.json5, credentials.txt and islands/<id>.json5 for {len(args.islands)} islands of campaign {args.campaign!r}")
+    print(f"wrote {out}/coordinator.json5, credentials.txt and islands/<id>.json5 for {len(every)} islands of campaign {args.campaign!r}"
+          + (f" in {len(hosts)} processes" if len(hosts) != len(every) else ""))
     return 0
 
 

@@ -254,6 +254,36 @@ def test_the_secure_recipe_binds_each_island_to_its_own_keys(certs: Path, tmp_pa
             entity.undeclare()
 
 
+def test_a_process_of_many_islands_speaks_for_its_islands_only(certs: Path, tmp_path: Path) -> None:
+    """``island-1:2`` (hysid island --id island-1 --count 2): one identity that may speak as island-1-0 and
+    island-1-1 (publish, join, hold a token), not as island-1 itself nor as island-2; and island-2 not as them."""
+    port = free_port()
+    out = secure_campaign(tmp_path / "z", "demo", port, certs, "island-1:2", "island-2")
+    assert sorted(p.name for p in (out / "islands").iterdir()) == ["island-1.json5", "island-2.json5"]
+    with session(zenoh.Config.from_file(out / "coordinator.json5")) as coordinator:
+        seen: list = []
+        members: list = []
+        keep = watching(coordinator, seen, members) + [
+            coordinator.declare_queryable(f"{CAMPAIGN}/join/*", lambda query: query.reply(query.key_expr, b"joined")),
+        ]
+        with session(island_as(out, "island-1")) as host, session(island_as(out, "island-2")) as other:
+            assert put_until_received(host, f"{CAMPAIGN}/migrants/island-1-0", b"own", seen)
+            for key in ("migrants/island-1", "history/island-2", "migrants/island-1-2"):
+                host.put(f"{CAMPAIGN}/{key}", b"as another")
+            assert put_until_received(other, f"{CAMPAIGN}/migrants/island-2", b"own", seen)
+            other.put(f"{CAMPAIGN}/history/island-1-1", b"as another")
+            host.put(f"{CAMPAIGN}/history/island-1-1", b"last")
+            assert wait_until(lambda: (f"{CAMPAIGN}/history/island-1-1", b"last") in seen)
+            assert not [key for key, payload in seen if payload == b"as another"]
+            assert replies(host, f"{CAMPAIGN}/join/island-1-1") == [b"joined"]
+            assert replies(host, f"{CAMPAIGN}/join/island-1", timeout=NEGATIVE_WAIT) == []
+            keep += [host.liveliness().declare_token(f"{CAMPAIGN}/members/{i}") for i in ("island-2", "island-1-0")]
+            assert wait_until(lambda: f"{CAMPAIGN}/members/island-1-0" in members)
+            assert f"{CAMPAIGN}/members/island-2" not in members
+        for entity in keep:
+            entity.undeclare()
+
+
 def test_campaigns_that_share_a_ca_and_island_names_stay_apart(certs: Path, tmp_path: Path) -> None:
     """Same CA, same island names, two routers: an island of campaign A cannot join, read or write B."""
     port_a, port_b = free_port(), free_port()
