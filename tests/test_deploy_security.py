@@ -222,17 +222,24 @@ def island_as(outdir: Path, island: str, *, user_of: str | None = None) -> zenoh
     return config
 
 
+def answering_joins(coordinator: zenoh.Session) -> tuple[list, list, list]:
+    """What the coordinator's router sees put and which tokens, with a join queryable answering every id; and
+    the entities to undeclare."""
+    seen: list = []
+    members: list = []
+    keep = watching(coordinator, seen, members) + [
+        coordinator.declare_queryable(f"{CAMPAIGN}/join/*", lambda query: query.reply(query.key_expr, b"joined")),
+    ]
+    return seen, members, keep
+
+
 def test_the_secure_recipe_binds_each_island_to_its_own_keys(certs: Path, tmp_path: Path) -> None:
     """Island X (certificate CN=X and user X) may speak only as X: publish, join, serve and hold a token."""
     port = free_port()
     out = secure_campaign(tmp_path / "z", "demo", port, certs, "island-1", "island-2")
     assert oct((out / "credentials.txt").stat().st_mode & 0o777) == "0o600" and oct(out.stat().st_mode & 0o777) == "0o700"
     with session(zenoh.Config.from_file(out / "coordinator.json5")) as coordinator:
-        seen: list = []
-        members: list = []
-        keep = watching(coordinator, seen, members) + [
-            coordinator.declare_queryable(f"{CAMPAIGN}/join/*", lambda query: query.reply(query.key_expr, b"joined")),
-        ]
+        seen, members, keep = answering_joins(coordinator)
         with session(island_as(out, "island-1")) as island:
             assert put_until_received(island, f"{CAMPAIGN}/migrants/island-1", b"own", seen)
             for key in ("migrants/island-2", "history/island-2", "control", "best", "join/island-2"):
@@ -261,11 +268,7 @@ def test_a_process_of_many_islands_speaks_for_its_islands_only(certs: Path, tmp_
     out = secure_campaign(tmp_path / "z", "demo", port, certs, "island-1:2", "island-2")
     assert sorted(p.name for p in (out / "islands").iterdir()) == ["island-1.json5", "island-2.json5"]
     with session(zenoh.Config.from_file(out / "coordinator.json5")) as coordinator:
-        seen: list = []
-        members: list = []
-        keep = watching(coordinator, seen, members) + [
-            coordinator.declare_queryable(f"{CAMPAIGN}/join/*", lambda query: query.reply(query.key_expr, b"joined")),
-        ]
+        seen, members, keep = answering_joins(coordinator)
         with session(island_as(out, "island-1")) as host, session(island_as(out, "island-2")) as other:
             assert put_until_received(host, f"{CAMPAIGN}/migrants/island-1-0", b"own", seen)
             for key in ("migrants/island-1", "history/island-2", "migrants/island-1-2"):
