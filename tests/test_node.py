@@ -17,7 +17,7 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
 from island.ga import GA
 from island.migration import Migration
-from island.node import IslandNode
+from island.node import HISTORY_MESSAGES_PER_S, HISTORY_PERIOD_MAX_S, IslandNode, history_period
 from island.protocol import (
     Best,
     Control,
@@ -390,3 +390,10 @@ def test_migrants_wait_for_the_roster_strangers_are_never_taken_and_a_flood_is_c
         sender.close()
         client.close()
     assert node.stats["received"] <= len(node.rows) + 1  # the stranger's migrant expired unused
+
+
+def test_islands_of_a_large_campaign_send_their_history_less_often_up_to_a_bound() -> None:
+    assert history_period(0.25, 32) == 0.25 and history_period(0.05, 250) == 0.05  # up to 250 islands: as asked
+    assert history_period(0.25, 500) == 500 / HISTORY_MESSAGES_PER_S  # together at most HISTORY_MESSAGES_PER_S messages a second
+    assert history_period(0.05, 4096) == HISTORY_PERIOD_MAX_S  # never longer than a heartbeat's period
+    assert history_period(2.0, 4096) == 2.0  # an island asked for fewer messages sends fewer
