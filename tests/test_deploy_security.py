@@ -233,6 +233,25 @@ def answering_joins(coordinator: zenoh.Session) -> tuple[list, list, list]:
     return seen, members, keep
 
 
+def speaks_only_as(speaker: zenoh.Session, own: str, others: list[str], seen: list, members: list) -> list:
+    """Assert that ``speaker`` may publish, join and hold a token as island ``own`` and publish as none of
+    ``others`` (nor join or hold a token as the first of them): what it puts as them never arrives (after
+    what it put as itself, which does). Returns the tokens to undeclare."""
+    assert put_until_received(speaker, f"{CAMPAIGN}/migrants/{own}", b"own", seen)
+    for other in others:
+        for kind in ("migrants", "history"):
+            speaker.put(f"{CAMPAIGN}/{kind}/{other}", b"as another")
+    speaker.put(f"{CAMPAIGN}/history/{own}", b"last")
+    assert wait_until(lambda: (f"{CAMPAIGN}/history/{own}", b"last") in seen)
+    assert not [key for key, payload in seen if payload == b"as another"]
+    assert replies(speaker, f"{CAMPAIGN}/join/{own}") == [b"joined"]
+    assert replies(speaker, f"{CAMPAIGN}/join/{others[0]}", timeout=NEGATIVE_WAIT) == []
+    tokens = [speaker.liveliness().declare_token(f"{CAMPAIGN}/members/{i}") for i in (others[0], own)]
+    assert wait_until(lambda: f"{CAMPAIGN}/members/{own}" in members)
+    assert f"{CAMPAIGN}/members/{others[0]}" not in members
+    return tokens
+
+
 def test_the_secure_recipe_binds_each_island_to_its_own_keys(certs: Path, tmp_path: Path) -> None:
     """Island X (certificate CN=X and user X) may speak only as X: publish, join, serve and hold a token."""
     port = free_port()
@@ -241,18 +260,9 @@ def test_the_secure_recipe_binds_each_island_to_its_own_keys(certs: Path, tmp_pa
     with session(zenoh.Config.from_file(out / "coordinator.json5")) as coordinator:
         seen, members, keep = answering_joins(coordinator)
         with session(island_as(out, "island-1")) as island:
-            assert put_until_received(island, f"{CAMPAIGN}/migrants/island-1", b"own", seen)
-            for key in ("migrants/island-2", "history/island-2", "control", "best", "join/island-2"):
+            for key in ("control", "best", "join/island-2"):
                 island.put(f"{CAMPAIGN}/{key}", b"as another")
-            island.put(f"{CAMPAIGN}/history/island-1", b"last")
-            assert wait_until(lambda: (f"{CAMPAIGN}/history/island-1", b"last") in seen)
-            assert not [key for key, payload in seen if payload == b"as another"]
-            assert replies(island, f"{CAMPAIGN}/join/island-1") == [b"joined"]
-            assert replies(island, f"{CAMPAIGN}/join/island-2", timeout=NEGATIVE_WAIT) == []
-            keep.append(island.liveliness().declare_token(f"{CAMPAIGN}/members/island-2"))
-            keep.append(island.liveliness().declare_token(f"{CAMPAIGN}/members/island-1"))
-            assert wait_until(lambda: f"{CAMPAIGN}/members/island-1" in members)
-            assert f"{CAMPAIGN}/members/island-2" not in members
+            keep += speaks_only_as(island, "island-1", ["island-2"], seen, members)
         with session(island_as(out, "island-1", user_of="island-2")) as mixed:  # island-1's certificate, island-2's password
             assert not put_until_received(mixed, f"{CAMPAIGN}/migrants/island-2", b"mixed", seen, timeout=NEGATIVE_WAIT)
             assert not put_until_received(mixed, f"{CAMPAIGN}/migrants/island-1", b"mixed", seen, timeout=NEGATIVE_WAIT)
@@ -270,19 +280,9 @@ def test_a_process_of_many_islands_speaks_for_its_islands_only(certs: Path, tmp_
     with session(zenoh.Config.from_file(out / "coordinator.json5")) as coordinator:
         seen, members, keep = answering_joins(coordinator)
         with session(island_as(out, "island-1")) as host, session(island_as(out, "island-2")) as other:
-            assert put_until_received(host, f"{CAMPAIGN}/migrants/island-1-0", b"own", seen)
-            for key in ("migrants/island-1", "history/island-2", "migrants/island-1-2"):
-                host.put(f"{CAMPAIGN}/{key}", b"as another")
-            assert put_until_received(other, f"{CAMPAIGN}/migrants/island-2", b"own", seen)
-            other.put(f"{CAMPAIGN}/history/island-1-1", b"as another")
-            host.put(f"{CAMPAIGN}/history/island-1-1", b"last")
-            assert wait_until(lambda: (f"{CAMPAIGN}/history/island-1-1", b"last") in seen)
-            assert not [key for key, payload in seen if payload == b"as another"]
+            keep += speaks_only_as(host, "island-1-0", ["island-1", "island-1-2", "island-2"], seen, members)
             assert replies(host, f"{CAMPAIGN}/join/island-1-1") == [b"joined"]
-            assert replies(host, f"{CAMPAIGN}/join/island-1", timeout=NEGATIVE_WAIT) == []
-            keep += [host.liveliness().declare_token(f"{CAMPAIGN}/members/{i}") for i in ("island-2", "island-1-0")]
-            assert wait_until(lambda: f"{CAMPAIGN}/members/island-1-0" in members)
-            assert f"{CAMPAIGN}/members/island-2" not in members
+            keep += speaks_only_as(other, "island-2", ["island-1-1"], seen, members)
         for entity in keep:
             entity.undeclare()
 
