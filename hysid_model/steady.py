@@ -239,32 +239,38 @@ def steady_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray | None =
 
 def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Callable[[int, int], bool]:
     """Whether cycles i..j-1 are steady: within the band around their line, drifting at most ``DRIFT_LIMIT``,
-    and not curved (a settling transient is curved, a drift is straight)."""
+    and not curved (a settling transient is curved, a drift is straight).
+
+    The search calls it a few times per cycle of a record, so it spends as few numpy calls as it can (the cheap
+    drift test first); each test's arithmetic is that of its formula, operation for operation."""
     floor = np.maximum(NOISE_SIGMAS * noise, sampling)[:, None]
+    spread = NOISE_SIGMAS * noise
     index = np.arange(amp.shape[1], dtype=float)
+    add = np.add.reduce
 
     def fits(i: int, j: int) -> bool:
         a = amp[:, i:j]
         n = j - i
         u = index[:n] - 0.5 * (n - 1)
-        level = a.mean(axis=1)
-        beta = a @ u / (u @ u) if n > 1 else np.zeros(a.shape[0])
+        uu = u @ u
+        level = add(a, axis=1) / n  # a.mean(axis=1)
+        beta = a @ u / uu if n > 1 else np.zeros(a.shape[0])
+        if (np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)).any():
+            return False
         line = level[:, None] + beta[:, None] * u
         resid = a - line
-        out = np.any(np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor), axis=0)
+        out = (np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor)).any(axis=0)
         if out.any():  # an isolated cycle outside the band is scatter; a transient is a run of them, or the window's end
-            pairs = out[1:] & out[:-1]
-            if out[0] or out[-1] or pairs.any() or np.count_nonzero(out) > max(1, OUTLIERS * n):
+            if out[0] or out[-1] or (out[1:] & out[:-1]).any() or np.count_nonzero(out) > max(1, OUTLIERS * n):
                 return False
-        if np.any(np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)):
-            return False
         if n < WAVEFORM_MIN_CYCLES:
             return True
-        q = u * u - (u @ u) / n  # orthogonal to 1 and u
+        q = u * u - uu / n  # orthogonal to 1 and u
         qq = q @ q
-        bend = np.abs(resid @ q) / qq * np.abs(q).max()  # the largest departure of the best parabola from the line
-        allowed = np.maximum(CURVATURE * np.abs(level), NOISE_SIGMAS * noise * np.abs(q).max() / np.sqrt(qq))
-        return bool(np.all(bend <= np.maximum(allowed, sampling)))
+        top = np.abs(q).max()
+        bend = np.abs(resid @ q) / qq * top  # the largest departure of the best parabola from the line
+        allowed = np.maximum(CURVATURE * np.abs(level), spread * top / np.sqrt(qq))
+        return bool((bend <= np.maximum(allowed, sampling)).all())
 
     return fits
 
