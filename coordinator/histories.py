@@ -3,10 +3,14 @@
 * :class:`HistoryChecks`: a history whose counters the island cannot have
   reached (more evaluations than its algorithms, its iterations and the
   migrants it may take allow; an iteration beyond its budget; more migrants
-  sent or taken than its epochs allow), or that runs an algorithm or seed it
-  was never given, is rejected as ``implausible``; so is a claimed best below
-  what the coordinator's re-evaluation of its vector gives
-  (:func:`check_claim`);
+  sent or taken than its epochs allow; more evaluations, or iterations of its
+  population, than the time since it joined allows at :data:`SPEEDUP` times
+  the rate the coordinator measures for its algorithm here), or that runs an
+  algorithm or seed it was never given, is rejected as ``implausible``; a wall
+  time longer than the run has existed is ``out_of_range``; so a claimed best
+  below what the coordinator's re-evaluation of its vector gives is
+  ``implausible`` (:func:`check_claim`). Budgets and the stall rule count only
+  what passed: effort an island could really have spent;
 * :class:`Gaps`: per island run, the last iteration ``k`` with rows ``0..k``
   all stored; rows missing below the last one stored (sent while this
   coordinator was down) are asked for again, a bounded number of times.
@@ -20,14 +24,29 @@ from collections.abc import Callable, Collection, Sized
 import numpy as np
 
 from coordinator.store import Store
+from hysid_model.objective import Objective
+from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer
 from island.config import CampaignConfig
-from island.population import PopulationOptimizer
+from island.population import MAX_ITERATIONS, PopulationOptimizer
 from island.protocol import History
+from island.run import run
 from island.wire import MessageRejected
 
 FITNESS_TOLERANCE = 1e-6
 """Relative slack when a claimed best fitness is compared with the coordinator's re-evaluation."""
+SPEEDUP = 16.0
+"""How many times faster than the coordinator's own measurement (:meth:`HistoryChecks.rate`) an island
+may evaluate: a faster or less loaded host, a measurement taken while this one was busy. An island claiming
+more effort than that, for the time since it joined, is lying (an honest one on a like host spends about
+1/SPEEDUP of it, loaded ones less)."""
+MEASURE_S = 0.3
+"""How long the coordinator runs an island's algorithm here to measure its rate (at the first history
+message of a run of it; again, at most every :data:`REMEASURE_S`, before a claim would be refused)."""
+REMEASURE_S = 30.0
+WALL_SLACK_S = 5.0
+"""A run's wall time may exceed the time since the coordinator admitted it by this much (its clock
+starts after the join)."""
 BACKFILL_EVERY_S = 2.0
 BACKFILL_ATTEMPTS = 5
 """How often, and how many times without progress, to ask an island again for history rows still missing."""
@@ -37,20 +56,57 @@ class HistoryChecks:
     """The counters an island run of one campaign can have reached.
 
     ``runs``: the runs that joined (the coordinator's, growing as islands
-    join); each other one may send migrants.
+    join); each other one may send migrants. ``objective``: the campaign's,
+    with which the rate of each algorithm is measured here.
     """
 
-    def __init__(self, config: CampaignConfig, bounds: np.ndarray, runs: Sized) -> None:
+    def __init__(self, config: CampaignConfig, objective: Objective | ThesisObjective, runs: Sized) -> None:
         self.config = config
-        self.bounds = bounds
+        self.objective = objective
+        self.bounds = objective.bounds
         self.runs = runs
         self._optimizers: dict[str, PopulationOptimizer] = {}
+        self._rates: dict[str, float] = {}
+        self._measured_at: dict[str, float] = {}
 
     def optimizer(self, algo: str) -> PopulationOptimizer:
         """An (unused) optimizer with an island's settings: what its evaluation counts may be."""
         if algo not in self._optimizers:
             self._optimizers[algo] = make_optimizer(algo, self.bounds, 0, self.config.island_options(algo))
         return self._optimizers[algo]
+
+    def rate(self, algo: str, again: bool = False) -> float:
+        """Evaluations per second an island of ``algo`` reaches here: its optimizer with the campaign's
+        settings (its initial population cut to one population) run on the campaign's objective for
+        :data:`MEASURE_S`, per second of this thread's CPU time (a machine busy with other work does
+        not lower it). Measured once, or ``again`` (keeping the higher rate)."""
+        if algo not in self._rates or again:
+            options = self.config.island_options(algo)
+            probe = self.optimizer(algo)
+            optimizer = make_optimizer(algo, self.bounds, 0, {**options, "initial_population": probe.population, "iterations": MAX_ITERATIONS})
+            start, cpu = time.perf_counter(), time.thread_time()
+            run(optimizer, self.objective, should_stop=lambda: time.perf_counter() - start >= MEASURE_S)
+            measured = optimizer.evaluations / max(time.thread_time() - cpu, 1e-3)  # per CPU second: what other work takes is not counted
+            self._rates[algo] = max(self._rates.get(algo, 0.0), measured)
+            self._measured_at[algo] = time.monotonic()
+        return self._rates[algo]
+
+    def _remeasured(self, algos: Collection[str]) -> bool:
+        """Measure the rates of ``algos`` again (before refusing a claim), at most every :data:`REMEASURE_S`."""
+        due = [a for a in algos if time.monotonic() - self._measured_at.get(a, -np.inf) >= REMEASURE_S]
+        for algo in due:
+            self.rate(algo, again=True)
+        return bool(due)
+
+    def effort_bound(self, algos: Collection[str], seconds: float) -> tuple[float, float]:
+        """The most evaluations and iterations a run of ``algos`` can claim ``seconds`` after it joined:
+        its initial population (every redraw counted), then :data:`SPEEDUP` times the rate measured here,
+        plus the migrants it may take; the iterations of its smallest population at that."""
+        evaluations = max(float(self.evaluation_bound(a, np.array([0.0]))[0]) + SPEEDUP * self.rate(a) * max(seconds, 0.0) for a in algos)
+        iterations = evaluations / min(self.optimizer(a).population for a in algos)
+        mig = self.config.migration
+        migrants = (iterations // mig.interval if mig.interval else 0) * max(len(self.runs) - 1, 0) * mig.k
+        return evaluations + migrants, iterations
 
     def evaluation_bound(self, algo: str, iterations: np.ndarray) -> np.ndarray:
         """The most evaluations an island run of ``algo`` can report after each of ``iterations``
@@ -61,15 +117,25 @@ class HistoryChecks:
         epochs = np.floor_divide(iterations, mig.interval) if mig.interval else np.zeros_like(iterations)
         return self.optimizer(algo).evaluation_bound(iterations) + epochs * max(len(self.runs) - 1, 0) * mig.k + 2
 
-    def plausible(self, h: History, joined: str, seed: int, algos: Collection[str], iteration: int) -> None:
-        """:class:`MessageRejected` ("implausible") for counters the island cannot have reached.
+    def plausible(self, h: History, joined: str, seed: int, algos: Collection[str], iteration: int, seconds: float) -> None:
+        """:class:`MessageRejected` ("implausible") for counters the island cannot have reached
+        (``out_of_range`` for a wall time it cannot have run).
 
         ``joined`` and ``seed``: what the run joined with; ``algos``: every algorithm it has been told
-        to run (:class:`coordinator.sharing.Sharing`); ``iteration``: the furthest one it reported before.
+        to run (:class:`coordinator.sharing.Sharing`); ``iteration``: the furthest one it reported before;
+        ``seconds``: since the run joined, by the coordinator's clock.
         """
         if h.algo not in algos or h.seed != seed:
             raise MessageRejected("implausible", f"history of a {h.algo} run with seed {h.seed}; it joined as {joined} with seed {seed}")
         if h.rows.size:
+            if h.rows[-1, 3] > seconds + WALL_SLACK_S:
+                raise MessageRejected("out_of_range", f"a wall time of {h.rows[-1, 3]:.6g} s; the run joined {seconds:.0f} s ago")
+            most_evaluations, most_iterations = self.effort_bound(algos, seconds)
+            if (h.rows[-1, 2] > most_evaluations or h.rows[-1, 0] > most_iterations) and self._remeasured(algos):
+                most_evaluations, most_iterations = self.effort_bound(algos, seconds)
+            if h.rows[-1, 2] > most_evaluations or h.rows[-1, 0] > most_iterations:
+                raise MessageRejected("implausible", f"{h.rows[-1, 2]:.0f} evaluations in {h.rows[-1, 0]:.0f} iterations {seconds:.0f} s after it "
+                                                     f"joined; at most {most_evaluations:.0f} in {most_iterations:.0f} possible")
             iterations = h.rows[:, 0]
             budget = max(self.optimizer(a).iterations for a in algos)
             if iterations[-1] > budget:

@@ -9,7 +9,10 @@ a producer that finds its queue full waits up to ``wait_s`` (back-pressure:
 Zenoh's reader for that link pauses, a publisher with congestion control
 ``BLOCK`` slows down) and then the item is dropped and counted. Honest islands
 lose nothing by a drop: the coordinator asks again for history rows it misses
-(:meth:`coordinator.histories.Gaps.arrived`).
+(:meth:`coordinator.histories.Gaps.arrived`). Once the coordinator is done
+(:meth:`Inbox.close`) every producer returns at once, those waiting included:
+nothing that arrives on the network can hold a Zenoh callback, and with it the
+process, any longer.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ class Inbox:
         """Sources with items waiting, in the order they are served next."""
         self._bytes = 0
         self._dropped: Counter[str] = Counter()
+        self._closed = False
         self._cond = threading.Condition()
 
     def _full(self, source: str, size: int) -> bool:
@@ -50,9 +54,9 @@ class Inbox:
         long as it takes) while that source's queue is full, then drops it. False if dropped."""
         deadline = None if wait_s is None else time.monotonic() + wait_s
         with self._cond:
-            while self._full(source, size):
+            while self._closed or self._full(source, size):
                 remaining = None if deadline is None else deadline - time.monotonic()
-                if remaining is not None and remaining <= 0:
+                if self._closed or (remaining is not None and remaining <= 0):
                     self._dropped[source] += 1
                     return False
                 self._cond.wait(remaining)
@@ -74,6 +78,12 @@ class Inbox:
             self._bytes -= size
             self._cond.notify_all()
             return item
+
+    def close(self) -> None:
+        """Take nothing more: every put, waiting or to come, returns False at once."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
 
     def __len__(self) -> int:
         with self._cond:

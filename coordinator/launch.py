@@ -1,7 +1,8 @@
 """The campaign launcher: a coordinator and N islands on this machine, to a stop rule.
 
 Islands run as separate processes (``hysid island``) connected over Zenoh to a
-coordinator in this process, listening on a free loopback port. With
+coordinator in this process, listening on a free loopback port; each is handed
+the campaign secret in its environment. With
 ``single_node`` (or automatically, with a :class:`HysidWarning`, when Zenoh
 cannot open a session here) the islands are threads of this process
 exchanging migrants in memory (:class:`island.transports.MemoryBus`); the
@@ -10,6 +11,8 @@ coordinator, the database and the outcome are the same.
 
 from __future__ import annotations
 
+import math
+import os
 import socket
 import subprocess
 import sys
@@ -29,6 +32,7 @@ from coordinator.progress import CampaignProgress
 from coordinator.server import Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
 from island.node import IslandNode
+from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret
 from island.session import open_session, session_config
 from island.transports import MemoryBus, MemoryTransport
 from island.wire import MAX_MEMBERS
@@ -69,13 +73,14 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
     stop = threading.Event()
     bus = MemoryBus(
         coordinator.name, [s.id for s in specs], lambda key, data: coordinator.receive(key, data, wait_s=MEMORY_WAIT_S), stop,
-        admit=lambda island, algo, seed: coordinator.admit(island, algo, seed),
-        assigned=lambda island: coordinator.sharing.assigned.get((island, coordinator.current.get(island, ""))),
+        admit=coordinator.admit, assigned=lambda island: coordinator.sharing.assigned.get((island, coordinator.current.get(island, ""))),
+        coordinator=coordinator.secret.coordinator,
     )
     nodes = [
         IslandNode(s.id, s.algo, s.seed, coordinator.config, coordinator.config.objective(coordinator.loops), history_every_s=MEMORY_HISTORY_EVERY_S)
         for s in specs
     ]
+    coordinator.membership.stale_s = math.inf  # threads of this process: nobody can pose as them, and a slow iteration is no loss
     transports = [bus.transport(node.island, node.algo, node.seed) for node in nodes]
     errors: list[BaseException] = []
 
@@ -107,11 +112,19 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
 
 def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
     """``hysid island`` for ``spec`` with this interpreter; ``-P`` keeps the working directory off
-    ``sys.path``, so that a folder named ``hysid`` there (e.g. a clone's parent) cannot shadow the package."""
+    ``sys.path``, so that a folder named ``hysid`` there (e.g. a clone's parent) cannot shadow the package.
+    The campaign secret goes in the environment (:func:`island_environment`), never on the command line."""
     return [
         sys.executable, "-P", "-m", "hysid", "island", "--connect", endpoint, "--campaign", campaign,
         "--algo", spec.algo, "--seed", str(spec.seed), "--id", spec.id, "--quiet",
     ]
+
+
+def island_environment(secret: CampaignSecret) -> dict[str, str]:
+    """This process' environment with the campaign secret for an island process (:data:`island.secret.SECRET_ENV`)."""
+    env = {k: v for k, v in os.environ.items() if k != SECRET_FILE_ENV}
+    env[SECRET_ENV] = secret.text()
+    return env
 
 
 def run_processes(
@@ -122,7 +135,8 @@ def run_processes(
         procs = []
         for spec in specs:
             log = open(Path(logs) / f"{spec.id}.log", "w+")
-            procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log), log))
+            procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log,
+                                                 env=island_environment(coordinator.secret)), log))
 
         def all_exited() -> str | None:
             codes = [p.poll() for _, p, _ in procs]

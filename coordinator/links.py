@@ -18,7 +18,8 @@ from island.transports import key_prefix
 class ZenohLink:
     """The coordinator's Zenoh entities under ``hysid/<campaign>/``: queryables ``config``,
     ``best`` and ``join/*``, subscribers to ``history/*`` and ``migrants/*``, the members'
-    liveliness tokens, publications on ``control`` and ``best``.
+    liveliness tokens, publications on ``control`` and ``best``, history queries (everything it
+    sends signed, :mod:`island.protocol`).
 
     The callbacks only queue what arrives (:meth:`Coordinator.receive` and its
     siblings, bounded, with back-pressure); the coordinator's thread handles it.
@@ -42,7 +43,7 @@ class ZenohLink:
             coordinator.join_request(str(key).rsplit("/", 1)[-1], payload, lambda answer: query.reply(key, answer))
 
         def on_config(query: zenoh.Query) -> None:
-            query.reply(query.key_expr, coordinator.config_message)
+            query.reply(query.key_expr, coordinator.config_signed)
 
         def on_best(query: zenoh.Query) -> None:
             message = coordinator.best_message
@@ -73,7 +74,8 @@ class ZenohLink:
             if reply.ok is not None:
                 coordinator.receive(str(reply.ok.key_expr), reply.ok.payload.to_bytes())
 
-        self.session.get(f"{self.prefix}/history/{island}?run={run};since={since}", on_reply, timeout=5.0)
+        self.session.get(f"{self.prefix}/history/{island}?{coordinator.history_query(island, run, since)}", on_reply, timeout=5.0,
+                         target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE)  # a stranger's queryable cannot take it
 
     def close(self) -> None:
         for entity in self._entities + [self._control, self._best]:

@@ -4,7 +4,10 @@ One thread runs the loop, which owns the SQLite store: it feeds the
 inbox (:func:`pump`) through :meth:`coordinator.server.Coordinator.handle` and
 
 * commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
-  whatever the load, and after each commit publishes the sealed ``control``
+  whatever the load (early by as long as its slowest recent message and commit
+  took, so that no message started just before the deadline pushes the commit
+  past it), with the campaign's elapsed time (``--resume`` carries the time
+  rule on from there), and after each commit publishes the signed ``control``
   message (:func:`control_message`): the roster, how far each island's history
   is committed (an island waits for that before it leaves) and, at the end,
   the stop order;
@@ -14,8 +17,11 @@ inbox (:func:`pump`) through :meth:`coordinator.server.Coordinator.handle` and
   finished (or finished or was lost), or when no island has been alive for
   :data:`ORPHAN_S`; then announces the stop and stores the islands' final
   histories (for at most :data:`STOP_GRACE_S`). A database that cannot be
-  written stops the campaign cleanly (:class:`StoreError`): the islands are
-  told to stop and the campaign is marked ``interrupted``.
+  written (locked by another process for :data:`coordinator.store.RUN_LOCK_WAIT_S`,
+  full, read-only, deleted) stops the campaign cleanly (:class:`StoreError`): the
+  islands are told to stop and the campaign is marked ``interrupted`` where the
+  file lets it. Either way the inbox is closed when the loop ends, so that
+  nothing arriving on the network keeps the process alive.
 
 What the campaign leaves is :meth:`coordinator.server.Coordinator.outcome`.
 """
@@ -39,6 +45,8 @@ STOP_GRACE_S = 10.0
 FAULT_ANNOUNCEMENTS = 4
 """After a database fault, how many times (every 0.5 s) the stop order goes out before the coordinator ends."""
 COMMIT_EVERY_S = 0.5
+MAX_COMMIT_MARGIN_S = 0.3
+"""The most a commit is brought forward (the slowest recent message plus the last commit's time)."""
 COMMIT_ROWS = 20_000
 """The coordinator commits at least this often, and after this many history rows: what a kill can lose."""
 PASS_S = 0.2
@@ -48,15 +56,14 @@ CONTROL_EVERY_S = 1.0
 
 
 def control_message(c: Coordinator, stop: str = "") -> bytes:
-    """The sealed roster (every run that joined, alive or not, and how far its rows are committed)
-    and the stop order, tagged for every island with its latest run's key."""
+    """The signed roster (every run that joined, in that order, alive or not, how far its rows are
+    committed, its algorithm and public key) and the stop order."""
     members = tuple(
-        MemberState(island, run, c.membership.alive(island, run), c.gaps.stored((island, run)), c.sharing.assigned[(island, run)])
-        for island, run in c.runs
+        MemberState(island, run, c.membership.alive(island, run), c.gaps.stored((island, run)), c.sharing.assigned[(island, run)], info.key)
+        for (island, run), info in c.runs.items()
     )
     c.control_seq = max(c.control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
-    keys = {island: c.runs[(island, run)].key for island, run in c.current.items()}
-    return encode_control(Control(c.name, members, stop, c.control_seq), c.run_id, keys)
+    return encode_control(Control(c.name, members, stop, c.control_seq), c.run_id, c.signing)
 
 
 def check_stop(c: Coordinator) -> str | None:
@@ -90,8 +97,10 @@ def commit(c: Coordinator, link: Link, *, announce: bool = False) -> None:
     for reason, n in c.rejected_backlog.items():
         c.store.add_rejected(c.name, "*", reason, f"{n} rejected messages not recorded one by one (a flood)", 0, n)
     c.rejected_backlog.clear()
-    c.store.commit(c.name)
+    started = time.monotonic()
+    c.store.commit(c.name, c.elapsed())
     c.committed_at, c.rows_since_commit = time.monotonic(), 0
+    c.commit_s, c.slowest_item_s = c.committed_at - started, c.slowest_item_s / 2
     changed = c.changed or c.membership.events != c.announced_events
     if c.runs and (announce or changed or c.committed_at - c.control_at >= CONTROL_EVERY_S):
         link.publish_control(control_message(c, c.stop_reason or ""), c.stop_reason is not None)
@@ -108,11 +117,14 @@ def pump(c: Coordinator, link: Link, seconds: float, first_wait: float = 0.05) -
     while True:
         item = c.inbox.get(timeout=wait)
         if item is not None:
+            began = time.monotonic()
             c.handle(link, item)
+            c.slowest_item_s = max(c.slowest_item_s, time.monotonic() - began)
             handled += 1
         now = time.monotonic()
         done = item is None or now >= deadline
-        if done or now - c.committed_at >= COMMIT_EVERY_S or c.rows_since_commit >= COMMIT_ROWS:
+        margin = min(MAX_COMMIT_MARGIN_S, c.slowest_item_s + c.commit_s)
+        if done or now - c.committed_at >= COMMIT_EVERY_S - margin or c.rows_since_commit >= COMMIT_ROWS:
             c.membership.settle()
             commit(c, link)
         if done:
@@ -134,6 +146,16 @@ def serve(
     stop, the campaign is marked ``interrupted`` if the file lets us, and
     :class:`StoreError` says what happened.
     """
+    try:
+        return _serve(c, link, on_progress, extra_stop, progress_every_s)
+    finally:
+        c.inbox.close()
+
+
+def _serve(
+    c: Coordinator, link: Link, on_progress: Callable[[CampaignProgress], None] | None, extra_stop: Callable[[], str | None] | None,
+    progress_every_s: float,
+) -> str:
     last, shown_events = 0.0, -1
     fault: StoreError | None = None
     try:
@@ -174,6 +196,7 @@ def _stop_islands(c: Coordinator, link: Link) -> None:
 def _interrupted(c: Coordinator, link: Link, fault: StoreError) -> StoreError:
     """After a database fault: tell the islands to stop (reporting only rows really committed),
     mark the campaign interrupted if the file lets us."""
+    c.inbox.close()
     c.store.rollback()
     c.store.release_reserve()
     c.gaps.forget()
@@ -184,6 +207,10 @@ def _interrupted(c: Coordinator, link: Link, fault: StoreError) -> StoreError:
             time.sleep(0.5)
     except sqlite3.Error:
         pass  # the file cannot even be read: islands end on their own after their wait
+    try:
+        c.store.check_file()
+    except StoreError:
+        return StoreError(f"campaign {c.name!r} stopped: {fault.detail}; what it recorded went with the file (nothing to resume)")
     try:
         c.store.set_status(c.name, "interrupted", f"interrupted: {fault.detail}")
         marked = "it is marked interrupted"

@@ -1,15 +1,22 @@
 """Who is in a campaign: the coordinator's record of island runs alive, left or lost.
 
 An island run is a member once it joined (:meth:`Membership.joined`, the join
-handshake of :meth:`coordinator.server.Coordinator.admit`); its Zenoh
-liveliness token says it is there (:meth:`Membership.token`). A token that goes
-after the run's final history is a graceful leave; one that goes without it
-for :data:`LEAVE_GRACE_S`, or never shows within :data:`TOKEN_WAIT_S`, is a
-loss (:meth:`Membership.settle`): crash, kill, or a frozen process whose Zenoh
-lease expired. A token that returns brings the island back as the same run.
-After a restart (``--resume``) the runs that were alive when the previous
-coordinator died are taken up again (:meth:`Membership.take_up`), lost unless
-their token returns. Every event is stored as it happens
+handshake of :meth:`coordinator.server.Coordinator.admit`). What keeps it
+alive is what it signs: every message whose signature verified
+(:meth:`Membership.heard`; an island sends its history at least every second,
+a heartbeat when it has no new row). Its Zenoh liveliness token is only a hint
+for noticing a loss sooner: anyone who reaches the router can declare a token
+under any name, and Zenoh shows one token per name whoever holds it, so a
+token never makes a run a member or brings one back, and a token held by a
+stranger cannot hide a loss for longer than :data:`STALE_S`. The run's final
+history is its leave (:meth:`Membership.final_history`), whatever token stays;
+a token that goes without it for :data:`LEAVE_GRACE_S`, or no signed message
+for :data:`STALE_S`, is a loss (:meth:`Membership.settle`): crash, kill, or a
+frozen process. A lost run is back with its next signed message; a run that
+left never comes back (a new run of the island joins anew). After a restart
+(``--resume``) the runs that were alive when the previous coordinator died are
+taken up again (:meth:`Membership.take_up`), lost unless they are heard from
+within :data:`STALE_S`. Every event is stored as it happens
 (:meth:`coordinator.store.Store.member_event`).
 """
 
@@ -23,8 +30,9 @@ from coordinator.store import Store
 
 LEAVE_GRACE_S = 0.3
 """After a token disappears, how long a final history may still arrive to count as a graceful leave."""
-TOKEN_WAIT_S = 10.0
-"""A joined island whose liveliness token has not shown within this is lost."""
+STALE_S = 10.0
+"""A joined island run with no signed message for this long is lost (an island sends one every second
+at least)."""
 STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left", "lost": "lost"}
 """A member's status after each recorded membership event."""
 
@@ -32,17 +40,19 @@ STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left
 @dataclass
 class Member:
     status: str = "alive"
-    """alive, left (said goodbye), lost (vanished: crash, kill, lease expired, token never shown)"""
+    """alive, left (said goodbye), lost (vanished: crash, kill, lease expired, silent)"""
     run: str = ""
     gone_at: float | None = None
     token: bool = False
-    """Its liveliness token was seen (since it joined or came back)."""
+    """A liveliness token under its name is there (its own, or anyone's)."""
     joined_at: float = 0.0
     nonce: bytes = b""
     """The join request that admitted this run (a repeated request gets the same credentials)."""
     resumed: bool = False
-    """Alive when the previous coordinator died: taken up by this one, lost unless its token shows
-    within :data:`TOKEN_WAIT_S`."""
+    """Alive when the previous coordinator died: taken up by this one, lost unless it is heard from
+    within :data:`STALE_S`."""
+    heard_at: float = 0.0
+    """``time.monotonic()`` of the run's last message whose signature verified (or of its join)."""
 
 
 class Membership:
@@ -55,6 +65,8 @@ class Membership:
         self.campaign = campaign
         self.min_islands = min_islands
         self.finished = finished
+        self.stale_s = STALE_S
+        """How long a run may stay silent (islands of this process, which cannot be impersonated: never lost so)."""
         self.members: dict[str, Member] = {}
         self.full_at: float | None = None
         """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
@@ -73,53 +85,65 @@ class Membership:
     def take_up(self, current: dict[str, str]) -> None:
         """After a restart: every island run (``current``: island -> its latest run) that was alive when
         the previous coordinator died (its last membership event says so, it never said goodbye) is a
-        member again, waiting for its liveliness token; :meth:`settle` records it lost if the token
-        does not show within :data:`TOKEN_WAIT_S`, so an island that died with the coordinator is not
-        listed alive forever, and one that comes back carries on as the same run."""
+        member again; :meth:`settle` records it lost if it is not heard from within :data:`STALE_S`, so
+        an island that died with the coordinator is not listed alive forever, and one that comes back
+        carries on as the same run."""
         status = {island: STATUS_AFTER[event] for island, event, _ in self.store.members(self.campaign)}
         now = time.monotonic()
         for island, run in current.items():
             if status.get(island) == "alive" and not self.finished(island, run):
-                self.members[island] = Member("alive", run, joined_at=now, resumed=True)
+                self.members[island] = Member("alive", run, joined_at=now, resumed=True, heard_at=now)
 
     def joined(self, island: str, run: str, nonce: bytes) -> None:
         """Run ``run`` of ``island`` was admitted by the join request ``nonce``."""
-        self.members[island] = Member("alive", run, joined_at=time.monotonic(), nonce=nonce)
+        now = time.monotonic()
+        self.members[island] = Member("alive", run, joined_at=now, nonce=nonce, heard_at=now)
         self._event(island, "join")
         self._now_alive()
 
     def token(self, island: str, run: str, alive: bool) -> None:
-        """The liveliness token of ``island`` (whose latest run is ``run``) appeared (``alive``) or went."""
+        """A liveliness token of ``island`` (whose latest run is ``run``) appeared (``alive``) or went."""
         member = self.members.get(island)
-        if alive:
-            if member is None or (member.resumed and member.status == "alive"):  # joined before this coordinator (re)started
-                self.members[island] = Member("alive", run, token=True, joined_at=time.monotonic())
+        if member is None:
+            return
+        member.token = alive
+        if member.status == "alive":
+            member.gone_at = None if alive else time.monotonic()
+
+    def heard(self, island: str, run: str) -> None:
+        """A message of ``island``'s latest run ``run`` whose signature verified: it is alive (a lost run
+        is back; one that joined before this coordinator restarted is a member again)."""
+        member = self.members.get(island)
+        now = time.monotonic()
+        if member is None:
+            self.members[island] = Member("alive", run, joined_at=now, heard_at=now)
+            self._event(island, "join")
+        elif member.run != run:
+            return
+        elif member.status == "lost":
+            member.status, member.gone_at, member.heard_at = "alive", None, now
+            self._event(island, "back")
+        else:
+            member.heard_at = now
+            if member.resumed:  # taken up after a restart, and heard again
+                member.resumed = False
                 self._event(island, "join")
-            elif member.status != "alive":
-                member.status, member.gone_at, member.token = "alive", None, True
-                self._event(island, "back")
-            else:
-                member.gone_at, member.token = None, True
-            self._now_alive()
-        elif member is not None and member.status == "alive":
-            if self.finished(island, member.run):
-                self._leave(island, member, "left")
-            else:
-                member.gone_at = time.monotonic()
+            return
+        self._now_alive()
 
     def final_history(self, island: str, run: str) -> None:
-        """The final history of ``run`` of ``island`` arrived: if its token went already, it left."""
+        """The final history of ``run`` of ``island`` arrived: it left (its token may go later, or be held by someone else)."""
         member = self.members.get(island)
-        if member is not None and member.run == run and member.status == "alive" and member.gone_at is not None:
+        if member is not None and member.run == run and member.status == "alive":
             self._leave(island, member, "left")
 
     def settle(self) -> None:
-        """Tokens gone without a final history for ``LEAVE_GRACE_S``, or never shown: the island is lost."""
+        """A token gone without a final history for :data:`LEAVE_GRACE_S`, or no signed message for
+        :attr:`stale_s`: the island is lost."""
         now = time.monotonic()
         for island, member in self.members.items():
             vanished = member.gone_at is not None and now - member.gone_at >= LEAVE_GRACE_S
-            never_seen = not member.token and now - member.joined_at >= TOKEN_WAIT_S
-            if member.status == "alive" and (vanished or never_seen):
+            if member.status == "alive" and (vanished or now - member.heard_at >= self.stale_s):
                 self._leave(island, member, "lost")
 
     def _now_alive(self) -> None:

@@ -7,10 +7,16 @@ and is handled (:meth:`Coordinator.handle`) by one thread, the run loop of
 The coordinator
 
 * serves ``config`` (campaign configuration + loop set) and ``best``;
-* admits islands (the join handshake): each island run gets a run id and a key,
-  stored before the island gets them; only an island that joined may speak:
-  its history and migrants must carry its run's tag, a replayed message is
-  dropped, and counters it could not have reached (more evaluations than its
+* holds the campaign secret (:class:`island.secret.CampaignSecret`, made at
+  the campaign's start and kept in the database with the coordinator's
+  private signing key) and signs everything it sends with that key;
+* admits islands (the join handshake, a challenge-response): only an island
+  that proves it holds the admission secret, for a challenge this process
+  issued within the last :data:`CHALLENGE_S`, gets a run id; the run's public
+  key is stored before the island hears of it, and each island id gets at
+  most :data:`RUNS_PER_ISLAND` runs. Only an island that joined may speak:
+  its history and migrants must carry its run's signature, a replayed message
+  is dropped, and counters it could not have reached (more evaluations than its
   algorithm, its iterations and the migrants it may take allow) are rejected
   (:class:`coordinator.histories.HistoryChecks`).
   A liveliness token of an island that never joined makes nobody a member;
@@ -32,7 +38,7 @@ The coordinator
   (:meth:`Coordinator.rule_stop`) holds;
 * after a restart (:func:`resume`, ``--resume``) knows every run that joined, takes up again
   the runs that were alive when it died (lost unless their liveliness token
-  returns within :data:`coordinator.members.TOKEN_WAIT_S`), keeps the campaign's stop rules unless
+  is heard from within :data:`coordinator.members.STALE_S`), keeps the campaign's stop rules unless
   new ones are given, and asks every live island for the history rows it missed
   (:class:`coordinator.histories.Gaps`).
 
@@ -49,6 +55,8 @@ single-node campaigns feed the same inbox from island threads
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import secrets
 import time
 from collections import Counter, OrderedDict
@@ -64,7 +72,7 @@ from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignOutcome, campaign_outcome
 from coordinator.progress import CampaignProgress, IslandView
 from coordinator.sharing import Sharing
-from coordinator.store import IslandRecord, Store, StoredBest, StoreError
+from coordinator.store import RUN_LOCK_WAIT_S, IslandRecord, Store, StoredBest, StoreError
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from island.algorithms import ALGORITHMS
@@ -72,14 +80,21 @@ from island.config import CampaignConfig, decode_config, encode_config
 from island.protocol import (
     Best,
     History,
+    HistoryQuery,
+    JoinRequest,
     Migrants,
     decode_history,
-    decode_join,
+    decode_join_step,
     decode_migrants,
     encode_best,
+    encode_challenge,
+    encode_history_query,
     encode_joined,
+    encode_signed_config,
+    proof_holds,
 )
-from island.sealing import KEY_BYTES, Credentials, ReplayGuard, check_replay
+from island.secret import KEY_BYTES, CampaignSecret
+from island.sealing import Credentials, ReplayGuard, check_replay, new_key, public_key
 from island.termination import Termination
 from island.transports import key_prefix
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
@@ -87,6 +102,11 @@ from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
 EVALUATED_CACHE = 4096
+CHALLENGE_S = 30.0
+"""A join challenge holds for this long (to at most twice this): the proof must come within it."""
+RUNS_PER_ISLAND = 64
+"""Runs one island id may be admitted (restarts): an island that proved the secret cannot take every run
+slot of the campaign under its own id."""
 
 
 class Link(Protocol):
@@ -103,11 +123,12 @@ class Link(Protocol):
 
 @dataclass(frozen=True)
 class RunInfo:
-    """A run that joined: its key and what it said it runs."""
+    """A run that joined: the public key it signs with, what it said it runs, and when it joined (Unix time)."""
 
     key: bytes
     algo: str
     seed: int
+    joined: float
 
 
 class TokenBucket:
@@ -153,18 +174,26 @@ class Coordinator:
             store.hold(len(self.config_message))
         except OSError as exc:
             raise StoreError(f"cannot reserve disk space next to the campaign database {store.path}: {exc.strerror or exc}") from None
-        self.campaign_key = store.campaign_key(self.name, secrets.token_bytes(KEY_BYTES))
+        admission, self.signing = store.campaign_secrets(self.name, secrets.token_bytes(KEY_BYTES), new_key())
         store.commit()
+        self.secret = CampaignSecret(self.name, admission, public_key(self.signing))
+        """What islands need to join (:func:`island.secret.secret_path` is where the CLI keeps it)."""
         self.run_id = secrets.token_hex(6)
-        """This coordinator process, as the sender run of its control messages."""
+        """This coordinator process, as the sender run of what it signs."""
+        self.config_signed = encode_signed_config(self.config_message, self.name, self.run_id, self.signing)
+        """The ``config`` message as served: signed."""
+        self._challenges = secrets.token_bytes(KEY_BYTES)
+        """This process' key for join challenges (a proof for a challenge of another process is stale)."""
+        self.query_seq = 0
+        """Number of the last history query (rises across coordinator restarts)."""
         self.inbox = Inbox()
         self.runs: dict[tuple[str, str], RunInfo] = {}
         self.current: dict[str, str] = {}
         """Each island's latest run."""
-        for island, run, key, algo, seed in store.runs(self.name):
-            self.runs[(island, run)] = RunInfo(key, algo, seed)
+        for island, run, key, algo, seed, joined in store.runs(self.name):
+            self.runs[(island, run)] = RunInfo(key, algo, seed, joined)
             self.current[island] = run
-        self.checks = HistoryChecks(config, self.objective.bounds, self.runs)
+        self.checks = HistoryChecks(config, self.objective, self.runs)
         self.sharing = Sharing(store, config, {key: info.algo for key, info in self.runs.items()}, self.checks.optimizer)
         self.islands: dict[tuple[str, str], IslandView] = {}
         self.run_evaluations: dict[tuple[str, str], int] = {}
@@ -179,6 +208,9 @@ class Coordinator:
         self.migrations = store.count("migrations", self.name)
         self.rejected = store.count("rejected", self.name)
         self.started = time.monotonic()
+        self.elapsed_before = store.elapsed(self.name) if resume else 0.0
+        """Seconds the campaign ran before this process took it up (``--resume``: the time rule carries on)."""
+        store.set_lock_wait(RUN_LOCK_WAIT_S)
         self.stop_reason: str | None = None
         self.membership.idle_since = self.started if self.runs and not self.members else None
         self.best_trace: list[tuple[float, float, int, np.ndarray]] = []
@@ -191,6 +223,10 @@ class Coordinator:
         self.rejected_backlog: Counter[str] = Counter()
         """Rejected messages not yet stored (beyond the log's rate), by reason."""
         self.committed_at = time.monotonic()
+        self.commit_s = 0.0
+        """How long the last commit took."""
+        self.slowest_item_s = 0.0
+        """The longest a message took to handle lately (halved at each commit)."""
         self.rows_since_commit = 0
         """History rows stored since the last commit."""
         self.changed = True
@@ -212,6 +248,10 @@ class Coordinator:
         """``time.monotonic()`` when ``min_islands`` islands were first alive: the islands start searching."""
         return self.membership.full_at
 
+    def elapsed(self) -> float:
+        """Seconds the campaign has run, across ``--resume`` (the time a coordinator was down not counted)."""
+        return self.elapsed_before + time.monotonic() - self.started
+
     def _finished(self, island: str, run: str) -> bool:
         return self.islands.get((island, run), IslandView("")).final
 
@@ -221,7 +261,7 @@ class Coordinator:
 
     def progress(self) -> CampaignProgress:
         return CampaignProgress(
-            elapsed_s=time.monotonic() - self.started,
+            elapsed_s=self.elapsed(),
             evaluations=self.evaluations,
             best=np.inf if self.best is None else self.best.fitness,
             members={i: m.status for i, m in self.members.items()},
@@ -232,7 +272,7 @@ class Coordinator:
 
     def _best_message(self) -> bytes:
         assert self.best is not None
-        return encode_best(Best(self.name, self.best.island, self.best.x, self.best.fitness))
+        return encode_best(Best(self.name, self.best.island, self.best.x, self.best.fitness), self.run_id, self.signing)
 
     # --- what other threads call: into the inbox ------------------------------------------------
     def _source(self, island: str) -> str:
@@ -248,7 +288,7 @@ class Coordinator:
         return self.inbox.put("!" + self._source(island), ("member", island, alive), 0, wait_s)
 
     def join_request(self, island: str, payload: bytes, reply: Callable[[bytes], None], wait_s: float | None = 1.0) -> bool:
-        """A join request on ``join/<island>``; ``reply`` sends the answer (called by the coordinator's thread)."""
+        """A step of the join handshake on ``join/<island>``; ``reply`` sends the answer (called by the coordinator's thread)."""
         return self.inbox.put("!" + self._source(island), ("join", island, payload, reply), len(payload), wait_s)
 
     # --- handling what arrives ----------------------------------------------------------
@@ -274,7 +314,7 @@ class Coordinator:
                 if kind == "history":
                     self._history(link, decode_history(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender))
                 elif kind == "migrants":
-                    self._migrants(link, decode_migrants(payload, self.name, self.objective.bounds, tag="run", key_for=self._key_for, sender=sender))
+                    self._migrants(link, decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender))
                 else:
                     raise MessageRejected("schema", f"unexpected key {key[:100]}")
         except MessageRejected as exc:
@@ -298,21 +338,38 @@ class Coordinator:
 
     # --- joining and membership --------------------------------------------------------------
     def _join(self, island: str, payload: bytes, reply: Callable[[bytes], None]) -> None:
-        request = decode_join(payload, self.name, sender=island)
-        try:
-            credentials = self.admit(request.island, request.algo, request.seed, request.nonce)
-        except HysidInputError as exc:
-            reply(encode_joined(self.name, request.nonce, refused=exc.detail))
+        """A request gets a signed challenge; a proof that holds for a fresh challenge gets the run
+        (:meth:`admit`), signed; a proof that does not hold, or comes too late, is rejected unanswered."""
+        step = decode_join_step(payload, self.name, sender=island)
+        if isinstance(step, JoinRequest):
+            reply(encode_challenge(self.name, island, step.nonce, self._challenge(step, 0), self.run_id, self.signing))
             return
-        reply(encode_joined(self.name, request.nonce, credentials))
+        request = step.request
+        if not any(hmac.compare_digest(step.challenge, self._challenge(request, age)) for age in (0, 1)):
+            raise MessageRejected("replay", f"join proof of {island!r} answers no challenge of the last {2 * CHALLENGE_S:g} s")
+        if not proof_holds(step, self.secret.admission):
+            raise MessageRejected("forged", f"join proof of {island!r} does not hold: not a holder of the campaign secret")
+        try:
+            run = self.admit(request.island, request.algo, request.seed, request.key, request.nonce)
+        except HysidInputError as exc:
+            reply(encode_joined(self.name, request.nonce, island, "refused", self.run_id, self.signing, refused=exc.detail))
+            return
+        reply(encode_joined(self.name, request.nonce, island, run, self.run_id, self.signing))
 
-    def admit(self, island: str, algo: str, seed: int, nonce: bytes = b"") -> Credentials:
-        """The join handshake: a new run of ``island`` with its key, stored (and committed) before the
-        island gets it. Refused (:class:`HysidInputError`) while the id has a live run, for an unknown
-        algorithm, for a full campaign and once the campaign is stopping."""
+    def _challenge(self, request: JoinRequest, age: int) -> bytes:
+        """The challenge for ``request`` in the window ``age`` windows of :data:`CHALLENGE_S` ago (kept by nobody: recomputed)."""
+        window = int(time.monotonic() // CHALLENGE_S) - age
+        return hmac.new(self._challenges, request.transcript(window.to_bytes(8, "big", signed=True)), hashlib.sha256).digest()[:16]
+
+    def admit(self, island: str, algo: str, seed: int, key: bytes, nonce: bytes = b"") -> str:
+        """Admit a new run of ``island`` that signs with public ``key``: its run id, stored (and
+        committed) before the island hears of it. Refused (:class:`HysidInputError`) while the id
+        has a live run, for an unknown algorithm, for an id that had :data:`RUNS_PER_ISLAND` runs,
+        for a full campaign and once the campaign is stopping. The same request again (``nonce``:
+        its answer was lost) gets the same run."""
         member = self.members.get(island)
-        if member is not None and nonce and member.nonce == nonce:  # the same request again (its answer was lost)
-            return Credentials(island, member.run, self.runs[(island, member.run)].key, self.campaign_key)
+        if member is not None and nonce and member.nonce == nonce and self.runs[(island, member.run)].key == key:
+            return member.run
         if not NAME_PATTERN.match(island):
             raise HysidInputError(f"island id {island[:64]!r} is not a valid name")
         if algo not in ALGORITHMS:
@@ -321,16 +378,34 @@ class Coordinator:
             raise HysidInputError(f"the campaign is stopping ({self.stop_reason})")
         if member is not None and member.status == "alive":
             raise HysidInputError(f"island id {island!r} is taken by a running island; give another --id")
+        if sum(i == island for i, _ in self.runs) >= RUNS_PER_ISLAND:
+            raise HysidInputError(f"island id {island!r} has joined {RUNS_PER_ISLAND} times, its limit; give another --id")
         if len(self.runs) >= MAX_MEMBERS:
             raise HysidInputError(f"the campaign has admitted {MAX_MEMBERS} island runs, its limit")
-        credentials = Credentials.issue(island, self.campaign_key)
-        self.store.add_run(self.name, island, credentials.run, credentials.key, algo, seed)
-        self.runs[(island, credentials.run)] = RunInfo(credentials.key, algo, seed)
-        self.sharing.joined((island, credentials.run), algo)
-        self.current[island] = credentials.run
-        self.membership.joined(island, credentials.run, nonce)
+        run = secrets.token_hex(6)
+        joined = time.time()
+        self.store.add_run(self.name, island, run, key, algo, seed, joined)
+        self.runs[(island, run)] = RunInfo(key, algo, seed, joined)
+        self.sharing.joined((island, run), algo)
+        self.current[island] = run
+        self.membership.joined(island, run, nonce)
         self.store.commit()
-        return credentials
+        return run
+
+    def join(self, island: str, algo: str, seed: int) -> Credentials:
+        """A run of an island of this process (benches, tests) admitted with a signing key made here."""
+        key = new_key()
+        return Credentials(island, self.admit(island, algo, seed, public_key(key)), key, self.secret.coordinator)
+
+    def history_query(self, island: str, run: str, since: int) -> str:
+        """The signed selector parameters asking ``island`` for the rows of ``run`` after ``since``."""
+        self.query_seq = max(self.query_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
+        return encode_history_query(HistoryQuery(self.name, island, run, since, self.query_seq), self.signing)
+
+    def _heard(self, island: str, run: str) -> None:
+        """A signed message of that run: its latest run is alive (:meth:`Membership.heard`)."""
+        if self.current.get(island) == run:
+            self.membership.heard(island, run)
 
     def _member(self, link: Link, island: str, alive: bool) -> None:
         if not NAME_PATTERN.match(island):
@@ -360,7 +435,10 @@ class Coordinator:
         key = (h.island, h.run)
         info = self.runs[key]
         check_replay(self._replays, "history", h.island, h.run, h.seq)
-        self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration)
+        self._heard(h.island, h.run)
+        self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration, time.time() - info.joined)
+        if not h.rows.size and not h.final:
+            return  # a heartbeat: alive, nothing new to store
         f = float(self.evaluate(h.best_x[None, :])[0])
         check_claim(h, f)
         self.rows_since_commit += self.store.add_history(self.name, h.island, h.run, h.rows)
@@ -388,6 +466,7 @@ class Coordinator:
 
     def _migrants(self, link: Link, m: Migrants) -> None:
         check_replay(self._replays, "migrants", m.island, m.run, m.seq)
+        self._heard(m.island, m.run)
         if not self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at, m.seq):
             raise MessageRejected("replay", f"migrant message {m.seq} of {m.island!r} run {m.run!r} is stored already")
         self.migrations += 1
@@ -413,7 +492,7 @@ class Coordinator:
             evaluations=self.evaluations,
             best=np.inf if best is None else best.fitness,
             best_at=0 if best is None else best.evaluations,
-            elapsed_s=time.monotonic() - self.started,
+            elapsed_s=self.elapsed(),
         )
 
     # --- the outcome ----------------------------------------------------------------

@@ -65,35 +65,46 @@ CREATE TABLE IF NOT EXISTS runs (
 CREATE TABLE IF NOT EXISTS moves (
     id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, src TEXT NOT NULL,
     dst TEXT NOT NULL, evaluations INTEGER NOT NULL, credit TEXT NOT NULL, t REAL NOT NULL);
-CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL);
-CREATE TABLE IF NOT EXISTS commits (campaign TEXT PRIMARY KEY, t REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL, admission BLOB, signing BLOB);
+CREATE TABLE IF NOT EXISTS commits (campaign TEXT PRIMARY KEY, t REAL NOT NULL, elapsed_s REAL NOT NULL DEFAULT 0);
 """
-UPGRADES = {
-    "migrations": ("seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
-    "rejected": ("n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
-}
+UPGRADES = (
+    ("migrations", "seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
+    ("rejected", "n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
+    ("secrets", "admission", "ALTER TABLE secrets ADD COLUMN admission BLOB"),
+    ("secrets", "signing", "ALTER TABLE secrets ADD COLUMN signing BLOB"),
+    ("commits", "elapsed_s", "ALTER TABLE commits ADD COLUMN elapsed_s REAL NOT NULL DEFAULT 0"),
+)
 """Columns added since the first schema: a database written by an earlier hysid gets them on open."""
 INDEXES = "CREATE UNIQUE INDEX IF NOT EXISTS migration_once ON migrations (campaign, island, run, seq);"
 """A migrant message (sender run and number) is stored once, also when it is replayed after a restart."""
 LOCK_WAIT_S = 10.0
-"""How long a write waits for another process' lock on the database before it fails."""
+"""How long a write waits for another process' lock on the database before it fails (when it opens)."""
+RUN_LOCK_WAIT_S = 2.0
+"""The same once a campaign runs (:meth:`Store.set_lock_wait`): a database locked by another process
+mid-run is a fault found within seconds, not a stall."""
 RESERVE_BYTES = 256 << 10
 """Disk space held next to the database (``<db>-reserve``) and given back when the disk is full, so
 that the campaign can still be marked interrupted (plus twice its configuration message: SQLite
 rewrites the whole campaign row, loop set included, when its status changes)."""
 
 
+def _identity(path: str) -> tuple[int, int]:
+    info = os.stat(path)
+    return info.st_dev, info.st_ino
+
+
 def prepare(db: sqlite3.Connection) -> None:
     """Create the tables, and add to a database of an earlier hysid the columns it lacks."""
     db.executescript(SCHEMA)
-    for table, (column, upgrade) in UPGRADES.items():
+    for table, column, upgrade in UPGRADES:
         if column not in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}:
             db.execute(upgrade)
     db.executescript(INDEXES)
 
 
 class StoreError(HysidInputError):
-    """A campaign database that cannot be written (locked, full, read-only): one line naming the file."""
+    """A campaign database that cannot be written (locked, full, read-only, deleted): one line naming the file."""
 
 
 def _writes(method: Callable[..., T]) -> Callable[..., T]:
@@ -155,8 +166,24 @@ class Store:
             self.db.execute("ROLLBACK")
             self.reserve = None if self.path == ":memory:" else Path(f"{self.path}-reserve")
             self.hold(0)
+            self.identity = None if self.path == ":memory:" else _identity(self.path)
         except (sqlite3.DatabaseError, OSError) as exc:
             raise HysidInputError(f"{self.path}: not a usable campaign database ({exc})") from None
+
+    def set_lock_wait(self, seconds: float) -> None:
+        """How long a write waits for another process' lock from now on."""
+        self.db.execute(f"PRAGMA busy_timeout = {int(seconds * 1000)}")
+
+    def check_file(self) -> None:
+        """:class:`StoreError` if the database file was deleted or replaced since it was opened (SQLite
+        would go on writing to the deleted file, and everything would be lost when the process ends)."""
+        if self.identity is not None:
+            try:
+                same = _identity(self.path) == self.identity
+            except FileNotFoundError:
+                raise StoreError(f"cannot write the campaign database {self.path}: the file was deleted") from None
+            if not same:
+                raise StoreError(f"cannot write the campaign database {self.path}: the file was replaced by another")
 
     def hold(self, row_bytes: int) -> None:
         """Hold :data:`RESERVE_BYTES` plus twice ``row_bytes`` of disk space in the reserve file."""
@@ -179,7 +206,7 @@ class Store:
         except sqlite3.DatabaseError as exc:
             raise HysidInputError(f"{path}: not a campaign database ({exc})") from None
         store = cls.__new__(cls)
-        store.path, store.db, store.reserve = str(path), db, None
+        store.path, store.db, store.reserve, store.identity = str(path), db, None, None
         return store
 
     @classmethod
@@ -194,7 +221,7 @@ class Store:
             source.db.close()
         prepare(copy)  # a database of an earlier hysid gets today's tables, in the copy only
         store = cls.__new__(cls)
-        store.path, store.db, store.reserve = source.path, copy, None
+        store.path, store.db, store.reserve, store.identity = source.path, copy, None, None
         return store
 
     def release_reserve(self) -> None:
@@ -203,20 +230,32 @@ class Store:
             self.reserve.unlink(missing_ok=True)
 
     def close(self) -> None:
-        """Commit and close; a commit that fails here is reported, the file keeps what was committed."""
+        """Commit and close; a commit that fails here is reported, the file keeps what was committed (a
+        file deleted meanwhile was reported by the commit that found it)."""
         try:
-            self.commit()
+            self._commit()
         finally:
             self.db.close()
             self.release_reserve()
 
     @_writes
-    def commit(self, campaign: str | None = None) -> None:
-        """Commit; with ``campaign``, stamp the time in ``commits`` first (how old the last commit is
-        tells what a kill right now would lose)."""
-        if campaign is not None:
-            self.db.execute("INSERT OR REPLACE INTO commits VALUES (?, ?)", (campaign, time.time()))
+    def _commit(self) -> None:
         self.db.commit()
+
+    @_writes
+    def commit(self, campaign: str | None = None, elapsed_s: float = 0.0) -> None:
+        """Commit; with ``campaign``, stamp the time and the campaign's elapsed seconds in ``commits`` first
+        (how old the last commit is tells what a kill right now would lose; the elapsed time is where
+        ``--resume`` carries the time rule on). A file deleted meanwhile is a :class:`StoreError`."""
+        self.check_file()
+        if campaign is not None:
+            self.db.execute("INSERT OR REPLACE INTO commits (campaign, t, elapsed_s) VALUES (?, ?, ?)", (campaign, time.time(), elapsed_s))
+        self.db.commit()
+
+    def elapsed(self, campaign: str) -> float:
+        """Seconds the campaign has run, by its last commit (0 before one)."""
+        row = self.db.execute("SELECT elapsed_s FROM commits WHERE campaign = ?", (campaign,)).fetchone()
+        return 0.0 if row is None else float(row[0])
 
     def rollback(self) -> None:
         """Drop what was not committed (after a failed write)."""
@@ -250,6 +289,7 @@ class Store:
 
     @_writes
     def set_status(self, name: str, status: str, reason: str | None = None) -> None:
+        self.check_file()
         self.db.execute(
             "UPDATE campaigns SET status = ?, stop_reason = ?, ended = ? WHERE name = ?",
             (status, reason, time.time() if status != "running" else None, name),
@@ -325,14 +365,19 @@ class Store:
 
     # --- who joined ---------------------------------------------------------------------
     @_writes
-    def campaign_key(self, campaign: str, new: bytes) -> bytes:
-        """The campaign key every joined island shares: stored once (``new`` the first time)."""
-        self.db.execute("INSERT OR IGNORE INTO secrets VALUES (?, ?)", (campaign, new))
-        return bytes(self.db.execute("SELECT campaign_key FROM secrets WHERE campaign = ?", (campaign,)).fetchone()[0])
+    def campaign_secrets(self, campaign: str, admission: bytes, signing: bytes) -> tuple[bytes, bytes]:
+        """The campaign's admission secret and the coordinator's private signing key: stored once (the
+        given ones the first time; a campaign of an earlier hysid gets them on its first resume)."""
+        self.db.execute("INSERT OR IGNORE INTO secrets (campaign, campaign_key) VALUES (?, x'')", (campaign,))
+        self.db.execute("UPDATE secrets SET admission = coalesce(admission, ?), signing = coalesce(signing, ?) WHERE campaign = ?",
+                        (admission, signing, campaign))
+        row = self.db.execute("SELECT admission, signing FROM secrets WHERE campaign = ?", (campaign,)).fetchone()
+        return bytes(row[0]), bytes(row[1])
 
     @_writes
-    def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int) -> None:
-        self.db.execute("INSERT INTO runs VALUES (?, ?, ?, ?, ?, ?, ?)", (campaign, island, run, key, algo, seed, time.time()))
+    def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int, joined: float) -> None:
+        """A run admitted, with the public key it signs with and when it joined (Unix time)."""
+        self.db.execute("INSERT INTO runs VALUES (?, ?, ?, ?, ?, ?, ?)", (campaign, island, run, key, algo, seed, joined))
 
     @_writes
     def add_move(self, campaign: str, move: Move) -> None:
@@ -347,10 +392,10 @@ class Store:
         rows = self.db.execute("SELECT island, run, src, dst, evaluations, credit FROM moves WHERE campaign = ? ORDER BY id", (campaign,))
         return [Move(i, r, a, b, int(e), json.loads(c)) for i, r, a, b, e, c in rows]
 
-    def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int]]:
-        """Every run that joined: ``(island, run, key, algo, seed)`` in the order they joined."""
-        rows = self.db.execute("SELECT island, run, key, algo, seed FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
-        return [(i, r, bytes(k), a, s) for i, r, k, a, s in rows]
+    def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int, float]]:
+        """Every run that joined: ``(island, run, public key, algo, seed, joined)`` in the order they joined."""
+        rows = self.db.execute("SELECT island, run, key, algo, seed, joined FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
+        return [(i, r, bytes(k), a, s, float(j)) for i, r, k, a, s, j in rows]
 
     @_writes
     def set_best(self, campaign: str, best: StoredBest) -> None:

@@ -4,8 +4,10 @@ Islands publish their ``k`` best candidates every ``interval`` iterations to
 everyone; each receiver takes only what its *in-neighbours* sent, so the
 topology is a property of the receiver and needs no coordination:
 
-* ``ring``: islands sorted by id form a directed ring; each takes from its
-  predecessor (the classic unidirectional island ring);
+* ``ring``: the members in the order they joined (the coordinator's roster,
+  not their names: a name chosen to sort before an island buys no place in
+  front of it) form a directed ring; each takes from its predecessor (the
+  classic unidirectional island ring);
 * ``full``: each takes from every other island;
 * ``random``: at every migration each takes from ``random_k`` islands drawn
   anew, reproducibly from the campaign seed, its id and the migration epoch.
@@ -59,14 +61,15 @@ class Migration:
 
 
 def in_neighbours(topology: str, members: list[str], me: str, *, epoch: int, seed: int, random_k: int) -> set[str]:
-    """Islands whose migrants ``me`` takes at migration ``epoch``, given the ``members`` alive."""
+    """Islands whose migrants ``me`` takes at migration ``epoch``, given the ``members`` alive (in the
+    order they joined: the ring's order)."""
     others = sorted(set(members) - {me})
     if not others:
         return set()
     if topology == "full":
         return set(others)
     if topology == "ring":
-        ring = sorted(set(others) | {me})
+        ring = list(dict.fromkeys([*members, me]))
         return {ring[ring.index(me) - 1]}
     if topology == "random":
         rng = np.random.default_rng([seed, zlib.crc32(me.encode()), epoch])

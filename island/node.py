@@ -11,14 +11,24 @@ evaluate -> tell) and uses its hooks:
 * every ``migration.interval`` iterations (the *epoch*) it publishes its ``k``
   best candidates and takes what its in-neighbours (:mod:`island.migration`)
   sent. Each message is validated as it arrives (:mod:`island.protocol`:
-  form, the campaign tag, replays), rejects are counted, and of each sender
-  only the newest message is kept: an epoch takes at most ``k`` migrants from
-  each in-neighbour, so a flood cannot starve the evolution. Every migrant's
-  fitness is **re-evaluated locally** (the claimed value is never used), and
-  the optimizer's migrant policy decides what to replace;
-* who is a member, and the stop order, come from the coordinator's sealed
-  ``control`` messages (a liveliness token alone makes nobody a member);
+  form, the signature of its sender's run with the public key the roster
+  lists for it, then replays: nobody can sign as another island, nor move
+  another's replay window), rejects are counted, and of each sender only the
+  newest message is kept: an epoch takes at most ``k`` migrants from each
+  in-neighbour, so a flood cannot starve the evolution. A message from a run
+  the roster does not list yet waits (up to :data:`JOIN_GRACE_S`, the newest of
+  each sender) for it; one that waited in vain counts as rejected.
+  Every migrant's fitness is **re-evaluated locally** (the claimed value is
+  never used), and the optimizer's migrant policy decides what to replace;
+* who is a member, and the stop order, come from the coordinator's signed
+  ``control`` messages (a liveliness token alone makes nobody a member); the
+  ring follows the roster's order of joining, and skips a member that sent no
+  migrants for the transport's ``silent_s``, so that a silent member cannot
+  starve the island after it;
 * a late joiner takes the coordinator's current global best the same way;
+* on a model with memory (Bouc-Wen), every ``REFINE_EVERY`` iterations its best is
+  refined by a short bounded least-squares polish (memetic islands, :mod:`island.memetic`); the
+  refinement's evaluations count with its own;
 * when the roster assigns its run another algorithm (a mixed campaign's
   staged or adaptive share, :mod:`island.share`), it carries its search on with that
   algorithm from the next iteration;
@@ -44,6 +54,7 @@ from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer, switch_algorithm
 from island.config import CampaignConfig
+from island.memetic import REFINE_EVERY, Refiner
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
@@ -52,12 +63,12 @@ from island.protocol import (
     History,
     Migrants,
     decode_best,
-    decode_migrants,
     encode_history,
     encode_migrants,
+    migrants_of,
 )
 from island.run import HistoryRow, run
-from island.sealing import Counter, Credentials, ReplayGuard, check_replay
+from island.sealing import Counter, Credentials, Envelope, ReplayGuard, check_replay, envelope, open_envelope
 from island.wire import MessageRejected, check_name
 
 START_TIMEOUT_S = 60.0
@@ -78,7 +89,9 @@ class Transport(Protocol):
     """How an island's messages travel (bytes in, bytes out)."""
 
     credentials: Credentials
-    """What the coordinator issued when the island joined."""
+    """The island run's identity: issued when it joined."""
+    silent_s: float | None
+    """A ring member that sent no migrants for this long is skipped (None: every member sends at every epoch)."""
 
     def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
         """Publish this island's migrants; return ``(sender, message)`` pairs the node should still
@@ -87,13 +100,16 @@ class Transport(Protocol):
     def publish_history(self, payload: bytes) -> None: ...
 
     def members(self) -> list[str]:
-        """Islands currently alive in the campaign."""
+        """Islands currently alive in the campaign, in the order they joined."""
+
+    def key_for(self, island: str, run: str) -> bytes | None:
+        """The public key of a member's run (None: the roster does not list it)."""
 
     def stop_requested(self) -> bool:
         """The coordinator ordered the stop, or (Zenoh) it has been silent for longer than the island waits."""
 
-    def global_best(self) -> bytes | None:
-        """The coordinator's current best message, if there is one (asked once, when the island starts)."""
+    def global_best(self) -> list[bytes]:
+        """Answers to the question for the coordinator's current best (asked once, when the island starts)."""
 
     def stop_reason(self) -> str:
         """Why :meth:`stop_requested` holds."""
@@ -123,6 +139,8 @@ class IslandNode:
     ) -> None:
         self.island = check_name("island", island)
         self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.island_options(algo))
+        self.refiner = Refiner(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
+        """Memetic refinement of the island's best on models with memory (:mod:`island.memetic`)."""
         self.algo = algo
         self.seed = seed
         self.config = config
@@ -150,6 +168,8 @@ class IslandNode:
         self._replays = ReplayGuard()
         self._latest: OrderedDict[str, tuple[float, Migrants]] = OrderedDict()
         """Each sender's newest valid migrant message and when it arrived (see :data:`JOIN_GRACE_S`)."""
+        self._pending: OrderedDict[str, tuple[float, Envelope]] = OrderedDict()
+        """Each sender's newest message from a run the roster does not list yet (checked once it does)."""
         self._taken: dict[str, tuple[str, int]] = {}
         """Per sender, the (run, seq) of the message last taken in."""
 
@@ -162,12 +182,16 @@ class IslandNode:
             self.stats["rejected"] += 1
 
     # --- the loop ---------------------------------------------------------------
-    def run(self, transport: Transport) -> list[tuple[int, float, int, float]]:
-        """Optimize until done or stopped; returns the rows ``(iteration, best, evaluations, wall s)``."""
+    def attach(self, transport: Transport) -> None:
+        """Take messages through ``transport`` from now on (its credentials are the island's)."""
         self._transport = transport
         self.credentials = transport.credentials
+
+    def run(self, transport: Transport) -> list[tuple[int, float, int, float]]:
+        """Optimize until done or stopped; returns the rows ``(iteration, best, evaluations, wall s)``."""
+        self.attach(transport)
         transport.wait_for_members(self.config.min_islands, START_TIMEOUT_S)
-        self._best_in = self._decode_best(transport.global_best())
+        self._best_in = next((b for b in map(self._decode_best, transport.global_best()) if b is not None), None)
         try:
             run(self.optimizer, self.objective, callback=self._record, should_stop=transport.stop_requested, migrate=self._migrate)
             self.stop_reason = transport.stop_reason() if transport.stop_requested() else "own budget spent"
@@ -186,14 +210,30 @@ class IslandNode:
 
     # --- migrants -----------------------------------------------------------------
     def receive(self, sender: str, data: bytes) -> None:
-        """A migrant message as it arrives (from any thread): validated against the campaign key and
-        for replays, counted if rejected, else kept as ``sender``'s newest."""
+        """A migrant message as it arrives (from any thread): checked against the public key of its
+        sender's run and for replays, counted if rejected, else kept as ``sender``'s newest; a run the
+        roster does not list yet waits for it (:meth:`_listed`)."""
         assert self.credentials is not None
         if sender == self.island:
             return  # our own publication, back through the subscription to every island's migrants
-        campaign_key = self.credentials.campaign_key
         try:
-            m = decode_migrants(data, self.config.name, self.objective.bounds, tag="campaign", key_for=lambda s, r: campaign_key, sender=sender)
+            env = envelope(data, "migrants", self.config.name, sender)
+        except MessageRejected:
+            self.count_rejected()
+            return
+        key = None if self._transport is None else self._transport.key_for(env.sender, env.run)
+        if key is None:
+            with self._lock:
+                self._pending.pop(env.sender, None)  # a newer one of a joiner: the older was never checked, and need not be
+                self._pending[env.sender] = (time.monotonic(), env)
+                while len(self._pending) > MAX_SENDERS:
+                    self._pending.popitem(last=False)
+            return
+        self._open(env, key)
+
+    def _open(self, env: Envelope, key: bytes) -> None:
+        try:
+            m = migrants_of(open_envelope(env, key), self.config.name, self.objective.bounds, time.time())
             check_replay(self._replays, "migrants", m.island, m.run, m.seq)
         except MessageRejected:
             self.count_rejected()
@@ -207,6 +247,24 @@ class IslandNode:
                 del self._latest[strangers[0] if strangers else next(iter(self._latest))]
             self._latest.pop(m.island, None)
             self._latest[m.island] = (time.monotonic(), m)
+
+    def _listed(self) -> None:
+        """Check the waiting messages whose run the roster lists by now; those older than :data:`JOIN_GRACE_S`
+        are rejected (their run never joined)."""
+        assert self._transport is not None
+        now = time.monotonic()
+        with self._lock:
+            waiting = list(self._pending.items())
+        for sender, (at, env) in waiting:
+            key = self._transport.key_for(env.sender, env.run)
+            if key is not None or now - at >= JOIN_GRACE_S:
+                with self._lock:
+                    if self._pending.get(sender, (None, None))[1] is env:
+                        del self._pending[sender]
+                if key is not None:
+                    self._open(env, key)
+                else:
+                    self.count_rejected()
 
     def _follow_assignment(self) -> PopulationOptimizer:
         """The optimizer to go on with: this one, or its search carried on by the algorithm the
@@ -224,6 +282,8 @@ class IslandNode:
         in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
         assert self._transport is not None and self.credentials is not None
         optimizer = self._follow_assignment()
+        if self.refiner is not None and optimizer.iteration and optimizer.iteration % REFINE_EVERY == 0:
+            self.migrant_evaluations += self.refiner(optimizer)
         if optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
             x = np.array(self.config.start, dtype=float)[None, :]
             self.migrant_evaluations += 1
@@ -243,10 +303,22 @@ class IslandNode:
             self.receive(sender, data)
         with self._lock:
             self.stats["sent"] += 1
-        members = self._transport.members()
-        senders = in_neighbours(mig.topology, members, self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k)
-        self._take(self._intake(senders, set(members), mig.k))
+        self._listed()
+        roster = self._transport.members()
+        senders = in_neighbours(mig.topology, self._sending(roster), self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k)
+        self._take(self._intake(senders, set(roster), mig.k))
         return optimizer
+
+    def _sending(self, members: list[str]) -> list[str]:
+        """The members (in the order they joined) that sent migrants within the transport's ``silent_s``,
+        and this island: a member that sends nothing is no ring neighbour."""
+        silent_s = self._transport.silent_s if self._transport is not None else None
+        if silent_s is None:
+            return members
+        now = time.monotonic()
+        with self._lock:
+            heard = {sender for sender, (at, _) in self._latest.items() if now - at <= silent_s}
+        return [m for m in members if m == self.island or m in heard]
 
     def _intake(self, senders: set[str], members: set[str], k: int) -> list[np.ndarray]:
         """The newest untaken message of each in-neighbour (at most ``k`` migrants from each); migrants
@@ -275,11 +347,10 @@ class IslandNode:
             self.stats["received"] += x.shape[0]
             self.stats["taken"] += taken
 
-    def _decode_best(self, data: bytes | None) -> Best | None:
-        if data is None:
-            return None
+    def _decode_best(self, data: bytes) -> Best | None:
+        assert self.credentials is not None
         try:
-            return decode_best(data, self.config.name, self.objective.bounds)
+            return decode_best(data, self.config.name, self.objective.bounds, self.credentials.coordinator)
         except MessageRejected:
             self.count_rejected()
             return None
@@ -301,6 +372,16 @@ class IslandNode:
             ), self.credentials)
             for i, chunk in enumerate(chunks)
         ]
+
+    def heartbeat(self) -> bytes:
+        """A history message without rows (from any thread): the island is alive while it has no new row."""
+        assert self.credentials is not None
+        x, f = self._snapshot
+        with self._lock:
+            stats = dict(self.stats)
+        return encode_history(History(
+            self.config.name, self.island, self.run_id, self.algo, self.seed, np.zeros((0, 4)), x, f, stats, False, self._seq(), self.optimizer.gain,
+        ), self.credentials)
 
     def _flush(self, final: bool = False) -> None:
         assert self._transport is not None

@@ -1,4 +1,4 @@
-"""Messages of a campaign (msgpack), their strict validation and who may send them.
+"""Messages of a campaign (msgpack), their strict validation and who may send them (protocol version 4).
 
 The dissertation leaves cooperating islands as future work (section 6.1); here
 they exchange these messages under ``hysid/<campaign>/`` (see
@@ -7,26 +7,44 @@ they exchange these messages under ``hysid/<campaign>/`` (see
 
 * ``config``: the campaign configuration and the extracted loop set (with
   each loop's measured displacement harmonics, as real/imaginary pairs),
-  served by the coordinator so that islands need no shared file system;
-* ``join`` / ``joined``: an island asks the coordinator to join and gets its
-  :class:`island.sealing.Credentials`: a run id, a per-run key, and the campaign key that
-  every joined island shares (the *join handshake*);
+  served by the coordinator so that islands need no shared file system; it
+  is served sealed (signed) by the coordinator, and stored unsealed;
+* the *join handshake*, a challenge-response on ``join/<id>`` (two queries):
+  ``join`` (the island's id, algorithm, seed, a fresh nonce and the public
+  key its run will sign with) is answered by a signed ``challenge``; ``prove``
+  (the request again with the challenge, an HMAC over both with the campaign's
+  admission secret, :mod:`island.secret`, and a signature with the run's key)
+  is answered by a signed ``joined`` holding the run id, or the refusal. The
+  secret never travels; an island takes answers only with the signature of the
+  coordinator named in its secret, and the coordinator admits only islands
+  whose proof holds;
 * ``migrants``: an island's ``k`` best partial solutions with the fitness it
-  *claims* for them; receivers always re-evaluate (the claim only orders);
+  *claims* for them and its clock's send time; receivers always re-evaluate
+  (the claim only orders);
 * ``history``: convergence rows ``[iteration, best fitness, evaluations, wall
   s]`` of one island, its current best and its migration counters;
-* ``control``: the coordinator's roster (which islands joined, which are
-  alive, how many of each one's history rows it has committed) and its stop
-  order;
-* ``best``: the coordinator's global best (fitness re-evaluated by it).
+* ``control``: the coordinator's roster (which island runs joined, in that order,
+  which are alive, how many of each one's history rows it has committed, which
+  algorithm each runs and the public key each signs with) and its stop order;
+* ``best``: the coordinator's global best (fitness re-evaluated by it);
+* a *history query* (``history/<id>?run=R;since=N;seq=Q;sig=S``): the
+  coordinator asking an island for rows it missed, signed, its ``seq`` rising.
 
-``migrants``, ``history`` and ``control`` are *sealed* (:mod:`island.sealing`:
-sender, run, message number and HMAC tags; replays dropped). Every field is
-checked strictly as it is decoded (:mod:`island.wire`); a bad message raises
+Everything but ``join`` and ``prove`` is *sealed* (:mod:`island.sealing`:
+sender, run, message number and an Ed25519 signature by the sender; replays
+dropped once the signature verified). Every field is checked strictly as it
+is decoded (:mod:`island.wire`), times and fitness values against the ranges
+a campaign can produce; a bad message raises
 :class:`island.wire.MessageRejected` naming why.
 
+Version 3 (before): HMAC tags instead of signatures, a campaign key every
+joined island shared (so a member could tag migrants as another), the run key
+sent in the clear in an unauthenticated ``joined`` answer, ``config``,
+``best`` and history queries unauthenticated. Messages of another version are
+rejected (``version``).
+
 This is the wire format only: with :mod:`island.wire` and :mod:`island.sealing`
-it depends on msgpack, numpy and the loop set,
+it depends on msgpack, numpy, ``cryptography`` and the loop set,
 not on models, objectives or optimizers (the campaign settings inside
 ``config`` are checked by :class:`island.config.CampaignConfig`).
 """
@@ -34,6 +52,7 @@ not on models, objectives or optimizers (the campaign settings inside
 from __future__ import annotations
 
 import re
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,13 +61,16 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
-from island.sealing import KEY_BYTES, Credentials, KeyLookup, seal, unseal
+from island.sealing import KEY_BYTES, SIGNATURE_BYTES, Credentials, KeyLookup, Sealed, prove, proven, seal, sign, unseal, verify
 from island.wire import (
+    EPOCH_2020,
     INT64_MAX,
     MAX_BYTES,
     MAX_COUNT,
+    MAX_FITNESS,
     MAX_MEMBERS,
     MAX_TEXT,
+    NAME_PATTERN,
     PROTOCOL_VERSION,
     MessageRejected,
     _array,
@@ -67,12 +89,16 @@ from island.wire import (
 )
 
 ALGO_PATTERN = re.compile(r"[a-z][a-z0-9_]{0,15}\Z")
+QUERY_NUMBER = re.compile(r"-?[0-9]{1,16}\Z")
 """An island's algorithm label (``ga``, ``pso``) as it travels in its history."""
 COORDINATOR = "coordinator"
 """The sender name of the coordinator's sealed messages."""
 MAX_MIGRANTS = 256
 MAX_ROWS = 100_000
 MAX_DIM = 256
+NONCE_BYTES = 16
+MAX_CLOCK_SKEW_S = 86400.0
+"""How far a migrant's send time may be from the receiver's clock (machines' clocks differ, not by a day)."""
 MAX_GAIN = 1e6
 """Most orders of magnitude an island's own moves can have gained (a float64 best spans about 630 per
 fall from its largest to its smallest value; a campaign of a million falls is beyond any budget)."""
@@ -111,6 +137,17 @@ def encode_config(campaign: str, config: dict[str, Any], loops: LoopSet) -> byte
         "x_harmonics": None if loops.x_harmonics is None else pack_array(np.stack([loops.x_harmonics.real, loops.x_harmonics.imag], axis=-1)),
     }
     return _dumps({"v": PROTOCOL_VERSION, "type": "config", "campaign": campaign, "config": config, "loops": wire_loops})
+
+
+def encode_signed_config(message: bytes, campaign: str, run: str, key: bytes) -> bytes:
+    """The ``config`` message as the coordinator serves it: sealed (signed) by its ``key``."""
+    return seal("config", campaign, COORDINATOR, run, 0, {"message": message}, key)
+
+
+def decode_signed_config(data: bytes, campaign: str, coordinator: bytes) -> bytes:
+    """The ``config`` message inside a sealed one, if the coordinator of public key ``coordinator`` signed it."""
+    s = unseal(data, "config", campaign, key_for=lambda sender, run: coordinator, sender=COORDINATOR)
+    return _get(s.fields, "message", bytes)
 
 
 def decode_config(data: bytes, campaign: str) -> tuple[dict[str, Any], LoopSet]:
@@ -158,48 +195,101 @@ def decode_config(data: bytes, campaign: str) -> tuple[dict[str, Any], LoopSet]:
 # --- the join handshake ----------------------------------------------------------------
 @dataclass(frozen=True)
 class JoinRequest:
-    """An island asking to join: its id, algorithm and seed, and a fresh ``nonce`` the answer echoes."""
+    """An island asking to join: its id, algorithm and seed, a fresh ``nonce`` every answer echoes, and
+    ``key``, the public half of the signing key its run will sign with."""
 
     campaign: str
     island: str
     algo: str
     seed: int
     nonce: bytes
+    key: bytes
+
+    def transcript(self, challenge: bytes) -> bytes:
+        """What the island's proof and signature cover: the request and the coordinator's challenge."""
+        return _dumps([PROTOCOL_VERSION, "prove", self.campaign, self.island, self.algo, int(self.seed), self.nonce, self.key, challenge])
+
+
+def _request(msg: dict[str, Any], campaign: str, sender: str | None) -> JoinRequest:
+    island = _name(msg, "island")
+    if sender is not None and island != sender:
+        raise MessageRejected("sender", f"join request on the key of {sender!r} names island {island!r}")
+    return JoinRequest(campaign, island, _algo(msg, "algo"), _int(msg, "seed"), _bytes(msg, "nonce", NONCE_BYTES), _bytes(msg, "key", KEY_BYTES))
 
 
 def encode_join(r: JoinRequest) -> bytes:
-    return _dumps({"v": PROTOCOL_VERSION, "type": "join", "campaign": r.campaign, "island": r.island, "algo": r.algo, "seed": int(r.seed), "nonce": r.nonce})
+    """The first step of the handshake (``join/<id>``): who asks, with which key; answered by a challenge."""
+    return _dumps({"v": PROTOCOL_VERSION, "type": "join", "campaign": r.campaign, "island": r.island, "algo": r.algo, "seed": int(r.seed),
+                   "nonce": r.nonce, "key": r.key})
 
 
 def decode_join(data: bytes, campaign: str, sender: str | None = None) -> JoinRequest:
     """``sender`` is the island named by the Zenoh key the request was sent to (``join/<id>``)."""
-    msg = _unpack(data, "join", campaign)
-    island = _name(msg, "island")
-    if sender is not None and island != sender:
-        raise MessageRejected("sender", f"join request on the key of {sender!r} names island {island!r}")
-    return JoinRequest(campaign, island, _algo(msg, "algo"), _int(msg, "seed"), _bytes(msg, "nonce", 16))
+    return _request(_unpack(data, "join", campaign), campaign, sender)
 
 
-def encode_joined(campaign: str, nonce: bytes, credentials: Credentials | None = None, refused: str = "") -> bytes:
-    """The coordinator's answer to a join request: the credentials, or why it refuses."""
-    body: dict[str, Any] = {"v": PROTOCOL_VERSION, "type": "joined", "campaign": campaign, "nonce": nonce, "refused": refused[:MAX_TEXT]}
-    if credentials is not None:
-        body.update(island=credentials.island, run=credentials.run, key=credentials.key, campaign_key=credentials.campaign_key)
-    return _dumps(body)
+def encode_challenge(campaign: str, island: str, nonce: bytes, challenge: bytes, run: str, key: bytes) -> bytes:
+    """The coordinator's answer to a join request: a fresh challenge, signed (so that an island can tell its
+    coordinator from a stranger before it proves anything)."""
+    return seal("challenge", campaign, COORDINATOR, run, 0, {"island": island, "nonce": nonce, "challenge": challenge}, key)
 
 
-def decode_joined(data: bytes, campaign: str, island: str, nonce: bytes) -> Credentials:
-    """The credentials in the answer to our join request; a refusal is a :class:`HysidInputError`
-    with the coordinator's reason."""
-    msg = _unpack(data, "joined", campaign)
-    if _bytes(msg, "nonce", 16) != nonce:
+def decode_challenge(data: bytes, campaign: str, island: str, nonce: bytes, coordinator: bytes) -> bytes:
+    """The challenge in the coordinator's answer to our join request ``nonce``."""
+    s = unseal(data, "challenge", campaign, key_for=lambda sender, run: coordinator, sender=COORDINATOR)
+    if _bytes(s.fields, "nonce", NONCE_BYTES) != nonce or _name(s.fields, "island") != island:
+        raise MessageRejected("replay", "a challenge for another join request")
+    return _bytes(s.fields, "challenge", NONCE_BYTES)
+
+
+@dataclass(frozen=True)
+class Proof:
+    """The second step: the request again with the coordinator's challenge, the proof that the island
+    holds the admission secret and its signature with the key it registers (it holds that key too)."""
+
+    request: JoinRequest
+    challenge: bytes
+    proof: bytes
+    signature: bytes
+
+
+def encode_prove(r: JoinRequest, challenge: bytes, admission: bytes, key: bytes) -> bytes:
+    """Proof of the admission secret (:func:`island.sealing.prove`) and of the run's private ``key``."""
+    transcript = r.transcript(challenge)
+    return _dumps({"v": PROTOCOL_VERSION, "type": "prove", "campaign": r.campaign, "island": r.island, "algo": r.algo, "seed": int(r.seed),
+                   "nonce": r.nonce, "key": r.key, "challenge": challenge, "proof": prove(admission, transcript), "sig": sign(key, transcript)})
+
+
+def decode_join_step(data: bytes, campaign: str, sender: str | None = None) -> JoinRequest | Proof:
+    """A message on ``join/<id>``: a request (the first step) or a proof (the second)."""
+    msg = _unpack(data, "join", campaign, types=("join", "prove"))
+    request = _request(msg, campaign, sender)
+    if msg["type"] == "join":
+        return request
+    return Proof(request, _bytes(msg, "challenge", NONCE_BYTES), _bytes(msg, "proof", KEY_BYTES), _bytes(msg, "sig", SIGNATURE_BYTES))
+
+
+def proof_holds(p: Proof, admission: bytes) -> bool:
+    """Whether ``p`` proves the admission secret and the private half of the key it registers."""
+    transcript = p.request.transcript(p.challenge)
+    return proven(admission, transcript, p.proof) and verify(p.request.key, p.signature, transcript)
+
+
+def encode_joined(campaign: str, nonce: bytes, island: str, run: str, coordinator_run: str, key: bytes, refused: str = "") -> bytes:
+    """The coordinator's answer to a proof: the run id it issued, or why it refuses; signed."""
+    return seal("joined", campaign, COORDINATOR, coordinator_run, 0, {"island": island, "nonce": nonce, "run": run, "refused": refused[:MAX_TEXT]}, key)
+
+
+def decode_joined(data: bytes, campaign: str, island: str, nonce: bytes, coordinator: bytes) -> str:
+    """The run id in the coordinator's answer to our proof; a refusal (signed: only the coordinator can refuse)
+    is a :class:`HysidInputError` with its reason."""
+    s = unseal(data, "joined", campaign, key_for=lambda sender, run: coordinator, sender=COORDINATOR)
+    if _bytes(s.fields, "nonce", NONCE_BYTES) != nonce or _name(s.fields, "island") != island:
         raise MessageRejected("replay", "answer to another join request")
-    refused = _text(msg, "refused")
+    refused = _text(s.fields, "refused")
     if refused:
         raise HysidInputError(f"the coordinator of campaign {campaign!r} refused island {island!r}: {refused}")
-    if _name(msg, "island") != island:
-        raise MessageRejected("sender", "credentials for another island")
-    return Credentials(island, _name(msg, "run"), _bytes(msg, "key", KEY_BYTES), _bytes(msg, "campaign_key", KEY_BYTES))
+    return _name(s.fields, "run")
 
 
 # --- migrants ---------------------------------------------------------------
@@ -218,20 +308,26 @@ class Migrants:
 
 
 def encode_migrants(m: Migrants, credentials: Credentials) -> bytes:
-    """Tagged for the coordinator (run key) and for the other islands (campaign key)."""
+    """Signed with the island run's key: the coordinator and every island check it with its public half."""
     fields = {"iteration": int(m.iteration), "x": pack_array(m.x), "claimed": pack_array(m.claimed), "sent_at": float(m.sent_at)}
-    keys = {"run": credentials.key, "campaign": credentials.campaign_key}
-    return seal("migrants", m.campaign, m.island, m.run, m.seq, fields, keys)
+    return seal("migrants", m.campaign, m.island, m.run, m.seq, fields, credentials.key)
 
 
-def decode_migrants(data: bytes, campaign: str, bounds: np.ndarray, *, tag: str, key_for: KeyLookup, sender: str | None = None) -> Migrants:
+def decode_migrants(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: KeyLookup, sender: str | None = None,
+                    now: float | None = None) -> Migrants:
     """Validate a migrant message against the campaign's ``(D, 2)`` bounds.
 
     ``sender`` is the island named by the Zenoh key the message came on; the
-    message must name the same island. The coordinator checks the ``run`` tag,
-    islands the ``campaign`` tag.
+    message must name the same island and verify under the public key
+    ``key_for`` knows for its run. ``now`` (the receiver's ``time.time()``):
+    a send time further than :data:`MAX_CLOCK_SKEW_S` from it, or before
+    2020, is ``out_of_range``.
     """
-    s = unseal(data, "migrants", campaign, tag=tag, key_for=key_for, sender=sender)
+    return migrants_of(unseal(data, "migrants", campaign, key_for=key_for, sender=sender), campaign, bounds, now)
+
+
+def migrants_of(s: Sealed, campaign: str, bounds: np.ndarray, now: float | None = None) -> Migrants:
+    """The fields of an opened migrant message, checked."""
     msg = s.fields
     dim = bounds.shape[0]
     x = _array(msg, "x", (None, dim), MAX_MIGRANTS * dim)
@@ -242,7 +338,12 @@ def decode_migrants(data: bytes, campaign: str, bounds: np.ndarray, *, tag: str,
     _finite(claimed, "claimed fitness")
     if np.any(claimed < 0):
         raise MessageRejected("schema", "claimed fitness is negative")
+    if np.any(claimed > MAX_FITNESS):
+        raise MessageRejected("out_of_range", f"claimed fitness above {MAX_FITNESS:g}")
     sent_at = _number(msg, "sent_at")
+    latest = (time.time() if now is None else now) + MAX_CLOCK_SKEW_S
+    if not EPOCH_2020 <= sent_at <= latest:
+        raise MessageRejected("out_of_range", f"sent at {sent_at:.6g} (Unix time): before 2020 or more than a day ahead of this clock")
     return Migrants(campaign, s.sender, s.run, _int(msg, "iteration", maximum=MAX_COUNT), x, claimed, sent_at, s.seq)
 
 
@@ -278,14 +379,16 @@ def encode_history(h: History, credentials: Credentials) -> bytes:
         "best_x": pack_array(h.best_x), "best_f": float(h.best_f), "stats": {k: int(h.stats[k]) for k in STAT_NAMES},
         "final": bool(h.final), "gain": float(h.gain),
     }
-    return seal("history", h.campaign, h.island, h.run, h.seq, fields, {"run": credentials.key})
+    return seal("history", h.campaign, h.island, h.run, h.seq, fields, credentials.key)
 
 
 def decode_history(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: KeyLookup, sender: str | None = None) -> History:
     """A history message checked for form: rows sorted by iteration, counts whole, non-negative and
-    exact in float64, evaluations and best fitness monotone (how many evaluations are plausible
-    is the coordinator's check)."""
-    s = unseal(data, "history", campaign, tag="run", key_for=key_for, sender=sender)
+    exact in float64, evaluations, wall times and best fitness monotone, fitness values finite and up
+    to :data:`MAX_FITNESS` (``out_of_range`` otherwise; an infinite best only in a message without rows,
+    sent before the island's first iteration). How many evaluations, iterations and seconds are
+    plausible is the coordinator's check."""
+    s = unseal(data, "history", campaign, key_for=key_for, sender=sender)
     msg = s.fields
     algo = _algo(msg, "algo")
     rows = _array(msg, "rows", (None, 4), 4 * MAX_ROWS)
@@ -294,13 +397,17 @@ def decode_history(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: K
     counts = rows[:, [0, 2]]
     if np.any(rows < 0) or np.any(counts != np.round(counts)) or np.any(counts > MAX_COUNT):
         raise MessageRejected("schema", "history rows need whole iterations and evaluations up to 2**53 and non-negative values")
-    if np.any(np.diff(rows[:, 0]) <= 0) or np.any(np.diff(rows[:, 2]) < 0) or np.any(np.diff(rows[:, 1]) > 0):
-        raise MessageRejected("implausible", "history rows must have rising iterations, evaluations that never fall and a best that never worsens")
+    if np.any(rows[:, 1] > MAX_FITNESS):
+        raise MessageRejected("out_of_range", f"history best fitness above {MAX_FITNESS:g} (or infinite)")
+    if np.any(np.diff(rows[:, 0]) <= 0) or np.any(np.diff(rows[:, 2]) < 0) or np.any(np.diff(rows[:, 1]) > 0) or np.any(np.diff(rows[:, 3]) < 0):
+        raise MessageRejected("implausible", "history rows must have rising iterations, evaluations and wall times that never fall and a best that never worsens")
     best_x = _array(msg, "best_x", (bounds.shape[0],), MAX_DIM)
     _in_bounds(best_x[None, :], bounds)
     best_f = _number(msg, "best_f", allow_inf=True)
     if best_f < 0:
         raise MessageRejected("schema", "best fitness is negative")
+    if best_f > MAX_FITNESS and (rows.size or best_f != np.inf):
+        raise MessageRejected("out_of_range", f"best fitness above {MAX_FITNESS:g} (infinite only before the first iteration)")
     stats_msg = _get(msg, "stats", dict)
     stats = {k: _int(stats_msg, k) for k in STAT_NAMES}
     gain = _number(msg, "gain")
@@ -313,19 +420,21 @@ def decode_history(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: K
 @dataclass(frozen=True)
 class MemberState:
     """One joined island run as the coordinator sees it: alive or not, the last iteration up to
-    which all of its history rows are committed to the database (-1: none), and the algorithm it
-    is to run (a mixed campaign may move it to another one, :mod:`island.share`)."""
+    which all of its history rows are committed to the database (-1: none), the algorithm it
+    is to run (a mixed campaign may move it to another one, :mod:`island.share`), and the public
+    key its messages are signed with."""
 
     island: str
     run: str
     alive: bool
     stored: int
     algo: str
+    key: bytes
 
 
 @dataclass(frozen=True)
 class Control:
-    """The coordinator's roster and stop order (``stop`` = "" while the campaign goes on)."""
+    """The coordinator's roster (in the order the runs joined) and stop order (``stop`` = "" while the campaign goes on)."""
 
     campaign: str
     members: tuple[MemberState, ...]
@@ -333,25 +442,26 @@ class Control:
     seq: int
 
 
-def encode_control(c: Control, run: str, keys: dict[str, bytes]) -> bytes:
-    """Tagged once per joined island (``keys``: island -> its run key) by the coordinator run ``run``."""
-    fields = {"members": [[m.island, m.run, bool(m.alive), int(m.stored), m.algo] for m in c.members], "stop": c.stop[:MAX_TEXT]}
-    return seal("control", c.campaign, COORDINATOR, run, c.seq, fields, keys)
+def encode_control(c: Control, run: str, key: bytes) -> bytes:
+    """Signed by the coordinator run ``run`` with the coordinator's private ``key``."""
+    fields = {"members": [[m.island, m.run, bool(m.alive), int(m.stored), m.algo, m.key] for m in c.members], "stop": c.stop[:MAX_TEXT]}
+    return seal("control", c.campaign, COORDINATOR, run, c.seq, fields, key)
 
 
-def decode_control(data: bytes, campaign: str, credentials: Credentials) -> Control:
-    """A control message, checked with our own run key."""
-    s = unseal(data, "control", campaign, tag=credentials.island, key_for=lambda sender, run: credentials.key, sender=COORDINATOR)
+def decode_control(data: bytes, campaign: str, coordinator: bytes) -> Control:
+    """A control message, checked with the coordinator's public key (from the campaign secret)."""
+    s = unseal(data, "control", campaign, key_for=lambda sender, run: coordinator, sender=COORDINATOR)
     entries = _get(s.fields, "members", list)
     if len(entries) > MAX_MEMBERS:
         raise MessageRejected("oversized", f"roster of {len(entries)} runs exceeds {MAX_MEMBERS}")
     members = []
     for e in entries:
-        if not (isinstance(e, list) and len(e) == 5):
-            raise MessageRejected("schema", "roster entry is not [island, run, alive, stored, algo]")
-        entry = dict(zip(("island", "run", "alive", "stored", "algo"), e))
+        if not (isinstance(e, list) and len(e) == 6):
+            raise MessageRejected("schema", "roster entry is not [island, run, alive, stored, algo, key]")
+        entry = dict(zip(("island", "run", "alive", "stored", "algo", "key"), e))
         members.append(MemberState(
             _name(entry, "island"), _name(entry, "run"), _get(entry, "alive", bool), _int(entry, "stored", -1, MAX_COUNT), _algo(entry, "algo"),
+            _bytes(entry, "key", KEY_BYTES),
         ))
     return Control(campaign, tuple(members), _text(s.fields, "stop"), s.seq)
 
@@ -367,16 +477,62 @@ class Best:
     fitness: float
 
 
-def encode_best(b: Best) -> bytes:
-    return _dumps({"v": PROTOCOL_VERSION, "type": "best", "campaign": b.campaign, "island": b.island, "x": pack_array(b.x), "fitness": float(b.fitness)})
+def encode_best(b: Best, run: str, key: bytes) -> bytes:
+    """Signed by the coordinator (run ``run``, private ``key``)."""
+    return seal("best", b.campaign, COORDINATOR, run, 0, {"island": b.island, "x": pack_array(b.x), "fitness": float(b.fitness)}, key)
 
 
-def decode_best(data: bytes, campaign: str, bounds: np.ndarray) -> Best:
-    """Not sealed: an island re-evaluates the candidate before it takes it in."""
-    msg = _unpack(data, "best", campaign)
-    x = _array(msg, "x", (bounds.shape[0],), MAX_DIM)
+def decode_best(data: bytes, campaign: str, bounds: np.ndarray, coordinator: bytes) -> Best:
+    """Checked with the coordinator's public key; an island still re-evaluates the candidate before it takes it in."""
+    s = unseal(data, "best", campaign, key_for=lambda sender, run: coordinator, sender=COORDINATOR)
+    x = _array(s.fields, "x", (bounds.shape[0],), MAX_DIM)
     _in_bounds(x[None, :], bounds)
-    fitness = _number(msg, "fitness")
+    fitness = _number(s.fields, "fitness")
     if fitness < 0:
         raise MessageRejected("not_finite", "best fitness is not a finite non-negative number")
-    return Best(campaign, _name(msg, "island"), x, fitness)
+    return Best(campaign, _name(s.fields, "island"), x, fitness)
+
+
+# --- history queries ----------------------------------------------------------------
+@dataclass(frozen=True)
+class HistoryQuery:
+    """The coordinator asking island ``island`` for the rows of its run ``run`` after iteration ``since``;
+    ``seq`` rises with every query (across coordinator restarts), so that a captured query cannot be replayed."""
+
+    campaign: str
+    island: str
+    run: str
+    since: int
+    seq: int
+
+
+def _query_signed(q: HistoryQuery) -> bytes:
+    return _dumps([PROTOCOL_VERSION, "history_query", q.campaign, q.island, q.run, q.since, q.seq])
+
+
+def encode_history_query(q: HistoryQuery, key: bytes) -> str:
+    """The selector parameters of a history query (``history/<id>?...``), signed by the coordinator."""
+    return f"run={q.run};since={q.since};seq={q.seq};sig={sign(key, _query_signed(q)).hex()}"
+
+
+def decode_history_query(params: Any, campaign: str, island: str, coordinator: bytes) -> HistoryQuery:
+    """The query in selector parameters ``params`` (a mapping with ``get``) addressed to ``island``, if the
+    coordinator of public key ``coordinator`` signed it; whether ``seq`` is new is the island's check."""
+    def number(name: str, low: int) -> int:
+        text = params.get(name)
+        if not isinstance(text, str) or not QUERY_NUMBER.match(text) or not low <= int(text) <= MAX_COUNT:
+            raise MessageRejected("schema", f"history query parameter {name!r} is not a number from {low} to 2**53")
+        return int(text)
+
+    run = params.get("run")
+    if not isinstance(run, str) or not NAME_PATTERN.match(run):
+        raise MessageRejected("schema", "history query names no valid run")
+    q = HistoryQuery(campaign, island, run, number("since", -1), number("seq", 0))
+    sig = params.get("sig")
+    try:
+        signature = bytes.fromhex(sig) if isinstance(sig, str) and len(sig) == 2 * SIGNATURE_BYTES else None
+    except ValueError:
+        signature = None
+    if signature is None or not verify(coordinator, signature, _query_signed(q)):
+        raise MessageRejected("forged", f"history query for {island!r} not signed by the coordinator")
+    return q

@@ -1,47 +1,114 @@
-"""Sealed messages: who may send them, tagged and numbered.
+"""Sealed messages: who sent them, signed and numbered; and the proof that an island holds the campaign secret.
 
-An island that joins gets its :class:`Credentials`: a run id, a per-run key,
-and the campaign key that every joined island shares. The ``migrants``,
-``history`` and ``control`` messages of :mod:`island.protocol` are *sealed*
-(:func:`seal`, :func:`unseal`): the fields travel as a msgpack ``body`` inside
-an envelope naming the sender, its run and a message number ``seq``
-(:class:`Counter`), with HMAC-SHA256 tags over all of it. An island tags with
-its run key (checked by the coordinator) and, for migrants, the campaign key
-(checked by other islands); the coordinator tags a control message once per
-joined island with that island's run key. A message from a sender that did not
-join, with a wrong tag, or whose number was seen before (a replay, see
-:class:`ReplayGuard`) is rejected with a :class:`island.wire.MessageRejected`.
+Every party signs what it sends with a key of its own (Ed25519): the
+coordinator with the key whose public half is in the campaign secret
+(:class:`island.secret.CampaignSecret`), an island with the key of its run,
+made by the island itself; its public half is registered when the island joins
+(:mod:`island.protocol`'s join handshake, where the island also proves with
+:func:`prove` that it holds the campaign's admission secret) and listed in the
+coordinator's roster, so that everyone can check everyone and nobody can sign
+as another. No key is shared.
+
+A sealed message (:func:`seal`, :func:`unseal`) carries its fields as a
+msgpack ``body`` inside an envelope naming the sender, its run and a message
+number ``seq`` (:class:`Counter`), signed over all of it. A message from a
+sender run nobody knows, with a signature that does not verify, or whose
+number was seen before (a replay, see :class:`ReplayGuard`: checked only once
+the signature verified, so that a forged number cannot move a sender's window)
+is rejected with a :class:`island.wire.MessageRejected`.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import hmac
 import secrets
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
+
+from cryptography.exceptions import InvalidSignature
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
 from island.wire import MAX_MEMBERS, PROTOCOL_VERSION, MessageRejected, _dumps, _get, _int, _loads, _name, _unpack, check_name
 
 KEY_BYTES = 32
+"""Bytes of a private signing key (its seed), of a public key and of the admission secret."""
+SIGNATURE_BYTES = 64
+
+
+def new_key() -> bytes:
+    """A fresh private signing key (Ed25519, its 32-byte seed)."""
+    return secrets.token_bytes(KEY_BYTES)
+
+
+@functools.lru_cache(maxsize=64)
+def _private(key: bytes) -> Ed25519PrivateKey:
+    return Ed25519PrivateKey.from_private_bytes(key)
+
+
+@functools.lru_cache(maxsize=8192)
+def _public(key: bytes) -> Ed25519PublicKey | None:
+    try:
+        return Ed25519PublicKey.from_public_bytes(key)
+    except ValueError:
+        return None
+
+
+def public_key(key: bytes) -> bytes:
+    """The public half of private key ``key``."""
+    from cryptography.hazmat.primitives.serialization import Encoding, PublicFormat
+
+    return _private(key).public_key().public_bytes(Encoding.Raw, PublicFormat.Raw)
+
+
+def sign(key: bytes, data: bytes) -> bytes:
+    return _private(key).sign(data)
+
+
+def verify(public: bytes, signature: Any, data: bytes) -> bool:
+    """Whether ``signature`` is ``data`` signed by the private half of ``public`` (False for anything malformed)."""
+    if not isinstance(signature, bytes) or len(signature) != SIGNATURE_BYTES or not isinstance(public, bytes) or len(public) != KEY_BYTES:
+        return False
+    key = _public(public)
+    if key is None:
+        return False
+    try:
+        key.verify(signature, data)
+    except InvalidSignature:
+        return False
+    return True
+
+
+def prove(admission: bytes, transcript: bytes) -> bytes:
+    """The proof that whoever sends ``transcript`` (which holds the coordinator's fresh challenge) holds the admission secret."""
+    return hmac.new(admission, b"hysid admission\x00" + transcript, hashlib.sha256).digest()
+
+
+def proven(admission: bytes, transcript: bytes, proof: bytes) -> bool:
+    return hmac.compare_digest(prove(admission, transcript), proof)
 
 
 @dataclass(frozen=True)
 class Credentials:
-    """What an island gets when it joins: its run id and run key, and the campaign key that every
-    joined island shares (migrants are tagged with it so that other islands can check them)."""
+    """An island run's identity in a campaign: its island id, the run id the coordinator issued, its own
+    private signing key, and the coordinator's public key (from the campaign secret)."""
 
     island: str
     run: str
-    key: bytes
-    campaign_key: bytes
+    key: bytes = field(repr=False)
+    coordinator: bytes
+
+    @property
+    def public(self) -> bytes:
+        return public_key(self.key)
 
     @classmethod
-    def issue(cls, island: str, campaign_key: bytes) -> "Credentials":
-        """New credentials for a run of ``island`` (a fresh run id and key)."""
-        return cls(check_name("island", island), secrets.token_hex(6), secrets.token_bytes(KEY_BYTES), campaign_key)
+    def issue(cls, island: str, coordinator: bytes) -> "Credentials":
+        """Credentials of a new run of ``island`` with a fresh run id and key (in-process campaigns, tests)."""
+        return cls(check_name("island", island), secrets.token_hex(6), new_key(), coordinator)
 
 
 @dataclass(frozen=True)
@@ -54,43 +121,61 @@ class Sealed:
     fields: dict[str, Any]
 
 
-def _tag(key: bytes, msg_type: str, campaign: str, sender: str, run: str, seq: int, body: bytes) -> bytes:
-    header = _dumps([PROTOCOL_VERSION, msg_type, campaign, sender, run, seq])
-    return hmac.new(key, header + body, hashlib.sha256).digest()
+def _signed(msg_type: str, campaign: str, sender: str, run: str, seq: int, body: bytes) -> bytes:
+    return _dumps([PROTOCOL_VERSION, msg_type, campaign, sender, run, seq]) + body
 
 
-def seal(msg_type: str, campaign: str, sender: str, run: str, seq: int, fields: dict[str, Any], keys: dict[str, bytes]) -> bytes:
-    """A sealed message: ``fields`` as the body, tagged with each of ``keys`` (tag name -> key)."""
+def seal(msg_type: str, campaign: str, sender: str, run: str, seq: int, fields: dict[str, Any], key: bytes) -> bytes:
+    """A sealed message: ``fields`` as the body, signed with the private ``key`` of ``sender``'s run ``run``."""
     body = _dumps(fields)
-    tags = {name: _tag(key, msg_type, campaign, sender, run, seq, body) for name, key in keys.items()}
-    return _dumps({"v": PROTOCOL_VERSION, "type": msg_type, "campaign": campaign, "sender": sender, "run": run, "seq": seq, "body": body, "tags": tags})
+    signature = sign(key, _signed(msg_type, campaign, sender, run, seq, body))
+    return _dumps({"v": PROTOCOL_VERSION, "type": msg_type, "campaign": campaign, "sender": sender, "run": run, "seq": seq,
+                   "body": body, "sig": signature})
 
 
 KeyLookup = Callable[[str, str], "bytes | None"]
-"""``key_for(sender, run)``: the key to check a sender's tag with, None if that run never joined."""
+"""``key_for(sender, run)``: the public key to check a sender run's signature with, None if nobody knows that run."""
 
 
-def unseal(data: bytes, msg_type: str, campaign: str, *, tag: str, key_for: KeyLookup, sender: str | None = None) -> Sealed:
-    """Open a sealed message: envelope, sender (``sender`` is the one the Zenoh key names), its key,
-    the tag named ``tag``, then the body. Nothing of the body is read before the tag matches."""
+@dataclass(frozen=True)
+class Envelope:
+    """A sealed message's envelope, read but not yet checked against its sender's key."""
+
+    msg_type: str
+    campaign: str
+    sender: str
+    run: str
+    seq: int
+    body: bytes
+    signature: Any
+
+
+def envelope(data: bytes, msg_type: str, campaign: str, sender: str | None = None) -> Envelope:
+    """The envelope of a sealed message (``sender``: the one the Zenoh key names must be the one it claims)."""
     env = _unpack(data, msg_type, campaign)
     source = _name(env, "sender")
     if sender is not None and source != sender:
         raise MessageRejected("sender", f"message from the key of {sender!r} claims sender {source!r}")
-    run = _name(env, "run")
-    seq = _int(env, "seq")
-    body = _get(env, "body", bytes)
-    tags = _get(env, "tags", dict)
-    key = key_for(source, run)
+    return Envelope(msg_type, campaign, source, _name(env, "run"), _int(env, "seq"), _get(env, "body", bytes), env.get("sig"))
+
+
+def open_envelope(env: Envelope, key: bytes | None) -> Sealed:
+    """The fields of a sealed message once its signature verifies under ``key`` (None: its sender run is unknown)."""
     if key is None:
-        raise MessageRejected("unjoined", f"{source!r} run {run!r} did not join the campaign")
-    got = tags.get(tag)
-    if not isinstance(got, bytes) or not hmac.compare_digest(got, _tag(key, msg_type, campaign, source, run, seq, body)):
-        raise MessageRejected("forged", f"{msg_type} message of {source!r} run {run!r} has no valid tag")
-    fields = _loads(body, f"{msg_type} body")
+        raise MessageRejected("unjoined", f"{env.sender!r} run {env.run!r} did not join the campaign")
+    if not verify(key, env.signature, _signed(env.msg_type, env.campaign, env.sender, env.run, env.seq, env.body)):
+        raise MessageRejected("forged", f"{env.msg_type} message of {env.sender!r} run {env.run!r} has no valid signature")
+    fields = _loads(env.body, f"{env.msg_type} body")
     if not isinstance(fields, dict):
-        raise MessageRejected("schema", f"{msg_type} body is {type(fields).__name__}, not a map")
-    return Sealed(source, run, seq, fields)
+        raise MessageRejected("schema", f"{env.msg_type} body is {type(fields).__name__}, not a map")
+    return Sealed(env.sender, env.run, env.seq, fields)
+
+
+def unseal(data: bytes, msg_type: str, campaign: str, *, key_for: KeyLookup, sender: str | None = None) -> Sealed:
+    """Open a sealed message: envelope, sender (``sender`` is the one the Zenoh key names), its key,
+    the signature, then the body. Nothing of the body is read before the signature verifies."""
+    env = envelope(data, msg_type, campaign, sender)
+    return open_envelope(env, key_for(env.sender, env.run))
 
 
 class Counter:
@@ -114,7 +199,9 @@ class ReplayGuard:
     A number seen before, or older than the window, is a replay. Messages may
     arrive out of order within the window (a history re-sent on request passes
     a newer publication). At most ``runs`` sender runs are tracked; the least
-    recently heard one is forgotten first.
+    recently heard one is forgotten first. Only messages whose signature
+    verified under their sender run's own key may be shown to it: a number is
+    the sender's word, and nobody else's can move its window.
     """
 
     def __init__(self, window: int = 4096, runs: int = 2 * MAX_MEMBERS) -> None:

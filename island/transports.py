@@ -4,7 +4,9 @@
   ``hysid/<campaign>/...`` (:func:`key_prefix`, which the coordinator's
   :mod:`coordinator.links` speaks too); :func:`join` is its join handshake,
   :func:`fetch_config` asks the coordinator for the campaign's ``config``
-  message before the island is built;
+  message before the island is built. Queries go to every queryable and
+  every answer is checked against the coordinator's key in the campaign
+  secret (:mod:`island.secret`): a stranger that answers first changes nothing;
 * :class:`MemoryBus` and its :class:`MemoryTransport`: islands as threads of
   one process, in lock step at every epoch so that a single-node campaign is
   reproducible.
@@ -14,7 +16,6 @@ Both are :class:`island.node.Transport` s of an :class:`island.node.IslandNode`.
 
 from __future__ import annotations
 
-import re
 import secrets
 import threading
 import time
@@ -28,19 +29,30 @@ from island.node import IslandNode
 from island.protocol import (
     Control,
     JoinRequest,
+    decode_challenge,
     decode_control,
+    decode_history_query,
     decode_joined,
+    decode_signed_config,
     encode_join,
+    encode_prove,
 )
-from island.sealing import Credentials
-from island.wire import MAX_COUNT, MAX_MEMBERS, MessageRejected, check_name
+from island.secret import CampaignSecret
+from island.sealing import Credentials, new_key, public_key
+from island.wire import MAX_MEMBERS, MessageRejected, check_name
 
 SILENT_S = 4.0
 """An island whose coordinator sent no control message for this long (it sends one every second at
 least) says so and waits for it, searching on, up to its ``wait_s`` more; then it stops."""
 HISTORY_QUERIES_PER_S = 4.0
 """History queries an island answers per second (the coordinator asks every 2 s at most)."""
-SINCE_PATTERN = re.compile(r"-?[0-9]{1,16}\Z")
+QUERY_TIMEOUT_S = 5.0
+HEARTBEAT_S = 1.0
+"""An island with no new history row for this long sends a heartbeat (a signed history without rows):
+the coordinator counts an island alive by what it signs, not by its liveliness token."""
+SILENT_MEMBER_S = 5.0
+"""A ring member whose migrants have not arrived for this long is skipped by the island after it
+(:meth:`island.node.IslandNode._sending`): a member that sends nothing cannot starve its successor."""
 
 
 def key_prefix(campaign: str) -> str:
@@ -48,38 +60,61 @@ def key_prefix(campaign: str) -> str:
     return f"hysid/{check_name('campaign', campaign)}"
 
 
+def replies(session: zenoh.Session, selector: str, timeout: float, payload: bytes | None = None) -> list[bytes]:
+    """Every answer to a query, from every queryable (a stranger may answer too: the caller checks each)."""
+    got = session.get(selector, payload=payload, timeout=timeout, target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE)
+    return [r.ok.payload.to_bytes() for r in got if r.ok is not None]
+
+
 def join(
-    session: zenoh.Session, campaign: str, island: str, algo: str, seed: int, wait_s: float, on_reject: Callable[[], None] | None = None
+    session: zenoh.Session, campaign: str, island: str, algo: str, seed: int, secret: CampaignSecret, wait_s: float,
+    on_reject: Callable[[], None] | None = None, key: bytes | None = None,
 ) -> Credentials:
-    """The join handshake: ask ``join/<id>`` (until a coordinator answers or ``wait_s`` passes) for
-    the island's credentials; ``on_reject`` counts answers that fail validation. A refusal (e.g.
-    the id is taken) is a :class:`HysidInputError`."""
-    key = f"{key_prefix(campaign)}/join/{island}"
-    nonce = secrets.token_bytes(16)
-    request = encode_join(JoinRequest(campaign, island, algo, seed, nonce))
+    """The join handshake on ``join/<id>`` (until the coordinator admits the island or ``wait_s`` passes): ask
+    with the public half of the run's signing ``key`` (a fresh one by default), take the challenge signed
+    by the coordinator of ``secret``, prove the admission secret, take the signed run id. Answers that
+    fail validation (a stranger posing as the coordinator) are counted by ``on_reject``; a refusal by
+    the coordinator (e.g. the id is taken) is a :class:`HysidInputError`."""
+    key = key if key is not None else new_key()
+    where = f"{key_prefix(campaign)}/join/{island}"
     deadline = time.monotonic() + wait_s
-    while True:
-        for reply in session.get(key, payload=request, timeout=min(5.0, max(wait_s, 0.5))):
-            if reply.ok is None:
-                continue
+    timeout = min(QUERY_TIMEOUT_S, max(wait_s, 0.5))
+
+    def answers(payload: bytes, decode: Callable[[bytes], str | bytes]) -> str | bytes | None:
+        for answer in replies(session, where, timeout, payload):
             try:
-                return decode_joined(reply.ok.payload.to_bytes(), campaign, island, nonce)
+                return decode(answer)
             except MessageRejected:
                 if on_reject is not None:
                     on_reject()
+        return None
+
+    request = JoinRequest(campaign, island, algo, seed, secrets.token_bytes(16), public_key(key))  # asked again as it is: one run
+    while True:
+        challenge = answers(encode_join(request), lambda a: decode_challenge(a, campaign, island, request.nonce, secret.coordinator))
+        if challenge is not None:
+            proof = encode_prove(request, challenge, secret.admission, key)
+            run = answers(proof, lambda a: decode_joined(a, campaign, island, request.nonce, secret.coordinator))
+            if run is not None:
+                return Credentials(island, str(run), key, secret.coordinator)
         if time.monotonic() >= deadline:
-            raise HysidInputError(f"no coordinator admitted island {island!r} on {key} within {wait_s:g} s")
+            raise HysidInputError(f"no coordinator admitted island {island!r} on {where} within {wait_s:g} s")
         time.sleep(0.2)
 
 
 class ZenohTransport:
     """An island's Zenoh entities under ``hysid/<campaign>/``.
 
-    Joins through ``join/<id>``, then publishes on ``migrants/<id>`` and
-    ``history/<id>``, subscribes to ``migrants/*`` and ``control``, answers
-    ``history/<id>?run=R;since=N`` with the rows the coordinator is missing
-    (after a coordinator restart), and declares the liveliness token
-    ``members/<id>`` (last: it tells the coordinator the island is up).
+    Joins through ``join/<id>`` (:func:`join`, with the campaign ``secret``),
+    then publishes on ``migrants/<id>`` and ``history/<id>``, subscribes to
+    ``migrants/*`` and ``control``, answers ``history/<id>?run=R;since=N;...``
+    with the rows the coordinator is missing (after a coordinator restart; only
+    queries the coordinator signed, each once), declares the liveliness
+    token ``members/<id>`` (last: it tells the coordinator the island is up),
+    and sends a heartbeat whenever it published no history for :data:`HEARTBEAT_S`.
+    Only control messages signed by the coordinator of ``secret`` count; their
+    roster gives the members in the order they joined and the public key of
+    each run (:meth:`key_for`, with which migrants are checked).
     ``wait_s`` bounds the join, the final wait for the coordinator's
     confirmation, and how long the island waits for a coordinator that fell
     silent (no control message for :data:`SILENT_S`: killed, or cut off) to come
@@ -90,19 +125,24 @@ class ZenohTransport:
     (one line each) when the coordinator falls silent and when it is back.
     """
 
-    def __init__(self, session: zenoh.Session, node: IslandNode, wait_s: float = 30.0, notify: Callable[[str], None] | None = None) -> None:
+    silent_s: float | None = SILENT_MEMBER_S
+
+    def __init__(
+        self, session: zenoh.Session, node: IslandNode, secret: CampaignSecret, wait_s: float = 30.0, notify: Callable[[str], None] | None = None
+    ) -> None:
         self.session = session
         self.node = node
         self.wait_s = wait_s
         self.notify = notify or (lambda message: None)
         prefix = key_prefix(node.config.name)
         self.prefix = prefix
-        self.credentials = join(session, node.config.name, node.island, node.algo, node.seed, wait_s, node.count_rejected)
-        node.credentials = self.credentials
+        self.secret = secret.check_campaign(node.config.name, "the campaign secret")
+        self.credentials = join(session, node.config.name, node.island, node.algo, node.seed, secret, wait_s, node.count_rejected)
         self._cond = threading.Condition()
         self._control_seq = -1
-        self._roster: dict[tuple[str, str], tuple[bool, int]] = {}
-        """(island, run) -> (alive, stored) as the coordinator's last control message said."""
+        self._query_seq = -1
+        self._roster: dict[tuple[str, str], tuple[bool, int, bytes]] = {}
+        """(island, run) -> (alive, stored, public key) as the coordinator's last control message said, in join order."""
         self._algo: str | None = None
         """The algorithm that message assigns this run."""
         self._stop = ""
@@ -112,6 +152,7 @@ class ZenohTransport:
         self._gone = ""
         """Why the island stopped on its own: its coordinator was silent for too long."""
         self._queries: deque[float] = deque(maxlen=int(HISTORY_QUERIES_PER_S))
+        node.attach(self)  # migrants are taken from the moment they can arrive
         self._migrants = session.declare_publisher(f"{prefix}/migrants/{node.island}")
         self._history = session.declare_publisher(f"{prefix}/history/{node.island}", congestion_control=zenoh.CongestionControl.BLOCK)
         self._entities = [
@@ -120,13 +161,23 @@ class ZenohTransport:
             session.declare_queryable(f"{prefix}/history/{node.island}", self._on_history_query),
         ]
         self._token = session.liveliness().declare_token(f"{prefix}/members/{node.island}")
+        self._published_at = time.monotonic()
+        self._closing = threading.Event()
+        self._heartbeat = threading.Thread(target=self._beat, name=f"heartbeat-{node.island}", daemon=True)
+        self._heartbeat.start()
+
+    def _beat(self) -> None:
+        """Every :data:`HEARTBEAT_S` without a history publication, until the island finished: a heartbeat."""
+        while not self._closing.wait(HEARTBEAT_S / 2):
+            if not self.node.finished and time.monotonic() - self._published_at >= HEARTBEAT_S:
+                self.publish_history(self.node.heartbeat())
 
     def _on_migrants(self, sample: zenoh.Sample) -> None:
         self.node.receive(str(sample.key_expr).rsplit("/", 1)[-1], sample.payload.to_bytes())
 
     def _on_control(self, sample: zenoh.Sample) -> None:
         try:
-            control = decode_control(sample.payload.to_bytes(), self.node.config.name, self.credentials)
+            control = decode_control(sample.payload.to_bytes(), self.node.config.name, self.secret.coordinator)
         except MessageRejected:
             self.node.count_rejected()
             return
@@ -139,7 +190,7 @@ class ZenohTransport:
                 self.node.count_rejected()
                 return
             self._control_seq = control.seq
-            self._roster = {(m.island, m.run): (m.alive, m.stored) for m in control.members}
+            self._roster = {(m.island, m.run): (m.alive, m.stored, m.key) for m in control.members}
             algo = next((m.algo for m in control.members if (m.island, m.run) == (self.node.island, self.credentials.run)), self._algo)
             if algo is not None and algo != self._algo and algo != self.node.algo:
                 self.notify(f"island {self.node.island}: campaign {self.node.config.name!r} moves this island from "
@@ -153,18 +204,26 @@ class ZenohTransport:
             self._cond.notify_all()
 
     def _on_history_query(self, query: zenoh.Query) -> None:
+        """Rows for the coordinator only: its signature, a number it never used before, at most
+        :data:`HISTORY_QUERIES_PER_S` a second; anything else is counted as rejected and not answered."""
         now = time.monotonic()
-        params = query.parameters
-        run, since = params.get("run"), params.get("since") or "-1"
         if len(self._queries) == self._queries.maxlen and now - self._queries[0] < 1.0:
             self.node.count_rejected()  # more history queries than the coordinator ever sends
             return
-        if not SINCE_PATTERN.match(since) or not -1 <= int(since) <= MAX_COUNT:
+        try:
+            q = decode_history_query(query.parameters, self.node.config.name, self.node.island, self.secret.coordinator)
+        except MessageRejected:
+            self.node.count_rejected()
+            return
+        with self._cond:
+            fresh = q.seq > self._query_seq
+            self._query_seq = max(self._query_seq, q.seq)
+        if not fresh:
             self.node.count_rejected()
             return
         self._queries.append(now)
-        since_i = int(since) if run == self.node.run_id else -1
-        for message in self.node.history_messages(since=since_i, final=self.node.finished):
+        since = q.since if q.run == self.node.run_id else -1
+        for message in self.node.history_messages(since=since, final=self.node.finished):
             query.reply(query.key_expr, message)
 
     # --- Transport ---
@@ -174,12 +233,19 @@ class ZenohTransport:
         return []
 
     def publish_history(self, payload: bytes) -> None:
+        self._published_at = time.monotonic()
         self._history.put(payload)
 
     def members(self) -> list[str]:
+        """Islands alive by the roster, in the order they joined (this one where it joined, or last)."""
         with self._cond:
-            alive = {island for (island, _), (up, _) in self._roster.items() if up}
-        return sorted(alive | {self.node.island})
+            alive = [island for (island, _), (up, _, _) in self._roster.items() if up]
+        return list(dict.fromkeys(alive if self.node.island in alive else [*alive, self.node.island]))
+
+    def key_for(self, island: str, run: str) -> bytes | None:
+        with self._cond:
+            entry = self._roster.get((island, run))
+        return None if entry is None else entry[2]
 
     def _joined_count(self) -> int:
         """Islands the roster lists, including those that have left: a fast island may finish before a slow one starts."""
@@ -210,11 +276,9 @@ class ZenohTransport:
         with self._cond:
             return self._algo
 
-    def global_best(self) -> bytes | None:
-        for reply in self.session.get(f"{self.prefix}/best", timeout=2.0):
-            if reply.ok is not None:
-                return reply.ok.payload.to_bytes()
-        return None
+    def global_best(self) -> list[bytes]:
+        """Every answer on ``best`` (a stranger's among them is refused when decoded)."""
+        return replies(self.session, f"{self.prefix}/best", 2.0)
 
     def wait_for_members(self, n: int, timeout_s: float) -> None:
         with self._cond:
@@ -224,30 +288,39 @@ class ZenohTransport:
         """Wait up to ``wait_s`` for a control message saying rows up to ``iteration`` are committed."""
         me = (self.node.island, self.node.run_id)
         with self._cond:
-            return self._cond.wait_for(lambda: self._roster.get(me, (False, -1))[1] >= iteration, timeout=self.wait_s)
+            return self._cond.wait_for(lambda: self._roster.get(me, (False, -1, b""))[1] >= iteration, timeout=self.wait_s)
 
     def close(self) -> None:
         """Leave the campaign: the token goes last, after the final history was sent."""
+        self._closing.set()
+        self._heartbeat.join()
         for entity in self._entities + [self._migrants, self._history]:
             entity.undeclare()
         self._token.undeclare()
 
 
-def fetch_config(session: zenoh.Session, campaign: str, wait_s: float) -> bytes:
-    """The coordinator's ``config`` message, asking until one answers or ``wait_s`` passes."""
-    key = f"{key_prefix(campaign)}/config"
+def fetch_config(session: zenoh.Session, secret: CampaignSecret, wait_s: float, on_reject: Callable[[], None] | None = None) -> bytes:
+    """The ``config`` message of the campaign of ``secret``, signed by its coordinator (answers of anyone
+    else are refused, counted by ``on_reject``), asking until one answers or ``wait_s`` passes."""
+    key = f"{key_prefix(secret.campaign)}/config"
     deadline = time.monotonic() + wait_s
     while True:
-        for reply in session.get(key, timeout=min(2.0, max(wait_s, 0.1))):
-            if reply.ok is not None:
-                return reply.ok.payload.to_bytes()
+        for answer in replies(session, key, min(2.0, max(wait_s, 0.1))):
+            try:
+                return decode_signed_config(answer, secret.campaign, secret.coordinator)
+            except MessageRejected:
+                if on_reject is not None:
+                    on_reject()
         if time.monotonic() >= deadline:
-            raise HysidInputError(f"no coordinator answered on {key} within {wait_s:g} s (is the coordinator of campaign {campaign!r} running and reachable?)")
+            raise HysidInputError(
+                f"no coordinator answered on {key} within {wait_s:g} s (is the coordinator of campaign {secret.campaign!r} running and "
+                "reachable, and is this its secret?)"
+            )
         time.sleep(0.2)
 
 
-Admit = Callable[[str, str, int], Credentials]
-"""``admit(island, algo, seed)``: the join handshake of an in-process island."""
+Admit = Callable[[str, str, int, bytes], str]
+"""``admit(island, algo, seed, public key)``: the run id the coordinator issues an in-process island."""
 
 
 class MemoryBus:
@@ -256,14 +329,15 @@ class MemoryBus:
     At epoch ``e`` every island posts its migrants and waits until each island
     still running has posted for ``e`` (or finished), so the exchange does not
     depend on thread timing and a seeded single-node campaign is reproducible.
-    ``admit`` issues each island's credentials (the coordinator's, in a
-    single-node campaign; by default the bus' own); ``assigned(island)`` is the
-    algorithm the coordinator tells an island to run (None: not said).
+    ``admit`` registers each island's signing key and issues its run (the
+    coordinator's, in a single-node campaign; by default the bus' own);
+    ``assigned(island)`` is the algorithm the coordinator tells an island to run
+    (None: not said).
     """
 
     def __init__(
         self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], None], stop: threading.Event, admit: Admit | None = None,
-        assigned: Callable[[str], str | None] | None = None,
+        assigned: Callable[[str], str | None] | None = None, coordinator: bytes = b"",
     ) -> None:
         self.prefix = key_prefix(campaign)
         self.islands = sorted(islands)
@@ -272,15 +346,25 @@ class MemoryBus:
         self.deliver = deliver
         """Receives every publication as ``(key, message)``, as the coordinator's subscribers would."""
         self.stop = stop
-        campaign_key = secrets.token_bytes(32)
-        self.admit = admit or (lambda island, algo, seed: Credentials.issue(island, campaign_key))
+        self.coordinator = coordinator
+        """The coordinator's public key (in one process nothing it sends goes through the bus)."""
+        self.admit = admit or (lambda island, algo, seed, key: secrets.token_hex(6))
         self.assigned = assigned or (lambda island: None)
+        self._keys: dict[tuple[str, str], bytes] = {}
         self._active = set(islands)
         self._posts: dict[int, dict[str, bytes]] = {}
         self._cond = threading.Condition()
 
     def transport(self, island: str, algo: str = "", seed: int = 0) -> "MemoryTransport":
-        return MemoryTransport(self, island, self.admit(island, algo, seed))
+        key = new_key()
+        run = self.admit(island, algo, seed, public_key(key))
+        with self._cond:
+            self._keys[(island, run)] = public_key(key)
+        return MemoryTransport(self, island, Credentials(island, run, key, self.coordinator))
+
+    def key_for(self, island: str, run: str) -> bytes | None:
+        with self._cond:
+            return self._keys.get((island, run))
 
     def exchange(self, island: str, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
         self.deliver(f"{self.prefix}/migrants/{island}", payload)
@@ -300,6 +384,9 @@ class MemoryBus:
 class MemoryTransport:
     """One island's view of a :class:`MemoryBus`."""
 
+    silent_s: float | None = None
+    """In lock step every member posts at every epoch."""
+
     def __init__(self, bus: MemoryBus, island: str, credentials: Credentials) -> None:
         self.bus = bus
         self.island = island
@@ -314,14 +401,17 @@ class MemoryTransport:
     def members(self) -> list[str]:
         return list(self.bus.islands)
 
+    def key_for(self, island: str, run: str) -> bytes | None:
+        return self.bus.key_for(island, run)
+
     def stop_requested(self) -> bool:
         return self.bus.stop.is_set()
 
     def stop_reason(self) -> str:
         return "stopped by the coordinator"
 
-    def global_best(self) -> bytes | None:
-        return None
+    def global_best(self) -> list[bytes]:
+        return []
 
     def assigned_algo(self) -> str | None:
         return self.bus.assigned(self.island)

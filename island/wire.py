@@ -30,13 +30,19 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
+"""4: every message a party relies on is signed (Ed25519) by its sender: the coordinator's by the key whose
+public half is in the campaign secret (:mod:`island.secret`), an island's by the key of its run, registered
+when it joined (a challenge-response that proves it holds the campaign secret); no key is shared any more.
+3: HMAC tags with per-run keys and a campaign key every joined island shared."""
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 """Campaign, island and run names: usable as one Zenoh key chunk (no ``/ * $ ? #``)."""
 
 MAX_BYTES = {
     "config": 256 << 20,
     "join": 4 << 10,
+    "challenge": 4 << 10,
+    "prove": 4 << 10,
     "joined": 4 << 10,
     "migrants": 256 << 10,
     "history": 4 << 20,
@@ -49,15 +55,23 @@ MAX_MEMBERS = 4096
 MAX_TEXT = 200
 """Longest free text (a stop reason, a refusal) taken from a message."""
 INT64_MAX = 2**63 - 1
+MAX_FITNESS = 1e200
+"""Largest fitness (a weighted sum of squared force residuals) taken from a message: far beyond any
+candidate inside a campaign's search bounds, far below float64's overflow."""
+EPOCH_2020 = 1577836800.0
+"""2020-01-01 in Unix time: no campaign message was sent before."""
 """Largest integer SQLite stores."""
 MAX_COUNT = 2**53
 """Largest count (iterations, evaluations) carried exactly in a float64 array."""
 REASONS = (
     "oversized", "undecodable", "schema", "version", "campaign", "sender", "unjoined", "forged", "replay",
-    "shape", "not_finite", "out_of_bounds", "implausible", "overflow",
+    "shape", "not_finite", "out_of_bounds", "out_of_range", "implausible", "overflow",
 )
 """Why a message is rejected. ``sender``: the key it came on names another island; ``unjoined``: its
-sender or run never joined; ``forged``: its tag does not match; ``replay``: its number was seen;
+sender or run never joined (or did not prove it holds the campaign secret); ``forged``: its signature
+does not verify under its sender's key; ``replay``: its number was seen; ``out_of_range``: a time or
+fitness no campaign can produce (a send time decades away, a wall time longer than the run has existed,
+a fitness beyond :data:`MAX_FITNESS`);
 ``implausible``: well-formed but impossible (e.g. more evaluations than the island could have done);
 ``overflow``: dropped because the receiver's queue for that sender was full."""
 
@@ -94,8 +108,8 @@ def _loads(data: bytes, what: str) -> Any:
         raise MessageRejected("undecodable", f"{what} is not msgpack ({type(exc).__name__})") from None
 
 
-def _unpack(data: bytes, msg_type: str, campaign: str) -> dict[str, Any]:
-    """Size check, msgpack decoding and the common envelope."""
+def _unpack(data: bytes, msg_type: str, campaign: str, types: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Size check, msgpack decoding and the common envelope (of type ``msg_type``, or one of ``types``)."""
     if not isinstance(data, (bytes, bytearray, memoryview)):
         raise MessageRejected("schema", f"payload is {type(data).__name__}, not bytes")
     if len(data) > MAX_BYTES[msg_type]:
@@ -105,8 +119,8 @@ def _unpack(data: bytes, msg_type: str, campaign: str) -> dict[str, Any]:
         raise MessageRejected("schema", f"top level is {type(msg).__name__}, not a map")
     if msg.get("v") != PROTOCOL_VERSION or isinstance(msg.get("v"), bool):
         raise MessageRejected("version", f"protocol version {_show(msg.get('v'))}, expected {PROTOCOL_VERSION}")
-    if msg.get("type") != msg_type:
-        raise MessageRejected("schema", f"type {_show(msg.get('type'))}, expected {msg_type!r}")
+    if msg.get("type") not in (types or (msg_type,)):
+        raise MessageRejected("schema", f"type {_show(msg.get('type'))}, expected {' or '.join(map(repr, types or (msg_type,)))}")
     if msg.get("campaign") != campaign:
         raise MessageRejected("campaign", f"campaign {_show(msg.get('campaign'))}, expected {campaign!r}")
     return msg

@@ -98,16 +98,33 @@ def wait_for(predicate: Callable[[], bool], timeout: float, what: str, step: flo
 def ready(endpoint: str, campaign: str, timeout: float = 90.0) -> None:
     """Wait until the coordinator of ``campaign`` answers its ``config`` query on ``endpoint`` (a
     coordinator process just started may not even listen yet): the readiness wait of every test
-    that starts one, instead of a sleep."""
+    that starts one, instead of a sleep. (It writes its secret before it answers.)"""
     from island.session import open_session, session_config
-    from island.transports import fetch_config
+    from island.transports import replies
 
     deadline = time.monotonic() + timeout
     session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=timeout), endpoint)
     try:
-        fetch_config(session, campaign, max(deadline - time.monotonic(), 1.0))
+        while not replies(session, f"hysid/{campaign}/config", 2.0):
+            if time.monotonic() > deadline:
+                raise AssertionError(f"no coordinator of {campaign!r} answered on {endpoint} within {timeout} s")
+            time.sleep(0.1)
     finally:
         session.close()
+
+
+def secret_of(db: Path, campaign: str):
+    """The campaign secret a coordinator process keeps beside its database ``db``."""
+    from island.secret import CampaignSecret, secret_path
+
+    return CampaignSecret.read(secret_path(db, campaign))
+
+
+def secret_file(db: Path, campaign: str) -> str:
+    """``--secret-file`` of an island of the coordinator whose database is ``db``."""
+    from island.secret import secret_path
+
+    return str(secret_path(db, campaign))
 
 
 class Lines:
@@ -132,17 +149,18 @@ class Lines:
 
 
 class Peer:
-    """A hand-driven island over Zenoh, for broken or hostile ones: it joins like an island (unless
-    ``joined=False``), then sends whatever a test wants under any key of the campaign."""
+    """A hand-driven party over Zenoh, from its own session, for broken or hostile ones: given the
+    campaign ``secret`` it joins like an island (a member that lies), without it it is an outsider;
+    then it sends whatever a test wants under any key of the campaign."""
 
-    def __init__(self, endpoint: str, campaign: str, island: str, *, joined: bool = True, algo: str = "pso", seed: int = 0) -> None:
+    def __init__(self, endpoint: str, campaign: str, island: str, *, secret=None, algo: str = "pso", seed: int = 0) -> None:
         from island.sealing import Counter
         from island.session import open_session, session_config
         from island.transports import join
 
         self.campaign, self.island = campaign, island
         self.session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=60.0), endpoint)
-        self.credentials = join(self.session, campaign, island, algo, seed, 30.0) if joined else None
+        self.credentials = join(self.session, campaign, island, algo, seed, secret, 30.0) if secret is not None else None
         self.seq = Counter()
         self.entities: list = []
 

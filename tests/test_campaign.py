@@ -19,7 +19,7 @@ from hysid_model.errors import HysidWarning
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from support import events, history_iterations, hysid, interruptible, query, rows_of, wait_for
+from support import events, history_iterations, hysid, interruptible, query, rows_of, secret_file, wait_for
 
 
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
@@ -93,11 +93,13 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
               "--time-limit", "120", "--json", "--quiet"),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
-    early = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet"), stderr=subprocess.PIPE, text=True)
+    secret = ["--secret-file", secret_file(db, "lj")]
+    early = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet", *secret), stderr=subprocess.PIPE, text=True)
     late = None
     try:
         wait_for(lambda: rows_of(db, "early") > 50, 60, "the first island's history")
-        late = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "late", "--seed", "99"), stderr=subprocess.PIPE, text=True)
+        late = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "late", "--seed", "99", *secret),
+                                stderr=subprocess.PIPE, text=True)
         wait_for(lambda: rows_of(db, "late") > 50, 60, "the late island's history")
         coordinator.send_signal(signal.SIGINT)  # Ctrl-C: stop the campaign and report
         out, err = coordinator.communicate(timeout=60)
@@ -130,10 +132,13 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
         (["coordinator", "--campaign", "a/b"], "--campaign 'a/b': must be 1-64 characters"),
         (["coordinator", "--listen", "localhost"], "--listen 'localhost': a Zenoh endpoint looks like tcp/127.0.0.1:7447"),
         (["island", "--algo", "de"], "--algo 'de': unknown algorithm; choose one of ga, pso"),
-        (["island", "--connect", "tcp/127.0.0.1:1", "--wait", "0.5"], "cannot open Zenoh session (connect tcp/127.0.0.1:1)"),
+        (["island", "--connect", "tcp/127.0.0.1:1", "--wait", "0.5"], "no campaign secret; give --secret-file"),
+        (["island", "--secret-file", "/nonexistent/x.secret", "--wait", "0"], "--secret-file /nonexistent/x.secret: no such file"),
     ],
 )
-def test_bad_arguments_are_one_line_errors(argv, message, capsys, tmp_path):
+def test_bad_arguments_are_one_line_errors(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.delenv("HYSID_SECRET", raising=False)
+    monkeypatch.delenv("HYSID_SECRET_FILE", raising=False)
     assert main([*argv, "--out", str(tmp_path / "o")] if argv[0] != "island" else argv) == 2
     err = capsys.readouterr().err
     assert err.startswith("hysid: error: ") and message in err and err.count("\n") == 1

@@ -26,13 +26,15 @@ from island.protocol import (
     History,
     JoinRequest,
     Migrants,
+    decode_challenge,
     decode_control,
     decode_joined,
     encode_history,
     encode_join,
     encode_migrants,
+    encode_prove,
 )
-from island.sealing import Credentials
+from island.sealing import Credentials, new_key, public_key
 from island.termination import Termination
 
 LOOPS = synth_loops(n_points=30)
@@ -77,7 +79,7 @@ def reasons(c: Coordinator) -> dict[str, int]:
 
 def test_history_of_an_island_that_never_joined_is_rejected_and_spends_no_budget(tmp_path, link):
     c = make(tmp_path, Termination(budget=100_000))
-    ghost = Credentials.issue("ghost", c.campaign_key)  # even with the campaign key: its run never joined
+    ghost = Credentials.issue("ghost", c.secret.coordinator)  # its run never joined
     x = truth(c)
     deliver(c, link, "history", "ghost", history(ghost, [[0, 1.0, 2**52, 0.1]], x, 0.0))
     deliver(c, link, "history", "ghost", history(ghost, [[0, 1.0, 2**52, 0.1]], x, 0.0, final=False, seq=1))
@@ -87,7 +89,7 @@ def test_history_of_an_island_that_never_joined_is_rejected_and_spends_no_budget
 
 def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link):
     c = make(tmp_path, Termination(budget=100_000))
-    island = c.admit("pso-1", "pso", 1)
+    island = c.join("pso-1", "pso", 1)
     x = c.objective.bounds.mean(axis=1)
     f = float(c.objective(x[None, :])[0])
     most = int(c.checks.evaluation_bound("pso", np.array([3.0]))[0])  # (20 + 3 x 25) x (1 + 100 redraws) + the global best
@@ -109,13 +111,34 @@ def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link
     assert reasons(c)["replay"] == 1
 
 
+def test_claimed_effort_is_bounded_by_the_time_since_the_join_at_the_rate_measured_here(tmp_path, link):
+    """A member claiming 434 million evaluations (within what its iterations would allow) just after it
+    joined, or a wall time of 1e300 s, is rejected with its reason: the budget and the stall rule count
+    only effort it could have spent."""
+    c = make(tmp_path, Termination(budget=200_000_000, stall=1_000_000), iterations=10**6)
+    island = c.join("pso-1", "pso", 1)
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    iterations = 175_000.0
+    assert c.checks.evaluation_bound("pso", np.array([iterations]))[0] > 434e6  # what the counters alone allow
+    most, _ = c.checks.effort_bound(["pso"], 16.0)
+    assert most < 434e6 / 4  # what 16 s allow, measured here, with room for a host many times faster
+    deliver(c, link, "history", "pso-1", history(island, [[iterations, f, 434e6, 1.0]], x, f, seq=1))
+    deliver(c, link, "history", "pso-1", history(island, [[iterations, f, 100, 1.0]], x, f, seq=2))  # iterations no population makes that fast
+    deliver(c, link, "history", "pso-1", history(island, [[0, 2 * f, 20, 1e300]], x, f, seq=3))
+    assert reasons(c) == {"implausible": 2, "out_of_range": 1}
+    assert c.evaluations == 0 and check_stop(c) is None
+    deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 4), x, f, seq=4))
+    assert c.evaluations == 95 and check_stop(c) is None
+
+
 def test_a_liveliness_token_alone_makes_nobody_a_member(tmp_path, link):
     c = make(tmp_path)
     c.member("ghost", True)
     c.member("bad name/with slash", True)
     pump(c, link, 1.0)
     assert c.members == {} and reasons(c) == {"unjoined": 1, "sender": 1}
-    island = c.admit("pso-1", "pso", 1)
+    island = c.join("pso-1", "pso", 1)
     c.member("pso-1", True)
     x = truth(c)
     deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 3), x, float(c.objective(x[None, :])[0]), final=True))
@@ -124,30 +147,57 @@ def test_a_liveliness_token_alone_makes_nobody_a_member(tmp_path, link):
     assert c.members["pso-1"].status == "left" and check_stop(c) == "every island finished"
 
 
-def test_a_joined_island_whose_token_never_shows_is_lost(tmp_path, link, monkeypatch):
-    monkeypatch.setattr("coordinator.members.TOKEN_WAIT_S", 0.0)
+def test_a_token_counts_only_as_far_as_the_runs_signed_messages_bear_it_out(tmp_path, link, monkeypatch):
+    """Anyone may declare a liveliness token under any name: a run that sent its final history has left
+    whatever token stays, and a lost run is back only once a message signed by it arrives."""
+    monkeypatch.setattr("coordinator.members.LEAVE_GRACE_S", 0.0)
     c = make(tmp_path)
-    c.admit("pso-1", "pso", 1)
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    a, b = c.join("a", "pso", 1), c.join("b", "pso", 2)
+    for island in "ab":
+        c.member(island, True)
+    deliver(c, link, "history", "a", history(a, honest_rows(c, 3), x, f, final=True))
+    assert c.members["a"].status == "left"  # its goodbye, while a token (its own, or a stranger's) is still there
+    c.member("a", False)
+    c.member("a", True)  # a stranger declares the token of the finished island
+    deliver(c, link, "history", "b", history(b, honest_rows(c, 3), x, f, seed=2))
+    c.member("b", False)  # b crashes
+    pump(c, link, 0.1)
+    assert c.members["b"].status == "lost"
+    c.member("b", True)  # a stranger holds b's token
+    pump(c, link, 0.1)
+    assert (c.members["a"].status, c.members["b"].status) == ("left", "lost") and not c.membership.any_alive()
+    deliver(c, link, "history", "b", history(b, honest_rows(c, 5), x, f, seq=1, seed=2))  # b itself, thawed: signed
+    assert c.members["b"].status == "alive"
+    assert [e for i, e, _ in c.store.members("c1") if i == "b"] == ["join", "lost", "back"]
+    assert [e for i, e, _ in c.store.members("c1") if i == "a"] == ["join", "left"]
+
+
+def test_a_joined_island_never_heard_from_is_lost(tmp_path, link, monkeypatch):
+    monkeypatch.setattr("coordinator.members.STALE_S", 0.0)
+    c = make(tmp_path)
+    c.join("pso-1", "pso", 1)
     pump(c, link, 0.1)
     assert c.members["pso-1"].status == "lost" and c.store.members("c1")[-1][:2] == ("pso-1", "lost")
 
 
 def test_migrants_under_another_islands_id_are_rejected(tmp_path, link):
     c = make(tmp_path)
-    a, b = c.admit("a", "pso", 1), c.admit("b", "pso", 2)
+    a, b = c.join("a", "pso", 1), c.join("b", "pso", 2)
     x = truth(c)[None, :]
-    as_a_with_b_keys = Credentials("a", a.run, b.key, b.campaign_key)
-    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 5, x, np.zeros(1), 0.0), as_a_with_b_keys))
-    deliver(c, link, "migrants", "b", encode_migrants(Migrants("c1", "a", a.run, 5, x, np.zeros(1), 0.0), as_a_with_b_keys))
-    deliver(c, link, "migrants", "b", encode_migrants(Migrants("c1", "b", a.run, 5, x, np.zeros(1), 0.0), Credentials("b", a.run, b.key, b.campaign_key)))
+    as_a_with_b_keys = Credentials("a", a.run, b.key, b.coordinator)
+    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 5, x, np.zeros(1), time.time()), as_a_with_b_keys))
+    deliver(c, link, "migrants", "b", encode_migrants(Migrants("c1", "a", a.run, 5, x, np.zeros(1), time.time()), as_a_with_b_keys))
+    deliver(c, link, "migrants", "b", encode_migrants(Migrants("c1", "b", a.run, 5, x, np.zeros(1), time.time()), Credentials("b", a.run, b.key, b.coordinator)))
     assert reasons(c) == {"forged": 1, "sender": 1, "unjoined": 1}
     assert c.migrations == 0 and c.best is None
 
 
 def test_a_replayed_migrant_message_is_stored_once_also_after_a_restart(tmp_path, link):
     c = make(tmp_path)
-    a = c.admit("a", "pso", 1)
-    message = encode_migrants(Migrants("c1", "a", a.run, 5, truth(c)[None, :], np.zeros(1), 0.0, seq=3), a)
+    a = c.join("a", "pso", 1)
+    message = encode_migrants(Migrants("c1", "a", a.run, 5, truth(c)[None, :], np.zeros(1), time.time(), seq=3), a)
     deliver(c, link, "migrants", "a", message)
     deliver(c, link, "migrants", "a", message)
     assert c.migrations == 1 and reasons(c) == {"replay": 1}
@@ -159,39 +209,76 @@ def test_a_replayed_migrant_message_is_stored_once_also_after_a_restart(tmp_path
 
 def test_the_coordinator_re_evaluates_every_candidate_whatever_it_claims(tmp_path, link):
     c = make(tmp_path)
-    a = c.admit("a", "pso", 1)
+    a = c.join("a", "pso", 1)
     x = truth(c)
     bad = c.objective.bounds[:, 1]
-    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 5, bad[None, :], np.zeros(1), 0.0, seq=0), a))
+    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 5, bad[None, :], np.zeros(1), time.time(), seq=0), a))
     assert c.best is not None and c.best.fitness == c.objective(bad[None, :])[0]  # its own fitness, not the claimed 0
-    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 10, x[None, :], np.array([1e9]), 0.0, seq=1), a))
+    deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 10, x[None, :], np.array([1e9]), time.time(), seq=1), a))
     assert c.best.fitness == c.objective(x[None, :])[0] < 1e-20  # better than it claimed: still taken
     np.testing.assert_array_equal(c.best.x, x)
 
 
+def handshake(c: Coordinator, link, request: JoinRequest, key: bytes, admission: bytes | None = None) -> list[bytes]:
+    """Both steps of the join handshake with ``c``; the answers to the proof (``admission``: the secret it proves)."""
+    challenges: list[bytes] = []
+    c.join_request(request.island, encode_join(request), challenges.append)
+    pump(c, link, 1.0)
+    challenge = decode_challenge(challenges[0], "c1", request.island, request.nonce, c.secret.coordinator)
+    answers: list[bytes] = []
+    c.join_request(request.island, encode_prove(request, challenge, admission or c.secret.admission, key), answers.append)
+    pump(c, link, 1.0)
+    return answers
+
+
 def test_joining_is_refused_while_the_id_is_alive_and_a_repeated_request_gets_the_same_run(tmp_path, link):
     c = make(tmp_path)
-    answers: list[bytes] = []
-    request = JoinRequest("c1", "pso-1", "pso", 1, b"n" * 16)
-    for _ in range(2):
-        c.join_request("pso-1", encode_join(request), answers.append)
-    other = JoinRequest("c1", "pso-1", "pso", 1, b"o" * 16)
-    c.join_request("pso-1", encode_join(other), answers.append)
-    c.join_request("pso-1", b"\xc1 not a join request", answers.append)
-    pump(c, link, 1.0)
-    first, second = (decode_joined(a, "c1", "pso-1", request.nonce) for a in answers[:2])
-    assert first == second and len(c.runs) == 1
+    key = new_key()
+    request = JoinRequest("c1", "pso-1", "pso", 1, b"n" * 16, public_key(key))
+    first, second = (decode_joined(handshake(c, link, request, key)[0], "c1", "pso-1", request.nonce, c.secret.coordinator) for _ in range(2))
+    assert first == second and len(c.runs) == 1  # the same request again (its answer was lost): the same run
+    other = JoinRequest("c1", "pso-1", "pso", 1, b"o" * 16, public_key(key))
     with pytest.raises(Exception, match="taken by a running island"):
-        decode_joined(answers[2], "c1", "pso-1", other.nonce)
-    assert len(answers) == 3 and reasons(c) == {"undecodable": 1}
-    control = decode_control(control_message(c), "c1", first)
-    assert [(m.island, m.run, m.alive) for m in control.members] == [("pso-1", first.run, True)]
+        decode_joined(handshake(c, link, other, key)[0], "c1", "pso-1", other.nonce, c.secret.coordinator)
+    c.join_request("pso-1", b"\xc1 not a join request", lambda answer: pytest.fail("answered junk"))
+    pump(c, link, 1.0)
+    assert reasons(c) == {"undecodable": 1}
+    control = decode_control(control_message(c), "c1", c.secret.coordinator)
+    assert [(m.island, m.run, m.alive, m.key) for m in control.members] == [("pso-1", first, True, public_key(key))]
 
 
-def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link):
+def test_only_islands_that_prove_the_secret_are_admitted_and_each_id_has_bounded_runs(tmp_path, link, monkeypatch):
+    monkeypatch.setattr("coordinator.server.RUNS_PER_ISLAND", 3)
+    monkeypatch.setattr("coordinator.members.LEAVE_GRACE_S", 0.0)
+    c = make(tmp_path)
+    key = new_key()
+    outsider = JoinRequest("c1", "guess", "pso", 1, b"g" * 16, public_key(key))
+    assert handshake(c, link, outsider, key, admission=b"w" * 32) == []  # a wrong secret: no answer, counted
+    late = JoinRequest("c1", "late", "pso", 1, b"l" * 16, public_key(key))
+    stale: list[bytes] = []
+    c.join_request("late", encode_prove(late, b"s" * 16, c.secret.admission, key), stale.append)  # a challenge nobody issued
+    pump(c, link, 1.0)
+    assert stale == [] and reasons(c) == {"forged": 1, "replay": 1} and not c.runs
+    for n in range(4):
+        request = JoinRequest("c1", "restarts", "pso", 1, bytes([n]) * 16, public_key(key))
+        answer = handshake(c, link, request, key)[0]
+        if n < 3:
+            decode_joined(answer, "c1", "restarts", request.nonce, c.secret.coordinator)
+            c.member("restarts", True)
+            c.member("restarts", False)  # it crashes: lost, and joins again
+            pump(c, link, 1.0)
+            c.membership.settle()
+        else:
+            with pytest.raises(Exception, match="joined 3 times, its limit"):
+                decode_joined(answer, "c1", "restarts", request.nonce, c.secret.coordinator)
+    assert len(c.runs) == 3
+
+
+def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link, monkeypatch):
     """A burst bigger than COMMIT_ROWS is committed in steps, not only once the queue is empty."""
+    monkeypatch.setattr("coordinator.histories.SPEEDUP", 1e9)  # an island that ran for long before (here: at once)
     c = make(tmp_path, iterations=10**6)
-    island = c.admit("pso-1", "pso", 1)
+    island = c.join("pso-1", "pso", 1)
     x = truth(c)
     f = float(c.objective(x[None, :])[0])
     per_message = 2000
@@ -202,8 +289,8 @@ def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link):
     committed: list[int] = []
     commit = c.store.commit
 
-    def observed_commit(campaign=None):
-        commit(campaign)
+    def observed_commit(campaign=None, elapsed_s=0.0):
+        commit(campaign, elapsed_s)
         with sqlite3.connect(tmp_path / "c.sqlite") as reader:  # what another process sees
             committed.append(reader.execute("SELECT count(*) FROM history").fetchone()[0])
 
@@ -214,11 +301,12 @@ def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link):
     assert len(committed) >= 3 and steps.max() <= COMMIT_ROWS + per_message  # never more than one window at risk
 
 
-def test_stop_rules_and_progress_are_checked_while_a_backlog_of_32_islands_waits(tmp_path, link):
+def test_stop_rules_and_progress_are_checked_while_a_backlog_of_32_islands_waits(tmp_path, link, monkeypatch):
+    monkeypatch.setattr("coordinator.histories.SPEEDUP", 1e9)  # islands that ran for long before (here: at once)
     c = make(tmp_path, Termination(budget=400_000), iterations=10**6)
     x = truth(c)
     f = float(c.objective(x[None, :])[0])
-    islands = [c.admit(f"pso-{i}", "pso", i) for i in range(32)]
+    islands = [c.join(f"pso-{i}", "pso", i) for i in range(32)]
     for cred in islands:
         c.member(cred.island, False)  # their tokens went: the stop does not wait for goodbyes
     for m in range(200):  # 6400 messages; the budget is spent after about 1600 of them
@@ -237,7 +325,7 @@ def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_rep
     c = make(tmp_path, min_islands=4)  # fewer joined than the islands it once waited for
     x = truth(c)
     for i in range(2):
-        cred = c.admit(f"pso-{i}", "pso", i)
+        cred = c.join(f"pso-{i}", "pso", i)
         deliver(c, link, "history", cred.island, history(cred, honest_rows(c, 5), x, float(c.objective(x[None, :])[0]), final=True, seed=i))
     c.store.close()  # the coordinator died; nobody is left
     again = resume(Store(tmp_path / "c.sqlite"), "c1")
@@ -251,9 +339,9 @@ def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_rep
 
 def test_a_resumed_campaign_nobody_comes_back_to_ends_after_the_orphan_wait(tmp_path, link, monkeypatch):
     monkeypatch.setattr("coordinator.loop.ORPHAN_S", 0.2)
-    monkeypatch.setattr("coordinator.members.TOKEN_WAIT_S", 0.5)
+    monkeypatch.setattr("coordinator.members.STALE_S", 0.5)
     c = make(tmp_path)
-    c.admit("pso-0", "pso", 0)  # joined, never finished
+    c.join("pso-0", "pso", 0)  # joined, never finished
     c.store.close()
     again = resume(Store(tmp_path / "c.sqlite"), "c1")
     assert again.progress().members == {"pso-0": "alive"}  # alive when the coordinator died: waited for, not forgotten
@@ -271,6 +359,32 @@ def test_a_resumed_coordinator_keeps_the_stop_rules_of_its_campaign(tmp_path, li
     assert other.termination == Termination(time_limit_s=5.0)
 
 
+def test_a_resumed_campaign_carries_its_elapsed_time_on(tmp_path, link):
+    """The elapsed time goes into every commit; a resumed coordinator starts from it, so that a campaign
+    that had run past its time limit stops at once instead of running the limit again."""
+    c = make(tmp_path, Termination(time_limit_s=60.0))
+    c.store.commit("c1", 61.5)  # the last commit of a coordinator killed 61.5 s into its campaign
+    c.store.close()
+    again = resume(Store(tmp_path / "c.sqlite"), "c1")
+    assert again.elapsed() >= 61.5 and again.progress().elapsed_s >= 61.5
+    assert again.rule_stop() == again.termination.reason(evaluations=0, best=np.inf, best_at=0, elapsed_s=61.5) is not None
+    assert serve(again, MemoryLink(threading.Event())) == again.rule_stop()
+
+
+def test_a_database_deleted_mid_run_stops_the_campaign_with_one_line(tmp_path, link):
+    c = make(tmp_path)
+    island = c.join("pso-1", "pso", 1)
+    x = truth(c)
+    deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 3), x, float(c.objective(x[None, :])[0])))
+    for suffix in ("", "-wal", "-shm"):
+        (tmp_path / f"c.sqlite{suffix}").unlink(missing_ok=True)
+    with pytest.raises(Exception, match=r"^campaign 'c1' stopped: cannot write the campaign database .*c.sqlite: the file was deleted; "
+                                        r"what it recorded went with the file \(nothing to resume\)$"):
+        serve(c, link)
+    assert link.stop.is_set()
+    assert not c.inbox.put("late", "anything", wait_s=None)  # closed: nothing arriving can block a producer any more
+
+
 def test_the_inbox_serves_sources_in_turn_and_bounds_each():
     inbox = Inbox(per_source=3, max_sources=2, max_bytes=100)
     assert all(inbox.put("flood", i, 1, wait_s=0) for i in range(3))
@@ -285,7 +399,7 @@ def test_the_inbox_serves_sources_in_turn_and_bounds_each():
 def test_a_database_locked_by_another_process_stops_the_campaign_cleanly(tmp_path, link):
     c = make(tmp_path)
     c.store.db.execute("PRAGMA busy_timeout = 200")
-    island = c.admit("pso-1", "pso", 1)
+    island = c.join("pso-1", "pso", 1)
     x = truth(c)
     f = float(c.objective(x[None, :])[0])
     deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 3), x, f))

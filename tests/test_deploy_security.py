@@ -325,7 +325,8 @@ def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_anothe
         return started[-1]
 
     def island(name: str, *id_option: str) -> subprocess.Popen:
-        return start("island", "--config", str(out / "islands" / f"{name}.json5"), "--campaign", "demo", *id_option, "--wait", "10", "--quiet")
+        return start("island", "--config", str(out / "islands" / f"{name}.json5"), "--campaign", "demo", *id_option, "--wait", "10", "--quiet",
+                     "--secret-file", str(tmp_path / "report" / "campaign.sqlite-demo.secret"))
 
     try:
         coordinator = start("coordinator", "--config", str(out / "coordinator.json5"), "--campaign", "demo", "--out", str(tmp_path / "report"),

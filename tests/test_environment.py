@@ -111,7 +111,8 @@ def test_a_database_disk_that_fills_up_mid_run_stops_the_campaign_cleanly(mount,
               "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "10000000", "--time-limit", "120"),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
-    islands = [subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "full", "--id", name, "--quiet", "--wait", "10"),
+    islands = [subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "full", "--id", name, "--quiet", "--wait", "10",
+                                      "--secret-file", f"{db}-full.secret"),
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True) for name in ("a", "b")]
     try:
         _, err = coordinator.communicate(timeout=150)

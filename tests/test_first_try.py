@@ -26,6 +26,8 @@ from hysid.report.style import RC
 from support import interruptible
 from hysid.report.text import band_text, hz_text, mass_text
 from hysid_model.synth import synth_loops
+from island.secret import CampaignSecret
+from island.sealing import new_key, public_key
 from support import GA_SMALL, hysid as hysid_argv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -201,7 +203,8 @@ def test_island_and_coordinator_count_iterations_alike_and_a_quiet_coordinator_s
     try:
         ready = coordinator.stderr.readline()  # the line a script waits for, --quiet or not
         assert ready.startswith("coordinator of campaign 'count' ready"), ready
-        island = subprocess.run(hysid_argv("island", "--connect", endpoint, "--campaign", "count", "--id", "one"),
+        island = subprocess.run(hysid_argv("island", "--connect", endpoint, "--campaign", "count", "--id", "one",
+                                           "--secret-file", str(tmp_path / "c.sqlite-count.secret")),
                                 capture_output=True, text=True, timeout=120)
         out, _ = coordinator.communicate(timeout=120)
     finally:
@@ -219,8 +222,10 @@ def test_ctrl_c_on_an_island_while_it_starts_is_one_line(delay_s):
     """Ctrl-C while the island loads (imports) or waits for its coordinator: one line, never a traceback.
 
     (Inside Zenoh's connect the interrupt is only seen when the connect gives up, after --wait.)"""
+    secret = CampaignSecret.create("default", public_key(new_key()))  # a coordinator's that is not there
     island = subprocess.Popen([sys.executable, "-m", "hysid", "island", "--connect", f"tcp/127.0.0.1:{free_port()}", "--wait", "5"],
-                              stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)  # Ctrl-C reaches it whatever the runner ignores
+                              stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,  # Ctrl-C reaches it whatever the runner ignores
+                              env={**os.environ, "HYSID_SECRET": secret.text()})
     time.sleep(delay_s)  # not a wait for readiness: any moment of the start-up must do
     island.send_signal(signal.SIGINT)
     _, err = island.communicate(timeout=60)

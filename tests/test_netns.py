@@ -154,7 +154,7 @@ def run_campaign(lab: Lab, tmp_path: Path, campaign: str, coordinator_config: Pa
             subprocess.Popen(
                 lab.command(
                     lab.host(k), *HYSID, "island", "--config", str(island_configs[name]), "--connect", f"{protocol}/{lab.hub_address}:{PORT}",
-                    "--campaign", campaign, "--id", name, "--wait", "20", "--quiet",
+                    "--campaign", campaign, "--id", name, "--wait", "20", "--quiet", "--secret-file", str(out / f"campaign.sqlite-{campaign}.secret"),
                 ),
                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
             )

@@ -18,7 +18,7 @@ import pytest
 
 from coordinator.launch import free_port
 from hysid_model.synth import TRUE_PARAMS
-from support import Lines, events, query, ready, rows_of, wait_for
+from support import Lines, events, query, ready, rows_of, secret_file, wait_for
 
 pytestmark = pytest.mark.slow  # processes, kills and restarts
 
@@ -31,9 +31,9 @@ def start_coordinator(spawn, endpoint: str, campaign: str, db: Path, out: Path, 
     return p
 
 
-def start_island(spawn, endpoint: str, campaign: str, name: str, *extra: str) -> tuple[subprocess.Popen, Lines]:
-    """An island process (its summary line on) and its stderr as it comes."""
-    p = spawn("island", "--connect", endpoint, "--campaign", campaign, "--id", name, *extra)
+def start_island(spawn, endpoint: str, campaign: str, name: str, db: Path, *extra: str) -> tuple[subprocess.Popen, Lines]:
+    """An island process (its summary line on) of the coordinator of database ``db``, and its stderr as it comes."""
+    p = spawn("island", "--connect", endpoint, "--campaign", campaign, "--id", name, "--secret-file", secret_file(db, campaign), *extra)
     return p, Lines(p.stderr)
 
 
@@ -56,7 +56,7 @@ def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own
     budget = 400_000
     first = start_coordinator(spawn, endpoint, "back", db, tmp_path / "out1", "--algos", "ga,pso", *SMALL, "--min-islands", "3",
                               "--evaluations", str(budget))
-    islands = {name: start_island(spawn, endpoint, "back", name, "--wait", "60") for name in ("a", "b", "c")}
+    islands = {name: start_island(spawn, endpoint, "back", name, db, "--wait", "60") for name in ("a", "b", "c")}
     wait_for(lambda: all(rows_of(db, n) > 30 for n in islands), 90, "every island's history")
     first.send_signal(signal.SIGKILL)
     islands["b"][0].send_signal(signal.SIGKILL)
@@ -68,7 +68,7 @@ def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own
         islands[name][1].wait_for("has been silent", 60)
     for name in ("a", "c"):  # frozen until the coordinator is back: the outage may last as long as a loaded machine needs, the
         islands[name][0].send_signal(signal.SIGSTOP)  # survivors do not spend the budget in it before the new island can join
-    late, late_err = start_island(spawn, endpoint, "back", "d", "--wait", "60")  # a new island, waiting for the coordinator
+    late, late_err = start_island(spawn, endpoint, "back", "d", db, "--wait", "60")  # a new island, waiting for the coordinator
     late_err.wait_for("no coordinator of campaign 'back' at", 60)
     second = start_coordinator(spawn, endpoint, "back", db, tmp_path / "out2", "--resume")
     for name in ("a", "c"):
@@ -100,8 +100,8 @@ def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own
 
 def test_an_island_started_before_its_coordinator_waits_for_it_and_joins(spawn, tmp_path):
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "e.sqlite"
-    early, err = start_island(spawn, endpoint, "early", "first", "--wait", "60")
-    err.wait_for("no coordinator of campaign 'early' at", 60)
+    early, err = start_island(spawn, endpoint, "early", "first", db, "--wait", "60")
+    err.wait_for("no campaign secret at", 60)  # its coordinator writes it when it starts
     assert early.poll() is None
     coordinator = start_coordinator(spawn, endpoint, "early", db, tmp_path / "out", "--algos", "pso", *SMALL, "--evaluations", "20000")
     doc = finished(coordinator)
@@ -113,7 +113,7 @@ def test_an_island_started_before_its_coordinator_waits_for_it_and_joins(spawn, 
 def test_an_island_whose_coordinator_never_comes_back_stops_after_its_wait(spawn, tmp_path):
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "g.sqlite"
     coordinator = start_coordinator(spawn, endpoint, "gone", db, tmp_path / "out", "--algos", "pso", *SMALL, "--time", "600")
-    island, err = start_island(spawn, endpoint, "gone", "orphan", "--wait", "3")
+    island, err = start_island(spawn, endpoint, "gone", "orphan", db, "--wait", "3")
     wait_for(lambda: rows_of(db, "orphan") > 10, 60, "the island's history")
     coordinator.send_signal(signal.SIGKILL)
     assert island.wait(90) == 0  # its budget is open-ended (--time): only the wait ends it
@@ -130,7 +130,7 @@ def test_mixed_islands_with_an_evaluation_budget_all_search_until_the_coordinato
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "m.sqlite"
     coordinator = start_coordinator(spawn, endpoint, "mixed", db, tmp_path / "out", "--algos", "ga,pso", *SMALL, "--min-islands", "4",
                                     "--evaluations", "120000")
-    islands = [start_island(spawn, endpoint, "mixed", f"{algo}-{i}", "--algo", algo) for i, algo in enumerate(["ga", "pso", "ga", "pso"])]
+    islands = [start_island(spawn, endpoint, "mixed", f"{algo}-{i}", db, "--algo", algo) for i, algo in enumerate(["ga", "pso", "ga", "pso"])]
     doc = finished(coordinator)
     assert doc["settings"]["stop_reason"] == "budget of 120,000 evaluations spent" and doc["settings"]["until_stopped"] is True
     for p, err in islands:

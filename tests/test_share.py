@@ -225,7 +225,7 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
                                    until_stopped=True, share="adaptive")
     c = Coordinator(Store(tmp_path / "c.sqlite"), config, LOOPS, Termination(budget=10**6))
     link = MemoryLink(threading.Event())
-    creds = {"ga-0": c.admit("ga-0", "ga", 0), "pso-1": c.admit("pso-1", "pso", 1)}
+    creds = {"ga-0": c.join("ga-0", "ga", 0), "pso-1": c.join("pso-1", "pso", 1)}
     for island in creds:
         c.member(island, True, wait_s=None)
     x = c.objective.model.from_dict(TRUE_PARAMS)
@@ -250,7 +250,7 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
     assert [(m.island, m.src, m.dst) for m in c.sharing.moves] == [("ga-0", "ga", "pso")]
     assert rounds <= WINDOW + 1  # the first history only sets each island's baseline
     assert [(m.island, m.src, m.dst) for m in c.store.moves("c1")] == [("ga-0", "ga", "pso")]
-    control = decode_control(control_message(c), "c1", creds["ga-0"])
+    control = decode_control(control_message(c), "c1", c.secret.coordinator)
     assert {m.island: m.algo for m in control.members} == {"ga-0": "pso", "pso-1": "pso"}
     report("ga-0", 5 * rounds, 0.001 * rounds, "ga")  # rows sent before the island heard of its move
     report("ga-0", 5 * rounds + 5, 0.3 * rounds, "pso")  # and after
@@ -269,7 +269,7 @@ def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_i
     c = Coordinator(Store(tmp_path / "c.sqlite"), config, LOOPS, Termination(budget=10**6))
     link = MemoryLink(threading.Event())
     seeds = {"ga-0": 0, "pso-1": 1, "ga-2": 2, "ga-4": 4}
-    creds = {island: c.admit(island, island[:-2], seed) for island, seed in seeds.items()}
+    creds = {island: c.join(island, island[:-2], seed) for island, seed in seeds.items()}
     for island in ("ga-0", "pso-1", "ga-2"):
         c.member(island, True, wait_s=None)  # ga-4's liveliness token has not shown yet
     x = c.objective.model.from_dict(TRUE_PARAMS)
@@ -294,7 +294,7 @@ def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_i
     c.member("ga-4", True, wait_s=None)
     assert report("ga-4", 8, 8) == ["ga-0", "ga-4"]
     assert report("pso-1", 0, 9) == ["ga-0", "ga-4"]  # PSO converges: it stays
-    assert {m.island: m.algo for m in decode_control(control_message(c), "c2", creds["ga-0"]).members}["ga-0"] == "pso"
+    assert {m.island: m.algo for m in decode_control(control_message(c), "c2", c.secret.coordinator).members}["ga-0"] == "pso"
     taken_up = resume(c.store, "c2")  # a restarted coordinator follows the moves stored, and makes none again
     assert {k[0]: v for k, v in taken_up.sharing.assigned.items()} == {"ga-0": "pso", "pso-1": "pso", "ga-2": "ga", "ga-4": "pso"}
     c.store.close()
@@ -319,7 +319,7 @@ def test_an_island_told_another_algorithm_carries_its_search_on_with_it():
     assert node.moves == [(12, "ga", "pso")] and isinstance(node.optimizer, PSO) and node.algo == "pso"
     assert [r[0] for r in node.rows] == list(range(41))  # one run, no iteration missing or repeated
     assert np.all(np.diff([r[2] for r in node.rows]) > 0) and np.all(np.diff([r[1] for r in node.rows]) <= 0)
-    keys = {"run": node.credentials.key}
+    keys = {"run": node.credentials.public}
     algos = [decode_history(d, "c1", node.objective.bounds, key_for=lambda s, r: keys["run"]).algo for d in delivered]
     assert algos[:13] == ["ga"] * 13 and set(algos[13:]) == {"pso"}  # iterations 0..12 as GA, then PSO
 

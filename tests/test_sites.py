@@ -91,7 +91,8 @@ def test_islands_behind_a_router_take_part_in_a_campaign(tmp_path: Path) -> None
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
         )
         processes.append(coordinator)
-        islands = [subprocess.Popen(hysid("island", "--connect", site, "--campaign", "behind", "--id", name, "--wait", "30", "--quiet"),
+        islands = [subprocess.Popen(hysid("island", "--connect", site, "--campaign", "behind", "--id", name, "--wait", "30", "--quiet",
+                                          "--secret-file", f"{db}-behind.secret"),
                                     stderr=subprocess.PIPE, text=True) for name in ("a", "b")]
         processes += islands
         linked = router.stderr.readline()

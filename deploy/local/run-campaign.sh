@@ -3,7 +3,9 @@
 # (Zenoh router on 127.0.0.1) and N islands connecting to it, exactly the
 # commands a cluster runs, each process with its own log. Use it to rehearse a
 # multi-machine campaign (same configs, same key space) before going to
-# several machines. (`hysid campaign` does the same in one command.)
+# several machines. (`hysid campaign` does the same in one command.) The
+# coordinator writes the campaign secret beside its database; the islands read
+# it there (--secret-file, waiting for it while the coordinator starts).
 #
 # usage: run-campaign.sh [-n ISLANDS] [-p PORT] [-c CAMPAIGN] [-o DIR] [-z ZENOH_DIR] [DATASET] [-- COORDINATOR_OPTION...]
 #
@@ -68,6 +70,7 @@ pids+=("$coordinator")
 for ((k = 1; k <= islands; k++)); do
   algo=ga; (( k % 2 )) || algo=pso
   "$hysid" island --config "$zenoh_dir/island.json5" --connect "$endpoint" --campaign "$campaign" \
+    --secret-file "$outdir/campaign.sqlite-$campaign.secret" \
     --id "island-$k" --seed "$k" --algo "$algo" > "$outdir/island-$k.log" 2>&1 &
   pids+=("$!")
 done

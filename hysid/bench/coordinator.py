@@ -43,6 +43,7 @@ from island.migration import Migration
 from island.node import IslandNode
 from island.protocol import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials
+from island.secret import CampaignSecret, secret_path
 from island.session import open_session, session_config
 from island.termination import Termination
 from island.transports import ZenohTransport, fetch_config, join
@@ -114,7 +115,7 @@ def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, A
     and between stop-rule checks, the deepest inbox and this process's RSS every ``rss_every_s``."""
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
         c = coordinator(Path(tmp), "load", Termination(time_limit_s=seconds))
-        creds = [c.admit(f"pso-{i}", "pso", i) for i in range(islands)]
+        creds = [c.join(f"pso-{i}", "pso", i) for i in range(islands)]
         for cred in creds:
             c.member(cred.island, True)
         stop, sampled = threading.Event(), threading.Event()
@@ -211,7 +212,7 @@ def backlog(rounds: int = 200, budget: int = 400_000) -> dict[str, Any]:
         c = coordinator(Path(tmp), "backlog", Termination(budget=budget))
         x = c.objective.bounds.mean(axis=1)
         f = float(c.objective(x[None, :])[0])
-        creds = [c.admit(f"pso-{i}", "pso", i) for i in range(ISLANDS)]
+        creds = [c.join(f"pso-{i}", "pso", i) for i in range(ISLANDS)]
         for cred in creds:
             c.member(cred.island, False)
         stats = {"sent": 0, "received": 0, "taken": 0, "rejected": 0}
@@ -228,19 +229,29 @@ def backlog(rounds: int = 200, budget: int = 400_000) -> dict[str, Any]:
                 "stop_checks_before": sum(1 for s in seen if s[1] < budget)}
 
 
-def flooder(endpoint: str, campaign: str, per_s: float = 1000.0) -> None:
+def flooder(endpoint: str, secret_file: str, per_s: float = 1000.0) -> None:
     """A joined island that floods ``migrants/flooder`` until killed (run in its own process)."""
+    secret = CampaignSecret.read(secret_file)
+    campaign = secret.campaign
     session = open_session(session_config("client", connect=[endpoint]), endpoint)
-    cred = join(session, campaign, "flooder", "pso", 9, 30)
+    cred = join(session, campaign, "flooder", "pso", 9, secret, 30)
     token = session.liveliness().declare_token(f"hysid/{campaign}/members/flooder")
     publisher = session.declare_publisher(f"hysid/{campaign}/migrants/flooder")
     x = np.tile(np.array([0.05, 0.0, 300.0, 0.0]), (256, 1))
     print("ready", flush=True)
     seq, started = 0, time.monotonic()
     while token is not None:
-        publisher.put(encode_migrants(Migrants(campaign, "flooder", cred.run, 1, x, np.zeros(256), 0.0, seq), cred))
+        publisher.put(encode_migrants(Migrants(campaign, "flooder", cred.run, 1, x, np.zeros(256), time.time(), seq), cred))
         seq += 1
         time.sleep(max(0.0, started + seq / per_s - time.monotonic()))
+
+
+def wait_for_secret(path: Path, timeout_s: float) -> CampaignSecret:
+    """The secret a coordinator process writes when it starts."""
+    deadline = time.monotonic() + timeout_s
+    while not path.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return CampaignSecret.read(path)
 
 
 def flood_run(iterations: int, flood: bool) -> dict[str, Any]:
@@ -257,13 +268,16 @@ def flood_run(iterations: int, flood: bool) -> dict[str, Any]:
         flooding = None
         client = open_session(session_config("client", connect=[endpoint], connect_timeout_s=30), endpoint)
         try:
-            config, loops = decode_config(fetch_config(client, "flood", 30), "flood")
+            secret = wait_for_secret(secret_path(f"{tmp}/f.sqlite", "flood"), 30)
+            config, loops = decode_config(fetch_config(client, secret, 30), "flood")
             if flood:
-                flooding = subprocess.Popen([sys.executable, "-c", f"from hysid.bench.coordinator import flooder; flooder({endpoint!r}, 'flood')"],
-                                            stdout=subprocess.PIPE, text=True)
+                flooding = subprocess.Popen(
+                    [sys.executable, "-c", f"from hysid.bench.coordinator import flooder; flooder({endpoint!r}, {str(secret_path(f'{tmp}/f.sqlite', 'flood'))!r})"],
+                    stdout=subprocess.PIPE, text=True,
+                )
                 assert flooding.stdout is not None and flooding.stdout.readline().strip() == "ready"
             node = IslandNode("target", "pso", 1, config, config.objective(loops))
-            transport = ZenohTransport(client, node, 10)
+            transport = ZenohTransport(client, node, secret, 10)
             started, cpu, own = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF), time.thread_time()
             node.run(transport)
             elapsed, own = time.perf_counter() - started, time.thread_time() - own

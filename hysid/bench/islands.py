@@ -375,9 +375,10 @@ def latency(messages: int = 5000, paced: int = 500, k: int = 2) -> dict[str, Any
     delays: list[float] = []
     arrived = threading.Semaphore(0)
     credentials = Credentials.issue("a", secrets.token_bytes(32))
+    public = credentials.public
 
     def on_sample(sample: zenoh.Sample) -> None:
-        m = decode_migrants(sample.payload.to_bytes(), "bench", bounds, tag="campaign", key_for=lambda s, r: credentials.campaign_key, sender="a")  # as an island would
+        m = decode_migrants(sample.payload.to_bytes(), "bench", bounds, key_for=lambda s, r: public, sender="a")  # as an island would
         delays.append(time.time() - m.sent_at)
         arrived.release()
 

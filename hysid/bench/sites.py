@@ -34,6 +34,7 @@ import numpy as np
 
 from hysid.bench.netns import Lab, NamespacesUnavailable, unavailable
 from hysid_model.synth import TRUE_PARAMS
+from island.secret import secret_path
 
 ROUTER_CONFIG = Path(__file__).resolve().parents[2] / "deploy" / "sites" / "router.json5"
 """The site router's configuration of the recipe (deploy/GUIDE.md, section 6), in a source checkout."""
@@ -179,7 +180,8 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
         routers.append(router)
         for name in names[k]:
             island = subprocess.Popen(hysid(lab, lab.host(k), "island", "--connect", f"tcp/{lab.host_address(k)}:{PORT}", "--campaign", CAMPAIGN,
-                                            "--id", name, "--wait", "120", "--quiet"), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                                            "--id", name, "--wait", "120", "--quiet", "--secret-file", str(secret_path(db.path, CAMPAIGN))),
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             processes.append(island)
             islands.append(island)
     launched = time.monotonic()

@@ -3,7 +3,10 @@
 ``campaign`` is the one-machine job (coordinator + N island processes on
 loopback, or ``--single-node``); ``coordinator`` and ``island`` are its two
 halves for clusters (see ``deploy/``), connected by Zenoh endpoints or a Zenoh
-configuration file.
+configuration file. The coordinator keeps the campaign secret in a file of mode
+0600 beside its database (or at ``--secret-file``); an island takes it from
+``--secret-file`` or the environment (:mod:`island.secret`), and without it
+cannot join.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import re
 import socket
 import sys
 import threading
+import time
 import warnings
 import zlib
 from pathlib import Path
@@ -37,6 +41,7 @@ from island.algorithms import check_algorithm
 from island.config import MAX_SEED, CampaignConfig, decode_config
 from island.migration import Migration
 from island.node import IslandNode
+from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret, secret_path
 from island.session import DEFAULT_ENDPOINT, authenticated_name, open_session, session_config
 from island.termination import Termination
 from island.transports import ZenohTransport, fetch_config
@@ -89,6 +94,7 @@ def discard_failed(out: Path, db: Path, campaign_name: str) -> None:
         return
     for suffix in ("", "-wal", "-shm", "-journal", "-reserve"):
         Path(f"{db}{suffix}").unlink(missing_ok=True)
+    secret_path(db, campaign_name).unlink(missing_ok=True)
     if out.is_dir() and not any(out.iterdir()):
         out.rmdir()
 
@@ -170,6 +176,10 @@ def register(app: typer.Typer) -> None:
         name: str = o.CAMPAIGN,
         db: Optional[Path] = o.DB,
         resume_db: bool = typer.Option(False, "--resume", help="Carry on the campaign stored in --db after a crash (its settings and loop set come from there)."),
+        secret_file: Optional[Path] = typer.Option(
+            None, "--secret-file",
+            help="Where to keep the campaign secret that islands need to join (mode 0600; default DB-CAMPAIGN.secret beside the database).",
+        ),
         min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
         algos: str = o.ALGOS,
         share: str = o.SHARE,
@@ -225,10 +235,11 @@ def register(app: typer.Typer) -> None:
                 coordinator = resume(store, name, termination)
             else:
                 coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
+            kept = keep_secret(coordinator.secret, secret_file or secret_path(path, name))
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
             session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
             link = ZenohLink(session, coordinator)
-            print(f"coordinator of campaign {name!r} ready (database {store.path})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
+            print(f"coordinator of campaign {name!r} ready (database {store.path}, islands' secret {kept})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
             try:
                 serve(coordinator, link, None if quiet else print_progress)
             finally:
@@ -252,6 +263,11 @@ def register(app: typer.Typer) -> None:
             30.0, "--wait",
             help="Seconds to wait for the coordinator: at the start, for the final confirmation, and for one that fell silent to come back.",
         ),
+        secret_file: Optional[Path] = typer.Option(
+            None, "--secret-file", envvar=SECRET_FILE_ENV, show_envvar=False,
+            help=f"The campaign secret its coordinator wrote (DB-CAMPAIGN.secret beside its database; waited for up to --wait); "
+                 f"or give its text in ${SECRET_ENV}, or the file in ${SECRET_FILE_ENV}.",
+        ),
         quiet: bool = typer.Option(False, "--quiet", help="Print nothing but errors."),
     ) -> None:
         """Join a campaign: fetch its loop set, optimize, migrate, report history until told to stop."""
@@ -268,12 +284,13 @@ def register(app: typer.Typer) -> None:
             raise HysidInputError(f"this island authenticates as {identity!r} (user name in {config_file}); its id is that name", param="island", value=island_id)
         island = check_name("island", island_id or identity or default_island_id())
         where = ', '.join(connect) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)
+        secret = island_secret(secret_file, name, wait, island)
         waiting = threading.Timer(WAIT_NOTICE_S, lambda: say(f"island {island}: no coordinator of campaign {name!r} at {where} yet; waiting up to {wait:g} s (--wait)"))
         waiting.start()  # an island started before its coordinator waits for it, and says so
         try:
             session = open_session(zconfig, f"connect {where}")
             try:
-                message = fetch_config(session, name, wait)
+                message = fetch_config(session, secret, wait)
             except BaseException:
                 session.close()
                 raise
@@ -284,7 +301,7 @@ def register(app: typer.Typer) -> None:
             seed_ = seed if seed is not None else config.seed + zlib.crc32(island.encode()) % (1 << 20)
             algo_ = algo or config.algo_for(seed_)
             node = IslandNode(island, algo_, seed_, config, config.objective(loops))
-            transport = ZenohTransport(session, node, wait, notify=say)
+            transport = ZenohTransport(session, node, secret, wait, notify=say)
             try:
                 node.run(transport)
             finally:
@@ -306,6 +323,34 @@ def register(app: typer.Typer) -> None:
                 f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}",
                 file=sys.stderr,
             )
+
+
+def keep_secret(secret: CampaignSecret, path: Path) -> Path:
+    """Write the campaign secret to ``path`` (mode 0600) for the islands; one line if it cannot be written."""
+    try:
+        return secret.write(path)
+    except OSError as exc:
+        raise HysidInputError(f"cannot write the campaign secret ({exc.strerror or exc})", param="secret_file", value=path) from None
+
+
+def island_secret(secret_file: Optional[Path], campaign_name: str, wait: float, island: str) -> CampaignSecret:
+    """The campaign secret of an island: ``--secret-file`` (waited for up to ``wait`` seconds: the
+    coordinator writes it when it starts), else the environment; one line if there is none."""
+    if secret_file is None:
+        text = os.environ.get(SECRET_ENV)
+        if not text:
+            raise HysidInputError(
+                f"island {island}: no campaign secret; give --secret-file (its coordinator writes DB-{campaign_name}.secret beside its "
+                f"database) or put the secret's text in ${SECRET_ENV}"
+            )
+        return CampaignSecret.parse(text, f"${SECRET_ENV}").check_campaign(campaign_name, f"${SECRET_ENV}")
+    start, said = time.monotonic(), False
+    while not secret_file.exists() and time.monotonic() - start < wait:
+        if not said and time.monotonic() - start >= WAIT_NOTICE_S:
+            say(f"island {island}: no campaign secret at {secret_file} yet (its coordinator writes it when it starts); waiting up to {wait:g} s (--wait)")
+            said = True
+        time.sleep(0.1)
+    return CampaignSecret.read(secret_file).check_campaign(campaign_name, str(secret_file))
 
 
 def say(message: str) -> None:

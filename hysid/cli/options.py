@@ -56,6 +56,7 @@ FLAGS = {
     "out_dir": "OUT_DIR",
     "db": "--db",
     "wait": "--wait",
+    "secret_file": "--secret-file",
     "seeds": "--seeds",
     "thesis_runs": "--thesis-runs",
     "part": "PART",
