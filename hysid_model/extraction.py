@@ -59,7 +59,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from hysid_model import plausibility, steady, waveform
-from hysid_model.branches import branch_values, half_cycle_phases, harmonic_design, reversal_guard, smooth_part
+from hysid_model.branches import CHUNK, branch_values, half_cycle_phases, harmonic_design, reversal_guard, smooth_part
 from hysid_model.errors import HysidInputError, HysidWarning
 
 FREQ_TOLERANCE = 0.02
@@ -354,7 +354,8 @@ def extract_loop(
     phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
     force_mean = _cycle_mean(t, force, t_a, t_end)
     x_residual = xs - cx @ design
-    del design  # (2K + 1) x N: rebuilt in pieces for the smooth part, where a record needs it
+    kept = design if ts.size <= CHUNK else None  # a longer record's (2K + 1) x N rows are rebuilt in pieces where needed
+    del design
     x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - (2 * harmonics + 1), 1)))
     xh, thd = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
     lo, hi = (float(r[0]) for r in waveform.reversals(xh))
@@ -366,7 +367,7 @@ def extract_loop(
     values, var, sigma_raw, overlap, force_harmonics = branch_values(
         psi, centred, sample_phases, (lo, hi), ts.size / cycles, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
         lambda: smooth_part(theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred,
-                            harmonic_design(sample_phases - phi, harmonics)),
+                            harmonic_design(sample_phases - phi, harmonics), kept),
     )
     first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
     used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]

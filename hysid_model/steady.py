@@ -55,6 +55,8 @@ WAVEFORM_TOLERANCE = 1e-3
 OUTLIERS = 0.05
 """Isolated cycles outside the band (scatter, not a transient) allowed in a steady run, as a fraction of it."""
 MAD_TO_STD = 1.4826
+SHAPES_KEPT = 64
+"""Window lengths whose line and parabola terms the band test keeps (:func:`_band_test`)."""
 
 
 @dataclass
@@ -247,12 +249,23 @@ def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Call
     spread = NOISE_SIGMAS * noise
     index = np.arange(amp.shape[1], dtype=float)
     add = np.add.reduce
+    shapes: dict[int, tuple[np.ndarray, float, np.ndarray, float, float]] = {}
+
+    def shape(n: int) -> tuple[np.ndarray, float, np.ndarray, float, float]:
+        """u, u @ u, q, q @ q and max |q| of a window of n cycles (the search tries one length at many starts)."""
+        if n not in shapes:
+            if len(shapes) >= SHAPES_KEPT:
+                shapes.clear()
+            u = index[:n] - 0.5 * (n - 1)
+            uu = u @ u
+            q = u * u - uu / n  # orthogonal to 1 and u
+            shapes[n] = (u, uu, q, q @ q, np.abs(q).max())
+        return shapes[n]
 
     def fits(i: int, j: int) -> bool:
         a = amp[:, i:j]
         n = j - i
-        u = index[:n] - 0.5 * (n - 1)
-        uu = u @ u
+        u, uu, q, qq, top = shape(n)
         level = add(a, axis=1) / n  # a.mean(axis=1)
         beta = a @ u / uu if n > 1 else np.zeros(a.shape[0])
         if (np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)).any():
@@ -265,9 +278,6 @@ def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Call
                 return False
         if n < WAVEFORM_MIN_CYCLES:
             return True
-        q = u * u - uu / n  # orthogonal to 1 and u
-        qq = q @ q
-        top = np.abs(q).max()
         bend = np.abs(resid @ q) / qq * top  # the largest departure of the best parabola from the line
         allowed = np.maximum(CURVATURE * np.abs(level), spread * top / np.sqrt(qq))
         return bool((bend <= np.maximum(allowed, sampling)).all())
