@@ -249,23 +249,25 @@ def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Call
     spread = NOISE_SIGMAS * noise
     index = np.arange(amp.shape[1], dtype=float)
     add = np.add.reduce
-    shapes: dict[int, tuple[np.ndarray, float, np.ndarray, float, float]] = {}
+    shapes: dict[int, tuple[np.ndarray, float, np.ndarray, float, float, np.ndarray]] = {}
 
-    def shape(n: int) -> tuple[np.ndarray, float, np.ndarray, float, float]:
-        """u, u @ u, q, q @ q and max |q| of a window of n cycles (the search tries one length at many starts)."""
+    def shape(n: int) -> tuple[np.ndarray, float, np.ndarray, float, float, np.ndarray]:
+        """u, u @ u, q, q @ q, max |q| of a window of n cycles and the least bend it allows (the noise's or the
+        sampling's): the search tries one length at many starts."""
         if n not in shapes:
             if len(shapes) >= SHAPES_KEPT:
                 shapes.clear()
             u = index[:n] - 0.5 * (n - 1)
             uu = u @ u
             q = u * u - uu / n  # orthogonal to 1 and u
-            shapes[n] = (u, uu, q, q @ q, np.abs(q).max())
+            qq, top = q @ q, np.abs(q).max()
+            shapes[n] = (u, uu, q, qq, top, np.maximum(spread * top / np.sqrt(qq), sampling))
         return shapes[n]
 
     def fits(i: int, j: int) -> bool:
         a = amp[:, i:j]
         n = j - i
-        u, uu, q, qq, top = shape(n)
+        u, uu, q, qq, top, least = shape(n)
         level = add(a, axis=1) / n  # a.mean(axis=1)
         beta = a @ u / uu if n > 1 else np.zeros(a.shape[0])
         if (np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)).any():
@@ -279,8 +281,7 @@ def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Call
         if n < WAVEFORM_MIN_CYCLES:
             return True
         bend = np.abs(resid @ q) / qq * top  # the largest departure of the best parabola from the line
-        allowed = np.maximum(CURVATURE * np.abs(level), spread * top / np.sqrt(qq))
-        return bool((bend <= np.maximum(allowed, sampling)).all())
+        return bool((bend <= np.maximum(CURVATURE * np.abs(level), least)).all())
 
     return fits
 
