@@ -53,6 +53,7 @@ Every step is linear in the record length (no sliding windows over cycles).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 import warnings
 
 import numpy as np
@@ -179,6 +180,14 @@ def loop_from_branches(top: np.ndarray, bottom: np.ndarray, n_points: int, sourc
 
 
 
+@lru_cache(maxsize=8)
+def _hann(n: int) -> np.ndarray:
+    """``np.hanning(n)``, kept for records of the same length (a set's records mostly are)."""
+    window = np.hanning(n)
+    window.flags.writeable = False
+    return window
+
+
 def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     """Frequency of the largest displacement spectral peak (Hann window, zero padding to a power of 2, Gaussian interpolation).
 
@@ -188,7 +197,7 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     n = t.size
     dt = (t[-1] - t[0]) / (n - 1)
     nfft = 1 << int(np.ceil(np.log2(n)))
-    mag = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nfft))
+    mag = np.abs(np.fft.rfft((x - x.mean()) * _hann(n), nfft))
     first = int(np.ceil(nfft / (n - 1)))  # below one period per record there is no cycle to extract
     if first >= mag.size - 1 or not np.any(mag[first:] > 0):
         raise HysidInputError(f"{source}: the displacement does not oscillate")

@@ -318,7 +318,7 @@ def _longest_band_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) 
 def _bin_medians(phase: np.ndarray, y: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
     """(centre phase, median of y) of the non-empty phase bins [(j - 1/4)/bins, (j + 3/4)/bins)."""
     b = np.floor(phase * bins + 0.25).astype(np.int64) % bins
-    order = np.argsort(b.astype(np.int32), kind="stable")
+    order = np.argsort(b.astype(np.int16 if bins <= np.iinfo(np.int16).max else np.int32), kind="stable")  # int16: a radix sort
     counts = np.bincount(b, minlength=bins)
     width = int(counts.max())
     rank = np.arange(b.size) - np.repeat(np.cumsum(counts) - counts, counts)
