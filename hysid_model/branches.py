@@ -378,7 +378,8 @@ class _PhaseSums:
         begin, end = np.maximum(a[owner], self.edges[block]), np.minimum(b[owner], self.edges[block + 1])
         s = [c[end] - c[begin] for c in self.cum]
         e = (self.ref[block] - centre[owner]) / self.h
-        return [np.bincount(owner, sum(comb(p, k) * s[k] * e ** (p - k) for k in range(p + 1)), minlength=centre.size)
+        powers = [e**m for m in range(5)]
+        return [np.bincount(owner, sum(comb(p, k) * s[k] * powers[p - k] for k in range(p + 1)), minlength=centre.size)
                 for p in range(5)]
 
     def variance(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
