@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -251,19 +252,22 @@ def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Call
     spread = NOISE_SIGMAS * noise
     index = np.arange(amp.shape[1], dtype=float)
     add = np.add.reduce
-    shapes: dict[int, tuple[np.ndarray, float, np.ndarray, float, float, np.ndarray]] = {}
+    shapes: dict[int, tuple[Any, ...]] = {}
 
-    def shape(n: int) -> tuple[np.ndarray, float, np.ndarray, float, float, np.ndarray]:
-        """u, u @ u, q, q @ q, max |q| of a window of n cycles and the least bend it allows (the noise's or the
-        sampling's): the search tries one length at many starts."""
+    def shape(n: int) -> tuple[Any, ...]:
+        """u, u @ u and, for a run long enough for the curvature test, q, q @ q, max |q| and the least bend it
+        allows (the noise's or the sampling's), of a window of n cycles: the search tries one length at many starts."""
         if n not in shapes:
             if len(shapes) >= SHAPES_KEPT:
                 shapes.clear()
             u = index[:n] - 0.5 * (n - 1)
             uu = u @ u
-            q = u * u - uu / n  # orthogonal to 1 and u
-            qq, top = q @ q, np.abs(q).max()
-            shapes[n] = (u, uu, q, qq, top, np.maximum(spread * top / np.sqrt(qq), sampling))
+            if n < WAVEFORM_MIN_CYCLES:
+                shapes[n] = (u, uu, None, None, None, None)
+            else:
+                q = u * u - uu / n  # orthogonal to 1 and u
+                qq, top = q @ q, np.abs(q).max()
+                shapes[n] = (u, uu, q, qq, top, np.maximum(spread * top / np.sqrt(qq), sampling))
         return shapes[n]
 
     def fits(i: int, j: int) -> bool:
