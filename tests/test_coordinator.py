@@ -100,13 +100,16 @@ def test_a_joined_island_cannot_claim_what_it_could_not_have_done(tmp_path, link
         history(island, [[3, f, 50, 0.1]], x, f, seq=4, algo="ga"),  # joined as pso
         history(island, [[3, f, 50, 0.1]], x, f / 2, seq=5),  # a best better than its vector's
         history(island, [[3, f, 50, 0.1]], x, f, seq=6, stats={"sent": 9, "received": 0, "taken": 0, "rejected": 0}),
+        history(island, [[2, f, 45, 0.1], [3, f / 2, 50, 0.1]], x, f, seq=9),  # a row's best better than the vector's
+        history(island, [[3, f, 50, 0.1]], x, f, seq=10, stats={"sent": 1, "received": 0, "taken": 1, "rejected": 0}),  # took more than it got
     ]
     for payload in bad:
         deliver(c, link, "history", "pso-1", payload)
     deliver(c, link, "history", "pso-1", history(island, [[3, f, 2.0**62, 0.1]], x, f, seq=8))  # not even a count a float holds exactly
-    assert reasons(c) == {"implausible": 6, "schema": 1} and c.evaluations == 0
+    assert reasons(c) == {"implausible": 8, "schema": 1} and c.evaluations == 0
+    assert c.store.count("history", "c1") == 0
     deliver(c, link, "history", "pso-1", history(island, [[i, 2 * f, 20 + 25 * i, 0.0] for i in range(4)], x, f, seq=7))
-    assert c.evaluations == 95 and check_stop(c) is None and reasons(c) == {"implausible": 6, "schema": 1}
+    assert c.evaluations == 95 and check_stop(c) is None and reasons(c) == {"implausible": 8, "schema": 1}
     deliver(c, link, "history", "pso-1", history(island, [[i, 2 * f, 20 + 25 * i, 0.0] for i in range(4)], x, f, seq=7))
     assert reasons(c)["replay"] == 1
 

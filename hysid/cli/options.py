@@ -67,6 +67,7 @@ FLAGS = {
     "records": "--records",
     "seconds": "--seconds",
     "sample_rate_hz": "--rate",
+    "rounds": "--rounds",
 }
 """Python parameter (as a :class:`HysidInputError` names it) -> command-line flag."""
 
