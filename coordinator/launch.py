@@ -29,7 +29,7 @@ from coordinator.links import MemoryLink, ZenohLink
 from coordinator.loop import serve
 from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
 from island.node import IslandNode
 from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret

@@ -3,7 +3,7 @@
     result = hysid.campaign(loops, islands=4)            # island processes over Zenoh on loopback
     result = hysid.campaign(loops, islands=4, single_node=True)   # island threads, migrating in memory
 
-The coordinator (:mod:`coordinator.server`) serves the loop set, records every
+The coordinator (:mod:`coordinator.state`) serves the loop set, records every
 island's history in SQLite and stops by its rules (:mod:`coordinator.loop`); :class:`CampaignResult` is
 the ``hysid fit`` result of its islands (the global best polished) plus the
 islands, migrations and membership events.
@@ -20,7 +20,7 @@ from typing import Any
 from coordinator.launch import island_specs, run_campaign
 from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
 from hysid.motion import choose_motion

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from coordinator.launch import free_port, island_specs, run_campaign
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.cli import main
 from hysid_model.errors import HysidWarning

@@ -10,7 +10,7 @@ import pytest
 from coordinator.launch import island_specs, run_campaign
 from coordinator.links import MemoryLink
 from coordinator.loop import control_message, pump
-from coordinator.server import Coordinator, resume
+from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
 from hysid_model.errors import HysidInputError

@@ -28,7 +28,7 @@ from coordinator.launch import island_specs
 from coordinator.links import ZenohLink
 from coordinator.loop import serve
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator, resume
+from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import campaign, finish
 from hysid.cli import options as o
