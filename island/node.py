@@ -7,7 +7,10 @@ evaluate -> tell) and uses its hooks:
   (:class:`island.sealing.Credentials`), and every message it sends is sealed
   with them;
 * after every iteration the history row goes to the coordinator (in batches,
-  every ``history_every_s``; iteration, best fitness, evaluations, wall time);
+  every ``history_every_s``; iteration, best fitness, evaluations, wall time),
+  and at once at every migration: the coordinator counts a mixed campaign's
+  rounds in migration intervals (:mod:`island.share`), so what it decides at
+  the end of one does not wait for a timer;
 * every ``migration.interval`` iterations (the *epoch*) it publishes its ``k``
   best candidates and takes what its in-neighbours (:mod:`island.migration`)
   sent. Each message is validated as it arrives (:mod:`island.protocol`:
@@ -199,7 +202,8 @@ class IslandNode:
         self.rows.append((row.iteration, row.best_fitness, row.evaluations + self.migrant_evaluations, row.wall_s))
         x, f = self.optimizer.best(1)
         self._snapshot = (x[0].copy(), float(f[0]))
-        if time.monotonic() - self._last_flush >= self.history_every_s:
+        interval = self.config.migration.interval
+        if time.monotonic() - self._last_flush >= self.history_every_s or (interval and row.iteration and row.iteration % interval == 0):
             self._flush()
 
     # --- migrants -----------------------------------------------------------------
