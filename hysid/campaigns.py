@@ -111,7 +111,8 @@ class CampaignResult:
 
     def write_report(self, out_dir: str | Path) -> Path:
         """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document."""
-        return markdown.write_fit_report(self.fit, out_dir, title="hysid campaign", document=self.to_dict())
+        interrupted = " (interrupted)" if self.fit.settings.get("stop_reason") == "interrupted" else ""
+        return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{interrupted}", document=self.to_dict())
 
     def _repr_markdown_(self) -> str:
         return markdown.fit_overview(self.fit)

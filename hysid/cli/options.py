@@ -21,6 +21,10 @@ from hysid_model.model import PRESETS
 from island.algorithms import ALGORITHMS
 from island.termination import Termination
 
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as shells report it: also of a campaign that stopped at Ctrl-C and
+reported (a script tells an interrupted campaign from a finished one by it)."""
+
 FLAGS = {
     "model": "--model",
     "algo": "--algo",
