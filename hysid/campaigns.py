@@ -73,13 +73,19 @@ class CampaignResult:
                 raise HysidInputError(f"{db}: campaign {name!r} has an unreadable configuration ({exc})") from None
             settings = (stored or {}).get("settings", {})
             termination = Termination(**settings["stop_rules"]) if "stop_rules" in settings else None
+            gone = store.gone_since(name)
             coordinator = Coordinator(store, config, loops, termination, dataset=dataset, resume=True)
             coordinator.stop_reason = reason if status == "stopped" and reason else (
                 f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else "")
+                + ("" if gone is None else f", {text.gone_text(gone)}")
             )
-            return cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
+            result = cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
         finally:
             store.close()
+        if gone is not None:  # the islands it saw alive: nobody knows since
+            for island in result.islands:
+                island["status"] = "unknown" if island["status"] == "alive" else island["status"]
+        return result
 
     @property
     def params(self) -> dict[str, float]:
