@@ -26,9 +26,12 @@ from hysid.fitting import FitResult
 from hysid.motion import choose_motion
 from hysid.report import jsondoc, markdown, tables, text
 from hysid_model.loops import LoopSet
-from hysid_model.model import Model
+from hysid_model.model import Model, build_model
+from hysid_model.user_terms import check_importable
 from hysid_model.errors import HysidInputError
+from hysid_model.problem import prepare_model
 from island.config import CampaignConfig, decode_config
+from island.memetic import BUDGET, ISLAND_OPTIONS
 from island.migration import Migration
 from island.secret import secret_path
 from island.termination import Termination
@@ -153,6 +156,17 @@ def islands_until_stopped(termination: Termination | None, options: Mapping[str,
     return termination is not None and termination.bounded and not given
 
 
+def default_options(loops: LoopSet, model: str | Model, bounds: Mapping[str, tuple[float, float]] | None = None,
+                    algos: list[str] | tuple[str, ...] = ("ga", "pso")) -> dict[str, dict[str, Any]] | None:
+    """The islands' settings when none are given: on a model with memory (whose islands refine their best,
+    :mod:`island.node`) the small swarms of memetic islands (:data:`island.memetic.ISLAND_OPTIONS`, the PSO
+    moving as one swarm), else None (the thesis' settings; a campaign on a memoryless model, Coulomb
+    friction's included, searches as before)."""
+    if not prepare_model(loops, model, bounds=bounds).has_memory:
+        return None
+    return {a: {**ISLAND_OPTIONS, **({"synchronous": True} if a == "pso" else {})} for a in algos}
+
+
 def campaign(
     loops: LoopSet,
     islands: int = 4,
@@ -191,6 +205,10 @@ def campaign(
     algorithm each island runs meanwhile is the ``share``'s). By default (None) that holds when ``termination`` has an
     evaluation budget or a time limit and no ``options`` give ``iterations``.
 
+    On a model with memory (Bouc-Wen) the islands are memetic by default: small swarms (:func:`default_options`) whose best each island refines by least
+    squares (:mod:`island.node`), within a budget of :data:`island.memetic.BUDGET` evaluations unless
+    ``termination`` says otherwise.
+
     ``share``: with several ``algos``, ``staged`` (default) moves the GA islands to
     the PSO once they have searched one migration interval, ``adaptive`` moves islands to the
     algorithm whose own moves gain more (:mod:`island.share`; the moves are in
@@ -199,11 +217,15 @@ def campaign(
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
     motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
+    if options is None and (options := default_options(loops, model, bounds, algos)) is not None and termination is None:
+        termination = Termination(budget=BUDGET)
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
         options=options, migration=migration, seed=seed, min_islands=islands, displacement=motion.displacement,
         until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped, share=share,
     )
+    if not single_node:
+        check_importable(build_model(config.model))
     store = Store(db)
     try:
         coordinator = Coordinator(store, config, loops, termination, dataset=dataset or loops.name)

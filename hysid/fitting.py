@@ -16,8 +16,8 @@ and the half-power cross-check of the damping (Eq. 2.7, Fig. 6.1).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,9 +36,14 @@ from hysid_model.objective import Objective
 from hysid_model.problem import build_objective, starting_point
 from hysid_model.uncertainty import covariance, fisher_information, scaled_inverse
 from island.algorithms import check_algorithm
+from island.memetic import BUDGET, TIME_LIMIT_S, memetic_search, needs_islands
 from island.run import HistoryRow, RunResult, optimize
 from island.termination import Termination
 
+WIDENED_SHARE = 0.25
+"""The share of the budget of a memetic search after a widening: it starts from the best so far."""
+MIN_SEARCH_S = 1.0
+"""The least time a memetic run is given once the fit's time limit is spent (its final polish follows)."""
 RunCallback = Callable[[int, HistoryRow], None]
 """Called with (run index, history row) after every iteration of a run."""
 
@@ -254,6 +259,7 @@ def fit(
     options: dict[str, Any] | None = None,
     termination: Termination | None = None,
     progress: RunCallback | None = None,
+    islands: bool | None = None,
 ) -> FitResult:
     """Identify ``model``'s parameters from ``loops``: ``runs`` independent runs (seeds ``seed .. seed+runs-1``); the best is the result.
 
@@ -266,6 +272,12 @@ def fit(
     ``"fundamental"`` or ``"sine"`` (Eq. 4.5, as the thesis); ``start`` adds the
     survey's linear estimate to every run's population (:func:`hysid_model.problem.starting_point`);
     ``termination`` may end runs early; ``progress(run, row)`` is called after every iteration.
+
+    ``islands``: each run is a search of memetic islands in this process (:func:`island.memetic.memetic_search`:
+    several cooperating populations, refined by least squares, as a campaign's islands) instead of one
+    GA/PSO run and its polish; by default (None) on models with memory or a non-smooth force
+    (:func:`island.memetic.needs_islands`) unless ``options`` are given, within ``termination``'s budget
+    and time limit (else :data:`island.memetic.BUDGET` evaluations, :data:`island.memetic.TIME_LIMIT_S` s).
 
     Bounds the data suggested (soft, see :mod:`hysid_model.problem`) that the best run ends on are
     widened and every run repeated from that best, up to ``MAX_WIDENINGS`` times, before the result
@@ -281,13 +293,23 @@ def fit(
     objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=motion.displacement)
     first = starting_point(objective.loops, objective.model) if start else None
     widened: list[dict[str, Any]] = []
+    memetic = needs_islands(objective.model) and options is None if islands is None else bool(islands)
+    budget = BUDGET if termination is None or not termination.bounded else termination.budget
+    seconds = TIME_LIMIT_S if termination is None or not termination.bounded else termination.time_limit_s
+    deadline = None if seconds is None else time.monotonic() + seconds
+    """The memetic runs share the time limit, the searches after a widening included."""
 
-    def search(objective: Objective, first: np.ndarray | None) -> list[RunResult]:
+    def search(objective: Objective, first: np.ndarray | None, share: float = 1.0) -> list[RunResult]:
         out = []
         for i in range(runs):
             callback = None if progress is None else (lambda row, i=i: progress(i, row))
-            out.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options,
-                                termination=termination, callback=callback, start=first))
+            if memetic:
+                left = None if deadline is None else max((deadline - time.monotonic()) / (runs - i), MIN_SEARCH_S)
+                out.append(memetic_search(objective, [] if first is None else [first], seed + i, budget=None if budget is None else max(int(share * budget), 1),
+                                          time_limit_s=left, label=f"run {i + 1}", callback=callback))
+            else:
+                out.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options,
+                                    termination=termination, callback=callback, start=first))
         return out
 
     def identify(objective: Objective, first: np.ndarray | None) -> tuple[Objective, list[RunResult]]:
@@ -301,7 +323,7 @@ def fit(
             widened.extend({"param": name, "from": old[name], "to": [float(b) for b in pair]} for name, pair in changed.items())
             spent = sum(r.evaluations for r in results)
             objective = Objective(objective.loops, wider, weights=objective.weights)
-            results = search(objective, best.theta)
+            results = search(objective, best.theta, WIDENED_SHARE)
             results[0].evaluations += spent  # what the narrower searches cost counts too
         return objective, results
 
@@ -314,7 +336,7 @@ def fit(
         objective, results = identify(objective, np.clip(best.theta, objective.bounds[:, 0], objective.bounds[:, 1]))
         results[0].evaluations += spent
     settings = {
-        "algo": algo,
+        "algo": "memetic islands" if memetic else algo,
         "runs": runs,
         "seeds": list(range(seed, seed + runs)),
         "polish": polish,

@@ -29,6 +29,9 @@ evaluate -> tell) and uses its hooks:
   migrants for the transport's ``silent_s``, so that a silent member cannot
   starve the island after it;
 * a late joiner takes the coordinator's current global best the same way;
+* on a model with memory (Bouc-Wen), every ``REFINE_EVERY`` iterations its best is
+  refined by a short bounded least-squares polish (memetic islands, :mod:`island.memetic`); the
+  refinement's evaluations count with its own;
 * when the roster assigns its run another algorithm (a mixed campaign's
   staged or adaptive share, :mod:`island.share`), it carries its search on with that
   algorithm from the next iteration;
@@ -54,6 +57,7 @@ from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer, switch_algorithm
 from island.config import CampaignConfig
+from island.memetic import REFINE_EVERY, Refiner
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
@@ -138,6 +142,8 @@ class IslandNode:
     ) -> None:
         self.island = check_name("island", island)
         self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.island_options(algo))
+        self.refiner = Refiner(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
+        """Memetic refinement of the island's best on models with memory (:mod:`island.memetic`)."""
         self.algo = algo
         self.seed = seed
         self.config = config
@@ -287,6 +293,8 @@ class IslandNode:
         in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
         transport, credentials = self._attached()
         optimizer = self._follow_assignment()
+        if self.refiner is not None and optimizer.iteration and optimizer.iteration % REFINE_EVERY == 0:
+            self.migrant_evaluations += self.refiner(optimizer)
         if optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
             x = np.array(self.config.start, dtype=float)[None, :]
             self.migrant_evaluations += 1

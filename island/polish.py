@@ -17,7 +17,14 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
+BLAS_THREADS = 1
+"""BLAS threads of the solver's decompositions: its matrices are a few columns wide, and on a busy 2-core
+machine a second OpenBLAS thread made each SVD 60 x slower (1 ms -> 68 ms for 1800 x 7)."""
+MEMORY_NFEV = 2000
+"""Residual calls of a polish on a model with memory by default: scipy's 100 D ran out before convergence
+on a real MR damper ("maximum number of function evaluations exceeded")."""
 TOLERANCE = 1e-15
 """ftol, xtol and gtol of the least-squares solver: stop only at convergence to machine precision."""
 
@@ -40,9 +47,11 @@ def polish(objective: Any, theta0: np.ndarray, *, max_nfev: int | None = None) -
     ``objective`` needs ``weighted_residuals(theta)`` (whose sum of squares is
     the fitness), ``jacobian(theta)`` and ``bounds`` (D, 2), as
     :class:`hysid_model.objective.Objective` provides. ``max_nfev`` caps the
-    residual calls (scipy's default, 100 D, when None).
+    residual calls (when None: :data:`MEMORY_NFEV` on a model with memory, else scipy's default, 100 D).
     """
     bounds = np.asarray(objective.bounds, dtype=float)
+    if max_nfev is None and getattr(getattr(objective, "model", None), "has_memory", False):
+        max_nfev = MEMORY_NFEV
     start = np.clip(np.asarray(theta0, dtype=float).reshape(-1), bounds[:, 0], bounds[:, 1])
     r0 = objective.weighted_residuals(start)
     f0 = float(r0 @ r0)
@@ -62,18 +71,19 @@ def polish(objective: Any, theta0: np.ndarray, *, max_nfev: int | None = None) -
         return np.where(np.isfinite(jac), jac, 0.0)
 
     try:
-        result = least_squares(
-            residuals,
-            start,
-            jac=jacobian,
-            bounds=(bounds[:, 0], bounds[:, 1]),
-            method="trf",
-            x_scale="jac",
-            ftol=TOLERANCE,
-            xtol=TOLERANCE,
-            gtol=TOLERANCE,
-            max_nfev=max_nfev,
-        )
+        with threadpool_limits(BLAS_THREADS, user_api="blas"):
+            result = least_squares(
+                residuals,
+                start,
+                jac=jacobian,
+                bounds=(bounds[:, 0], bounds[:, 1]),
+                method="trf",
+                x_scale="jac",
+                ftol=TOLERANCE,
+                xtol=TOLERANCE,
+                gtol=TOLERANCE,
+                max_nfev=max_nfev,
+            )
     except ValueError as exc:
         return PolishResult(start, f0, 1 + calls["residuals"], False, f"least squares stopped: {exc}")
     evaluations = 1 + int(result.nfev) + probes_per_jacobian * int(result.njev or 0)

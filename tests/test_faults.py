@@ -375,6 +375,8 @@ def test_ten_thousand_hostile_messages_over_zenoh_leave_coordinator_and_islands_
                 kind = where.split("/")[2]
                 if where not in publishers:
                     publishers[where] = broken.session.declare_publisher(where, congestion_control=zenoh.CongestionControl.BLOCK)
+                    if kind in ("migrants", "history"):  # a put before the publisher matches its subscribers is dropped
+                        wait_for(lambda: publishers[where].matching_status.matching, 30, f"subscribers of {where}")
                 publishers[where].put(payload)
                 to_coordinator += kind in ("migrants", "history")
                 to_islands += kind == "migrants"
@@ -386,6 +388,7 @@ def test_ten_thousand_hostile_messages_over_zenoh_leave_coordinator_and_islands_
                 tokens += 1
                 to_coordinator += 2  # its arrival and, at the end, its departure
         controls = broken.session.declare_publisher("hysid/zf/control", congestion_control=zenoh.CongestionControl.BLOCK)
+        wait_for(lambda: controls.matching_status.matching, 30, "the islands' control subscriptions")
         for k in range(1000):
             controls.put(hostile.control())
         for k in range(500):

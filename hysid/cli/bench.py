@@ -11,11 +11,12 @@ stores that JSON under ``bench/results/``.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from pathlib import Path
+from typing import Any, Optional
 
 import typer
 
-from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective, sites
+from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective, search, sites, validation
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -55,6 +56,35 @@ def islands_command(
 ) -> None:
     """Island model: 2-island speedup, migration vs isolation, mixed vs single-algorithm islands, hysid vs pygmo, migration latency."""
     emit(islands.run(islands.PARTS if part == "all" else [part]), islands.to_text, as_json)
+
+
+@bench_app.command("search", help=(search.run.__doc__ or "").strip().splitlines()[0])
+def search_command(
+    seeds: int = typer.Option(search.MIN_SEEDS, "--seeds", help=f"Search seeds per problem and method ({search.MIN_SEEDS} for a verdict; fewer: preliminary)."),
+    quick: bool = typer.Option(False, "--quick", help="3 seeds on two problems with small budgets: the machinery, not a verdict."),
+    problems: str = typer.Option(",".join(search.PROBLEMS), "--problems", help="Comma-separated problems to run."),
+    budget: int = typer.Option(search.BUDGET, "--budget", help="Evaluations of every search."),
+    partial: Optional[Path] = typer.Option(None, "--partial", help="Write the results so far to this JSON file after every problem."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    emit(search.run(seeds, quick, tuple(p for p in problems.split(",") if p), budget=budget, partial=partial), search.to_text, as_json)
+
+
+@bench_app.command("validation", help=(validation.run.__doc__ or "").strip().splitlines()[0])
+def validation_command(
+    cases: str = typer.Option("", "--cases", help="Comma-separated cases to run (default: all)."),
+    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the table as Markdown to this file (docs/VALIDATION.md)."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    names = [c for c in cases.split(",") if c] or None
+    known = [c.name for c in validation.cases()]
+    unknown = [c for c in names or [] if c not in known]
+    if unknown:
+        raise HysidInputError(f"--cases: unknown case {unknown[0]!r}; choose from {', '.join(known)}")
+    result = validation.run(names)
+    if markdown is not None:
+        markdown.write_text(validation.to_markdown(result, environment()))
+    emit(result, validation.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])

@@ -8,8 +8,11 @@ explains, not by how precisely one of its parameters is known there:
 2. shape: no harmonic order the current model fits at the noise is made
    significantly worse (:func:`created_order`);
 3. sign: a one-sided effect's strength ends positive;
-4. degeneracy: no shape parameter is pushed against a bound by the data
-   (:func:`binding`);
+4. degeneracy: a shape parameter the data push against a bound
+   (:func:`binding`, :func:`degenerate`) means the effect turns into something
+   else there; it is taken only if no other contender fits within
+   ``BIC_MARGIN`` of it (judged in :mod:`.selection`; then the bound is
+   reported with the result);
 5. share: it removes at least ``MIN_SHARE`` of the chi^2 above the noise floor;
 6. visible error: the loop NRMSE and the energy dissipated per cycle get no
    worse beyond their noise (the whitened chi^2 weighs loops by their noise; a
@@ -30,8 +33,8 @@ from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.diagnosis.fitting import Fit
 from hysid.diagnosis.metrics import cross_validated_rms, energy_error_pct, nrmse_pct
 from hysid.diagnosis.plausible import implausible_values
-from hysid_model.effects import EFFECTS
 from hysid_model.harmonics import Harmonics
+from hysid_model.model import effect_term
 from hysid_model.uncertainty import jacobian_covariance
 
 VISIBLE_Z = 3.0
@@ -109,8 +112,19 @@ def visible_error(before: Fit, after: Fit, harmonics: Harmonics) -> str | None:
     return None
 
 
+def degenerate(after: Fit, effects: tuple[str, ...]) -> str | None:
+    """Which shape parameter of ``effects`` the data push against a bound in ``after`` (rule 4), in words, or None."""
+    names = after.model.names
+    for effect in effects:
+        term = effect_term(effect)
+        for p in term.params:
+            if p.name != term.strength and p.name in names and binding(after, names.index(p.name)):
+                return f"{p.name} is pushed against its bound ({after.theta[names.index(p.name)]:.4g}): the effect degenerates here"
+    return None
+
+
 def judge(before: Fit, after: Fit, effects: tuple[str, ...], harmonics: Harmonics) -> str | None:
-    """Why ``after`` (``before`` plus ``effects``) is not taken by rules 1-7 of the module docstring, or None."""
+    """Why ``after`` (``before`` plus ``effects``) is not taken by rules 1-3 and 5-7 of the module docstring, or None."""
     delta = after.bic - before.bic
     if delta > -BIC_MARGIN:
         return f"BIC changes by only {delta:+.1f}"
@@ -120,14 +134,11 @@ def judge(before: Fit, after: Fit, effects: tuple[str, ...], harmonics: Harmonic
         return f"adds order-{k} content the loops do not have (chi^2 of order {k}: {c0:.4g} -> {c1:.4g})"
     names, values, bounds = after.model.names, after.theta, after.model.bounds
     for effect in effects:
-        term = EFFECTS[effect]()
+        term = effect_term(effect)
         if term.strength in names:
             i = names.index(term.strength)
             if bounds[i, 0] == 0.0 and values[i] <= 0.0:
                 return f"{term.strength} has the unphysical sign"
-        for p in term.params:
-            if p.name != term.strength and p.name in names and binding(after, names.index(p.name)):
-                return f"{p.name} is pushed against its bound ({values[names.index(p.name)]:.4g}): the effect degenerates here"
     excess = before.chi2 - before.dof
     if excess > 0 and before.chi2 - after.chi2 < MIN_SHARE * excess:
         return f"removes only {100 * (before.chi2 - after.chi2) / excess:.0f}% of the chi^2 above the noise floor"

@@ -8,6 +8,7 @@ least-squares polish of :mod:`island.polish` finds the optimum.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -93,12 +94,15 @@ def soft_bounds(model: Model) -> dict[str, tuple[float, float]]:
     return {p.name: (p.lower, p.upper) for p in model.parameters if p.soft}
 
 
-def make_model(harmonics: Harmonics, start: str, effects: tuple[str, ...], bounds: dict[str, tuple[float, float]]) -> Model:
+def make_model(harmonics: Harmonics, start: str, effects: tuple[str, ...], bounds: dict[str, tuple[float, float]],
+               free: Sequence[str] = ()) -> Model:
     """The start model plus ``effects``, ready for the loops (known mass fixed, bounds by the one rule of
-    :func:`hysid_model.problem.prepare_model`), with the soft ``bounds`` widened so far."""
+    :func:`hysid_model.problem.prepare_model`), with the parameters ``free`` searched that the effects fix by
+    default (a Bouc-Wen exponent freed earlier) and the soft ``bounds`` widened so far."""
     model = prepare_model(harmonics.loops, "+".join((start,) + effects))
-    soft = soft_bounds(model)
-    return model.with_bounds({k: v for k, v in bounds.items() if k in soft}, soft=True)
+    model = model.vary(*(n for n in free if n in model.fixed))
+    soft = soft_bounds(model) | {n: None for n in free}
+    return model.with_bounds({k: v for k, v in bounds.items() if k in soft and k in model.names}, soft=True)
 
 
 def fit_objective(objective: HarmonicObjective, start: str, effects: tuple[str, ...], starts: list[np.ndarray]) -> Fit:

@@ -15,6 +15,13 @@ by their chi^2 among:
   initial stiffness and yield from the reversals and the plateau), on the
   previous model's optimum.
 
+A refit that brings memory or a non-smooth force into the model (a Bouc-Wen
+spring, Coulomb friction: :func:`island.memetic.needs_islands`) is searched by
+the memetic islands ``hysid fit`` uses on such models
+(:func:`island.memetic.memetic_search`, from the same starts, ``SEARCH_BUDGET``
+evaluations), then polished: a polish alone lands in a poor optimum there for
+some starts, and an effect must not be judged by one.
+
 An effect with a parameter it fixes by default (Bouc-Wen's exponent, n = 1,
 the closed form) is refitted with it free as well, from that refit's optimum,
 the shapes with n = 2 and the loops' own starts; the free variant is kept
@@ -29,25 +36,28 @@ import numpy as np
 from hysid.diagnosis.criteria import BIC_MARGIN
 from hysid.diagnosis.fitting import Fit, fit_objective, make_model
 from hysid.diagnosis.scoring import Candidate
-from hysid_model.effects import EFFECTS
 from hysid_model.harmonics import HarmonicObjective, Harmonics
-from hysid_model.model import Model
+from hysid_model.model import Model, effect_term
+from island.memetic import memetic_search, needs_islands
 
 LINE_SEARCH = (0.25, 0.5, 1.0, 2.0, 4.0)
 """Multiples of the one-step estimate tried before polishing."""
 STARTS = 3
 """Starting points polished per refit (the best by chi^2, distinct)."""
+SEARCH_BUDGET = 5000
+"""Evaluations of the memetic search of a refit that brings memory or a non-smooth force into the model
+(half of ``hysid fit``'s: the diagnosis' harmonic objective is smooth in the rest, and starts near the optimum)."""
 
 
 def data_starts(effect: str, harmonics: Harmonics, free: list[str]) -> list[dict[str, float]]:
     """The starting points ``effect``'s term reads off the loops (none where it reads nothing), with values for
     the parameters of ``free`` it fixes by default."""
-    return EFFECTS[effect]().data_starts(harmonics.loops, free)
+    return effect_term(effect).data_starts(harmonics.loops, free)
 
 
 def starting_rows(fit: Fit, model: Model, harmonics: Harmonics, candidates: tuple[Candidate, ...], joint: np.ndarray | None) -> np.ndarray:
     """Candidate parameter vectors of ``model`` (the current one plus ``candidates``' effects), see the module docstring."""
-    terms = [EFFECTS[c.effect]() for c in candidates]
+    terms = [effect_term(c.effect) for c in candidates]
     base = {**{p.name: 0.0 for t in terms for p in t.params}, **fit.params()}
     strengths = [model.names.index(t.strength) for t in terms]
     scale = np.array(LINE_SEARCH)
@@ -74,9 +84,10 @@ def refit(fit: Fit, harmonics: Harmonics, candidates: tuple[Candidate, ...], bou
     """The current ``fit`` plus the effects of ``candidates`` (one, or two with their ``joint`` one-step strengths),
     polished from its ``STARTS`` best distinct starting points (module docstring); the best polish is the refit."""
     effects = fit.effects + tuple(c.effect for c in candidates)
-    model = make_model(harmonics, fit.start, effects, bounds)
-    fixed = best_of(HarmonicObjective(harmonics, model), fit.start, effects, starting_rows(fit, model, harmonics, candidates, joint))
-    freeable = [p.name for c in candidates for p in EFFECTS[c.effect].params if not p.vary and p.name in model.fixed]
+    model = make_model(harmonics, fit.start, effects, bounds, fit.freed)
+    hard = needs_islands(model) and not needs_islands(fit.model)
+    fixed = best_of(HarmonicObjective(harmonics, model), fit.start, effects, starting_rows(fit, model, harmonics, candidates, joint), hard)
+    freeable = [p.name for c in candidates for p in effect_term(c.effect).params if not p.vary and p.name in model.fixed]
     if not freeable:
         return fixed
     wider = model.vary(*freeable)
@@ -85,12 +96,16 @@ def refit(fit: Fit, harmonics: Harmonics, candidates: tuple[Candidate, ...], bou
     rows += [wider.from_dict({**values, **{n: float(np.clip(2.0 * model.fixed[n], *wider.bounds[wider.names.index(n)])) for n in freeable}})]
     rows += [wider.from_dict({**values, **point}) for c in candidates for point in data_starts(c.effect, harmonics, wider.names)
              if set(freeable) <= set(point)]
-    free = best_of(HarmonicObjective(harmonics, wider), fit.start, effects, np.clip(np.array(rows), wider.bounds[:, 0], wider.bounds[:, 1]))
+    free = best_of(HarmonicObjective(harmonics, wider), fit.start, effects, np.clip(np.array(rows), wider.bounds[:, 0], wider.bounds[:, 1]), hard)
     return free if free.bic < fixed.bic - BIC_MARGIN else fixed
 
 
-def best_of(objective: HarmonicObjective, start: str, effects: tuple[str, ...], rows: np.ndarray) -> Fit:
-    """The fit polished from the ``STARTS`` best distinct ``rows`` (by chi^2) of ``objective``."""
+def best_of(objective: HarmonicObjective, start: str, effects: tuple[str, ...], rows: np.ndarray, search: bool = False) -> Fit:
+    """The fit polished from the ``STARTS`` best distinct ``rows`` (by chi^2) of ``objective``; with ``search``,
+    from what the memetic islands find from them as well."""
     rows = np.unique(rows, axis=0)
     order = np.argsort(objective(rows), kind="stable")
-    return fit_objective(objective, start, effects, [rows[j] for j in order[:STARTS]])
+    starts = [rows[j] for j in order[:STARTS]]
+    if search:
+        starts.insert(0, memetic_search(objective, starts, seed=0, budget=SEARCH_BUDGET).theta)
+    return fit_objective(objective, start, effects, starts)

@@ -127,7 +127,7 @@ class BoucWen(Term):
         has a small dynamic stiffness but a stiff, early-yielding hysteretic spring), yield from 1/1000 of the
         smallest to 10 x the largest amplitude; the shape r from -0.9 to 3 and the exponent (where it is free) from 1 to 6, soft: a fit that
         ends on 3 (a knee sharper than r = 3 draws, beta < 0) or on 6 (or 1) widens it."""
-        return {"bw_k": (0.0, max(10.0 * scale.stiffness, scale.force / (0.01 * scale.x_min))), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max), "bw_r": (-0.9, 3.0), "bw_n": (1.0, 6.0)}
+        return {"bw_k": (0.0, max(10.0 * scale.stiffness, scale.force / (0.01 * scale.x_min))), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max), "bw_n": (1.0, 6.0)}
 
     def shape_grid(self, kin: Kinematics, free: Collection[str] = ()) -> list[dict[str, float]]:
         """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes r; times the

@@ -1,0 +1,239 @@
+"""``hysid bench search``: hysid's fit and campaigns against what a user would pick instead, where it is hard.
+
+In one run and at equal evaluation budgets, on each problem of
+:mod:`hysid.bench.search_problems` (memory models a local method struggles
+with, and the thesis model as an easy control), every method searches from
+``seeds`` seeds:
+
+* ``fit``: :func:`hysid.fit` with its defaults (on memory models the memetic
+  islands of :mod:`island.memetic` with their default budget);
+* ``campaign_{2,4}_{processes,single}``: :func:`hysid.campaign` with 2 and 4
+  islands, as processes over Zenoh and as threads of one process, stopped at
+  the budget (their defaults otherwise);
+* the peers of :mod:`hysid.bench.search_peers`: scipy ``least_squares``
+  multi-start, scipy ``differential_evolution``, CMA-ES with restarts (pycma)
+  and a pygmo archipelago where pygmo installs.
+
+Every method gets the problem's loops, model and bounds (hard, the same box for
+all) and the budget :data:`BUDGET` (the peers count their evaluations through
+:class:`hysid.bench.search_peers.Tracker`; hysid's methods count theirs: a
+candidate or a residual vector is one evaluation, a Jacobian its 2 D probes).
+The data (truth and noise) are fixed per problem; the seeds vary the searches.
+
+Per problem and method: the success rate (final fitness within
+:data:`SUCCESS_RTOL` relative of the best fitness any method found on that
+problem) with its 95 % Wilson interval, the median evaluations and seconds to
+success (from the method's trace where it has one, else its end), and the
+final fitness quantiles relative to the best. ``ok``: hysid's default
+campaign (:data:`CAMPAIGN`) is non-inferior to every peer on every problem by
+the paired rule of ``hysid bench islands mixed`` (the seed-by-seed
+difference of success rates has its 95 % interval above -10 points,
+:func:`hysid.bench.islands.paired`) and ahead of all of them (a higher
+success rate than each) on the hardest half of the problems: the
+``len(problems) // 2`` problems whose best peer has the lowest success rate
+(ties: the lower mean peer rate first).
+
+Also reported: whether ``fit``'s independent seeds agree within 1 % of the
+fitness on every problem (``fit_seeds_agree``), and the campaign's wall-time
+speedup from 1 to 2 island processes on a memory model at equal total
+evaluations (``speedup``, target 1.7).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import hysid
+from coordinator.launch import island_specs, run_campaign
+from coordinator.server import Coordinator
+from coordinator.store import Store
+from hysid.bench.islands import NON_INFERIORITY_MARGIN, SPEEDUP_TARGET, paired, wilson
+from hysid.bench.search_peers import PEERS, pygmo_available
+from hysid.bench.search_problems import PROBLEMS, Problem, build
+from hysid.campaigns import default_options
+from hysid.report import jsondoc
+from hysid_model.errors import HysidInputError
+from hysid_model.problem import build_objective
+from island.config import CampaignConfig
+from island.memetic import BUDGET
+from island.termination import Termination
+
+DISPLACEMENT = "measured"
+"""How every method's objective reads the displacement (the peers' objective is built so): one objective for all,
+so that their fitness values compare (``hysid fit`` would otherwise decide the reading from the data)."""
+SUCCESS_RTOL = 1e-6
+MIN_SEEDS = 30
+CAMPAIGNS = {"campaign_2_processes": (2, False), "campaign_4_processes": (4, False), "campaign_2_single": (2, True), "campaign_4_single": (4, True)}
+METHODS = ("fit", *CAMPAIGNS, *PEERS)
+CAMPAIGN = "campaign_4_processes"
+"""The campaign ``ok`` judges: ``hysid campaign``'s default, 4 island processes."""
+SPEEDUP_PROBLEM = "mr_damper_1v"
+SPEEDUP_BUDGET = 300_000
+QUICK = {"seeds": 3, "problems": ("mr_damper_1v", "thesis_easy"), "budget": 3000, "speedup_budget": 20_000}
+"""The quick mode (tests, a look): 3 seeds, two problems, small budgets; ``ok`` is not meaningful there."""
+
+
+def run_method(problem: Problem, method: str, seed: int, budget: int) -> dict[str, Any]:
+    """One search of ``method`` on ``problem``: final fitness, evaluations, seconds, trace (evaluations, s, best)."""
+    began = time.perf_counter()
+    if method == "fit":
+        trace: list[tuple[int, float, float]] = []
+        result = hysid.fit(problem.loops, problem.model, bounds=problem.bounds, seed=seed, displacement=DISPLACEMENT,
+                           progress=lambda run, row: trace.append((row.evaluations, row.wall_s, row.best_fitness)))
+        return {"fitness": result.fitness, "evaluations": result.evaluations, "wall_s": time.perf_counter() - began, "trace": trace}
+    if method in CAMPAIGNS:
+        islands, single = CAMPAIGNS[method]
+        result = hysid.campaign(problem.loops, islands, name=f"search-{seed}", model=problem.model, bounds=problem.bounds, displacement=DISPLACEMENT,
+                                seed=1000 * seed, termination=Termination(budget=budget), single_node=single)
+        return {"fitness": result.fit.fitness, "evaluations": result.fit.evaluations, "wall_s": time.perf_counter() - began, "trace": []}
+    objective = build_objective(problem.loops, problem.model, bounds=problem.bounds)
+    return PEERS[method](objective, budget, seed)
+
+
+def first_success(run: dict[str, Any], threshold: float) -> tuple[float, float]:
+    """Evaluations and seconds at which ``run`` first reached ``threshold`` (its trace, else its end)."""
+    hit = next(((e, t) for e, t, f in run["trace"] if f <= threshold), None)
+    return (float(hit[0]), float(hit[1])) if hit is not None else (float(run["evaluations"]), float(run["wall_s"]))
+
+
+def summarize(runs: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
+    """Success rates, times to success and fitness quantiles of every method on one problem."""
+    best = min(r["fitness"] for rs in runs.values() for r in rs)
+    threshold = best * (1 + SUCCESS_RTOL) if best > 0 else SUCCESS_RTOL
+    out: dict[str, Any] = {"best_fitness": best, "threshold": threshold, "methods": {}}
+    for method, rs in runs.items():
+        f = np.array([r["fitness"] for r in rs])
+        ok = f <= threshold
+        reached = [first_success(r, threshold) for r, s in zip(rs, ok) if s]
+        out["methods"][method] = {
+            "seeds": len(rs), "success_rate": float(ok.mean()), "wilson95": wilson(int(ok.sum()), len(rs)),
+            "median_evaluations_to_success": float(np.median([e for e, _ in reached])) if reached else None,
+            "median_s_to_success": float(np.median([t for _, t in reached])) if reached else None,
+            "median_s": float(np.median([r["wall_s"] for r in rs])), "median_evaluations": float(np.median([r["evaluations"] for r in rs])),
+            "fitness_over_best_quantiles": {str(q): float(np.quantile(f / best - 1.0, q / 100)) for q in (0, 25, 50, 75, 100)},
+            "success": ok.tolist(),
+        }
+    return out
+
+
+def judge(problems: dict[str, Any], peers: list[str]) -> dict[str, Any]:
+    """The campaign against every peer on every problem (non-inferiority), and on the hardest half (ahead)."""
+    peer_best = {p: max(r["methods"][m]["success_rate"] for m in peers) for p, r in problems.items()}
+    peer_mean = {p: float(np.mean([r["methods"][m]["success_rate"] for m in peers])) for p, r in problems.items()}
+    hardest = sorted(problems, key=lambda p: (peer_best[p], peer_mean[p]))[: max(len(problems) // 2, 1)]
+    versus: dict[str, dict[str, Any]] = {}
+    for p, r in problems.items():
+        mine = np.array(r["methods"][CAMPAIGN]["success"])
+        versus[p] = {m: paired(mine, np.array(r["methods"][m]["success"])) for m in peers}
+    non_inferior = all(v["difference95"][0] >= -NON_INFERIORITY_MARGIN for pv in versus.values() for v in pv.values())
+    ahead = all(problems[p]["methods"][CAMPAIGN]["success_rate"] > problems[p]["methods"][m]["success_rate"] for p in hardest for m in peers)
+    return {"campaign": CAMPAIGN, "peers": peers, "hardest": hardest, "peer_best_rate": peer_best, "paired": versus,
+            "non_inferior": non_inferior, "ahead_on_hardest": ahead, "margin": NON_INFERIORITY_MARGIN, "ok": non_inferior and ahead}
+
+
+def speedup(budget: int, problem: Problem) -> dict[str, Any]:
+    """Wall time of a campaign of ``budget`` evaluations with 1 and with 2 island processes (from the moment
+    every island is a member until the campaign has stopped, its islands' goodbyes included), on a memory
+    model, the islands' defaults; the ratio is per evaluation (the stop overshoots the budget a little)."""
+    times = {}
+    with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
+        for n in (1, 2):
+            config = CampaignConfig.create(problem.loops, name=f"speedup-{n}", model=problem.model, bounds=problem.bounds, min_islands=n,
+                                           options=default_options(problem.loops, problem.model, problem.bounds),
+                                           until_stopped=True)
+            coordinator = Coordinator(Store(Path(tmp) / f"speedup-{n}.sqlite"), config, problem.loops, Termination(budget=budget))
+            run_campaign(coordinator, island_specs(n, ["pso"], 0), polish=False)
+            ended = time.monotonic()
+            assert coordinator.full_at is not None
+            times[n] = {"s": ended - coordinator.full_at, "evaluations": coordinator.evaluations}
+            coordinator.store.close()
+    ratio = (times[1]["s"] / times[1]["evaluations"]) / (times[2]["s"] / times[2]["evaluations"])
+    return {"problem": problem.name, "model": problem.model, "budget": budget, "one_island": times[1], "two_islands": times[2],
+            "ratio": ratio, "target": SPEEDUP_TARGET, "ok": ratio >= SPEEDUP_TARGET}
+
+
+def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] = PROBLEMS, methods: tuple[str, ...] = METHODS,
+        budget: int = BUDGET, speedup_budget: int = SPEEDUP_BUDGET, partial: Path | None = None) -> dict[str, Any]:
+    """Search where it is hard: hysid's fit and campaigns against least squares, DE, CMA-ES and pygmo at equal budgets.
+
+    ``partial``: a file the results so far are written to after every problem (a long run's progress)."""
+    if quick:
+        seeds, problems, budget, speedup_budget = QUICK["seeds"], QUICK["problems"], QUICK["budget"], QUICK["speedup_budget"]
+    elif seeds < 3:
+        raise HysidInputError("the success rates need at least 3 seeds (--quick for a look)", param="seeds", value=seeds)
+    unknown = [p for p in problems if p not in PROBLEMS]
+    if unknown:
+        raise HysidInputError(f"unknown problem; choose from {', '.join(PROBLEMS)}", param="problems", value=unknown[0])
+    skipped = {}
+    why = pygmo_available()
+    if why is not None and "pygmo" in methods:
+        methods, skipped["pygmo"] = tuple(m for m in methods if m != "pygmo"), why
+    began = time.perf_counter()
+    out: dict[str, Any] = {"problems": {}, "budget_evaluations": budget, "seeds": seeds, "quick": quick, "skipped": skipped,
+                           "success_rtol": SUCCESS_RTOL, "preliminary": quick or seeds < MIN_SEEDS}
+    built = {}
+    for name in problems:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            problem = built[name] = build(name)
+            runs = {m: [run_method(problem, m, seed, budget) for seed in range(seeds)] for m in methods}
+        fits = [r["fitness"] for r in runs.get("fit", [])]
+        out["problems"][name] = {
+            "description": problem.description, "model": problem.model, "loops": problem.loops.n_loops,
+            "samples_per_branch": problem.loops.n_samples, "parameters": len(problem.bounds), "memory": problem.memory,
+            **summarize(runs), "fit_seed_spread": float(max(fits) / min(fits) - 1.0) if fits else None,
+        }
+        peers = [m for m in methods if m in PEERS]
+        if CAMPAIGN in methods and peers:
+            out["judgement"] = judge(out["problems"], peers)
+            out["ok"] = None if out["preliminary"] else out["judgement"]["ok"]
+        if "fit" in methods:
+            out["fit_seeds_agree"] = all(p["fit_seed_spread"] <= 0.01 for p in out["problems"].values())
+        if partial is not None:  # what a long run has so far, problem by problem
+            partial.write_text(jsondoc.dumps({**out, "bench_s": time.perf_counter() - began}, indent=2))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        target = built.get(SPEEDUP_PROBLEM) or build(SPEEDUP_PROBLEM)
+        out["speedup"] = speedup(speedup_budget, target)
+    out["bench_s"] = time.perf_counter() - began
+    return out
+
+
+LABELS = {"fit": "hysid fit", "campaign_2_processes": "campaign 2 proc", "campaign_4_processes": "campaign 4 proc",
+          "campaign_2_single": "campaign 2 single", "campaign_4_single": "campaign 4 single", "least_squares": "least_squares multi-start",
+          "differential_evolution": "differential_evolution", "cma_es": "CMA-ES (IPOP)", "pygmo": "pygmo archipelago"}
+
+
+def to_text(result: dict[str, Any]) -> str:
+    lines = [f"search ({result['seeds']} seeds, {result['budget_evaluations']:,} evaluations each, success = within "
+             f"{result['success_rtol']:g} of the best fitness found){' QUICK' if result['quick'] else ''}"
+             f"{f' PRELIMINARY (fewer than {MIN_SEEDS} seeds: no verdict)' if result.get('preliminary') else ''}"]
+    for name, p in result["problems"].items():
+        lines.append(f"{name}: {p['description']} ({p['model']}, {p['loops']} loops x {p['samples_per_branch']} samples, best {p['best_fitness']:.8g})")
+        for m, s in p["methods"].items():
+            e, t = s["median_evaluations_to_success"], s["median_s_to_success"]
+            lines.append(f"  {LABELS.get(m, m):26s} {100 * s['success_rate']:5.1f} % [{100 * s['wilson95'][0]:.0f}-{100 * s['wilson95'][1]:.0f}]"
+                         f"  to success: {'-' if e is None else f'{e:,.0f} evaluations, {t:.2f} s'}"
+                         f"  median fitness/best - 1: {s['fitness_over_best_quantiles']['50']:.2g} (worst {s['fitness_over_best_quantiles']['100']:.2g})")
+        if p.get("fit_seed_spread") is not None:
+            lines.append(f"  fit's seeds agree within {100 * p['fit_seed_spread']:.3g} % of the fitness")
+    for peer, why in result["skipped"].items():
+        lines.append(f"{peer}: skipped: {why}")
+    if "judgement" in result:
+        j = result["judgement"]
+        lines.append(f"hardest half (lowest best-peer success rate): {', '.join(j['hardest'])}")
+        lines.append(f"{LABELS[j['campaign']]} non-inferior to every peer on every problem (paired 95 % interval above -{100 * j['margin']:.0f} points): "
+                     f"{j['non_inferior']}; ahead of every peer on the hardest half: {j['ahead_on_hardest']} -> {'OK' if j['ok'] else 'MISSED'}")
+    if "fit_seeds_agree" in result:
+        lines.append(f"fit's independent seeds agree within 1 % on every problem: {result['fit_seeds_agree']}")
+    s = result["speedup"]
+    lines.append(f"speedup ({s['problem']}, {s['budget']:,} evaluations): 1 island {s['one_island']['s']:.1f} s, 2 islands {s['two_islands']['s']:.1f} s "
+                 f"-> {s['ratio']:.2f} per evaluation (target >= {s['target']}) {'OK' if s['ok'] else 'MISSED'}")
+    lines.append(f"bench time {result['bench_s']:.0f} s")
+    return "\n".join(lines)

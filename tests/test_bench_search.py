@@ -1,0 +1,150 @@
+"""hysid bench search's machinery on a tiny instance, and the memetic islands it measures.
+
+The bench itself (30 seeds, seven problems) is ``hysid bench search``; here each
+piece runs on one problem with small budgets: the problems' data, the peers'
+shared evaluation count, the statistics and the verdict, the search space and
+the memetic search that ``hysid fit`` runs on memory models.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import hysid
+from hysid.bench.search import judge, run_method, summarize
+from hysid.bench.search_peers import PEERS, BudgetSpent, Tracker
+from hysid.bench.search_problems import build
+from hysid_model.problem import build_objective, starting_point
+from island.memetic import REFINE_NFEV, memetic_search, needs_islands
+from island.space import SearchSpace, SpaceObjective
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return build("friction_bouc_wen")
+
+
+@pytest.fixture()
+def objective(problem):
+    return build_objective(problem.loops, problem.model, bounds=problem.bounds)
+
+
+def test_problem_is_a_memory_model_with_its_optimum_inside_the_box(problem, objective):
+    assert problem.memory and needs_islands(objective.model)
+    assert problem.loops.n_loops == 9
+    truth = np.array([problem.truth[n] for n in objective.model.names])
+    assert np.all((truth > objective.bounds[:, 0]) & (truth < objective.bounds[:, 1]))
+
+
+def test_tracker_counts_every_evaluation_and_stops_at_the_budget(objective):
+    tracker = Tracker(objective, 5)
+    theta = starting_point(objective.loops, objective.model)
+    tracker.residuals(theta)
+    tracker.fitness(np.vstack([theta, theta]))
+    assert tracker.evaluations == 3
+    tracker.fitness(np.vstack([theta, theta]))
+    with pytest.raises(BudgetSpent):
+        tracker.residuals(theta)
+    assert tracker.trace[0][0] == 1 and len(tracker.trace) <= 2  # the same point again differs by rounding at most
+    assert tracker.best == pytest.approx(float(objective(theta[None, :])[0]), rel=1e-12)
+
+
+@pytest.mark.parametrize("peer", ["least_squares", "differential_evolution", "cma_es"])
+def test_peers_spend_the_same_budget(objective, peer):
+    out = PEERS[peer](objective, 600, 0)
+    assert 0 < out["evaluations"] <= 600 + 15 * objective.dim  # a vectorized peer's last batch may be counted whole
+    assert out["trace"] and out["trace"][-1][2] == out["fitness"]
+    assert np.all(np.diff([f for _, _, f in out["trace"]]) < 0)
+
+
+def test_summary_and_verdict_follow_the_paired_rule():
+    runs = lambda *fs: [{"fitness": f, "evaluations": 10, "wall_s": 1.0, "trace": [(5, 0.5, f)]} for f in fs]
+    good, bad = [1.0] * 30, [1.0] * 10 + [2.0] * 20
+    hard = summarize({"campaign_4_processes": runs(*good), "least_squares": runs(*bad)})
+    assert hard["methods"]["campaign_4_processes"]["success_rate"] == 1.0
+    assert hard["methods"]["least_squares"]["success_rate"] == pytest.approx(1 / 3)
+    assert hard["methods"]["least_squares"]["median_evaluations_to_success"] == 5.0
+    easy = summarize({"campaign_4_processes": runs(*good), "least_squares": runs(*good)})
+    verdict = judge({"hard": hard, "easy": easy}, ["least_squares"])
+    assert verdict["hardest"] == ["hard"] and verdict["ok"]
+    worse = summarize({"campaign_4_processes": runs(*bad), "least_squares": runs(*good)})
+    assert not judge({"hard": hard, "worse": worse}, ["least_squares"])["non_inferior"]
+
+
+def test_search_space_logs_the_wide_positive_scales_and_keeps_the_rest(objective):
+    space = SearchSpace.of(objective.model)
+    logged = dict(zip(objective.model.names, space.logged))
+    assert logged["bw_zy"] and logged["bw_k"] and logged["meq"] and not logged["bw_r"]
+    theta = starting_point(objective.loops, objective.model)
+    span = objective.bounds[:, 1] - objective.bounds[:, 0]
+    assert np.allclose(space.to_theta(space.to_u(theta)), theta, rtol=1e-12, atol=1e-12 * span.min())
+    assert np.all(np.abs(space.to_theta(space.bounds.T) - objective.bounds.T) <= 1e-12 * span)
+
+
+def test_space_objective_has_the_objective_contract_and_a_chain_ruled_jacobian(objective):
+    space = SpaceObjective(objective)
+    theta = starting_point(objective.loops, objective.model)
+    theta[-3:] = [1e5, 3e-4, 0.3]
+    u = space.space.to_u(theta)
+    r = space.weighted_residuals(u)
+    assert float(r @ r) == pytest.approx(float(space(u[None, :])[0]), rel=1e-12)
+    jac = space.jacobian(u)
+    step = 1e-7 * np.maximum(np.abs(u), 1.0)
+    column = (space.weighted_residuals(u + step * np.eye(u.size)[4]) - r) / step[4]
+    assert np.allclose(jac[:, 4], column, rtol=1e-3, atol=1e-6 * np.abs(column).max())
+    assert space.evaluations == 1 + 1 + 2 * u.size + 1
+
+
+def test_memetic_search_spends_its_budget_and_never_ends_above_its_starting_point(objective):
+    start = starting_point(objective.loops, objective.model)
+    result = memetic_search(objective, [start], 0, budget=800)
+    assert result.fitness <= float(objective(start[None, :])[0])
+    refinement = REFINE_NFEV * (1 + 2 * objective.dim)  # one refinement's residual calls and Jacobian probes at most
+    assert 800 <= result.evaluations <= 800 + refinement + 2 * 32 + result.polish["evaluations"] + 1
+    assert [r["round"] if "round" in r else r["iteration"] for r in result.history] == list(range(1, len(result.history) + 1))
+    again = memetic_search(objective, [start], 0, budget=800)
+    assert again.fitness == result.fitness  # one seed, one answer
+
+
+def test_fit_runs_memetic_islands_on_memory_models_and_the_thesis_run_elsewhere(problem):
+    fitted = hysid.fit(problem.loops, problem.model, bounds=problem.bounds, termination=hysid.Termination(budget=1500))
+    assert fitted.settings["algo"] == "memetic islands" and fitted.runs[0].algo == "memetic"
+    easy = build_objective(problem.loops, "baseline", bounds={k: v for k, v in problem.bounds.items() if k in ("xi0", "w0", "meq")})
+    assert not needs_islands(easy.model)
+
+
+def test_run_method_runs_a_peer_on_a_problem(problem):
+    out = run_method(problem, "least_squares", 0, 300)
+    assert out["evaluations"] == 300 and np.isfinite(out["fitness"])
+
+
+def test_memetic_search_takes_the_diagnosis_objective(problem, objective):
+    """The diagnosis' refits call it on the harmonic objective (same contract as the Objective)."""
+    from hysid_model.harmonics import HarmonicObjective, Harmonics
+
+    harmonic = HarmonicObjective(Harmonics.from_loops(problem.loops), objective.model)
+    start = starting_point(problem.loops, objective.model)
+    result = memetic_search(harmonic, [start], 1, budget=400)
+    assert result.fitness <= float(harmonic(start[None, :])[0]) and np.all(np.isfinite(result.theta))
+    assert np.all((result.theta >= harmonic.bounds[:, 0]) & (result.theta <= harmonic.bounds[:, 1]))
+
+
+@pytest.mark.slow  # over 3 s
+def test_the_validation_bench_judges_a_case_against_its_truth_and_writes_the_table(tmp_path, capsys):
+    """``hysid bench validation``: the sensor-distortion case is read as the sensor's and matches its truth; the
+    Markdown table names it with its verdict."""
+    from hysid.cli import main
+
+    table = tmp_path / "VALIDATION.md"
+    assert main(["bench", "validation", "--cases", "sensor_distortion", "--markdown", str(table), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    (row,) = result["cases"]
+    assert row["reading"] == "fundamental" and row["named"] == [] and row["matches"]
+    assert row["nrmse_pct"] <= 1.1 * row["truth_nrmse_pct"]
+    text = table.read_text()
+    assert "| `sensor_distortion` |" in text and "1 of 1 cases match" in text
+    assert main(["bench", "validation", "--cases", "nonsense"]) == 2
+    assert "unknown case 'nonsense'" in capsys.readouterr().err
