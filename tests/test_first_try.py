@@ -216,6 +216,15 @@ def test_island_and_coordinator_count_iterations_alike_and_a_quiet_coordinator_s
     assert "after 7 iterations" in island.stderr
 
 
+def test_ctrl_c_that_ends_a_string_exec_while_loading_still_exits_130(tmp_path):
+    """A Ctrl-C that ends a string exec while modules load (dataclasses and namedtuples build their methods so) and is
+    caught: CPython would still end a ``python -m`` process by SIGINT at exit; hysid says its line and exits 130."""
+    (tmp_path / "ctrl_c_in_exec.py").write_text('exec("raise KeyboardInterrupt")  # a Ctrl-C landing while a dataclass is built\n')
+    done = subprocess.run([sys.executable, "-m", "hysid", "models", "--import", "ctrl_c_in_exec"], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *filter(None, [os.environ.get("PYTHONPATH")])])})
+    assert (done.returncode, done.stderr) == (130, "hysid: error: interrupted\n")
+
+
 STAGES = {
     "loading its first modules": r"^import time: .*\| +hysid\.bench$",
     "loading its command line": r"^import time: .*\| +hysid\.cli\.bench$",
