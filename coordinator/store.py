@@ -261,6 +261,14 @@ class Store:
         row = self.db.execute("SELECT elapsed_s FROM commits WHERE campaign = ?", (campaign,)).fetchone()
         return 0.0 if row is None else float(row[0])
 
+    def last_commit(self, campaign: str) -> float | None:
+        """Unix time of the campaign's last stamped commit (None before its coordinator's first pass)."""
+        try:
+            row = self.db.execute("SELECT t FROM commits WHERE campaign = ?", (campaign,)).fetchone()
+        except sqlite3.OperationalError:  # no commits table: an earlier hysid's database
+            return None
+        return None if row is None else float(row[0])
+
     def gone_since(self, campaign: str, lease_s: float = COORDINATOR_LEASE_S) -> float | None:
         """Unix time of the last sign of life of a campaign's coordinator (its last commit, else the campaign's
         creation) if the campaign did not stop and nothing was committed for ``lease_s``: its coordinator is gone

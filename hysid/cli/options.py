@@ -188,14 +188,15 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
 
 
 def running_campaign(db: Path) -> str | None:
-    """The name of a campaign in ``db`` that did not stop and whose coordinator still commits (within
+    """The name of a campaign in ``db`` that did not stop and whose coordinator still commits (it did, within
     :data:`coordinator.store.COORDINATOR_LEASE_S`), else None (also for a file that is no campaign database)."""
     try:
         store = Store.read_only(db)
     except HysidInputError:
         return None
     try:
-        return next((c["name"] for c in store.campaign_list() if c["status"] != "stopped" and store.gone_since(c["name"]) is None), None)
+        return next((c["name"] for c in store.campaign_list() if c["status"] != "stopped" and store.last_commit(c["name"]) is not None
+                     and store.gone_since(c["name"]) is None), None)
     finally:
         store.close()
 
