@@ -3,7 +3,7 @@
     result = hysid.campaign(loops, islands=4)            # island processes over Zenoh on loopback
     result = hysid.campaign(loops, islands=4, single_node=True)   # island threads, migrating in memory
 
-The coordinator (:mod:`coordinator.server`) serves the loop set, records every
+The coordinator (:mod:`coordinator.state`) serves the loop set, records every
 island's history in SQLite and stops by its rules (:mod:`coordinator.loop`); :class:`CampaignResult` is
 the ``hysid fit`` result of its islands (the global best polished) plus the
 islands, migrations and membership events.
@@ -20,7 +20,7 @@ from typing import Any
 from coordinator.launch import island_specs, run_campaign
 from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
 from hysid.motion import choose_motion
@@ -76,13 +76,19 @@ class CampaignResult:
                 raise HysidInputError(f"{db}: campaign {name!r} has an unreadable configuration ({exc})") from None
             settings = (stored or {}).get("settings", {})
             termination = Termination(**settings["stop_rules"]) if "stop_rules" in settings else None
+            gone = store.gone_since(name)
             coordinator = Coordinator(store, config, loops, termination, dataset=dataset, resume=True)
             coordinator.stop_reason = reason if status == "stopped" and reason else (
                 f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else "")
+                + ("" if gone is None else f", {text.gone_text(gone)}")
             )
-            return cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
+            result = cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
         finally:
             store.close()
+        if gone is not None:  # the islands it saw alive: nobody knows since
+            for island in result.islands:
+                island["status"] = "unknown" if island["status"] == "alive" else island["status"]
+        return result
 
     @property
     def params(self) -> dict[str, float]:
@@ -114,7 +120,8 @@ class CampaignResult:
 
     def write_report(self, out_dir: str | Path) -> Path:
         """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document."""
-        return markdown.write_fit_report(self.fit, out_dir, title="hysid campaign", document=self.to_dict())
+        interrupted = " (interrupted)" if self.fit.settings.get("stop_reason") == "interrupted" else ""
+        return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{interrupted}", document=self.to_dict())
 
     def _repr_markdown_(self) -> str:
         return markdown.fit_overview(self.fit)

@@ -7,7 +7,10 @@ evaluate -> tell) and uses its hooks:
   (:class:`island.sealing.Credentials`), and every message it sends is sealed
   with them;
 * after every iteration the history row goes to the coordinator (in batches,
-  every ``history_every_s``; iteration, best fitness, evaluations, wall time);
+  every ``history_every_s``; iteration, best fitness, evaluations, wall time),
+  and at once at every migration: the coordinator counts a mixed campaign's
+  rounds in migration intervals (:mod:`island.share`), so what it decides at
+  the end of one does not wait for a timer;
 * every ``migration.interval`` iterations (the *epoch*) it publishes its ``k``
   best candidates and takes what its in-neighbours (:mod:`island.migration`)
   sent. Each message is validated as it arrives (:mod:`island.protocol`:
@@ -177,6 +180,13 @@ class IslandNode:
     def run_id(self) -> str:
         return "" if self.credentials is None else self.credentials.run
 
+    def _attached(self) -> tuple[Transport, Credentials]:
+        """The transport and the run's credentials; a :class:`RuntimeError` before :meth:`attach` (the
+        node used before it joined: a caller's mistake, not bad input)."""
+        if self._transport is None or self.credentials is None:
+            raise RuntimeError(f"island {self.island!r} has not joined: attach a transport (IslandNode.attach or run) first")
+        return self._transport, self.credentials
+
     def count_rejected(self) -> None:
         with self._lock:
             self.stats["rejected"] += 1
@@ -205,7 +215,8 @@ class IslandNode:
         self.rows.append((row.iteration, row.best_fitness, row.evaluations + self.migrant_evaluations, row.wall_s))
         x, f = self.optimizer.best(1)
         self._snapshot = (x[0].copy(), float(f[0]))
-        if time.monotonic() - self._last_flush >= self.history_every_s:
+        interval = self.config.migration.interval
+        if time.monotonic() - self._last_flush >= self.history_every_s or (interval and row.iteration and row.iteration % interval == 0):
             self._flush()
 
     # --- migrants -----------------------------------------------------------------
@@ -213,7 +224,7 @@ class IslandNode:
         """A migrant message as it arrives (from any thread): checked against the public key of its
         sender's run and for replays, counted if rejected, else kept as ``sender``'s newest; a run the
         roster does not list yet waits for it (:meth:`_listed`)."""
-        assert self.credentials is not None
+        transport, _ = self._attached()
         if sender == self.island:
             return  # our own publication, back through the subscription to every island's migrants
         try:
@@ -221,7 +232,7 @@ class IslandNode:
         except MessageRejected:
             self.count_rejected()
             return
-        key = None if self._transport is None else self._transport.key_for(env.sender, env.run)
+        key = transport.key_for(env.sender, env.run)
         if key is None:
             with self._lock:
                 self._pending.pop(env.sender, None)  # a newer one of a joiner: the older was never checked, and need not be
@@ -251,12 +262,12 @@ class IslandNode:
     def _listed(self) -> None:
         """Check the waiting messages whose run the roster lists by now; those older than :data:`JOIN_GRACE_S`
         are rejected (their run never joined)."""
-        assert self._transport is not None
+        transport, _ = self._attached()
         now = time.monotonic()
         with self._lock:
             waiting = list(self._pending.items())
         for sender, (at, env) in waiting:
-            key = self._transport.key_for(env.sender, env.run)
+            key = transport.key_for(env.sender, env.run)
             if key is not None or now - at >= JOIN_GRACE_S:
                 with self._lock:
                     if self._pending.get(sender, (None, None))[1] is env:
@@ -269,8 +280,8 @@ class IslandNode:
     def _follow_assignment(self) -> PopulationOptimizer:
         """The optimizer to go on with: this one, or its search carried on by the algorithm the
         coordinator now assigns this run (a mixed campaign's staged or adaptive share, :mod:`island.share`)."""
-        assert self._transport is not None
-        algo = self._transport.assigned_algo()
+        transport, _ = self._attached()
+        algo = transport.assigned_algo()
         if algo is not None and algo != self.algo and algo in self.config.algos:
             self.optimizer = switch_algorithm(self.optimizer, algo, self.config.island_options(algo))
             self.moves.append((self.optimizer.iteration, self.algo, algo))
@@ -280,7 +291,7 @@ class IslandNode:
     def _migrate(self, optimizer: PopulationOptimizer) -> PopulationOptimizer:
         """After an iteration: follow a new assignment, take the starting point and the global best
         in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
-        assert self._transport is not None and self.credentials is not None
+        transport, credentials = self._attached()
         optimizer = self._follow_assignment()
         if self.refiner is not None and optimizer.iteration and optimizer.iteration % REFINE_EVERY == 0:
             self.migrant_evaluations += self.refiner(optimizer)
@@ -297,14 +308,14 @@ class IslandNode:
         epoch = optimizer.iteration // mig.interval
         x, f = optimizer.best(mig.k)
         outgoing = encode_migrants(
-            Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, x, f, time.time(), self._seq()), self.credentials
+            Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, x, f, time.time(), self._seq()), credentials
         )
-        for sender, data in self._transport.exchange(epoch, outgoing):
+        for sender, data in transport.exchange(epoch, outgoing):
             self.receive(sender, data)
         with self._lock:
             self.stats["sent"] += 1
         self._listed()
-        roster = self._transport.members()
+        roster = transport.members()
         senders = in_neighbours(mig.topology, self._sending(roster), self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k)
         self._take(self._intake(senders, set(roster), mig.k))
         return optimizer
@@ -348,9 +359,9 @@ class IslandNode:
             self.stats["taken"] += taken
 
     def _decode_best(self, data: bytes) -> Best | None:
-        assert self.credentials is not None
+        _, credentials = self._attached()
         try:
-            return decode_best(data, self.config.name, self.objective.bounds, self.credentials.coordinator)
+            return decode_best(data, self.config.name, self.objective.bounds, credentials.coordinator)
         except MessageRejected:
             self.count_rejected()
             return None
@@ -359,7 +370,7 @@ class IslandNode:
     def history_messages(self, since: int = -1, final: bool = False) -> list[bytes]:
         """This island's rows after iteration ``since`` (in chunks of :data:`HISTORY_CHUNK`), each
         with its best so far and its counters; ``final`` marks the last one as its goodbye."""
-        assert self.credentials is not None
+        _, credentials = self._attached()
         rows = np.array([r for r in list(self.rows) if r[0] > since], dtype=float).reshape(-1, 4)
         x, f = self._snapshot
         with self._lock:
@@ -369,22 +380,22 @@ class IslandNode:
             encode_history(History(
                 self.config.name, self.island, self.run_id, self.algo, self.seed, chunk, x, f, stats,
                 final and i == len(chunks) - 1, self._seq(), self.optimizer.gain,
-            ), self.credentials)
+            ), credentials)
             for i, chunk in enumerate(chunks)
         ]
 
     def heartbeat(self) -> bytes:
         """A history message without rows (from any thread): the island is alive while it has no new row."""
-        assert self.credentials is not None
+        _, credentials = self._attached()
         x, f = self._snapshot
         with self._lock:
             stats = dict(self.stats)
         return encode_history(History(
             self.config.name, self.island, self.run_id, self.algo, self.seed, np.zeros((0, 4)), x, f, stats, False, self._seq(), self.optimizer.gain,
-        ), self.credentials)
+        ), credentials)
 
     def _flush(self, final: bool = False) -> None:
-        assert self._transport is not None
+        transport, _ = self._attached()
         published = self._published
         if published == len(self.rows):
             if not final:
@@ -392,6 +403,6 @@ class IslandNode:
             published = max(published - 1, 0)  # the goodbye carries the last row again
         last = self.rows[published - 1][0] if published else -1
         for message in self.history_messages(since=last, final=final):
-            self._transport.publish_history(message)
+            transport.publish_history(message)
         self._published = len(self.rows)
         self._last_flush = time.monotonic()

@@ -135,10 +135,10 @@ def test_data_flows_one_way_between_the_packages():
     coordinator = imports_of("coordinator")
     below = {  # a module stands below the one it must not import: the node needs only its Transport, the checks and the share
         "island/node.py": "island.transports",  # not the coordinator, the coordinator not the run loop that drives it
-        "coordinator/histories.py": "coordinator.server",
-        "coordinator/sharing.py": "coordinator.server",
-        "coordinator/server.py": "coordinator.loop",
-        "coordinator/progress.py": "coordinator.server",
+        "coordinator/histories.py": "coordinator.state",
+        "coordinator/sharing.py": "coordinator.state",
+        "coordinator/state.py": "coordinator.loop",
+        "coordinator/progress.py": "coordinator.state",
     }
     for module, host in below.items():
         assert host not in {**island, **coordinator}[module], module

@@ -30,7 +30,7 @@ from island.protocol import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials
 from island.session import open_session, session_config
 from support import Peer, events, query, ready, rows_of, secret_file, secret_of, wait_for
-from test_faults import BOUNDS, TRUTH, coordinator, finished, island
+from test_faults import BOUNDS, TRUTH, coordinator, finished, interrupted, island
 
 pytestmark = pytest.mark.slow  # processes, floods and waits of seconds
 
@@ -95,8 +95,7 @@ def test_joins_without_the_secret_take_no_run_slot_and_an_honest_late_island_sti
     late = island(spawn, endpoint, "slots", "late", db)
     wait_for(lambda: rows_of(db, "late") > 10, 90, "the late island's history")
     assert query(db, "SELECT island FROM runs ORDER BY joined") == [("first",), ("late",)]
-    coord.send_signal(signal.SIGINT)
-    doc = finished(coord)
+    doc = interrupted(coord)
     assert doc["migrations"]["rejected_reasons"].get("forged", 0) + doc["migrations"]["rejected_reasons"].get("overflow", 0) >= got["challenges"]
     assert first.wait(30) == late.wait(30) == 0
 
@@ -145,8 +144,7 @@ def test_history_is_answered_only_to_the_coordinator(spawn, tmp_path):
         wait_for(lambda: island_value(db, "a", "rejected") >= before + len(selectors), 30, "the island to count every query")
         rows = rows_of(db, "a")
         wait_for(lambda: rows_of(db, "a") > rows + 20, 30, "the island to keep going")
-        coord.send_signal(signal.SIGINT)
-        doc = finished(coord)
+        doc = interrupted(coord)
         assert a.wait(30) == 0
     finally:
         spy.undeclare()
@@ -171,8 +169,7 @@ def test_a_forged_migrant_numbered_2_63_cannot_block_its_victim(spawn, tmp_path)
         received, migrations = island_value(db, "b", "received"), query(db, "SELECT count(*) FROM migrations WHERE island = 'a'")[0][0]
         wait_for(lambda: island_value(db, "b", "received") > received + 4, 60, "b to keep taking a's migrants")
         assert query(db, "SELECT count(*) FROM migrations WHERE island = 'a'")[0][0] > migrations
-        coord.send_signal(signal.SIGINT)
-        doc = finished(coord)
+        doc = interrupted(coord)
     finally:
         mallory.close()
     assert next(i for i in doc["islands"] if i["island"] == "b")["rejected"] >= 1
@@ -203,8 +200,7 @@ def test_a_silent_member_cannot_starve_its_successor_in_the_ring(spawn, tmp_path
         b = island(spawn, endpoint, "ring", "b", db)
         wait_for(lambda: island_value(db, "b", "received") >= 10, 90, "b to take migrants past the silent member")
         assert events(db, "aa-silent") == ["join"]  # alive all along, by its signed heartbeats
-        coord.send_signal(signal.SIGINT)
-        finished(coord)
+        interrupted(coord)
     finally:
         stop.set()
         beating.join()
@@ -234,8 +230,7 @@ def test_a_members_impossible_claims_are_refused_with_their_reasons_and_spend_no
         wait_for(lambda: reasons(db).get("out_of_range", 0) >= 5 and reasons(db).get("implausible", 0) >= 1, 30, "every lie to be refused")
         rows = rows_of(db, "a")
         wait_for(lambda: rows_of(db, "a") > rows + 20, 30, "the campaign to go on")
-        coord.send_signal(signal.SIGINT)
-        doc = finished(coord)
+        doc = interrupted(coord)
     finally:
         liar.close()
     assert doc["settings"]["stop_reason"] == "interrupted" and doc["evaluations"] < 10**7
@@ -381,8 +376,7 @@ def test_commits_come_every_half_second_under_a_flood_of_full_migrant_messages(s
         for t in threads:
             t.join()
         flooder.close()
-    coord.send_signal(signal.SIGINT)
-    finished(coord)
+    interrupted(coord)
     gaps = np.diff(stamps)
     print(f"commit gaps under the flood: {len(gaps)}, longest {gaps.max():.3f} s, median {np.median(gaps):.3f} s")
     assert len(gaps) > 10 and gaps.max() <= COMMIT_EVERY_S

@@ -1,4 +1,4 @@
-"""The coordinator in one process (coordinator/server.py, loop.py, inbox.py) on a real SQLite file: who may speak,
+"""The coordinator in one process (coordinator/state.py, loop.py, inbox.py) on a real SQLite file: who may speak,
 what it may claim, replays, re-evaluation, commits under load, stop rules with a backlog, resumed ends.
 
 Messages go in through the same entry points the Zenoh link uses (``receive``, ``member``,
@@ -17,7 +17,7 @@ import pytest
 from coordinator.inbox import Inbox
 from coordinator.links import MemoryLink
 from coordinator.loop import COMMIT_ROWS, check_stop, control_message, pump, serve
-from coordinator.server import Coordinator, resume
+from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
@@ -251,7 +251,7 @@ def test_joining_is_refused_while_the_id_is_alive_and_a_repeated_request_gets_th
 
 
 def test_only_islands_that_prove_the_secret_are_admitted_and_each_id_has_bounded_runs(tmp_path, link, monkeypatch):
-    monkeypatch.setattr("coordinator.server.RUNS_PER_ISLAND", 3)
+    monkeypatch.setattr("coordinator.state.RUNS_PER_ISLAND", 3)
     monkeypatch.setattr("coordinator.members.LEAVE_GRACE_S", 0.0)
     c = make(tmp_path)
     key = new_key()

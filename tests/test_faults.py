@@ -44,6 +44,16 @@ def finished(p: subprocess.Popen, timeout: float = 90) -> dict:
     return json.loads(out) if out.strip() else {}
 
 
+def interrupted(p: subprocess.Popen, timeout: float = 90) -> dict:
+    """Ctrl-C on a coordinator process: it stops its campaign, reports it (marked interrupted) and exits 130."""
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=timeout)
+    assert p.returncode == 130 and err.endswith("hysid: error: interrupted\n"), err
+    doc = json.loads(out)
+    assert doc["settings"]["stop_reason"] == "interrupted"
+    return doc
+
+
 def coordinator(spawn, endpoint: str, campaign: str, db: Path, *extra: str) -> subprocess.Popen:
     """A coordinator process, returned once it answers on ``endpoint``."""
     p = spawn("coordinator", "--listen", endpoint, "--campaign", campaign, "--db", str(db), "--out", str(db.parent / f"out-{campaign}"),
@@ -83,8 +93,7 @@ def test_a_frozen_island_is_lost_within_3_s_and_back_after_sigcont(spawn, tmp_pa
     b.send_signal(signal.SIGCONT)
     wait_for(lambda: events(db, "b")[-1:] == ["back"], 20, "the island to come back")
     wait_for(lambda: rows_of(db, "b") > rows_frozen + 20, 20, "new history after SIGCONT")
-    coord.send_signal(signal.SIGINT)  # Ctrl-C: the campaign stops and reports
-    doc = finished(coord)
+    doc = interrupted(coord)  # Ctrl-C: the campaign stops and reports
     assert doc["settings"]["stop_reason"] == "interrupted"
     assert events(db, "b") == ["join", "lost", "back", "left"] and events(db, "a") == ["join", "left"]
     assert a.wait(30) == b.wait(30) == 0
@@ -139,8 +148,7 @@ def test_a_thousand_bad_migrant_messages_are_each_rejected_and_counted(spawn, tm
         expected[reason] = expected.get(reason, 0) + 1
     assert dict(query(db, "SELECT reason, count(*) FROM rejected GROUP BY reason")) == expected
     assert query(db, "SELECT count(*) FROM migrations WHERE island = 'evil'")[0][0] == 0
-    coord.send_signal(signal.SIGINT)
-    assert finished(coord)["migrations"]["rejected_reasons"] == expected
+    assert interrupted(coord)["migrations"]["rejected_reasons"] == expected
 
 
 def forged(forger: Peer, x: np.ndarray, claimed: float) -> bytes:
@@ -189,8 +197,7 @@ def test_a_forged_migrant_claiming_fitness_zero_becomes_the_best_only_if_it_earn
     finally:
         forger.close()
     assert target.poll() is None
-    coord.send_signal(signal.SIGINT)
-    doc = finished(coord)
+    doc = interrupted(coord)
     assert doc["fitness"] <= objective(TRUTH[None, :])[0]
 
 
@@ -397,8 +404,7 @@ def test_ten_thousand_hostile_messages_over_zenoh_leave_coordinator_and_islands_
         rows = {name: rows_of(db, name) for name in islands}
         wait_for(lambda: all(rows_of(db, n) > rows[n] + 20 for n in islands), 60, "both islands to keep going")
         assert coord.poll() is None and all(p.poll() is None for p in islands.values())
-        coord.send_signal(signal.SIGINT)
-        doc = finished(coord)
+        doc = interrupted(coord)
     finally:
         broken.close()
     assert doc["migrations"]["rejected"] == to_coordinator

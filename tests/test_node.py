@@ -164,6 +164,15 @@ def test_a_replayed_migrant_message_is_rejected_and_never_taken_twice():
     assert nodes["a"].stats["received"] == 1 and nodes["a"].stats["rejected"] == 4
 
 
+def test_a_node_used_before_it_joined_raises_also_without_asserts():
+    """Runtime checks raise (``python -O`` drops asserts): a node without a transport says so, it does not fail further in."""
+    cfg = config()
+    node = IslandNode("a", "ga", 0, cfg, cfg.objective(LOOPS))
+    for use in (node.heartbeat, node.history_messages, lambda: node.receive("b", b"x"), lambda: node._flush(final=True)):
+        with pytest.raises(RuntimeError, match="island 'a' has not joined: attach a transport"):
+            use()
+
+
 def test_an_unknown_algorithm_or_bad_island_name_is_an_input_error():
     cfg = config()
     with pytest.raises(HysidInputError, match="algo='de'"):
@@ -286,8 +295,11 @@ def test_zenoh_island_joins_reports_history_backfills_stops_and_leaves_once_conf
         while last is None or not last.final:  # the goodbye may still be on its way
             last = decode(arrived.get(timeout=10))
         assert last.rows[-1, 0] == node.rows[-1][0] and node.stop_reason == "stopped by the coordinator"
-        time.sleep(0.5)
-        assert worker.is_alive() and members[-1] == ("hysid/c1/members/pso-9", True)  # waits for the confirmation
+        # it waits for the confirmation, serving what the coordinator asks: its goodbye again, its token still there
+        waiting = [decode(r.ok.payload.to_bytes()) for r in rsession.get(coordinator.history_query("pso-9", int(last.rows[-1, 0]) - 1), timeout=5)
+                   if r.ok is not None]
+        assert [(h.final, h.rows[-1, 0]) for h in waiting] == [(True, last.rows[-1, 0])]
+        assert node.confirmed is None and worker.is_alive() and members[-1] == ("hysid/c1/members/pso-9", True)
         rsession.put("hysid/c1/control", coordinator.control(stored={"pso-9": int(last.rows[-1, 0])}, stop="enough"))
         worker.join(20)
         assert not worker.is_alive() and node.confirmed is True

@@ -10,7 +10,7 @@ import pytest
 from coordinator.launch import island_specs, run_campaign
 from coordinator.links import MemoryLink
 from coordinator.loop import control_message, pump
-from coordinator.server import Coordinator, resume
+from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
 from hysid_model.errors import HysidInputError
@@ -366,7 +366,10 @@ def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_
     assert all(f"{m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations" in summary for m in moves)
 
 
-def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_round(tmp_path):
+def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_round(tmp_path, monkeypatch):
+    """Whenever the islands' timed histories go out: an island's history goes out at every migration, and the
+    hand-over is decided from it (not from a timed history, which under load came late: the budget ran out first)."""
+    monkeypatch.setattr("coordinator.launch.MEMORY_HISTORY_EVERY_S", 1.0)  # a timed history at most every second: it decides nothing
     _, outcome, db = mixed_campaign(tmp_path, "staged", budget=4_000)
     moves = outcome.settings["moves"]
     assert sorted((m["island"], m["src"], m["dst"]) for m in moves) == [("ga-0", "ga", "pso"), ("ga-2", "ga", "pso")]

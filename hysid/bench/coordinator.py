@@ -35,7 +35,7 @@ import numpy as np
 from coordinator.launch import free_port
 from coordinator.links import MemoryLink
 from coordinator.loop import serve
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config

@@ -57,7 +57,7 @@ import zenoh
 from scipy.stats import binomtest, wilcoxon
 
 from coordinator.launch import free_port, island_specs, run_campaign
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid_model.errors import HysidInputError
 from hysid_model.problem import build_objective

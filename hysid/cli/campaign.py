@@ -28,9 +28,9 @@ from coordinator.launch import island_specs
 from coordinator.links import ZenohLink
 from coordinator.loop import serve
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator, resume
+from coordinator.state import Coordinator, resume
 from coordinator.store import Store
-from hysid.campaigns import campaign, finish
+from hysid.campaigns import CampaignResult, campaign, finish
 from hysid.cli import options as o
 from hysid.cli.progress import Progress, campaign_reporter
 from hysid.motion import choose_motion
@@ -76,6 +76,12 @@ def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) 
         finally:
             store.close()
     return path
+
+
+def exit_status(result: CampaignResult) -> int | None:
+    """:data:`hysid.cli.options.INTERRUPTED` for a campaign stopped by Ctrl-C (its report written and marked
+    so), None (exit status 0) for one that ended by its rules."""
+    return o.INTERRUPTED if result.fit.settings.get("stop_reason") == "interrupted" else None
 
 
 def discard_failed(out: Path, db: Path, campaign_name: str) -> None:
@@ -136,7 +142,7 @@ def register(app: typer.Typer) -> None:
         bound: Optional[list[str]] = o.BOUND,
         fix: Optional[list[str]] = o.FIX,
         displacement: str = o.DISPLACEMENT,
-    ) -> None:
+    ) -> Optional[int]:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
         bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         algo_list = o.parse_algos(algos)
@@ -166,6 +172,7 @@ def register(app: typer.Typer) -> None:
                 discard_failed(target_dir, path, name)
             raise
         o.show_result(result, target_dir, as_json, csv)
+        return exit_status(result)
 
     @app.command("coordinator")
     def coordinator_command(
@@ -207,7 +214,7 @@ def register(app: typer.Typer) -> None:
         bound: Optional[list[str]] = o.BOUND,
         fix: Optional[list[str]] = o.FIX,
         displacement: str = o.DISPLACEMENT,
-    ) -> None:
+    ) -> Optional[int]:
         """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
         check_name("campaign", name)
         bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
@@ -245,9 +252,11 @@ def register(app: typer.Typer) -> None:
             finally:
                 link.close()
                 session.close()
-            o.show_result(finish(coordinator, coordinator.outcome(polish_best=polish)), target_dir, as_json, csv=False)
+            result = finish(coordinator, coordinator.outcome(polish_best=polish))
+            o.show_result(result, target_dir, as_json, csv=False)
         finally:
             store.close()
+        return exit_status(result)
 
     @app.command("island")
     def island_command(

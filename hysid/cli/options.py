@@ -15,11 +15,16 @@ from typing import Any
 
 import typer
 
+from coordinator.store import Store
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
 from hysid_model.model import PRESETS
 from island.algorithms import ALGORITHMS
 from island.termination import Termination
+
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as shells report it: also of a campaign that stopped at Ctrl-C and
+reported (a script tells an interrupted campaign from a finished one by it)."""
 
 FLAGS = {
     "model": "--model",
@@ -167,6 +172,13 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
         raise HysidInputError("exists and is not a directory", param=param, value=out)
     if out.exists() and any(out.iterdir()):
         if (out / "campaign.sqlite").is_file() and not (out / "report.md").exists():
+            running = running_campaign(out / "campaign.sqlite")
+            if running is not None:
+                raise HysidInputError(
+                    f"is the output directory of campaign {running!r}, which is still running (its coordinator writes "
+                    f"{out / 'campaign.sqlite'}): two runs cannot share one {FLAGS.get(param, param)}; choose a new directory "
+                    "(nothing was written)", param=param, value=out,
+                )
             raise HysidInputError(
                 f"holds the database of a campaign that did not finish ({out / 'campaign.sqlite'}, no report.md): carry it on with "
                 f"'hysid coordinator --resume --db {out / 'campaign.sqlite'} --out NEW_DIR', or choose a new directory (nothing was written)",
@@ -174,6 +186,20 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
             )
         raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
     return check_writable(out, param)
+
+
+def running_campaign(db: Path) -> str | None:
+    """The name of a campaign in ``db`` that did not stop and whose coordinator still commits (it did, within
+    :data:`coordinator.store.COORDINATOR_LEASE_S`), else None (also for a file that is no campaign database)."""
+    try:
+        store = Store.read_only(db)
+    except HysidInputError:
+        return None
+    try:
+        return next((c["name"] for c in store.campaign_list() if c["status"] != "stopped" and store.last_commit(c["name"]) is not None
+                     and store.gone_since(c["name"]) is None), None)
+    finally:
+        store.close()
 
 
 PROBE_BYTES = 64 << 10

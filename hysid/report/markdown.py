@@ -94,7 +94,7 @@ def summary_lines(result: "FitResult") -> list[str]:
     best = runs[result.best]
     algos = "/".join(sorted({r.algo.upper() for r in runs}))
     polish = "then a least-squares polish" if s.get("polish") else "no polish"
-    return [
+    lines = [
         f"- **Data**: `{result.loops.name}`: {loops_description(result)}.",
         f"- **Model**: `{result.model.spec}`, parameters {', '.join(result.model.names)}{fixed_text(result.model.fixed)}.",
         f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; "
@@ -102,8 +102,12 @@ def summary_lines(result: "FitResult") -> list[str]:
         f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
         f"after {result.evaluations:,} evaluations in total.",
         f"- **Fit quality**: {quality_text(result)}.",
-    ] + ([f"- **Displacement model**: {result.displacement_model['meaning']} ({result.displacement_model['reason']})."]
-         if result.displacement_model and result.displacement_model["decided_by"] != "none" else [])
+    ]
+    if s.get("stop_reason"):  # a campaign's: why it stopped (interrupted, a rule, its islands)
+        lines.append(f"- **Stopped**: {s['stop_reason']}.")
+    if result.displacement_model and result.displacement_model["decided_by"] != "none":
+        lines.append(f"- **Displacement model**: {result.displacement_model['meaning']} ({result.displacement_model['reason']}).")
+    return lines
 
 
 def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:

@@ -293,10 +293,17 @@ def sparkline(values: Sequence[float]) -> str:
     return "".join(SPARK[int(round((x - v.min()) / span * (len(SPARK) - 1)))] for x in v)
 
 
+def gone_text(since: float) -> str:
+    """What ``hysid watch`` and ``hysid report`` say of a campaign whose coordinator is gone."""
+    return f"coordinator gone since {time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(since))}"
+
+
 def watch_text(snap: "CampaignSnapshot") -> str:
     """The screen of ``hysid watch``: status, global best, one row per island run, membership."""
     p = snap.progress
     state = f"stopped ({snap.stop_reason})" if snap.status == "stopped" else snap.status
+    if snap.gone_since is not None:
+        state += f", {gone_text(snap.gone_since)},"
     rejected = f" | rejected messages {p.rejected}" if p.rejected else ""
     best = f"{p.best:.6g} from {snap.best_island}" if np.isfinite(p.best) else "none yet"
     lines = [
@@ -312,9 +319,10 @@ def watch_text(snap: "CampaignSnapshot") -> str:
     ]
     headers = ["island", "algo", "status", "iteration", "evaluations", "best", "sent", "received/taken", "best over iterations"]
     lines.append(text_table(headers, rows) if rows else "  no island has reported yet")
-    counts = {s: sum(v == s for v in p.members.values()) for s in ("alive", "left", "lost")}
+    counts = {s: sum(v == s for v in p.members.values()) for s in ("alive", "left", "lost", "unknown")}
     latest = ", ".join(f"{island} {event} {time.strftime('%H:%M:%S', time.localtime(t))}" for island, event, t in snap.events)
-    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left, {counts['lost']} lost" + (f"; latest: {latest}" if latest else "")]
+    unknown = f", {counts['unknown']} unknown (its coordinator gone)" if counts["unknown"] else ""
+    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left, {counts['lost']} lost{unknown}" + (f"; latest: {latest}" if latest else "")]
     return "\n".join(lines)
 
 
