@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -167,6 +167,19 @@ def default_options(loops: LoopSet, model: str | Model, bounds: Mapping[str, tup
     return {a: {**ISLAND_OPTIONS, **({"synchronous": True} if a == "pso" else {})} for a in algos}
 
 
+def island_settings(
+    loops: LoopSet, model: str | Model, bounds: Mapping[str, tuple[float, float]] | None, algos: list[str] | tuple[str, ...],
+    options: dict[str, dict[str, Any]] | None, termination: Termination | None, until_stopped: bool | None,
+) -> tuple[dict[str, dict[str, Any]] | None, Termination | None, bool]:
+    """The islands' settings, stop rules and ``until_stopped`` of a campaign, one rule for Python and the
+    command line: what is given, else the defaults. With no ``options`` on a model with memory, memetic
+    islands (:func:`default_options`) that search until the stop order, within :data:`island.memetic.BUDGET`
+    evaluations unless an evaluation budget or a time limit is given."""
+    if options is None and (options := default_options(loops, model, bounds, algos)) is not None and not (termination and termination.bounded):
+        termination = replace(termination or Termination(), budget=BUDGET)
+    return options, termination, islands_until_stopped(termination, options) if until_stopped is None else until_stopped
+
+
 def campaign(
     loops: LoopSet,
     islands: int = 4,
@@ -217,12 +230,11 @@ def campaign(
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
     motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
-    if options is None and (options := default_options(loops, model, bounds, algos)) is not None and termination is None:
-        termination = Termination(budget=BUDGET)
+    options, termination, until_stopped = island_settings(loops, model, bounds, algos, options, termination, until_stopped)
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
         options=options, migration=migration, seed=seed, min_islands=islands, displacement=motion.displacement,
-        until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped, share=share,
+        until_stopped=until_stopped, share=share,
     )
     if not single_node:
         check_importable(build_model(config.model))

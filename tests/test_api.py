@@ -150,3 +150,54 @@ def test_every_name_the_front_door_exports_resolves():
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert set(hysid.__all__) == set(hysid._EXPORTS) | {"__version__"} and int(done.stdout) == len(hysid.__all__)
+
+
+def test_the_command_line_takes_pythons_defaults_except_where_the_api_table_says():
+    """Every option `hysid fit`, `diagnose` and `campaign` share with `hysid.fit`, `diagnose` and `campaign`
+    has the same default; where they differ, docs/API.md's table says so, with both values as the code has them."""
+    import inspect
+
+    import typer
+
+    from hysid.cli import app
+    from hysid.cli import options as o
+    from island.ga import GA
+
+    commands = typer.main.get_command(app).commands
+    for name, function in {"fit": hysid.fit, "diagnose": hysid.diagnose, "campaign": hysid.campaign}.items():
+        python = inspect.signature(function).parameters
+        shared = [p for p in commands[name].params if p.name in python and p.name not in ("dataset", "db")]
+        assert len(shared) >= 3
+        for p in shared:
+            cli = p.default.split(",") if p.name == "algos" else p.default
+            assert cli == (list(python[p.name].default) if p.name == "algos" else python[p.name].default), (name, p.name)
+    campaign = {p.name: p for p in commands["campaign"].params}
+    ga = inspect.signature(GA).parameters
+    text = (Path(__file__).parents[1] / "docs" / "API.md").read_text()
+    table = {row.split("|")[1].strip(): [c.strip() for c in row.split("|")[2:4]] for row in text.split("### The command line and Python")[1].splitlines()
+             if row.startswith("| `--") or row.startswith("| DATASET")}
+    assert table == {
+        "`--interval`": [str(campaign["interval"].default), f"`Migration().interval` = {hysid.Migration().interval}"],
+        "`--population` (memoryless model)": [str(o.ISLAND_POPULATION), f"`GA`/`PSO` `population` = {ga['population'].default}"],
+        "`--initial` (memoryless model)": [str(o.ISLAND_INITIAL), f"`GA`/`PSO` `initial_population` = {ga['initial_population'].default}"],
+        "`--iterations` (memoryless model, no budget)": [str(o.ISLAND_ITERATIONS), f"`GA`/`PSO` `iterations` = {ga['iterations'].default}"],
+        "`--db`": ["OUT/campaign.sqlite", f"`db` = {inspect.signature(hysid.campaign).parameters['db'].default}"],
+        "DATASET of `campaign`": ["synth", "`loops` (required)"],
+    }
+    assert campaign["interval"].default != hysid.Migration().interval and campaign["population"].default is None
+
+
+def test_a_campaign_on_a_model_with_memory_gets_the_same_islands_from_the_command_line_and_python(loops):
+    """With no island sizes given, `hysid campaign`'s islands on a Bouc-Wen model are hysid.campaign's memetic
+    ones (small swarms, an evaluation budget, searching until the stop order), and sizes given are kept."""
+    from hysid.campaigns import island_settings
+    from hysid.cli import options as o
+    from island.termination import Termination
+
+    cli = o.island_plan(loops, "thesis+bouc_wen", None, ["ga", "pso"], None, None, None, Termination())
+    python = island_settings(loops, "thesis+bouc_wen", None, ["ga", "pso"], None, None, None)
+    assert cli[:3] == python and cli[0]["pso"]["population"] < o.ISLAND_POPULATION and python[1].budget and python[2] is True
+    given = o.island_plan(loops, "thesis+bouc_wen", None, ["ga", "pso"], 50, None, None, Termination())
+    assert given[0]["ga"] == {"population": 50, "initial_population": o.ISLAND_INITIAL, "iterations": o.ISLAND_ITERATIONS} and given[2] is False
+    thesis = o.island_plan(loops, "thesis", None, ["ga", "pso"], None, None, None, Termination(time_limit_s=5))
+    assert thesis[0]["pso"]["population"] == o.ISLAND_POPULATION and thesis[1].budget is None and thesis[2] is True

@@ -119,8 +119,8 @@ def register(app: typer.Typer) -> None:
         interval: int = o.INTERVAL,
         migrants: int = o.MIGRANTS,
         random_k: int = o.RANDOM_K,
-        population: int = o.POPULATION,
-        initial: int = o.INITIAL,
+        population: Optional[int] = o.POPULATION,
+        initial: Optional[int] = o.INITIAL,
         iterations: Optional[int] = o.ITERATIONS,
         seed: int = o.SEED,
         model: str = o.MODEL,
@@ -147,6 +147,7 @@ def register(app: typer.Typer) -> None:
         bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         algo_list = o.parse_algos(algos)
         termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
+        given_iterations = iterations
         iterations, until_stopped = o.island_budget(iterations, termination)
         sizes = o.island_sizes(population, initial, iterations)
         migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
@@ -159,6 +160,8 @@ def register(app: typer.Typer) -> None:
         path = database(db, target_dir, name, resuming=False)
         new_db = not path.exists()
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
+        sizes, termination, until_stopped, iterations = o.island_plan(
+            loops, model, bounds, algo_list, population, initial, given_iterations, termination)
         try:
             with Progress("campaign", islands * (iterations or 0) or 100, enabled=not (quiet or as_json)) as bar:
                 result = campaign(
@@ -194,8 +197,8 @@ def register(app: typer.Typer) -> None:
         interval: int = o.INTERVAL,
         migrants: int = o.MIGRANTS,
         random_k: int = o.RANDOM_K,
-        population: int = o.POPULATION,
-        initial: int = o.INITIAL,
+        population: Optional[int] = o.POPULATION,
+        initial: Optional[int] = o.INITIAL,
         iterations: Optional[int] = o.ITERATIONS,
         seed: int = o.SEED,
         model: str = o.MODEL,
@@ -226,10 +229,11 @@ def register(app: typer.Typer) -> None:
         target_dir = o.report_dir(out, "coordinator")
         path = database(db, target_dir, name, resuming=resume_db)
         if not resume_db:  # every argument is checked before the database is written or a session opened
-            iterations, until_stopped = o.island_budget(iterations, termination)
-            sizes = o.island_sizes(population, initial, iterations)
+            o.island_sizes(population, initial, iterations)  # checked before the loops are read
             migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
             loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
+            sizes, termination, until_stopped, iterations = o.island_plan(
+                loops, model, bounds, o.parse_algos(algos), population, initial, iterations, termination)
             config = CampaignConfig.create(
                 loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed,
                 displacement=choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed).displacement,

@@ -16,8 +16,10 @@ from typing import Any
 import typer
 
 from coordinator.store import Store
+from hysid.campaigns import default_options, island_settings
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
 from hysid_model.model import PRESETS
 from island.algorithms import ALGORITHMS
 from island.termination import Termination
@@ -112,8 +114,11 @@ JSON = typer.Option(False, "--json", help="Print one JSON object on stdout inste
 QUIET = typer.Option(False, "--quiet", help="No live progress on stderr.")
 CSV = typer.Option(False, "--csv", help="Also write the result's tables as CSV files in the report directory (parameters.csv, amplitudes.csv, ...).")
 ALGOS = typer.Option("ga,pso", "--algos", help="Comma-separated algorithm mix the islands cycle through (ga, pso).")
-POPULATION = typer.Option(200, "--population", help="GA population / PSO swarm of each island (the thesis: 500).")
-INITIAL = typer.Option(2000, "--initial", help="Initial random population / swarm of each island (the thesis: 6000).")
+ISLAND_POPULATION, ISLAND_INITIAL = 200, 2000
+"""Each island's population and initial population when none is given, on a model without memory."""
+MEMETIC = "on a model with memory, with none of --population, --initial, --iterations: the memetic islands of hysid.campaign"
+POPULATION = typer.Option(None, "--population", help=f"GA population / PSO swarm of each island (the thesis: 500). Default {ISLAND_POPULATION}; {MEMETIC}.")
+INITIAL = typer.Option(None, "--initial", help=f"Initial random population / swarm of each island (the thesis: 6000). Default {ISLAND_INITIAL}; {MEMETIC}.")
 ISLAND_ITERATIONS = 60
 """Each island's iteration budget when neither --iterations nor an evaluation or time budget is given."""
 ITERATIONS = typer.Option(
@@ -286,12 +291,28 @@ def parse_algos(value: str) -> list[str]:
     return algos
 
 
-def island_sizes(population: int, initial: int, iterations: int | None) -> dict[str, dict[str, Any]]:
+def island_sizes(population: int | None, initial: int | None, iterations: int | None) -> dict[str, dict[str, Any]]:
     """The per-island sizes of ``--population``, ``--initial``, ``--iterations`` (None: not given) for every algorithm."""
+    population = ISLAND_POPULATION if population is None else population
+    initial = max(ISLAND_INITIAL, population) if initial is None else initial
     if initial < population:
         raise HysidInputError(f"must be at least --population {population}", param="initial_population", value=initial)
     counts = {} if iterations is None else {"iterations": iterations}
     return {algo: {"population": population, "initial_population": initial, **counts} for algo in ALGORITHMS}
+
+
+def island_plan(
+    loops: LoopSet, model: str, bounds: dict[str, tuple[float, float]] | None, algos: list[str],
+    population: int | None, initial: int | None, iterations: int | None, termination: Termination,
+) -> tuple[dict[str, dict[str, Any]] | None, Termination | None, bool, int | None]:
+    """The islands' ``(options, termination, until_stopped, iterations)`` from ``--population``, ``--initial``,
+    ``--iterations`` and the stop rules: with none of the three given on a model with memory, the library's
+    defaults (:func:`hysid.campaigns.island_settings`: memetic islands), so that the command line and Python
+    search alike; else these sizes, each island running :func:`island_budget`'s iterations."""
+    if population is None and initial is None and iterations is None and default_options(loops, model, bounds, algos) is not None:
+        return (*island_settings(loops, model, bounds, algos, None, termination, None), None)
+    iterations, until_stopped = island_budget(iterations, termination)
+    return island_sizes(population, initial, iterations), termination, until_stopped, iterations
 
 
 def island_budget(iterations: int | None, termination: Termination) -> tuple[int | None, bool]:
