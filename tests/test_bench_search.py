@@ -16,7 +16,7 @@ from hysid.bench.search import judge, run_method, summarize
 from hysid.bench.search_peers import PEERS, BudgetSpent, Tracker
 from hysid.bench.search_problems import build
 from hysid_model.problem import build_objective, starting_point
-from island.memetic import REFINE_NFEV, memetic_search, needs_islands
+from island.memetic import QUIET, REFINE_EVERY, REFINE_NFEV, STALL, Island, memetic_search, needs_islands, starting_points
 from island.space import SearchSpace, SpaceObjective
 
 
@@ -105,6 +105,33 @@ def test_memetic_search_spends_its_budget_and_never_ends_above_its_starting_poin
     assert [r["round"] if "round" in r else r["iteration"] for r in result.history] == list(range(1, len(result.history) + 1))
     again = memetic_search(objective, [start], 0, budget=800)
     assert again.fitness == result.fitness  # one seed, one answer
+
+
+def test_an_island_s_counts_and_best_so_far_run_on_across_a_restart_and_its_fresh_search_keeps_quiet(objective):
+    space = SpaceObjective(objective)
+    rows = starting_points(objective, starting_point(objective.loops, objective.model))
+    assert rows.shape[0] == 3 and np.all(rows >= objective.bounds[:, 0]) and np.all(rows <= objective.bounds[:, 1])  # the linear estimate, 2 Bouc-Wen reads
+    island = Island(space, "pso", 5, {"population": 6, "initial_population": 12, "synchronous": True, "addpop_level": 1, "iterations": 10**6},
+                    starts=space.space.to_u(rows))
+    island.step()
+    assert island.fitness <= float(objective(rows).min()) and island.evaluations == 12 + 3  # the starts joined the first population
+    for _ in range(REFINE_EVERY * STALL):
+        island.step()
+        island.refine()
+    assert island.history == sorted(island.history, reverse=True) and island.restarts == 0
+    before = (island.iteration, island.evaluations, island.history[-1], island.best(1)[0][0].copy())
+    island.stalled = STALL  # as if its best had not moved for STALL refinements
+    assert island.stale
+    island.restart()
+    island.step()
+    assert island.restarts == 1 and island.iteration == before[0] + 1 and island.evaluations == before[1] + 12
+    assert island.history[-1] == before[2] <= island.fitness  # the best so far stays; the fresh search starts above it
+    assert not np.array_equal(island.best(1)[0][0], before[3]) and not island.stale
+    x, f = before[3][None, :], space(before[3][None, :])
+    assert island.quiet and island.inject(x, f) == 0
+    while island.quiet:
+        island.step()
+    assert island.iteration == before[0] + 1 + QUIET and island.inject(x, f) == 1 and island.fitness == f[0]
 
 
 def test_fit_runs_memetic_islands_on_memory_models_and_the_thesis_run_elsewhere(problem):
