@@ -7,7 +7,10 @@ A model with memory (Bouc-Wen) or a force that is not smooth in time
 several basins: a single GA/PSO run with one polish at its end (the thesis'
 procedure, :func:`island.run.optimize`) lands in the wrong one for some seeds.
 What makes a campaign of several islands succeed there, several cooperating
-populations, is done here in one process, deterministically for a seed:
+populations, is done here in one process, deterministically for a seed. Each
+population is an :class:`Island`, the same one a campaign's node runs on such a
+model (:mod:`island.node`, where migration and the global best travel over the
+wire instead):
 
 * the islands search in the coordinates of :mod:`island.space` (positive scale
   parameters on a log scale: the ridges k_bw z_y = const become straight and
@@ -35,7 +38,9 @@ evaluation: candidates, residual vectors and Jacobian probes
 search may overshoot it by one refinement or one population, and the final
 polish comes on top. The result is a
 :class:`island.run.RunResult` in the model's parameters; its history has one
-row per round (every island one iteration).
+row per round (every island one iteration). :func:`starting_points` are the
+starts a campaign's islands take: its ``start`` and what the model's terms read
+off the loops.
 """
 
 from __future__ import annotations
