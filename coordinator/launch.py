@@ -31,6 +31,8 @@ from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
 from coordinator.server import Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
+from hysid_model.model import Model
+from hysid_model.user_terms import module_roots
 from island.node import IslandNode
 from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret
 from island.session import open_session, session_config
@@ -120,10 +122,15 @@ def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
     ]
 
 
-def island_environment(secret: CampaignSecret) -> dict[str, str]:
-    """This process' environment with the campaign secret for an island process (:data:`island.secret.SECRET_ENV`)."""
+def island_environment(secret: CampaignSecret, model: Model) -> dict[str, str]:
+    """This process' environment for an island process: the campaign secret (:data:`island.secret.SECRET_ENV`),
+    and the directories of ``model``'s own terms' modules added to ``PYTHONPATH``: an island process imports
+    them by their model string (``-P`` keeps its working directory off its path)."""
     env = {k: v for k, v in os.environ.items() if k != SECRET_FILE_ENV}
     env[SECRET_ENV] = secret.text()
+    roots = [r for r in module_roots(model) if r not in env.get("PYTHONPATH", "").split(os.pathsep)]
+    if roots:
+        env["PYTHONPATH"] = os.pathsep.join(([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []) + roots)
     return env
 
 
@@ -133,10 +140,10 @@ def run_processes(
     """One ``hysid island`` process per spec, connected to ``endpoint``; returns the stop reason."""
     with tempfile.TemporaryDirectory(prefix="hysid-islands-") as logs:
         procs = []
+        env = island_environment(coordinator.secret, coordinator.objective.model)
         for spec in specs:
             log = open(Path(logs) / f"{spec.id}.log", "w+")
-            procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log,
-                                                 env=island_environment(coordinator.secret)), log))
+            procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log, env=env), log))
 
         def all_exited() -> str | None:
             codes = [p.poll() for _, p, _ in procs]

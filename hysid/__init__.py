@@ -11,7 +11,8 @@ The front door for Python (the ``hysid`` command line does the same):
     campaign = hysid.campaign(loops, islands=4)             # cooperating GA/PSO islands over Zenoh
 
 Models are data: ``hysid.models.thesis + hysid.effects.coulomb_friction``, with
-``.fix(meq=...)`` for known values and ``.with_bounds({...})``. Bad input
+``.fix(meq=...)`` for known values and ``.with_bounds({...})``; ``hysid.term(fn, ...)``
+makes a force law of your own a term like the library's. Bad input
 raises :class:`HysidInputError` with one line naming what is wrong; doubtful
 input warns with :class:`HysidWarning`.
 """
@@ -32,6 +33,7 @@ if TYPE_CHECKING:
     from hysid_model.loops import LoopSet
     from hysid_model.model import Model
     from hysid_model.params import Parameter
+    from hysid_model.user_terms import term
     from island.migration import Migration
     from island.termination import Termination
 
@@ -50,6 +52,7 @@ _EXPORTS = {
     "LoopSet": ("hysid_model.loops", "LoopSet"),
     "Model": ("hysid_model.model", "Model"),
     "Parameter": ("hysid_model.params", "Parameter"),
+    "term": ("hysid_model.user_terms", "term"),
     "Migration": ("island.migration", "Migration"),
     "Termination": ("island.termination", "Termination"),
 }

@@ -26,7 +26,8 @@ from hysid.fitting import FitResult
 from hysid.motion import choose_motion
 from hysid.report import jsondoc, markdown, tables, text
 from hysid_model.loops import LoopSet
-from hysid_model.model import Model
+from hysid_model.model import Model, build_model
+from hysid_model.user_terms import check_importable
 from hysid_model.errors import HysidInputError
 from hysid_model.problem import prepare_model
 from island.config import CampaignConfig, decode_config
@@ -216,6 +217,8 @@ def campaign(
         options=options, migration=migration, seed=seed, min_islands=islands, displacement=motion.displacement,
         until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped, share=share,
     )
+    if not single_node:
+        check_importable(build_model(config.model))
     store = Store(db)
     try:
         coordinator = Coordinator(store, config, loops, termination, dataset=dataset or loops.name)

@@ -2,7 +2,9 @@
 
 Each is a term of :data:`hysid_model.effects.EFFECTS` with its parameters
 (name, unit, default bounds), its force, and a plain-language ``explanation``;
-``hysid models`` lists them all.
+``hysid models`` lists them all. Terms add up to groups of terms
+(``coulomb_friction + bouc_wen``) and, with a model, to models, like the terms
+of your own that :func:`hysid.term` makes.
 """
 
 from hysid_model.effects import (

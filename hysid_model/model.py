@@ -4,7 +4,8 @@ Presets (:data:`PRESETS`): ``baseline`` = the oscillator of Eq. 4.4/4.6 with
 constant xi and wn; ``thesis`` = the final model of Eq. 4.8-4.10 (xi0, S_xi,
 w0, S_w); ``mr_damper`` = the oscillator plus a Bouc-Wen spring with its
 exponent free, the simple Bouc-Wen model of a magnetorheological damper. Any
-effect of :data:`hysid_model.effects.EFFECTS` can be appended, ``thesis+<effect id>``.
+effect of :data:`hysid_model.effects.EFFECTS` can be appended, ``thesis+<effect id>``,
+and any term of a user's own, ``thesis+<module>:<attribute>`` (:mod:`hysid_model.user_terms`).
 """
 
 from __future__ import annotations
@@ -29,9 +30,11 @@ from hysid_model.terms import (
     ModalState,
     Oscillator,
     Term,
+    TermGroup,
     Values,
     add_coefficient,
 )
+from hysid_model.user_terms import resolve
 
 if TYPE_CHECKING:
     from hysid_model.sampled import SampledMemory
@@ -241,10 +244,13 @@ class Model:
                 out.append((p.name, kind, "lower" if low else "upper", side))
         return out
 
-    def __add__(self, other: "Term | Model") -> "Model":
-        """This model plus an effect term (or another model's terms): ``thesis + coulomb_friction``."""
+    def __add__(self, other: "Term | TermGroup | Model") -> "Model":
+        """This model plus an effect term, a group of terms (``coulomb_friction + bouc_wen``) or another model's
+        terms: ``thesis + coulomb_friction``; an oscillator among them is this model's own."""
         if isinstance(other, Model):
             added, overrides = [t for t in other.terms if not isinstance(t, Oscillator)], other._overrides
+        elif isinstance(other, TermGroup):
+            added, overrides = [t for t in other if not isinstance(t, Oscillator)], {}
         elif isinstance(other, Term) and not isinstance(other, Oscillator):
             added, overrides = [other], {}
         else:
@@ -254,8 +260,12 @@ class Model:
             if term.id in ids:
                 raise HysidInputError(f"model {self.spec!r}: effect {term.id!r} is already in the model")
             ids.append(term.id)
-        spec = "+".join([self.spec] + [t.id for t in added])
+        spec = "+".join([self.spec] + [t.spec for t in added])
         return Model(self.terms + added, spec, {**self._overrides, **overrides})
+
+    def __radd__(self, other: "Term | TermGroup") -> "Model":
+        """A term (or a group) plus a model is the model plus it: a model string starts with its preset."""
+        return self.__add__(other) if isinstance(other, (Term, TermGroup)) else NotImplemented
 
     def values(self, pop: np.ndarray) -> Values:
         """Split a ``(P, D)`` population into named ``(P, 1)`` columns, fixed parameters included."""
@@ -416,15 +426,23 @@ class Model:
 def spec_of(terms: Sequence[Term], free: Collection[str] = ()) -> str:
     """The model string of ``terms`` with the parameters ``free`` searched: the preset that holds the most of
     them, first the parameters it frees (so that :func:`build_model` frees them again), then ``+effect`` for
-    every other term."""
-    ids = [t.id for t in terms if not isinstance(t, Oscillator)]
-    fits = [name for name, effects in PRESETS.items() if set(effects) <= set(ids) and set(PRESET_FREES.get(name, ())) <= set(free)]
+    every other term (:attr:`Term.spec`)."""
+    effects = [t for t in terms if not isinstance(t, Oscillator)]
+    ids = {t.id for t in effects}
+    fits = [name for name, preset in PRESETS.items() if set(preset) <= ids and set(PRESET_FREES.get(name, ())) <= set(free)]
     preset = max(fits, key=lambda name: (len(PRESET_FREES.get(name, ())), len(PRESETS[name])))
-    return "+".join([preset] + [i for i in ids if i not in PRESETS[preset]])
+    return "+".join([preset] + [t.spec for t in effects if t.id not in PRESETS[preset]])
+
+
+def effect_term(spec: str) -> Term:
+    """The term ``spec`` names in a model string: a library effect by its id (:data:`EFFECTS`), else a user's term
+    by ``module:attribute`` or by the name it was made with in this process (:func:`hysid_model.user_terms.resolve`)."""
+    return EFFECTS[spec]() if spec in EFFECTS else resolve(spec)
 
 
 def build_model(spec: str = "thesis") -> Model:
-    """Build a model from a preset (:data:`PRESETS`) plus ``+effect`` ids (``thesis+coulomb_friction``).
+    """Build a model from a preset (:data:`PRESETS`) plus ``+effect`` ids (``thesis+coulomb_friction``) and
+    a user's terms (``thesis+myterms:drag``, :func:`effect_term`).
 
     Every parameter is free, the equivalent mass ``meq`` too, except those an
     effect fixes by default (the Bouc-Wen exponent ``bw_n`` = 1) and its preset
@@ -437,15 +455,17 @@ def build_model(spec: str = "thesis") -> Model:
     parts = [p.strip() for p in spec.split("+") if p.strip()]
     if not parts or parts[0] not in PRESETS:
         raise HysidInputError(f"must start with one of {', '.join(PRESETS)} (e.g. thesis+coulomb_friction)", param="model", value=spec)
-    effect_ids = list(PRESETS[parts[0]])
+    terms: list[Term] = [Oscillator()] + [EFFECTS[e]() for e in PRESETS[parts[0]]]
+    added: list[Term] = []
     for part in parts[1:]:
-        if part not in EFFECTS:
-            raise HysidInputError(f"unknown effect {part!r}; known: {', '.join(sorted(EFFECTS))}", param="model", value=spec)
-        if part in effect_ids:
+        try:
+            term = effect_term(part)
+        except HysidInputError as exc:
+            raise HysidInputError(exc.detail, param="model", value=spec) from None
+        if term.id in [t.id for t in terms + added]:
             raise HysidInputError(f"effect {part!r} is already in the model", param="model", value=spec)
-        effect_ids.append(part)
-    terms: list[Term] = [Oscillator()] + [EFFECTS[e]() for e in effect_ids]
-    return Model(terms, "+".join(parts)).vary(*PRESET_FREES.get(parts[0], ()))
+        added.append(term)
+    return Model(terms + added, "+".join([parts[0]] + [t.spec for t in added])).vary(*PRESET_FREES.get(parts[0], ()))
 
 
 def as_model(model: "str | Model") -> Model:

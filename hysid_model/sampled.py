@@ -8,7 +8,8 @@ once and evaluates a population through the kernels:
 
 * memory terms through their :meth:`~hysid_model.terms.Term.sampler`
   (Bouc-Wen: its exact orbit, one multiply-add per sample on a uniform travel
-  grid), at phases delayed by the chain's delay;
+  grid; a user's terms: their numpy law at motion prepared once,
+  :mod:`hysid_model.user_terms`), at phases delayed by the chain's delay;
 * F sgn(x') delayed and through a single-pole high-pass exactly: the periodic
   response of G = s / (s + w_c) to the square wave sgn(x') is exponential
   between the reversals (:func:`hysid_model.kernels.velocity_sign_chain`);

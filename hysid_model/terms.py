@@ -23,13 +23,15 @@ Elements of the measurement chain (charge amplifier, channel delay) are
 :class:`MeasurementTerm`: a delay times a gain per harmonic order, applied
 exactly to harmonic features here and per sample to the rest by the model.
 
-The effect library (id -> term class) is :data:`hysid_model.effects.EFFECTS`;
-this module holds the base classes and the thesis' own terms (Eq. 4.4-4.10).
+The effect library (id -> term class) is :data:`hysid_model.effects.EFFECTS`,
+a user's own terms are :mod:`hysid_model.user_terms`; this module holds the
+base classes, :class:`TermGroup` (terms that compose with ``+`` as PySINDy's
+libraries do) and the thesis' own terms (Eq. 4.4-4.10).
 """
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING, Callable, ClassVar, Protocol
@@ -39,6 +41,7 @@ import math
 import numpy as np
 
 from hysid_model import waveform
+from hysid_model.errors import HysidInputError
 from hysid_model.params import Parameter
 
 if TYPE_CHECKING:
@@ -206,8 +209,52 @@ class Term:
         (then :mod:`hysid_model.sampled` uses :meth:`time_force`)."""
         return None
 
+    @property
+    def spec(self) -> str:
+        """How a model string names this term (``thesis+<spec>``): a library effect by its id, a user's term by
+        ``module:attribute`` (:mod:`hysid_model.user_terms`)."""
+        return self.id
+
+    def __add__(self, other: object) -> "TermGroup":
+        """This term and another (or a group of terms) as a group, as PySINDy concatenates its libraries:
+        ``coulomb_friction + bouc_wen``; a term plus a model is the model plus the term."""
+        if isinstance(other, (Term, TermGroup)):
+            return TermGroup((self,)) + other
+        return NotImplemented
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}({', '.join(p.name for p in self.params)})"
+
+
+class TermGroup:
+    """Terms to add to a model together (``hysid.effects.coulomb_friction + hysid.effects.bouc_wen``).
+
+    Groups compose with terms and groups into groups and with a model into a model
+    (:meth:`hysid_model.model.Model.__add__`), in the order written; a term appears once.
+    """
+
+    def __init__(self, terms: tuple[Term, ...]) -> None:
+        ids = [t.id for t in terms]
+        twice = sorted({i for i in ids if ids.count(i) > 1})
+        if twice:
+            raise HysidInputError(f"effect {twice[0]!r} is twice in the group {' + '.join(ids)}")
+        self.terms = tuple(terms)
+
+    def __add__(self, other: object) -> "TermGroup":
+        if isinstance(other, Term):
+            return TermGroup(self.terms + (other,))
+        if isinstance(other, TermGroup):
+            return TermGroup(self.terms + other.terms)
+        return NotImplemented
+
+    def __iter__(self) -> Iterator[Term]:
+        return iter(self.terms)
+
+    def __len__(self) -> int:
+        return len(self.terms)
+
+    def __repr__(self) -> str:
+        return f"TermGroup({' + '.join(t.spec for t in self.terms)})"
 
 
 class Sampler(Protocol):

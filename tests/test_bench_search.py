@@ -8,6 +8,8 @@ the memetic search that ``hysid fit`` runs on memory models.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -155,3 +157,21 @@ def test_memetic_search_takes_the_diagnosis_objective(problem, objective):
     result = memetic_search(harmonic, [start], 1, budget=400)
     assert result.fitness <= float(harmonic(start[None, :])[0]) and np.all(np.isfinite(result.theta))
     assert np.all((result.theta >= harmonic.bounds[:, 0]) & (result.theta <= harmonic.bounds[:, 1]))
+
+
+@pytest.mark.slow  # over 3 s
+def test_the_validation_bench_judges_a_case_against_its_truth_and_writes_the_table(tmp_path, capsys):
+    """``hysid bench validation``: the sensor-distortion case is read as the sensor's and matches its truth; the
+    Markdown table names it with its verdict."""
+    from hysid.cli import main
+
+    table = tmp_path / "VALIDATION.md"
+    assert main(["bench", "validation", "--cases", "sensor_distortion", "--markdown", str(table), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    (row,) = result["cases"]
+    assert row["reading"] == "fundamental" and row["named"] == [] and row["matches"]
+    assert row["nrmse_pct"] <= 1.1 * row["truth_nrmse_pct"]
+    text = table.read_text()
+    assert "| `sensor_distortion` |" in text and "1 of 1 cases match" in text
+    assert main(["bench", "validation", "--cases", "nonsense"]) == 2
+    assert "unknown case 'nonsense'" in capsys.readouterr().err

@@ -108,10 +108,11 @@ def grid(freqs: np.ndarray, amps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.tile(freqs, amps.size), np.repeat(amps, freqs.size)
 
 
-def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: float = 2.0) -> list[RawRecord]:
+def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: float = 2.0, *, rate_hz: float = MR_RATE_HZ,
+                      cycles: int = CYCLES) -> list[RawRecord]:
     """Raw records of a Spencer-type damper, F = c0 x' + k0 x + k_bw z with
     z' = x' - gamma |x'| |z|^(n-1) z - beta x' |z|^n (A = 1, gamma = beta = 1 / (2 z_y^n)),
-    integrated in time by RK4 from z = 0 over one extra cycle that is dropped."""
+    integrated in time by RK4 from z = 0 over one extra cycle that is dropped; ``cycles`` kept, sampled at ``rate_hz``."""
     rng = np.random.default_rng(seed)
     freq, amp = grid(MR_FREQ_HZ, MR_AMPLITUDES_M)
     gamma = beta = 0.5 / level["zy"] ** exponent
@@ -119,8 +120,8 @@ def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: 
     records = []
     for f, a in zip(freq, amp):
         w = 2.0 * np.pi * f
-        n = int(round((CYCLES + 1) * MR_RATE_HZ / f))
-        dt = 1.0 / (MR_RATE_HZ * MR_SUBSTEPS)
+        n = int(round((cycles + 1) * rate_hz / f))
+        dt = 1.0 / (rate_hz * MR_SUBSTEPS)
         phase0 = rng.uniform(0.0, 2.0 * np.pi)
         velocity = lambda t: a * w * np.cos(w * t + phase0)
 
@@ -139,7 +140,7 @@ def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: 
                 k4 = rhs(t + dt, z + dt * k3)
                 z += dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
                 t += dt
-        time = np.arange(n) / MR_RATE_HZ
+        time = np.arange(n) / rate_hz
         x = a * np.sin(w * time + phase0)
         clean = level["c0"] * velocity(time) + level["k0"] * x + k_bw * zs
         keep = time >= 1.0 / f
@@ -155,11 +156,12 @@ def peak_noise(model, theta: np.ndarray, freq: np.ndarray, amp: np.ndarray, dist
     return np.array([NOISE_PCT / 100.0 * np.abs(r.force).max() for r in clean])
 
 
-def simulated(model_spec: str, values: dict[str, float], freq: np.ndarray, amp: np.ndarray, *, rate_hz: float, distortion: dict[int, complex] | None = None) -> list[RawRecord]:
+def simulated(model_spec: str, values: dict[str, float], freq: np.ndarray, amp: np.ndarray, *, rate_hz: float,
+              distortion: dict[int, complex] | None = None, cycles: int = CYCLES) -> list[RawRecord]:
     model = build_model(model_spec)
     theta = model.from_dict(values)
     noise = peak_noise(model, theta, freq, amp, distortion)
-    return simulate_raw(model, theta, freq, amp, noise_n=noise, seed=DATA_SEED, sample_rate_hz=rate_hz, cycles=CYCLES, distortion=distortion)
+    return simulate_raw(model, theta, freq, amp, noise_n=noise, seed=DATA_SEED, sample_rate_hz=rate_hz, cycles=cycles, distortion=distortion)
 
 
 FRICTION_BW = {"xi0": 0.3, "w0": 2 * np.pi * 3.0, "meq": 20.0, "F_d": 80.0, "bw_k": 8.0e5, "bw_zy": 0.15e-3, "bw_r": 0.5}

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 import warnings
 from importlib.metadata import PackageNotFoundError, version
-from typing import Any, TextIO
+from typing import Any, Optional, TextIO
 
 import typer
 
@@ -57,10 +57,17 @@ for module in (data, fit, bench, campaign, router, diagnose, watch):
 
 
 @app.command("models")
-def models_command() -> None:
-    """List the model presets and the effect library, with every parameter's unit and default bounds."""
+def models_command(
+    modules: Optional[list[str]] = typer.Option(
+        None, "--import", metavar="MODULE", help="Import this module (repeatable) and list the terms of your own it makes (hysid.term).",
+    ),
+) -> None:
+    """List the model presets, the effect library and terms of your own (--import), with every parameter's unit and default bounds."""
     from hysid.report.text import models_text
+    from hysid_model.user_terms import import_user_module
 
+    for module in modules or []:
+        import_user_module(module, "--import: ")
     print(models_text())
 
 

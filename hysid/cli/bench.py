@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 import typer
 
-from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective, search, sites
+from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective, search, sites, validation
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -68,6 +68,23 @@ def search_command(
     as_json: bool = BENCH_JSON,
 ) -> None:
     emit(search.run(seeds, quick, tuple(p for p in problems.split(",") if p), budget=budget, partial=partial), search.to_text, as_json)
+
+
+@bench_app.command("validation", help=(validation.run.__doc__ or "").strip().splitlines()[0])
+def validation_command(
+    cases: str = typer.Option("", "--cases", help="Comma-separated cases to run (default: all)."),
+    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the table as Markdown to this file (docs/VALIDATION.md)."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    names = [c for c in cases.split(",") if c] or None
+    known = [c.name for c in validation.cases()]
+    unknown = [c for c in names or [] if c not in known]
+    if unknown:
+        raise HysidInputError(f"--cases: unknown case {unknown[0]!r}; choose from {', '.join(known)}")
+    result = validation.run(names)
+    if markdown is not None:
+        markdown.write_text(validation.to_markdown(result, environment()))
+    emit(result, validation.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])

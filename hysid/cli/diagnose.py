@@ -8,6 +8,7 @@ from typing import Optional
 import typer
 
 from hysid.cli import options as o
+from hysid.diagnosis.scoring import candidate_effects
 from hysid.diagnosis.selection import diagnose
 from hysid.cli.progress import Progress
 from hysid_model.datasets import load_dataset
@@ -29,11 +30,15 @@ def register(app: typer.Typer) -> None:
         quiet: bool = o.QUIET,
         bound: Optional[list[str]] = o.BOUND,
         displacement: str = o.DISPLACEMENT,
+        candidates: Optional[str] = o.CANDIDATES,
     ) -> None:
-        """Find which effects of the library the model misses, step by step, and write a report."""
-        bounds = o.parse_bounds(bound)
+        """Find which effects of the library (and --candidates of your own) the model misses, step by step, and write a report."""
+        bounds, effects = o.parse_bounds(bound), candidate_effects(o.parse_list(candidates))
         target = o.report_dir(out, "diagnose")
         loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
         with Progress("diagnosing", 2, enabled=not (quiet or as_json)) as progress:
-            result = diagnose(loops, model, bounds=bounds, displacement=displacement, progress=lambda done, total, what: progress.update(done, what, total))
+            result = diagnose(
+                loops, model, bounds=bounds, candidates=effects, displacement=displacement,
+                progress=lambda done, total, what: progress.update(done, what, total),
+            )
         o.show_result(result, target, as_json, csv, dataset)

@@ -61,6 +61,7 @@ FLAGS = {
     "thesis_runs": "--thesis-runs",
     "part": "PART",
     "bound": "--bound",
+    "candidates": "--candidates",
     "displacement": "--displacement",
     "fix": "--fix",
     "records": "--records",
@@ -82,7 +83,14 @@ def error_line(exc: HysidInputError) -> str:
 DATASET_HELP = "Dataset directory, loops file, .mat or .lvm directory, or 'synth' (the thesis' Synth set)."
 DATASET = typer.Argument(..., help=DATASET_HELP)
 DATASET_OR_SYNTH = typer.Argument(None, help=DATASET_HELP + " Default: synth.")
-MODEL = typer.Option("thesis", "--model", help="A preset (thesis, baseline, mr_damper) with +effects (see 'hysid models').")
+MODEL = typer.Option(
+    "thesis", "--model",
+    help="A preset (thesis, baseline, mr_damper) with +effects (see 'hysid models') and +module:attribute terms of your own (hysid.term).",
+)
+CANDIDATES = typer.Option(
+    None, "--candidates", metavar="MODULE:ATTRIBUTE,...",
+    help="Terms of your own (made by hysid.term, imported from modules on the Python path) scored beside the library's effects.",
+)
 START_MODEL = typer.Option("baseline", "--model", help=f"Start model: {' or '.join(PRESETS)}.")
 WEIGHTS = typer.Option(None, "--weights", help="thesis or ml (1/sigma^2); default: ml when every loop's noise sigma is known.")
 NOISE = typer.Option(0.0, "--noise", help="Gaussian force noise, % of each loop's peak force (as the thesis' Synth tests).")
@@ -236,6 +244,11 @@ def parse_fixed(values: list[str] | None) -> dict[str, float]:
         except ValueError:
             raise HysidInputError("give NAME=VALUE, e.g. --fix meq=0.2", param="fix", value=value) from None
     return fixed
+
+
+def parse_list(value: str | None) -> list[str]:
+    """``--candidates a:b,c:d`` as a list (each checked by the library)."""
+    return [part.strip() for part in (value or "").split(",") if part.strip()]
 
 
 def parse_algos(value: str) -> list[str]:

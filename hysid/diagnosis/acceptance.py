@@ -33,8 +33,8 @@ from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.diagnosis.fitting import Fit
 from hysid.diagnosis.metrics import cross_validated_rms, energy_error_pct, nrmse_pct
 from hysid.diagnosis.plausible import implausible_values
-from hysid_model.effects import EFFECTS
 from hysid_model.harmonics import Harmonics
+from hysid_model.model import effect_term
 from hysid_model.uncertainty import jacobian_covariance
 
 VISIBLE_Z = 3.0
@@ -116,7 +116,7 @@ def degenerate(after: Fit, effects: tuple[str, ...]) -> str | None:
     """Which shape parameter of ``effects`` the data push against a bound in ``after`` (rule 4), in words, or None."""
     names = after.model.names
     for effect in effects:
-        term = EFFECTS[effect]()
+        term = effect_term(effect)
         for p in term.params:
             if p.name != term.strength and p.name in names and binding(after, names.index(p.name)):
                 return f"{p.name} is pushed against its bound ({after.theta[names.index(p.name)]:.4g}): the effect degenerates here"
@@ -134,7 +134,7 @@ def judge(before: Fit, after: Fit, effects: tuple[str, ...], harmonics: Harmonic
         return f"adds order-{k} content the loops do not have (chi^2 of order {k}: {c0:.4g} -> {c1:.4g})"
     names, values, bounds = after.model.names, after.theta, after.model.bounds
     for effect in effects:
-        term = EFFECTS[effect]()
+        term = effect_term(effect)
         if term.strength in names:
             i = names.index(term.strength)
             if bounds[i, 0] == 0.0 and values[i] <= 0.0:

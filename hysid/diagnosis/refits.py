@@ -36,9 +36,8 @@ import numpy as np
 from hysid.diagnosis.criteria import BIC_MARGIN
 from hysid.diagnosis.fitting import Fit, fit_objective, make_model
 from hysid.diagnosis.scoring import Candidate
-from hysid_model.effects import EFFECTS
 from hysid_model.harmonics import HarmonicObjective, Harmonics
-from hysid_model.model import Model
+from hysid_model.model import Model, effect_term
 from island.memetic import memetic_search, needs_islands
 
 LINE_SEARCH = (0.25, 0.5, 1.0, 2.0, 4.0)
@@ -53,12 +52,12 @@ SEARCH_BUDGET = 5000
 def data_starts(effect: str, harmonics: Harmonics, free: list[str]) -> list[dict[str, float]]:
     """The starting points ``effect``'s term reads off the loops (none where it reads nothing), with values for
     the parameters of ``free`` it fixes by default."""
-    return EFFECTS[effect]().data_starts(harmonics.loops, free)
+    return effect_term(effect).data_starts(harmonics.loops, free)
 
 
 def starting_rows(fit: Fit, model: Model, harmonics: Harmonics, candidates: tuple[Candidate, ...], joint: np.ndarray | None) -> np.ndarray:
     """Candidate parameter vectors of ``model`` (the current one plus ``candidates``' effects), see the module docstring."""
-    terms = [EFFECTS[c.effect]() for c in candidates]
+    terms = [effect_term(c.effect) for c in candidates]
     base = {**{p.name: 0.0 for t in terms for p in t.params}, **fit.params()}
     strengths = [model.names.index(t.strength) for t in terms]
     scale = np.array(LINE_SEARCH)
@@ -88,7 +87,7 @@ def refit(fit: Fit, harmonics: Harmonics, candidates: tuple[Candidate, ...], bou
     model = make_model(harmonics, fit.start, effects, bounds, fit.freed)
     hard = needs_islands(model) and not needs_islands(fit.model)
     fixed = best_of(HarmonicObjective(harmonics, model), fit.start, effects, starting_rows(fit, model, harmonics, candidates, joint), hard)
-    freeable = [p.name for c in candidates for p in EFFECTS[c.effect].params if not p.vary and p.name in model.fixed]
+    freeable = [p.name for c in candidates for p in effect_term(c.effect).params if not p.vary and p.name in model.fixed]
     if not freeable:
         return fixed
     wider = model.vary(*freeable)

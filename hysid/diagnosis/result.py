@@ -17,9 +17,9 @@ from hysid.identifiability import Identifiability
 from hysid.motion import MotionChoice
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
-from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import Harmonics
+from hysid_model.model import effect_term
 
 
 @dataclass
@@ -38,7 +38,7 @@ class Step:
 
     @property
     def params(self) -> dict[str, float]:
-        names = [p.name for p in EFFECTS[self.effect]().params]
+        names = [p.name for p in effect_term(self.effect).params]
         return {n: v for n, v in self.after.params().items() if n in names}
 
     @property
@@ -78,7 +78,7 @@ class Diagnosis:
         levels = amplitude_levels(self.harmonics.loops.x0)[0]
         out = {}
         for effect, absorbed in self.not_identifiable.items():
-            if levels.size == 1 and EFFECTS[effect].slope_of:
+            if levels.size == 1 and effect_term(effect).slope_of:
                 out[effect] = f"one amplitude level (X0 = {levels[0] * 1e3:.4g} mm) cannot show a change with amplitude: it is {', '.join(absorbed)} again"
             else:
                 out[effect] = f"whatever it does, the model already does with {', '.join(absorbed)}"
@@ -164,7 +164,7 @@ class Diagnosis:
                     "delta_bic": s.after.bic - s.before.bic,
                     "rejected": s.rejected,
                     "joint_with": s.joint_with,
-                    "freed": [n for n in s.after.freed if n in {p.name for p in EFFECTS[s.effect].params}],
+                    "freed": [n for n in s.after.freed if n in {p.name for p in effect_term(s.effect).params}],
                 }
                 for s in self.steps
             ],

@@ -20,15 +20,19 @@ An effect whose signature the current model absorbs entirely
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from hysid.diagnosis.fitting import Fit, make_model
 from hysid_model.effects import EFFECTS
+from hysid_model.errors import HysidInputError
 from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import HarmonicObjective, Harmonics
-from hysid_model.model import PRESETS
+from hysid_model.model import PRESETS, effect_term
+from hysid_model.terms import Term, TermGroup
+from hysid_model.user_terms import specs_of
 
 ABSORBED = 1e-3
 """|g_perp| / |g| below this: the current model absorbs the effect (it is not identifiable)."""
@@ -63,7 +67,7 @@ def effects_in(fit: Fit) -> tuple[str, ...]:
 def signature(fit: Fit, harmonics: Harmonics, effect: str, bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, list[dict[str, float]], bool]:
     """d(whitened residual)/d(strength) at strength 0, ``(n_shapes, N)``, the shapes, and whether the strength is one-sided (>= 0)."""
     model = make_model(harmonics, fit.start, fit.effects + (effect,), bounds, fit.freed)
-    term = EFFECTS[effect]()
+    term = effect_term(effect)
     objective = HarmonicObjective(harmonics, model)
     shapes = term.shape_grid(objective.objective.kin, model.names)
     base = {**{p.name: 0.5 * (p.lower + p.upper) for p in term.params}, **fit.params(), term.strength: 0.0}
@@ -90,15 +94,26 @@ def joint_score(a: Candidate, b: Candidate, residual: np.ndarray) -> tuple[float
     return float(residual @ residual - after @ after), step
 
 
-def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]]) -> list[Candidate]:
-    """Score every library effect not yet in the model, best first; with loops at one amplitude, the amplitude
-    slopes (in the model or not) are scored as not identifiable."""
+def candidate_effects(extra: "Term | TermGroup | str | Sequence[Term | TermGroup | str] | None" = None) -> tuple[str, ...]:
+    """The effects a diagnosis scores: the library's, then ``extra`` (a user's terms, :func:`hysid.term`, or their
+    model strings ``module:attribute``), each of which must name its strength."""
+    added = specs_of(extra, "candidates") if extra is not None else ()
+    for spec in added:
+        if not effect_term(spec).strength:
+            raise HysidInputError(f"term {spec!r} names no strength (the parameter whose 0 switches it off), which a diagnosis tests; "
+                                  "give hysid.term(..., strength=...)", param="candidates")
+    return tuple(EFFECTS) + tuple(s for s in added if s not in EFFECTS)
+
+
+def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]], effects: Sequence[str] = tuple(EFFECTS)) -> list[Candidate]:
+    """Score every effect of ``effects`` (:func:`candidate_effects`) not yet in the model, best first; with loops at one
+    amplitude, the amplitude slopes (in the model or not) are scored as not identifiable."""
     q, _ = np.linalg.qr(fit.jacobian)
     e = fit.residual
     out = []
     single = amplitude_levels(harmonics.loops.x0)[0].size == 1
-    for effect in EFFECTS:
-        partner = EFFECTS[effect].slope_of
+    for effect in effects:
+        partner = effect_term(effect).slope_of
         if single and partner:  # one amplitude: a slope of xi or wn with amplitude is xi0 or w0 again (fixed at 0 if in the model)
             out.append(Candidate(effect=effect, score=0.0, starts=[], physical=True, identifiable=False, absorbed_by=[partner],
                                  direction=np.zeros_like(e), norm=0.0, n_shapes=0))

@@ -4,10 +4,11 @@ From the start model (baseline or thesis) fitted to the loops' harmonics, under
 the displacement the data read (:mod:`hysid.motion`: the measured waveform is
 the motion, or the sensor's distortion of its fundamental):
 
-1. score every library effect not in the model (:mod:`.scoring`); an effect
-   that cannot be at work on these loops whatever its values is set aside with
-   why (:mod:`.plausible`, e.g. a force high-pass where the force keeps its
-   mean); the ones above the family-wise significance level are contenders;
+1. score every library effect not in the model (:mod:`.scoring`), and the user's
+   own terms given as ``candidates``; an effect that cannot be at work on these
+   loops whatever its values is set aside with why (:mod:`.plausible`, e.g. a
+   force high-pass where the force keeps its mean); the ones above the
+   family-wise significance level are contenders;
 2. refit the model plus each of the best few contenders (and of any contender
    whose projected signature is nearly parallel to the best one's), and plus
    the best pair of the others (by the chi^2 they remove together to first
@@ -35,7 +36,7 @@ lower BIC is kept. The result is ``adequate`` when the final residual is noise
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from itertools import combinations
 from dataclasses import replace
 
@@ -50,14 +51,14 @@ from hysid.diagnosis.naming import adequacy, residual_signature
 from hysid.diagnosis.plausible import implausible_effect
 from hysid.diagnosis.refits import refit
 from hysid.diagnosis.result import Diagnosis, Step
-from hysid.diagnosis.scoring import Candidate, joint_score, score_candidates
+from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
 from hysid.identifiability import Identifiability, assess
 from hysid.motion import choose_motion, confirm_motion
-from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import PRESETS, build_model
+from hysid_model.terms import Term, TermGroup
 from hysid_model.problem import dataset_bounds, displaced
 from hysid_model.uncertainty import jacobian_covariance
 
@@ -116,12 +117,12 @@ def label(effects: tuple[str, ...]) -> str:
     return " with ".join(effects)
 
 
-def with_given_bounds(loops: LoopSet, start: str, bounds: Mapping[str, tuple[float, float]] | None) -> LoopSet:
+def with_given_bounds(loops: LoopSet, start: str, bounds: Mapping[str, tuple[float, float]] | None, scored: tuple[str, ...]) -> LoopSet:
     """``loops`` whose given (hard) bounds are the dataset's and then ``bounds``, each checked against the
-    parameters of the start model and of every library effect."""
+    parameters of the start model and of every candidate effect."""
     if not bounds:
         return loops
-    build_model("+".join((start, *EFFECTS))).with_bounds(bounds)
+    build_model("+".join((start, *scored))).with_bounds(bounds)
     given = {**dataset_bounds(loops), **{name: (float(lo), float(hi)) for name, (lo, hi) in bounds.items()}}
     return replace(loops, meta={**loops.meta, "bounds": given})
 
@@ -131,6 +132,7 @@ def diagnose(
     model: str = "baseline",
     *,
     bounds: Mapping[str, tuple[float, float]] | None = None,
+    candidates: Term | TermGroup | str | Sequence[Term | TermGroup | str] | None = None,
     displacement: str = "auto",
     max_steps: int = MAX_STEPS,
     cross_validate: bool = True,
@@ -138,8 +140,9 @@ def diagnose(
 ) -> Diagnosis:
     """Find which library effects the start ``model`` (a preset) misses on ``loops`` (see the module docstring).
 
-    ``bounds`` (``{"w0": (10, 200)}``, any parameter of the start model or of a library effect) are
-    hard, as the dataset's: every model the diagnosis fits keeps them (:func:`hysid_model.problem.prepare_model`).
+    ``candidates``: terms of your own (:func:`hysid.term`, or model strings ``module:attribute``) scored beside
+    the library's effects; each must name its strength. ``bounds`` (``{"w0": (10, 200)}``, any parameter of the start
+    model or of a candidate effect) are hard, as the dataset's: every model the diagnosis fits keeps them (:func:`hysid_model.problem.prepare_model`).
     ``displacement``: ``auto`` (the data decide whether the displacement's harmonics are the motion or the
     sensor's, :mod:`hysid.motion`), ``measured``, ``fundamental`` or ``sine``, as :func:`hysid.fit`;
     ``cross_validate`` adds the leave-one-frequency-out gap of every step and judges every effect by it
@@ -156,13 +159,14 @@ def diagnose(
         if progress is not None:
             progress(count[0], count[1], what)
 
-    given = with_given_bounds(loops, model, bounds)
+    scored = candidate_effects(candidates)
+    given = with_given_bounds(loops, model, bounds, scored)
     motion = choose_motion(given, model, displacement, bounds=bounds)
-    result = search(Harmonics.from_loops(displaced(given, motion.displacement)), model, max_steps, cross_validate, done, count)
+    result = search(Harmonics.from_loops(displaced(given, motion.displacement)), model, scored, max_steps, cross_validate, done, count)
     flipped = confirm_motion(given, result.final.model, result.final.theta, motion)
     if flipped is not None:
         count[1] += 2
-        other = search(Harmonics.from_loops(displaced(given, flipped.displacement)), model, max_steps, cross_validate, done, count)
+        other = search(Harmonics.from_loops(displaced(given, flipped.displacement)), model, scored, max_steps, cross_validate, done, count)
         if other.final.bic < result.final.bic:
             result, motion = other, flipped
         else:
@@ -171,15 +175,17 @@ def diagnose(
     return result
 
 
-def search(harmonics: Harmonics, start: str, max_steps: int, cross_validate: bool, done: Callable[..., None], count: list[int]) -> Diagnosis:
-    """The diagnosis loop of the module docstring on ``harmonics`` from the preset ``start``."""
+def search(
+    harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps: int, cross_validate: bool, done: Callable[..., None], count: list[int]
+) -> Diagnosis:
+    """The diagnosis loop of the module docstring on ``harmonics`` from the preset ``start``, scoring the effects ``scored``."""
     fit = initial_fit(harmonics, start)
     bounds = soft_bounds(fit.model)
     done(f"start model {start} fitted")
     first = fit
     steps: list[Step] = []
     while True:
-        candidates = score_candidates(fit, harmonics, bounds)
+        candidates = score_candidates(fit, harmonics, bounds, scored)
         impossible = {c.effect: why for c in candidates if (why := implausible_effect(c.effect, harmonics.loops)) is not None}
         candidates = [c for c in candidates if c.effect not in impossible]
         not_identifiable = {c.effect: c.absorbed_by for c in candidates if not c.identifiable}

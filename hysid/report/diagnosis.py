@@ -16,8 +16,8 @@ from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc
 from hysid.report.markdown import image, num, table, with_error
 from hysid.report.text import band_text, mass_text, reference_text
-from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
+from hysid_model.model import effect_term
 
 if TYPE_CHECKING:
     from hysid.diagnosis.result import Diagnosis
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
 def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
     step = diagnosis.steps[i]
-    term = EFFECTS[step.effect]()
+    term = effect_term(step.effect)
     units = {p.name: p.unit for p in term.params}
     rows = [[name, with_error(value, step.errors[name]), units[name]] for name, value in step.params.items()]
     freed = [n for n in step.after.freed if n in units]

@@ -19,6 +19,7 @@ from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
 from hysid_model.model import PRESET_EXPLANATIONS, PRESETS, build_model
 from hysid_model.survey import survey
+from hysid_model.user_terms import made_terms
 
 if TYPE_CHECKING:
     from coordinator.progress import CampaignProgress
@@ -27,6 +28,7 @@ if TYPE_CHECKING:
     from hysid.fitting import FitResult
     from hysid.reproduce import Reproduction
     from hysid_model.survey import Survey
+    from hysid_model.terms import Term
     from hysid.watch import CampaignSnapshot
 
 
@@ -41,20 +43,28 @@ def text_table(headers: Sequence[str], rows: Sequence[Sequence[str]], indent: st
 
 
 def models_text() -> str:
-    """``hysid models``: every preset (what it models, its terms and parameters) and the effect library, with
-    every parameter's unit and default bounds (or fixed value)."""
+    """``hysid models``: every preset (what it models, its terms and parameters), the effect library and the terms of
+    the user's own made or imported in this process, with every parameter's unit and default bounds (or fixed value)."""
     lines = []
     for spec in PRESETS:
         lines += [build_model(spec).describe(), f"  ({PRESET_EXPLANATIONS[spec]})"]
     lines.append("effects (add with MODEL+EFFECT, e.g. thesis+coulomb_friction):")
     for effect_id, term_type in sorted(EFFECTS.items()):
         term = term_type()
-        shown = ", ".join(
-            f"{p.name} [{p.unit}] " + (f"in [{p.lower:g}, {p.upper:g}]" if p.vary else f"fixed at {p.value:g} (search [{p.lower:g}, {p.upper:g}] when freed)")
-            for p in term.params
-        )
-        lines.append(f"  {effect_id}: {shown}\n      {term.explanation}")
+        lines.append(f"  {effect_id}: {term_line(term)}\n      {term.explanation}")
+    mine = made_terms()
+    if mine:
+        lines.append("terms of your own made or imported so far (add with MODEL+MODULE:ATTRIBUTE, e.g. thesis+myterms:drag):")
+        lines += [f"  {t.spec}: {term_line(t)}" + (f" (strength {t.strength})" if t.strength else "") + f"\n      {t.explanation}" for t in mine]
     return "\n".join(lines)
+
+
+def term_line(term: "Term") -> str:
+    """A term's parameters: name, unit and default bounds (or fixed value) of each."""
+    return ", ".join(
+        f"{p.name} [{p.unit}] " + (f"in [{p.lower:g}, {p.upper:g}]" if p.vary else f"fixed at {p.value:g} (search [{p.lower:g}, {p.upper:g}] when freed)")
+        for p in term.params
+    )
 
 
 def mass_text(meq_kg: float | None) -> str:
