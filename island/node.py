@@ -29,9 +29,14 @@ evaluate -> tell) and uses its hooks:
   migrants for the transport's ``silent_s``, so that a silent member cannot
   starve the island after it;
 * a late joiner takes the coordinator's current global best the same way;
-* on a model with memory (Bouc-Wen), every ``REFINE_EVERY`` iterations its best is
-  refined by a short bounded least-squares polish (memetic islands, :mod:`island.memetic`); the
-  refinement's evaluations count with its own;
+* on a model with memory (Bouc-Wen, one a single run cannot be trusted on) it is a memetic
+  island (:class:`island.memetic.Island`), as ``hysid fit``'s are: its optimizer searches in the
+  coordinates of :mod:`island.space` (migrants and its best are converted at the node's edges,
+  so nothing on the wire or in the database changes), refines its best every few iterations,
+  starts from the campaign's ``start`` and the points the model's terms read off the loops, and
+  restarts once it has stalled unless it holds the campaign's best as far as it knows
+  (:meth:`IslandNode._leads`); the refinements count with its evaluations. On memoryless models
+  (the thesis', Coulomb friction's in the mixed-islands bench) it searches as the thesis' islands do;
 * when the roster assigns its run another algorithm (a mixed campaign's
   staged or adaptive share, :mod:`island.share`), it carries its search on with that
   algorithm from the next iteration;
@@ -57,7 +62,7 @@ from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer, switch_algorithm
 from island.config import CampaignConfig
-from island.memetic import REFINE_EVERY, Refiner
+from island.memetic import IMPROVED, Island, starting_points
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
@@ -72,6 +77,7 @@ from island.protocol import (
 )
 from island.run import HistoryRow, run
 from island.sealing import Counter, Credentials, Envelope, ReplayGuard, check_replay, envelope, open_envelope
+from island.space import SpaceObjective
 from island.wire import MessageRejected, check_name
 
 START_TIMEOUT_S = 60.0
@@ -141,9 +147,10 @@ class IslandNode:
         history_every_s: float = 0.25,
     ) -> None:
         self.island = check_name("island", island)
-        self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.island_options(algo))
-        self.refiner = Refiner(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
-        """Memetic refinement of the island's best on models with memory (:mod:`island.memetic`)."""
+        self.space = SpaceObjective(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
+        """The objective in the coordinates of :mod:`island.space` where the island is memetic (module docstring)."""
+        self.optimizer: PopulationOptimizer | Island = make_optimizer(algo, objective.bounds, seed, config.island_options(algo)) if self.space is None else Island(
+            self.space, algo, seed, config.island_options(algo), starts=self._u(starting_points(objective, config.start)))
         self.algo = algo
         self.seed = seed
         self.config = config
@@ -203,7 +210,7 @@ class IslandNode:
         transport.wait_for_members(self.config.min_islands, START_TIMEOUT_S)
         self._best_in = next((b for b in map(self._decode_best, transport.global_best()) if b is not None), None)
         try:
-            run(self.optimizer, self.objective, callback=self._record, should_stop=transport.stop_requested, migrate=self._migrate)
+            run(self.optimizer, self.space or self.objective, callback=self._record, should_stop=transport.stop_requested, migrate=self._migrate)
             self.stop_reason = transport.stop_reason() if transport.stop_requested() else "own budget spent"
         finally:
             self.finished = True
@@ -214,7 +221,8 @@ class IslandNode:
     def _record(self, row: HistoryRow) -> None:
         self.rows.append((row.iteration, row.best_fitness, row.evaluations + self.migrant_evaluations, row.wall_s))
         x, f = self.optimizer.best(1)
-        self._snapshot = (x[0].copy(), float(f[0]))
+        if not f[0] > self._snapshot[1]:  # the best so far: a memetic island's fresh search after a restart starts above it
+            self._snapshot = (self._theta(x[0]), float(f[0]))
         interval = self.config.migration.interval
         if time.monotonic() - self._last_flush >= self.history_every_s or (interval and row.iteration and row.iteration % interval == 0):
             self._flush()
@@ -283,7 +291,8 @@ class IslandNode:
         transport, _ = self._attached()
         algo = transport.assigned_algo()
         if algo is not None and algo != self.algo and algo in self.config.algos:
-            self.optimizer = switch_algorithm(self.optimizer, algo, self.config.island_options(algo))
+            options = self.config.island_options(algo)
+            self.optimizer = self.optimizer.switch(algo, options) if isinstance(self.optimizer, Island) else switch_algorithm(self.optimizer, algo, options)
             self.moves.append((self.optimizer.iteration, self.algo, algo))
             self.algo = algo
         return self.optimizer
@@ -293,9 +302,11 @@ class IslandNode:
         in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
         transport, credentials = self._attached()
         optimizer = self._follow_assignment()
-        if self.refiner is not None and optimizer.iteration and optimizer.iteration % REFINE_EVERY == 0:
-            self.migrant_evaluations += self.refiner(optimizer)
-        if optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
+        if isinstance(optimizer, Island):
+            optimizer.refine()
+            if optimizer.stale and not self._leads(optimizer, transport.members()):
+                optimizer.restart()  # at its next iteration: it migrates what it has first
+        elif optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
             x = np.array(self.config.start, dtype=float)[None, :]
             self.migrant_evaluations += 1
             optimizer.inject(x, self.objective(x))
@@ -308,7 +319,7 @@ class IslandNode:
         epoch = optimizer.iteration // mig.interval
         x, f = optimizer.best(mig.k)
         outgoing = encode_migrants(
-            Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, x, f, time.time(), self._seq()), credentials
+            Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, self._theta(x), f, time.time(), self._seq()), credentials
         )
         for sender, data in transport.exchange(epoch, outgoing):
             self.receive(sender, data)
@@ -350,13 +361,37 @@ class IslandNode:
         """Re-evaluate migrants here (never trusting their claimed fitness) and offer them to the optimizer."""
         if not batches:
             return
-        x = np.vstack(batches)
-        f = self.objective(x)
+        x = self._u(np.vstack(batches))
+        f = (self.space or self.objective)(x)
         self.migrant_evaluations += x.shape[0]
         taken = self.optimizer.inject(x, f)
         with self._lock:
             self.stats["received"] += x.shape[0]
             self.stats["taken"] += taken
+
+    def _leads(self, island: Island, roster: list[str]) -> bool:
+        """Whether this memetic ``island`` holds the campaign's best as far as it knows: the newest migrants
+        of every other member of ``roster`` (each island hears them all) show no better best, nor an equal one
+        of a member that joined before it; the lowest claim among them is re-evaluated here (a claim is never
+        trusted)."""
+        with self._lock:
+            claims = [(float(m.claimed.min()), roster.index(s), m.x[int(np.argmin(m.claimed))]) for s, (_, m) in self._latest.items()
+                      if s in roster and s != self.island]
+        if not claims:
+            return True
+        _, rank, x = min(claims, key=lambda c: c[:2])
+        theirs, mine = float(self.objective(x[None, :])[0]), island.fitness
+        self.migrant_evaluations += 1
+        earlier = self.island in roster and roster.index(self.island) < rank
+        return theirs > mine * (1 + IMPROVED) or (theirs >= mine * (1 - IMPROVED) and earlier)
+
+    def _u(self, x: np.ndarray) -> np.ndarray:
+        """Parameter vectors in the optimizer's coordinates (the memetic island's, :mod:`island.space`)."""
+        return x if self.space is None else self.space.space.to_u(x)
+
+    def _theta(self, x: np.ndarray) -> np.ndarray:
+        """The optimizer's vectors in the model's parameters, as they travel and are stored."""
+        return x.copy() if self.space is None else self.space.space.to_theta(x)
 
     def _decode_best(self, data: bytes) -> Best | None:
         _, credentials = self._attached()
