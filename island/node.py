@@ -20,7 +20,8 @@ evaluate -> tell) and uses its hooks:
   newest message is kept: an epoch takes at most ``k`` migrants from each
   in-neighbour, so a flood cannot starve the evolution. A message from a run
   the roster does not list yet waits (up to :data:`JOIN_GRACE_S`, the newest of
-  each sender) for it; one that waited in vain counts as rejected.
+  each sender) for it; one that waited in vain (its run never listed, a newer one of its sender
+  came, or the island ended first) counts as rejected.
   Every migrant's fitness is **re-evaluated locally** (the claimed value is
   never used), and the optimizer's migrant policy decides what to replace;
 * who is a member, and the stop order, come from the coordinator's signed
@@ -214,6 +215,9 @@ class IslandNode:
             self.stop_reason = transport.stop_reason() if transport.stop_requested() else "own budget spent"
         finally:
             self.finished = True
+            with self._lock:  # what still waits for its run to join has waited in vain
+                self.stats["rejected"] += len(self._pending)
+                self._pending.clear()
             self._flush(final=True)
         self.confirmed = transport.confirm(self.rows[-1][0] if self.rows else -1)
         return list(self.rows)
@@ -243,10 +247,12 @@ class IslandNode:
         key = transport.key_for(env.sender, env.run)
         if key is None:
             with self._lock:
-                self._pending.pop(env.sender, None)  # a newer one of a joiner: the older was never checked, and need not be
+                waited = int(self._pending.pop(env.sender, None) is not None)  # a newer one of a joiner: the older waited in vain
                 self._pending[env.sender] = (time.monotonic(), env)
                 while len(self._pending) > MAX_SENDERS:
                     self._pending.popitem(last=False)
+                    waited += 1
+                self.stats["rejected"] += waited
             return
         self._open(env, key)
 
