@@ -381,3 +381,18 @@ def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_ro
 def test_a_fixed_share_moves_nobody(tmp_path):
     _, outcome, _ = mixed_campaign(tmp_path, "fixed", budget=4_000)
     assert outcome.settings["moves"] == [] and {r["algo"] for r in outcome.islands} == {"ga", "pso"}
+
+
+@pytest.mark.parametrize(("share", "interval", "why"), [
+    ("staged", 5, "none: no GA island searched its first migration interval (5 iterations) before it ended"),
+    ("staged", 0, "none: the islands were isolated (migration interval 0)"),
+    ("adaptive", 5, "none: each algorithm held its due share of the islands after every round"),
+])
+def test_a_share_that_moved_no_island_says_why(share, interval, why):
+    from hysid.report.text import SHARE_RULES, share_lines
+
+    settings = {"algos": ["ga", "pso"], "share": share, "moves": [], "migration": {"interval": interval, "k": 2}}
+    lines = share_lines(settings)
+    assert lines[0] == f"share: {share}, 0 island move(s) {SHARE_RULES[share]}" and lines[1].strip().startswith(why)
+    assert not any(line.strip().startswith("none:") for line in share_lines({**settings, "moves": [
+        {"island": "ga-0", "src": "ga", "dst": "pso", "evaluations": 100, "credit": {"ga": 0.1, "pso": 1.0}}]}))

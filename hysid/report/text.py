@@ -250,6 +250,16 @@ SHARE_RULES = {
 """What the moves of each share that moves islands (:mod:`island.share`) follow, as the summary says it."""
 
 
+def no_moves(share: str, settings: dict[str, Any]) -> str:
+    """Why a share that moves islands moved none."""
+    interval = (settings.get("migration") or {}).get("interval", 0)
+    if not interval:
+        return "the islands were isolated (migration interval 0): a share moves islands between rounds of migration"
+    if share == "staged":
+        return f"no GA island searched its first migration interval ({interval} iterations) before it ended"
+    return "each algorithm held its due share of the islands after every round (its gain per island)"
+
+
 def share_lines(settings: dict[str, Any]) -> list[str]:
     """How a mixed campaign shared its islands between algorithms, and each move of its share."""
     algos = list(dict.fromkeys(settings.get("algos") or []))
@@ -260,6 +270,8 @@ def share_lines(settings: dict[str, Any]) -> list[str]:
     if share not in SHARE_RULES:
         return [f"share: fixed (every island kept its algorithm of {', '.join(a.upper() for a in algos)})"]
     lines = [f"share: {share}, {len(moves)} island move(s) {SHARE_RULES[share]}"]
+    if not moves:
+        lines.append(f"  none: {no_moves(share, settings)}")
     over = " over the last rounds" if share == "adaptive" else " so far"
     for m in moves:
         credit = ", ".join(f"{a.upper()} {c:.2g}" for a, c in m["credit"].items())
