@@ -121,6 +121,7 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     assert all(i["status"] == "left" for i in doc["islands"])
 
 
+@pytest.mark.slow  # over 3 s
 def test_ctrl_c_mid_campaign_reports_it_interrupted_and_exits_130(tmp_path, capsys):
     """Ctrl-C once the islands search: the campaign stops them, writes its report marked interrupted, and exits 130
     (as Ctrl-C while it starts does), so that a script tells an interrupted campaign from a finished one."""
@@ -259,6 +260,7 @@ def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, caps
     assert f"hysid coordinator --resume --db {db}" in err and err.count("\n") == 1
 
 
+@pytest.mark.slow  # over 3 s
 def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_the_stop(tmp_path, capsys):
     argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--share", "fixed", "--population", "20", "--initial", "40",
             "--interval", "5", "--evaluations", "6000", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
@@ -272,6 +274,7 @@ def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_
     assert all(i["final"] and i["status"] == "left" and i["received"] > 0 for i in doc["islands"])
 
 
+@pytest.mark.slow  # over 3 s
 def test_iterations_given_stay_each_islands_own_budget(tmp_path, capsys):
     argv = ["campaign", "--single-node", "--islands", "2", *SMALL, "--time", "600", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
     assert main(argv) == 0

@@ -304,6 +304,7 @@ def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link, monk
     assert len(committed) >= 3 and steps.max() <= COMMIT_ROWS + per_message  # never more than one window at risk
 
 
+@pytest.mark.slow  # over 3 s
 def test_stop_rules_and_progress_are_checked_while_a_backlog_of_32_islands_waits(tmp_path, link, monkeypatch):
     monkeypatch.setattr("coordinator.histories.SPEEDUP", 1e9)  # islands that ran for long before (here: at once)
     c = make(tmp_path, Termination(budget=400_000), iterations=10**6)

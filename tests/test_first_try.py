@@ -167,6 +167,7 @@ def test_the_loop_figure_keeps_its_title_clear_of_the_legend():
         assert fig.axes[0].get_title() == "25 Hz"
 
 
+@pytest.mark.slow  # over 3 s
 def test_the_diagnosis_loop_figure_says_which_loops_and_keeps_its_legend_off_the_data():
     loops = hysid.load("synth", noise_pct=5.0, noise_seed=2)
     diagnosis = hysid.diagnose(loops.subset(np.arange(0, loops.n_loops, 4)), "baseline", cross_validate=False)
