@@ -16,11 +16,11 @@ INTERRUPTED = 130
 def main() -> int:
     try:
         from hysid.cli import main as run
-    except KeyboardInterrupt:
+
+        status = run()
+    except KeyboardInterrupt:  # while the command line loads, or builds itself before it handles Ctrl-C on its own
         print("hysid: error: interrupted", file=sys.stderr)
         status = INTERRUPTED
-    else:
-        status = run()
     if status == INTERRUPTED:
         # CPython (3.11-3.13) kills a ``python -m`` process with SIGINT at exit, whatever its status, if a Ctrl-C
         # ended a string exec on the way (dataclasses and namedtuples build their methods so while modules load),

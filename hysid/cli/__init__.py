@@ -83,12 +83,11 @@ def show_warning(message: Any, category: type[Warning], filename: str, lineno: i
 
 
 def main(argv: list[str] | None = None) -> int:
-    command = typer.main.get_command(app)
     with warnings.catch_warnings():
         warnings.simplefilter("default", HysidWarning)
         warnings.showwarning = show_warning
         try:
-            result = command.main(args=argv, prog_name="hysid", standalone_mode=False)
+            result = typer.main.get_command(app).main(args=argv, prog_name="hysid", standalone_mode=False)
         except typer.Exit as exc:
             return int(exc.exit_code or 0)
         except typer.TyperException as exc:
