@@ -396,3 +396,16 @@ def test_a_share_that_moved_no_island_says_why(share, interval, why):
     assert lines[0] == f"share: {share}, 0 island move(s) {SHARE_RULES[share]}" and lines[1].strip().startswith(why)
     assert not any(line.strip().startswith("none:") for line in share_lines({**settings, "moves": [
         {"island": "ga-0", "src": "ga", "dst": "pso", "evaluations": 100, "credit": {"ga": 0.1, "pso": 1.0}}]}))
+
+
+def test_a_move_the_island_ended_before_hearing_is_reported_as_not_followed():
+    """An island that spent its own iterations before the coordinator's order reached it (island processes, a
+    fixed iteration budget) ended with its first algorithm: the summary says the move was ordered, not followed."""
+    from hysid.report.text import share_lines
+
+    move = {"island": "ga-0", "src": "ga", "dst": "pso", "evaluations": 3076, "credit": {"ga": 0.0, "pso": 0.0}}
+    settings = {"algos": ["ga", "pso"], "share": "staged", "moves": [move], "migration": {"interval": 5, "k": 2}}
+    unheard = share_lines(settings, [{"island": "ga-0", "algo": "ga"}, {"island": "pso-1", "algo": "pso"}])
+    assert unheard[1].endswith("; not followed: the island's last history shows GA")
+    followed = share_lines(settings, [{"island": "ga-0", "algo": "pso"}, {"island": "pso-1", "algo": "pso"}])
+    assert "not followed" not in "\n".join(followed) and followed[1] == unheard[1].split("; not followed")[0]

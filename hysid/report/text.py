@@ -234,7 +234,7 @@ def campaign_summary(result: "CampaignResult") -> str:
         f"migrations: {m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
         f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected",
     ]
-    lines += share_lines(fit.settings)
+    lines += share_lines(fit.settings, result.islands)
     for isl in result.islands:
         lines.append(
             f"  {isl['island']:<12} {isl['algo'].upper():<4} seed {isl['seed']:<4} {isl['status']:<6} best {isl['best_fitness']:.4g} "
@@ -260,8 +260,10 @@ def no_moves(share: str, settings: dict[str, Any]) -> str:
     return "each algorithm held its due share of the islands after every round (its gain per island)"
 
 
-def share_lines(settings: dict[str, Any]) -> list[str]:
-    """How a mixed campaign shared its islands between algorithms, and each move of its share."""
+def share_lines(settings: dict[str, Any], islands: list[dict[str, Any]] | None = None) -> list[str]:
+    """How a mixed campaign shared its islands between algorithms, and each move of its share; with the
+    ``islands``' records, a move the island's last history does not show (an island of a fixed iteration budget
+    may end before the order reaches it) is said to be so."""
     algos = list(dict.fromkeys(settings.get("algos") or []))
     if len(algos) < 2:
         return []
@@ -273,9 +275,13 @@ def share_lines(settings: dict[str, Any]) -> list[str]:
     if not moves:
         lines.append(f"  none: {no_moves(share, settings)}")
     over = " over the last rounds" if share == "adaptive" else " so far"
-    for m in moves:
+    ended_as = {i["island"]: i["algo"] for i in islands or []}
+    last = {m["island"]: k for k, m in enumerate(moves)}
+    for k, m in enumerate(moves):
         credit = ", ".join(f"{a.upper()} {c:.2g}" for a, c in m["credit"].items())
-        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained by each algorithm's own moves{over}: {credit})")
+        unheard = last[m["island"]] == k and ended_as.get(m["island"], m["dst"]) != m["dst"]
+        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained by each algorithm's own moves{over}: {credit})"
+                     + (f"; not followed: the island's last history shows {ended_as[m['island']].upper()}" if unheard else ""))
     return lines
 
 
