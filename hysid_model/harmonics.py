@@ -156,6 +156,12 @@ class HarmonicObjective(ModelSpace):
         self.evaluations += 1
         return self.whitened(theta)[0].reshape(-1)
 
+    def residual_rows(self, pop: np.ndarray) -> np.ndarray:
+        """:meth:`weighted_residuals` of each row of ``pop`` ``(P, D)`` in one call, ``(P, L*M)``."""
+        pop = np.atleast_2d(np.asarray(pop, dtype=float))
+        self.evaluations += pop.shape[0]
+        return self.whitened(pop).reshape(pop.shape[0], -1)
+
     def jacobian(self, theta: np.ndarray, weighted: bool = True) -> np.ndarray:
         """d(whitened residuals)/d(theta), ``(L*M, D)``, by central differences (``weighted`` only mirrors the Objective's signature).
 

@@ -193,6 +193,11 @@ class Objective(ModelSpace):
         """Flat residual vector whose sum of squares is the objective (for least squares)."""
         return (self.residuals(theta) * np.sqrt(self.loop_weight)[:, None]).reshape(-1)
 
+    def residual_rows(self, pop: np.ndarray) -> np.ndarray:
+        """:meth:`weighted_residuals` of each row of ``pop`` ``(P, D)`` in one call, ``(P, L*2n)``."""
+        pop = np.atleast_2d(np.asarray(pop, dtype=float))
+        return ((self.predict(pop) - self.y) * np.sqrt(self.loop_weight)[:, None]).reshape(pop.shape[0], -1)
+
     def jacobian(self, theta: np.ndarray, weighted: bool = True) -> np.ndarray:
         """d(residuals)/d(theta), ``(L*2n, D)``, by central differences on the closed form."""
         theta = np.asarray(theta, dtype=float).reshape(-1)

@@ -269,7 +269,7 @@ def memetic_search(
     """The best of ``objective`` found by memetic islands (module docstring) within ``budget`` evaluations
     and/or ``time_limit_s`` seconds (at least one must be set); ``starts`` are parameter vectors in the
     model's parameters. ``objective`` has the contract of :class:`hysid_model.objective.Objective`
-    (``__call__``, ``weighted_residuals``, ``jacobian``, ``bounds``, ``model``), as
+    (``__call__``, ``weighted_residuals``, ``residual_rows``, ``jacobian``, ``bounds``, ``model``), as
     :class:`hysid_model.harmonics.HarmonicObjective` has."""
     if budget is None and time_limit_s is None:
         raise HysidInputError("a memetic search needs a budget of evaluations or a time limit", param="budget", value=None)
