@@ -45,7 +45,6 @@ from collections.abc import Callable
 from math import comb
 
 import numpy as np
-from scipy.special import gammaincinv
 
 from hysid_model import waveform
 
@@ -137,6 +136,8 @@ def _phase_windows(theta: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray,
 
 def _chi2_median_ratio(dof: float) -> float:
     """median(chi2_dof) / dof."""
+    from scipy.special import gammaincinv  # on first use: a fast CLI and island start
+
     return float(2.0 * gammaincinv(0.5 * dof, 0.5) / dof)
 
 

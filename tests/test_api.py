@@ -117,6 +117,16 @@ def imports_of(package: str) -> dict[str, set[str]]:
     return out
 
 
+def test_the_command_line_and_an_island_start_without_the_heavy_scientific_modules():
+    """A campaign starts hundreds of island processes: the command line loads scipy's statistics,
+    optimizers, special functions and MATLAB reader on first use, not at start."""
+    code = "import sys, hysid.cli, island.node; print(sorted(m for m in sys.modules if m.split('.')[:2] in HEAVY))"
+    heavy = "[['scipy', 'stats'], ['scipy', 'optimize'], ['scipy', 'special'], ['scipy', 'io'], ['matplotlib', 'pyplot'], ['numba']]"
+    done = subprocess.run([sys.executable, "-c", f"HEAVY = {heavy}; {code}"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
 def test_data_flows_one_way_between_the_packages():
     """files -> loops -> objective (hysid_model) -> optimizer, island (island) -> coordinator -> report (hysid)."""
     above = {"hysid_model": ("island", "coordinator", "hysid"), "island": ("coordinator", "hysid"), "coordinator": ("hysid",)}
