@@ -201,7 +201,10 @@ class Peer:
         self.entities.append(self.session.liveliness().declare_token(f"hysid/{self.campaign}/members/{island or self.island}"))
 
     def close(self) -> None:
-        for entity in self.entities:
+        """Leave (again: a no-op): its token goes with its session, and a coordinator records it lost
+        within LEAVE_GRACE_S instead of waiting STALE_S for a member it still hears nothing from."""
+        entities, self.entities = self.entities, []
+        for entity in entities:
             entity.undeclare()
         self.session.close()
 

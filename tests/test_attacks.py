@@ -160,6 +160,7 @@ def test_a_forged_migrant_numbered_2_63_cannot_block_its_victim(spawn, tmp_path)
     coord = coordinator(spawn, endpoint, "victim", db, "--topology", "full", "--min-islands", "2", "--time-limit", "180")
     islands = {name: island(spawn, endpoint, "victim", name, db) for name in ("a", "b")}
     mallory = Peer(endpoint, "victim", "mallory", secret=secret_of(db, "victim"))
+    mallory.token()  # a member as an island is: its leaving is seen at once
     try:
         wait_for(lambda: island_value(db, "b", "received") > 4, 60, "b to take a's migrants")
         a_run = query(db, "SELECT run FROM runs WHERE island = 'a'")[0][0]
@@ -169,6 +170,7 @@ def test_a_forged_migrant_numbered_2_63_cannot_block_its_victim(spawn, tmp_path)
         received, migrations = island_value(db, "b", "received"), query(db, "SELECT count(*) FROM migrations WHERE island = 'a'")[0][0]
         wait_for(lambda: island_value(db, "b", "received") > received + 4, 60, "b to keep taking a's migrants")
         assert query(db, "SELECT count(*) FROM migrations WHERE island = 'a'")[0][0] > migrations
+        mallory.close()
         doc = interrupted(coord)
     finally:
         mallory.close()
@@ -200,6 +202,9 @@ def test_a_silent_member_cannot_starve_its_successor_in_the_ring(spawn, tmp_path
         b = island(spawn, endpoint, "ring", "b", db)
         wait_for(lambda: island_value(db, "b", "received") >= 10, 90, "b to take migrants past the silent member")
         assert events(db, "aa-silent") == ["join"]  # alive all along, by its signed heartbeats
+        stop.set()
+        beating.join()
+        silent.close()
         interrupted(coord)
     finally:
         stop.set()
@@ -216,6 +221,7 @@ def test_a_members_impossible_claims_are_refused_with_their_reasons_and_spend_no
     coord = coordinator(spawn, endpoint, "effort", db, "--budget", "200000000", "--time-limit", "180")
     a = island(spawn, endpoint, "effort", "a", db)
     liar = Peer(endpoint, "effort", "liar", secret=secret_of(db, "effort"))
+    liar.token()  # a member as an island is: its leaving is seen at once
     config, loops = decode_config(Store.read_only(db).campaign("effort")[1], "effort")
     f = float(config.objective(loops)(TRUTH[None, :])[0])
     try:
@@ -230,6 +236,7 @@ def test_a_members_impossible_claims_are_refused_with_their_reasons_and_spend_no
         wait_for(lambda: reasons(db).get("out_of_range", 0) >= 5 and reasons(db).get("implausible", 0) >= 1, 30, "every lie to be refused")
         rows = rows_of(db, "a")
         wait_for(lambda: rows_of(db, "a") > rows + 20, 30, "the campaign to go on")
+        liar.close()
         doc = interrupted(coord)
     finally:
         liar.close()
@@ -269,7 +276,7 @@ def test_a_resumed_campaign_carries_its_time_on_instead_of_starting_it_again(spa
 def test_a_database_locked_by_another_process_ends_the_campaign_within_seconds(spawn, tmp_path):
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "l.sqlite"
     coord = coordinator(spawn, endpoint, "locked", db, "--time-limit", "180")
-    a = island(spawn, endpoint, "locked", "a", db)
+    a = island(spawn, endpoint, "locked", "a", db, "--wait", "3")  # it waits that long for a confirmation no coordinator will send
     wait_for(lambda: rows_of(db, "a") > 10, 60, "the island's history")
     holder = subprocess.Popen([sys.executable, "-c", f"import sqlite3, sys; c = sqlite3.connect({str(db)!r}, isolation_level=None); "
                                "c.execute('BEGIN IMMEDIATE'); print('held', flush=True); sys.stdin.read()"],
@@ -292,7 +299,7 @@ def test_a_database_locked_by_another_process_ends_the_campaign_within_seconds(s
 def test_a_database_deleted_mid_run_ends_the_campaign_with_one_line(spawn, tmp_path):
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "d.sqlite"
     coord = coordinator(spawn, endpoint, "deleted", db, "--time-limit", "180")
-    a = island(spawn, endpoint, "deleted", "a", db)
+    a = island(spawn, endpoint, "deleted", "a", db, "--wait", "3")  # it waits that long for a confirmation no coordinator will send
     wait_for(lambda: rows_of(db, "a") > 10, 60, "the island's history")
     for suffix in ("", "-wal", "-shm"):
         Path(f"{db}{suffix}").unlink(missing_ok=True)

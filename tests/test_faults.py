@@ -62,9 +62,9 @@ def coordinator(spawn, endpoint: str, campaign: str, db: Path, *extra: str) -> s
     return p
 
 
-def island(spawn, endpoint: str, campaign: str, name: str, db: Path) -> subprocess.Popen:
+def island(spawn, endpoint: str, campaign: str, name: str, db: Path, *extra: str) -> subprocess.Popen:
     """An island process of the coordinator whose database is ``db`` (its secret is beside it)."""
-    return spawn("island", "--connect", endpoint, "--campaign", campaign, "--id", name, "--quiet", "--secret-file", secret_file(db, campaign))
+    return spawn("island", "--connect", endpoint, "--campaign", campaign, "--id", name, "--quiet", "--secret-file", secret_file(db, campaign), *extra)
 
 
 def test_a_killed_island_is_recorded_lost_and_the_campaign_finishes_with_the_rest(spawn, tmp_path):
@@ -131,6 +131,7 @@ def test_a_thousand_bad_migrant_messages_are_each_rejected_and_counted(spawn, tm
     target = island(spawn, endpoint, "flood", "target", db)
     wait_for(lambda: rows_of(db, "target") > 20, 60, "the island's history")
     evil = Peer(endpoint, "flood", "evil", secret=secret_of(db, "flood"))  # joined: a broken island, not an outsider
+    evil.token()  # as an island holds one: its leaving is seen at once
     messages = bad_messages(1000, evil)
     try:
         publisher = evil.publisher("migrants")
