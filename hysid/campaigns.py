@@ -121,7 +121,8 @@ class CampaignResult:
     def write_report(self, out_dir: str | Path) -> Path:
         """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document."""
         interrupted = " (interrupted)" if self.fit.settings.get("stop_reason") == "interrupted" else ""
-        return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{interrupted}", document=self.to_dict())
+        return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{interrupted}", document=self.to_dict(),
+                                         sections=markdown.campaign_sections(self))
 
     def _repr_markdown_(self) -> str:
         return markdown.fit_overview(self.fit)

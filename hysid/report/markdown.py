@@ -15,11 +15,12 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from hysid.report import jsondoc
-from hysid.report.text import fit_warnings, fixed_text, loops_description, quality_text
+from hysid.report.text import fit_warnings, fixed_text, loops_description, quality_text, share_lines
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
 
 if TYPE_CHECKING:
+    from hysid.campaigns import CampaignResult
     from hysid.fitting import FitResult
 
 MODEL_CURVE_POINTS = 1500
@@ -182,11 +183,34 @@ def fit_overview(result: "FitResult") -> str:
     return "\n\n".join(parts + [table(a_head, a_rows)])
 
 
-def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "hysid fit", document: dict[str, Any] | None = None) -> Path:
+def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    """One row per island run of a campaign: its algorithm, status, best and what it exchanged."""
+    headers = ["island", "algorithm", "seed", "status", "best fitness", "iterations", "evaluations",
+               "migrant messages sent", "migrants received", "taken in", "messages rejected"]
+    rows = [[f"`{i['island']}`", i["algo"].upper(), str(i["seed"]), i["status"], num(i["best_fitness"], 4), f"{i['iterations']:,}",
+             f"{i['evaluations']:,}", f"{i['sent']:,}", f"{i['received']:,}", f"{i['taken']:,}", f"{i['rejected']:,}"] for i in islands]
+    return headers, rows
+
+
+def campaign_sections(result: "CampaignResult") -> list[str]:
+    """The campaign's own part of its report: why it stopped, its migrations, the share's moves and every island."""
+    m = result.migrations
+    lines = [f"Stopped because {result.fit.settings['stop_reason']}.",
+             f"Migrations: {m['messages']:,} messages ({m['topology']}, every {m['interval']} iterations), {m['received']:,} migrants "
+             f"re-evaluated, {m['taken']:,} taken in, {m['rejected']:,} messages rejected"
+             + ("" if not m.get("rejected_reasons") else " (" + ", ".join(f"{k}: {v:,}" for k, v in sorted(m["rejected_reasons"].items())) + ")") + "."]
+    moves = [line.strip() for line in share_lines(result.fit.settings, result.islands)]
+    i_head, i_rows = island_rows(result.islands)
+    return ["## Islands and migrations", "\n\n".join(lines)] + (["\n".join(f"- {line}" for line in moves)] if moves else []) + [table(i_head, i_rows)]
+
+
+def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "hysid fit", document: dict[str, Any] | None = None,
+                     sections: Sequence[str] = ()) -> Path:
     """Write ``report.md``, ``result.json`` and the PNG figures into ``out_dir``; returns the report path.
 
     Sets ``result.report`` so that the JSON names the report; ``document`` is
-    the JSON to write instead of the fit's own (a campaign's, which holds it).
+    the JSON to write instead of the fit's own (a campaign's, which holds it),
+    ``sections`` Markdown parts after the runs (a campaign's islands and migrations).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -236,6 +260,7 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         table(r_head, r_rows),
         image(figs["convergence"], out_dir, "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "
               "stars: after the least-squares polish"),
+        *sections,
         "## Model vs measured loops",
         image(figs["loops"], out_dir, "Trial and model loops; rows: amplitudes, columns: frequencies across the band "
               "(as Figs. 5.10-5.13)"),
