@@ -153,8 +153,7 @@ class HarmonicObjective(ModelSpace):
 
     def weighted_residuals(self, theta: np.ndarray) -> np.ndarray:
         """Flat whitened residuals; their sum of squares is the chi^2."""
-        self.evaluations += 1
-        return self.whitened(theta)[0].reshape(-1)
+        return self.residual_rows(np.asarray(theta, dtype=float).reshape(1, -1))[0]
 
     def residual_rows(self, pop: np.ndarray) -> np.ndarray:
         """:meth:`weighted_residuals` of each row of ``pop`` ``(P, D)`` in one call, ``(P, L*M)``."""

@@ -191,7 +191,7 @@ class Objective(ModelSpace):
 
     def weighted_residuals(self, theta: np.ndarray) -> np.ndarray:
         """Flat residual vector whose sum of squares is the objective (for least squares)."""
-        return (self.residuals(theta) * np.sqrt(self.loop_weight)[:, None]).reshape(-1)
+        return self.residual_rows(np.asarray(theta, dtype=float).reshape(1, -1))[0]
 
     def residual_rows(self, pop: np.ndarray) -> np.ndarray:
         """:meth:`weighted_residuals` of each row of ``pop`` ``(P, D)`` in one call, ``(P, L*2n)``."""

@@ -46,9 +46,9 @@ def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations
     assert history_iterations(out / "campaign.sqlite") == {i: list(range(16)) for i in ("ga-0", "ga-2", "pso-1")}
     assert json.loads((out / "result.json").read_text())["islands"] == doc["islands"]
     assert (out / "report.md").is_file() and (out / "convergence.png").is_file()
-    report = (out / "report.md").read_text()  # the campaign's own section: why it stopped, migrations, moves, islands
+    report = (out / "report.md").read_text()  # why it stopped (the summary), then its own section: migrations, moves, islands
     section = report[report.index("## Islands and migrations"):report.index("## Model vs measured loops")]
-    assert "Stopped because every island finished." in section and f"Migrations: {doc['migrations']['messages']} messages (ring, every 5" in section
+    assert "- **Stopped**: every island finished." in report and f"Migrations: {doc['migrations']['messages']} messages (ring, every 5" in section
     assert "- share: staged" in section and all(f"| `{i['island']}` | {i['algo'].upper()} |" in section for i in doc["islands"])
 
 

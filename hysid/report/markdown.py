@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from hysid.report import jsondoc
-from hysid.report.text import fit_warnings, fixed_text, loops_description, quality_text, share_lines
+from hysid.report.text import fit_warnings, fixed_text, loops_description, migrations_text, quality_text, share_lines
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
 
@@ -193,15 +193,14 @@ def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list
 
 
 def campaign_sections(result: "CampaignResult") -> list[str]:
-    """The campaign's own part of its report: why it stopped, its migrations, the share's moves and every island."""
+    """The campaign's own part of its report (why it stopped is in the summary above): its migrations, the
+    reasons of the messages rejected, the share's moves and every island."""
     m = result.migrations
-    lines = [f"Stopped because {result.fit.settings['stop_reason']}.",
-             f"Migrations: {m['messages']:,} messages ({m['topology']}, every {m['interval']} iterations), {m['received']:,} migrants "
-             f"re-evaluated, {m['taken']:,} taken in, {m['rejected']:,} messages rejected"
-             + ("" if not m.get("rejected_reasons") else " (" + ", ".join(f"{k}: {v:,}" for k, v in sorted(m["rejected_reasons"].items())) + ")") + "."]
+    reasons = ", ".join(f"{k}: {v:,}" for k, v in sorted((m.get("rejected_reasons") or {}).items()))
     moves = [line.strip() for line in share_lines(result.fit.settings, result.islands)]
     i_head, i_rows = island_rows(result.islands)
-    return ["## Islands and migrations", "\n\n".join(lines)] + (["\n".join(f"- {line}" for line in moves)] if moves else []) + [table(i_head, i_rows)]
+    return (["## Islands and migrations", f"Migrations: {migrations_text(m)}" + (f" ({reasons})" if reasons else "") + "."]
+            + (["\n".join(f"- {line}" for line in moves)] if moves else []) + [table(i_head, i_rows)])
 
 
 def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "hysid fit", document: dict[str, Any] | None = None,

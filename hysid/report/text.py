@@ -224,6 +224,12 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     return "\n".join(lines)
 
 
+def migrations_text(m: dict[str, Any]) -> str:
+    """A campaign's migrations (its ``migrations`` document) in one phrase, as the summary and the report say them."""
+    return (f"{m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
+            f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected")
+
+
 def campaign_summary(result: "CampaignResult") -> str:
     """The fit summary of a campaign, then why it stopped, its migrations and every island."""
     fit = result.fit
@@ -231,8 +237,7 @@ def campaign_summary(result: "CampaignResult") -> str:
     lines = [
         fit_summary(fit, "hysid campaign"),
         f"campaign {fit.settings['campaign']!r}: stopped because {fit.settings['stop_reason']}",
-        f"migrations: {m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
-        f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected",
+        f"migrations: {migrations_text(m)}",
     ]
     lines += share_lines(fit.settings, result.islands)
     for isl in result.islands:
