@@ -11,9 +11,11 @@ Zenoh's reader for that link pauses, a publisher with congestion control
 lose nothing by a drop: the coordinator asks again for history rows it misses
 (:meth:`coordinator.histories.Gaps.arrived`).
 
-Items that only the newest of matters (an island's migrant messages: the
-coordinator takes them for the global best, and an island's best never gets
-worse) are *replaceable*: while the coordinator keeps up (fewer than
+Items that only the newest of matters (an island's migrant messages, once the
+producer checked they are its run's and well formed: the coordinator takes them
+for the global best, and an island's best never gets worse; a message that
+would be rejected is never replaceable, so that it is rejected with its reason)
+are *replaceable*: while the coordinator keeps up (fewer than
 :data:`CROWDED` other items waiting) they queue like any other and every one is
 handled; when it falls behind, each source has one slot for them, a newer one
 replaces the one waiting (counted as superseded, per source), and slots are
@@ -65,6 +67,10 @@ class Inbox:
         self._closed = False
         self._cond = threading.Condition()
 
+    def is_crowded(self) -> bool:
+        """Whether :attr:`crowded` items or more wait (read without the lock: a measure of load, not a count to keep)."""
+        return self._waiting >= self.crowded
+
     def _full(self, source: str, size: int) -> bool:
         queue = self._queues.get(source)
         if queue is None:
@@ -76,7 +82,7 @@ class Inbox:
         long as it takes) while that source's queue is full, then drops it. False if dropped.
         A ``replace`` able item, while :attr:`crowded` items or more wait, takes the source's slot, superseding
         the one waiting there."""
-        if replace and self._waiting >= self.crowded:  # read without the lock: a measure of load, not a count to keep
+        if replace and self.is_crowded():
             return self._replace(source, item, size)
         deadline = None if wait_s is None else time.monotonic() + wait_s
         with self._cond:

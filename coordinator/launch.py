@@ -28,7 +28,7 @@ from coordinator.links import MemoryLink, ZenohLink
 from coordinator.loop import serve
 from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.model import Model
 from hysid_model.user_terms import module_roots

@@ -1,4 +1,4 @@
-"""How a coordinator reaches its islands (:class:`coordinator.server.Link`).
+"""How a coordinator reaches its islands (:class:`coordinator.state.Link`).
 
 :class:`ZenohLink` declares the coordinator's Zenoh entities; :class:`MemoryLink`
 stands in for them when every island is a thread of the coordinator's process
@@ -11,7 +11,7 @@ import threading
 
 import zenoh
 
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from island.transports import key_prefix
 
 

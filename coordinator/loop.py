@@ -1,7 +1,7 @@
 """The coordinator's run loop and its stop rules: :func:`serve` runs a campaign's coordinator to its end.
 
 One thread runs the loop, which owns the SQLite store: it feeds the
-inbox (:func:`pump`) through :meth:`coordinator.server.Coordinator.handle` and
+inbox (:func:`pump`) through :meth:`coordinator.state.Coordinator.handle` and
 
 * writes the history rows it keeps in batches (every :data:`FLUSH_EVERY_S`, or
   :data:`FLUSH_ROWS` rows), and commits at least every :data:`COMMIT_EVERY_S` (or :data:`COMMIT_ROWS` rows)
@@ -16,7 +16,7 @@ inbox (:func:`pump`) through :meth:`coordinator.server.Coordinator.handle` and
   and stores the counts of migrant messages superseded in the inbox;
 * stops (:func:`check_stop`) by the rules of :class:`island.termination.Termination`
   (a total evaluation budget, a target fitness, a stall, a time limit:
-  :meth:`coordinator.server.Coordinator.rule_stop`), when every island has
+  :meth:`coordinator.state.Coordinator.rule_stop`), when every island has
   finished (or finished or was lost), or when no island has been alive for
   :data:`ORPHAN_S`; then announces the stop and stores the islands' final
   histories (for at most :data:`STOP_GRACE_S`). A database that cannot be
@@ -26,7 +26,7 @@ inbox (:func:`pump`) through :meth:`coordinator.server.Coordinator.handle` and
   file lets it. Either way the inbox is closed when the loop ends, so that
   nothing arriving on the network keeps the process alive.
 
-What the campaign leaves is :meth:`coordinator.server.Coordinator.outcome`.
+What the campaign leaves is :meth:`coordinator.state.Coordinator.outcome`.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from collections.abc import Callable
 
 from coordinator.members import LEAVE_GRACE_S, Member
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator, Link
+from coordinator.state import Coordinator, Link
 from coordinator.store import StoreError
 from coordinator.thinning import REVIEW_EVERY_S
 from island.protocol import Control, MemberState, encode_control

@@ -1,7 +1,7 @@
 """Who is in a campaign: the coordinator's record of island runs alive, left or lost.
 
 An island run is a member once it joined (:meth:`Membership.joined`, the join
-handshake of :meth:`coordinator.server.Coordinator.admit`). What keeps it
+handshake of :meth:`coordinator.state.Coordinator.admit`). What keeps it
 alive is what it signs: every message whose signature verified
 (:meth:`Membership.heard`; an island sends its history at least every second,
 a heartbeat when it has no new row). Its Zenoh liveliness token is only a hint

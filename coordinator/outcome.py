@@ -22,7 +22,7 @@ from hysid_model.objective import Objective
 from island.run import RunResult, polish_run
 
 if TYPE_CHECKING:
-    from coordinator.server import Coordinator
+    from coordinator.state import Coordinator
 
 
 @dataclass

@@ -1,5 +1,5 @@
 """What a live view shows of a running campaign: :class:`CampaignProgress`, a snapshot the coordinator
-takes (:meth:`coordinator.server.Coordinator.progress`) or ``hysid watch`` reads back from a campaign's
+takes (:meth:`coordinator.state.Coordinator.progress`) or ``hysid watch`` reads back from a campaign's
 database, with an :class:`IslandView` per island run."""
 
 from __future__ import annotations

@@ -100,6 +100,10 @@ LOCK_WAIT_S = 10.0
 RUN_LOCK_WAIT_S = 2.0
 """The same once a campaign runs (:meth:`Store.set_lock_wait`): a database locked by another process
 mid-run is a fault found within seconds, not a stall."""
+COORDINATOR_LEASE_S = 10.0
+"""A campaign not stopped whose coordinator committed nothing for this long has lost its coordinator: a running one
+commits at least every :data:`coordinator.loop.COMMIT_EVERY_S` (stamping ``commits``) and waits at most
+:data:`RUN_LOCK_WAIT_S` for a lock (as long as Zenoh's lease of a silent peer)."""
 RESERVE_BYTES = 256 << 10
 """Disk space held next to the database (``<db>-reserve``) and given back when the disk is full, so
 that the campaign can still be marked interrupted (plus twice its configuration message: SQLite
@@ -327,6 +331,28 @@ class Store:
         """Seconds the campaign has run, by its last commit (0 before one)."""
         row = self.db.execute("SELECT elapsed_s FROM commits WHERE campaign = ?", (campaign,)).fetchone()
         return 0.0 if row is None else float(row[0])
+
+    def last_commit(self, campaign: str) -> float | None:
+        """Unix time of the campaign's last stamped commit (None before its coordinator's first pass)."""
+        try:
+            row = self.db.execute("SELECT t FROM commits WHERE campaign = ?", (campaign,)).fetchone()
+        except sqlite3.OperationalError:  # no commits table: an earlier hysid's database
+            return None
+        return None if row is None else float(row[0])
+
+    def gone_since(self, campaign: str, lease_s: float = COORDINATOR_LEASE_S) -> float | None:
+        """Unix time of the last sign of life of a campaign's coordinator (its last commit, else the campaign's
+        creation) if the campaign did not stop and nothing was committed for ``lease_s``: its coordinator is gone
+        (killed, or its machine). None while it commits, once the campaign stopped, and for a database of a hysid
+        that stamped no commits."""
+        try:
+            status, created, last = self.db.execute(
+                "SELECT status, created, t FROM campaigns LEFT JOIN commits ON commits.campaign = campaigns.name WHERE name = ?", (campaign,)
+            ).fetchone()
+        except sqlite3.OperationalError:  # no commits table: an earlier hysid's database
+            return None
+        seen = created if last is None else last
+        return seen if status != "stopped" and time.time() - seen > lease_s else None
 
     def rollback(self) -> None:
         """Drop what was not committed (after a failed write), queued or written."""

@@ -9,14 +9,24 @@ from __future__ import annotations
 
 import sys
 
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as shells report it (:data:`hysid.cli.options.INTERRUPTED`)."""
+
 
 def main() -> int:
     try:
         from hysid.cli import main as run
-    except KeyboardInterrupt:
+
+        status = run()
+    except KeyboardInterrupt:  # while the command line loads, or builds itself before it handles Ctrl-C on its own
         print("hysid: error: interrupted", file=sys.stderr)
-        return 130
-    return run()
+        status = INTERRUPTED
+    if status == INTERRUPTED:
+        # CPython (3.11-3.13) kills a ``python -m`` process with SIGINT at exit, whatever its status, if a Ctrl-C
+        # ended a string exec on the way (dataclasses and namedtuples build their methods so while modules load),
+        # even one caught since; a string exec of its own clears that mark, and the status stays 130.
+        exec("")
+    return status
 
 
 if __name__ == "__main__":

@@ -3,7 +3,7 @@
     result = hysid.campaign(loops, islands=4)            # island processes over Zenoh on loopback
     result = hysid.campaign(loops, islands=4, single_node=True)   # island threads, migrating in memory
 
-The coordinator (:mod:`coordinator.server`) serves the loop set, records every
+The coordinator (:mod:`coordinator.state`) serves the loop set, records every
 island's history in SQLite and stops by its rules (:mod:`coordinator.loop`); :class:`CampaignResult` is
 the ``hysid fit`` result of its islands (the global best polished) plus the
 islands, migrations and membership events.
@@ -13,14 +13,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from coordinator.launch import island_specs, run_campaign
 from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
 from hysid.motion import choose_motion
@@ -80,13 +80,19 @@ class CampaignResult:
                 raise HysidInputError(f"{db}: campaign {name!r} has an unreadable configuration ({exc})") from None
             settings = (stored or {}).get("settings", {})
             termination = Termination(**settings["stop_rules"]) if "stop_rules" in settings else None
+            gone = store.gone_since(name)
             coordinator = Coordinator(store, config, loops, termination, dataset=dataset, resume=True)
             coordinator.stop_reason = reason if status == "stopped" and reason else (
                 f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else "")
+                + ("" if gone is None else f", {text.gone_text(gone)}")
             )
-            return cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
+            result = cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
         finally:
             store.close()
+        if gone is not None:  # the islands it saw alive: nobody knows since
+            for island in result.islands:
+                island["status"] = "unknown" if island["status"] == "alive" else island["status"]
+        return result
 
     @property
     def params(self) -> dict[str, float]:
@@ -118,7 +124,9 @@ class CampaignResult:
 
     def write_report(self, out_dir: str | Path) -> Path:
         """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document."""
-        return markdown.write_fit_report(self.fit, out_dir, title="hysid campaign", document=self.to_dict())
+        interrupted = " (interrupted)" if self.fit.settings.get("stop_reason") == "interrupted" else ""
+        return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{interrupted}", document=self.to_dict(),
+                                         sections=markdown.campaign_sections(self))
 
     def _repr_markdown_(self) -> str:
         return markdown.fit_overview(self.fit)
@@ -162,6 +170,19 @@ def default_options(loops: LoopSet, model: str | Model, bounds: Mapping[str, tup
     if not prepare_model(loops, model, bounds=bounds).has_memory:
         return None
     return {a: {**ISLAND_OPTIONS, **({"synchronous": True} if a == "pso" else {})} for a in algos}
+
+
+def island_settings(
+    loops: LoopSet, model: str | Model, bounds: Mapping[str, tuple[float, float]] | None, algos: list[str] | tuple[str, ...],
+    options: dict[str, dict[str, Any]] | None, termination: Termination | None, until_stopped: bool | None,
+) -> tuple[dict[str, dict[str, Any]] | None, Termination | None, bool]:
+    """The islands' settings, stop rules and ``until_stopped`` of a campaign, one rule for Python and the
+    command line: what is given, else the defaults. With no ``options`` on a model with memory, memetic
+    islands (:func:`default_options`) that search until the stop order, within :data:`island.memetic.BUDGET`
+    evaluations unless an evaluation budget or a time limit is given."""
+    if options is None and (options := default_options(loops, model, bounds, algos)) is not None and not (termination and termination.bounded):
+        termination = replace(termination or Termination(), budget=BUDGET)
+    return options, termination, islands_until_stopped(termination, options) if until_stopped is None else until_stopped
 
 
 def campaign(
@@ -214,12 +235,11 @@ def campaign(
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
     motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
-    if options is None and (options := default_options(loops, model, bounds, algos)) is not None and termination is None:
-        termination = Termination(budget=BUDGET)
+    options, termination, until_stopped = island_settings(loops, model, bounds, algos, options, termination, until_stopped)
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
         options=options, migration=migration, seed=seed, min_islands=islands, displacement=motion.displacement,
-        until_stopped=islands_until_stopped(termination, options) if until_stopped is None else until_stopped, share=share,
+        until_stopped=until_stopped, share=share,
     )
     if not single_node:
         check_importable(build_model(config.model))

@@ -42,6 +42,14 @@ class CampaignSnapshot:
     and ``trend`` (best fitness at up to :data:`TREND_POINTS` iterations)."""
     events: list[tuple[str, str, float]]
     """The latest membership events ``(island, event, unix time)``."""
+    gone_since: float | None = None
+    """Unix time of the coordinator's last sign of life if it is gone (nothing committed for a lease while the
+    campaign did not stop: :meth:`coordinator.store.Store.gone_since`); the islands it saw alive are then unknown."""
+
+    @property
+    def over(self) -> bool:
+        """Nothing more will come: the campaign stopped, or its coordinator is gone."""
+        return self.status == "stopped" or self.gone_since is not None
 
 
 def trend(values: list[float], points: int = TREND_POINTS) -> list[float]:
@@ -60,10 +68,11 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
     by_run: dict[tuple[str, str], list[float]] = {}
     for island, run, _, best, _, _ in store.history(name):
         by_run.setdefault((island, run), []).append(best)
+    gone = store.gone_since(name)
     members: dict[str, str] = {}
     events = store.members(name)
     for island, event, _ in events:
-        members[island] = STATUS_AFTER[event]
+        members[island] = "unknown" if gone is not None and STATUS_AFTER[event] == "alive" else STATUS_AFTER[event]
     sent = store.migrations_by_island(name)
     best = store.best(name)
     several = {r.island for r in records if sum(q.island == r.island for q in records) > 1}
@@ -72,7 +81,7 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
          "trend": trend(by_run.get((r.island, r.run), []))}
         for r in records
     ]
-    ended = meta["ended"] if meta["status"] == "stopped" and meta["ended"] else time.time()
+    ended = meta["ended"] if meta["status"] == "stopped" and meta["ended"] else gone or time.time()
     progress = CampaignProgress(
         elapsed_s=ended - meta["created"],
         evaluations=store.total_evaluations(name),
@@ -83,4 +92,4 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
         rejected=store.count("rejected", name),
     )
     return CampaignSnapshot(name, meta["dataset"], meta["status"], meta["stop_reason"], progress,
-                            None if best is None else best.island, islands, events[-5:])
+                            None if best is None else best.island, islands, events[-5:], gone)

@@ -45,7 +45,6 @@ from collections.abc import Callable
 from math import comb
 
 import numpy as np
-from scipy.special import gammaincinv
 
 from hysid_model import waveform
 
@@ -137,6 +136,8 @@ def _phase_windows(theta: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray,
 
 def _chi2_median_ratio(dof: float) -> float:
     """median(chi2_dof) / dof."""
+    from scipy.special import gammaincinv  # on first use: a fast CLI and island start
+
     return float(2.0 * gammaincinv(0.5 * dof, 0.5) / dof)
 
 
@@ -169,7 +170,7 @@ def reversal_guard(xh: np.ndarray, reversal: tuple[float, float], x_sigma: float
 
 
 def smooth_part(theta: np.ndarray, harmonics: int, gram: np.ndarray, projection: np.ndarray, psi: np.ndarray, hi: float,
-                force: np.ndarray, at_branches: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                force: np.ndarray, at_branches: np.ndarray, design: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(the force less its smooth part, the smooth part at the 2n branch samples).
 
     The smooth part is the least-squares fit of the force's harmonics 0..K (``harmonics``; the samples at phases
@@ -181,16 +182,17 @@ def smooth_part(theta: np.ndarray, harmonics: int, gram: np.ndarray, projection:
     above order K other than a jump at the reversals), so its windows may widen without bias where a record's
     few distinct sample phases need it, and the force's harmonics (:func:`_harmonic_branches`) are those of a
     force without the jump. The design rows are rebuilt ``CHUNK`` samples at a time, so the memory stays that of
-    a few copies of the record.
+    a few copies of the record; a record of at most ``CHUNK`` samples may pass its ``design`` rows, built already.
     """
     side = np.where(psi < hi, 1.0, -1.0)
     blocks = [slice(i, i + CHUNK) for i in range(0, theta.size, CHUNK)]
-    cross = sum(harmonic_design(theta[b], harmonics) @ side[b] for b in blocks)
+    rows = (lambda b: design[:, b]) if design is not None else (lambda b: harmonic_design(theta[b], harmonics))
+    cross = sum(rows(b) @ side[b] for b in blocks)
     full = np.block([[gram, cross[:, None]], [cross[None, :], np.array([[float(side.size)]])]])
     coef = np.linalg.lstsq(full, np.append(projection, side @ force), rcond=None)[0]
     residual = force - coef[-1] * side
     for b in blocks:
-        residual[b] -= coef[:-1] @ harmonic_design(theta[b], harmonics)
+        residual[b] -= coef[:-1] @ rows(b)
     n = at_branches.shape[1] // 2
     return residual, coef[:-1] @ at_branches + coef[-1] * np.repeat([1.0, -1.0], n)
 
@@ -377,7 +379,8 @@ class _PhaseSums:
         begin, end = np.maximum(a[owner], self.edges[block]), np.minimum(b[owner], self.edges[block + 1])
         s = [c[end] - c[begin] for c in self.cum]
         e = (self.ref[block] - centre[owner]) / self.h
-        return [np.bincount(owner, sum(comb(p, k) * s[k] * e ** (p - k) for k in range(p + 1)), minlength=centre.size)
+        powers = [e**m for m in range(5)]
+        return [np.bincount(owner, sum(comb(p, k) * s[k] * powers[p - k] for k in range(p + 1)), minlength=centre.size)
                 for p in range(5)]
 
     def variance(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

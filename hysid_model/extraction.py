@@ -53,12 +53,14 @@ Every step is linear in the record length (no sliding windows over cycles).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 import warnings
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from hysid_model import plausibility, steady, waveform
-from hysid_model.branches import branch_values, half_cycle_phases, harmonic_design, reversal_guard, smooth_part
+from hysid_model.branches import CHUNK, branch_values, half_cycle_phases, harmonic_design, reversal_guard, smooth_part
 from hysid_model.errors import HysidInputError, HysidWarning
 
 FREQ_TOLERANCE = 0.02
@@ -178,6 +180,14 @@ def loop_from_branches(top: np.ndarray, bottom: np.ndarray, n_points: int, sourc
 
 
 
+@lru_cache(maxsize=8)
+def _hann(n: int) -> np.ndarray:
+    """``np.hanning(n)``, kept for records of the same length (a set's records mostly are)."""
+    window = np.hanning(n)
+    window.flags.writeable = False
+    return window
+
+
 def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     """Frequency of the largest displacement spectral peak (Hann window, zero padding to a power of 2, Gaussian interpolation).
 
@@ -187,7 +197,7 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     n = t.size
     dt = (t[-1] - t[0]) / (n - 1)
     nfft = 1 << int(np.ceil(np.log2(n)))
-    mag = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nfft))
+    mag = np.abs(np.fft.rfft((x - x.mean()) * _hann(n), nfft))
     first = int(np.ceil(nfft / (n - 1)))  # below one period per record there is no cycle to extract
     if first >= mag.size - 1 or not np.any(mag[first:] > 0):
         raise HysidInputError(f"{source}: the displacement does not oscillate")
@@ -296,6 +306,7 @@ def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float
     return xh[:, :kept].copy(), thd
 
 
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def extract_loop(
     t: np.ndarray,
     x: np.ndarray,
@@ -310,7 +321,9 @@ def extract_loop(
 
     ``t`` (s, strictly increasing), ``x`` (m), ``force`` (N); ``source`` names
     the file in error messages; ``steady_window`` = (t0, t1) in s, else found
-    automatically.
+    automatically. BLAS runs on one thread: its products here are small, and on a shared machine a second
+    thread waiting for a core costs more than it saves (twice the time of the whole extraction, measured under
+    a load of 2-5 on 2 cores).
     """
     t, x, force = (np.asarray(a, dtype=float) for a in (t, x, force))
     _check_values(x, force, source)
@@ -350,7 +363,8 @@ def extract_loop(
     phase = (np.degrees(np.arctan2(cf[2], cf[1]) - phi) + 180.0) % 360.0 - 180.0
     force_mean = _cycle_mean(t, force, t_a, t_end)
     x_residual = xs - cx @ design
-    del design  # (2K + 1) x N: rebuilt in pieces for the smooth part, where a record needs it
+    kept = design if ts.size <= CHUNK else None  # a longer record's (2K + 1) x N rows are rebuilt in pieces where needed
+    del design
     x_sigma = float(np.sqrt(x_residual @ x_residual / max(xs.size - (2 * harmonics + 1), 1)))
     xh, thd = _displacement_harmonics(cx, phi, x0, x_sigma * np.sqrt(2.0 / xs.size), source)
     lo, hi = (float(r[0]) for r in waveform.reversals(xh))
@@ -362,7 +376,7 @@ def extract_loop(
     values, var, sigma_raw, overlap, force_harmonics = branch_values(
         psi, centred, sample_phases, (lo, hi), ts.size / cycles, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
         lambda: smooth_part(theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred,
-                            harmonic_design(sample_phases - phi, harmonics)),
+                            harmonic_design(sample_phases - phi, harmonics), kept),
     )
     first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
     used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]

@@ -153,8 +153,13 @@ class HarmonicObjective(ModelSpace):
 
     def weighted_residuals(self, theta: np.ndarray) -> np.ndarray:
         """Flat whitened residuals; their sum of squares is the chi^2."""
-        self.evaluations += 1
-        return self.whitened(theta)[0].reshape(-1)
+        return self.residual_rows(np.asarray(theta, dtype=float).reshape(1, -1))[0]
+
+    def residual_rows(self, pop: np.ndarray) -> np.ndarray:
+        """:meth:`weighted_residuals` of each row of ``pop`` ``(P, D)`` in one call, ``(P, L*M)``."""
+        pop = np.atleast_2d(np.asarray(pop, dtype=float))
+        self.evaluations += pop.shape[0]
+        return self.whitened(pop).reshape(pop.shape[0], -1)
 
     def jacobian(self, theta: np.ndarray, weighted: bool = True) -> np.ndarray:
         """d(whitened residuals)/d(theta), ``(L*M, D)``, by central differences (``weighted`` only mirrors the Objective's signature).

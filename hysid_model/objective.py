@@ -191,7 +191,12 @@ class Objective(ModelSpace):
 
     def weighted_residuals(self, theta: np.ndarray) -> np.ndarray:
         """Flat residual vector whose sum of squares is the objective (for least squares)."""
-        return (self.residuals(theta) * np.sqrt(self.loop_weight)[:, None]).reshape(-1)
+        return self.residual_rows(np.asarray(theta, dtype=float).reshape(1, -1))[0]
+
+    def residual_rows(self, pop: np.ndarray) -> np.ndarray:
+        """:meth:`weighted_residuals` of each row of ``pop`` ``(P, D)`` in one call, ``(P, L*2n)``."""
+        pop = np.atleast_2d(np.asarray(pop, dtype=float))
+        return ((self.predict(pop) - self.y) * np.sqrt(self.loop_weight)[:, None]).reshape(pop.shape[0], -1)
 
     def jacobian(self, theta: np.ndarray, weighted: bool = True) -> np.ndarray:
         """d(residuals)/d(theta), ``(L*2n, D)``, by central differences on the closed form."""

@@ -174,7 +174,7 @@ def clipping(cycle: np.ndarray, force_cycle: np.ndarray, force_wall: np.ndarray,
             return Clipping("force", float(force_cycle.max() if wide[0] * hard[0] >= wide[1] * hard[1] else force_cycle.min()))
     if waveform.thd(xh)[0] > THD_WARN:
         theta = np.linspace(-np.pi, np.pi, GRID, endpoint=False)
-        v = 2 * np.pi * freq * waveform.displacement(xh, theta[None, :], 1)[0]
+        v = 2 * np.pi * freq * waveform.on_grid(xh, theta[None, :], 1)[0]
         if np.all(_dwell_ratios(v, VELOCITY_BAND) >= CLIP_RATIO):
             return Clipping("velocity", float(np.abs(v).max()))
     return Clipping()

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -55,6 +56,10 @@ WAVEFORM_TOLERANCE = 1e-3
 OUTLIERS = 0.05
 """Isolated cycles outside the band (scatter, not a transient) allowed in a steady run, as a fraction of it."""
 MAD_TO_STD = 1.4826
+PARTITION_KTH = 8
+"""Distinct middle positions up to which the phase bins' medians are found by a partition rather than a sort."""
+SHAPES_KEPT = 64
+"""Window lengths whose line and parabola terms the band test keeps (:func:`_band_test`)."""
 
 
 @dataclass
@@ -239,32 +244,50 @@ def steady_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray | None =
 
 def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Callable[[int, int], bool]:
     """Whether cycles i..j-1 are steady: within the band around their line, drifting at most ``DRIFT_LIMIT``,
-    and not curved (a settling transient is curved, a drift is straight)."""
+    and not curved (a settling transient is curved, a drift is straight).
+
+    The search calls it a few times per cycle of a record, so it spends as few numpy calls as it can (the cheap
+    drift test first); each test's arithmetic is that of its formula, operation for operation."""
     floor = np.maximum(NOISE_SIGMAS * noise, sampling)[:, None]
+    spread = NOISE_SIGMAS * noise
     index = np.arange(amp.shape[1], dtype=float)
+    add = np.add.reduce
+    shapes: dict[int, tuple[Any, ...]] = {}
+
+    def shape(n: int) -> tuple[Any, ...]:
+        """u, u @ u and, for a run long enough for the curvature test, q, q @ q, max |q| and the least bend it
+        allows (the noise's or the sampling's), of a window of n cycles: the search tries one length at many starts."""
+        if n not in shapes:
+            if len(shapes) >= SHAPES_KEPT:
+                shapes.clear()
+            u = index[:n] - 0.5 * (n - 1)
+            uu = u @ u
+            if n < WAVEFORM_MIN_CYCLES:
+                shapes[n] = (u, uu, None, None, None, None)
+            else:
+                q = u * u - uu / n  # orthogonal to 1 and u
+                qq, top = q @ q, np.abs(q).max()
+                shapes[n] = (u, uu, q, qq, top, np.maximum(spread * top / np.sqrt(qq), sampling))
+        return shapes[n]
 
     def fits(i: int, j: int) -> bool:
         a = amp[:, i:j]
         n = j - i
-        u = index[:n] - 0.5 * (n - 1)
-        level = a.mean(axis=1)
-        beta = a @ u / (u @ u) if n > 1 else np.zeros(a.shape[0])
+        u, uu, q, qq, top, least = shape(n)
+        level = add(a, axis=1) / n  # a.mean(axis=1)
+        beta = a @ u / uu if n > 1 else np.zeros(a.shape[0])
+        if (np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)).any():
+            return False
         line = level[:, None] + beta[:, None] * u
         resid = a - line
-        out = np.any(np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor), axis=0)
+        out = (np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor)).any(axis=0)
         if out.any():  # an isolated cycle outside the band is scatter; a transient is a run of them, or the window's end
-            pairs = out[1:] & out[:-1]
-            if out[0] or out[-1] or pairs.any() or np.count_nonzero(out) > max(1, OUTLIERS * n):
+            if out[0] or out[-1] or (out[1:] & out[:-1]).any() or np.count_nonzero(out) > max(1, OUTLIERS * n):
                 return False
-        if np.any(np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)):
-            return False
         if n < WAVEFORM_MIN_CYCLES:
             return True
-        q = u * u - (u @ u) / n  # orthogonal to 1 and u
-        qq = q @ q
-        bend = np.abs(resid @ q) / qq * np.abs(q).max()  # the largest departure of the best parabola from the line
-        allowed = np.maximum(CURVATURE * np.abs(level), NOISE_SIGMAS * noise * np.abs(q).max() / np.sqrt(qq))
-        return bool(np.all(bend <= np.maximum(allowed, sampling)))
+        bend = np.abs(resid @ q) / qq * top  # the largest departure of the best parabola from the line
+        return bool((bend <= np.maximum(CURVATURE * np.abs(level), least)).all())
 
     return fits
 
@@ -301,15 +324,19 @@ def _longest_band_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) 
 def _bin_medians(phase: np.ndarray, y: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
     """(centre phase, median of y) of the non-empty phase bins [(j - 1/4)/bins, (j + 3/4)/bins)."""
     b = np.floor(phase * bins + 0.25).astype(np.int64) % bins
-    order = np.argsort(b.astype(np.int32), kind="stable")
+    order = np.argsort(b.astype(np.int16 if bins <= np.iinfo(np.int16).max else np.int32), kind="stable")  # int16: a radix sort
     counts = np.bincount(b, minlength=bins)
     width = int(counts.max())
     rank = np.arange(b.size) - np.repeat(np.cumsum(counts) - counts, counts)
     table = np.full((bins, width), np.inf)
     table[b[order], rank] = y[order]
-    table.sort(axis=1)
     used = np.flatnonzero(counts)
     c = counts[used]
+    middle = np.unique(np.concatenate([(c - 1) // 2, c // 2]))
+    if middle.size <= PARTITION_KTH:  # bins of about as many samples each: only their middle values in place
+        table.partition(middle, axis=1)
+    else:
+        table.sort(axis=1)
     rows = table[used]
     median = 0.5 * (rows[np.arange(used.size), (c - 1) // 2] + rows[np.arange(used.size), c // 2])
     return (used + 0.25) / bins, median

@@ -40,10 +40,29 @@ def orders(xh: np.ndarray) -> np.ndarray:
 
 def displacement(xh: np.ndarray, theta: np.ndarray, derivative: int = 0) -> np.ndarray:
     """d^n x / d theta^n at phases ``theta`` ``(L, N)`` (or ``(..., L, N)``), same shape."""
+    return _derivatives(xh, theta, (derivative,))[0]
+
+
+def _derivatives(xh: np.ndarray, theta: np.ndarray, derivatives: tuple[int, ...]) -> list[np.ndarray]:
+    """:func:`displacement` for several derivatives at the same phases, the waves e^{ik theta} computed once."""
     k = orders(xh)
-    amp = xh * (1j * k) ** derivative  # (L, K)
     waves = np.exp(1j * np.asarray(theta)[..., None] * k)  # (..., L, N, K)
-    return np.einsum("...lnk,lk->...ln", waves, amp).real
+    return [np.einsum("...lnk,lk->...ln", waves, xh * (1j * k) ** n).real for n in derivatives]
+
+
+def on_grid(xh: np.ndarray, theta: np.ndarray, derivative: int = 0) -> np.ndarray:
+    """:func:`displacement` at many phases ``theta`` ``(L, N)`` at once, e^{ik theta} as powers of e^{i theta}: a
+    complex exponential per phase instead of one per phase and order (ten times faster at 4096 phases and 7 orders),
+    exact to about k x 1e-16 of the amplitude. For the grids on which extremes are bracketed and branches inverted;
+    Newton then refines with :func:`displacement`."""
+    z = np.exp(1j * np.asarray(theta, dtype=float))
+    amp = xh * (1j * orders(xh)) ** derivative
+    power = z.copy()
+    total = amp[:, :1] * power
+    for k in range(1, xh.shape[1]):
+        power *= z
+        total += amp[:, k : k + 1] * power
+    return total.real
 
 
 def thd(xh: np.ndarray) -> np.ndarray:
@@ -54,8 +73,7 @@ def thd(xh: np.ndarray) -> np.ndarray:
 def _refine_extreme(xh: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """Newton on x'(theta) = 0 from ``theta`` (L,)."""
     for _ in range(NEWTON_STEPS):
-        d1 = displacement(xh, theta[:, None], 1)[:, 0]
-        d2 = displacement(xh, theta[:, None], 2)[:, 0]
+        d1, d2 = (d[:, 0] for d in _derivatives(xh, theta[:, None], (1, 2)))
         step = np.where(np.abs(d2) > 0, d1 / np.where(d2 == 0, 1.0, d2), 0.0)
         theta = theta - np.clip(step, -np.pi / GRID, np.pi / GRID)
     return theta
@@ -78,7 +96,7 @@ REVERSALS_KEPT = 64
 def _reversals(data: bytes, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
     xh = np.frombuffer(data, dtype=complex).reshape(shape)
     grid = np.linspace(-np.pi, np.pi, GRID, endpoint=False)
-    x = displacement(xh, np.broadcast_to(grid, (xh.shape[0], GRID)))
+    x = on_grid(xh, np.broadcast_to(grid, (xh.shape[0], GRID)))
     lo = _refine_extreme(xh, grid[np.argmin(x, axis=1)])
     hi = _refine_extreme(xh, grid[np.argmax(x, axis=1)])
     hi = lo + np.mod(hi - lo, 2 * np.pi)
@@ -88,15 +106,30 @@ def _reversals(data: bytes, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndar
 def reversal_count(xh: np.ndarray) -> np.ndarray:
     """How often x' changes sign per cycle, per loop (2 for a loop with one loading and one unloading branch)."""
     grid = np.linspace(-np.pi, np.pi, GRID, endpoint=False)
-    v = displacement(xh, np.broadcast_to(grid, (xh.shape[0], GRID)), 1)
+    v = on_grid(xh, np.broadcast_to(grid, (xh.shape[0], GRID)), 1)
     return np.count_nonzero(np.sign(v) != np.sign(np.roll(v, 1, axis=1)), axis=1)
+
+
+def _exact_where_read(xh: np.ndarray, theta_grid: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """x on the grid ``theta_grid`` ``(L, G)`` (:func:`on_grid`), with :func:`displacement`'s own values at both ends and
+    at the two grid points on either side of each target, the only ones the bracketing in :func:`_invert` reads: its
+    start, and so the phases Newton ends on, are :func:`displacement`'s to the last bit, at a tenth of the cost."""
+    x_grid = on_grid(xh, theta_grid)
+    rising = (x_grid[:, -1] >= x_grid[:, 0])[:, None]
+    mono = np.maximum.accumulate(np.where(rising, x_grid, -x_grid), axis=1)
+    found = np.stack([np.searchsorted(m, t) for m, t in zip(mono, np.where(rising, targets, -targets))])
+    last = theta_grid.shape[1] - 1
+    near = (found[:, :, None] + np.arange(-2, 2)).reshape(found.shape[0], -1)
+    read = np.clip(np.concatenate([near, np.broadcast_to([0, last], (found.shape[0], 2))], axis=1), 0, last)
+    np.put_along_axis(x_grid, read, displacement(xh, np.take_along_axis(theta_grid, read, axis=1)), axis=1)
+    return x_grid
 
 
 def _invert(xh: np.ndarray, targets: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
     """Phases in [start, stop] (per loop) where x(theta) = targets ``(L, N)``; x is monotonic there."""
     u = np.linspace(0.0, 1.0, GRID)
     theta_grid = start[:, None] + (stop - start)[:, None] * u  # (L, G)
-    x_grid = displacement(xh, theta_grid)
+    x_grid = _exact_where_read(xh, theta_grid, targets)
     rising = x_grid[:, -1] >= x_grid[:, 0]
     x_mono = np.where(rising[:, None], x_grid, -x_grid)
     x_mono = np.maximum.accumulate(x_mono, axis=1)
@@ -104,8 +137,7 @@ def _invert(xh: np.ndarray, targets: np.ndarray, start: np.ndarray, stop: np.nda
     theta = np.stack([np.interp(t, xm, tg) for t, xm, tg in zip(tgt, x_mono, theta_grid)])
     lo, hi = np.minimum(start, stop)[:, None], np.maximum(start, stop)[:, None]
     for _ in range(NEWTON_STEPS):
-        x = displacement(xh, theta)
-        v = displacement(xh, theta, 1)
+        x, v = _derivatives(xh, theta, (0, 1))
         step = np.where(np.abs(v) > 1e-12 * np.abs(xh[:, :1]), (x - targets) / np.where(v == 0, 1.0, v), 0.0)
         theta = np.clip(theta - step, lo, hi)
     return theta

@@ -17,7 +17,9 @@ however many islands of the process take from its sender.
 * A message from a run the roster does not list yet waits (the newest of each
   sender, up to :data:`JOIN_GRACE_S`) for it: Zenoh does not order the
   coordinator's roster before a joiner's first publications. One that waited in
-  vain counts as rejected (:meth:`Arrivals.listed`).
+  vain counts as rejected: its run was never listed within the grace
+  (:meth:`Arrivals.listed`), a newer one of its sender came, there was no room,
+  or the last island taking from it ended first (:meth:`Arrivals.leave`).
 """
 
 from __future__ import annotations
@@ -58,6 +60,23 @@ class Arrivals:
         """Each sender's newest valid migrant message and when it arrived."""
         self._pending: OrderedDict[str, tuple[float, Envelope]] = OrderedDict()
         """Each sender's newest message from a run the roster does not list yet (checked once it does)."""
+        self._takers: set[str] = set()
+        """The islands taking from these arrivals (:meth:`join`, :meth:`leave`)."""
+
+    def join(self, island: str) -> None:
+        """``island`` takes from these arrivals from now on."""
+        with self._lock:
+            self._takers.add(island)
+
+    def leave(self, island: str) -> int:
+        """``island`` takes no more; if it was the last, what still waits for its run to be listed has waited
+        in vain: returns how many such messages (the caller counts them as rejected, in its last history)."""
+        with self._lock:
+            self._takers.discard(island)
+            if self._takers:
+                return 0
+            waited, self._pending = len(self._pending), OrderedDict()
+        return waited
 
     def receive(self, sender: str, data: bytes) -> None:
         """A migrant message as it arrives on ``migrants/<sender>`` (from any thread)."""
@@ -69,10 +88,13 @@ class Arrivals:
         key = self.key_for(env.sender, env.run)
         if key is None:
             with self._lock:
-                self._pending.pop(env.sender, None)  # a newer one of a joiner: the older was never checked, and need not be
+                waited = int(self._pending.pop(env.sender, None) is not None)  # a newer one of a joiner: the older waited in vain
                 self._pending[env.sender] = (time.monotonic(), env)
                 while len(self._pending) > MAX_SENDERS:
                     self._pending.popitem(last=False)
+                    waited += 1
+            for _ in range(waited):
+                self.on_reject()
             return
         self._open(env, key)
 

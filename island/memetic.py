@@ -7,7 +7,10 @@ A model with memory (Bouc-Wen) or a force that is not smooth in time
 several basins: a single GA/PSO run with one polish at its end (the thesis'
 procedure, :func:`island.run.optimize`) lands in the wrong one for some seeds.
 What makes a campaign of several islands succeed there, several cooperating
-populations, is done here in one process, deterministically for a seed:
+populations, is done here in one process, deterministically for a seed. Each
+population is an :class:`Island`, the same one a campaign's node runs on such a
+model (:mod:`island.node`, where migration and the global best travel over the
+wire instead):
 
 * the islands search in the coordinates of :mod:`island.space` (positive scale
   parameters on a log scale: the ridges k_bw z_y = const become straight and
@@ -35,13 +38,15 @@ evaluation: candidates, residual vectors and Jacobian probes
 search may overshoot it by one refinement or one population, and the final
 polish comes on top. The result is a
 :class:`island.run.RunResult` in the model's parameters; its history has one
-row per round (every island one iteration).
+row per round (every island one iteration). :func:`starting_points` are the
+starts a campaign's islands take: its ``start`` and what the model's terms read
+off the loops.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -49,9 +54,9 @@ import numpy as np
 from hysid_model.errors import HysidInputError
 from hysid_model.model import Model
 from hysid_model.terms import Kinematics
+from island.algorithms import make_optimizer, switch_algorithm
 from island.polish import MEMORY_NFEV, polish
-from island.population import MAX_ITERATIONS, PopulationOptimizer
-from island.pso import PSO
+from island.population import MAX_ITERATIONS
 from island.run import HistoryRow, RunResult
 from island.space import SpaceObjective
 
@@ -91,62 +96,162 @@ def needs_islands(model: Model) -> bool:
     return "sgn" in model.coefficients(model.bounds.mean(axis=1)[None, :], probe)
 
 
-class Refiner:
-    """Memetic refinement for an island that searches in the model's parameters (a campaign's node):
-    its best polished with :data:`REFINE_NFEV` residual calls in the coordinates of :mod:`island.space`
-    and handed back as a migrant would be. Each point is refined once."""
-
-    def __init__(self, objective: Any) -> None:
-        self.space = SpaceObjective(objective)
-        self.refined: set[bytes] = set()
-
-    def __call__(self, optimizer: PopulationOptimizer) -> int:
-        """Refine ``optimizer``'s best; returns the evaluations it cost."""
-        x, f = optimizer.best(1)
-        if not f.size or x[0].tobytes() in self.refined:
-            return 0
-        before = self.space.evaluations
-        p = polish(self.space, self.space.space.to_u(x[0]), max_nfev=REFINE_NFEV)
-        self.refined.add(x[0].tobytes())
-        if p.fitness < f[0]:
-            theta = self.space.space.to_theta(p.theta)
-            self.refined.add(theta.tobytes())
-            optimizer.inject(theta[None, :], np.array([p.fitness]))
-        return self.space.evaluations - before
+def starting_points(objective: Any, start: Sequence[float] | None) -> np.ndarray:
+    """Rows in the model's parameters for an island's first population: ``start`` (the survey's linear
+    estimate, a campaign's ``start``) and, on it, the values each of the model's terms reads off the loops'
+    shape (:meth:`hysid_model.terms.Term.data_starts`, e.g. a Bouc-Wen spring's stiffness and yield from
+    the reversals and the plateau), clipped into the bounds; none without ``start``."""
+    model = objective.model
+    if start is None:
+        return np.empty((0, model.dim))
+    base = dict(zip(model.names, map(float, start)))
+    rows = [model.from_dict(base)] + [model.from_dict({**base, **point}) for t in model.terms for point in t.data_starts(objective.loops, model.names)]
+    return np.clip(np.array(rows), objective.bounds[:, 0], objective.bounds[:, 1])
 
 
 class Island:
-    """One population of the search, its refinement bookkeeping and its restarts."""
+    """One memetic island in the coordinates of :mod:`island.space` (module docstring): the thesis' PSO
+    or GA with small populations, its best refined every :data:`REFINE_EVERY` iterations, a fresh start
+    once it has stalled.
 
-    def __init__(self, bounds: np.ndarray, seed: int, population: int) -> None:
-        self.seed, self.population, self.bounds = seed, population, bounds
+    It is driven as an ask/tell optimizer, by :func:`memetic_search`'s rounds and by a campaign's node
+    (:mod:`island.node`, through :func:`island.run.run`): ``iteration``, ``evaluations`` (its own
+    refinements and starting points included), ``gain`` and ``history`` (the best so far after each
+    iteration) run on across restarts, while :meth:`best` and :meth:`inject` are the current search's:
+    what it migrates, refines and takes in. ``starts`` (rows in ``objective``'s coordinates) join its
+    first population; ``polished`` maps points already refined (their bytes), shared by the islands of
+    one search, to what refining them gave: no point is refined twice.
+    """
+
+    def __init__(self, objective: SpaceObjective, algo: str, seed: int, options: Mapping[str, Any] | None = None, *,
+                 starts: np.ndarray | None = None, polished: dict[bytes, float] | None = None) -> None:
+        self.objective = objective
+        self.algo, self.seed, self.options = algo, seed, dict(options or {})
+        self.starts = None if starts is None or not len(starts) else np.asarray(starts, dtype=float).reshape(-1, objective.dim)
+        self.polished = {} if polished is None else polished
+        self.optimizer = make_optimizer(algo, objective.bounds, seed, self.options)
+        self.history: list[float] = []
+        """The best fitness so far after each iteration (across restarts)."""
         self.restarts = 0
-        self.optimizer = self._fresh()
-        self.since_refined = 0
-        self.stalled = 0
-        self.last_best = np.inf
-
-    def _fresh(self) -> PopulationOptimizer:
-        return PSO(self.bounds, self.seed + 7919 * self.restarts, population=self.population,
-                   initial_population=2 * self.population, iterations=MAX_ITERATIONS, addpop_level=1, synchronous=True)
-
-    def restart(self) -> None:
-        self.restarts += 1
-        self.optimizer = self._fresh()
         self.since_refined, self.stalled, self.last_best = 0, 0, np.inf
-
-    def step(self, objective: SpaceObjective) -> None:
-        """One iteration (the initial population first)."""
-        done = len(self.optimizer.history)
-        while len(self.optimizer.history) == done:
-            x = self.optimizer.ask()
-            self.optimizer.tell(x, objective(x))
+        self._earlier = (0, 0, 0.0)
+        """Iterations, evaluations and gain of the searches before the current one."""
+        self._own = 0
+        """Evaluations of its starting points and refinements."""
+        self._restart = False
 
     @property
-    def best(self) -> tuple[np.ndarray, float]:
-        """The island's best and its fitness (inf, at the bounds' centre, before its first population)."""
-        x, f = self.optimizer.best(1)
-        return (x[0], float(f[0])) if f.size else (self.bounds.mean(axis=1), np.inf)
+    def bounds(self) -> np.ndarray:
+        return self.objective.bounds
+
+    @property
+    def dim(self) -> int:
+        return self.objective.dim
+
+    @property
+    def iteration(self) -> int:
+        return self._earlier[0] + self.optimizer.iteration
+
+    @property
+    def evaluations(self) -> int:
+        return self._earlier[1] + self.optimizer.evaluations + self._own
+
+    @property
+    def gain(self) -> float:
+        return self._earlier[2] + self.optimizer.gain
+
+    @property
+    def done(self) -> bool:
+        return bool(self.history) and self.iteration >= self.optimizer.iterations
+
+    @property
+    def fitness(self) -> float:
+        """The current search's best fitness (inf before its initial population)."""
+        _, f = self.optimizer.best(1)
+        return float(f[0]) if f.size else np.inf
+
+    @property
+    def quiet(self) -> bool:
+        """A restarted search takes no migrants for its first :data:`QUIET` iterations."""
+        return self.restarts > 0 and self.optimizer.iteration < QUIET
+
+    @property
+    def stale(self) -> bool:
+        """No progress for :data:`STALL` refinements: time to restart, unless it holds the best."""
+        return self.stalled >= STALL
+
+    def ask(self) -> np.ndarray:
+        if self._restart:
+            self._fresh()
+        return self.optimizer.ask()
+
+    def tell(self, x: np.ndarray, f: np.ndarray) -> None:
+        told = len(self.optimizer.history)
+        self.optimizer.tell(x, f)
+        if len(self.optimizer.history) == told:
+            return
+        if not told and not self.restarts and self.starts is not None:
+            self.optimizer.inject(self.starts, self._evaluate(self.starts))
+        self.history.append(min(self.history[-1] if self.history else np.inf, self.fitness))
+
+    def step(self) -> None:
+        """One iteration (the initial population first) on its objective."""
+        done = len(self.history)
+        while len(self.history) == done:
+            x = self.ask()
+            self.tell(x, self.objective(x))
+
+    def inject(self, x: np.ndarray, f: np.ndarray) -> int:
+        """Migrants with locally evaluated fitness, offered to the current search (none while it is quiet)."""
+        return 0 if self.quiet else self.optimizer.inject(x, f)
+
+    def best(self, k: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """The current search's ``k`` best and their fitness, best first."""
+        return self.optimizer.best(k)
+
+    def switch(self, algo: str, options: Mapping[str, Any]) -> "Island":
+        """The current search carried on by ``algo`` (a mixed campaign's share, :func:`island.algorithms.switch_algorithm`),
+        and every restart after it."""
+        self.optimizer = switch_algorithm(self.optimizer, algo, dict(options))
+        self.algo, self.options = algo, dict(options)
+        return self
+
+    def refine(self) -> None:
+        """Every :data:`REFINE_EVERY`-th call (one per iteration): the current search's best polished with
+        :data:`REFINE_NFEV` residual calls, the refined point in the place of its worst, and the count of
+        refinements without progress (:attr:`stale`) updated."""
+        self.since_refined += 1
+        if self.since_refined < REFINE_EVERY:
+            return
+        self.since_refined = 0
+        x, f = self.best(1)
+        key = x[0].tobytes()
+        if key not in self.polished:
+            before = self.objective.evaluations
+            p = polish(self.objective, x[0], max_nfev=REFINE_NFEV)
+            self._own += self.objective.evaluations - before
+            self.polished[key] = p.fitness
+            if p.fitness < f[0]:
+                u = np.asarray(p.theta, dtype=float)
+                self.polished[u.tobytes()] = p.fitness
+                self.optimizer.inject(u[None, :], np.array([p.fitness]))
+        f = self.fitness
+        self.stalled = 0 if f < self.last_best * (1 - IMPROVED) else self.stalled + 1
+        self.last_best = min(self.last_best, f)
+
+    def restart(self) -> None:
+        """Start afresh at the next :meth:`ask`: a new initial population from a random stream of its own."""
+        self._restart = True
+
+    def _fresh(self) -> None:
+        self._earlier = (self.iteration + 1, self._earlier[1] + self.optimizer.evaluations, self.gain)
+        self.restarts += 1
+        self.optimizer = make_optimizer(self.algo, self.bounds, self.seed + 7919 * self.restarts, self.options)
+        self.since_refined, self.stalled, self.last_best, self._restart = 0, 0, np.inf, False
+
+    def _evaluate(self, x: np.ndarray) -> np.ndarray:
+        self._own += x.shape[0]
+        return self.objective(x)
 
 
 def memetic_search(
@@ -164,7 +269,7 @@ def memetic_search(
     """The best of ``objective`` found by memetic islands (module docstring) within ``budget`` evaluations
     and/or ``time_limit_s`` seconds (at least one must be set); ``starts`` are parameter vectors in the
     model's parameters. ``objective`` has the contract of :class:`hysid_model.objective.Objective`
-    (``__call__``, ``weighted_residuals``, ``jacobian``, ``bounds``, ``model``), as
+    (``__call__``, ``weighted_residuals``, ``residual_rows``, ``jacobian``, ``bounds``, ``model``), as
     :class:`hysid_model.harmonics.HarmonicObjective` has."""
     if budget is None and time_limit_s is None:
         raise HysidInputError("a memetic search needs a budget of evaluations or a time limit", param="budget", value=None)
@@ -176,10 +281,11 @@ def memetic_search(
         raise HysidInputError("seeds must be non-negative integers", param="seed", value=seed)
     space = SpaceObjective(objective)
     began = time.perf_counter()
-    pool = [Island(space.bounds, seed * 1000 + i, population) for i in range(islands)]
-    rows: list[HistoryRow] = []
+    options = {**ISLAND_OPTIONS, "population": population, "initial_population": 2 * population, "synchronous": True, "iterations": MAX_ITERATIONS}
+    first = space.space.to_u(np.clip(np.asarray(starts, dtype=float).reshape(-1, space.dim), *objective.bounds.T)) if len(starts) else None
     polished: dict[bytes, float] = {}
-    """Points already refined (their bytes) and what refining them gave: never refined twice."""
+    pool = [Island(space, "pso", seed * 1000 + i, options, starts=first if i == 0 else None, polished=polished) for i in range(islands)]
+    rows: list[HistoryRow] = []
     best_u, best_f = None, np.inf
 
     def spent() -> bool:
@@ -187,46 +293,25 @@ def memetic_search(
             time_limit_s is not None and time.perf_counter() - began >= time_limit_s
         )
 
-    def refine(island: Island) -> None:
-        x, f = island.best
-        key = x.tobytes()
-        if key in polished:
-            return
-        p = polish(space, x, max_nfev=REFINE_NFEV)
-        polished[key] = p.fitness
-        if p.fitness < f:
-            polished[np.asarray(p.theta, dtype=float).tobytes()] = p.fitness
-            island.optimizer.inject(np.asarray(p.theta, dtype=float)[None, :], np.array([p.fitness]))
-
     round_ = 0
     while not spent():
-        for i, island in enumerate(pool):
-            island.step(space)
-            if island.optimizer.iteration == 0 and i == 0 and starts:
-                u = space.space.to_u(np.clip(np.asarray(starts, dtype=float).reshape(-1, space.dim), *objective.bounds.T))
-                island.optimizer.inject(u, space(u))
-            island.since_refined += 1
-            if island.since_refined >= REFINE_EVERY and not spent():
-                island.since_refined = 0
-                refine(island)
-                _, f = island.best
-                island.stalled = 0 if f < island.last_best * (1 - IMPROVED) else island.stalled + 1
-                island.last_best = min(island.last_best, f)
+        for island in pool:
+            island.step()
+            if not spent():
+                island.refine()
             if spent():
                 break
         round_ += 1
         if round_ % MIGRATE_EVERY == 0 and len(pool) > 1:
-            outgoing = [island.optimizer.best(MIGRANTS) for island in pool]
+            outgoing = [island.best(MIGRANTS) for island in pool]
             for i, island in enumerate(pool):
-                if island.restarts == 0 or island.optimizer.iteration >= QUIET:
-                    x, f = outgoing[i - 1]
-                    island.optimizer.inject(x, f)  # the fitness was evaluated here, in this process
-        leader = min(range(len(pool)), key=lambda i: pool[i].best[1])
-        x, f = pool[leader].best
-        if f < best_f:
-            best_u, best_f = x.copy(), f
+                island.inject(*outgoing[i - 1])  # the fitness was evaluated here, in this process
+        leader = min(range(len(pool)), key=lambda i: pool[i].fitness)
+        x, f = pool[leader].best(1)
+        if f[0] < best_f:
+            best_u, best_f = x[0].copy(), float(f[0])
         for i, island in enumerate(pool):
-            if i != leader and island.stalled >= STALL:
+            if i != leader and island.stale:
                 island.restart()
         row = HistoryRow(round_, best_f, space.evaluations, time.perf_counter() - began)
         rows.append(row)

@@ -8,13 +8,18 @@ evaluate -> tell) and uses its hooks:
   with them;
 * after every iteration the history row goes to the coordinator (in batches,
   every ``history_every_s``, less often in a large campaign: :meth:`IslandNode.history_period`;
-  iteration, best fitness, evaluations, wall time);
+  iteration, best fitness, evaluations, wall time), and at once at every migration in a campaign
+  of ordinary size: the coordinator counts a mixed campaign's rounds in migration intervals
+  (:mod:`island.share`), so what it decides at the end of one does not wait for a timer;
 * every ``migration.interval`` iterations (the *epoch*) it publishes its ``k``
   best candidates and takes what its in-neighbours (:mod:`island.migration`)
-  sent: each message is validated as it arrives (:mod:`island.arrivals`, once
-  for every island of a process), of each sender only the newest is kept, and
-  an epoch takes at most ``k`` migrants from each in-neighbour, so a flood
-  cannot starve the evolution.
+  sent. Each message is validated as it arrives (:mod:`island.arrivals`, once
+  for every island of a process: form, the signature of its sender's run with
+  the public key the roster lists for it, then replays), rejects are counted,
+  and of each sender only the newest message is kept: an epoch takes at most
+  ``k`` migrants from each in-neighbour, so a flood cannot starve the
+  evolution. A message from a run the roster does not list yet waits for it;
+  one that waited in vain counts as rejected.
   Every migrant's fitness is **re-evaluated locally** (the claimed value is
   never used), and the optimizer's migrant policy decides what to replace;
 * who is a member, and the stop order, come from the coordinator's signed
@@ -25,9 +30,14 @@ evaluate -> tell) and uses its hooks:
 * a late joiner takes the coordinator's current global best the same way
   (unless the islands are isolated, migration interval 0: they take nothing
   from others, so that an island's seed alone decides its search);
-* on a model with memory (Bouc-Wen), every ``REFINE_EVERY`` iterations its best is
-  refined by a short bounded least-squares polish (memetic islands, :mod:`island.memetic`); the
-  refinement's evaluations count with its own;
+* on a model with memory (Bouc-Wen, one a single run cannot be trusted on) it is a memetic
+  island (:class:`island.memetic.Island`), as ``hysid fit``'s are: its optimizer searches in the
+  coordinates of :mod:`island.space` (migrants and its best are converted at the node's edges,
+  so nothing on the wire or in the database changes), refines its best every few iterations,
+  starts from the campaign's ``start`` and the points the model's terms read off the loops, and
+  restarts once it has stalled unless it holds the campaign's best as far as it knows
+  (:meth:`IslandNode._leads`); the refinements count with its evaluations. On memoryless models
+  (the thesis', Coulomb friction's in the mixed-islands bench) it searches as the thesis' islands do;
 * when the roster assigns its run another algorithm (a mixed campaign's
   staged or adaptive share, :mod:`island.share`), it carries its search on with that
   algorithm from the next iteration;
@@ -53,7 +63,7 @@ from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer, switch_algorithm
 from island.arrivals import Arrivals
 from island.config import CampaignConfig
-from island.memetic import REFINE_EVERY, Refiner
+from island.memetic import IMPROVED, Island, starting_points
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
 from island.protocol import (
@@ -67,6 +77,7 @@ from island.protocol import (
 )
 from island.run import HistoryRow, run
 from island.sealing import Counter, Credentials
+from island.space import SpaceObjective
 from island.wire import MessageRejected, check_name
 
 if TYPE_CHECKING:
@@ -154,9 +165,10 @@ class IslandNode:
         """``turns``: shared with the other islands of a process, how many of them compute at once
         (:class:`island.host.Turns`; None: this island computes whenever it can)."""
         self.island = check_name("island", island)
-        self.optimizer: PopulationOptimizer = make_optimizer(algo, objective.bounds, seed, config.island_options(algo))
-        self.refiner = Refiner(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
-        """Memetic refinement of the island's best on models with memory (:mod:`island.memetic`)."""
+        self.space = SpaceObjective(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
+        """The objective in the coordinates of :mod:`island.space` where the island is memetic (module docstring)."""
+        self.optimizer: PopulationOptimizer | Island = make_optimizer(algo, objective.bounds, seed, config.island_options(algo)) if self.space is None else Island(
+            self.space, algo, seed, config.island_options(algo), starts=self._u(starting_points(objective, config.start)))
         self.algo = algo
         self.seed = seed
         self.config = config
@@ -190,6 +202,19 @@ class IslandNode:
     def run_id(self) -> str:
         return "" if self.credentials is None else self.credentials.run
 
+    def _attached(self) -> tuple[Transport, Credentials]:
+        """The transport and the run's credentials; a :class:`RuntimeError` before :meth:`attach` (the
+        node used before it joined: a caller's mistake, not bad input)."""
+        if self._transport is None or self.credentials is None:
+            raise RuntimeError(f"island {self.island!r} has not joined: attach a transport (IslandNode.attach or run) first")
+        return self._transport, self.credentials
+
+    def _arrivals(self) -> Arrivals:
+        """The migrant messages this island takes from; a :class:`RuntimeError` before :meth:`attach`."""
+        if self.arrivals is None:
+            raise RuntimeError(f"island {self.island!r} has not joined: attach a transport (IslandNode.attach or run) first")
+        return self.arrivals
+
     def count_rejected(self) -> None:
         with self._lock:
             self.stats["rejected"] += 1
@@ -202,6 +227,7 @@ class IslandNode:
         self.arrivals = transport.arrivals or Arrivals(
             self.config.name, self.objective.bounds, transport.key_for, transport.members, self.count_rejected
         )
+        self.arrivals.join(self.island)
 
     def run(self, transport: Transport) -> list[tuple[int, float, int, float]]:
         """Optimize until done or stopped; returns the rows ``(iteration, best, evaluations, wall s)``."""
@@ -219,12 +245,15 @@ class IslandNode:
         if turns is not None:
             turns.acquire()
         try:
-            run(self.optimizer, self.objective, callback=self._record, should_stop=should_stop, migrate=self._migrate)
+            run(self.optimizer, self.space or self.objective, callback=self._record, should_stop=should_stop, migrate=self._migrate)
             self.stop_reason = transport.stop_reason() if transport.stop_requested() else "own budget spent"
         finally:
             if turns is not None:
                 turns.release()
             self.finished = True
+            waited = self._arrivals().leave(self.island)  # what still waits for its run to be listed waited in vain
+            with self._lock:
+                self.stats["rejected"] += waited
             self._flush(final=True)
         self.confirmed = transport.confirm(self.rows[-1][0] if self.rows else -1)
         return list(self.rows)
@@ -232,9 +261,12 @@ class IslandNode:
     def _record(self, row: HistoryRow) -> None:
         self.rows.append((row.iteration, row.best_fitness, row.evaluations + self.migrant_evaluations, row.wall_s))
         x, f = self.optimizer.best(1)
-        self._snapshot = (x[0].copy(), float(f[0]))
-        since = time.monotonic() - self._last_flush
-        if since >= self.history_every_s and since >= self.history_period():
+        if not f[0] > self._snapshot[1]:  # the best so far: a memetic island's fresh search after a restart starts above it
+            self._snapshot = (self._theta(x[0]), float(f[0]))
+        since, period = time.monotonic() - self._last_flush, self.history_period()
+        interval = self.config.migration.interval
+        at_migration = interval and row.iteration and row.iteration % interval == 0 and period <= self.history_every_s
+        if since >= period or at_migration:
             self._flush()
 
     def history_period(self) -> float:
@@ -244,17 +276,17 @@ class IslandNode:
     # --- migrants -----------------------------------------------------------------
     def receive(self, sender: str, data: bytes) -> None:
         """A migrant message as it arrives (from any thread): see :class:`island.arrivals.Arrivals`."""
-        assert self.arrivals is not None
         if sender != self.island:  # not our own publication, back through a subscription to every island's migrants
-            self.arrivals.receive(sender, data)
+            self._arrivals().receive(sender, data)
 
     def _follow_assignment(self) -> PopulationOptimizer:
         """The optimizer to go on with: this one, or its search carried on by the algorithm the
         coordinator now assigns this run (a mixed campaign's staged or adaptive share, :mod:`island.share`)."""
-        assert self._transport is not None
-        algo = self._transport.assigned_algo()
+        transport, _ = self._attached()
+        algo = transport.assigned_algo()
         if algo is not None and algo != self.algo and algo in self.config.algos:
-            self.optimizer = switch_algorithm(self.optimizer, algo, self.config.island_options(algo))
+            options = self.config.island_options(algo)
+            self.optimizer = self.optimizer.switch(algo, options) if isinstance(self.optimizer, Island) else switch_algorithm(self.optimizer, algo, options)
             self.moves.append((self.optimizer.iteration, self.algo, algo))
             self.algo = algo
         return self.optimizer
@@ -262,11 +294,14 @@ class IslandNode:
     def _migrate(self, optimizer: PopulationOptimizer) -> PopulationOptimizer:
         """After an iteration: follow a new assignment, take the starting point and the global best
         in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
-        assert self._transport is not None and self.credentials is not None and self.arrivals is not None
+        transport, credentials = self._attached()
+        arrivals = self._arrivals()
         optimizer = self._follow_assignment()
-        if self.refiner is not None and optimizer.iteration and optimizer.iteration % REFINE_EVERY == 0:
-            self.migrant_evaluations += self.refiner(optimizer)
-        if optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
+        if isinstance(optimizer, Island):
+            optimizer.refine()
+            if optimizer.stale and not self._leads(optimizer, transport.members()):
+                optimizer.restart()  # at its next iteration: it migrates what it has first
+        elif optimizer.iteration == 0 and self.config.start is not None:  # the campaign's starting point joins first
             x = np.array(self.config.start, dtype=float)[None, :]
             self.migrant_evaluations += 1
             optimizer.inject(x, self.objective(x))
@@ -279,14 +314,14 @@ class IslandNode:
         epoch = optimizer.iteration // mig.interval
         x, f = optimizer.best(mig.k)
         outgoing = encode_migrants(
-            Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, x, f, time.time(), self._seq()), self.credentials
+            Migrants(self.config.name, self.island, self.run_id, optimizer.iteration, self._theta(x), f, time.time(), self._seq()), credentials
         )
-        for sender, data in self._transport.exchange(epoch, outgoing):
+        for sender, data in transport.exchange(epoch, outgoing):
             self.receive(sender, data)
         with self._lock:
             self.stats["sent"] += 1
-        self.arrivals.listed()
-        roster = self._transport.members()
+        arrivals.listed()
+        roster = transport.members()
         senders = in_neighbours(mig.topology, self._sending(roster), self.island, epoch=epoch, seed=self.config.seed, random_k=mig.random_k)
         self._take(self._intake(senders, set(roster), mig.k))
         return optimizer
@@ -302,9 +337,8 @@ class IslandNode:
 
     def _intake(self, senders: set[str], members: set[str], k: int) -> list[np.ndarray]:
         """The newest untaken message of each in-neighbour (at most ``k`` migrants from each)."""
-        assert self.arrivals is not None
         batches = []
-        for m in self.arrivals.newest(senders, members):
+        for m in self._arrivals().newest(senders, members):
             if self._taken.get(m.island) != (m.run, m.seq):
                 batches.append(m.x[:k])
                 self._taken[m.island] = (m.run, m.seq)
@@ -314,18 +348,41 @@ class IslandNode:
         """Re-evaluate migrants here (never trusting their claimed fitness) and offer them to the optimizer."""
         if not batches:
             return
-        x = np.vstack(batches)
-        f = self.objective(x)
+        x = self._u(np.vstack(batches))
+        f = (self.space or self.objective)(x)
         self.migrant_evaluations += x.shape[0]
         taken = self.optimizer.inject(x, f)
         with self._lock:
             self.stats["received"] += x.shape[0]
             self.stats["taken"] += taken
 
+    def _leads(self, island: Island, roster: list[str]) -> bool:
+        """Whether this memetic ``island`` holds the campaign's best as far as it knows: the newest migrants
+        of every other member of ``roster`` (each island hears them all) show no better best, nor an equal one
+        of a member that joined before it; the lowest claim among them is re-evaluated here (a claim is never
+        trusted)."""
+        others = set(roster) - {self.island}
+        claims = [(float(m.claimed.min()), roster.index(m.island), m.x[int(np.argmin(m.claimed))]) for m in self._arrivals().newest(others, roster)]
+        if not claims:
+            return True
+        _, rank, x = min(claims, key=lambda c: c[:2])
+        theirs, mine = float(self.objective(x[None, :])[0]), island.fitness
+        self.migrant_evaluations += 1
+        earlier = self.island in roster and roster.index(self.island) < rank
+        return theirs > mine * (1 + IMPROVED) or (theirs >= mine * (1 - IMPROVED) and earlier)
+
+    def _u(self, x: np.ndarray) -> np.ndarray:
+        """Parameter vectors in the optimizer's coordinates (the memetic island's, :mod:`island.space`)."""
+        return x if self.space is None else self.space.space.to_u(x)
+
+    def _theta(self, x: np.ndarray) -> np.ndarray:
+        """The optimizer's vectors in the model's parameters, as they travel and are stored."""
+        return x.copy() if self.space is None else self.space.space.to_theta(x)
+
     def _decode_best(self, data: bytes) -> Best | None:
-        assert self.credentials is not None
+        _, credentials = self._attached()
         try:
-            return decode_best(data, self.config.name, self.objective.bounds, self.credentials.coordinator)
+            return decode_best(data, self.config.name, self.objective.bounds, credentials.coordinator)
         except MessageRejected:
             self.count_rejected()
             return None
@@ -334,7 +391,7 @@ class IslandNode:
     def history_messages(self, since: int = -1, final: bool = False) -> list[bytes]:
         """This island's rows after iteration ``since`` (in chunks of :data:`HISTORY_CHUNK`), each
         with its best so far and its counters; ``final`` marks the last one as its goodbye."""
-        assert self.credentials is not None
+        _, credentials = self._attached()
         rows = np.array([r for r in list(self.rows) if r[0] > since], dtype=float).reshape(-1, 4)
         x, f = self._snapshot
         with self._lock:
@@ -344,22 +401,22 @@ class IslandNode:
             encode_history(History(
                 self.config.name, self.island, self.run_id, self.algo, self.seed, chunk, x, f, stats,
                 final and i == len(chunks) - 1, self._seq(), self.optimizer.gain,
-            ), self.credentials)
+            ), credentials)
             for i, chunk in enumerate(chunks)
         ]
 
     def heartbeat(self) -> bytes:
         """A history message without rows (from any thread): the island is alive while it has no new row."""
-        assert self.credentials is not None
+        _, credentials = self._attached()
         x, f = self._snapshot
         with self._lock:
             stats = dict(self.stats)
         return encode_history(History(
             self.config.name, self.island, self.run_id, self.algo, self.seed, np.zeros((0, 4)), x, f, stats, False, self._seq(), self.optimizer.gain,
-        ), self.credentials)
+        ), credentials)
 
     def _flush(self, final: bool = False) -> None:
-        assert self._transport is not None
+        transport, _ = self._attached()
         published = self._published
         if published == len(self.rows):
             if not final:
@@ -367,6 +424,6 @@ class IslandNode:
             published = max(published - 1, 0)  # the goodbye carries the last row again
         last = self.rows[published - 1][0] if published else -1
         for message in self.history_messages(since=last, final=final):
-            self._transport.publish_history(message)
+            transport.publish_history(message)
         self._published = len(self.rows)
         self._last_flush = time.monotonic()

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 BLAS_THREADS = 1
@@ -49,6 +48,8 @@ def polish(objective: Any, theta0: np.ndarray, *, max_nfev: int | None = None) -
     :class:`hysid_model.objective.Objective` provides. ``max_nfev`` caps the
     residual calls (when None: :data:`MEMORY_NFEV` on a model with memory, else scipy's default, 100 D).
     """
+    from scipy.optimize import least_squares  # on first use: a fast CLI and island start
+
     bounds = np.asarray(objective.bounds, dtype=float)
     if max_nfev is None and getattr(getattr(objective, "model", None), "has_memory", False):
         max_nfev = MEMORY_NFEV

@@ -21,8 +21,8 @@ model, its bounds and every result stay in the physics' parameters; only the
 search moves in ``u``.
 
 :class:`SearchSpace` maps between the two; :class:`SpaceObjective` is an
-objective in ``u`` with the contract of :class:`hysid_model.objective.Objective`
-(``__call__`` on a population, ``weighted_residuals``, ``jacobian``,
+objective in ``u`` of an objective in theta with the contract of :class:`hysid_model.objective.Objective`
+(``__call__`` on a population, ``weighted_residuals``, ``residual_rows``, ``jacobian``,
 ``bounds``, ``model``, ``evaluations``), so the optimizers and the polish of
 :mod:`island.polish` run on it unchanged. Its Jacobian is a central difference
 in ``u`` (a step relative to the value for the log-scaled parameters).
@@ -109,16 +109,14 @@ class SpaceObjective:
         return self.objective.weighted_residuals(self.space.to_theta(np.asarray(u, dtype=float).reshape(-1)))
 
     def jacobian(self, u: np.ndarray) -> np.ndarray:
-        """d(weighted residuals)/du by central differences, probes kept inside the bounds of ``u``."""
+        """d(weighted residuals)/du by central differences, probes kept inside the bounds of ``u``: the 2 D
+        probes evaluated in one call of the objective's ``residual_rows``."""
         u = np.asarray(u, dtype=float).reshape(-1)
         lower, upper = self.bounds[:, 0], self.bounds[:, 1]
         h = JACOBIAN_STEP * (upper - lower)
-        columns = []
-        for i in range(u.size):
-            up, down = u.copy(), u.copy()
-            up[i], down[i] = min(u[i] + h[i], upper[i]), max(u[i] - h[i], lower[i])
-            r_up = self.objective.weighted_residuals(self.space.to_theta(up))
-            r_down = self.objective.weighted_residuals(self.space.to_theta(down))
-            columns.append((r_up - r_down) / (up[i] - down[i]))
+        step = np.eye(u.size, dtype=bool)
+        up = np.where(step, np.minimum(u + h, upper), u)
+        down = np.where(step, np.maximum(u - h, lower), u)
+        rows = self.objective.residual_rows(self.space.to_theta(np.concatenate([up, down])))
         self.evaluations += 2 * u.size
-        return np.column_stack(columns)
+        return ((rows[: u.size] - rows[u.size :]) / (np.diag(up) - np.diag(down))[:, None]).T

@@ -55,13 +55,13 @@ QUERY_TIMEOUT_S = 5.0
 HEARTBEAT_S = 1.0
 """An island with no new history row for this long sends a heartbeat (a signed history without rows):
 the coordinator counts an island alive by what it signs, not by its liveliness token."""
-CONTROL_RING = 4
-"""Control messages waiting to be taken (only the newest counts)."""
+CONTROL_QUEUE = 16
+"""Control messages waiting to be taken (only the newest counts; every other one is read and counted)."""
 QUERY_QUEUE = 16
 """History queries waiting for an island to answer them (the coordinator asks every 2 s at most)."""
-MIGRANT_RING = 1024
-"""Migrant messages waiting for a process' islands to take them in; when more arrive, the oldest go
-(an island takes only each sender's newest)."""
+MIGRANT_QUEUE = 1024
+"""Migrant messages waiting for a process' islands to take them in; when that many wait, Zenoh waits
+for room (nothing is dropped unread: a flood of bad messages is read, and counted, to the last)."""
 SILENT_MEMBER_S = 5.0
 """A ring member whose migrants have not arrived for this long is skipped by the island after it
 (:meth:`island.node.IslandNode._sending`): a member that sends nothing cannot starve its successor."""
@@ -135,11 +135,13 @@ class ZenohHost:
     coordinator falls silent, when it is back and when it moves an island to
     another algorithm. :meth:`stop` ends every island of the host (Ctrl-C).
 
-    What arrives waits in channels that Zenoh fills without Python (the newest
-    :data:`MIGRANT_RING` migrant messages, the newest control messages, each
-    island's history queries), and threads of this process take it in: islands
-    busy computing never hold up the session, and no Zenoh thread runs Python
-    code (one that still did when the interpreter exits would abort the process).
+    What arrives waits in channels that Zenoh fills without Python (up to
+    :data:`MIGRANT_QUEUE` migrant messages, :data:`CONTROL_QUEUE` control
+    messages, each island's history queries; a full channel makes Zenoh wait,
+    so nothing is dropped unread and uncounted), and threads of this process
+    take it in: islands busy computing never hold up the session, and no Zenoh
+    thread runs Python code (one that still did when the interpreter exits
+    would abort the process).
     """
 
     def __init__(
@@ -169,8 +171,8 @@ class ZenohHost:
         """Why the islands stopped on their own: the coordinator was silent for too long, or :meth:`stop`."""
         self._islands: dict[str, ZenohTransport] = {}
         self.arrivals = Arrivals(self.campaign, bounds, self.key_for, self.members, self._reject)
-        self._migrants = session.declare_subscriber(f"{self.prefix}/migrants/*", zenoh.handlers.RingChannel(MIGRANT_RING))
-        self._control = session.declare_subscriber(f"{self.prefix}/control", zenoh.handlers.RingChannel(CONTROL_RING))
+        self._migrants = session.declare_subscriber(f"{self.prefix}/migrants/*", zenoh.handlers.FifoChannel(MIGRANT_QUEUE))
+        self._control = session.declare_subscriber(f"{self.prefix}/control", zenoh.handlers.FifoChannel(CONTROL_QUEUE))
         self._closing = threading.Event()
         self._threads = [threading.Thread(target=self._beat, name="heartbeat", daemon=True),
                          threading.Thread(target=self._take_migrants, name="migrants", daemon=True),
@@ -254,9 +256,15 @@ class ZenohHost:
             return self._listed
 
     def key_for(self, island: str, run: str) -> bytes | None:
+        """The public key the roster lists for that run, or, for a run of this host's own islands that
+        the roster does not list yet, the key it joined with (its messages come back through the
+        subscription to every island's migrants)."""
         with self._cond:
             entry = self._roster.get((island, run))
-        return None if entry is None else entry.key
+            own = self._islands.get(island)
+        if entry is not None:
+            return entry.key
+        return own.credentials.public if own is not None and own.credentials.run == run else None
 
     def stored(self, island: str, run: str) -> int:
         """The last iteration of that run whose history the coordinator said it committed (-1: none)."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -9,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hysid_model.errors import HysidInputError
 from hysid.bench.sites import query  # noqa: F401  (read a campaign database while a coordinator writes it)
 from island.run import run
 
@@ -95,19 +98,38 @@ def wait_for(predicate: Callable[[], bool], timeout: float, what: str, step: flo
     return time.monotonic() - start
 
 
-def ready(endpoint: str, campaign: str, timeout: float = 90.0) -> None:
+def ready(endpoint: str, campaign: str, timeout: float = 90.0, process: subprocess.Popen | None = None) -> None:
     """Wait until the coordinator of ``campaign`` answers its ``config`` query on ``endpoint`` (a
     coordinator process just started may not even listen yet): the readiness wait of every test
-    that starts one, instead of a sleep. (It writes its secret before it answers.)"""
+    that starts one, instead of a sleep. (It writes its secret before it answers.) With ``process``
+    (the coordinator's), also done once it has ended: a short campaign can run to its end before
+    the first look, and the caller reads how it ended. The session retries its connection every
+    0.05-0.2 s, not Zenoh's 1-4 s, so that a coordinator listening only briefly is still seen."""
     from island.session import open_session, session_config
     from island.transports import replies
 
     deadline = time.monotonic() + timeout
-    session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=timeout), endpoint)
+    config = session_config("client", connect=[endpoint], connect_timeout_s=1.0)
+    config.insert_json5("connect/retry", json.dumps({"period_init_ms": 50, "period_max_ms": 200, "period_increase_factor": 1.5}))
+
+    def waited(what: str) -> bool:
+        if process is not None and process.poll() is not None:
+            return True
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{what} of {campaign!r} on {endpoint} within {timeout} s")
+        return False
+
+    while True:
+        try:
+            session = open_session(config, endpoint)
+            break
+        except HysidInputError:
+            if waited("no coordinator listening"):
+                return
     try:
         while not replies(session, f"hysid/{campaign}/config", 2.0):
-            if time.monotonic() > deadline:
-                raise AssertionError(f"no coordinator of {campaign!r} answered on {endpoint} within {timeout} s")
+            if waited("no coordinator answered"):
+                return
             time.sleep(0.1)
     finally:
         session.close()
@@ -179,7 +201,10 @@ class Peer:
         self.entities.append(self.session.liveliness().declare_token(f"hysid/{self.campaign}/members/{island or self.island}"))
 
     def close(self) -> None:
-        for entity in self.entities:
+        """Leave (again: a no-op): its token goes with its session, and a coordinator records it lost
+        within LEAVE_GRACE_S instead of waiting STALE_S for a member it still hears nothing from."""
+        entities, self.entities = self.entities, []
+        for entity in entities:
             entity.undeclare()
         self.session.close()
 
@@ -192,7 +217,6 @@ def screen_of(argv: list[str], timeout: float, until: Callable[[str], bool] | No
     import pty
     import select
     import struct
-    import subprocess
     import termios
 
     master, slave = pty.openpty()

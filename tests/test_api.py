@@ -117,6 +117,16 @@ def imports_of(package: str) -> dict[str, set[str]]:
     return out
 
 
+def test_the_command_line_and_an_island_start_without_the_heavy_scientific_modules():
+    """A campaign starts hundreds of island processes: the command line loads scipy's statistics,
+    optimizers, special functions and MATLAB reader on first use, not at start."""
+    code = "import sys, hysid.cli, island.node; print(sorted(m for m in sys.modules if m.split('.')[:2] in HEAVY))"
+    heavy = "[['scipy', 'stats'], ['scipy', 'optimize'], ['scipy', 'special'], ['scipy', 'io'], ['matplotlib', 'pyplot'], ['numba']]"
+    done = subprocess.run([sys.executable, "-c", f"HEAVY = {heavy}; {code}"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
 def test_data_flows_one_way_between_the_packages():
     """files -> loops -> objective (hysid_model) -> optimizer, island (island) -> coordinator -> report (hysid)."""
     above = {"hysid_model": ("island", "coordinator", "hysid"), "island": ("coordinator", "hysid"), "coordinator": ("hysid",)}
@@ -135,10 +145,10 @@ def test_data_flows_one_way_between_the_packages():
     coordinator = imports_of("coordinator")
     below = {  # a module stands below the one it must not import: the node needs only its Transport, the checks and the share
         "island/node.py": "island.transports",  # not the coordinator, the coordinator not the run loop that drives it
-        "coordinator/histories.py": "coordinator.server",
-        "coordinator/sharing.py": "coordinator.server",
-        "coordinator/server.py": "coordinator.loop",
-        "coordinator/progress.py": "coordinator.server",
+        "coordinator/histories.py": "coordinator.state",
+        "coordinator/sharing.py": "coordinator.state",
+        "coordinator/state.py": "coordinator.loop",
+        "coordinator/progress.py": "coordinator.state",
     }
     for module, host in below.items():
         assert host not in {**island, **coordinator}[module], module
@@ -150,3 +160,54 @@ def test_every_name_the_front_door_exports_resolves():
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert set(hysid.__all__) == set(hysid._EXPORTS) | {"__version__"} and int(done.stdout) == len(hysid.__all__)
+
+
+def test_the_command_line_takes_pythons_defaults_except_where_the_api_table_says():
+    """Every option `hysid fit`, `diagnose` and `campaign` share with `hysid.fit`, `diagnose` and `campaign`
+    has the same default; where they differ, docs/API.md's table says so, with both values as the code has them."""
+    import inspect
+
+    import typer
+
+    from hysid.cli import app
+    from hysid.cli import options as o
+    from island.ga import GA
+
+    commands = typer.main.get_command(app).commands
+    for name, function in {"fit": hysid.fit, "diagnose": hysid.diagnose, "campaign": hysid.campaign}.items():
+        python = inspect.signature(function).parameters
+        shared = [p for p in commands[name].params if p.name in python and p.name not in ("dataset", "db")]
+        assert len(shared) >= 3
+        for p in shared:
+            cli = p.default.split(",") if p.name == "algos" else p.default
+            assert cli == (list(python[p.name].default) if p.name == "algos" else python[p.name].default), (name, p.name)
+    campaign = {p.name: p for p in commands["campaign"].params}
+    ga = inspect.signature(GA).parameters
+    text = (Path(__file__).parents[1] / "docs" / "API.md").read_text()
+    table = {row.split("|")[1].strip(): [c.strip() for c in row.split("|")[2:4]] for row in text.split("### The command line and Python")[1].splitlines()
+             if row.startswith("| `--") or row.startswith("| DATASET")}
+    assert table == {
+        "`--interval`": [str(campaign["interval"].default), f"`Migration().interval` = {hysid.Migration().interval}"],
+        "`--population` (memoryless model)": [str(o.ISLAND_POPULATION), f"`GA`/`PSO` `population` = {ga['population'].default}"],
+        "`--initial` (memoryless model)": [str(o.ISLAND_INITIAL), f"`GA`/`PSO` `initial_population` = {ga['initial_population'].default}"],
+        "`--iterations` (memoryless model, no budget)": [str(o.ISLAND_ITERATIONS), f"`GA`/`PSO` `iterations` = {ga['iterations'].default}"],
+        "`--db`": ["OUT/campaign.sqlite", f"`db` = {inspect.signature(hysid.campaign).parameters['db'].default}"],
+        "DATASET of `campaign`": ["synth", "`loops` (required)"],
+    }
+    assert campaign["interval"].default != hysid.Migration().interval and campaign["population"].default is None
+
+
+def test_a_campaign_on_a_model_with_memory_gets_the_same_islands_from_the_command_line_and_python(loops):
+    """With no island sizes given, `hysid campaign`'s islands on a Bouc-Wen model are hysid.campaign's memetic
+    ones (small swarms, an evaluation budget, searching until the stop order), and sizes given are kept."""
+    from hysid.campaigns import island_settings
+    from hysid.cli import options as o
+    from island.termination import Termination
+
+    cli = o.island_plan(loops, "thesis+bouc_wen", None, ["ga", "pso"], None, None, None, Termination())
+    python = island_settings(loops, "thesis+bouc_wen", None, ["ga", "pso"], None, None, None)
+    assert cli[:3] == python and cli[0]["pso"]["population"] < o.ISLAND_POPULATION and python[1].budget and python[2] is True
+    given = o.island_plan(loops, "thesis+bouc_wen", None, ["ga", "pso"], 50, None, None, Termination())
+    assert given[0]["ga"] == {"population": 50, "initial_population": o.ISLAND_INITIAL, "iterations": o.ISLAND_ITERATIONS} and given[2] is False
+    thesis = o.island_plan(loops, "thesis", None, ["ga", "pso"], None, None, None, Termination(time_limit_s=5))
+    assert thesis[0]["pso"]["population"] == o.ISLAND_POPULATION and thesis[1].budget is None and thesis[2] is True

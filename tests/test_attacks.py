@@ -30,7 +30,7 @@ from island.protocol import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials
 from island.session import open_session, session_config
 from support import Peer, events, query, ready, rows_of, secret_file, secret_of, wait_for
-from test_faults import BOUNDS, TRUTH, coordinator, finished, island
+from test_faults import BOUNDS, TRUTH, coordinator, finished, interrupted, island
 
 pytestmark = pytest.mark.slow  # processes, floods and waits of seconds
 
@@ -95,8 +95,7 @@ def test_joins_without_the_secret_take_no_run_slot_and_an_honest_late_island_sti
     late = island(spawn, endpoint, "slots", "late", db)
     wait_for(lambda: rows_of(db, "late") > 10, 90, "the late island's history")
     assert query(db, "SELECT island FROM runs ORDER BY joined") == [("first",), ("late",)]
-    coord.send_signal(signal.SIGINT)
-    doc = finished(coord)
+    doc = interrupted(coord)
     assert doc["migrations"]["rejected_reasons"].get("forged", 0) + doc["migrations"]["rejected_reasons"].get("overflow", 0) >= got["challenges"]
     assert first.wait(30) == late.wait(30) == 0
 
@@ -145,8 +144,7 @@ def test_history_is_answered_only_to_the_coordinator(spawn, tmp_path):
         wait_for(lambda: island_value(db, "a", "rejected") >= before + len(selectors), 30, "the island to count every query")
         rows = rows_of(db, "a")
         wait_for(lambda: rows_of(db, "a") > rows + 20, 30, "the island to keep going")
-        coord.send_signal(signal.SIGINT)
-        doc = finished(coord)
+        doc = interrupted(coord)
         assert a.wait(30) == 0
     finally:
         spy.undeclare()
@@ -162,6 +160,7 @@ def test_a_forged_migrant_numbered_2_63_cannot_block_its_victim(spawn, tmp_path)
     coord = coordinator(spawn, endpoint, "victim", db, "--topology", "full", "--min-islands", "2", "--time-limit", "180")
     islands = {name: island(spawn, endpoint, "victim", name, db) for name in ("a", "b")}
     mallory = Peer(endpoint, "victim", "mallory", secret=secret_of(db, "victim"))
+    mallory.token()  # a member as an island is: its leaving is seen at once
     try:
         wait_for(lambda: island_value(db, "b", "received") > 4, 60, "b to take a's migrants")
         a_run = query(db, "SELECT run FROM runs WHERE island = 'a'")[0][0]
@@ -171,8 +170,8 @@ def test_a_forged_migrant_numbered_2_63_cannot_block_its_victim(spawn, tmp_path)
         received, migrations = island_value(db, "b", "received"), query(db, "SELECT count(*) FROM migrations WHERE island = 'a'")[0][0]
         wait_for(lambda: island_value(db, "b", "received") > received + 4, 60, "b to keep taking a's migrants")
         assert query(db, "SELECT count(*) FROM migrations WHERE island = 'a'")[0][0] > migrations
-        coord.send_signal(signal.SIGINT)
-        doc = finished(coord)
+        mallory.close()
+        doc = interrupted(coord)
     finally:
         mallory.close()
     assert next(i for i in doc["islands"] if i["island"] == "b")["rejected"] >= 1
@@ -203,8 +202,10 @@ def test_a_silent_member_cannot_starve_its_successor_in_the_ring(spawn, tmp_path
         b = island(spawn, endpoint, "ring", "b", db)
         wait_for(lambda: island_value(db, "b", "received") >= 10, 90, "b to take migrants past the silent member")
         assert events(db, "aa-silent") == ["join"]  # alive all along, by its signed heartbeats
-        coord.send_signal(signal.SIGINT)
-        finished(coord)
+        stop.set()
+        beating.join()
+        silent.close()
+        interrupted(coord)
     finally:
         stop.set()
         beating.join()
@@ -220,6 +221,7 @@ def test_a_members_impossible_claims_are_refused_with_their_reasons_and_spend_no
     coord = coordinator(spawn, endpoint, "effort", db, "--budget", "200000000", "--time-limit", "180")
     a = island(spawn, endpoint, "effort", "a", db)
     liar = Peer(endpoint, "effort", "liar", secret=secret_of(db, "effort"))
+    liar.token()  # a member as an island is: its leaving is seen at once
     config, loops = decode_config(Store.read_only(db).campaign("effort")[1], "effort")
     f = float(config.objective(loops)(TRUTH[None, :])[0])
     try:
@@ -234,8 +236,8 @@ def test_a_members_impossible_claims_are_refused_with_their_reasons_and_spend_no
         wait_for(lambda: reasons(db).get("out_of_range", 0) >= 5 and reasons(db).get("implausible", 0) >= 1, 30, "every lie to be refused")
         rows = rows_of(db, "a")
         wait_for(lambda: rows_of(db, "a") > rows + 20, 30, "the campaign to go on")
-        coord.send_signal(signal.SIGINT)
-        doc = finished(coord)
+        liar.close()
+        doc = interrupted(coord)
     finally:
         liar.close()
     assert doc["settings"]["stop_reason"] == "interrupted" and doc["evaluations"] < 10**7
@@ -274,7 +276,7 @@ def test_a_resumed_campaign_carries_its_time_on_instead_of_starting_it_again(spa
 def test_a_database_locked_by_another_process_ends_the_campaign_within_seconds(spawn, tmp_path):
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "l.sqlite"
     coord = coordinator(spawn, endpoint, "locked", db, "--time-limit", "180")
-    a = island(spawn, endpoint, "locked", "a", db)
+    a = island(spawn, endpoint, "locked", "a", db, "--wait", "3")  # it waits that long for a confirmation no coordinator will send
     wait_for(lambda: rows_of(db, "a") > 10, 60, "the island's history")
     holder = subprocess.Popen([sys.executable, "-c", f"import sqlite3, sys; c = sqlite3.connect({str(db)!r}, isolation_level=None); "
                                "c.execute('BEGIN IMMEDIATE'); print('held', flush=True); sys.stdin.read()"],
@@ -297,7 +299,7 @@ def test_a_database_locked_by_another_process_ends_the_campaign_within_seconds(s
 def test_a_database_deleted_mid_run_ends_the_campaign_with_one_line(spawn, tmp_path):
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "d.sqlite"
     coord = coordinator(spawn, endpoint, "deleted", db, "--time-limit", "180")
-    a = island(spawn, endpoint, "deleted", "a", db)
+    a = island(spawn, endpoint, "deleted", "a", db, "--wait", "3")  # it waits that long for a confirmation no coordinator will send
     wait_for(lambda: rows_of(db, "a") > 10, 60, "the island's history")
     for suffix in ("", "-wal", "-shm"):
         Path(f"{db}{suffix}").unlink(missing_ok=True)
@@ -381,8 +383,7 @@ def test_commits_come_every_half_second_under_a_flood_of_full_migrant_messages(s
         for t in threads:
             t.join()
         flooder.close()
-    coord.send_signal(signal.SIGINT)
-    finished(coord)
+    interrupted(coord)
     gaps = np.diff(stamps)
     print(f"commit gaps under the flood: {len(gaps)}, longest {gaps.max():.3f} s, median {np.median(gaps):.3f} s")
     assert len(gaps) > 10 and gaps.max() <= COMMIT_EVERY_S

@@ -18,7 +18,9 @@ from hysid.bench.search import judge, run_method, summarize
 from hysid.bench.search_peers import PEERS, BudgetSpent, Tracker
 from hysid.bench.search_problems import build
 from hysid_model.problem import build_objective, starting_point
-from island.memetic import REFINE_NFEV, memetic_search, needs_islands
+from hysid_model.synth import synth_loops
+from island.memetic import QUIET, REFINE_EVERY, REFINE_NFEV, STALL, Island, memetic_search, needs_islands, starting_points
+from island.run import run
 from island.space import SearchSpace, SpaceObjective
 
 
@@ -107,6 +109,70 @@ def test_memetic_search_spends_its_budget_and_never_ends_above_its_starting_poin
     assert [r["round"] if "round" in r else r["iteration"] for r in result.history] == list(range(1, len(result.history) + 1))
     again = memetic_search(objective, [start], 0, budget=800)
     assert again.fitness == result.fitness  # one seed, one answer
+
+
+def test_an_island_s_counts_and_best_so_far_run_on_across_a_restart_and_its_fresh_search_keeps_quiet(objective):
+    space = SpaceObjective(objective)
+    rows = starting_points(objective, starting_point(objective.loops, objective.model))
+    assert rows.shape[0] == 3 and np.all(rows >= objective.bounds[:, 0]) and np.all(rows <= objective.bounds[:, 1])  # the linear estimate, 2 Bouc-Wen reads
+    island = Island(space, "pso", 5, {"population": 6, "initial_population": 12, "synchronous": True, "addpop_level": 1, "iterations": 10**6},
+                    starts=space.space.to_u(rows))
+    island.step()
+    assert island.fitness <= float(objective(rows).min()) and island.evaluations == 12 + 3  # the starts joined the first population
+    for _ in range(REFINE_EVERY * STALL):
+        island.step()
+        island.refine()
+    assert island.history == sorted(island.history, reverse=True) and island.restarts == 0
+    before = (island.iteration, island.evaluations, island.history[-1], island.best(1)[0][0].copy())
+    island.stalled = STALL  # as if its best had not moved for STALL refinements
+    assert island.stale
+    island.restart()
+    island.step()
+    assert island.restarts == 1 and island.iteration == before[0] + 1 and island.evaluations == before[1] + 12
+    assert island.history[-1] == before[2] <= island.fitness  # the best so far stays; the fresh search starts above it
+    assert not np.array_equal(island.best(1)[0][0], before[3]) and not island.stale
+    x, f = before[3][None, :], space(before[3][None, :])
+    assert island.quiet and island.inject(x, f) == 0
+    while island.quiet:
+        island.step()
+    assert island.iteration == before[0] + 1 + QUIET and island.inject(x, f) == 1 and island.fitness == f[0]
+
+
+def test_an_island_is_an_ask_tell_optimizer_that_restarts_once_it_has_stalled():
+    space = SpaceObjective(build_objective(synth_loops(noise_pct=1.0, n_points=16).subset(np.arange(0, 120, 12)), "thesis"))
+    options = {"population": 6, "initial_population": 12, "synchronous": True, "addpop_level": 1, "iterations": 40}
+    island = Island(space, "pso", 3, options)
+    x = island.ask()
+    assert np.array_equal(island.ask(), x)  # asked again before tell: the same candidates
+    with pytest.raises(ValueError):
+        island.tell(x[:1], space(x[:1]))
+    island.tell(x, space(x))
+    assert (island.iteration, island.evaluations, island.history) == (0, 12, [island.fitness])
+    island.refine()
+    while not island.stale:  # the refinement reaches the valley's bottom: no progress after it
+        island.step()
+        island.refine()
+    assert island.restarts == 0 and island.iteration <= REFINE_EVERY * (STALL + 2)
+    held, best = island.fitness, island.best(1)[0][0].copy()
+    island.restart()
+    assert np.array_equal(island.best(1)[0][0], best)  # until its next iteration it migrates what it has
+    island.step()
+    assert island.restarts == 1 and not island.stale and island.fitness > held == island.history[-1]
+
+    def drive(optimizer: Island) -> None:  # a campaign node's hook: refine, restart when stalled
+        optimizer.refine()
+        if optimizer.stale:
+            optimizer.restart()
+
+    own = SpaceObjective(space.objective)
+    twin = Island(own, "pso", 3, options)
+    rows = run(twin, own, migrate=drive)
+    assert twin.done and [r.iteration for r in rows] == list(range(41)) and twin.restarts >= 2
+    assert [r.best_fitness for r in rows] == twin.history == sorted(twin.history, reverse=True)
+    assert np.all(np.diff([r.evaluations for r in rows]) > 0) and twin.evaluations == own.evaluations  # its refinements included
+    assert twin.history[: len(island.history)] == island.history  # stepped or driven by run(): one search
+    alone, pair = (memetic_search(space.objective, [], 0, budget=600, islands=n, population=6) for n in (1, 2))
+    assert alone.polish["restarts"] == 0 < pair.polish["restarts"]  # the island holding the best never restarts
 
 
 def test_fit_runs_memetic_islands_on_memory_models_and_the_thesis_run_elsewhere(problem):

@@ -4,15 +4,17 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import socket
 import subprocess
+import threading
 
 import numpy as np
 import pytest
 
 from coordinator.launch import free_port, island_specs, run_campaign
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.cli import main
 from hysid_model.errors import HysidWarning
@@ -44,6 +46,10 @@ def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations
     assert history_iterations(out / "campaign.sqlite") == {i: list(range(16)) for i in ("ga-0", "ga-2", "pso-1")}
     assert json.loads((out / "result.json").read_text())["islands"] == doc["islands"]
     assert (out / "report.md").is_file() and (out / "convergence.png").is_file()
+    report = (out / "report.md").read_text()  # why it stopped (the summary), then its own section: migrations, moves, islands
+    section = report[report.index("## Islands and migrations"):report.index("## Model vs measured loops")]
+    assert "- **Stopped**: every island finished." in report and f"Migrations: {doc['migrations']['messages']} messages (ring, every 5" in section
+    assert "- share: staged" in section and all(f"| `{i['island']}` | {i['algo'].upper()} |" in section for i in doc["islands"])
 
 
 @pytest.mark.slow
@@ -89,7 +95,7 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     db = tmp_path / "lj.sqlite"
     coordinator = subprocess.Popen(
         hysid("coordinator", "--listen", endpoint, "--campaign", "lj", "--db", str(db), "--out", str(tmp_path / "out"),
-              "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "10000000", "--interval", "0",
+              "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "10000000", "--interval", "1000000",
               "--time-limit", "120", "--json", "--quiet"),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
@@ -103,7 +109,7 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
         wait_for(lambda: rows_of(db, "late") > 50, 60, "the late island's history")
         coordinator.send_signal(signal.SIGINT)  # Ctrl-C: stop the campaign and report
         out, err = coordinator.communicate(timeout=60)
-        assert coordinator.returncode == 0, err
+        assert coordinator.returncode == 130 and err.endswith("hysid: error: interrupted\n"), err
         assert early.wait(timeout=30) == 0 and late.wait(timeout=30) == 0
         assert "island late (PSO, seed 99)" in late.stderr.read()
     finally:
@@ -117,6 +123,33 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     assert islands["early"]["received"] == 0  # isolated islands: --interval 0
     assert doc["settings"]["stop_reason"] == "interrupted"
     assert all(i["status"] == "left" for i in doc["islands"])
+
+
+@pytest.mark.slow  # over 3 s
+def test_ctrl_c_mid_campaign_reports_it_interrupted_and_exits_130(tmp_path, capsys):
+    """Ctrl-C once the islands search: the campaign stops them, writes its report marked interrupted, and exits 130
+    (as Ctrl-C while it starts does), so that a script tells an interrupted campaign from a finished one."""
+    out = tmp_path / "o"
+    db = out / "campaign.sqlite"
+
+    def ctrl_c_once_searching() -> None:
+        wait_for(lambda: db.is_file() and rows_of(db, "pso-1") > 5, 60, "the islands to search")
+        os.kill(os.getpid(), signal.SIGINT)
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # a user's Ctrl-C, also where the runner ignores SIGINT
+    user = threading.Thread(target=ctrl_c_once_searching)
+    user.start()
+    try:
+        code = main(["campaign", "--single-node", "--islands", "2", "--algos", "pso", "--population", "20", "--initial", "40",
+                     "--time", "300", "--no-polish", "--json", "--quiet", "--out", str(out)])
+    finally:
+        user.join()
+        signal.signal(signal.SIGINT, previous)
+    captured = capsys.readouterr()
+    assert code == 130 and captured.err.endswith("hysid: error: interrupted\n"), captured.err
+    assert json.loads(captured.out)["settings"]["stop_reason"] == "interrupted"
+    report = (out / "report.md").read_text()
+    assert report.startswith("# hysid campaign (interrupted): synth") and "- **Stopped**: interrupted." in report
 
 
 @pytest.mark.parametrize(
@@ -231,6 +264,7 @@ def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, caps
     assert f"hysid coordinator --resume --db {db}" in err and err.count("\n") == 1
 
 
+@pytest.mark.slow  # over 3 s
 def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_the_stop(tmp_path, capsys):
     argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--share", "fixed", "--population", "20", "--initial", "40",
             "--interval", "5", "--evaluations", "6000", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
@@ -244,6 +278,7 @@ def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_
     assert all(i["final"] and i["status"] == "left" and i["received"] > 0 for i in doc["islands"])
 
 
+@pytest.mark.slow  # over 3 s
 def test_iterations_given_stay_each_islands_own_budget(tmp_path, capsys):
     argv = ["campaign", "--single-node", "--islands", "2", *SMALL, "--time", "600", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
     assert main(argv) == 0

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from coordinator.launch import island_specs, run_single_node
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig

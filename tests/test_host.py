@@ -17,7 +17,7 @@ import pytest
 from coordinator.launch import free_port
 from coordinator.links import ZenohLink
 from coordinator.loop import serve
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.cli import main
 from hysid_model.errors import HysidInputError

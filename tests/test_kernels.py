@@ -140,7 +140,7 @@ def test_velocity_sign_through_delay_and_high_pass_on_a_measured_waveform_is_the
         return rho * (square(theta) - state)
 
     shifted = loops.phases() - loops.omega[:, None] * values["delay_s"]
-    low = periodic_steady_state(rhs, np.zeros((1, loops.n_loops, 1)), shifted[:, None, :], steps_per_cycle=1 << 15, max_cycles=200)[0][:, 0]
+    low = periodic_steady_state(rhs, np.zeros((1, loops.n_loops, 1)), shifted[:, None, :], steps_per_cycle=1 << 15, max_cycles=200, tol=1e-8)[0][:, 0]
     cells = waveform.sample_cells(loops.phases(), loops.n_samples, lo, hi)
     jumps = np.stack([lo, hi], axis=1) + loops.omega[:, None] * values["delay_s"]
     expected = values["F_d"] * (cell_average(lambda t: square(t[None] - loops.omega[None, :, None] * values["delay_s"])[0], loops.phases(), *cells, jumps) - low)

@@ -11,11 +11,13 @@ import numpy as np
 import pytest
 import zenoh
 
+from coordinator.histories import check_claim
 from coordinator.launch import free_port
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
 from island.ga import GA
+from island.memetic import Island
 from island.migration import Migration
 from island.node import HISTORY_MESSAGES_PER_S, HISTORY_PERIOD_MAX_S, IslandNode, history_period
 from island.protocol import (
@@ -27,6 +29,7 @@ from island.protocol import (
     Migrants,
     decode_history,
     decode_join_step,
+    decode_migrants,
     encode_best,
     encode_challenge,
     encode_control,
@@ -39,6 +42,7 @@ from island.protocol import (
 from island.secret import CampaignSecret
 from island.sealing import Credentials, new_key, public_key
 from island.session import open_session, session_config
+from island.pso import PSO
 from island.transports import MemoryBus, ZenohTransport, fetch_config
 from support import wait_for
 
@@ -50,13 +54,13 @@ def config(topology: str = "ring", interval: int = 2, k: int = 2, name: str = "c
     return CampaignConfig(name=name, options=SIZES, migration=Migration(interval=interval, k=k, topology=topology), seed=3)
 
 
-def run_bus(cfg: CampaignConfig, islands: list[tuple[str, str, int]], forger=None) -> tuple[dict[str, IslandNode], list[tuple[str, bytes]]]:
+def run_bus(cfg: CampaignConfig, islands: list[tuple[str, str, int]], forger=None, loops=LOOPS) -> tuple[dict[str, IslandNode], list[tuple[str, bytes]]]:
     """Islands (id, algo, seed) as threads on one MemoryBus; ``forger(bus)`` may post as an extra island."""
     delivered: list[tuple[str, bytes]] = []
     stop = threading.Event()
     ids = [i for i, _, _ in islands] + (["forger"] if forger else [])
     bus = MemoryBus(cfg.name, ids, lambda key, data: delivered.append((key, data)), stop)
-    nodes = {i: IslandNode(i, algo, seed, cfg, cfg.objective(LOOPS), history_every_s=0.0) for i, algo, seed in islands}
+    nodes = {i: IslandNode(i, algo, seed, cfg, cfg.objective(loops), history_every_s=0.0) for i, algo, seed in islands}
 
     def work(node: IslandNode) -> None:
         transport = bus.transport(node.island)
@@ -92,6 +96,60 @@ def test_memory_islands_are_reproducible_and_report_every_iteration():
     # 12 iterations, migration every 2 -> epochs at 2, 4, ..., 10 (not after the last): 5 per island
     assert all(first[i].stats["sent"] == 5 for i in "abc")
     assert sum("/migrants/" in k for k, _ in delivered) == 15
+
+
+MEMORY_LOOPS = synth_loops(noise_pct=1.0, n_points=16).subset(np.arange(0, 120, 12))
+MEMETIC = {"population": 8, "initial_population": 16, "addpop_level": 1, "iterations": 40}
+
+
+def memory_config() -> CampaignConfig:
+    """A memory model on noisy loops, searched from scratch (no ``start``)."""
+    cfg = CampaignConfig.create(MEMORY_LOOPS, name="c1", model="thesis+bouc_wen", options={"ga": MEMETIC, "pso": {**MEMETIC, "synchronous": True}},
+                                migration=Migration(interval=3, k=2), seed=3)
+    return replace(cfg, start=None)
+
+
+def test_memory_model_islands_are_memetic_and_everything_they_send_is_in_the_model_s_parameters():
+    islands = [("a", "pso", 1), ("b", "ga", 2)]
+    nodes, delivered = run_bus(memory_config(), islands, loops=MEMORY_LOOPS)
+    again, _ = run_bus(memory_config(), islands, loops=MEMORY_LOOPS)
+    objective = nodes["a"].objective
+    keys = {(n.island, n.run_id): n.credentials.public for n in nodes.values()}
+    assert all(isinstance(n.optimizer, Island) for n in nodes.values()) and sum(n.optimizer.restarts for n in nodes.values()) >= 1
+    for i in "ab":
+        rows = np.array(nodes[i].rows)
+        assert list(rows[:, 0]) == list(range(41)) and np.all(np.diff(rows[:, 2]) > 0) and np.all(np.diff(rows[:, 1]) <= 0)  # restarts included
+        assert [r[:3] for r in nodes[i].rows] == [r[:3] for r in again[i].rows]
+    for key, data in delivered:
+        if "/history/" in key:
+            h = decode_history(data, "c1", objective.bounds, key_for=lambda s, r: keys.get((s, r)))
+            check_claim(h, float(objective(h.best_x[None, :])[0]))  # the coordinator's check: its best is a vector of the model's
+        else:
+            m = decode_migrants(data, "c1", objective.bounds, key_for=lambda s, r: keys.get((s, r)))
+            np.testing.assert_allclose(m.claimed, objective(m.x), rtol=1e-12)
+    memoryless = config()
+    assert isinstance(IslandNode("a", "pso", 0, memoryless, memoryless.objective(LOOPS)).optimizer, PSO)
+
+
+def test_a_stalled_memetic_island_keeps_searching_only_while_it_holds_the_best_it_hears_of():
+    cfg = memory_config()
+    bus = MemoryBus("c1", ["a", "b"], lambda key, data: None, threading.Event())
+    node = IslandNode("a", "pso", 1, cfg, cfg.objective(MEMORY_LOOPS))
+    node.attach(bus.transport("a"))
+    other = bus.transport("b").credentials
+    island = node.optimizer
+    assert isinstance(island, Island)
+    island.step()
+    x, f = island.best(1)
+    theta = node._theta(x)
+    worse = node.objective.bounds[:, 1][None, :]
+    for seq, (vector, claimed, ahead, behind) in enumerate([
+        (theta, f[0], True, False),  # the same best: the member that joined first keeps it
+        (worse, float(node.objective(worse)[0]), True, True),
+        (worse, 0.0, True, True),  # a claim is re-evaluated, never believed
+    ], start=1):
+        node.receive("b", encode_migrants(Migrants("c1", "b", other.run, 3, vector, np.array([claimed]), time.time(), seq), other))
+        assert node._leads(island, ["a", "b"]) is ahead and node._leads(island, ["b", "a"]) is behind
 
 
 def test_ring_takes_only_from_the_predecessor_and_full_from_everyone():
@@ -162,6 +220,15 @@ def test_a_replayed_migrant_message_is_rejected_and_never_taken_twice():
 
     nodes, _ = run_bus(cfg, [("a", "pso", 1)], forger=forger_posting(replaying))
     assert nodes["a"].stats["received"] == 1 and nodes["a"].stats["rejected"] == 4
+
+
+def test_a_node_used_before_it_joined_raises_also_without_asserts():
+    """Runtime checks raise (``python -O`` drops asserts): a node without a transport says so, it does not fail further in."""
+    cfg = config()
+    node = IslandNode("a", "ga", 0, cfg, cfg.objective(LOOPS))
+    for use in (node.heartbeat, node.history_messages, lambda: node.receive("b", b"x"), lambda: node._flush(final=True)):
+        with pytest.raises(RuntimeError, match="island 'a' has not joined: attach a transport"):
+            use()
 
 
 def test_an_unknown_algorithm_or_bad_island_name_is_an_input_error():
@@ -286,8 +353,11 @@ def test_zenoh_island_joins_reports_history_backfills_stops_and_leaves_once_conf
         while last is None or not last.final:  # the goodbye may still be on its way
             last = decode(arrived.get(timeout=10))
         assert last.rows[-1, 0] == node.rows[-1][0] and node.stop_reason == "stopped by the coordinator"
-        time.sleep(0.5)
-        assert worker.is_alive() and members[-1] == ("hysid/c1/members/pso-9", True)  # waits for the confirmation
+        # it waits for the confirmation, serving what the coordinator asks: its goodbye again, its token still there
+        waiting = [decode(r.ok.payload.to_bytes()) for r in rsession.get(coordinator.history_query("pso-9", int(last.rows[-1, 0]) - 1), timeout=5)
+                   if r.ok is not None]
+        assert [(h.final, h.rows[-1, 0]) for h in waiting] == [(True, last.rows[-1, 0])]
+        assert node.confirmed is None and worker.is_alive() and members[-1] == ("hysid/c1/members/pso-9", True)
         rsession.put("hysid/c1/control", coordinator.control(stored={"pso-9": int(last.rows[-1, 0])}, stop="enough"))
         worker.join(20)
         assert not worker.is_alive() and node.confirmed is True

@@ -49,6 +49,7 @@ def test_fit_and_campaign_print_plain_progress_off_a_terminal_and_nothing_with_j
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.slow  # over 3 s
 def test_diagnose_reports_each_fit_without_changing_the_result():
     loops = hysid.load("synth", noise_pct=5.0, noise_seed=2)
     subset = loops.subset(np.arange(0, loops.n_loops, 4))

@@ -299,6 +299,7 @@ def test_a_campaign_and_a_diagnosis_say_what_one_amplitude_cannot_tell():
 
 
 # --- diagnosis on real data -----------------------------------------------------------------------------
+@pytest.mark.slow  # over 3 s
 def test_the_gap_is_held_against_a_linear_fit_per_loop_and_the_repeatability():
     loops, _ = isolator(noise_pct=2.0, hidden={"coulomb_friction": {"F_d": 0.3}})
     again, _ = isolator(noise_pct=2.0, seed=1, hidden={"coulomb_friction": {"F_d": 0.3}})

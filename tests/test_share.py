@@ -10,7 +10,7 @@ import pytest
 from coordinator.launch import island_specs, run_campaign
 from coordinator.links import MemoryLink
 from coordinator.loop import control_message, pump
-from coordinator.server import Coordinator, resume
+from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
 from hysid_model.errors import HysidInputError
@@ -366,7 +366,10 @@ def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_
     assert all(f"{m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations" in summary for m in moves)
 
 
-def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_round(tmp_path):
+def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_round(tmp_path, monkeypatch):
+    """Whenever the islands' timed histories go out: an island's history goes out at every migration, and the
+    hand-over is decided from it (not from a timed history, which under load came late: the budget ran out first)."""
+    monkeypatch.setattr("coordinator.launch.MEMORY_HISTORY_EVERY_S", 1.0)  # a timed history at most every second: it decides nothing
     _, outcome, db = mixed_campaign(tmp_path, "staged", budget=4_000)
     moves = outcome.settings["moves"]
     assert sorted((m["island"], m["src"], m["dst"]) for m in moves) == [("ga-0", "ga", "pso"), ("ga-2", "ga", "pso")]
@@ -378,3 +381,31 @@ def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_ro
 def test_a_fixed_share_moves_nobody(tmp_path):
     _, outcome, _ = mixed_campaign(tmp_path, "fixed", budget=4_000)
     assert outcome.settings["moves"] == [] and {r["algo"] for r in outcome.islands} == {"ga", "pso"}
+
+
+@pytest.mark.parametrize(("share", "interval", "why"), [
+    ("staged", 5, "none: no GA island searched its first migration interval (5 iterations) before it ended"),
+    ("staged", 0, "none: the islands were isolated (migration interval 0)"),
+    ("adaptive", 5, "none: each algorithm held its due share of the islands after every round"),
+])
+def test_a_share_that_moved_no_island_says_why(share, interval, why):
+    from hysid.report.text import SHARE_RULES, share_lines
+
+    settings = {"algos": ["ga", "pso"], "share": share, "moves": [], "migration": {"interval": interval, "k": 2}}
+    lines = share_lines(settings)
+    assert lines[0] == f"share: {share}, 0 island move(s) {SHARE_RULES[share]}" and lines[1].strip().startswith(why)
+    assert not any(line.strip().startswith("none:") for line in share_lines({**settings, "moves": [
+        {"island": "ga-0", "src": "ga", "dst": "pso", "evaluations": 100, "credit": {"ga": 0.1, "pso": 1.0}}]}))
+
+
+def test_a_move_the_island_ended_before_hearing_is_reported_as_not_followed():
+    """An island that spent its own iterations before the coordinator's order reached it (island processes, a
+    fixed iteration budget) ended with its first algorithm: the summary says the move was ordered, not followed."""
+    from hysid.report.text import share_lines
+
+    move = {"island": "ga-0", "src": "ga", "dst": "pso", "evaluations": 3076, "credit": {"ga": 0.0, "pso": 0.0}}
+    settings = {"algos": ["ga", "pso"], "share": "staged", "moves": [move], "migration": {"interval": 5, "k": 2}}
+    unheard = share_lines(settings, [{"island": "ga-0", "algo": "ga"}, {"island": "pso-1", "algo": "pso"}])
+    assert unheard[1].endswith("; not followed: the island's last history shows GA")
+    followed = share_lines(settings, [{"island": "ga-0", "algo": "pso"}, {"island": "pso-1", "algo": "pso"}])
+    assert "not followed" not in "\n".join(followed) and followed[1] == unheard[1].split("; not followed")[0]

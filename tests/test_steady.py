@@ -8,6 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
+from hysid_model import steady
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.extraction import extract_loop
@@ -156,3 +157,40 @@ def test_cycle_to_cycle_amplitude_scatter_is_not_a_transient():
     loop = extract_loop(t, 1e-3 * envelope * np.sin(theta), 100 * envelope * np.sin(theta + 0.5) + 0.5 * rng.standard_normal(t.size),
                         source="jitter.csv")
     assert loop.cycles >= 90
+
+
+def steady_record(seconds: float, *, freq: float = 7.3, fs: float = 1000.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A steady record at a rate not locked to the frequency: x = 1 mm sin(wt), F leading it, a little noise."""
+    rng = np.random.default_rng(5)
+    t = np.arange(int(round(seconds * fs))) / fs
+    theta = 2 * np.pi * freq * t
+    return t, 1e-3 * np.sin(theta) + 1e-7 * rng.standard_normal(t.size), 300 * np.sin(theta + 0.4) + 0.5 * rng.standard_normal(t.size)
+
+
+def test_a_given_window_uses_exactly_its_whole_cycles_and_no_sample_more():
+    """[2, 6.5] s at 7.3 Hz holds 32 whole cycles, 2 s to 2 + 32 / 7.3 = 6.38356 s: sampled at 1 kHz, the loop comes
+    from the samples at 2.000 ... 6.383 s, the first on the window's start and the last before the 33rd cycle's."""
+    t, x, force = steady_record(8.0)
+    loop = extract_loop(t, x, force, source="steady", nominal_freq_hz=7.3, steady_window=(2.0, 6.5))
+    assert loop.cycles == 32
+    assert loop.window_s == (pytest.approx(2.0, abs=1e-12), pytest.approx(6.383, abs=1e-12))
+
+
+def test_the_automatic_window_of_a_steady_record_is_its_whole_cycles_to_the_last_sample():
+    """5 s at 7.3 Hz hold 36 whole cycles (36.5 in all), every one steady: the loop uses them all, the samples at
+    0 ... 4.931 s (36 / 7.3 = 4.93151 s)."""
+    t, x, force = steady_record(5.0)
+    loop = extract_loop(t, x, force, source="steady", nominal_freq_hz=7.3)
+    assert loop.cycles == 36
+    assert loop.window_s == (pytest.approx(0.0, abs=1e-12), pytest.approx(4.931, abs=1e-12))
+
+
+def test_each_cycle_holds_the_samples_from_its_start_up_to_the_next_ones():
+    """At 1024 Hz and 2 Hz every cycle starts on a sample: cycle k holds samples 512 k to 512 k + 511 (its end is the
+    next cycle's first sample), and the per-cycle fits count 512 samples each."""
+    t = np.arange(7 * 512) / 1024.0
+    np.testing.assert_array_equal(steady.cycle_bounds(t, 0.0, 2.0, 6), 512 * np.arange(7))
+    np.testing.assert_array_equal(steady.cycle_bounds(t, 1.0, 2.0, 4), 512 * np.arange(2, 7))
+    fits = steady.cycle_fits(t, [np.sin(4 * np.pi * t)], 0.5, 2.0, 5)
+    np.testing.assert_array_equal(fits.count, 512)
+    np.testing.assert_allclose(fits.amplitude, 1.0, rtol=1e-12)

@@ -61,6 +61,7 @@ def test_dataframes_when_pandas_is_there_and_a_clear_error_when_not(result, monk
         result.to_dataframes()
 
 
+@pytest.mark.slow  # over 3 s
 def test_csv_flag_of_fit_campaign_and_diagnose(tmp_path, capsys):
     assert main(["campaign", "--single-node", "--islands", "2", "--population", "20", "--initial", "40", "--iterations", "10",
                  "--quiet", "--csv", "--out", str(tmp_path / "c")]) == 0

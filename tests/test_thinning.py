@@ -14,7 +14,7 @@ import pytest
 from coordinator.inbox import SLOT_EVERY, Inbox
 from coordinator.links import MemoryLink
 from coordinator.loop import pump
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from coordinator.thinning import HistoryPolicy, water_level
 from hysid.campaigns import CampaignResult

@@ -10,8 +10,10 @@ import subprocess
 
 import pytest
 
+from coordinator.store import COORDINATOR_LEASE_S, Store
 from hysid.cli import main
 from hysid.campaigns import CampaignResult
+from hysid.report.text import gone_text
 from support import hysid, interruptible, rows_of, screen_of, wait_for
 
 SMALL = ["--population", "20", "--initial", "40"]
@@ -74,10 +76,10 @@ def test_watch_and_report_name_what_is_wrong_and_create_nothing(finished, tmp_pa
 
 
 def start_campaign(tmp_path, islands: int = 2):
-    db = tmp_path / "live.sqlite"
+    db = tmp_path / "out" / "campaign.sqlite"
     proc = subprocess.Popen(
         hysid("campaign", "--single-node", "--islands", str(islands), "--algos", "pso", *SMALL, "--iterations", "10000000",
-              "--time-limit", "300", "--quiet", "--json", "--db", str(db), "--out", str(tmp_path / "out")),
+              "--time-limit", "300", "--quiet", "--json", "--out", str(tmp_path / "out")),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
     wait_for(lambda: all(rows_of(db, f"pso-{i}") > 20 for i in range(islands)), 120, "both islands' history")
@@ -108,16 +110,33 @@ def test_watch_follows_a_running_campaign_on_a_terminal_until_it_stops(tmp_path)
     assert re.search(r"pso-0\s+PSO\s+alive\s+\d+", screen) and re.search(r"pso-1\s+PSO\s+alive\s+\d+", screen)
     final = screen[screen.rindex("campaign 'campaign' on synth: stopped (interrupted)"):]
     assert re.search(r"pso-0\s+PSO\s+left\s+\d+", final) and "members: 0 alive, 2 left, 0 lost" in final
-    assert campaign.returncode == 0, err
+    assert campaign.returncode == 130 and err.endswith("hysid: error: interrupted\n"), err  # interrupted, and reported
     assert json.loads(out)["settings"]["stop_reason"] == "interrupted"
 
 
 @pytest.mark.slow
-def test_report_of_a_campaign_whose_coordinator_was_killed(tmp_path, capsys):
+def test_watch_and_report_of_a_campaign_whose_coordinator_was_killed(tmp_path, capsys):
+    """A second run on the --out of a running campaign is refused as such. Its coordinator SIGKILLed: once it committed
+    nothing for a lease, watch and report say it is gone (since its last commit) and its islands' state unknown; watch
+    shows it and ends instead of refreshing a 'running' campaign; the --out is then one to --resume."""
     db, campaign = start_campaign(tmp_path)
+    store = Store.read_only(db)
+    assert store.gone_since("campaign") is None  # running: it commits
+    assert main(["campaign", "--single-node", "--out", str(db.parent)]) == 2  # a second run on the same --out, named as such
+    assert capsys.readouterr().err == (f"hysid: error: --out {db.parent}: is the output directory of campaign 'campaign', which is still running "
+                                       f"(its coordinator writes {db}): two runs cannot share one --out; choose a new directory (nothing was written)\n")
     campaign.kill()  # SIGKILL: no stop, no result, the database left as it was
     campaign.communicate()
+    wait_for(lambda: store.gone_since("campaign") is not None, 3 * COORDINATOR_LEASE_S, "the coordinator's lease to run out")
+    since = gone_text(store.gone_since("campaign"))
+    store.close()
+    code, text = screen_of(hysid("watch", str(db), "--interval", "0.2"), 60)
+    screen = ANSI.sub("", text)
+    assert code == 0 and f"campaign 'campaign' on synth: running, {since}, after " in screen
+    assert re.search(r"pso-0\s+PSO\s+unknown\s+\d+", screen) and "members: 0 alive, 0 left, 0 lost, 2 unknown (its coordinator gone)" in screen
     assert main(["report", str(db), "--out", str(tmp_path / "r")]) == 0
     summary = capsys.readouterr().out
-    assert "stopped because not finished: the database was left while the campaign was running" in summary
-    assert re.search(r"pso-0 +PSO +seed 0 +alive +best ", summary) and (tmp_path / "r" / "report.md").is_file()
+    assert f"stopped because not finished: the database was left while the campaign was running, {since}" in summary
+    assert re.search(r"pso-0 +PSO +seed 0 +unknown +best ", summary) and (tmp_path / "r" / "report.md").is_file()
+    assert main(["campaign", "--single-node", "--out", str(db.parent)]) == 2
+    assert "holds the database of a campaign that did not finish" in capsys.readouterr().err

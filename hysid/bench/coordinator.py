@@ -48,14 +48,13 @@ import numpy as np
 from coordinator.launch import free_port
 from coordinator.links import MemoryLink, ZenohLink
 from coordinator.loop import pump, serve
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config
 from island.migration import Migration
 from island.node import HISTORY_EVERY_S, IslandNode, history_period
 from island.protocol import History, Migrants, encode_history, encode_migrants
-from island.sealing import Credentials
 from island.secret import CampaignSecret, secret_path
 from island.session import open_session, session_config
 from island.termination import Termination

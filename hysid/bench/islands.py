@@ -54,10 +54,9 @@ from typing import Any
 
 import numpy as np
 import zenoh
-from scipy.stats import binomtest, wilcoxon
 
 from coordinator.launch import free_port, island_specs, run_campaign
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid_model.errors import HysidInputError
 from hysid_model.problem import build_objective
@@ -213,6 +212,7 @@ def paired(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
     """Two campaigns' successes compared seed by seed: how many seeds only ``a`` or only ``b`` passed,
     the difference of their success rates with its 95 % (Wald, paired) interval, and the exact
     two-sided sign-test (McNemar) p-value of the seeds only one of them passed."""
+    from scipy.stats import binomtest  # on first use: a fast CLI and island start
     only_a, only_b, n = int(np.sum(a & ~b)), int(np.sum(b & ~a)), a.size
     d = (only_a - only_b) / n
     half = 1.96 * np.sqrt(max(only_a + only_b - n * d * d, 0.0)) / n
@@ -223,6 +223,7 @@ def paired(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
 def ended_lower(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
     """Two campaigns' final fitness compared seed by seed: in how many seeds ``a`` ended lower (and
     higher), and the two-sided Wilcoxon signed-rank p-value of the log10 ratios."""
+    from scipy.stats import wilcoxon  # on first use: a fast CLI and island start
     r = np.log10(np.maximum(a, 1e-300)) - np.log10(np.maximum(b, 1e-300))
     r = r[np.isfinite(r)]
     p = wilcoxon(r).pvalue if np.any(r != 0) else 1.0

@@ -51,7 +51,7 @@ import numpy as np
 
 import hysid
 from coordinator.launch import island_specs, run_campaign
-from coordinator.server import Coordinator
+from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.bench.islands import NON_INFERIORITY_MARGIN, SPEEDUP_TARGET, paired, wilson
 from hysid.bench.search_peers import PEERS, pygmo_available

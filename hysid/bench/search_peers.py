@@ -28,7 +28,6 @@ import time
 from typing import Any
 
 import numpy as np
-from scipy.optimize import differential_evolution, least_squares
 
 from hysid_model.objective import Objective
 
@@ -82,6 +81,7 @@ class Tracker:
 
 
 def least_squares_multistart(objective: Any, budget: int, seed: int) -> dict[str, Any]:
+    from scipy.optimize import least_squares  # on first use: a fast CLI and island start
     tracker = Tracker(objective, budget)
     rng = np.random.default_rng(seed)
     lower, upper = objective.bounds[:, 0], objective.bounds[:, 1]
@@ -96,6 +96,7 @@ def least_squares_multistart(objective: Any, budget: int, seed: int) -> dict[str
 
 
 def differential_evolution_peer(objective: Any, budget: int, seed: int) -> dict[str, Any]:
+    from scipy.optimize import differential_evolution  # on first use: a fast CLI and island start
     tracker = Tracker(objective, budget)
     size = 15 * objective.dim
     maxiter = max(int(0.9 * budget / size) - 1, 1)

@@ -49,7 +49,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 import hysid
 from hysid.bench import search_problems as sp
@@ -159,6 +158,7 @@ def truth_nrmse(loops: LoopSet, truth: tuple[str, dict[str, float], str]) -> flo
 def reference_nrmse(loops: LoopSet) -> float:
     """The outside reference: scipy's least squares (its own defaults) from ``REFERENCE_STARTS`` uniform random
     starts within the bounds of ``mr_damper`` on ``loops``, the best kept (module docstring)."""
+    from scipy.optimize import least_squares  # on first use: a fast CLI and island start
     objective = build_objective(loops, "mr_damper", displacement="measured")
     lower, upper = objective.bounds[:, 0], objective.bounds[:, 1]
     rng = np.random.default_rng(0)

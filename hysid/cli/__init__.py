@@ -2,7 +2,9 @@
 
 Every command turns bad input into one line on stderr, ``hysid: error: ...``
 naming the flag or file, and exit status 2; it never prints a traceback for a
-user's mistake. Warnings of the library (:class:`HysidWarning`) print as
+user's mistake. Ctrl-C ends any command with ``hysid: error: interrupted`` and
+exit status 130, also a campaign, which first stops its islands and writes its
+report (marked interrupted). Warnings of the library (:class:`HysidWarning`) print as
 ``hysid: warning: ...`` and the command goes on.
 """
 
@@ -16,11 +18,8 @@ from typing import Any, Optional, TextIO
 import typer
 
 from hysid.cli import bench, campaign, data, diagnose, fit, router, watch
-from hysid.cli.options import error_line
+from hysid.cli.options import INTERRUPTED, error_line
 from hysid_model.errors import HysidInputError, HysidWarning
-
-INTERRUPTED = 130
-"""Exit status after Ctrl-C (128 + SIGINT), as shells report it."""
 
 app = typer.Typer(
     name="hysid",
@@ -84,12 +83,11 @@ def show_warning(message: Any, category: type[Warning], filename: str, lineno: i
 
 
 def main(argv: list[str] | None = None) -> int:
-    command = typer.main.get_command(app)
     with warnings.catch_warnings():
         warnings.simplefilter("default", HysidWarning)
         warnings.showwarning = show_warning
         try:
-            result = command.main(args=argv, prog_name="hysid", standalone_mode=False)
+            result = typer.main.get_command(app).main(args=argv, prog_name="hysid", standalone_mode=False)
         except typer.Exit as exc:
             return int(exc.exit_code or 0)
         except typer.TyperException as exc:
@@ -107,6 +105,6 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:
             fail("interrupted")
             return INTERRUPTED
-    if result == INTERRUPTED:  # typer's answer to Ctrl-C in a command (commands themselves return None)
+    if result == INTERRUPTED:  # Ctrl-C in a command: typer's answer, or a campaign that stopped and reported
         fail("interrupted")
     return result if isinstance(result, int) else 0

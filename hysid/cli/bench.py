@@ -99,13 +99,15 @@ def coordinator_command(
 
 @bench_app.command("ingest")
 def ingest_command(
-    records: int = typer.Option(ingest.RECORDS, "--records", help="Raw records to generate (at least 1)."),
-    seconds: float = typer.Option(ingest.SECONDS, "--seconds", help="Length of each record in s."),
-    rate: float = typer.Option(ingest.SAMPLE_RATE_HZ, "--rate", help="Sample rate of the records in Hz."),
+    part: str = typer.Argument("all", help="generated, daq, small or all."),
+    records: int = typer.Option(ingest.RECORDS, "--records", help="Raw records of the generated set (at least 1)."),
+    seconds: float = typer.Option(ingest.SECONDS, "--seconds", help="Length of each generated record in s."),
+    rate: float = typer.Option(ingest.SAMPLE_RATE_HZ, "--rate", help="Sample rate of the generated records in Hz."),
+    rounds: int = typer.Option(ingest.ROUNDS, "--rounds", help="Alternating rounds of parse and load per set (at least 1)."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    """Ingestion: extraction of raw records against numpy's parse of the same files, and peak memory."""
-    emit(ingest.run(records, seconds, rate), ingest.to_text, as_json)
+    """Ingestion: hysid.load of raw records (a generated set, DAQ-shaped sets) against numpy's parse of the same files, and memory."""
+    emit(ingest.run(ingest.PARTS if part == "all" else [part], records, seconds, rate, rounds), ingest.to_text, as_json)
 
 
 @bench_app.command("sites", help=(sites.run.__doc__ or "").strip().splitlines()[0])

@@ -27,9 +27,9 @@ from coordinator.launch import island_specs
 from coordinator.links import ZenohLink
 from coordinator.loop import serve
 from coordinator.progress import CampaignProgress
-from coordinator.server import Coordinator, resume
+from coordinator.state import Coordinator, resume
 from coordinator.store import Store
-from hysid.campaigns import campaign, finish
+from hysid.campaigns import CampaignResult, campaign, finish
 from hysid.cli import options as o
 from hysid.cli.progress import Progress, campaign_reporter
 from hysid.motion import choose_motion
@@ -77,6 +77,12 @@ def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) 
     return path
 
 
+def exit_status(result: CampaignResult) -> int | None:
+    """:data:`hysid.cli.options.INTERRUPTED` for a campaign stopped by Ctrl-C (its report written and marked
+    so), None (exit status 0) for one that ended by its rules."""
+    return o.INTERRUPTED if result.fit.settings.get("stop_reason") == "interrupted" else None
+
+
 def discard_failed(out: Path, db: Path, campaign_name: str) -> None:
     """After a failed ``hysid campaign``: the database it made goes if it holds no history row
     (nothing is lost), and ``out`` with it if that leaves it empty, so that the same ``--out`` works
@@ -112,8 +118,8 @@ def register(app: typer.Typer) -> None:
         interval: int = o.INTERVAL,
         migrants: int = o.MIGRANTS,
         random_k: int = o.RANDOM_K,
-        population: int = o.POPULATION,
-        initial: int = o.INITIAL,
+        population: Optional[int] = o.POPULATION,
+        initial: Optional[int] = o.INITIAL,
         iterations: Optional[int] = o.ITERATIONS,
         seed: int = o.SEED,
         model: str = o.MODEL,
@@ -135,11 +141,12 @@ def register(app: typer.Typer) -> None:
         bound: Optional[list[str]] = o.BOUND,
         fix: Optional[list[str]] = o.FIX,
         displacement: str = o.DISPLACEMENT,
-    ) -> None:
+    ) -> Optional[int]:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
         bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         algo_list = o.parse_algos(algos)
         termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
+        given_iterations = iterations
         iterations, until_stopped = o.island_budget(iterations, termination)
         sizes = o.island_sizes(population, initial, iterations)
         migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
@@ -152,6 +159,8 @@ def register(app: typer.Typer) -> None:
         path = database(db, target_dir, name, resuming=False)
         new_db = not path.exists()
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
+        sizes, termination, until_stopped, iterations = o.island_plan(
+            loops, model, bounds, algo_list, population, initial, given_iterations, termination)
         try:
             with Progress("campaign", islands * (iterations or 0) or 100, enabled=not (quiet or as_json)) as bar:
                 result = campaign(
@@ -165,6 +174,7 @@ def register(app: typer.Typer) -> None:
                 discard_failed(target_dir, path, name)
             raise
         o.show_result(result, target_dir, as_json, csv)
+        return exit_status(result)
 
     @app.command("coordinator")
     def coordinator_command(
@@ -186,8 +196,8 @@ def register(app: typer.Typer) -> None:
         interval: int = o.INTERVAL,
         migrants: int = o.MIGRANTS,
         random_k: int = o.RANDOM_K,
-        population: int = o.POPULATION,
-        initial: int = o.INITIAL,
+        population: Optional[int] = o.POPULATION,
+        initial: Optional[int] = o.INITIAL,
         iterations: Optional[int] = o.ITERATIONS,
         seed: int = o.SEED,
         model: str = o.MODEL,
@@ -206,7 +216,7 @@ def register(app: typer.Typer) -> None:
         bound: Optional[list[str]] = o.BOUND,
         fix: Optional[list[str]] = o.FIX,
         displacement: str = o.DISPLACEMENT,
-    ) -> None:
+    ) -> Optional[int]:
         """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
         check_name("campaign", name)
         bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
@@ -218,10 +228,11 @@ def register(app: typer.Typer) -> None:
         target_dir = o.report_dir(out, "coordinator")
         path = database(db, target_dir, name, resuming=resume_db)
         if not resume_db:  # every argument is checked before the database is written or a session opened
-            iterations, until_stopped = o.island_budget(iterations, termination)
-            sizes = o.island_sizes(population, initial, iterations)
+            o.island_sizes(population, initial, iterations)  # checked before the loops are read
             migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
             loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
+            sizes, termination, until_stopped, iterations = o.island_plan(
+                loops, model, bounds, o.parse_algos(algos), population, initial, iterations, termination)
             config = CampaignConfig.create(
                 loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed,
                 displacement=choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed).displacement,
@@ -244,9 +255,11 @@ def register(app: typer.Typer) -> None:
             finally:
                 link.close()
                 session.close()
-            o.show_result(finish(coordinator, coordinator.outcome(polish_best=polish)), target_dir, as_json, csv=False)
+            result = finish(coordinator, coordinator.outcome(polish_best=polish))
+            o.show_result(result, target_dir, as_json, csv=False)
         finally:
             store.close()
+        return exit_status(result)
 
     @app.command("island")
     def island_command(

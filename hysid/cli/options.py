@@ -15,11 +15,18 @@ from typing import Any
 
 import typer
 
+from coordinator.store import Store
+from hysid.campaigns import default_options, island_settings
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
 from hysid_model.model import PRESETS
 from island.algorithms import ALGORITHMS
 from island.termination import Termination
+
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as shells report it: also of a campaign that stopped at Ctrl-C and
+reported (a script tells an interrupted campaign from a finished one by it)."""
 
 FLAGS = {
     "model": "--model",
@@ -68,6 +75,7 @@ FLAGS = {
     "records": "--records",
     "seconds": "--seconds",
     "sample_rate_hz": "--rate",
+    "rounds": "--rounds",
 }
 """Python parameter (as a :class:`HysidInputError` names it) -> command-line flag."""
 
@@ -107,8 +115,11 @@ JSON = typer.Option(False, "--json", help="Print one JSON object on stdout inste
 QUIET = typer.Option(False, "--quiet", help="No live progress on stderr.")
 CSV = typer.Option(False, "--csv", help="Also write the result's tables as CSV files in the report directory (parameters.csv, amplitudes.csv, ...).")
 ALGOS = typer.Option("ga,pso", "--algos", help="Comma-separated algorithm mix the islands cycle through (ga, pso).")
-POPULATION = typer.Option(200, "--population", help="GA population / PSO swarm of each island (the thesis: 500).")
-INITIAL = typer.Option(2000, "--initial", help="Initial random population / swarm of each island (the thesis: 6000).")
+ISLAND_POPULATION, ISLAND_INITIAL = 200, 2000
+"""Each island's population and initial population when none is given, on a model without memory."""
+MEMETIC = "on a model with memory, with none of --population, --initial, --iterations: the memetic islands of hysid.campaign"
+POPULATION = typer.Option(None, "--population", help=f"GA population / PSO swarm of each island (the thesis: 500). Default {ISLAND_POPULATION}; {MEMETIC}.")
+INITIAL = typer.Option(None, "--initial", help=f"Initial random population / swarm of each island (the thesis: 6000). Default {ISLAND_INITIAL}; {MEMETIC}.")
 ISLAND_ITERATIONS = 60
 """Each island's iteration budget when neither --iterations nor an evaluation or time budget is given."""
 ITERATIONS = typer.Option(
@@ -122,7 +133,7 @@ SHARE = typer.Option(
     "adaptive moves islands to the algorithm whose own moves gain more; fixed keeps each island's algorithm.",
 )
 TOPOLOGY = typer.Option("ring", "--topology", help="Who takes migrants from whom: ring, full or random.")
-INTERVAL = typer.Option(5, "--interval", help="Migrate every N iterations (0: isolated islands).")
+INTERVAL = typer.Option(5, "--interval", help="Migrate every N iterations (0: isolated islands, which take nothing from others, a late joiner not even the best so far).")
 MIGRANTS = typer.Option(2, "--migrants", help="Best candidates each island sends per migration.")
 RANDOM_K = typer.Option(2, "--random-k", help="Neighbours of each island per migration with --topology random.")
 BUDGET = typer.Option(None, "--evaluations", "--budget", help="Stop after this many evaluations over all islands (--budget is the same).")
@@ -167,6 +178,13 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
         raise HysidInputError("exists and is not a directory", param=param, value=out)
     if out.exists() and any(out.iterdir()):
         if (out / "campaign.sqlite").is_file() and not (out / "report.md").exists():
+            running = running_campaign(out / "campaign.sqlite")
+            if running is not None:
+                raise HysidInputError(
+                    f"is the output directory of campaign {running!r}, which is still running (its coordinator writes "
+                    f"{out / 'campaign.sqlite'}): two runs cannot share one {FLAGS.get(param, param)}; choose a new directory "
+                    "(nothing was written)", param=param, value=out,
+                )
             raise HysidInputError(
                 f"holds the database of a campaign that did not finish ({out / 'campaign.sqlite'}, no report.md): carry it on with "
                 f"'hysid coordinator --resume --db {out / 'campaign.sqlite'} --out NEW_DIR', or choose a new directory (nothing was written)",
@@ -174,6 +192,20 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
             )
         raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
     return check_writable(out, param)
+
+
+def running_campaign(db: Path) -> str | None:
+    """The name of a campaign in ``db`` that did not stop and whose coordinator still commits (it did, within
+    :data:`coordinator.store.COORDINATOR_LEASE_S`), else None (also for a file that is no campaign database)."""
+    try:
+        store = Store.read_only(db)
+    except HysidInputError:
+        return None
+    try:
+        return next((c["name"] for c in store.campaign_list() if c["status"] != "stopped" and store.last_commit(c["name"]) is not None
+                     and store.gone_since(c["name"]) is None), None)
+    finally:
+        store.close()
 
 
 PROBE_BYTES = 64 << 10
@@ -260,12 +292,28 @@ def parse_algos(value: str) -> list[str]:
     return algos
 
 
-def island_sizes(population: int, initial: int, iterations: int | None) -> dict[str, dict[str, Any]]:
+def island_sizes(population: int | None, initial: int | None, iterations: int | None) -> dict[str, dict[str, Any]]:
     """The per-island sizes of ``--population``, ``--initial``, ``--iterations`` (None: not given) for every algorithm."""
+    population = ISLAND_POPULATION if population is None else population
+    initial = max(ISLAND_INITIAL, population) if initial is None else initial
     if initial < population:
         raise HysidInputError(f"must be at least --population {population}", param="initial_population", value=initial)
     counts = {} if iterations is None else {"iterations": iterations}
     return {algo: {"population": population, "initial_population": initial, **counts} for algo in ALGORITHMS}
+
+
+def island_plan(
+    loops: LoopSet, model: str, bounds: dict[str, tuple[float, float]] | None, algos: list[str],
+    population: int | None, initial: int | None, iterations: int | None, termination: Termination,
+) -> tuple[dict[str, dict[str, Any]] | None, Termination | None, bool, int | None]:
+    """The islands' ``(options, termination, until_stopped, iterations)`` from ``--population``, ``--initial``,
+    ``--iterations`` and the stop rules: with none of the three given on a model with memory, the library's
+    defaults (:func:`hysid.campaigns.island_settings`: memetic islands), so that the command line and Python
+    search alike; else these sizes, each island running :func:`island_budget`'s iterations."""
+    if population is None and initial is None and iterations is None and default_options(loops, model, bounds, algos) is not None:
+        return (*island_settings(loops, model, bounds, algos, None, termination, None), None)
+    iterations, until_stopped = island_budget(iterations, termination)
+    return island_sizes(population, initial, iterations), termination, until_stopped, iterations
 
 
 def island_budget(iterations: int | None, termination: Termination) -> tuple[int | None, bool]:

@@ -35,8 +35,8 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Watch a campaign from its database (read-only, also over SSH): islands' best, migrations, members.
 
-        Refreshes until the campaign stops (or Ctrl-C). On a terminal the view redraws in place; otherwise
-        one progress line per refresh, and the full view at the end."""
+        Refreshes until the campaign stops, its coordinator is gone (nothing committed for a lease), or Ctrl-C.
+        On a terminal the view redraws in place; otherwise one progress line per refresh, and the full view at the end."""
         if not interval > 0:
             raise HysidInputError("must be a positive number of seconds", param="interval", value=interval)
         store = Store.read_only(db)
@@ -46,12 +46,12 @@ def register(app: typer.Typer) -> None:
                 print(watch_text(snap))
             elif sys.stdout.isatty():
                 with Live(Text(watch_text(snap)), console=Console(), auto_refresh=False) as live:
-                    while snap.status != "stopped":
+                    while not snap.over:
                         time.sleep(interval)
                         snap = snapshot(store, snap.name)
                         live.update(Text(watch_text(snap)), refresh=True)
             else:
-                while snap.status != "stopped":
+                while not snap.over:
                     print(f"{snap.status}: {campaign_progress_line(snap.progress)}", flush=True)
                     time.sleep(interval)
                     snap = snapshot(store, snap.name)

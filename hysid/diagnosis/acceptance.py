@@ -27,7 +27,6 @@ explains, not by how precisely one of its parameters is known there:
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
 
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.diagnosis.fitting import Fit
@@ -69,6 +68,7 @@ def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
     noise (the family-wise ``SIGNIFICANCE`` of chi^2 over that order's coefficients): (order, chi^2 before,
     after), or None. An effect that buys a better first harmonic with content the loops do not have
     (a hysteretic spring fitting how a linear stiffness changes with amplitude) has the wrong shape."""
+    from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
     orders = before.objective.harmonics.orders()
     n_loops = before.objective.harmonics.loops.n_loops
     r0, r1 = (f.residual.reshape(n_loops, -1) for f in (before, after))

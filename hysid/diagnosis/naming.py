@@ -12,8 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
-from scipy.stats import spearmanr
 
 from hysid.diagnosis.fitting import Fit
 from hysid_model.harmonics import Harmonics
@@ -41,6 +39,7 @@ def _groups(fit: Fit, harmonics: Harmonics) -> tuple[np.ndarray, np.ndarray]:
 
 
 def adequacy(fit: Fit, harmonics: Harmonics) -> Adequacy:
+    from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
     observed, expected = _groups(fit, harmonics)
     p_groups = chi2_dist.sf(observed, expected)
     p_global = float(chi2_dist.sf(fit.chi2, fit.dof))
@@ -85,6 +84,7 @@ def excess_words(names: list[str], orders: np.ndarray, share: np.ndarray) -> str
 
 def residual_signature(fit: Fit, harmonics: Harmonics) -> dict:
     """Where the chi^2 above the noise floor sits: by harmonic coefficient, and its trend over the loops."""
+    from scipy.stats import spearmanr  # on first use: a fast CLI and island start
     observed, expected = _groups(fit, harmonics)
     excess = np.maximum(observed - expected, 0.0)
     total = float(excess.sum())

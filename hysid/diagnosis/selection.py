@@ -41,7 +41,6 @@ from itertools import combinations
 from dataclasses import replace
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
 
 from hysid.diagnosis.acceptance import degenerate, held_out, judge
 from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
@@ -75,6 +74,7 @@ Progress = Callable[[str], None]
 
 def threshold(candidates: list[Candidate]) -> float:
     """The score a contender needs: chi^2_1 at the family-wise ``SIGNIFICANCE`` (Bonferroni over all effects and shapes)."""
+    from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
     return float(chi2_dist.isf(SIGNIFICANCE / max(sum(c.n_shapes for c in candidates), 1), 1))
 
 

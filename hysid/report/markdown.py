@@ -15,11 +15,12 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from hysid.report import jsondoc
-from hysid.report.text import fit_warnings, fixed_text, loops_description, quality_text
+from hysid.report.text import fit_warnings, fixed_text, loops_description, migrations_text, quality_text, share_lines
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
 
 if TYPE_CHECKING:
+    from hysid.campaigns import CampaignResult
     from hysid.fitting import FitResult
 
 MODEL_CURVE_POINTS = 1500
@@ -94,7 +95,7 @@ def summary_lines(result: "FitResult") -> list[str]:
     best = runs[result.best]
     algos = "/".join(sorted({r.algo.upper() for r in runs}))
     polish = "then a least-squares polish" if s.get("polish") else "no polish"
-    return [
+    lines = [
         f"- **Data**: `{result.loops.name}`: {loops_description(result)}.",
         f"- **Model**: `{result.model.spec}`, parameters {', '.join(result.model.names)}{fixed_text(result.model.fixed)}.",
         f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; "
@@ -102,8 +103,12 @@ def summary_lines(result: "FitResult") -> list[str]:
         f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
         f"after {result.evaluations:,} evaluations in total.",
         f"- **Fit quality**: {quality_text(result)}.",
-    ] + ([f"- **Displacement model**: {result.displacement_model['meaning']} ({result.displacement_model['reason']})."]
-         if result.displacement_model and result.displacement_model["decided_by"] != "none" else [])
+    ]
+    if s.get("stop_reason"):  # a campaign's: why it stopped (interrupted, a rule, its islands)
+        lines.append(f"- **Stopped**: {s['stop_reason']}.")
+    if result.displacement_model and result.displacement_model["decided_by"] != "none":
+        lines.append(f"- **Displacement model**: {result.displacement_model['meaning']} ({result.displacement_model['reason']}).")
+    return lines
 
 
 def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
@@ -178,11 +183,33 @@ def fit_overview(result: "FitResult") -> str:
     return "\n\n".join(parts + [table(a_head, a_rows)])
 
 
-def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "hysid fit", document: dict[str, Any] | None = None) -> Path:
+def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    """One row per island run of a campaign: its algorithm, status, best and what it exchanged."""
+    headers = ["island", "algorithm", "seed", "status", "best fitness", "iterations", "evaluations",
+               "migrant messages sent", "migrants received", "taken in", "messages rejected"]
+    rows = [[f"`{i['island']}`", i["algo"].upper(), str(i["seed"]), i["status"], num(i["best_fitness"], 4), f"{i['iterations']:,}",
+             f"{i['evaluations']:,}", f"{i['sent']:,}", f"{i['received']:,}", f"{i['taken']:,}", f"{i['rejected']:,}"] for i in islands]
+    return headers, rows
+
+
+def campaign_sections(result: "CampaignResult") -> list[str]:
+    """The campaign's own part of its report (why it stopped is in the summary above): its migrations, the
+    reasons of the messages rejected, the share's moves and every island."""
+    m = result.migrations
+    reasons = ", ".join(f"{k}: {v:,}" for k, v in sorted((m.get("rejected_reasons") or {}).items()))
+    moves = [line.strip() for line in share_lines(result.fit.settings, result.islands)]
+    i_head, i_rows = island_rows(result.islands)
+    return (["## Islands and migrations", f"Migrations: {migrations_text(m)}" + (f" ({reasons})" if reasons else "") + "."]
+            + (["\n".join(f"- {line}" for line in moves)] if moves else []) + [table(i_head, i_rows)])
+
+
+def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "hysid fit", document: dict[str, Any] | None = None,
+                     sections: Sequence[str] = ()) -> Path:
     """Write ``report.md``, ``result.json`` and the PNG figures into ``out_dir``; returns the report path.
 
     Sets ``result.report`` so that the JSON names the report; ``document`` is
-    the JSON to write instead of the fit's own (a campaign's, which holds it).
+    the JSON to write instead of the fit's own (a campaign's, which holds it),
+    ``sections`` Markdown parts after the runs (a campaign's islands and migrations).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -232,6 +259,7 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         table(r_head, r_rows),
         image(figs["convergence"], out_dir, "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "
               "stars: after the least-squares polish"),
+        *sections,
         "## Model vs measured loops",
         image(figs["loops"], out_dir, "Trial and model loops; rows: amplitudes, columns: frequencies across the band "
               "(as Figs. 5.10-5.13)"),

@@ -224,6 +224,12 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     return "\n".join(lines)
 
 
+def migrations_text(m: dict[str, Any]) -> str:
+    """A campaign's migrations (its ``migrations`` document) in one phrase, as the summary and the report say them."""
+    return (f"{m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
+            f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected")
+
+
 def campaign_summary(result: "CampaignResult") -> str:
     """The fit summary of a campaign, then why it stopped, its migrations and every island."""
     fit = result.fit
@@ -231,11 +237,10 @@ def campaign_summary(result: "CampaignResult") -> str:
     lines = [
         fit_summary(fit, "hysid campaign"),
         f"campaign {fit.settings['campaign']!r}: stopped because {fit.settings['stop_reason']}",
-        f"migrations: {m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
-        f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected",
+        f"migrations: {migrations_text(m)}",
         stored_line(result.stored),
     ]
-    lines += share_lines(fit.settings)
+    lines += share_lines(fit.settings, result.islands)
     for isl in result.islands:
         lines.append(
             f"  {isl['island']:<12} {isl['algo'].upper():<4} seed {isl['seed']:<4} {isl['status']:<6} best {isl['best_fitness']:.4g} "
@@ -262,8 +267,20 @@ SHARE_RULES = {
 """What the moves of each share that moves islands (:mod:`island.share`) follow, as the summary says it."""
 
 
-def share_lines(settings: dict[str, Any]) -> list[str]:
-    """How a mixed campaign shared its islands between algorithms, and each move of its share."""
+def no_moves(share: str, settings: dict[str, Any]) -> str:
+    """Why a share that moves islands moved none."""
+    interval = (settings.get("migration") or {}).get("interval", 0)
+    if not interval:
+        return "the islands were isolated (migration interval 0): a share moves islands between rounds of migration"
+    if share == "staged":
+        return f"no GA island searched its first migration interval ({interval} iterations) before it ended"
+    return "each algorithm held its due share of the islands after every round (its gain per island)"
+
+
+def share_lines(settings: dict[str, Any], islands: list[dict[str, Any]] | None = None) -> list[str]:
+    """How a mixed campaign shared its islands between algorithms, and each move of its share; with the
+    ``islands``' records, a move the island's last history does not show (an island of a fixed iteration budget
+    may end before the order reaches it) is said to be so."""
     algos = list(dict.fromkeys(settings.get("algos") or []))
     if len(algos) < 2:
         return []
@@ -272,10 +289,16 @@ def share_lines(settings: dict[str, Any]) -> list[str]:
     if share not in SHARE_RULES:
         return [f"share: fixed (every island kept its algorithm of {', '.join(a.upper() for a in algos)})"]
     lines = [f"share: {share}, {len(moves)} island move(s) {SHARE_RULES[share]}"]
+    if not moves:
+        lines.append(f"  none: {no_moves(share, settings)}")
     over = " over the last rounds" if share == "adaptive" else " so far"
-    for m in moves:
+    ended_as = {i["island"]: i["algo"] for i in islands or []}
+    last = {m["island"]: k for k, m in enumerate(moves)}
+    for k, m in enumerate(moves):
         credit = ", ".join(f"{a.upper()} {c:.2g}" for a, c in m["credit"].items())
-        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained by each algorithm's own moves{over}: {credit})")
+        unheard = last[m["island"]] == k and ended_as.get(m["island"], m["dst"]) != m["dst"]
+        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained by each algorithm's own moves{over}: {credit})"
+                     + (f"; not followed: the island's last history shows {ended_as[m['island']].upper()}" if unheard else ""))
     return lines
 
 
@@ -305,10 +328,17 @@ def sparkline(values: Sequence[float]) -> str:
     return "".join(SPARK[int(round((x - v.min()) / span * (len(SPARK) - 1)))] for x in v)
 
 
+def gone_text(since: float) -> str:
+    """What ``hysid watch`` and ``hysid report`` say of a campaign whose coordinator is gone."""
+    return f"coordinator gone since {time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(since))}"
+
+
 def watch_text(snap: "CampaignSnapshot") -> str:
     """The screen of ``hysid watch``: status, global best, one row per island run, membership."""
     p = snap.progress
     state = f"stopped ({snap.stop_reason})" if snap.status == "stopped" else snap.status
+    if snap.gone_since is not None:
+        state += f", {gone_text(snap.gone_since)},"
     rejected = f" | rejected messages {p.rejected}" if p.rejected else ""
     best = f"{p.best:.6g} from {snap.best_island}" if np.isfinite(p.best) else "none yet"
     lines = [
@@ -324,9 +354,10 @@ def watch_text(snap: "CampaignSnapshot") -> str:
     ]
     headers = ["island", "algo", "status", "iteration", "evaluations", "best", "sent", "received/taken", "best over iterations"]
     lines.append(text_table(headers, rows) if rows else "  no island has reported yet")
-    counts = {s: sum(v == s for v in p.members.values()) for s in ("alive", "left", "lost")}
+    counts = {s: sum(v == s for v in p.members.values()) for s in ("alive", "left", "lost", "unknown")}
     latest = ", ".join(f"{island} {event} {time.strftime('%H:%M:%S', time.localtime(t))}" for island, event, t in snap.events)
-    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left, {counts['lost']} lost" + (f"; latest: {latest}" if latest else "")]
+    unknown = f", {counts['unknown']} unknown (its coordinator gone)" if counts["unknown"] else ""
+    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left, {counts['lost']} lost{unknown}" + (f"; latest: {latest}" if latest else "")]
     return "\n".join(lines)
 
 

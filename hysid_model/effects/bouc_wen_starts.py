@@ -29,7 +29,6 @@ where n is free).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import brentq
 
 from hysid_model import bouc_wen_orbit
 from hysid_model.loops import LoopSet
@@ -126,6 +125,7 @@ def knee_exponent(ratio: float) -> float:
     def excess(n: float) -> float:
         return _travel(0.9, 1.0, n) / _travel(0.5, 1.0, n) - ratio
 
+    from scipy.optimize import brentq  # on first use: a fast CLI and island start
     lo, hi = 0.5, 60.0
     if excess(lo) <= 0.0:
         return lo
@@ -139,6 +139,7 @@ def shape_from_run(ratio: float, n: float) -> float:
     def excess(r: float) -> float:
         return _travel(1.0, -r, n) - ratio
 
+    from scipy.optimize import brentq  # on first use: a fast CLI and island start
     lo, hi = -0.9, 30.0
     if excess(lo) <= 0.0:
         return lo

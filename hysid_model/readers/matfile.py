@@ -17,8 +17,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-import scipy.io
-from scipy.io.matlab import MatReadError
 
 from hysid_model.errors import HysidInputError
 from hysid_model.extraction import FREQ_TOLERANCE, loop_from_branches
@@ -38,6 +36,9 @@ def load_mat(path: Path) -> dict[str, np.ndarray]:
     """Variables of a MATLAB v4-v7.2 file; v7.3 (HDF5) and unreadable files are input errors."""
     if path.stat().st_size == 0:
         raise HysidInputError(f"{path}: the file is empty")
+    import scipy.io  # on first use: a fast CLI and island start
+    from scipy.io.matlab import MatReadError
+
     try:
         return {k: v for k, v in scipy.io.loadmat(path).items() if not k.startswith("__")}
     except NotImplementedError:

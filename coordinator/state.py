@@ -292,10 +292,24 @@ class Coordinator:
 
     def receive(self, key: str, payload: bytes, wait_s: float | None = 1.0) -> bool:
         """A publication (``hysid/<c>/<kind>/<sender>``) for the coordinator's thread; False if dropped. A
-        joined island's migrant message may replace its one still waiting (only its newest matters: :mod:`coordinator.inbox`)."""
+        joined island's migrant message may replace its one still waiting (only its newest matters:
+        :mod:`coordinator.inbox`), once it proved to be its run's, well formed: what could be rejected
+        waits to be, with its reason."""
         kind, sender = key.rsplit("/", 2)[-2:] if key.count("/") >= 2 else ("", key)
         source = self._source(sender)
-        return self.inbox.put(source, ("msg", key, payload), len(payload), wait_s, replace=kind == "migrants" and source != "?")
+        replace = kind == "migrants" and source != "?" and self.inbox.is_crowded() and self._authentic(payload, sender)
+        return self.inbox.put(source, ("msg", key, payload), len(payload), wait_s, replace=replace)
+
+    def _authentic(self, payload: bytes, sender: str) -> bool:
+        """Whether a migrant message is signed by a run of ``sender`` and well formed (replays are the
+        coordinator's thread's to check; called from the thread a message arrives on)."""
+        try:
+            decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender)
+        except MessageRejected:
+            return False
+        except (ValueError, TypeError, OverflowError, ArithmeticError, IndexError, KeyError):
+            return False
+        return True
 
     def member(self, island: str, alive: bool, wait_s: float | None = 1.0) -> bool:
         """A liveliness token of ``members/<island>`` appeared (``alive``) or went."""
