@@ -30,10 +30,12 @@ from support import query, ready, rows_of, secret_file, wait_for
 
 LOOPS = synth_loops(n_points=30)
 SIZES = {a: {"population": 10, "initial_population": 20, "iterations": 12} for a in ("ga", "pso")}
+TRIO_ITERATIONS = 200
 
 
-def config(name: str = "h1", interval: int = 2, min_islands: int = 1) -> CampaignConfig:
-    return CampaignConfig.create(LOOPS, name=name, options=SIZES, migration=Migration(interval=interval, k=2), min_islands=min_islands, seed=7)
+def config(name: str = "h1", interval: int = 2, min_islands: int = 1, iterations: int = 12) -> CampaignConfig:
+    options = {a: {**o, "iterations": iterations} for a, o in SIZES.items()}
+    return CampaignConfig.create(LOOPS, name=name, options=options, migration=Migration(interval=interval, k=2), min_islands=min_islands, seed=7)
 
 
 def test_a_hosts_islands_are_named_seeded_and_mixed_like_separate_islands() -> None:
@@ -116,8 +118,9 @@ def campaign(tmp_path: Path) -> Iterator[Campaign]:
 
 @pytest.fixture
 def trio(tmp_path: Path) -> Iterator[Campaign]:
-    """A campaign whose islands start once three have joined (so that they search, and migrate, together)."""
-    running = Campaign(tmp_path, config(min_islands=3))
+    """A campaign whose islands start once three have joined (so that they search, and migrate, together:
+    long enough for migrants to cross the network between them however loaded the machine)."""
+    running = Campaign(tmp_path, config(min_islands=3, iterations=TRIO_ITERATIONS))
     yield running
     running.end()
 
@@ -132,8 +135,8 @@ def test_each_island_of_a_process_joins_as_its_own_run_with_its_own_key_and_repo
     assert len({r for _, r, _, _, _ in runs}) == 3 and len({k for _, _, k, _, _ in runs}) == 3  # a run and a signing key each
     assert {h.node.credentials.public for h in hosted} == {bytes(k) for _, _, k, _, _ in runs}
     for h in hosted:
-        assert [r[0] for r in h.node.rows] == list(range(13))
-        assert rows_of(Path(campaign.c.store.path), h.spec.id) == 13  # every row of every island stored
+        assert [r[0] for r in h.node.rows] == list(range(TRIO_ITERATIONS + 1))
+        assert rows_of(Path(campaign.c.store.path), h.spec.id) == TRIO_ITERATIONS + 1  # every row of every island stored
         assert h.node.stats["received"] > 0 and h.node.stats["rejected"] == 0  # they migrate to one another
     assert {e for i, e in query(Path(campaign.c.store.path), "SELECT island, event FROM members")} == {"join", "left"}
 
