@@ -109,6 +109,9 @@ def commit(c: Coordinator, link: Link, *, announce: bool = False) -> None:
     if superseded:
         c.store.add_superseded(c.name, superseded)
         c.superseded += sum(superseded.values())
+    began = time.monotonic()
+    c.consider_migrants(link)
+    c.busy_s += time.monotonic() - began
     flush(c)
     started = time.monotonic()
     c.store.commit(c.name, c.elapsed())

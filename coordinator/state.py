@@ -30,8 +30,10 @@ The coordinator
   (when it falls behind, of an island's migrant messages waiting only the newest is
   handled, the others counted as superseded: :mod:`coordinator.inbox`), and every rejected message
   with its reason (a flood as counted summaries);
-* keeps the global best, **re-evaluating** every candidate it receives (a
-  claimed fitness is never trusted, neither to take nor to skip one) and
+* keeps the global best, **re-evaluating** the candidates it receives (a
+  claimed fitness is never trusted, neither to take nor to skip one; of
+  migrants, those of each island's newest message handled, at each commit:
+  an island's best never gets worse) and
   publishes it for late joiners;
 * in a mixed campaign (:mod:`island.share`), credits each island's own
   gains to its algorithm and moves islands: with the ``staged`` share each GA
@@ -228,6 +230,8 @@ class Coordinator:
         """Migrant messages superseded in the inbox (a newer one of the island replaced them) before they were handled."""
         self._replays = ReplayGuard()
         self._evaluated: OrderedDict[bytes, float] = OrderedDict()
+        self._candidates: dict[str, Migrants] = {}
+        """Each island's newest migrant message handled since the last commit, not evaluated yet (:meth:`consider_migrants`)."""
         self._rejected_log = TokenBucket(REJECTED_PER_S, REJECTED_BURST)
         # what the run loop (:mod:`coordinator.loop`) reads and resets at each commit
         self.rejected_backlog: Counter[str] = Counter()
@@ -271,12 +275,13 @@ class Coordinator:
         return self.islands.get((island, run), IslandView("")).final
 
     def progress(self) -> CampaignProgress:
+        runs = Counter(i for i, _ in self.islands)  # an island with several runs shows each as island/run
         return CampaignProgress(
             elapsed_s=self.elapsed(),
             evaluations=self.evaluations,
             best=np.inf if self.best is None else self.best.fitness,
             members={i: m.status for i, m in self.members.items()},
-            islands={f"{i}" if sum(k[0] == i for k in self.islands) == 1 else f"{i}/{r}": v for (i, r), v in self.islands.items()},
+            islands={f"{i}" if runs[i] == 1 else f"{i}/{r}": v for (i, r), v in self.islands.items()},
             migrations=self.migrations,
             rejected=self.rejected,
         )
@@ -297,19 +302,18 @@ class Coordinator:
         waits to be, with its reason."""
         kind, sender = key.rsplit("/", 2)[-2:] if key.count("/") >= 2 else ("", key)
         source = self._source(sender)
-        replace = kind == "migrants" and source != "?" and self.inbox.is_crowded() and self._authentic(payload, sender)
-        return self.inbox.put(source, ("msg", key, payload), len(payload), wait_s, replace=replace)
+        m = self._authentic(payload, sender) if kind == "migrants" and source != "?" and self.inbox.is_crowded() else None
+        if m is not None:
+            return self.inbox.put(source, ("migrants", key, m), len(payload), wait_s, replace=True)
+        return self.inbox.put(source, ("msg", key, payload), len(payload), wait_s)
 
-    def _authentic(self, payload: bytes, sender: str) -> bool:
-        """Whether a migrant message is signed by a run of ``sender`` and well formed (replays are the
-        coordinator's thread's to check; called from the thread a message arrives on)."""
+    def _authentic(self, payload: bytes, sender: str) -> Migrants | None:
+        """A migrant message, if it is signed by a run of ``sender`` and well formed (None: it is not;
+        replays are the coordinator's thread's to check; called from the thread a message arrives on)."""
         try:
-            decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender)
-        except MessageRejected:
-            return False
-        except (ValueError, TypeError, OverflowError, ArithmeticError, IndexError, KeyError):
-            return False
-        return True
+            return decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender)
+        except (MessageRejected, ValueError, TypeError, OverflowError, ArithmeticError, IndexError, KeyError):
+            return None
 
     def member(self, island: str, alive: bool, wait_s: float | None = 1.0) -> bool:
         """A liveliness token of ``members/<island>`` appeared (``alive``) or went."""
@@ -321,7 +325,8 @@ class Coordinator:
 
     # --- handling what arrives ----------------------------------------------------------
     def handle(self, link: Link, item: tuple[Any, ...]) -> None:
-        """One inbox item: ``("msg", key, payload)``, ``("member", island, alive)`` or ``("join", island, payload, reply)``.
+        """One inbox item: ``("msg", key, payload)``, ``("migrants", key, message)`` (checked as it arrived but
+        for replays), ``("member", island, alive)`` or ``("join", island, payload, reply)``.
 
         Nothing a message holds can raise out of here: a rejected message is
         recorded with its reason; only a database that cannot be written
@@ -335,6 +340,9 @@ class Coordinator:
             elif item[0] == "join":
                 key, size = f"join/{item[1]}", len(item[2])
                 self._join(item[1], item[2], item[3])
+            elif item[0] == "migrants":
+                key = item[1]
+                self._migrants(link, item[2])
             else:
                 _, key, payload = item
                 size = len(payload)
@@ -507,9 +515,18 @@ class Coordinator:
         if not self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at, m.seq):
             raise MessageRejected("replay", f"migrant message {m.seq} of {m.island!r} run {m.run!r} is stored already")
         self.migrations += 1
-        f = self.evaluate(m.x)
-        i = int(np.argmin(f))
-        self._consider(link, m.island, m.x[i], float(f[i]))
+        self._candidates[m.island] = m  # of an island's messages only the newest matters: its best never gets worse
+
+    def consider_migrants(self, link: Link) -> None:
+        """Evaluate the migrants of each island's newest message handled since the last call (the run loop calls
+        it at every commit: :func:`coordinator.loop.commit`), and take the best if it beats the global best."""
+        if not self._candidates:
+            return
+        waiting, self._candidates = list(self._candidates.values()), {}
+        for m in waiting:  # message by message: a candidate's fitness does not depend on what it was evaluated with
+            f = self.evaluate(m.x)
+            i = int(np.argmin(f))
+            self._consider(link, m.island, m.x[i], float(f[i]))
 
     def _consider(self, link: Link, island: str, x: np.ndarray, f: float) -> None:
         """A candidate with the coordinator's own fitness ``f``: if it beats the global best, it is the new one."""
