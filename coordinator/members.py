@@ -53,6 +53,8 @@ class Member:
     within :data:`STALE_S`."""
     heard_at: float = 0.0
     """``time.monotonic()`` of the run's last message whose signature verified (or of its join)."""
+    lost_at: float | None = None
+    """``time.monotonic()`` when it was found lost (None: it was not)."""
 
 
 class Membership:
@@ -110,11 +112,15 @@ class Membership:
         if member.status == "alive":
             member.gone_at = None if alive else time.monotonic()
 
-    def heard(self, island: str, run: str) -> None:
-        """A message of ``island``'s latest run ``run`` whose signature verified: it is alive (a lost run
-        is back; one that joined before this coordinator restarted is a member again)."""
+    def heard(self, island: str, run: str, arrived: float | None = None) -> None:
+        """A message of ``island``'s latest run ``run`` whose signature verified, arrived at ``arrived``
+        (``time.monotonic()``; None: now): it is alive (a lost run is back, unless the message arrived
+        before it was found lost and only waited to be handled; one that joined before this coordinator
+        restarted is a member again)."""
         member = self.members.get(island)
         now = time.monotonic()
+        if member is not None and member.status == "lost" and arrived is not None and member.lost_at is not None and arrived <= member.lost_at:
+            return  # sent before it vanished: no sign that it is back
         if member is None:
             self.members[island] = Member("alive", run, joined_at=now, heard_at=now)
             self._event(island, "join")
@@ -155,6 +161,7 @@ class Membership:
 
     def _leave(self, island: str, member: Member, event: str) -> None:
         member.status = event
+        member.lost_at = time.monotonic() if event == "lost" else None
         self._event(island, event)
         if not self.any_alive():
             self.idle_since = time.monotonic()

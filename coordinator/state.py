@@ -304,8 +304,8 @@ class Coordinator:
         source = self._source(sender)
         m = self._authentic(payload, sender) if kind == "migrants" and source != "?" and self.inbox.is_crowded() else None
         if m is not None:
-            return self.inbox.put(source, ("migrants", key, m), len(payload), wait_s, replace=True)
-        return self.inbox.put(source, ("msg", key, payload), len(payload), wait_s)
+            return self.inbox.put(source, ("migrants", key, m, time.monotonic()), len(payload), wait_s, replace=True)
+        return self.inbox.put(source, ("msg", key, payload, time.monotonic()), len(payload), wait_s)
 
     def _authentic(self, payload: bytes, sender: str) -> Migrants | None:
         """A migrant message, if it is signed by a run of ``sender`` and well formed (None: it is not;
@@ -325,8 +325,9 @@ class Coordinator:
 
     # --- handling what arrives ----------------------------------------------------------
     def handle(self, link: Link, item: tuple[Any, ...]) -> None:
-        """One inbox item: ``("msg", key, payload)``, ``("migrants", key, message)`` (checked as it arrived but
-        for replays), ``("member", island, alive)`` or ``("join", island, payload, reply)``.
+        """One inbox item: ``("msg", key, payload, arrived)``, ``("migrants", key, message, arrived)`` (checked
+        as it arrived but for replays; ``arrived``: its ``time.monotonic()`` then), ``("member", island, alive)``
+        or ``("join", island, payload, reply)``.
 
         Nothing a message holds can raise out of here: a rejected message is
         recorded with its reason; only a database that cannot be written
@@ -342,15 +343,15 @@ class Coordinator:
                 self._join(item[1], item[2], item[3])
             elif item[0] == "migrants":
                 key = item[1]
-                self._migrants(link, item[2])
+                self._migrants(link, item[2], item[3])
             else:
-                _, key, payload = item
+                _, key, payload, arrived = item
                 size = len(payload)
                 kind, _, sender = key[len(self.prefix) + 1 :].partition("/") if key.startswith(self.prefix + "/") else ("", "", "")
                 if kind == "history":
-                    self._history(link, decode_history(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender))
+                    self._history(link, decode_history(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender), arrived)
                 elif kind == "migrants":
-                    self._migrants(link, decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender))
+                    self._migrants(link, decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender), arrived)
                 else:
                     raise MessageRejected("schema", f"unexpected key {key[:100]}")
         except MessageRejected as exc:
@@ -438,10 +439,11 @@ class Coordinator:
         self.query_seq = max(self.query_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
         return encode_history_query(HistoryQuery(self.name, island, run, since, self.query_seq), self.signing)
 
-    def _heard(self, island: str, run: str) -> None:
-        """A signed message of that run: its latest run is alive (:meth:`Membership.heard`)."""
+    def _heard(self, island: str, run: str, arrived: float) -> None:
+        """A signed message of that run, arrived at ``arrived`` (``time.monotonic()``): its latest run is alive
+        (:meth:`Membership.heard`)."""
         if self.current.get(island) == run:
-            self.membership.heard(island, run)
+            self.membership.heard(island, run, arrived)
 
     def _member(self, link: Link, island: str, alive: bool) -> None:
         if not NAME_PATTERN.match(island):
@@ -467,11 +469,11 @@ class Coordinator:
             self._evaluated.popitem(last=False)
         return np.array([self._evaluated[k] for k in keys])
 
-    def _history(self, link: Link, h: History) -> None:
+    def _history(self, link: Link, h: History, arrived: float) -> None:
         key = (h.island, h.run)
         info = self.runs[key]
         check_replay(self._replays, "history", h.island, h.run, h.seq)
-        self._heard(h.island, h.run)
+        self._heard(h.island, h.run, arrived)
         self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration, time.time() - info.joined)
         if not h.rows.size and not h.final:
             return  # a heartbeat: alive, nothing new to store
@@ -509,9 +511,9 @@ class Coordinator:
         if self.stop_reason is None and self.rule_stop() is None:  # the share's moves (none once a rule says stop): told with the next control message
             self.sharing.review(self.evaluations, self.members, self.islands, key)
 
-    def _migrants(self, link: Link, m: Migrants) -> None:
+    def _migrants(self, link: Link, m: Migrants, arrived: float) -> None:
         check_replay(self._replays, "migrants", m.island, m.run, m.seq)
-        self._heard(m.island, m.run)
+        self._heard(m.island, m.run, arrived)
         if not self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at, m.seq):
             raise MessageRejected("replay", f"migrant message {m.seq} of {m.island!r} run {m.run!r} is stored already")
         self.migrations += 1

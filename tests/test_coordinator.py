@@ -177,6 +177,29 @@ def test_a_token_counts_only_as_far_as_the_runs_signed_messages_bear_it_out(tmp_
     assert [e for i, e, _ in c.store.members("c1") if i == "a"] == ["join", "left"]
 
 
+def test_a_message_that_waited_in_the_inbox_while_its_run_was_found_lost_does_not_bring_it_back(tmp_path, link, monkeypatch):
+    """A coordinator that is behind handles messages after they arrived: one that arrived before its run
+    was found lost is no sign the run is back (a site cut off while its rows still waited); the next
+    message that arrives after the loss is."""
+    monkeypatch.setattr("coordinator.members.LEAVE_GRACE_S", 0.0)
+    c = make(tmp_path)
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    b = c.join("b", "pso", 2)
+    c.member("b", True)
+    deliver(c, link, "history", "b", history(b, honest_rows(c, 3), x, f, seed=2))
+    assert c.receive("hysid/c1/history/b", history(b, honest_rows(c, 5), x, f, seq=1, seed=2))
+    waited = c.inbox.get()  # arrived, not yet handled
+    c.member("b", False)  # then its site is cut off: its token goes
+    pump(c, link, 0.1)
+    assert c.members["b"].status == "lost"
+    c.handle(link, waited)
+    assert c.members["b"].status == "lost" and c.islands[("b", b.run)].iteration == 4  # its rows stored, but not back
+    deliver(c, link, "history", "b", history(b, honest_rows(c, 7), x, f, seq=2, seed=2))  # after the restore
+    assert c.members["b"].status == "alive"
+    assert [e for i, e, _ in c.store.members("c1") if i == "b"] == ["join", "lost", "back"]
+
+
 def test_a_joined_island_never_heard_from_is_lost(tmp_path, link, monkeypatch):
     monkeypatch.setattr("coordinator.members.STALE_S", 0.0)
     c = make(tmp_path)

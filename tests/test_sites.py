@@ -112,7 +112,7 @@ def test_islands_behind_a_router_take_part_in_a_campaign(tmp_path: Path) -> None
 
 @pytest.mark.slow
 def test_a_two_site_campaign_over_delayed_lossy_links_survives_a_cut_without_losing_history(tmp_path: Path) -> None:
-    sites = [Site(2, delay_ms=50.0), Site(2, delay_ms=50.0, loss_pct=1.0, cut_at_s=3.0, cut_for_s=5.0)]
+    sites = [Site(2, delay_ms=50.0), Site(2, delay_ms=50.0, loss_pct=1.0, cut_at_s=3.0, cut_for_s=5.0, per_process=2)]  # the cut site: one process of 2 islands
     try:
         r = campaign(sites, time_limit_s=30.0, workdir=tmp_path)  # the cut ends 8 s after the last join: room for a slow start
     except NamespacesUnavailable as exc:
@@ -124,6 +124,7 @@ def test_a_two_site_campaign_over_delayed_lossy_links_survives_a_cut_without_los
     [link] = r["links"]
     assert link["site"] == 2 and link["detect_s"] > 0 and link["back_s"] > 0 and link["caught_up_s"] > 0
     cut_site = [(island, event) for island, event in r["members"] if island.startswith("s2-")]
-    for island in ("s2-i1", "s2-i2"):
+    assert r["island_processes"] == 3
+    for island in ("s2-h1-0", "s2-h1-1"):
         assert [e for i, e in cut_site if i == island] == ["join", "lost", "back", "left"]
     assert [e for i, e in r["members"] if i.startswith("s1-")] == ["join", "join", "left", "left"]

@@ -1,7 +1,8 @@
 """``hysid bench sites``: a multi-site campaign over WAN-like links through Zenoh routers.
 
 Each site is a network namespace (:mod:`hysid.bench.netns`) with its own ``hysid
-router`` and island processes connected to it; the coordinator runs in the hub
+router`` and island processes connected to it (one island each, or with ``--large``
+256 islands in all, 42-43 a process: ``hysid island --count``); the coordinator runs in the hub
 namespace, and each site's router dials it over the site's link, impaired as the
 :class:`Site` says (delay each way, random loss, one cut and restore). Measured:
 
@@ -26,6 +27,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -57,6 +59,17 @@ class Site:
     cut_at_s: float | None = None
     """Seconds after every island joined at which the link goes down (None: never)."""
     cut_for_s: float = 0.0
+    per_process: int = 1
+    """Islands in each island process of the site (``hysid island --count``)."""
+
+
+def island_processes(k: int, site: Site) -> list[tuple[str, list[str]]]:
+    """Site ``k``'s island processes: each one's ``--id`` and the ids of its islands (``s<k>-i<j>`` for one
+    island a process; ``s<k>-h<p>-<j>`` for a process of several, as :func:`island.host.host_specs` names them)."""
+    if site.per_process == 1:
+        return [(f"s{k}-i{j}", [f"s{k}-i{j}"]) for j in range(1, site.islands + 1)]
+    sizes = [min(site.per_process, site.islands - start) for start in range(0, site.islands, site.per_process)]
+    return [(f"s{k}-h{p}", [f"s{k}-h{p}-{j}" for j in range(n)]) for p, n in enumerate(sizes, start=1)]
 
 
 def hysid(lab: Lab, namespace: str, *args: str) -> list[str]:
@@ -144,7 +157,8 @@ def campaign(sites: list[Site], time_limit_s: float, workdir: Path) -> dict[str,
 def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, processes: list[subprocess.Popen], log: TextIO) -> dict[str, Any]:
     netem = lab.has_netem()
     impairments: list[dict[str, Any]] = []
-    names = {k: [f"s{k}-i{j}" for j in range(1, site.islands + 1)] for k, site in enumerate(sites, start=1)}
+    hosts = {k: island_processes(k, site) for k, site in enumerate(sites, start=1)}
+    names = {k: [i for _, ids in hosts[k] for i in ids] for k in hosts}
     everyone = [n for group in names.values() for n in group]
     db = Database(workdir / "sites.sqlite")
     coordinator = subprocess.Popen(
@@ -178,9 +192,10 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
             router.kill()
             raise RuntimeError(f"router of site {k} did not start: {ready.strip()} {router.communicate(timeout=10)[1].strip()[-500:]}")
         routers.append(router)
-        for name in names[k]:
+        for name, ids in hosts[k]:
+            count = ["--count", str(len(ids)), "--seed", str(zlib.crc32(name.encode()) % 10**6)] if len(ids) > 1 else []
             island = subprocess.Popen(hysid(lab, lab.host(k), "island", "--connect", f"tcp/{lab.host_address(k)}:{PORT}", "--campaign", CAMPAIGN,
-                                            "--id", name, "--wait", "120", "--quiet", "--secret-file", str(secret_path(db.path, CAMPAIGN))),
+                                            "--id", name, *count, "--wait", "120", "--quiet", "--secret-file", str(secret_path(db.path, CAMPAIGN))),
                                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             processes.append(island)
             islands.append(island)
@@ -217,7 +232,7 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
                       "caught_up_s": wait_for(f"site {k} history caught up", caught_up, 60, [coordinator]) - up})
     for island in islands:
         if island.wait(timeout=time_limit_s + 120) != 0:
-            raise RuntimeError(f"island {island.args[-5]} exited with {island.returncode}: {island.stderr.read().strip()[-300:]}")
+            raise RuntimeError(f"island process {island.args[island.args.index('--id') + 1]} exited with {island.returncode}: {island.stderr.read().strip()[-300:]}")
     if coordinator.wait(timeout=60) != 0:
         log.flush()
         raise RuntimeError(f"coordinator exited with {coordinator.returncode}: {Path(log.name).read_text().strip()[-500:]}")
@@ -230,7 +245,8 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
     best = np.array([result["params"][n] for n in TRUE_PARAMS])
     truth = np.array(list(TRUE_PARAMS.values()))
     return {
-        "sites": [asdict(s) for s in sites], "islands": len(everyone), "processes": "one island per process",
+        "sites": [asdict(s) for s in sites], "islands": len(everyone), "island_processes": len(islands),
+        "processes": "one island per process" if len(islands) == len(everyone) else f"{len(everyone)} islands in {len(islands)} processes",
         "impairments": impairments, "netem": netem, "router_config": str(ROUTER_CONFIG.name) if ROUTER_CONFIG.is_file() else "defaults", "startup_s": startup_s, "time_limit_s": time_limit_s,
         "stop_reason": result["settings"]["stop_reason"], "best_fitness": result["fitness"],
         "max_relative_error": float(np.max(np.abs(best - truth) / np.abs(truth))),
@@ -244,12 +260,15 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
 
 BENCH_SITES = [Site(11, delay_ms=50.0), Site(11, delay_ms=50.0, loss_pct=1.0, cut_at_s=15.0, cut_for_s=10.0), Site(10)]
 """32 islands on three sites: two behind 50 ms each way, one of them losing 1 % and cut for 10 s."""
+LARGE_SITES = [Site(86, delay_ms=50.0, per_process=43), Site(86, delay_ms=50.0, loss_pct=1.0, cut_at_s=15.0, cut_for_s=10.0, per_process=43),
+               Site(84, per_process=42)]
+"""The same three sites with 256 islands, in processes of 42-43 islands each (``hysid island --count``)."""
 
 
-def run(time_limit_s: float = 120.0) -> dict[str, Any]:
-    """Three sites, 32 islands behind Zenoh routers, 50 ms links, 1 % loss, one link cut and restored."""
+def run(time_limit_s: float = 120.0, large: bool = False) -> dict[str, Any]:
+    """Three sites, 32 islands (``large``: 256, many a process) behind Zenoh routers, 50 ms links, 1 % loss, one link cut and restored."""
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
-        return campaign(BENCH_SITES, time_limit_s, Path(tmp))
+        return campaign(LARGE_SITES if large else BENCH_SITES, time_limit_s, Path(tmp))
 
 
 def to_text(r: dict[str, Any]) -> str:
@@ -265,6 +284,6 @@ def to_text(r: dict[str, Any]) -> str:
                      f"(first {link['first_lost_s']:.2f} s), back {link['back_s']:.2f} s after the restore, history caught up after {link['caught_up_s']:.2f} s")
     if r.get("island_rss_mb"):
         rss = [m for m in r["island_rss_mb"] if m is not None]
-        lines.append(f"RSS per island process {np.median(rss):.0f} MB (median; {min(rss):.0f}-{max(rss):.0f}), routers "
+        lines.append(f"RSS per island process {np.median(rss):.0f} MB (median; {min(rss):.0f}-{max(rss):.0f}; {r['islands'] / len(rss):.0f} islands each), routers "
                      f"{max(m or 0 for m in r['router_rss_mb']):.0f} MB at most, coordinator {r['coordinator_rss_mb']:.0f} MB")
     return "\n".join(lines)

@@ -113,12 +113,16 @@ def ingest_command(
 @bench_app.command("sites", help=(sites.run.__doc__ or "").strip().splitlines()[0])
 def sites_command(
     time_limit: float = typer.Option(120.0, "--time-limit", help="Campaign length in s, start-up included (the cut comes 15 s after every island joined)."),
+    large: bool = typer.Option(False, "--large", help="256 islands, 42-43 in each island process (hysid island --count), instead of 32 processes of one."),
     as_json: bool = BENCH_JSON,
 ) -> None:
     try:
-        result = sites.run(time_limit)
+        result = sites.run(time_limit, large)
     except NamespacesUnavailable as exc:
         raise HysidInputError(f"the sites bench needs network namespaces: {exc}") from None
+    except RuntimeError as exc:  # a stage of the campaign that did not come in time, or a process that failed
+        typer.echo(f"hysid: error: the sites bench stopped: {exc}", err=True)
+        raise typer.Exit(1) from None
     emit(result, sites.to_text, as_json)
 
 
