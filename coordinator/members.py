@@ -112,14 +112,14 @@ class Membership:
         if member.status == "alive":
             member.gone_at = None if alive else time.monotonic()
 
-    def heard(self, island: str, run: str, arrived: float | None = None) -> None:
+    def heard(self, island: str, run: str, arrived: float) -> None:
         """A message of ``island``'s latest run ``run`` whose signature verified, arrived at ``arrived``
-        (``time.monotonic()``; None: now): it is alive (a lost run is back, unless the message arrived
+        (``time.monotonic()``): it is alive (a lost run is back, unless the message arrived
         before it was found lost and only waited to be handled; one that joined before this coordinator
         restarted is a member again)."""
         member = self.members.get(island)
         now = time.monotonic()
-        if member is not None and member.status == "lost" and arrived is not None and member.lost_at is not None and arrived <= member.lost_at:
+        if member is not None and member.status == "lost" and member.lost_at is not None and arrived <= member.lost_at:
             return  # sent before it vanished: no sign that it is back
         if member is None:
             self.members[island] = Member("alive", run, joined_at=now, heard_at=now)

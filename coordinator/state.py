@@ -153,6 +153,10 @@ class TokenBucket:
         return False
 
 
+SLIPPED_THROUGH = (ValueError, TypeError, OverflowError, ArithmeticError, IndexError, KeyError)
+"""What a message the checks let through may still raise when it is handled: it is rejected, never raised."""
+
+
 class Coordinator:
     """One campaign's coordinator state machine (see the module docstring)."""
 
@@ -312,7 +316,7 @@ class Coordinator:
         replays are the coordinator's thread's to check; called from the thread a message arrives on)."""
         try:
             return decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender)
-        except (MessageRejected, ValueError, TypeError, OverflowError, ArithmeticError, IndexError, KeyError):
+        except (MessageRejected, *SLIPPED_THROUGH):
             return None
 
     def member(self, island: str, alive: bool, wait_s: float | None = 1.0) -> bool:
@@ -358,7 +362,7 @@ class Coordinator:
             self.reject(key, exc.reason, str(exc), size)
         except StoreError:
             raise
-        except (ValueError, TypeError, OverflowError, ArithmeticError, IndexError, KeyError) as exc:  # what the checks let through
+        except SLIPPED_THROUGH as exc:
             self.reject(key, "schema", f"could not be handled ({type(exc).__name__}: {exc})", size)
 
     def reject(self, key: str, reason: str, detail: str, size: int) -> None:

@@ -263,10 +263,12 @@ class IslandNode:
         x, f = self.optimizer.best(1)
         if not f[0] > self._snapshot[1]:  # the best so far: a memetic island's fresh search after a restart starts above it
             self._snapshot = (self._theta(x[0]), float(f[0]))
-        since, period = time.monotonic() - self._last_flush, self.history_period()
-        interval = self.config.migration.interval
-        at_migration = interval and row.iteration and row.iteration % interval == 0 and period <= self.history_every_s
-        if since >= period or at_migration:
+        since, interval = time.monotonic() - self._last_flush, self.config.migration.interval
+        at_migration = bool(interval and row.iteration and row.iteration % interval == 0)
+        if since < self.history_every_s and not at_migration:
+            return  # the period is never shorter: no need to count the members
+        period = self.history_period()
+        if since >= period or (at_migration and period <= self.history_every_s):
             self._flush()
 
     def history_period(self) -> float:
@@ -361,14 +363,14 @@ class IslandNode:
         of every other member of ``roster`` (each island hears them all) show no better best, nor an equal one
         of a member that joined before it; the lowest claim among them is re-evaluated here (a claim is never
         trusted)."""
-        others = set(roster) - {self.island}
-        claims = [(float(m.claimed.min()), roster.index(m.island), m.x[int(np.argmin(m.claimed))]) for m in self._arrivals().newest(others, roster)]
+        rank = {s: i for i, s in enumerate(roster)}
+        claims = [(float(m.claimed.min()), rank[m.island], m.x[int(np.argmin(m.claimed))]) for m in self._arrivals().newest(set(rank) - {self.island}, rank)]
         if not claims:
             return True
-        _, rank, x = min(claims, key=lambda c: c[:2])
+        _, rank_theirs, x = min(claims, key=lambda c: c[:2])
         theirs, mine = float(self.objective(x[None, :])[0]), island.fitness
         self.migrant_evaluations += 1
-        earlier = self.island in roster and roster.index(self.island) < rank
+        earlier = self.island in rank and rank[self.island] < rank_theirs
         return theirs > mine * (1 + IMPROVED) or (theirs >= mine * (1 - IMPROVED) and earlier)
 
     def _u(self, x: np.ndarray) -> np.ndarray:

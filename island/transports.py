@@ -228,10 +228,8 @@ class ZenohHost:
     def apply(self, control: Control) -> None:
         """Take a (validated) control message: the newest one wins, an older one is a replay."""
         with self._cond:
-            if control.seq <= self._control_seq:
-                islands = list(self._islands.values())
-            else:
-                islands = []
+            replay = control.seq <= self._control_seq
+            if not replay:
                 self._control_seq = control.seq
                 self._roster = {(m.island, m.run): m for m in control.members}
                 self._alive = list(dict.fromkeys(m.island for m in control.members if m.alive))
@@ -244,16 +242,12 @@ class ZenohHost:
                 for t in self._islands.values():
                     t.assign(self._roster.get((t.node.island, t.credentials.run)))
                 self._cond.notify_all()
-        for t in islands:
-            t.node.count_rejected()  # a replay
+        if replay:
+            self._reject()
 
     def members(self) -> list[str]:
         with self._cond:
             return self._alive
-
-    def listed(self) -> set[str]:
-        with self._cond:
-            return self._listed
 
     def key_for(self, island: str, run: str) -> bytes | None:
         """The public key the roster lists for that run, or, for a run of this host's own islands that

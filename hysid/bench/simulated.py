@@ -65,8 +65,8 @@ def traffic(cred: Credentials, campaign: str, seed: int, x: np.ndarray, f: float
     Unix time ``start``): rows at ``rate`` iterations a second, history every :func:`history_period`, migrants
     every ``interval`` iterations, the last history final."""
     rng = np.random.default_rng(seed)
-    offset = float(rng.uniform(0, history_period(HISTORY_EVERY_S, members)))
     period = history_period(HISTORY_EVERY_S, members)
+    offset = float(rng.uniform(0, period))
     n = int(seconds * rate)
     its = np.arange(n + 1)
     best = np.maximum(f, 10 * f * 0.99 ** np.cumsum(rng.random(n + 1) < IMPROVES))
