@@ -197,6 +197,9 @@ class IslandNode:
         self._lock = threading.Lock()
         self._taken: dict[str, tuple[str, int]] = {}
         """Per sender, the (run, seq) of the message last taken in."""
+        self._claim: tuple[bytes, float] = (b"", np.inf)
+        """The point of the last claim :meth:`_leads` re-evaluated and its fitness here: a stalled island checks
+        the same claim at every iteration until a better one arrives, and evaluates it once."""
 
     @property
     def run_id(self) -> str:
@@ -362,14 +365,16 @@ class IslandNode:
         """Whether this memetic ``island`` holds the campaign's best as far as it knows: the newest migrants
         of every other member of ``roster`` (each island hears them all) show no better best, nor an equal one
         of a member that joined before it; the lowest claim among them is re-evaluated here (a claim is never
-        trusted)."""
+        trusted), once per point (:attr:`_claim`)."""
         rank = {s: i for i, s in enumerate(roster)}
         claims = [(float(m.claimed.min()), rank[m.island], m.x[int(np.argmin(m.claimed))]) for m in self._arrivals().newest(set(rank) - {self.island}, rank)]
         if not claims:
             return True
         _, rank_theirs, x = min(claims, key=lambda c: c[:2])
-        theirs, mine = float(self.objective(x[None, :])[0]), island.fitness
-        self.migrant_evaluations += 1
+        if x.tobytes() != self._claim[0]:
+            self._claim = (x.tobytes(), float(self.objective(x[None, :])[0]))
+            self.migrant_evaluations += 1
+        theirs, mine = self._claim[1], island.fitness
         earlier = self.island in rank and rank[self.island] < rank_theirs
         return theirs > mine * (1 + IMPROVED) or (theirs >= mine * (1 - IMPROVED) and earlier)
 

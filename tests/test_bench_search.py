@@ -14,9 +14,11 @@ import numpy as np
 import pytest
 
 import hysid
+from hysid.bench import search
 from hysid.bench.search import judge, run_method, summarize
 from hysid.bench.search_peers import PEERS, BudgetSpent, Tracker
 from hysid.bench.search_problems import build
+from hysid_model.errors import HysidInputError
 from hysid_model.problem import build_objective, starting_point
 from hysid_model.synth import synth_loops
 from island.memetic import QUIET, REFINE_EVERY, REFINE_NFEV, STALL, Island, memetic_search, needs_islands, starting_points
@@ -74,6 +76,13 @@ def test_summary_and_verdict_follow_the_paired_rule():
     assert verdict["hardest"] == ["hard"] and verdict["ok"]
     worse = summarize({"campaign_4_processes": runs(*bad), "least_squares": runs(*good)})
     assert not judge({"hard": hard, "worse": worse}, ["least_squares"])["non_inferior"]
+
+
+def test_an_unknown_method_or_problem_is_one_clear_error_before_anything_runs():
+    with pytest.raises(HysidInputError, match="unknown method; choose from fit, "):
+        search.run(methods=("fit", "simplex"))
+    with pytest.raises(HysidInputError, match="unknown problem"):
+        search.run(problems=("mr_damper_9v",))
 
 
 def test_search_space_logs_the_wide_positive_scales_and_keeps_the_rest(objective):

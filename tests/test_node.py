@@ -143,13 +143,15 @@ def test_a_stalled_memetic_island_keeps_searching_only_while_it_holds_the_best_i
     x, f = island.best(1)
     theta = node._theta(x)
     worse = node.objective.bounds[:, 1][None, :]
-    for seq, (vector, claimed, ahead, behind) in enumerate([
-        (theta, f[0], True, False),  # the same best: the member that joined first keeps it
-        (worse, float(node.objective(worse)[0]), True, True),
-        (worse, 0.0, True, True),  # a claim is re-evaluated, never believed
+    for seq, (vector, claimed, ahead, behind, evaluated) in enumerate([
+        (theta, f[0], True, False, 1),  # the same best: the member that joined first keeps it
+        (worse, float(node.objective(worse)[0]), True, True, 1),
+        (worse, 0.0, True, True, 0),  # a claim is re-evaluated, never believed; a point already checked is not evaluated again
     ], start=1):
+        before = node.migrant_evaluations
         node.receive("b", encode_migrants(Migrants("c1", "b", other.run, 3, vector, np.array([claimed]), time.time(), seq), other))
         assert node._leads(island, ["a", "b"]) is ahead and node._leads(island, ["b", "a"]) is behind
+        assert node.migrant_evaluations - before == evaluated
 
 
 def test_ring_takes_only_from_the_predecessor_and_full_from_everyone():

@@ -63,11 +63,13 @@ def search_command(
     seeds: int = typer.Option(search.MIN_SEEDS, "--seeds", help=f"Search seeds per problem and method ({search.MIN_SEEDS} for a verdict; fewer: preliminary)."),
     quick: bool = typer.Option(False, "--quick", help="3 seeds on two problems with small budgets: the machinery, not a verdict."),
     problems: str = typer.Option(",".join(search.PROBLEMS), "--problems", help="Comma-separated problems to run."),
+    methods: str = typer.Option(",".join(search.METHODS), "--methods", help="Comma-separated methods to run (the verdict needs the 4-island campaign and a peer)."),
     budget: int = typer.Option(search.BUDGET, "--budget", help="Evaluations of every search."),
     partial: Optional[Path] = typer.Option(None, "--partial", help="Write the results so far to this JSON file after every problem."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    emit(search.run(seeds, quick, tuple(p for p in problems.split(",") if p), budget=budget, partial=partial), search.to_text, as_json)
+    emit(search.run(seeds, quick, tuple(p for p in problems.split(",") if p), tuple(m for m in methods.split(",") if m), budget=budget, partial=partial),
+         search.to_text, as_json)
 
 
 @bench_app.command("validation", help=(validation.run.__doc__ or "").strip().splitlines()[0])
