@@ -68,15 +68,7 @@ def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOut
     best = int(np.argmin([r.fitness for r in runs]))
     widened: list[dict[str, Any]] = []
     if polish_best:
-        runs[best] = polish_run(objective, runs[best])
-        for _ in range(MAX_WIDENINGS):  # a best on a bound derived from the data: widen it and refit
-            wider, changed = objective.model.widen_at(runs[best].theta)
-            if not changed:
-                break
-            old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
-            widened += [{"param": n, "from": old[n], "to": [float(b) for b in pair]} for n, pair in changed.items()]
-            objective = Objective(objective.loops, wider, weights=objective.weights)
-            runs[best] = polish_run(objective, runs[best])
+        objective, runs[best], widened = polished(objective, runs[best])
     settings = {
         "campaign": c.name,
         "algo": "/".join(c.config.algos),
@@ -104,6 +96,23 @@ def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOut
         members=[{"island": i, "event": e, "t": t} for i, e, t in c.store.members(c.name)],
         stored=stored_summary(c),
     )
+
+def polished(objective: Objective, run: RunResult) -> tuple[Objective, RunResult, list[dict[str, Any]]]:
+    """``run`` polished on ``objective`` (as ``hysid fit`` polishes its best); a best on a bound derived from the
+    data widens it and is polished again, up to ``MAX_WIDENINGS`` times: the objective it ends on, the run,
+    and each bound widened (``param``, ``from``, ``to``)."""
+    widened: list[dict[str, Any]] = []
+    run = polish_run(objective, run)
+    for _ in range(MAX_WIDENINGS):
+        wider, changed = objective.model.widen_at(run.theta)
+        if not changed:
+            break
+        old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
+        widened += [{"param": n, "from": old[n], "to": [float(b) for b in pair]} for n, pair in changed.items()]
+        objective = Objective(objective.loops, wider, weights=objective.weights)
+        run = polish_run(objective, run)
+    return objective, run, widened
+
 
 def island_summaries(c: Coordinator, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
     """Each island run's record with its re-evaluated best and its membership status (as last recorded)."""

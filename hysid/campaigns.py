@@ -17,22 +17,26 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from coordinator.launch import island_specs, run_campaign
-from coordinator.outcome import CampaignOutcome
+from coordinator.outcome import CampaignOutcome, polished
 from coordinator.progress import CampaignProgress
 from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
-from hysid.motion import choose_motion
+from hysid.motion import MotionChoice, choose_motion, confirm_motion, order_evidence
 from hysid.report import jsondoc, markdown, tables, text
+from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, build_model
 from hysid_model.user_terms import check_importable
 from hysid_model.errors import HysidInputError
 from hysid_model.problem import prepare_model
 from island.config import CampaignConfig, decode_config
-from island.memetic import BUDGET, ISLAND_OPTIONS
+from island.memetic import BUDGET, ISLAND_OPTIONS, memetic_search, needs_islands
 from island.migration import Migration
+from island.run import RunResult
 from island.secret import secret_path
 from island.termination import Termination
 from island.wire import MessageRejected, check_name
@@ -86,7 +90,7 @@ class CampaignResult:
                 f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else "")
                 + ("" if gone is None else f", {text.gone_text(gone)}")
             )
-            result = cls.from_outcome(coordinator.outcome(polish_best=bool(settings.get("polish", True))))
+            result = cls.from_outcome(confirmed(coordinator, coordinator.outcome(polish_best=bool(settings.get("polish", True)))))
         finally:
             store.close()
         if gone is not None:  # the islands it saw alive: nobody knows since
@@ -147,11 +151,50 @@ def pick_campaign(store: Store, name: str | None = None) -> str:
     return name
 
 
-def finish(coordinator: Coordinator, outcome: CampaignOutcome) -> CampaignResult:
-    """The result of a stopped campaign, also kept in its database."""
-    result = CampaignResult.from_outcome(outcome)
+def finish(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None) -> CampaignResult:
+    """The result of a stopped campaign (its displacement reading :func:`confirmed`), also kept in its database.
+    ``motion``: the choice the campaign started with (None: rebuilt from its configuration)."""
+    result = CampaignResult.from_outcome(confirmed(coordinator, outcome, motion))
     coordinator.store.set_result(coordinator.name, jsondoc.dumps(result.to_dict()))
     return result
+
+
+MOTION_REASONS = {"data": "chosen by the data when the campaign started", "user": "as asked",
+                  "none": "the displacement has no harmonics beyond its fundamental"}
+"""The reason a displacement choice rebuilt from a stored configuration gives, by who made it."""
+
+
+def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None) -> CampaignOutcome:
+    """``outcome`` under the displacement reading its fitted model prefers, by ``hysid fit``'s rule: where the
+    data chose the reading (:func:`hysid.motion.choose_motion`, with the linear start) and the polished best
+    reads the loops the other way (:func:`hysid.motion.confirm_motion`), the best is searched again under that
+    reading from the islands' best (memetic islands on a model with memory, as ``fit``; then polished and
+    widened as the campaign's best is) and every island run's best is re-evaluated under it; the islands'
+    own records stay as they searched. ``settings['displacement_model']`` says which reading and why."""
+    config = coordinator.config
+    if motion is None:
+        evidence = order_evidence(Harmonics.from_loops(coordinator.loops)) if coordinator.loops.x_harmonics is not None else []
+        motion = MotionChoice(config.displacement, config.displacement_by, MOTION_REASONS[config.displacement_by], orders=evidence)
+    outcome.settings["displacement_model"] = motion.as_dict()
+    if not outcome.settings.get("polish") or motion.decided_by != "data":
+        return outcome
+    best = min(outcome.runs, key=lambda r: r.fitness)
+    flipped = confirm_motion(coordinator.loops, outcome.objective.model, best.theta, motion)
+    if flipped is None:
+        return outcome
+    objective = replace(config, objective_kind="closed_form", displacement=flipped.displacement).objective(coordinator.loops)
+    start = np.clip(best.theta, objective.bounds[:, 0], objective.bounds[:, 1])
+    if needs_islands(objective.model):
+        refit = memetic_search(objective, [start], config.seed, budget=BUDGET, label=f"refit under the {flipped.displacement} reading")
+    else:
+        f = float(objective(start[None, :])[0])
+        refit = RunResult(f"refit under the {flipped.displacement} reading", "polish", config.seed, start, f, 1, [], start, f, 0.0)
+    objective, refit, widened = polished(objective, refit)
+    runs = [replace(r, fitness=float(objective(r.theta[None, :])[0])) for r in outcome.runs]
+    flipped.reason += f"; the islands searched under the {motion.displacement} reading, the result is searched again under this one from their best"
+    settings = {**outcome.settings, "displacement": flipped.displacement, "displacement_model": flipped.as_dict(),
+                "bounds_widened": list(outcome.settings.get("bounds_widened", [])) + widened}
+    return replace(outcome, objective=objective, runs=runs + [refit], settings=settings)
 
 
 def islands_until_stopped(termination: Termination | None, options: Mapping[str, Mapping[str, Any]] | None) -> bool:
@@ -239,7 +282,7 @@ def campaign(
     config = CampaignConfig.create(
         loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
         options=options, migration=migration, seed=seed, min_islands=islands, displacement=motion.displacement,
-        until_stopped=until_stopped, share=share,
+        displacement_by=motion.decided_by, until_stopped=until_stopped, share=share,
     )
     if not single_node:
         check_importable(build_model(config.model))
@@ -249,8 +292,7 @@ def campaign(
         if str(db) != ":memory:":
             coordinator.secret.write(secret_path(db, name))
         began = time.perf_counter()
-        result = finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish))
-        result.fit.settings["displacement_model"] = motion.as_dict()
+        result = finish(coordinator, run_campaign(coordinator, specs, single_node=single_node, on_progress=progress, polish=polish), motion)
         result.fit.settings["wall_s"] = time.perf_counter() - began
         return result
     finally:

@@ -24,7 +24,8 @@ its linear dynamic stiffness, and a linear fit from the survey's estimate
 finds its optimum from one start, so ``fit``, ``campaign`` and ``diagnose``
 read the same loops the same way whatever model they fit.
 :func:`confirm_motion` repeats the comparison with the fitted model itself at
-its optimum. The evidence travels with the choice: both chi^2, and order by
+its optimum; ``fit``, ``diagnose`` and a campaign's result
+(:func:`hysid.campaigns.confirmed`) refit under its reading where it differs. The evidence travels with the choice: both chi^2, and order by
 order how strongly the force carries the displacement's harmonics
 (:func:`order_evidence`).
 """

@@ -35,6 +35,8 @@ from island.protocol import encode_config as pack_config
 
 MAX_SEED = 2**62
 """Largest campaign seed (island seeds add up to 2**20 to it and are stored as SQLite integers)."""
+DISPLACEMENT_BY = ("data", "user", "none")
+"""Who chose a campaign's displacement reading (:attr:`CampaignConfig.displacement_by`)."""
 
 
 def _plain_number(value: Any) -> bool:
@@ -70,6 +72,9 @@ class CampaignConfig:
     objective_kind: str = "closed_form"
     displacement: str = "measured"
     """The displacement the model sees: each loop's measured waveform, or the ideal sine (Eq. 4.5)."""
+    displacement_by: str = "user"
+    """Who chose :attr:`displacement`: ``data`` (``auto``, :func:`hysid.motion.choose_motion`; the campaign's
+    result confirms it with the fitted model, as ``hysid fit`` does), ``user`` or ``none``."""
     min_islands: int = 1
     """Islands wait (up to :data:`island.node.START_TIMEOUT_S`) until this many are members before
     they start, so that islands launched together also search together."""
@@ -130,6 +135,8 @@ class CampaignConfig:
             raise HysidInputError(f"must be one of {', '.join(OBJECTIVES)}", param="objective", value=self.objective_kind)
         if self.displacement not in DISPLACEMENTS:
             raise HysidInputError(f"must be one of {', '.join(DISPLACEMENTS)}", param="displacement", value=self.displacement)
+        if self.displacement_by not in DISPLACEMENT_BY:
+            raise HysidInputError(f"must be one of {', '.join(DISPLACEMENT_BY)}", param="displacement_by", value=self.displacement_by)
         if self.objective_kind == "thesis_port" and (self.model != "thesis" or self.weights != "thesis"):
             raise HysidInputError("the thesis_port objective is the thesis model with the thesis weights only")
 
@@ -150,6 +157,7 @@ class CampaignConfig:
         min_islands: int = 1,
         objective_kind: str = "closed_form",
         displacement: str = "measured",
+        displacement_by: str = "user",
         until_stopped: bool = False,
         share: str = "staged",
     ) -> "CampaignConfig":
@@ -170,6 +178,7 @@ class CampaignConfig:
             min_islands=min_islands,
             objective_kind=objective_kind,
             displacement=displacement,
+            displacement_by=displacement_by,
             until_stopped=until_stopped,
             share=share,
         )
@@ -210,6 +219,7 @@ class CampaignConfig:
             "seed": self.seed,
             "objective": self.objective_kind,
             "displacement": self.displacement,
+            "displacement_by": self.displacement_by,
             "min_islands": self.min_islands,
             "until_stopped": self.until_stopped,
             "share": self.share,
@@ -226,7 +236,7 @@ class CampaignConfig:
                 algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"],
                 objective_kind=d["objective"], displacement=d["displacement"], min_islands=d["min_islands"],
                 until_stopped=d.get("until_stopped", False), stop_rules=d.get("stop_rules", {}),  # absent in campaigns stored before them
-                share=d.get("share", "fixed"),
+                share=d.get("share", "fixed"), displacement_by=d.get("displacement_by", "user"),
             )
         except HysidInputError:
             raise

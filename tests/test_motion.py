@@ -19,6 +19,8 @@ import pytest
 import hysid
 from hysid.cli import main
 from hysid.motion import choose_motion, confirm_motion
+from island.termination import Termination
+from support import DAMPER
 from hysid_model.datasets import write_dataset
 from hysid_model.model import build_model, to_physical
 from hysid_model.synth import simulate_raw
@@ -126,3 +128,24 @@ def test_a_campaign_reads_the_displacement_as_fit_does_and_keeps_it_in_its_datab
     again = hysid.CampaignResult.from_database(db)
     assert again.fit.displacement_model["displacement"] == "fundamental"
     assert again.fit.params["meq"] == pytest.approx(result.fit.params["meq"], rel=1e-6)
+
+
+@pytest.mark.slow  # about 13 s
+def test_a_campaign_confirms_the_reading_with_its_fitted_model_as_fit_does(tmp_path):
+    """The real friction damper: the linear start reads its displacement harmonics as the sensor's, the fitted
+    Bouc-Wen model as motion. fit refits under the model's reading; a campaign (and its result rebuilt from the
+    database) must end at the same optimum, not at the linear start's reading."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        loops = hysid.load(DAMPER)
+        fit = hysid.fit(loops, "baseline+bouc_wen")
+        start = choose_motion(loops, "baseline+bouc_wen")
+        db = tmp_path / "c.sqlite"
+        result = hysid.campaign(loops, 2, model="baseline+bouc_wen", single_node=True, db=db, termination=Termination(budget=2000))
+        again = hysid.CampaignResult.from_database(db)
+    assert start.displacement == "fundamental" and fit.displacement_model["displacement"] == "measured"
+    for campaign in (result.fit, again.fit):
+        assert campaign.displacement_model["displacement"] == "measured" and campaign.displacement_model["decided_by"] == "data"
+        assert "searched again under this one" in campaign.displacement_model["reason"]
+        assert campaign.fitness == pytest.approx(fit.fitness, rel=1e-6)
+    assert [r.label for r in result.fit.runs][-1] == "refit under the measured reading"

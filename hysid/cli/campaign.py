@@ -227,15 +227,17 @@ def register(app: typer.Typer) -> None:
             raise HysidInputError(f"--resume takes the bounds and fixed values from {db}; drop --bound and --fix")
         target_dir = o.report_dir(out, "coordinator")
         path = database(db, target_dir, name, resuming=resume_db)
+        motion = None
         if not resume_db:  # every argument is checked before the database is written or a session opened
             o.island_sizes(population, initial, iterations)  # checked before the loops are read
             migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
             loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
             sizes, termination, until_stopped, iterations = o.island_plan(
                 loops, model, bounds, o.parse_algos(algos), population, initial, iterations, termination)
+            motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
             config = CampaignConfig.create(
                 loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed,
-                displacement=choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed).displacement,
+                displacement=motion.displacement, displacement_by=motion.decided_by,
                 algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands,
                 until_stopped=until_stopped, share=share,
             )
@@ -255,7 +257,7 @@ def register(app: typer.Typer) -> None:
             finally:
                 link.close()
                 session.close()
-            result = finish(coordinator, coordinator.outcome(polish_best=polish))
+            result = finish(coordinator, coordinator.outcome(polish_best=polish), motion)
             o.show_result(result, target_dir, as_json, csv=False)
         finally:
             store.close()
