@@ -159,9 +159,20 @@ def finish(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionCho
     return result
 
 
-MOTION_REASONS = {"data": "chosen by the data when the campaign started", "user": "as asked",
+MOTION_REASONS = {"data": "chosen by the data when the campaign started", "user": "as the campaign was configured",
                   "none": "the displacement has no harmonics beyond its fundamental"}
 """The reason a displacement choice rebuilt from a stored configuration gives, by who made it."""
+
+
+def stored_evidence(loops: LoopSet, config: CampaignConfig) -> list[dict[str, float]]:
+    """The order-by-order evidence of a reading the data chose (:func:`hysid.motion.order_evidence`); none
+    for any other, or for loops too coarse for harmonics up to order 7 (a stored campaign stays readable)."""
+    if config.displacement_by != "data" or loops.x_harmonics is None:
+        return []
+    try:
+        return order_evidence(Harmonics.from_loops(loops))
+    except HysidInputError:
+        return []
 
 
 def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None) -> CampaignOutcome:
@@ -173,8 +184,7 @@ def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: Motion
     own records stay as they searched. ``settings['displacement_model']`` says which reading and why."""
     config = coordinator.config
     if motion is None:
-        evidence = order_evidence(Harmonics.from_loops(coordinator.loops)) if coordinator.loops.x_harmonics is not None else []
-        motion = MotionChoice(config.displacement, config.displacement_by, MOTION_REASONS[config.displacement_by], orders=evidence)
+        motion = MotionChoice(config.displacement, config.displacement_by, MOTION_REASONS[config.displacement_by], orders=stored_evidence(coordinator.loops, config))
     outcome.settings["displacement_model"] = motion.as_dict()
     if not outcome.settings.get("polish") or motion.decided_by != "data":
         return outcome

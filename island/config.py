@@ -137,6 +137,8 @@ class CampaignConfig:
             raise HysidInputError(f"must be one of {', '.join(DISPLACEMENTS)}", param="displacement", value=self.displacement)
         if self.displacement_by not in DISPLACEMENT_BY:
             raise HysidInputError(f"must be one of {', '.join(DISPLACEMENT_BY)}", param="displacement_by", value=self.displacement_by)
+        if self.displacement_by == "data" and self.displacement not in ("measured", "fundamental"):
+            raise HysidInputError("the data choose between measured and fundamental only", param="displacement", value=self.displacement)
         if self.objective_kind == "thesis_port" and (self.model != "thesis" or self.weights != "thesis"):
             raise HysidInputError("the thesis_port objective is the thesis model with the thesis weights only")
 
