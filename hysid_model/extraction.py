@@ -57,9 +57,9 @@ from functools import lru_cache
 import warnings
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from hysid_model import plausibility, steady, waveform
+from hysid_model.blas import on_one_blas_thread
 from hysid_model.branches import CHUNK, branch_values, half_cycle_phases, harmonic_design, reversal_guard, smooth_part
 from hysid_model.errors import HysidInputError, HysidWarning
 
@@ -306,7 +306,7 @@ def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float
     return xh[:, :kept].copy(), thd
 
 
-@threadpool_limits.wrap(limits=1, user_api="blas")
+@on_one_blas_thread
 def extract_loop(
     t: np.ndarray,
     x: np.ndarray,

@@ -299,9 +299,10 @@ class Model:
 
     def _force_coefficients(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         coefs: Coefficients = {}
+        shape = state.xi.shape
         for term in self.terms:
             for name, value in term.force(v, state, kin).items():
-                add_coefficient(coefs, name, np.broadcast_to(value, state.xi.shape))
+                add_coefficient(coefs, name, value if np.shape(value) == shape else np.broadcast_to(value, shape))
         return coefs
 
     def coefficients(self, pop: np.ndarray, kin: Kinematics) -> Coefficients:

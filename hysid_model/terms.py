@@ -71,10 +71,17 @@ class Kinematics:
         """``(L, K)`` complex displacement harmonics (K = 1 for the ideal sine)."""
         return waveform.ideal(self.x0) if self.xh is None else self.xh
 
-    @property
+    @cached_property
     def orders(self) -> np.ndarray:
         """Harmonic orders k = 1..K of the displacement."""
         return np.arange(1, 1 + (1 if self.xh is None else self.xh.shape[1]))
+
+    @cached_property
+    def order_parts(self) -> tuple[list[tuple[str, str]], np.ndarray, np.ndarray]:
+        """Per harmonic order the coefficient names (s_k, c_k), and the displacement harmonics' real and imaginary
+        parts ``(K, 1, L)`` each (measured displacement only: :func:`linear_response`)."""
+        assert self.xh is not None
+        return [(f"s{k}", f"c{k}") for k in self.orders], self.xh.real.T[:, None, :].copy(), self.xh.imag.T[:, None, :].copy()
 
     def displacement(self, phase: np.ndarray, derivative: int = 0) -> np.ndarray:
         """d^n x / d(wt)^n at phases ``(L, N)`` or ``(P, L, N)``."""
@@ -265,7 +272,9 @@ class Sampler(Protocol):
 
 
 Stiffness = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
-"""A linear term's dynamic stiffness S(w) = re + i im (N/m) at the frequencies ``w`` ``(L,)``, each ``(P, L)``."""
+"""A linear term's dynamic stiffness S(w) = re + i im (N/m) at the frequencies ``w``: ``(L,)`` for the ideal
+sine, ``(K, 1, L)`` for the K harmonic orders of a measured displacement (all in one call); each part broadcasts
+against the ``(P, L)`` candidate arrays, to ``(P, L)`` or ``(K, P, L)``."""
 
 
 def linear_response(kin: Kinematics, stiffness: Stiffness) -> Coefficients:
@@ -273,17 +282,17 @@ def linear_response(kin: Kinematics, stiffness: Stiffness) -> Coefficients:
 
     For the ideal sine (X_1 = -i X0) this is s1 = Re S(w) X0, c1 = Im S(w) X0:
     Eq. 4.6 for the oscillator. Linear terms stay closed form per harmonic on
-    any measured displacement.
+    any measured displacement; the stiffness is evaluated at every order at once.
     """
     if kin.xh is None:
         re, im = stiffness(kin.omega)
         return {"s1": re * kin.x0, "c1": im * kin.x0}
+    names, a, b = kin.order_parts
+    re, im = stiffness(kin.orders[:, None, None] * kin.omega)
+    s, c = -(re * b + im * a), re * a - im * b
     out: Coefficients = {}
-    for i, k in enumerate(kin.orders):
-        re, im = stiffness(k * kin.omega)
-        a, b = kin.xh[:, i].real, kin.xh[:, i].imag
-        out[f"s{k}"] = -(re * b + im * a)
-        out[f"c{k}"] = re * a - im * b
+    for i, (sk, ck) in enumerate(names):
+        out[sk], out[ck] = s[i], c[i]
     return out
 
 

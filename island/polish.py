@@ -16,11 +16,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
-BLAS_THREADS = 1
-"""BLAS threads of the solver's decompositions: its matrices are a few columns wide, and on a busy 2-core
-machine a second OpenBLAS thread made each SVD 60 x slower (1 ms -> 68 ms for 1800 x 7)."""
+from hysid_model.blas import one_blas_thread
+
 MEMORY_NFEV = 2000
 """Residual calls of a polish on a model with memory by default: scipy's 100 D ran out before convergence
 on a real MR damper ("maximum number of function evaluations exceeded")."""
@@ -72,7 +70,7 @@ def polish(objective: Any, theta0: np.ndarray, *, max_nfev: int | None = None) -
         return np.where(np.isfinite(jac), jac, 0.0)
 
     try:
-        with threadpool_limits(BLAS_THREADS, user_api="blas"):
+        with one_blas_thread():  # the solver's decompositions are a few columns wide
             result = least_squares(
                 residuals,
                 start,

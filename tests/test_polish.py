@@ -80,3 +80,18 @@ def test_start_outside_the_bounds_is_clipped_in():
     start = model.from_dict({"xi0": -0.5, "S_xi": -0.4, "w0": 189.0, "S_w": -1256.0})
     result = polish(objective, start)
     assert result.theta[0] >= 0.0 and np.isfinite(result.fitness)
+
+
+def test_the_solves_run_every_blas_library_on_one_thread_and_give_the_threads_back():
+    """numpy's and scipy's own OpenBLAS are both held to one thread inside, both as they were after."""
+    import scipy.linalg  # noqa: F401  (scipy's own BLAS loaded)
+    from threadpoolctl import threadpool_info
+
+    from hysid_model.blas import one_blas_thread
+
+    before = {i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+    with one_blas_thread():
+        inside = {i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+    after = {i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+    assert set(inside) >= set(before) and set(inside.values()) == {1}
+    assert after == before

@@ -34,4 +34,4 @@ class TransducerMass(Term):
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """M x'': dynamic stiffness -M w^2 at each harmonic frequency."""
-        return linear_response(kin, lambda w: (-v["m_t"] * w**2, np.zeros((v["m_t"].shape[0], w.size))))
+        return linear_response(kin, lambda w: (-v["m_t"] * w**2, 0.0 * w))
