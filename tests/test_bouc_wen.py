@@ -74,6 +74,30 @@ def test_tabulated_orbit_of_any_exponent_is_the_exact_reference(spec, which, req
     np.testing.assert_array_equal(force[one], fast.memory_force(pop[one]))
 
 
+@pytest.mark.parametrize("spec", ["baseline+bouc_wen", "thesis+bouc_wen+channel_delay"])
+def test_candidates_that_share_an_orbit_share_it_and_each_force_is_its_own(spec, distorted):
+    """Candidates that differ only outside (n, r, z_y) and the delay (a Jacobian's probes of xi0, w0 and k_bw)
+    share one orbit: the same force where k_bw is the same, k_bw times it otherwise; and a candidate's force is
+    the same bits alone as among others."""
+    model = free_exponent(spec)
+    fast = Objective(distorted, model)
+    base = population(model)[4]
+    rows = np.repeat(base[None, :], 5, axis=0)
+    rows[1, model.names.index("xi0")] *= 1.5
+    rows[2, model.names.index("w0")] *= 0.9
+    rows[3, model.names.index("bw_k")] *= 2.0
+    rows[4, model.names.index("bw_zy")] *= 1.1
+    force = fast.memory_force(rows)
+    np.testing.assert_array_equal(force[1], force[0])
+    np.testing.assert_array_equal(force[2], force[0])
+    np.testing.assert_allclose(force[3], 2.0 * force[0], rtol=1e-15, atol=1e-15 * np.abs(force[0]).max())
+    assert np.abs(force[4] - force[0]).max() > 1e-3 * np.abs(force[0]).max()
+    for i, row in enumerate(rows):
+        np.testing.assert_array_equal(fast.memory_force(row[None, :])[0], force[i])
+    reference = Objective(distorted, model, compiled=False)
+    assert relative_error(force, reference.memory_force(rows)) < 2e-8
+
+
 def test_exponent_one_by_the_general_solver_is_the_closed_form(ideal, distorted):
     for loops in (ideal, distorted):
         kin = Kinematics(loops.x0, loops.omega, loops.x_harmonics)

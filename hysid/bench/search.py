@@ -36,7 +36,10 @@ success rate than each) on the hardest half of the problems: the
 Also reported: whether ``fit``'s independent seeds agree within 1 % of the
 fitness on every problem (``fit_seeds_agree``), and the campaign's wall-time
 speedup from 1 to 2 island processes on a memory model at equal total
-evaluations (``speedup``, target 1.7; :data:`SPEEDUP_REPEATS` pairs in turn, the ratio of the medians).
+evaluations (``speedup``, target 1.7; :data:`SPEEDUP_REPEATS` pairs in turn, the ratio of the medians),
+and the wall time of a memory-model fit with every default, as a user runs it, on 10 and 40 loops
+(``fit_time``, :func:`fit_times`: the real friction damper and a simulated MR damper; target under
+:data:`FIT_TIME_LIMIT_S` each).
 """
 
 from __future__ import annotations
@@ -55,7 +58,8 @@ from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.bench.islands import NON_INFERIORITY_MARGIN, SPEEDUP_TARGET, paired, wilson
 from hysid.bench.search_peers import PEERS, pygmo_available
-from hysid.bench.search_problems import PROBLEMS, Problem, build
+from hysid.bench.search_problems import MR_LEVELS, PROBLEMS, Problem, build, extracted, mr_damper_records
+from hysid.bench.validation import DAMPER
 from hysid.campaigns import default_options
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -78,6 +82,13 @@ SPEEDUP_BUDGET = 300_000
 SPEEDUP_REPEATS = 3
 """Pairs of 1- and 2-island campaigns: one campaign's wall time on this 2-core VM varied by 19 % between
 identical runs (38.5-45.7 s for the same 300,052 evaluations)."""
+FIT_TIME_LIMIT_S = 60.0
+"""A memory-model fit of 10-40 loops with the defaults finishes within this on a 2-core machine."""
+FIT_TIME_MR_FREQS_HZ = np.array([0.5, 1.0, 1.5, 2.0, 3.0])
+FIT_TIME_MR_AMPLITUDES_M = np.linspace(2.5e-3, 20e-3, 8)
+"""The 40 loops of the simulated MR damper (1 V) that :func:`fit_times` fits."""
+FIT_TIME_POINTS = 100
+"""Samples per branch of those loops: what extraction gives by default (:func:`hysid_model.extraction.extract_loop`)."""
 QUICK = {"seeds": 3, "problems": ("mr_damper_1v", "thesis_easy"), "budget": 3000, "speedup_budget": 20_000, "speedup_repeats": 1}
 """The quick mode (tests, a look): 3 seeds, two problems, small budgets; ``ok`` is not meaningful there."""
 
@@ -167,6 +178,28 @@ def speedup(budget: int, problem: Problem, repeats: int = SPEEDUP_REPEATS) -> di
             "ratio": ratio, "target": SPEEDUP_TARGET, "ok": ratio >= SPEEDUP_TARGET}
 
 
+def fit_times() -> dict[str, Any]:
+    """Wall time of :func:`hysid.fit` with every default (the reading of the displacement included) on a model
+    with memory: the real ARTS-Lab friction damper (10 loops as :func:`hysid.load` extracts them) with
+    ``baseline+coulomb_friction+bouc_wen``, and a simulated MR damper at 1 V (40 loops, 0.5-3 Hz, 2.5-20 mm,
+    extracted at the default 100 samples per branch) with ``mr_damper``; loading not counted."""
+    cases = {
+        "arts_friction_damper": (lambda: hysid.load(DAMPER), "baseline+coulomb_friction+bouc_wen"),
+        "mr_damper_40_loops": (lambda: extracted("mr_damper_1v_40", mr_damper_records(MR_LEVELS["mr_damper_1v"], freqs_hz=FIT_TIME_MR_FREQS_HZ,
+                                                                                     amplitudes_m=FIT_TIME_MR_AMPLITUDES_M), None, points=FIT_TIME_POINTS),
+                               "mr_damper"),
+    }
+    out: dict[str, Any] = {}
+    for name, (make, model) in cases.items():
+        loops = make()
+        began = time.perf_counter()
+        result = hysid.fit(loops, model)
+        out[name] = {"model": model, "loops": loops.n_loops, "samples_per_branch": loops.n_samples, "s": time.perf_counter() - began,
+                     "evaluations": result.evaluations, "fitness": result.fitness, "rms_pct": result.quality["rms_residual_pct"],
+                     "displacement": (result.displacement_model or {}).get("displacement"), "at_bounds": result.at_bounds}
+    return {"limit_s": FIT_TIME_LIMIT_S, "cases": out, "ok": all(c["s"] < FIT_TIME_LIMIT_S for c in out.values())}
+
+
 def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] = PROBLEMS, methods: tuple[str, ...] = METHODS,
         budget: int = BUDGET, speedup_budget: int = SPEEDUP_BUDGET, partial: Path | None = None) -> dict[str, Any]:
     """Search where it is hard: hysid's fit and campaigns against least squares, DE, CMA-ES and pygmo at equal budgets.
@@ -214,6 +247,7 @@ def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] =
         warnings.simplefilter("ignore")
         target = built.get(SPEEDUP_PROBLEM) or build(SPEEDUP_PROBLEM)
         out["speedup"] = speedup(speedup_budget, target, repeats)
+        out["fit_time"] = fit_times()
     out["bench_s"] = time.perf_counter() - began
     return out
 
@@ -249,5 +283,10 @@ def to_text(result: dict[str, Any]) -> str:
     seconds = lambda runs: ", ".join(f"{r['s']:.1f}" for r in runs)
     lines.append(f"speedup ({s['problem']}, {s['budget']:,} evaluations, {s.get('repeats', 1)} pairs in turn): 1 island {seconds(s['one_island'])} s, "
                  f"2 islands {seconds(s['two_islands'])} s -> {s['ratio']:.2f} per evaluation, of the medians (target >= {s['target']}) {'OK' if s['ok'] else 'MISSED'}")
+    t = result["fit_time"]
+    for name, c in t["cases"].items():
+        lines.append(f"fit with the defaults, {name} ({c['model']}, {c['loops']} loops x {c['samples_per_branch']} samples): {c['s']:.1f} s, "
+                     f"{c['evaluations']:,} evaluations, RMS {c['rms_pct']:.3g} %")
+    lines.append(f"every memory-model fit under {t['limit_s']:.0f} s: {'OK' if t['ok'] else 'MISSED'}")
     lines.append(f"bench time {result['bench_s']:.0f} s")
     return "\n".join(lines)

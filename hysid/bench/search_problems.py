@@ -109,12 +109,13 @@ def grid(freqs: np.ndarray, amps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: float = 2.0, *, rate_hz: float = MR_RATE_HZ,
-                      cycles: int = CYCLES) -> list[RawRecord]:
+                      cycles: int = CYCLES, freqs_hz: np.ndarray = MR_FREQ_HZ, amplitudes_m: np.ndarray = MR_AMPLITUDES_M) -> list[RawRecord]:
     """Raw records of a Spencer-type damper, F = c0 x' + k0 x + k_bw z with
     z' = x' - gamma |x'| |z|^(n-1) z - beta x' |z|^n (A = 1, gamma = beta = 1 / (2 z_y^n)),
-    integrated in time by RK4 from z = 0 over one extra cycle that is dropped; ``cycles`` kept, sampled at ``rate_hz``."""
+    integrated in time by RK4 from z = 0 over one extra cycle that is dropped; ``cycles`` kept, sampled at ``rate_hz``,
+    at every pair of ``freqs_hz`` and ``amplitudes_m``."""
     rng = np.random.default_rng(seed)
-    freq, amp = grid(MR_FREQ_HZ, MR_AMPLITUDES_M)
+    freq, amp = grid(np.asarray(freqs_hz, dtype=float), np.asarray(amplitudes_m, dtype=float))
     gamma = beta = 0.5 / level["zy"] ** exponent
     k_bw = level["f_y"] / level["zy"]
     records = []

@@ -312,9 +312,28 @@ class BoucWenSampler:
     def _samples(self) -> tuple[np.ndarray, ...]:
         return (self.travel, self.runs, self.loop_runs, self.step, self.spread, self.deviation)
 
+    SHAPE = ("bw_n", "bw_r", "bw_zy")
+    """The parameters z depends on; the force k_bw z is linear in k_bw."""
+
     def add(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
-        """Add the force k_bw z of candidates ``v`` to ``out`` ``(P, L, N)``, at the phases less ``shift`` ``(P, L)`` if given:
-        the closed form for candidates with n = 1, the tabulated orbit (:mod:`hysid_model.bouc_wen_orbit`) for the others."""
+        """Add the force k_bw z of candidates ``v`` to ``out`` ``(P, L, N)``, at the phases less ``shift`` ``(P, L)`` if given.
+
+        Each distinct orbit (n, r, z_y, and shift) is computed once, at k_bw = 1, and scaled by each candidate's
+        k_bw: a Jacobian's probes of every other parameter share their point's orbit (8 of the 14 probes of the
+        ``mr_damper`` preset), and a candidate's force does not depend on the others it is evaluated with."""
+        if out.shape[0] == 1:
+            first = inverse = np.zeros(1, dtype=np.int64)
+        else:
+            keys = np.column_stack([v[name][:, 0] for name in self.SHAPE] + ([] if shift is None else [shift]))
+            _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+        shapes: Values = {name: v[name][first] for name in self.SHAPE}
+        shapes["bw_k"] = np.ones((first.size, 1))
+        unit = np.zeros((first.size,) + out.shape[1:])
+        self._add_orbits(shapes, None if shift is None else shift[first], unit)
+        out += v["bw_k"][:, 0, None, None] * unit[inverse.reshape(-1)]
+
+    def _add_orbits(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
+        """The closed form for candidates with n = 1, the tabulated orbit (:mod:`hysid_model.bouc_wen_orbit`) for the others."""
         one = v["bw_n"][:, 0] == 1.0
         if one.all() or not one.any():
             (self._add_one if one.all() else self._add_any)(v, shift, out)
