@@ -44,6 +44,7 @@ and the wall time of a memory-model fit with every default, as a user runs it, o
 
 from __future__ import annotations
 
+import inspect
 import tempfile
 import time
 import warnings
@@ -63,6 +64,7 @@ from hysid.bench.validation import DAMPER
 from hysid.campaigns import default_options
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
+from hysid_model.extraction import extract_loop
 from hysid_model.problem import build_objective
 from island.config import CampaignConfig
 from island.memetic import BUDGET
@@ -87,7 +89,7 @@ FIT_TIME_LIMIT_S = 60.0
 FIT_TIME_MR_FREQS_HZ = np.array([0.5, 1.0, 1.5, 2.0, 3.0])
 FIT_TIME_MR_AMPLITUDES_M = np.linspace(2.5e-3, 20e-3, 8)
 """The 40 loops of the simulated MR damper (1 V) that :func:`fit_times` fits."""
-FIT_TIME_POINTS = 100
+FIT_TIME_POINTS: int = inspect.signature(extract_loop).parameters["n_points"].default
 """Samples per branch of those loops: what extraction gives by default (:func:`hysid_model.extraction.extract_loop`)."""
 QUICK = {"seeds": 3, "problems": ("mr_damper_1v", "thesis_easy"), "budget": 3000, "speedup_budget": 20_000, "speedup_repeats": 1}
 """The quick mode (tests, a look): 3 seeds, two problems, small budgets; ``ok`` is not meaningful there."""
