@@ -20,7 +20,12 @@ are *replaceable*: while the coordinator keeps up (fewer than
 handled; when it falls behind, each source has one slot for them, a newer one
 replaces the one waiting (counted as superseded, per source), and slots are
 served after the other items (at least every :data:`SLOT_EVERY` th item),
-so that they never delay what must all be handled, the history rows. Once the coordinator is done
+so that they never delay what must all be handled, the history rows. *Urgent* items (membership
+changes and join requests: cheap to handle, and a site's islands must be found lost within the
+lease and a moment however many history messages wait) have a lane of their own, its sources
+served in turn: an urgent item waiting is served next, unless the :data:`URGENT_RUN` items before were
+urgent too while others waited (a site's tokens go together and are handled together; a flood of urgent
+items still leaves the other lane one turn in ``URGENT_RUN + 1``). Once the coordinator is done
 (:meth:`Inbox.close`) every producer returns at once, those waiting included:
 nothing that arrives on the network can hold a Zenoh callback, and with it the
 process, any longer.
@@ -40,6 +45,8 @@ MAX_BYTES = 256 << 20
 """Payload bytes waiting in all."""
 SLOT_EVERY = 4
 """While other items wait, a replaceable one is served every this many items."""
+URGENT_RUN = 8
+"""Urgent items served in a row, at most, while other items wait."""
 CROWDED = 256
 """Items waiting from which on a replaceable item supersedes its source's one waiting (the coordinator is behind)."""
 
@@ -56,9 +63,13 @@ class Inbox:
         self.crowded = crowded
         self._queues: OrderedDict[str, deque[tuple[Any, int]]] = OrderedDict()
         """Sources with items waiting, in the order they are served next."""
+        self._urgent: OrderedDict[str, deque[tuple[Any, int]]] = OrderedDict()
+        """The same, of urgent items."""
         self._slots: OrderedDict[str, tuple[Any, int]] = OrderedDict()
         """Each source's replaceable item waiting, in the order the slots filled."""
         self._served = 0
+        self._urgent_run = 0
+        """Urgent items served in a row until now."""
         self._waiting = 0
         """Items in the queues (not the slots)."""
         self._bytes = 0
@@ -71,28 +82,29 @@ class Inbox:
         """Whether :attr:`crowded` items or more wait (read without the lock: a measure of load, not a count to keep)."""
         return self._waiting >= self.crowded
 
-    def _full(self, source: str, size: int) -> bool:
-        queue = self._queues.get(source)
+    def _full(self, lane: OrderedDict[str, deque[tuple[Any, int]]], source: str, size: int) -> bool:
+        queue = lane.get(source)
         if queue is None:
-            return len(self._queues) >= self.max_sources or self._bytes + size > self.max_bytes
+            return len(self._queues) + len(self._urgent) >= self.max_sources or self._bytes + size > self.max_bytes
         return len(queue) >= self.per_source or (self._bytes + size > self.max_bytes and bool(queue))
 
-    def put(self, source: str, item: Any, size: int = 0, wait_s: float | None = 1.0, replace: bool = False) -> bool:
+    def put(self, source: str, item: Any, size: int = 0, wait_s: float | None = 1.0, replace: bool = False, urgent: bool = False) -> bool:
         """Queue ``item`` (``size`` payload bytes) from ``source``; waits up to ``wait_s`` (None: as
         long as it takes) while that source's queue is full, then drops it. False if dropped.
         A ``replace`` able item, while :attr:`crowded` items or more wait, takes the source's slot, superseding
-        the one waiting there."""
+        the one waiting there; an ``urgent`` one waits in the urgent lane."""
         if replace and self.is_crowded():
             return self._replace(source, item, size)
+        lane = self._urgent if urgent else self._queues
         deadline = None if wait_s is None else time.monotonic() + wait_s
         with self._cond:
-            while self._closed or self._full(source, size):
+            while self._closed or self._full(lane, source, size):
                 remaining = None if deadline is None else deadline - time.monotonic()
                 if self._closed or (remaining is not None and remaining <= 0):
                     self._dropped[source] += 1
                     return False
                 self._cond.wait(remaining)
-            self._queues.setdefault(source, deque()).append((item, size))
+            lane.setdefault(source, deque()).append((item, size))
             self._waiting += 1
             self._bytes += size
             self._cond.notify_all()
@@ -113,26 +125,33 @@ class Inbox:
             return True
 
     def get(self, timeout: float = 0.0) -> Any | None:
-        """The next item, taking one from each source in turn (a replaceable one when nothing else waits,
-        or every :data:`SLOT_EVERY` th); None if nothing came within ``timeout``."""
+        """The next item, taking one from each source of a lane in turn (an urgent one first, but not more than
+        :data:`URGENT_RUN` in a row while others wait; a replaceable one when nothing else waits, or every :data:`SLOT_EVERY` th); None if
+        nothing came within ``timeout``."""
         with self._cond:
-            if not (self._queues or self._slots) and not self._cond.wait_for(lambda: bool(self._queues or self._slots), timeout=timeout):
+            if not self._cond.wait_for(lambda: bool(self._queues or self._urgent or self._slots), timeout=timeout):
                 return None
             self._served += 1
-            if self._slots and (not self._queues or self._served % SLOT_EVERY == 0):
+            if self._slots and (not (self._queues or self._urgent) or self._served % SLOT_EVERY == 0):
                 _, (item, size) = self._slots.popitem(last=False)
                 self._bytes -= size
                 self._cond.notify_all()
                 return item
-            source, queue = next(iter(self._queues.items()))
+            lane = self._urgent if self._urgent and (not self._queues or self._urgent_run < URGENT_RUN) else self._queues
+            self._urgent_run = self._urgent_run + 1 if lane is self._urgent else 0
+            source, queue = next(iter(lane.items()))
             item, size = queue.popleft()
             self._waiting -= 1
-            del self._queues[source]
+            del lane[source]
             if queue:
-                self._queues[source] = queue  # to the back of the round
+                lane[source] = queue  # to the back of the round
             self._bytes -= size
             self._cond.notify_all()
             return item
+
+    def holds(self, source: str) -> bool:
+        """Whether items of ``source`` wait (in its queue or its slot; read without the lock, a glance)."""
+        return source in self._queues or source in self._slots
 
     def close(self) -> None:
         """Take nothing more: every put, waiting or to come, returns False at once."""

@@ -17,7 +17,8 @@ from island.transports import key_prefix
 
 class ZenohLink:
     """The coordinator's Zenoh entities under ``hysid/<campaign>/``: queryables ``config``,
-    ``best`` and ``join/*``, subscribers to ``history/*`` and ``migrants/*``, the members'
+    ``best`` and ``join/*``, subscribers to ``history/*`` and (while it follows them:
+    :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`) ``migrants/*``, the members'
     liveliness tokens, publications on ``control`` and ``best``, history queries (everything it
     sends signed, :mod:`island.protocol`).
 
@@ -57,9 +58,9 @@ class ZenohLink:
             session.declare_queryable(f"{prefix}/best", on_best),
             session.declare_queryable(f"{prefix}/join/*", on_join),
             session.declare_subscriber(f"{prefix}/history/*", on_sample),
-            session.declare_subscriber(f"{prefix}/migrants/*", on_sample),
             session.liveliness().declare_subscriber(f"{prefix}/members/*", on_member, history=True),
         ]
+        self._migrants = session.declare_subscriber(f"{prefix}/migrants/*", on_sample) if coordinator.follows_migrants else None
 
     def publish_control(self, message: bytes, stop: bool) -> None:
         self._control.put(message)
@@ -77,7 +78,19 @@ class ZenohLink:
         self.session.get(f"{self.prefix}/history/{island}?{coordinator.history_query(island, run, since)}", on_reply, timeout=5.0,
                          target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE)  # a stranger's queryable cannot take it
 
+    @property
+    def follows_migrants(self) -> bool:
+        """Whether the coordinator's subscriber to ``migrants/*`` is declared."""
+        return self._migrants is not None
+
+    def unfollow_migrants(self) -> None:
+        """Undeclare the subscriber to ``migrants/*``: Zenoh no longer brings them to this session."""
+        if self._migrants is not None:
+            self._migrants.undeclare()
+            self._migrants = None
+
     def close(self) -> None:
+        self.unfollow_migrants()
         for entity in self._entities + [self._control, self._best]:
             entity.undeclare()
 
@@ -98,3 +111,6 @@ class MemoryLink:
 
     def request_history(self, island: str, run: str, since: int) -> None:
         """Nothing is lost in memory."""
+
+    def unfollow_migrants(self) -> None:
+        """The islands' migrant messages still reach :meth:`Coordinator.receive`, which lets them pass."""

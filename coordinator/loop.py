@@ -11,7 +11,8 @@ inbox (:func:`pump`) through :meth:`coordinator.state.Coordinator.handle` and
   rule on from there), and after each commit publishes the signed ``control``
   message (:func:`control_message`): the roster, how far each island's history
   is committed (an island waits for that before it leaves) and, at the end,
-  the stop order; every :data:`coordinator.thinning.REVIEW_EVERY_S` it measures what storage holds (the time its
+  the stop order (at each commit it also decides whether to go on following migrant messages:
+  :meth:`coordinator.state.Coordinator.review_following`); every :data:`coordinator.thinning.REVIEW_EVERY_S` it measures what storage holds (the time its
   work and the writing of rows took: :meth:`coordinator.thinning.HistoryPolicy.review`)
   and stores the counts of migrant messages superseded in the inbox;
 * stops (:func:`check_stop`) by the rules of :class:`island.termination.Termination`
@@ -56,7 +57,8 @@ COMMIT_ROWS = 20_000
 FLUSH_EVERY_S = 0.1
 FLUSH_ROWS = 5000
 """History rows (with the island records and thinned stretches) are written in one batch at least this
-often, or once this many wait: a row is in the database a tenth of a second after it was handled."""
+often, or once this many wait: a row is in the database a tenth of a second after it was handled. Losses
+are looked for as often (:meth:`coordinator.members.Membership.settle`)."""
 PASS_S = 0.2
 """Longest stretch of message handling between two checks of the stop rules and progress."""
 CONTROL_EVERY_S = 1.0
@@ -110,6 +112,7 @@ def commit(c: Coordinator, link: Link, *, announce: bool = False) -> None:
         c.store.add_superseded(c.name, superseded)
         c.superseded += sum(superseded.values())
     began = time.monotonic()
+    c.review_following(link)
     c.consider_migrants(link)
     c.busy_s += time.monotonic() - began
     flush(c)
@@ -156,11 +159,13 @@ def pump(c: Coordinator, link: Link, seconds: float, first_wait: float = 0.05) -
         now = time.monotonic()
         done = item is None or now >= deadline
         margin = min(MAX_COMMIT_MARGIN_S, c.slowest_item_s + c.commit_s)
-        if done or now - c.committed_at >= COMMIT_EVERY_S - margin or c.rows_since_commit >= COMMIT_ROWS:
-            c.membership.settle()
-            commit(c, link)
-        elif now - c.flushed_at >= FLUSH_EVERY_S or c.store.pending_rows >= FLUSH_ROWS:
-            flush(c)
+        due = done or now - c.committed_at >= COMMIT_EVERY_S - margin or c.rows_since_commit >= COMMIT_ROWS
+        if due or now - c.flushed_at >= FLUSH_EVERY_S or c.store.pending_rows >= FLUSH_ROWS:
+            c.membership.settle(c.inbox.holds if c.stop_reason is not None else None)  # stopping: final histories may wait
+            if due:
+                commit(c, link)
+            else:
+                flush(c)
         if done:
             return handled
         wait = 0.0

@@ -9,7 +9,8 @@ for noticing a loss sooner: anyone who reaches the router can declare a token
 under any name, and Zenoh shows one token per name whoever holds it, so a
 token never makes a run a member or brings one back, and a token held by a
 stranger cannot hide a loss for longer than :data:`STALE_S`. The run's final
-history is its leave (:meth:`Membership.final_history`), whatever token stays;
+history is its leave (:meth:`Membership.final_history`), whatever token stays
+(also one handled after the run was found lost: it was sent before);
 a token that goes without it for :data:`LEAVE_GRACE_S`, or no signed message
 for :data:`STALE_S`, is a loss (:meth:`Membership.settle`): crash, kill, or a
 frozen process. A lost run is back with its next signed message; a run that
@@ -138,17 +139,21 @@ class Membership:
         self._now_alive()
 
     def final_history(self, island: str, run: str) -> None:
-        """The final history of ``run`` of ``island`` arrived: it left (its token may go later, or be held by someone else)."""
+        """The final history of ``run`` of ``island`` arrived: it left (its token may go later, or be held by someone
+        else). Also when it was found lost: a coordinator that is behind handles a token's going (urgent) before the
+        final history that came first and waited longer than :data:`LEAVE_GRACE_S`; the loss stays recorded, then the leave."""
         member = self.members.get(island)
-        if member is not None and member.run == run and member.status == "alive":
+        if member is not None and member.run == run and member.status in ("alive", "lost"):
             self._leave(island, member, "left")
 
-    def settle(self) -> None:
+    def settle(self, waiting: Callable[[str], bool] | None = None) -> None:
         """A token gone without a final history for :data:`LEAVE_GRACE_S`, or no signed message for
-        :attr:`stale_s`: the island is lost."""
+        :attr:`stale_s`: the island is lost; with ``waiting`` (once the stop order went out, when every island
+        leaves), not while ``waiting(island)`` says messages of it wait to be handled: its final history is
+        likely one of them."""
         now = time.monotonic()
         for island, member in self.members.items():
-            vanished = member.gone_at is not None and now - member.gone_at >= LEAVE_GRACE_S
+            vanished = member.gone_at is not None and now - member.gone_at >= LEAVE_GRACE_S and not (waiting is not None and waiting(island))
             if member.status == "alive" and (vanished or now - member.heard_at >= self.stale_s):
                 self._leave(island, member, "lost")
 

@@ -132,9 +132,18 @@ def stored_summary(c: Coordinator) -> dict[str, Any]:
             "superseded_migrant_messages": c.store.superseded(c.name)}
 
 def migration_summary(c: Coordinator, records: list[IslandRecord]) -> dict[str, Any]:
+    """The migration settings; migrant messages the coordinator handled (``messages``) and, if it stopped following
+    them (:data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`), with how many islands alive and how long after the
+    campaign's start (``unfollowed``); what the islands counted: messages ``sent``, migrants ``received``
+    (re-evaluated) and ``taken`` in; messages the coordinator ``rejected`` and why."""
+    unfollowed = c.store.unfollowed(c.name)
+    created = next((k["created"] for k in c.store.campaign_list() if k["name"] == c.name), None)
     return {
         **c.config.migration.as_dict(),
         "messages": c.store.count("migrations", c.name),
+        "unfollowed": None if unfollowed is None else {
+            "islands": unfollowed["islands"], "follows_up_to": unfollowed["up_to"], "after_s": unfollowed["t"] - (created or unfollowed["t"])},
+        "sent": sum(r.sent for r in records),
         "received": sum(r.received for r in records),
         "taken": sum(r.taken for r in records),
         "rejected": c.store.count("rejected", c.name),

@@ -9,6 +9,8 @@ did not keep, over capacity, and how many: :mod:`coordinator.thinning`),
 ``islands`` (each island run's algorithm, evaluations and migration
 counters), ``migrations`` (every migrant message handled), ``superseded``
 (per island, migrant messages a newer one replaced before they were handled),
+``unfollowed`` (when, with how many islands alive, the coordinator stopped
+following migrant messages: :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`),
 ``rejected`` (every message that failed validation, with the reason) and
 ``best`` (the global best, as re-evaluated by the coordinator).
 
@@ -80,6 +82,7 @@ CREATE TABLE IF NOT EXISTS thinned (
     rows INTEGER NOT NULL, t REAL NOT NULL);
 CREATE TABLE IF NOT EXISTS superseded (
     campaign TEXT NOT NULL, island TEXT NOT NULL, messages INTEGER NOT NULL, PRIMARY KEY (campaign, island));
+CREATE TABLE IF NOT EXISTS unfollowed (campaign TEXT PRIMARY KEY, islands INTEGER NOT NULL, up_to INTEGER NOT NULL, t REAL NOT NULL);
 """
 UPGRADES = (
     ("migrations", "seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
@@ -449,6 +452,12 @@ class Store:
         )
 
     @_writes
+    def set_unfollowed(self, campaign: str, islands: int, up_to: int) -> None:
+        """The coordinator stopped following migrant messages with ``islands`` alive, following those of at most
+        ``up_to`` (the first time is kept)."""
+        self.db.execute("INSERT OR IGNORE INTO unfollowed VALUES (?, ?, ?, ?)", (campaign, islands, up_to, time.time()))
+
+    @_writes
     def add_migration(
         self, campaign: str, island: str, run: str, iteration: int, n: int, best_claimed: float, sent_at: float, seq: int
     ) -> bool:
@@ -554,6 +563,14 @@ class Store:
         if not self._has("superseded"):
             return 0
         return int(self.db.execute("SELECT coalesce(sum(messages), 0) FROM superseded WHERE campaign = ?", (campaign,)).fetchone()[0])
+
+    def unfollowed(self, campaign: str) -> dict[str, Any] | None:
+        """When the coordinator stopped following migrant messages: ``islands`` alive then, the rule's ``up_to``
+        and the Unix time ``t`` (None: it never did)."""
+        if not self._has("unfollowed"):
+            return None
+        row = self.db.execute("SELECT islands, up_to, t FROM unfollowed WHERE campaign = ?", (campaign,)).fetchone()
+        return None if row is None else {"islands": int(row[0]), "up_to": int(row[1]), "t": float(row[2])}
 
     def _has(self, table: str) -> bool:
         """Whether the file has ``table`` (a file of an earlier hysid opened read-only may lack it)."""

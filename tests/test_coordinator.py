@@ -14,7 +14,7 @@ import time
 import numpy as np
 import pytest
 
-from coordinator.inbox import Inbox
+from coordinator.inbox import URGENT_RUN, Inbox
 from coordinator.links import MemoryLink
 from coordinator.loop import COMMIT_ROWS, check_stop, control_message, pump, serve
 from coordinator.state import Coordinator, resume
@@ -177,17 +177,23 @@ def test_a_token_counts_only_as_far_as_the_runs_signed_messages_bear_it_out(tmp_
     assert [e for i, e, _ in c.store.members("c1") if i == "a"] == ["join", "left"]
 
 
+def alive_with_rows(c: Coordinator, link: MemoryLink, island: str, seed: int) -> tuple[Credentials, np.ndarray, float]:
+    """A PSO island joined (seed ``seed``), its token seen, its first 3 rows handled; its credentials and best."""
+    x = truth(c)
+    f = float(c.objective(x[None, :])[0])
+    cred = c.join(island, "pso", seed)
+    c.member(island, True)
+    deliver(c, link, "history", island, history(cred, honest_rows(c, 3), x, f, seed=seed))
+    return cred, x, f
+
+
 def test_a_message_that_waited_in_the_inbox_while_its_run_was_found_lost_does_not_bring_it_back(tmp_path, link, monkeypatch):
     """A coordinator that is behind handles messages after they arrived: one that arrived before its run
     was found lost is no sign the run is back (a site cut off while its rows still waited); the next
     message that arrives after the loss is."""
     monkeypatch.setattr("coordinator.members.LEAVE_GRACE_S", 0.0)
     c = make(tmp_path)
-    x = truth(c)
-    f = float(c.objective(x[None, :])[0])
-    b = c.join("b", "pso", 2)
-    c.member("b", True)
-    deliver(c, link, "history", "b", history(b, honest_rows(c, 3), x, f, seed=2))
+    b, x, f = alive_with_rows(c, link, "b", 2)
     assert c.receive("hysid/c1/history/b", history(b, honest_rows(c, 5), x, f, seq=1, seed=2))
     waited = c.inbox.get()  # arrived, not yet handled
     c.member("b", False)  # then its site is cut off: its token goes
@@ -198,6 +204,33 @@ def test_a_message_that_waited_in_the_inbox_while_its_run_was_found_lost_does_no
     deliver(c, link, "history", "b", history(b, honest_rows(c, 7), x, f, seq=2, seed=2))  # after the restore
     assert c.members["b"].status == "alive"
     assert [e for i, e, _ in c.store.members("c1") if i == "b"] == ["join", "lost", "back"]
+
+
+def test_a_final_history_handled_after_the_islands_token_went_records_its_leave(tmp_path, link, monkeypatch):
+    """Membership changes jump the queue of history messages (the inbox's urgent lane): an island that sends its
+    final history and then drops its token, to a coordinator that is behind, has its token handled first, and
+    may be found lost before its final history is handled. That history then records its leave."""
+    monkeypatch.setattr("coordinator.members.LEAVE_GRACE_S", 0.0)
+    c = make(tmp_path)
+    a, x, f = alive_with_rows(c, link, "a", 1)
+    assert c.receive("hysid/c1/history/a", history(a, honest_rows(c, 5)[3:], x, f, seq=1, final=True, seed=1))  # waits
+    c.member("a", False)
+    assert c.inbox.get() == ("member", "a", False)  # urgent: before the history that arrived first
+    c.handle(link, ("member", "a", False))
+    c.membership.settle()
+    assert c.members["a"].status == "lost"
+    pump(c, link, 0.1)
+    assert c.members["a"].status == "left" and [e for i, e, _ in c.store.members("c1") if i == "a"] == ["join", "lost", "left"]
+    b, _, _ = alive_with_rows(c, link, "b", 2)  # once the stop order went out, every island leaves: a loss waits for what waits of it
+    c.stop_reason = "time limit of 1 s"
+    assert c.receive("hysid/c1/history/b", history(b, honest_rows(c, 5)[3:], x, f, seq=1, final=True, seed=2))
+    c.member("b", False)
+    assert c.inbox.get() == ("member", "b", False)
+    c.handle(link, ("member", "b", False))
+    c.membership.settle(c.inbox.holds)  # as the run loop does once stopping
+    assert c.members["b"].status == "alive"
+    pump(c, link, 0.1)
+    assert [e for i, e, _ in c.store.members("c1") if i == "b"] == ["join", "left"]
 
 
 def test_a_joined_island_never_heard_from_is_lost(tmp_path, link, monkeypatch):
@@ -421,6 +454,17 @@ def test_the_inbox_serves_sources_in_turn_and_bounds_each():
     assert not inbox.put("honest", "big", 200, wait_s=0)  # more bytes than allowed
     assert [inbox.get() for _ in range(5)] == [0, "h", 1, 2, None]
     assert inbox.take_dropped() == {"flood": 1, "third": 1, "honest": 1}
+
+
+def test_urgent_items_are_served_first_but_never_more_than_a_run_of_them_while_others_wait():
+    inbox = Inbox()
+    for i in range(3):
+        assert inbox.put("a", f"a{i}", 1)
+    for i in range(URGENT_RUN + 2):
+        assert inbox.put(f"!{i % 2}", f"u{i}", 0, urgent=True)
+    served = [inbox.get() for _ in range(URGENT_RUN + 6)]
+    urgent = [f"u{i}" for i in range(URGENT_RUN + 2)]  # sources !0 and !1 in turn: u0, u1, u2, ...
+    assert served == urgent[:URGENT_RUN] + ["a0"] + urgent[URGENT_RUN:] + ["a1", "a2", None]
 
 
 def test_a_database_locked_by_another_process_stops_the_campaign_cleanly(tmp_path, link):

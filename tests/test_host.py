@@ -14,11 +14,13 @@ from pathlib import Path
 
 import pytest
 
+import coordinator.state
 from coordinator.launch import free_port
 from coordinator.links import ZenohLink
 from coordinator.loop import serve
 from coordinator.state import Coordinator
 from coordinator.store import Store
+from hysid.campaigns import CampaignResult
 from hysid.cli import main
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
@@ -139,6 +141,30 @@ def test_each_island_of_a_process_joins_as_its_own_run_with_its_own_key_and_repo
         assert rows_of(Path(campaign.c.store.path), h.spec.id) == TRIO_ITERATIONS + 1  # every row of every island stored
         assert h.node.stats["received"] > 0 and h.node.stats["rejected"] == 0  # they migrate to one another
     assert {e for i, e in query(Path(campaign.c.store.path), "SELECT island, event FROM members")} == {"join", "left"}
+
+
+def test_a_coordinator_of_more_islands_than_it_follows_leaves_migration_to_them_and_says_so(
+    trio: Campaign, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Past :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO` islands alive (2 here) the coordinator stops
+    subscribing to migrant messages before the islands start; they still migrate to one another, report
+    their counts, and the result says who counted what."""
+    campaign = trio
+    monkeypatch.setattr(coordinator.state, "FOLLOWS_MIGRANTS_UP_TO", 2)
+    hosted = campaign.islands(host_specs("h", 3, campaign.c.config, seed=20), turns=2)
+    assert all(h.error is None and h.node is not None and h.node.confirmed for h in hosted)
+    assert not campaign.link.follows_migrants and not campaign.c.follows_migrants
+    assert campaign.c.store.count("migrations", "h1") == 0  # it stopped once the third joined, before they searched
+    unfollowed = campaign.c.store.unfollowed("h1")
+    assert unfollowed is not None and (unfollowed["islands"], unfollowed["up_to"]) == (3, 2)
+    assert all(h.node.stats["sent"] > 0 and h.node.stats["received"] > 0 for h in hosted)  # island to island
+    campaign.thread.join(30)  # every island finished: the coordinator's loop ends
+    assert campaign.c.stop_reason == "every island finished"
+    result = CampaignResult.from_outcome(campaign.c.outcome(polish_best=False))
+    m = result.migrations
+    assert m["messages"] == 0 and m["sent"] == sum(h.node.stats["sent"] for h in hosted) and m["unfollowed"]["islands"] == 3
+    assert "0 messages handled by the coordinator (ring, every 2 iterations) until 3 islands were alive" in result.summary()
+    assert f"by the islands' own counts {m['sent']:,} messages sent" in result.summary()
 
 
 def test_one_islands_failure_does_not_end_the_others(campaign: Campaign) -> None:

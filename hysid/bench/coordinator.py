@@ -14,7 +14,8 @@ loopback.
   the first 30 s (MB per minute: about 0 when nothing grows);
 * **ramp**: 32, 64, 128, ... islands, ``ramp_s`` each, until the coordinator lags (a row's p95 lag above 1 s,
   or a row sent neither stored nor counted as thinned): the most islands it held, what it stored and thinned
-  (:mod:`coordinator.thinning`), migrant messages handled and superseded, and the coordinator's memory
+  (:mod:`coordinator.thinning`), migrant messages handled and superseded (none beyond
+  :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO` islands: then it no longer follows them), and the coordinator's memory
   (this process's resident memory over the islands: target 1 MB per island at most);
 * **backlog**: 32 islands with a backlog of 6400 messages queued at once and a budget spent after about a
   quarter of them: seconds from the start to the stop decision and how much was still queued (it must not
@@ -201,6 +202,7 @@ def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, A
         lag = row_lags(stored, done["islands"])
         history_rows = c.store.count("history", "load")
         thinned = sum(c.store.thinned("load").values())
+        unfollowed = c.store.unfollowed("load")
         peak = max(m for _, m in rss)
         return {
             "islands": islands, "seconds": seconds, "elapsed_s": elapsed, "stop_reason": reason, "rate_per_island": RATE, "interval": INTERVAL,
@@ -209,6 +211,7 @@ def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, A
             "rows_per_s": history_rows / seconds, "rows_sent_per_s": done["rows"] / seconds,
             "history_messages_sent": done["history_messages"], "migrant_messages_sent": done["migrant_messages"], "migrations": c.migrations,
             "migrant_messages_superseded": c.superseded, "migrant_messages_per_s": c.migrations / seconds,
+            "migrants_unfollowed_at_islands": None if unfollowed is None else unfollowed["islands"],
             "migrant_messages_sent_per_s": done["migrant_messages"] / seconds,
             "row_lag_s": {"p50": float(np.percentile(lag, 50)), "p95": float(np.percentile(lag, 95)), "max": float(np.max(lag))},
             "sending_late_p95_s": done["late_p95_s"],
@@ -474,7 +477,9 @@ def to_text(r: dict[str, Any]) -> str:
     def traffic(x: dict[str, Any]) -> str:
         return (f"{x['islands']} islands for {x['elapsed_s']:.1f} s: {x['rows_per_s']:,.0f} rows/s stored of {x['rows_sent_per_s']:,.0f} sent "
                 f"({x['rows_thinned']:,} thinned, {x['rows_lost']} lost), {x['migrant_messages_per_s']:,.0f} migrant messages/s handled of "
-                f"{x['migrant_messages_sent_per_s']:,.0f} ({x['migrant_messages_superseded']:,} superseded); row lag p50 "
+                f"{x['migrant_messages_sent_per_s']:,.0f} ({x['migrant_messages_superseded']:,} superseded"
+                + (f"; not followed once {x['migrants_unfollowed_at_islands']} islands were alive" if x.get("migrants_unfollowed_at_islands") else "")
+                + f"); row lag p50 "
                 f"{x['row_lag_s']['p50']:.3f} s, p95 {x['row_lag_s']['p95']:.3f} s; longest gap between commits {x['max_commit_gap_s']:.3f} s, "
                 f"between stop-rule checks {x['max_stop_check_gap_s']:.3f} s; deepest inbox {x['deepest_inbox']}; "
                 f"RSS {x['rss_mb']:.0f} MB ({x['rss_mb_per_island']:.2f} MB per island)")

@@ -226,8 +226,14 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
 
 def migrations_text(m: dict[str, Any]) -> str:
     """A campaign's migrations (its ``migrations`` document) in one phrase, as the summary and the report say them."""
-    return (f"{m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
-            f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected")
+    unfollowed = m.get("unfollowed")
+    if not unfollowed:
+        return (f"{m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
+                f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected")
+    return (f"{m['messages']:,} messages handled by the coordinator ({m['topology']}, every {m['interval']} iterations) until "
+            f"{unfollowed['islands']:,} islands were alive, {unfollowed['after_s']:.0f} s in (it follows those of at most "
+            f"{unfollowed['follows_up_to']} islands); by the islands' own counts {m['sent']:,} messages sent, {m['received']:,} "
+            f"migrants re-evaluated, {m['taken']:,} taken in; {m['rejected']:,} messages rejected by the coordinator")
 
 
 def campaign_summary(result: "CampaignResult") -> str:
