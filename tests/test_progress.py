@@ -66,7 +66,7 @@ def test_diagnose_reports_each_fit_without_changing_the_result():
 @pytest.mark.parametrize(
     "argv, label, total",
     [(["fit", "synth", "--runs", "2"], "fitting", "/38"), (["campaign", "--single-node", *SMALL], "campaign", "/20"),
-     (["diagnose", "synth"], "diagnosing", "/")],
+     (["diagnose", "synth", "--points", "30"], "diagnosing", "/")],
 )
 def test_a_bar_with_an_eta_on_a_terminal(argv, label, total, tmp_path):
     code, screen = screen_of(hysid_argv(*argv, "--out", str(tmp_path / "o")), 300)
