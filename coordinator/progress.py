@@ -29,4 +29,7 @@ class CampaignProgress:
     members: dict[str, str]
     islands: dict[str, IslandView]
     migrations: int
+    """Migrant messages the coordinator handled."""
     rejected: int
+    migrations_followed: bool = True
+    """False once the coordinator stopped following migrant messages (:data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`)."""

@@ -305,6 +305,7 @@ class Coordinator:
             islands={f"{i}" if runs[i] == 1 else f"{i}/{r}": v for (i, r), v in self.islands.items()},
             migrations=self.migrations,
             rejected=self.rejected,
+            migrations_followed=self.follows_migrants,
         )
 
     def _best_message(self) -> bytes:

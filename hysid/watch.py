@@ -89,6 +89,7 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
         members=members,
         islands={f"{r.island}/{r.run}" if r.island in several else r.island: IslandView(r.algo, r.iterations, r.best_fitness, r.final) for r in records},
         migrations=store.count("migrations", name),
+        migrations_followed=store.unfollowed(name) is None,
         rejected=store.count("rejected", name),
     )
     return CampaignSnapshot(name, meta["dataset"], meta["status"], meta["stop_reason"], progress,

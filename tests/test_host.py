@@ -21,6 +21,8 @@ from coordinator.loop import serve
 from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
+from hysid.report.text import campaign_progress_line, watch_text
+from hysid.watch import snapshot
 from hysid.cli import main
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
@@ -158,6 +160,8 @@ def test_a_coordinator_of_more_islands_than_it_follows_leaves_migration_to_them_
     unfollowed = campaign.c.store.unfollowed("h1")
     assert unfollowed is not None and (unfollowed["islands"], unfollowed["up_to"]) == (3, 2)
     assert all(h.node.stats["sent"] > 0 and h.node.stats["received"] > 0 for h in hosted)  # island to island
+    assert "| migrations 0 (then island to island) |" in campaign_progress_line(campaign.c.progress())
+    assert "migrant messages 0 (then island to island)" in watch_text(snapshot(campaign.c.store, "h1"))  # hysid watch, from the database
     campaign.thread.join(30)  # every island finished: the coordinator's loop ends
     assert campaign.c.stop_reason == "every island finished"
     result = CampaignResult.from_outcome(campaign.c.outcome(polish_best=False))

@@ -21,7 +21,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, TaskProgressColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.progress import Progress as RichProgress
 
-from hysid.report.text import campaign_progress_line
+from hysid.report.text import campaign_progress_line, migrant_messages
 from island.termination import Termination
 
 if TYPE_CHECKING:
@@ -113,7 +113,7 @@ def campaign_done(p: CampaignProgress, islands: int, iterations: int | None, ter
 def campaign_status(p: CampaignProgress) -> str:
     """The short status next to a campaign's bar: global best, members, migrations."""
     alive = sum(s == "alive" for s in p.members.values())
-    return f"best {p.best:.4g} | members {alive} | migrations {p.migrations}" + (f" | rejected {p.rejected}" if p.rejected else "")
+    return f"best {p.best:.4g} | members {alive} | migrations {migrant_messages(p)}" + (f" | rejected {p.rejected}" if p.rejected else "")
 
 
 def campaign_reporter(bar: Progress, islands: int, iterations: int | None, termination: Termination) -> Callable[[CampaignProgress], None] | None:

@@ -308,6 +308,11 @@ def share_lines(settings: dict[str, Any], islands: list[dict[str, Any]] | None =
     return lines
 
 
+def migrant_messages(p: "CampaignProgress") -> str:
+    """The migrant messages the coordinator handled; once it stopped following them, that the rest go island to island."""
+    return f"{p.migrations}" if p.migrations_followed else f"{p.migrations} (then island to island)"
+
+
 def campaign_progress_line(p: "CampaignProgress") -> str:
     """One line of live progress: members, evaluations, global best, migrations, each island's best."""
     alive = sum(s == "alive" for s in p.members.values())
@@ -315,7 +320,7 @@ def campaign_progress_line(p: "CampaignProgress") -> str:
     islands = "  ".join(f"{i}:{v.best:.3g}@{v.iteration}" for i, v in sorted(p.islands.items()))
     return (
         f"[{p.elapsed_s:6.1f} s] members {alive}{f' ({gone})' if gone else ''} | evaluations {p.evaluations:,} | "
-        f"best {p.best:.4g} | migrations {p.migrations}{f' | rejected {p.rejected}' if p.rejected else ''} | {islands}"
+        f"best {p.best:.4g} | migrations {migrant_messages(p)}{f' | rejected {p.rejected}' if p.rejected else ''} | {islands}"
     )
 
 
@@ -349,7 +354,7 @@ def watch_text(snap: "CampaignSnapshot") -> str:
     best = f"{p.best:.6g} from {snap.best_island}" if np.isfinite(p.best) else "none yet"
     lines = [
         f"campaign {snap.name!r} on {snap.dataset}: {state} after {p.elapsed_s:.1f} s",
-        f"global best {best} | evaluations {p.evaluations:,} | migrant messages {p.migrations}{rejected}",
+        f"global best {best} | evaluations {p.evaluations:,} | migrant messages {migrant_messages(p)}{rejected}",
         "",
     ]
     several = {i["island"] for i in snap.islands if sum(j["island"] == i["island"] for j in snap.islands) > 1}
