@@ -218,7 +218,7 @@ def test_two_campaigns_on_one_network_do_not_cross_talk(spawn, tmp_path):
     doc_a, doc_b = finished(coord_a), finished(coord_b)
     for db, doc in ((db_a, doc_a), (db_b, doc_b)):
         assert [i["island"] for i in doc["islands"]] == ["same-name"]  # one run each: nothing from the other campaign
-        assert query(db, "SELECT count(*) FROM rejected")[0][0] == 0
+        assert query(db, "SELECT count(*) FROM rejected")[0][0] == 0, query(db, "SELECT key, reason, detail FROM rejected")
         assert events(db, "same-name") == ["join", "left"]
     assert doc_a["dataset"]["name"] != doc_b["dataset"]["name"]
 
