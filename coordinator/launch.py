@@ -185,7 +185,7 @@ def run_campaign(
         try:
             session = open_session(session_config("router", listen=[endpoint]), f"listen {endpoint}")
         except HysidInputError as exc:
-            warnings.warn(HysidWarning(f"{exc}; running every island in this process instead (single node)"), stacklevel=2)
+            warnings.warn(HysidWarning(f"{exc}; running every island in this process instead (single node)", "single_node_fallback"), stacklevel=2)
     if session is None:
         run_single_node(coordinator, specs, on_progress=on_progress)
     else:

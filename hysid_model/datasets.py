@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from hysid_model import plausibility
+from hysid_model import notices, plausibility, slips
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.extraction import extract_loop
 from hysid_model.loops import LoopSet
@@ -63,7 +63,9 @@ def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 
     path = Path(spec)
     if not path.exists():
         raise HysidInputError(f"{spec}: no such dataset (expected a dataset directory, a loops file, .mat/.lvm files or 'synth')")
-    loops = _load_dir(path, n_points) if path.is_dir() else _load_file(path, n_points)
+    with notices.recorded() as raised:
+        loops = _load_dir(path, n_points) if path.is_dir() else _load_file(path, n_points)
+    loops.meta[notices.META_KEY] = notices.merged(notices.stored(loops.meta), raised)
     return add_noise(loops, noise_pct, noise_seed)
 
 
@@ -86,6 +88,8 @@ def add_noise(loops: LoopSet, noise_pct: float, seed: int) -> LoopSet:
 
 def _tidy(path: Path, config: DatasetConfig, n_points: int | None) -> LoopSet:
     loops = read_loops(path)
+    for notice in notices.stored(loops.meta):  # what its extraction warned is said again (and kept)
+        warnings.warn(HysidWarning(notice["message"], notice["code"]), stacklevel=4)
     if n_points is not None and n_points != loops.n_samples:
         raise HysidInputError(f"{path}: holds {loops.n_samples} points per branch, not the {n_points} asked for (extract again from the raw records)")
     if "name" in config.given:
@@ -156,11 +160,12 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     from neither a manifest nor their name get the data's; a warning says so, and ``meta`` keeps
     ``estimated_manifest``, the ``manifest.csv`` that would fix those frequencies.
     """
-    extracted = []
+    extracted, read = [], []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", HysidWarning)
         for source in sources:
             series = source.read()
+            read.append((series.channels[1:], series.units))
             extracted.append(extract_loop(
                 series.t, series.x, series.force, source=series.source, n_points=n_points,
                 nominal_freq_hz=source.nominal_hz, steady_window=config.window(source.window_key),
@@ -188,9 +193,9 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
         warnings.warn(HysidWarning(
             f"{config.directory}: no {MANIFEST_NAME}; frequencies estimated from the data: {found}"
             + (f" (`hysid loops {config.directory}` prints the {MANIFEST_NAME} that fixes them; in Python it is "
-               "loops.meta['estimated_manifest'])" if files else "")
+               "loops.meta['estimated_manifest'])" if files else ""), "estimated_frequencies",
         ), stacklevel=3)
-    return LoopSet(
+    loops = LoopSet(
         name=config.name,
         freq_hz=np.array([e.freq_hz for e in extracted]),
         x0=np.array([e.x0 for e in extracted]),
@@ -203,19 +208,22 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
         meta=meta,
         x_harmonics=stack_harmonics([e.x_harmonics for e in extracted]),
     )
+    for warning in slips.physics(loops, facts, str(config.directory), slips.Reading.common(read)):
+        warnings.warn(warning, stacklevel=3)
+    return loops
 
 
 def once_each(caught: list[warnings.WarningMessage], records: int) -> None:
     """Warn again what reading ``records`` records warned, each message once, with how many records said it
     (a header without units in 32 files is one warning, not 32)."""
-    counts: dict[str, int] = {}
+    counts: dict[str, list[Any]] = {}
     for w in caught:
-        if issubclass(w.category, HysidWarning):
-            counts[str(w.message)] = counts.get(str(w.message), 0) + 1
+        if isinstance(w.message, HysidWarning):
+            counts.setdefault(str(w.message), [w.message.code, 0])[1] += 1
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    for message, count in counts.items():
-        warnings.warn(HysidWarning(message + (f" (in {count} of {records} records)" if count > 1 else "")), stacklevel=4)
+    for message, (code, count) in counts.items():
+        warnings.warn(HysidWarning(message + (f" (in {count} of {records} records)" if count > 1 else ""), code), stacklevel=4)
 
 
 def stack_harmonics(rows: list[np.ndarray]) -> np.ndarray:

@@ -42,4 +42,13 @@ class HysidInputError(ValueError):
 
 
 class HysidWarning(UserWarning):
-    """Something suspicious that does not stop the work (distortion, a unit slip, a fallback)."""
+    """Something suspicious that does not stop the work (distortion, a unit slip, a fallback).
+
+    ``code`` names the kind with a stable word (``swapped_columns``, ``unit_slip_displacement``, ...;
+    :data:`hysid_model.notices.CODES` lists them) so that a result can carry its warnings
+    (``result.json``'s ``warnings``) and a program can act on them without parsing the message.
+    """
+
+    def __init__(self, message: str, code: str = "warning") -> None:
+        super().__init__(message)
+        self.code = code

@@ -301,7 +301,7 @@ def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float
     kept = next(n for n in range(xh.shape[1] - 1, 0, -1) if n == 1 or waveform.reversal_count(xh[:, :n])[0] == 2)
     warnings.warn(HysidWarning(
         f"{source}: the displacement reverses {reverses} times per cycle (sub-loops, or a clipped top); "
-        + ("the loop is placed on the ideal sine X0 sin(wt)" if kept == 1 else f"the loop keeps its first {kept} harmonics, which reverse twice")
+        + ("the loop is placed on the ideal sine X0 sin(wt)" if kept == 1 else f"the loop keeps its first {kept} harmonics, which reverse twice"), "sub_loops",
     ), stacklevel=3)
     return xh[:, :kept].copy(), thd
 

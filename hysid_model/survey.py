@@ -37,6 +37,9 @@ from hysid_model.terms import DataScale
 
 MASS_SIGNIFICANCE = 3.0
 """An estimated mass counts only when it is this many standard errors above zero."""
+SPAN = 1e-3
+"""An amplitude level spans frequencies when its w^2 differ by this share of their mean (0.05 % in frequency): the
+estimates of one frequency differ by far less, and an inertia read off such a span is noise."""
 
 
 @dataclass
@@ -129,7 +132,7 @@ def inertia(loops: LoopSet, k_dyn: np.ndarray) -> tuple[float, float, np.ndarray
     levels' disagreement: a frequency dependence that is not inertia (friction, rate effects) makes them differ."""
     levels, index = amplitude_levels(loops.x0)
     w2 = loops.omega**2
-    spanning = [k for k in range(levels.size) if np.ptp(w2[index == k]) > 0]
+    spanning = [k for k in range(levels.size) if np.ptp(w2[index == k]) > SPAN * np.mean(w2[index == k])]
     if not spanning:
         return None
     design = np.column_stack([(index == k).astype(float) for k in range(levels.size)] + [-w2])
@@ -159,10 +162,15 @@ def estimate_mass(loops: LoopSet, k_dyn: np.ndarray) -> tuple[float | None, str]
     return m, "estimated"
 
 
+def dynamic_stiffness(loops: LoopSet) -> np.ndarray:
+    """Each loop's complex dynamic stiffness K = F1 / X1 (N/m), ``(L,)``: Re K = k - m w^2, Im K = c_eq w."""
+    return -1j * force_harmonics(loops, 1)[:, 0] / loops.displacement_harmonics()[:, 0]
+
+
 def survey(loops: LoopSet, meq_kg: float | None = None) -> Survey:
     """The survey of ``loops``; the mass is ``meq_kg``, else the loop set's, else estimated (see the module docstring)."""
     w = loops.omega
-    dynamic = -1j * force_harmonics(loops, 1)[:, 0] / loops.displacement_harmonics()[:, 0]  # K = F1 / X1
+    dynamic = dynamic_stiffness(loops)
     k_dyn, c_eq = dynamic.real, dynamic.imag / w
     energy = loop_area(loops)
     mass = meq_kg if meq_kg is not None else loops.meq_kg

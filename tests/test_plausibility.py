@@ -104,11 +104,12 @@ def test_swapped_displacement_and_force_columns_warn(tmp_path):
     rec = shaker("run", 10.0, 2e-3)
     d = write_dataset(tmp_path / "d", [RawRecord("run", 10.0, 2e-3, rec.t, rec.force, rec.x, 0.0)])
     _, messages = loads(d)
-    assert any("displacement and force look swapped in run (X0 = " in m and "check the column order" in m for m in messages)
+    assert any("displacement and force look swapped in run (X0 = " in m and 'set displacement_channel = "force_n", displacement_unit = "m", '
+               'force_channel = "displacement_m" and force_unit = "N" in dataset.toml' in m for m in messages)
     metres = write_dataset(tmp_path / "m", [RawRecord("run", 10.0, 2e-3, rec.t, rec.x * 1e3, rec.force, 0.0)])
     _, messages = loads(metres)
     assert any("the displacement moves as no rig does in run (peak velocity 126 m/s)" in m and "X0 up to 2 m" in m
-               and "mm under a _m header? x 0.001 (mm)" in m for m in messages)
+               and "mm under its m header? x 0.001 (mm)" in m for m in messages)
     assert not any("look swapped" in m for m in messages)
 
 
@@ -140,7 +141,7 @@ def test_millimetres_under_a_metre_header_all_below_one_are_named_from_the_physi
     found = physics_messages(messages)
     assert len(found) == 1 and "the displacement moves as no rig does in r0 (peak velocity 3.14 m/s), r1 (" in found[0]
     assert "r3 (peak velocity 201 m/s)" in found[0]
-    assert "mm under a _m header? x 0.001 (mm) makes it at most 0.201 m/s and 5.15 g" in found[0]
+    assert "mm under its m header? x 0.001 (mm) makes it at most 0.201 m/s and 5.15 g" in found[0]
 
 
 def test_kilonewtons_under_a_newton_header_are_named_from_the_stiffness(tmp_path):
@@ -150,7 +151,7 @@ def test_kilonewtons_under_a_newton_header_are_named_from_the_stiffness(tmp_path
     _, messages = loads(write_dataset(tmp_path / "d", records))
     found = physics_messages(messages)
     assert len(found) == 1 and "the force is too small for the motion: a dynamic stiffness |F1|/X0 of 0.2" in found[0]
-    assert "kN under a _n header? x 1000 (kN)" in found[0]
+    assert 'a unit slip? the force in kN under its N header (force_unit = "kN"), in dataset.toml, making it 2' in found[0]
 
 
 def resonant(label: str, freq: float, x0: float, seed: int = 0) -> RawRecord:
@@ -195,4 +196,4 @@ def test_columns_swapped_on_a_friction_specimen_are_named_from_the_harmonics(tmp
     _, messages = loads(write_dataset(tmp_path / "d", [friction(f"r{k}", f, k) for k, f in enumerate((2.0, 4.0, 8.0))]))
     found = physics_messages(messages)
     assert len(found) == 1 and "displacement and force look swapped" in found[0]
-    assert "the 'displacement' carries the force's harmonics" in found[0] and "check the column order" in found[0]
+    assert "the 'displacement' carries the force's harmonics" in found[0] and 'displacement_channel = "force_n"' in found[0]

@@ -162,6 +162,6 @@ def _unit(name: str, quantity: str, declared: str | None, stated: str | None, so
     unit = from_file or from_name
     if unit is None:
         if quantity != "time" and name.strip().lower() != DEFAULT_NAMES[quantity]:  # a unit slip in time shows as a wrong frequency
-            warnings.warn(HysidWarning(f"channel {name!r} states no unit: read as {SI[quantity]} (set {key} in dataset.toml if it is not)"), stacklevel=2)
+            warnings.warn(HysidWarning(f"channel {name!r} states no unit: read as {SI[quantity]} (set {key} in dataset.toml if it is not)", "no_unit"), stacklevel=2)
         unit = SI[quantity]
     return unit, table[unit]

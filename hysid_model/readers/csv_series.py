@@ -30,19 +30,23 @@ PREAMBLE_LINES = 100
 
 @dataclass
 class TimeSeries:
-    """One record in SI units: time (s, strictly increasing), displacement (m), force (N)."""
+    """One record in SI units: time (s, strictly increasing), displacement (m), force (N); the names of the
+    channels they were read from, and the displacement's and force's units as read (None where not known)."""
 
     source: str
     t: np.ndarray
     x: np.ndarray
     force: np.ndarray
+    channels: tuple[str, str, str] = COLUMNS
+    units: tuple[str, str] | None = None
 
 
 def checked_series(source: str, t: np.ndarray, x: np.ndarray, force: np.ndarray, names: tuple[str, str, str] = COLUMNS,
-                   first_line: int = 2, unit: str = "line") -> TimeSeries:
+                   first_line: int = 2, unit: str = "line", units: tuple[str, str] | None = None) -> TimeSeries:
     """Reject NaN/inf (naming column and line) and time that does not increase.
 
-    ``first_line`` is the file line (or with ``unit`` "sample", the number) of the first sample, for the messages.
+    ``first_line`` is the file line (or with ``unit`` "sample", the number) of the first sample, for the messages;
+    ``units`` the displacement's and force's units as read (the checks of :mod:`hysid_model.slips` name them).
     """
     data = np.column_stack([t, x, force])
     if data.shape[0] < 4:
@@ -58,7 +62,7 @@ def checked_series(source: str, t: np.ndarray, x: np.ndarray, force: np.ndarray,
             f"{source}: {unit} {first_line + k + 1}: {names[0]} does not increase ({float(data[k + 1, 0])!r} after {float(data[k, 0])!r}); "
             "time must be strictly increasing"
         )
-    return TimeSeries(source, data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy())
+    return TimeSeries(source, data[:, 0].copy(), data[:, 1].copy(), data[:, 2].copy(), names, units)
 
 
 @dataclass
@@ -197,7 +201,8 @@ def read_series(path: Path, config: DatasetConfig | None = None) -> TimeSeries:
     if data.shape[0] == 0:
         raise HysidInputError(f"{path}: the header is there but there are no data rows")
     t, x, force = (data[:, k] * c.factor for k, c in enumerate(chosen))
-    return checked_series(str(path), t, x, force, names=tuple(c.name for c in chosen), first_line=dialect.header_line + 2)
+    return checked_series(str(path), t, x, force, names=tuple(c.name for c in chosen), first_line=dialect.header_line + 2,
+                          units=(chosen[1].unit, chosen[2].unit))
 
 
 def write_series(path: Path, t: np.ndarray, x: np.ndarray, force: np.ndarray) -> None:

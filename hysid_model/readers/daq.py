@@ -163,4 +163,5 @@ def _record(path: Path, found: _Channels, config: DatasetConfig) -> TimeSeries:
         raise HysidInputError(
             f"{path}: channels of different lengths: {t.size} time, {x.size} displacement ({x_ch.name!r}), {force.size} force ({f_ch.name!r})"
         )
-    return checked_series(source, t, x, force, names=(t_ch.name if t_ch else "time", x_ch.name, f_ch.name), first_line=0, unit="sample")
+    return checked_series(source, t, x, force, names=(t_ch.name if t_ch else "time", x_ch.name, f_ch.name), first_line=0, unit="sample",
+                          units=(x_ch.unit, f_ch.unit))

@@ -99,7 +99,8 @@ def read_long(path: Path, config: DatasetConfig | None) -> list[LongRecord]:
     for label, rows in zip(labels, rows_of):
         t, x, force = data[rows, 0] * time.factor, data[rows, 1] * picked[0].factor, data[rows, 2] * picked[1].factor
         order = np.argsort(t, kind="stable")
-        series = checked_series(f"{path} (record {label})", t[order], x[order], force[order], names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1)
+        series = checked_series(f"{path} (record {label})", t[order], x[order], force[order], names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1,
+                                units=(picked[0].unit, picked[1].unit))
         out.append(LongRecord(label, series, _nominal(path, label, freq[rows])))
     return out
 
@@ -139,6 +140,7 @@ def _long(path: Path, dialect: Dialect, config: DatasetConfig | None, labels: li
                 f"{path}: record {label!r}: {picked[0].name!r} and {picked[1].name!r} are not sampled at the same times "
                 f"({t.size} and {t_f.size} samples)"
             )
-        series = checked_series(f"{path} (record {label})", t, x, force, names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1)
+        series = checked_series(f"{path} (record {label})", t, x, force, names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1,
+                                units=(picked[0].unit, picked[1].unit))
         out.append(LongRecord(label, series, _nominal(path, label, freq[mine])))
     return out

@@ -102,7 +102,7 @@ def directory_sources(directory: Path, config: DatasetConfig) -> list[RawSource]
     skipped = [p.name for p in candidates if p.suffix.lower() == ".csv" and not is_record_csv(p, config)]
     if skipped:
         warnings.warn(HysidWarning(
-            f"{directory}: left out {', '.join(skipped)}: no time, displacement and force columns (nor a record column)"
+            f"{directory}: left out {', '.join(skipped)}: no time, displacement and force columns (nor a record column)", "records_left_out",
         ), stacklevel=3)
     out = []
     for path in candidates:
