@@ -27,6 +27,7 @@ from coordinator.store import Store
 from hysid.fitting import FitResult
 from hysid.motion import MotionChoice, choose_motion, confirm_motion, order_evidence
 from hysid.report import jsondoc, markdown, tables, text
+from hysid_model import notices
 from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, build_model
@@ -105,6 +106,21 @@ class CampaignResult:
     @property
     def stderr(self) -> dict[str, float]:
         return self.fit.stderr
+
+    @property
+    def raised(self) -> list[dict[str, str]]:
+        """The warnings raised while the campaign ran (its fit's; those of loading the data travel with its loops,
+        also into its database, so :meth:`from_database` keeps them)."""
+        return self.fit.raised
+
+    @raised.setter
+    def raised(self, found: list[dict[str, str]]) -> None:
+        self.fit.raised = found
+
+    @property
+    def warnings(self) -> list[dict[str, str]]:
+        """Every warning about the campaign's result, each ``{"code", "message"}`` (:attr:`FitResult.warnings`)."""
+        return self.fit.warnings
 
     def to_dict(self) -> dict[str, Any]:
         """The ``hysid fit --json`` document plus ``islands``, ``migrations``, membership ``members`` and what was ``stored``."""
@@ -238,6 +254,7 @@ def island_settings(
     return options, termination, islands_until_stopped(termination, options) if until_stopped is None else until_stopped
 
 
+@notices.keeps_warnings
 def campaign(
     loops: LoopSet,
     islands: int = 4,

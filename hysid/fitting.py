@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +27,7 @@ import numpy as np
 from hysid.identifiability import Identifiability, assess, one_amplitude
 from hysid.motion import MotionChoice, choose_motion, confirm_motion
 from hysid.report import markdown, tables, text
+from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
 from hysid_model.loops import LoopSet
@@ -67,6 +68,8 @@ class FitResult:
     quality: dict[str, float | None]
     report: str | None = None
     """The report written last (:meth:`write_report`), named in the JSON document."""
+    raised: list[dict[str, str]] = field(default_factory=list)
+    """The warnings raised while fitting (:func:`hysid_model.notices.keeps_warnings`)."""
 
     @classmethod
     def from_runs(cls, objective: Objective, runs: list[RunResult], settings: dict[str, Any]) -> "FitResult":
@@ -151,6 +154,13 @@ class FitResult:
         return stored
 
     @property
+    def warnings(self) -> list[dict[str, str]]:
+        """Every warning about this result, each ``{"code", "message"}`` (:data:`hysid_model.notices.CODES`): those
+        of loading the data (the loop set carries them), those raised while fitting, then the fit's own judgments
+        (:func:`hysid.report.text.fit_warnings`)."""
+        return notices.merged(notices.stored(self.loops.meta), self.raised, text.fit_warnings(self))
+
+    @property
     def at_bounds(self) -> list[str]:
         """Parameters that ended on a bound: a physical limit (an answer: no damping of that kind), or a bound
         of the search space, derived from the data or given (the optimum may lie beyond it); :attr:`bound_kinds` says which."""
@@ -169,6 +179,7 @@ class FitResult:
         """The JSON document of ``hysid fit --json``."""
         names = self.model.names
         return {
+            "warnings": self.warnings,
             "params": self.params,
             "stderr": self.stderr,
             "stderr_method": self.stderr_method,
@@ -243,6 +254,7 @@ def noise_unit(objective: Objective, theta: np.ndarray) -> float:
     return max(float(objective(theta[None, :])[0]) / max(objective.y.size - objective.dim, 1), 1e-300)
 
 
+@notices.keeps_warnings
 def fit(
     loops: LoopSet,
     model: str | Model = "thesis",

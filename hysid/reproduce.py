@@ -26,7 +26,7 @@ import numpy as np
 
 from hysid import thesis_tables as tt
 from hysid.fitting import FitResult, fit
-from hysid.report import reproduction, text
+from hysid.report import reproduction
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.problem import build_objective
@@ -150,7 +150,7 @@ class Reproduction:
 
     def summary(self) -> str:
         """Table 5.13 side by side (published, thesis-faithful, hysid defaults), as text."""
-        return text.reproduction_summary(self)
+        return reproduction.reproduction_summary(self)
 
     def write_report(self, out_dir: str | Path) -> Path:
         """``report.md``, ``reproduction.json`` and Figs. 5.2-5.13 in ``out_dir``; returns the report's path."""

@@ -12,6 +12,7 @@ from hysid.report import jsondoc
 from hysid.report.text import loops_table
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.loops import LoopSet
+from hysid_model.notices import stored
 from hysid_model.plausibility import Clipping
 from hysid_model.survey import survey
 from hysid_model.synth import BOUNDS, MEQ_KG, TRUE_PARAMS, synth_loops, synth_raw
@@ -62,7 +63,8 @@ def register(app: typer.Typer) -> None:
 
             write_dataset(target, loops)
             figures.survey_figure(target / "survey.png", found)
-            jsondoc.write(target / "loops.json", {"dataset": loops.name, "mass": found.mass_source, "meq_kg": found.meq_kg, "loops": rows})
+            jsondoc.write(target / "loops.json", {"dataset": loops.name, "warnings": stored(loops.meta), "mass": found.mass_source,
+                                                  "meq_kg": found.meq_kg, "loops": rows})
         print(jsondoc.dumps(rows, indent=1) if as_json else loops_table(loops, rows, found) + _loop_notes(loops, rows))
 
 

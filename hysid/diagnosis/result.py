@@ -19,7 +19,9 @@ from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import Harmonics
+from hysid_model import notices
 from hysid_model.model import effect_term
+from hysid_model.notices import Notice
 
 
 @dataclass
@@ -72,6 +74,8 @@ class Diagnosis:
     """Which displacement drove the models, how that was decided and the evidence (:mod:`hysid.motion`)."""
     report: str | None = None
     """The report written last (:meth:`write_report`)."""
+    raised: list[dict[str, str]] = field(default_factory=list)
+    """The warnings raised while diagnosing (:func:`hysid_model.notices.keeps_warnings`)."""
 
     def effects_not_identifiable(self) -> dict[str, str]:
         """Why each effect of ``not_identifiable`` cannot be identified from these loops."""
@@ -112,6 +116,12 @@ class Diagnosis:
         return [note] if note else []
 
     @property
+    def warnings(self) -> list[dict[str, str]]:
+        """Every warning about this diagnosis, each ``{"code", "message"}``: those of loading the data, those raised
+        while diagnosing, and the notes on the final values (:attr:`notes`)."""
+        return notices.merged(notices.stored(self.harmonics.loops.meta), self.raised, (Notice("mass_implausible", n) for n in self.notes))
+
+    @property
     def reaches(self) -> str:
         """Which reference the final model reaches: noise floor, repeatability, linear per loop, or none."""
         return self.references.reached(self.final.whitened_rms, self.status == "adequate")
@@ -149,6 +159,7 @@ class Diagnosis:
         """The JSON document of ``hysid diagnose --json``."""
         return {
             "dataset": self.harmonics.loops.name,
+            "warnings": self.warnings,
             "start_model": self.start.spec,
             "final_model": self.final.spec,
             "displacement_model": self.motion.as_dict() if self.motion else None,

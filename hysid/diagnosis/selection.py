@@ -53,6 +53,7 @@ from hysid.diagnosis.result import Diagnosis, Step
 from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
 from hysid.identifiability import Identifiability, assess
 from hysid.motion import choose_motion, confirm_motion
+from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
@@ -127,6 +128,7 @@ def with_given_bounds(loops: LoopSet, start: str, bounds: Mapping[str, tuple[flo
     return replace(loops, meta={**loops.meta, "bounds": given})
 
 
+@notices.keeps_warnings
 def diagnose(
     loops: LoopSet,
     model: str = "baseline",

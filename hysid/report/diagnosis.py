@@ -14,7 +14,7 @@ import numpy as np
 
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc
-from hysid.report.markdown import image, num, table, with_error
+from hysid.report.markdown import image, num, table, warnings_section, with_error
 from hysid.report.text import band_text, mass_text, reference_text
 from hysid_model.frf import amplitude_levels
 from hysid_model.model import effect_term
@@ -72,8 +72,9 @@ GAP_HEADERS = ["model", "whitened RMS", "loop NRMSE %", "energy/cycle error %", 
 
 
 def overview(diagnosis: "Diagnosis") -> str:
-    """The status and the gap table, as Markdown (a notebook's view of a diagnosis)."""
-    return f"**Status: {diagnosis.status}.** {_summary(diagnosis)}\n\n{table(GAP_HEADERS, gap_rows(diagnosis))}"
+    """The status, the warnings and the gap table, as Markdown (a notebook's view of a diagnosis)."""
+    return "\n\n".join([f"**Status: {diagnosis.status}.** {_summary(diagnosis)}", *warnings_section(diagnosis.warnings),
+                        table(GAP_HEADERS, gap_rows(diagnosis))])
 
 
 def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset: str) -> Path:
@@ -104,6 +105,7 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
           if diagnosis.motion is not None and diagnosis.motion.decided_by != "none" else []),
         f"**Status: {diagnosis.status}.** {_summary(diagnosis)}",
         "",
+        *[part + "\n" for part in warnings_section(diagnosis.warnings)],
         "## The gap, step by step",
         "",
         table(GAP_HEADERS, gap_rows(diagnosis)),

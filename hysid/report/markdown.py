@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from hysid.report import jsondoc
-from hysid.report.text import fit_warnings, fixed_text, loops_description, migrations_text, quality_text, share_lines
+from hysid.report.text import fixed_text, loops_description, migrations_text, quality_text, share_lines
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
 
@@ -175,11 +175,18 @@ def run_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
     return headers, rows
 
 
+def warnings_section(found: Sequence[dict[str, str]]) -> list[str]:
+    """The report's "Warnings" section: every warning of the result with its code (none: no section)."""
+    if not found:
+        return []
+    return ["## Warnings", "\n".join(f"- **`{w['code']}`**: {w['message']}" for w in found)]
+
+
 def fit_overview(result: "FitResult") -> str:
-    """The summary and the parameter and amplitude tables, as Markdown (a notebook's view of a result)."""
+    """The summary, the warnings and the parameter and amplitude tables, as Markdown (a notebook's view of a result)."""
     p_head, p_rows = parameter_rows(result)
     a_head, a_rows = amplitude_rows(result)
-    parts = ["\n".join(summary_lines(result)), table(p_head, p_rows)] + [f"**{w}**" for w in fit_warnings(result)]
+    parts = ["\n".join(summary_lines(result)), *warnings_section(result.warnings), table(p_head, p_rows)]
     return "\n\n".join(parts + [table(a_head, a_rows)])
 
 
@@ -233,9 +240,9 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         f"# {title}: {result.loops.name}",
         f"Written {dt.datetime.now().isoformat(timespec='seconds')}; all numbers also in [`result.json`](result.json).",
         "\n".join(summary_lines(result)),
+        *warnings_section(result.warnings),
         "## Parameters",
         table(p_head, p_rows),
-        *[f"**{w}**" for w in fit_warnings(result)],
         identifiable,
         "Correlation between the parameters (from the covariance of the standard errors):",
         table(c_head, c_rows),

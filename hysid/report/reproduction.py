@@ -1,4 +1,4 @@
-"""The reproduction's report: Tables 5.5-5.13 and Figs. 5.2-5.13 next to the thesis' published numbers."""
+"""The reproduction's report: Tables 5.5-5.13 and Figs. 5.2-5.13 next to the thesis' published numbers, and its text summary."""
 
 from __future__ import annotations
 
@@ -105,3 +105,21 @@ def write_reproduction_report(rep: "Reproduction", out_dir: Path | str) -> Path:
     report = out_dir / "report.md"
     report.write_text("\n\n".join(parts) + "\n")
     return report
+
+
+def reproduction_summary(rep: "Reproduction") -> str:
+    """Table 5.13 side by side, for the terminal."""
+    lines = [f"Table 5.13, |mean - actual| over {rep.n_runs} run(s) (noise seeds {', '.join(map(str, rep.noise_seeds))}):"]
+    head = f"  {'parameter':<9} {'source':<16}" + "".join(f"{f'{n}% ' + a.upper():>11}" for n in tt.NOISE_LEVELS for a in tt.ALGOS)
+    lines.append(head)
+    for i, p in enumerate(tt.PARAMS):
+        row = f"  {p:<9} {'published':<16}" + "".join(f"{tt.TABLE_5_13[p][(a, n)]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS)
+        lines.append(row)
+        for s in rep.settings:
+            row = f"  {'':<9} {s.label:<16}" + "".join(
+                f"{rep.stats((s.key, a, n))['error'][i]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS
+            )
+            lines.append(row)
+    if rep.report:
+        lines += ["", f"report: {rep.report}"]
+    return "\n".join(lines)

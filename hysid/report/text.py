@@ -1,4 +1,4 @@
-"""Every plain-text summary hysid prints: fits, campaigns, diagnoses, loop tables, the reproduction, progress.
+"""Every plain-text summary hysid prints: fits, campaigns, diagnoses, loop tables, progress (the reproduction's is in reproduction.py).
 
 The result objects' ``summary()`` methods and the command line both come
 here, so a notebook and a terminal read the same words.
@@ -12,12 +12,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hysid import thesis_tables as tt
 from hysid.diagnosis.plausible import mass_note
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
 from hysid_model.model import PRESET_EXPLANATIONS, PRESETS, build_model
+from hysid_model import notices
+from hysid_model.notices import Notice
 from hysid_model.survey import survey
 from hysid_model.user_terms import made_terms
 
@@ -26,7 +27,6 @@ if TYPE_CHECKING:
     from hysid.campaigns import CampaignResult
     from hysid.diagnosis.result import Diagnosis
     from hysid.fitting import FitResult
-    from hysid.reproduce import Reproduction
     from hysid_model.survey import Survey
     from hysid_model.terms import Term
     from hysid.watch import CampaignSnapshot
@@ -118,48 +118,49 @@ def quality_text(result: "FitResult") -> str:
     return out
 
 
-def fit_warnings(result: "FitResult") -> list[str]:
-    """What a reader must know before trusting the numbers: a model that misses the data, parameters on bounds."""
+def fit_warnings(result: "FitResult") -> list[Notice]:
+    """What a reader must know before trusting the numbers: a model that misses the data, parameters on bounds
+    (each with its code, :data:`hysid_model.notices.CODES`; it reads as its message)."""
     out = []
     if "meq" in result.model.names:
         found = survey(result.loops)
         if found.meq_kg is None:
-            out.append(
+            out.append(Notice("mass_unknown",
                 f"note: the equivalent mass is fitted, but the survey cannot estimate it ({found.mass_source.removeprefix('unknown: ')}): "
                 "meq, w0 and xi0 stand for each amplitude's stiffness k and damping c (given below) more than for a resonance"
-            )
+            ))
     implausible = mass_note(result.model, result.theta, result.loops)
     if implausible:
-        out.append(f"warning: {implausible}")
+        out.append(Notice("mass_implausible", f"warning: {implausible}"))
     misfit = result.misfit
     if misfit is not None and misfit > MISFIT:
-        out.append(
+        out.append(Notice("misfit",
             f"warning: the model does not describe these loops: the residual is {misfit:.3g} x the noise; a diagnosis "
             "(hysid diagnose, or hysid.diagnose) tells what it is missing"
-        )
+        ))
     if misfit is not None and misfit > STDERR_TRUST:
-        out.append(
+        out.append(Notice("stderr_understated",
             f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
             f"understate the uncertainty, by a factor of about {misfit:.2g}"
-        )
+        ))
     soft = {p.name for p in result.model.parameters if p.soft}
     searched = result.model.at_bounds(result.theta)
     given = [n for n in searched if n not in soft]
     derived = [n for n in searched if n in soft]
     if result.bound_kinds:
-        out.append(bounds_sentence(result.bound_kinds))
+        out.append(Notice("on_bound", bounds_sentence(result.bound_kinds)))
     if given:
-        out.append(
+        out.append(Notice("on_given_bound",
             f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
             "beyond it and its standard error means little; widen that bound ([bounds] in dataset.toml, bounds=...) if the physics allows"
-        )
+        ))
     if derived:
         widened = [w["param"] for w in result.settings.get("bounds_widened", [])]
         times = max(widened.count(n) for n in derived)
-        out.append(
+        out.append(Notice("on_data_bound",
             f"warning: {', '.join(derived)} ended on a bound derived from the data even after {times} widening(s): "
             + ("the model cannot reach the data there" if misfit is not None and misfit > MISFIT else "its value and standard error mean little")
-        )
+        ))
     return out
 
 
@@ -167,6 +168,11 @@ def bounds_sentence(kinds: dict[str, str]) -> str:
     """The parameters on a bound, each with which (:meth:`hysid_model.model.Model.bound_kinds`), in one sentence."""
     return "on a bound: " + "; ".join(f"{name} on its {kind}" for name, kind in kinds.items()) + (
         " (a physical limit is an answer, e.g. no damping of that kind; any other bound means the optimum may lie beyond it)")
+
+
+def told_line(found: list[dict[str, str]], document: str) -> list[str]:
+    """The codes of the warnings of the data and the run (their messages went to stderr), as a summary's line."""
+    return [f"warnings of the data and the run: {', '.join(dict.fromkeys(w['code'] for w in found))} (each in the report and {document})"] if found else []
 
 
 def displacement_text(model: dict[str, Any]) -> str:
@@ -190,6 +196,7 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     ]
     if result.displacement_model and result.displacement_model["decided_by"] != "none":
         lines.append(displacement_text(result.displacement_model))
+    lines += told_line(notices.merged(notices.stored(result.loops.meta), result.raised), "result.json")
     lines.append("")
     se = result.stderr
     headers = ["parameter", "value", "std. error", "unit"] + (["true"] if true else [])
@@ -378,6 +385,7 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"]
     if doc["displacement_model"] and doc["displacement_model"]["decided_by"] != "none":
         lines.append(displacement_text(doc["displacement_model"]))
+    lines += told_line(notices.merged(notices.stored(diagnosis.harmonics.loops.meta), diagnosis.raised), "diagnosis.json")
     gap = doc["gap"]
     labels = []
     for step in doc["steps"]:
@@ -459,20 +467,3 @@ def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | No
         head += f"; survey mass {found}"
     return head + "\n" + text_table([title for _, title, _ in columns], cells, indent="")
 
-
-def reproduction_summary(rep: "Reproduction") -> str:
-    """Table 5.13 side by side, for the terminal."""
-    lines = [f"Table 5.13, |mean - actual| over {rep.n_runs} run(s) (noise seeds {', '.join(map(str, rep.noise_seeds))}):"]
-    head = f"  {'parameter':<9} {'source':<16}" + "".join(f"{f'{n}% ' + a.upper():>11}" for n in tt.NOISE_LEVELS for a in tt.ALGOS)
-    lines.append(head)
-    for i, p in enumerate(tt.PARAMS):
-        row = f"  {p:<9} {'published':<16}" + "".join(f"{tt.TABLE_5_13[p][(a, n)]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS)
-        lines.append(row)
-        for s in rep.settings:
-            row = f"  {'':<9} {s.label:<16}" + "".join(
-                f"{rep.stats((s.key, a, n))['error'][i]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS
-            )
-            lines.append(row)
-    if rep.report:
-        lines += ["", f"report: {rep.report}"]
-    return "\n".join(lines)
