@@ -171,14 +171,16 @@ def test_columns_swapped_with_plausible_magnitudes_are_named_from_the_energy_and
     would rise from -180 degrees)."""
     records = [resonant(f"r{k}", float(f), 1e-3, seed=k) for k, f in enumerate(np.linspace(25.0, 38.0, 8))]
     swapped = [RawRecord(r.label, r.freq_hz, r.x0, r.t, r.force * 1e-4, r.x * 1e4, 0.0) for r in records]
-    _, messages = loads(write_dataset(tmp_path / "swapped", swapped))
+    loops, messages = loads(write_dataset(tmp_path / "swapped", swapped))
     found = physics_messages(messages)
     assert len(found) == 1 and "the loops generate energy in all 8 records (a lag of" in found[0]
     assert "the lag grows with frequency, a passive specimen's mirrored: force and displacement look swapped" in found[0]
+    assert [w["code"] for w in loops.meta["warnings"]] == ["swapped_columns"]
     reversed_sign = [RawRecord(r.label, r.freq_hz, r.x0, r.t, r.x, -r.force, 0.0) for r in records]
-    _, messages = loads(write_dataset(tmp_path / "reversed", reversed_sign))
+    loops, messages = loads(write_dataset(tmp_path / "reversed", reversed_sign))
     found = physics_messages(messages)
     assert len(found) == 1 and "the force's (or the displacement's) sign looks reversed" in found[0]
+    assert [w["code"] for w in loops.meta["warnings"]] == ["sign_reversed"]
     _, messages = loads(write_dataset(tmp_path / "right", records))
     assert physics_messages(messages) == []
 
