@@ -136,6 +136,22 @@ def test_kilonewtons_under_a_newton_header_are_named_where_a_mass_is_given(tmp_p
     assert set(found) == {"mass_contradicted"} and "contradicts the given mass meq_kg = 200 kg" in found["mass_contradicted"]
 
 
+def test_kilonewtons_under_a_newton_header_in_a_resonance_dwell_are_named_from_the_given_mass(tmp_path):
+    """One frequency, so no inertia to read off the loops: a 0.5 kg, 2 % damped specimen dwelt at its 30 Hz resonance
+    pushes back with 4 % of its mass's inertia force m w^2 X0; in kN under 'Kraft [N]' with 0.004 %, as no specimen
+    would (a resonance damped below 5e-5)."""
+    model = build_model("baseline").with_bounds({"w0": (1, 500), "meq": (0.01, 10)})
+    truth = model.from_dict(dict(xi0=0.02, w0=2 * np.pi * 30.0, meq=0.5))
+    records = simulate_raw(model, truth, np.full(3, 30.0), np.array([0.2e-3, 0.5e-3, 1e-3]), noise_n=0.005, seed=2,
+                           sample_rate_hz=3000.0, cycles=8)
+    _, found = loaded(lab_files(tmp_path / "right", records, header=("Zeit [s]", "Weg [mm]", "Kraft [N]"), f_scale=1.0,
+                                toml="meq_kg = 0.5\n"))
+    assert found == {}
+    _, found = loaded(lab_files(tmp_path / "kn", records, header=("Zeit [s]", "Weg [mm]", "Kraft [N]"), toml="meq_kg = 0.5\n"))
+    assert "of the inertia force m w^2 X0 of the given mass meq_kg = 0.5 kg in every loop" in found["unit_slip"]
+    assert 'the force in kN under its N header (force_unit = "kN")' in found["unit_slip"]
+
+
 def test_warnings_are_kept_whatever_the_filters_and_said_again():
     """A result keeps every HysidWarning its work raised, also under an 'ignore' filter, and the warning still reaches
     Python's own handling (the command line prints it from there)."""
