@@ -54,6 +54,9 @@ CODES = {
 """Every warning code (stable: programs may act on them) and what it means; the message says the particulars."""
 META_KEY = "warnings"
 """Where a loop set keeps the warnings of its loading (``loops.meta``)."""
+MAX_MESSAGE = 2000
+"""Characters of a message a result keeps (a list of hundreds of files left out is cut): a campaign's configuration
+carries the loop set's warnings, and its wire format takes no string beyond 10,000."""
 
 
 @dataclass(frozen=True)
@@ -76,12 +79,14 @@ def of_warning(warning: HysidWarning) -> Notice:
 
 
 def merged(*groups: Iterable[Notice | Mapping[str, Any]]) -> list[dict[str, str]]:
-    """The notices of ``groups`` (notices or their dicts) as dicts, in order, each message once."""
+    """The notices of ``groups`` (notices or their dicts) as dicts, in order, each message once (at most
+    ``MAX_MESSAGE`` characters)."""
     out: dict[str, dict[str, str]] = {}
     for group in groups:
         for item in group:
-            notice = item.as_dict() if isinstance(item, Notice) else {"code": str(item["code"]), "message": str(item["message"])}
-            out.setdefault(notice["message"], notice)
+            code, message = (item.code, item.message) if isinstance(item, Notice) else (str(item["code"]), str(item["message"]))
+            message = message if len(message) <= MAX_MESSAGE else message[: MAX_MESSAGE - 3] + "..."
+            out.setdefault(message, {"code": code, "message": message})
     return list(out.values())
 
 

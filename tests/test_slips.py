@@ -19,7 +19,7 @@ from hysid.cli import main
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.errors import HysidWarning
 from hysid_model.model import build_model
-from hysid_model.notices import CODES, keeps_warnings, recorded
+from hysid_model.notices import CODES, MAX_MESSAGE, keeps_warnings, merged, recorded
 from hysid_model.synth import RawRecord, simulate_raw
 
 LAB = ("Zeit [s]", "Weg [mm]", "Kraft [kN]")
@@ -175,25 +175,33 @@ def test_warnings_are_kept_whatever_the_filters_and_said_again():
         warnings.warn(HysidWarning("said before the error", "drift"))
         raise ValueError
     assert [n.code for n in kept] == ["drift"]
+    left_out = merged([{"code": "records_left_out", "message": "d: left out " + ", ".join(f"run{k}.csv" for k in range(2000))}])
+    assert len(left_out[0]["message"]) == MAX_MESSAGE  # a campaign's configuration takes no string beyond 10,000
 
 
-def test_load_warnings_travel_into_fit_campaign_and_its_database_and_diagnosis(tmp_path, bearing):
-    """The swapped lab files: the fit, a single-node campaign, the campaign rebuilt from its database and a diagnosis
-    each list the loading's warnings with their codes (first), then their own; the notebook views show them."""
+def test_load_warnings_travel_into_a_fit_and_a_diagnosis(tmp_path, bearing):
+    """The swapped lab files: the fit and the diagnosis list the loading's warnings with their codes (first), then
+    their own; the notebook views show them above the numbers."""
     loops, _ = loaded(lab_files(tmp_path / "swapped", bearing, swap=True))
     fit = hysid.fit(loops, "baseline", options=TINY)
     codes, loading = [w["code"] for w in fit.to_dict()["warnings"]], [w["code"] for w in loops.meta["warnings"]]
     assert codes[: len(loading)] == loading and "swapped_columns" in loading and "misfit" in codes and set(codes) <= set(CODES)
     view = fit._repr_markdown_()
     assert view.index("## Warnings") < view.index("| parameter") and "**`swapped_columns`**" in view
+    diagnosis = hysid.diagnose(loops, "baseline", max_steps=0, cross_validate=False)
+    assert [w["code"] for w in diagnosis.to_dict()["warnings"]][: len(loading)] == loading
+    assert "## Warnings" in diagnosis._repr_markdown_()
+
+
+def test_load_warnings_travel_into_a_campaign_and_its_database(tmp_path, bearing):
+    """A single-node campaign lists them, and so does its result rebuilt from the database alone (the coordinator
+    stored the loop set with them)."""
+    loops, _ = loaded(lab_files(tmp_path / "swapped", bearing, swap=True))
     db = tmp_path / "c.sqlite"
     run = hysid.campaign(loops, 2, model="baseline", single_node=True, options={"ga": TINY, "pso": TINY}, db=db)
-    assert "swapped_columns" in [w["code"] for w in run.to_dict()["warnings"]]
-    again = hysid.CampaignResult.from_database(db)
-    assert [w for w in again.warnings if w["code"] == "swapped_columns"] == [w for w in fit.warnings if w["code"] == "swapped_columns"]
-    diagnosis = hysid.diagnose(loops, "baseline", max_steps=0, cross_validate=False)
-    assert "swapped_columns" in [w["code"] for w in diagnosis.to_dict()["warnings"]]
-    assert "## Warnings" in diagnosis._repr_markdown_()
+    swapped = [w for w in run.to_dict()["warnings"] if w["code"] == "swapped_columns"]
+    assert swapped == [w for w in loops.meta["warnings"] if w["code"] == "swapped_columns"]
+    assert [w for w in hysid.CampaignResult.from_database(db).warnings if w["code"] == "swapped_columns"] == swapped
 
 
 def test_a_loops_file_keeps_the_warnings_for_the_fits_that_read_it(tmp_path, bearing):
