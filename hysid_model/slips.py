@@ -90,26 +90,33 @@ SLIP_CODES = {"displacement": "unit_slip_displacement", "force": "unit_slip_forc
 
 @dataclass(frozen=True)
 class Reading:
-    """How the records were read: the displacement's and force's channels as the files name them, and the units
-    the reader took them in (declared in ``dataset.toml``, stated by the file, or SI)."""
+    """How the records were read: the displacement's and force's channels as the files name them (None where the
+    records name them differently), and the units the reader took them in (declared in ``dataset.toml``, stated by
+    the file, or SI)."""
 
-    channels: tuple[str, str]
+    channels: tuple[str, str] | None
     units: tuple[str, str]
+    stated: bool = True
+    """False where the format says nothing of its units (they are taken as SI)."""
 
     @classmethod
     def common(cls, found: list[tuple[tuple[str, str], tuple[str, str] | None]]) -> "Reading | None":
-        """The reading every record shares ((channels, units) per record), else None (records read differently,
-        or a format that does not say)."""
-        if not found or any(units is None for _, units in found) or len(set(found)) != 1:
+        """The reading the records share ((channels, units) per record), else None (units read differently, or a
+        format that does not say)."""
+        units, channels = {u for _, u in found}, {c for c, _ in found}
+        if len(units) != 1 or None in units:
             return None
-        channels, units = found[0]
-        return cls(channels, units)  # type: ignore[arg-type]
+        return cls(channels.pop() if len(channels) == 1 else None, units.pop())  # type: ignore[arg-type]
 
     def unit(self, quantity: str) -> str:
         return self.units[0 if quantity == "displacement" else 1]
 
+    def as_read(self, quantity: str) -> str:
+        """How ``quantity``'s numbers were taken: ``under its mm header``, or ``read as m``."""
+        return f"under its {self.unit(quantity)} header" if self.stated else f"read as {self.unit(quantity)}"
 
-SI = Reading(("displacement_m", "force_n"), ("m", "N"))
+
+SI = Reading(("displacement_m", "force_n"), ("m", "N"), stated=False)
 """What a format that names no units is taken as (the readers convert to SI)."""
 
 
@@ -122,12 +129,14 @@ class Slip:
     unit: str
     true_unit: str
     factor: float
+    as_read: str = ""
+    """How the numbers were taken (:meth:`Reading.as_read`)."""
 
     def fix(self, given_mass: float | None = None) -> str:
         """Where it shows and what to declare."""
         if self.quantity == "mass":
             return f"meq_kg in g (meq_kg = {given_mass * self.factor:.4g})"
-        return f"the {self.quantity} in {self.true_unit} under its {self.unit} header ({self.quantity}_unit = \"{self.true_unit}\")"
+        return f"the {self.quantity} in {self.true_unit} {self.as_read} ({self.quantity}_unit = \"{self.true_unit}\")"
 
 
 def slips(quantity: str, reading: Reading) -> list[Slip]:
@@ -138,7 +147,8 @@ def slips(quantity: str, reading: Reading) -> list[Slip]:
     unit = reading.unit(quantity)
     table = UNITS[quantity]
     base = table.get(unit, 1.0)
-    return sorted((Slip(quantity, unit, other, table[other] / base) for other in table if other != unit), key=lambda s: abs(math.log10(s.factor)))
+    out = (Slip(quantity, unit, other, table[other] / base, reading.as_read(quantity)) for other in table if other != unit)
+    return sorted(out, key=lambda s: abs(math.log10(s.factor)))
 
 
 def motion(freq_hz: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -161,9 +171,10 @@ def _values(values: np.ndarray, fmt: str) -> str:
 def swap_fix(reading: Reading | None) -> str:
     """The ``dataset.toml`` lines that read swapped columns right: each quantity from the other's column, in the
     unit its own header states."""
-    if reading is None:
-        return ("name the columns with displacement_channel and force_channel in dataset.toml (and their units with "
-                "displacement_unit and force_unit), or put the columns in their order")
+    if reading is None or reading.channels is None:
+        units = "" if reading is None else f' (displacement_unit = "{reading.units[0]}", force_unit = "{reading.units[1]}")'
+        return (f"name the columns with displacement_channel and force_channel in dataset.toml{units or ' (and their units with displacement_unit and force_unit)'}, "
+                "or put the columns in their order")
     (x_name, f_name), (x_unit, f_unit) = reading.channels, reading.units
     return (f"set displacement_channel = {json.dumps(f_name)}, displacement_unit = \"{x_unit}\", force_channel = "
             f"{json.dumps(x_name)} and force_unit = \"{f_unit}\" in dataset.toml (or put the columns in their order)")
@@ -247,7 +258,7 @@ def _fast(labels: list[str], m: Measured, where: str, r: Reading) -> HysidWarnin
         f"{where}: the displacement moves as no rig does in {names(labels, idx, v, 'peak velocity {:.3g} m/s')}, "
         f"peak acceleration up to {a[idx].max() / G:.3g} g and X0 up to {m.x0[idx].max():.4g} m; shakers reach about "
         f"2 m/s and some hundred g, servo-hydraulic actuators 1-2 m/s: is the displacement in {slip.true_unit if slip else 'mm'} "
-        f"under its {r.unit('displacement')} header? {fix}",
+        f"{r.as_read('displacement')}? {fix}",
         "unit_slip_displacement",
     )
 
