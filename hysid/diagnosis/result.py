@@ -17,9 +17,9 @@ from hysid.identifiability import Identifiability
 from hysid.motion import MotionChoice
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
+from hysid_model import notices
 from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import Harmonics
-from hysid_model import notices
 from hysid_model.model import effect_term
 from hysid_model.notices import Notice
 
