@@ -9,8 +9,12 @@ driven by :func:`island.run.optimize`, then (by default) a least-squares
 polish from its best candidate. :class:`FitResult` gathers the runs of one
 identification (a campaign builds the same object from its islands) and
 derives what a user reads: the best run's parameters with standard errors
-(Cramer-Rao bound for ML weights, sandwich covariance for the thesis weights),
-xi, fn and physical k, c, m at every amplitude (as listed under Table 5.3),
+(Cramer-Rao bound for ML weights, sandwich covariance for the thesis weights,
+by the one rule of :mod:`hysid.identifiability`: the full covariance, the
+profile where it cannot be trusted), the stiffness and damping coefficient the
+data determine best, xi, fn and physical k, c, m at every amplitude (as
+listed under Table 5.3), the effective stiffness and equivalent damping of the
+whole model at every amplitude and frequency (:mod:`hysid_model.effective`),
 and the half-power cross-check of the damping (Eq. 2.7, Fig. 6.1).
 """
 
@@ -31,8 +35,10 @@ from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
 from hysid_model.loops import LoopSet
-from hysid_model.modal import AmplitudeResult, derived_table
+from hysid_model.effective import OperatingPoint, effective_table, operating_points
+from hysid_model.modal import AmplitudeResult, combinations, derived_table
 from hysid_model.model import MAX_WIDENINGS, Model
+from hysid_model.model_names import model_name
 from hysid_model.objective import Objective
 from hysid_model.problem import build_objective, starting_point
 from hysid_model.uncertainty import covariance, fisher_information, scaled_inverse
@@ -66,6 +72,10 @@ class FitResult:
     amplitudes: list[AmplitudeResult]
     half_power: list[HalfPower]
     quality: dict[str, float | None]
+    effective: list[OperatingPoint]
+    """k_eff, xi_eq and the energy per cycle of the whole model at each amplitude level and frequency of the loops."""
+    combinations: dict[str, tuple[float, float]]
+    """The stiffness k = meq w0^2 and damping coefficient c = 2 xi0 meq w0: (value, standard error)."""
     report: str | None = None
     """The report written last (:meth:`write_report`), named in the JSON document."""
     raised: list[dict[str, str]] = field(default_factory=list)
@@ -79,16 +89,19 @@ class FitResult:
         best = int(np.argmin([r.fitness for r in runs]))
         theta = runs[best].theta
         loops, model = objective.loops, objective.model
+        scale = inflation(objective, theta)
         if objective.weights == "ml":
             method = f"Cramer-Rao bound of the ML weights, noise sigma {loops.sigma_source}"
         else:
             source = "known" if loops.has_sigma else "estimated from the residuals"
             method = f"sandwich covariance of the thesis-weighted least squares, noise sigma {source}"
-        ident = assess(
-            objective, theta, parameter_covariance, lambda m: Objective(objective.loops, m, weights=objective.weights), noise_unit(objective, theta)
-        )
+        if scale > 1.0:
+            method += f", scaled up by sqrt(chi^2/dof) = {np.sqrt(scale):.3g} (the model misses the noise floor)"
+        ident = assess(objective, theta, scale * parameter_covariance(objective, theta),
+                       lambda m: Objective(objective.loops, m, weights=objective.weights), scale * noise_unit(objective, theta))
+        if ident.profiled:
+            method += "; from the profile of the objective for " + ", ".join(ident.profiled)
         ident.not_identifiable.update(one_amplitude(loops, model))
-        cov = ident.covariance
         levels, _ = amplitude_levels(loops.x0)
         force_amplitude = np.abs(first_harmonic(loops))
         relative = objective.residuals(theta) / force_amplitude[:, None]
@@ -103,12 +116,14 @@ class FitResult:
             runs=runs,
             settings=settings,
             best=best,
-            covariance=cov,
+            covariance=ident.covariance,
             stderr_method=method,
             identifiability=ident,
-            amplitudes=derived_table(model, theta, np.nan_to_num(cov), levels),
+            amplitudes=derived_table(model, theta, ident.propagate, levels),
             half_power=half_power_by_amplitude(loops),
             quality=quality,
+            effective=effective_table(model, theta, ident.propagate, *operating_points(loops)[:2]),
+            combinations=combinations(model, theta, ident.propagate),
         )
 
     @property
@@ -193,7 +208,9 @@ class FitResult:
             "at_bounds_kind": self.bound_kinds,
             "displacement_model": self.displacement_model,
             **self.identifiability.to_dict(),
+            "combinations": {name: {"value": v, "stderr": se} for name, (v, se) in self.combinations.items()},
             "derived": [a.as_dict() for a in self.amplitudes],
+            "effective": [p.as_dict() for p in self.effective],
             "half_power": [
                 {**hp.as_dict(), "xi_fit": a.values["xi"]} for hp, a in zip(self.half_power, self.amplitudes)
             ],
@@ -204,6 +221,7 @@ class FitResult:
                 "true_params": self.loops.meta.get("true_params"),
             },
             "model": self.model.spec,
+            "model_name": model_name(self.model),
             "weights": self.weights,
             "settings": self.settings,
             "best_run": self.best,
@@ -245,6 +263,14 @@ def parameter_covariance(objective: Objective, theta: np.ndarray) -> np.ndarray:
     if objective.weights == "ml":
         return scaled_inverse(fisher_information(objective, theta))
     return covariance(objective, theta)
+
+
+def inflation(objective: Objective, theta: np.ndarray) -> float:
+    """chi^2/dof where it exceeds 1 under ML weights (the model misses the known noise floor: every variance is
+    scaled up by it, as the diagnosis does), else 1 (the thesis' weights estimate their unit from the residuals)."""
+    if objective.weights != "ml":
+        return 1.0
+    return max(1.0, float(objective(theta[None, :])[0]) / max(objective.y.size - objective.dim, 1))
 
 
 def noise_unit(objective: Objective, theta: np.ndarray) -> float:

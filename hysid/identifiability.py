@@ -1,38 +1,38 @@
-"""What the data can and cannot determine: parameters that are not identifiable, and the correlations of the rest.
+"""Standard errors that cover the truth: the full covariance, the profile where it cannot be trusted, and what the data cannot determine.
 
-With loops at a single amplitude, xi(X0) = xi0 + S_xi X0 (Eq. 4.8) pins only
-the sum: xi0 and S_xi trade off exactly, and a fit that reports both with tiny
-standard errors (a pseudo-inverse of a singular Fisher matrix) misleads. So:
+One rule for ``fit``, campaigns (both :class:`hysid.fitting.FitResult`) and a
+diagnosis' final model (:func:`hysid.diagnosis.selection.diagnose`):
 
-1. rank and conditioning: the Fisher information of the weighted residuals,
-   with its columns scaled to unit length, J^T J; its eigenvalues below
-   ``RANK_TOL`` of the largest are directions the data do not see;
-2. naming: a parameter in such a direction is named, preferring an effect's
-   parameters (the amplitude slopes S_xi, S_w included) over the equivalent
-   mass, and the mass over the oscillator's xi0 and w0, until the rest is well
-   conditioned: the ones left are what the data determine (xi0, w0 at the
-   measured amplitude, say);
-3. a profile confirms each: with the parameter moved across a good part of its
-   range and every other parameter refitted (:mod:`island.polish`), the
-   objective must stay within one chi^2 unit (the noise) of the optimum. A
-   parameter whose profile rises is identifiable after all (the singularity
-   was local) and is not named.
+1. every standard error comes from the covariance of *all* the free
+   parameters (its inverse taken at unit diagonal, :func:`hysid_model.uncertainty.scaled_inverse`),
+   never from one conditional on a parameter held at its estimate: an
+   equivalent mass that trades off with w0 (loops in one band, far below a
+   resonance) makes w0's error large, and that is the honest answer;
+2. the profile of the objective (the parameter moved, every other refitted
+   from the covariance's ridge, :mod:`island.polish`) replaces the curvature
+   where the problem may not be locally quadratic: a parameter in a direction
+   the Jacobian does not see (eigenvalue of the column-scaled Fisher matrix
+   below ``RANK_TOL`` of the largest), one correlated beyond
+   ``CORRELATION_LIMIT`` with another, and the non-smooth ones of
+   :data:`PROFILED` (a delay). Its error is the half-width where the profile
+   rises by one unit of chi^2 (the wider side; never below the curvature's,
+   except for the non-smooth ones, whose curvature means nothing);
+3. a parameter is *not identifiable* only when its profile stays within that
+   unit over its range, both ways (over at least half the way to each bound:
+   where a bound of another parameter stops the trade-off near its end, the
+   data still say nothing of the parameter; one amplitude level and a bounded
+   S_w, one frequency and a fitted mass): it gets no error, and a quantity
+   derived from the parameters gets none where it depends on such a direction
+   (:meth:`Identifiability.propagate`; the damping coefficient c at one
+   frequency does not).
 
-4. correlation: a parameter whose correlation with another exceeds
-   ``CORRELATION_LIMIT`` in magnitude (the covariance's condition at unit
-   diagonal beyond 1 / (1 - 0.999)) is named too, by the same priority: its
-   standard error would be the other's in disguise (an MR damper's xi0, w0 and
-   meq at 0.9997 say only what its stiffness and damping are).
-
-Standard errors and the correlation matrix come from the covariance with the
-named parameters held at their values; the named ones get none. Loops at a
-single amplitude level never search S_xi, S_w (they are fixed at 0 before the
-fit, :func:`one_amplitude` says why).
+Loops at a single amplitude level never search S_xi, S_w (they are fixed at 0
+before the fit, :func:`one_amplitude` says why).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -46,24 +46,51 @@ RANK_TOL = 1e-9
 """Eigenvalue of the column-scaled Fisher matrix, relative to its largest, below which a direction is unseen."""
 PARTICIPATION = 0.1
 """A parameter takes part in an unseen direction when its component there exceeds this."""
-PROFILE_POINTS = (-0.5, 0.5)
-"""Profile points, as fractions of the parameter's distance to the far ends of its bounds (or of its value)."""
-PROFILE_NFEV = 60
-FLAT = 1.0
-"""Largest rise of the profile's chi^2 (noise units) for the parameter to count as undetermined."""
 CORRELATION_LIMIT = 0.999
-"""|correlation| beyond which one of the two parameters is named as not identifiable (step 4 of the module docstring)."""
+"""|correlation| beyond which a parameter's error is checked against its profile (step 2 of the module docstring)."""
+PROFILED = ("delay_s",)
+"""Parameters whose chi^2 is not smooth: a delay moves a friction jump across the samples, so the curvature at
+the optimum says little about the spread and the profile gives their error."""
+FLAT_SHARE = 0.5
+"""A side of a profile is flat when it stays within one unit over at least this share of the way to its bound."""
+GROWTH = 4.0
+"""Factor by which a profile's step grows until the rise reaches one unit."""
+MAX_STEPS = 7
+"""Steps of a profile on one side until its rise brackets one unit; the last growing one goes to the bound."""
+BISECTIONS = 6
+"""Probes of a bracket at most: the quadratic's crossing, then geometric halvings (to a ratio of 1.02 between its ends)."""
+PROFILE_NFEV = 40
+"""Residual evaluations per free parameter of each profile point's polish (it starts on the covariance's ridge)."""
+ESTIMABLE = 1e-3
+"""A derived quantity depends on a direction the data do not determine when its scaled gradient's component
+there exceeds this fraction of its length."""
 
 
 @dataclass
 class Identifiability:
-    """Which parameters the data determine, why not the others, and the covariance of the rest."""
+    """Which parameters the data determine, why not the others, and the covariance of them all."""
 
     names: list[str]
     not_identifiable: dict[str, str]
     """Parameter -> why it is not identifiable."""
-    covariance: np.ndarray
-    """``(D, D)``, NaN in the rows and columns of the parameters that are not identifiable."""
+    full: np.ndarray
+    """``(D, D)`` covariance of every free parameter (profile half-widths on its diagonal where they replace the curvature)."""
+    profiled: dict[str, float] = field(default_factory=dict)
+    """Parameters whose standard error is the profile's half-width, and that half-width."""
+    flat: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """``(D, k)``: directions (column-scaled parameter space) along which the profile is flat, with ``scale``."""
+    scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Column norms of the Jacobian: parameter -> scaled coordinates (``theta * scale``)."""
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """``(D, D)``: :attr:`full` with NaN in the rows and columns of the parameters that are not identifiable."""
+        out = np.array(self.full, dtype=float)
+        for name in self.not_identifiable:
+            if name in self.names:
+                i = self.names.index(name)
+                out[i, :] = out[:, i] = np.nan
+        return out
 
     @property
     def stderr(self) -> np.ndarray:
@@ -71,9 +98,21 @@ class Identifiability:
 
     @property
     def correlation(self) -> np.ndarray:
-        se = np.sqrt(np.diag(self.covariance))
+        cov = self.covariance
+        se = np.sqrt(np.diag(cov))
         with np.errstate(invalid="ignore", divide="ignore"):
-            return self.covariance / np.outer(se, se)
+            return cov / np.outer(se, se)
+
+    def propagate(self, grads: np.ndarray) -> np.ndarray:
+        """Standard errors of quantities with gradients ``grads`` ``(Q, D)`` (delta method through :attr:`full`);
+        NaN for a quantity that depends on a direction the data do not determine."""
+        grads = np.atleast_2d(np.asarray(grads, dtype=float))
+        se = np.sqrt(np.clip(np.einsum("qd,de,qe->q", grads, self.full, grads), 0.0, None))
+        if self.flat.size:
+            scaled = grads / np.where(self.scale > 0, self.scale, 1.0)
+            along = np.abs(scaled @ self.flat).max(axis=1)
+            se = np.where(along > ESTIMABLE * np.linalg.norm(scaled, axis=1), np.nan, se)
+        return se
 
     def correlation_dict(self) -> dict[str, dict[str, float | None]]:
         """The correlation matrix as ``{a: {b: r}}`` (None where a parameter is not identifiable)."""
@@ -82,7 +121,7 @@ class Identifiability:
 
     def to_dict(self) -> dict[str, Any]:
         return {"not_identifiable": list(self.not_identifiable), "not_identifiable_reasons": dict(self.not_identifiable),
-                "correlation": self.correlation_dict()}
+                "profiled": dict(self.profiled), "correlation": self.correlation_dict()}
 
 
 def one_amplitude(loops: LoopSet, model: Model) -> dict[str, str]:
@@ -98,42 +137,20 @@ def one_amplitude(loops: LoopSet, model: Model) -> dict[str, str]:
     }
 
 
-def naming_priority(model: Model) -> list[str]:
-    """Parameters in the order they are named when the data cannot tell them apart: effects' (last added
-    first), then the equivalent mass, then the oscillator's w0 and xi0."""
-    base = ["xi0", "w0", "meq"]
-    rest = [n for n in model.names if n not in base]
-    return rest[::-1] + [n for n in ("meq", "w0", "xi0") if n in model.names]
-
-
 def unseen(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit-scaled eigenvectors ``(D, k)`` of the directions the Jacobian's columns do not span, and the scaled matrix's eigenvalues."""
+    """Directions ``(D, k)`` of the column-scaled parameter space the Jacobian's columns do not span, and the
+    column norms (the scale)."""
     scale = np.linalg.norm(jac, axis=0)
-    scale = np.where(scale > 0, scale, 1.0)
+    scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
     unit = jac / scale
     values, vectors = np.linalg.eigh(unit.T @ unit)
     small = values < RANK_TOL * max(values.max(), 1e-300)
-    return vectors[:, small], values
+    return vectors[:, small], scale
 
 
-def suspects(jac: np.ndarray, names: list[str], priority: list[str]) -> dict[str, list[str]]:
-    """Parameters to name (greedily, by ``priority``) until the rest is well conditioned, each with the
-    parameters it trades off with."""
-    keep = list(range(len(names)))
-    out: dict[str, list[str]] = {}
-    for name in priority:
-        directions, _ = unseen(jac[:, keep])
-        if directions.shape[1] == 0:
-            break
-        i = keep.index(names.index(name))
-        if np.abs(directions[i]).max() > PARTICIPATION:
-            keep.remove(names.index(name))
-            out[name] = partners(jac, names.index(name), keep, names)
-    return out
-
-
-def partners(jac: np.ndarray, i: int, others: list[int], names: list[str]) -> list[str]:
+def partners(jac: np.ndarray, i: int, names: list[str]) -> list[str]:
     """The parameters whose columns reproduce column ``i`` of the Jacobian (least squares): what it trades off with."""
+    others = [j for j in range(len(names)) if j != i]
     scale = np.linalg.norm(jac, axis=0)
     unit = jac / np.where(scale > 0, scale, 1.0)
     coef = np.linalg.lstsq(unit[:, others], unit[:, i], rcond=None)[0]
@@ -145,61 +162,138 @@ Rebuild = Callable[[Model], Any]
 """The same objective with another model (a parameter fixed): ``Objective`` or ``HarmonicObjective``."""
 
 
-def profile_rise(objective: Any, theta: np.ndarray, name: str, noise: float, rebuild: Rebuild) -> float:
-    """Smallest rise of the objective (chi^2 units: / ``noise``) when ``name`` is moved to the profile points and the rest refitted."""
+@dataclass
+class Profile:
+    """One parameter's profile: the half-width where it rises by one unit, and whether it stayed flat to both bounds."""
+
+    width: float
+    flat: bool
+
+
+def profile(objective: Any, theta: np.ndarray, i: int, cov: np.ndarray, rebuild: Rebuild, unit: float, step: float) -> Profile:
+    """The profile of parameter ``i`` of ``objective`` about its optimum ``theta``: moved either way, every
+    other parameter refitted from the covariance ``cov``'s ridge, to where the objective rises by ``unit`` (one
+    unit of chi^2). From ``step``, steps grow (by ``GROWTH``, the last to the bound) until the rise reaches a
+    unit, or shrink until it does not; the bracket is then probed where a quadratic rise would cross the unit,
+    and where it does not, halved geometrically (a profile may be flat and then rise like a wall, where a
+    quadratic puts the crossing far too close), the crossing interpolated with the rise taken as quadratic
+    between its ends. The wider side's half-width counts; a side that reaches its
+    bound without rising a unit counts its distance to the bound. The profile is flat when it stays within the
+    unit over ``FLAT_SHARE`` of the way to the bound on both sides (on the only side, at a bound)."""
     model = objective.model
-    i = model.names.index(name)
-    lo, hi = model.bounds[i]
+    name = model.names[i]
+    lower, upper = model.bounds[i]
     value = float(theta[i])
-    rises = []
-    for step in PROFILE_POINTS:
-        target = value + step * ((hi - value) if step > 0 else (value - lo))
-        if not lo <= target <= hi or target == value:
+    f0 = float(objective(theta[None, :])[0])
+    ridge = cov[:, i] / cov[i, i] if np.all(np.isfinite(cov[:, i])) and cov[i, i] > 0 else np.zeros(theta.size)
+    nfev = PROFILE_NFEV * max(theta.size - 1, 1)
+
+    def rise(target: float) -> float:
+        reduced = rebuild(model.fix({name: target}))
+        start = np.delete(theta + ridge * (target - value), i)
+        return max((polish(reduced, start, max_nfev=nfev).fitness - f0) / unit, 0.0)
+
+    widths, flat = [], []
+    for side, room in ((-1.0, value - lower), (1.0, upper - value)):
+        if not room > 0.0:
             continue
-        fixed = rebuild(model.fix({name: target}))
-        start = np.delete(theta, i)
-        best = polish(fixed, start, max_nfev=PROFILE_NFEV)
-        rises.append((best.fitness - float(objective(theta[None, :])[0])) / noise)
-    return min(rises) if rises else np.inf
+        found = side_width(lambda d: rise(value + side * d), min(step, room), room)
+        widths.append(room if found is None else found)
+        flat.append(widths[-1] >= FLAT_SHARE * room)
+    return Profile(width=max(widths) if widths else 0.0, flat=bool(flat) and all(flat))
 
 
-def assess(objective: Any, theta: np.ndarray, covariance_of: Callable[[Any, np.ndarray], np.ndarray], rebuild: Rebuild, noise: float) -> Identifiability:
-    """Identifiability of ``objective``'s parameters at its optimum ``theta``. ``covariance_of(objective, theta)``
-    gives the covariance of an identifiable set (as the fit computes it), ``rebuild(model)`` the objective with
-    another model, and ``noise`` the objective's value of one unit of chi^2 (1 for ML weights and whitened fits)."""
-    model = objective.model
-    names = model.names
+def side_width(rise: Callable[[float], float], step: float, room: float) -> float | None:
+    """Where ``rise(d)`` (d > 0 the distance from the optimum, up to ``room``) reaches one unit; None where it
+    stays below it up to ``room`` (see :func:`profile`)."""
+    near, r_near, far, r_far = 0.0, 0.0, step, rise(step)
+    probes = 1
+    while r_far < 1.0:  # grow
+        if far >= room:
+            return None
+        near, r_near = far, r_far
+        far = room if probes == MAX_STEPS - 1 else min(far * GROWTH, room)
+        r_far, probes = rise(far), probes + 1
+    while near == 0.0 and probes < MAX_STEPS:  # shrink: a point below one unit
+        d = far / GROWTH
+        r = rise(d)
+        probes += 1
+        if r >= 1.0:
+            far, r_far = d, r
+        else:
+            near, r_near = d, r
+    for k in range(BISECTIONS):  # first at the quadratic's crossing (where a quadratic profile ends), then halving
+        if near == 0.0 or far / near < 1.02:
+            break
+        probe = crossing(near, r_near, far, r_far) if k == 0 else float(np.sqrt(near * far))
+        r = rise(probe)
+        if k == 0 and abs(np.sqrt(r) - 1.0) < 0.05:
+            return probe
+        if r >= 1.0:
+            far, r_far = probe, r
+        else:
+            near, r_near = probe, r
+    return crossing(near, r_near, far, r_far)
+
+
+def crossing(near: float, r_near: float, far: float, r_far: float) -> float:
+    """Where a rise that is quadratic in the step (its square root linear) reaches one unit between two points."""
+    return near + (far - near) * (1.0 - np.sqrt(r_near)) / (np.sqrt(r_far) - np.sqrt(r_near))
+
+
+def assess(objective: Any, theta: np.ndarray, cov: np.ndarray, rebuild: Rebuild, unit: float) -> Identifiability:
+    """Standard errors and identifiability of ``objective``'s parameters at its optimum ``theta`` (the module
+    docstring's rule). ``cov`` is the covariance of all the free parameters as the caller computes it (Cramer-Rao,
+    sandwich, or on the harmonics; scaled up where the model misses the noise floor), ``rebuild(model)`` the
+    objective with another model, ``unit`` the objective's rise of one standard error (one unit of chi^2, times
+    the same scaling)."""
+    names = objective.model.names
+    theta = np.asarray(theta, dtype=float).reshape(-1)
     jac = objective.jacobian(theta)
-    found = suspects(jac, names, naming_priority(model))
-    named = {}
-    for name, partners in found.items():
-        if profile_rise(objective, theta, name, noise, rebuild) < FLAT:
-            with_what = f" with {', '.join(partners)}" if partners else ""
-            named[name] = f"trades off{with_what}: the data determine only their combination (flat profile)"
-    while True:
-        cov = np.full((len(names), len(names)), np.nan)
-        keep = [i for i, n in enumerate(names) if n not in named]
-        if keep:
-            reduced = rebuild(model.fix({n: float(theta[names.index(n)]) for n in named})) if named else objective
-            cov[np.ix_(keep, keep)] = covariance_of(reduced, theta[keep])
-        found = correlated(cov, names, naming_priority(model))
-        if found is None:
-            return Identifiability(names=names, not_identifiable=named, covariance=cov)
-        name, others, r = found
-        named[name] = f"is correlated with {', '.join(others)} (|r| up to {r:.4f}): the data determine only their combination"
-
-
-def correlated(cov: np.ndarray, names: list[str], priority: list[str]) -> tuple[str, list[str], float] | None:
-    """The first parameter by ``priority`` whose correlation with another exceeds ``CORRELATION_LIMIT``, the
-    parameters it is so correlated with, and the largest |r|; None if no pair does."""
+    directions, scale = unseen(np.where(np.isfinite(jac), jac, 0.0))
+    cov = np.array(cov, dtype=float)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    in_unseen = np.abs(directions).max(axis=1) > PARTICIPATION if directions.size else np.zeros(len(names), dtype=bool)
     with np.errstate(invalid="ignore", divide="ignore"):
         r = np.abs(cov / np.outer(se, se))
     np.fill_diagonal(r, 0.0)
-    r = np.where(np.isfinite(r), r, 0.0)
-    for name in priority:
-        i = names.index(name)
-        partners = [names[j] for j in np.argsort(-r[i]) if r[i, j] > CORRELATION_LIMIT]
-        if partners:
-            return name, partners, float(r[i].max())
-    return None
+    correlated = np.where(np.isfinite(r), r, 0.0).max(axis=1, initial=0.0) > CORRELATION_LIMIT
+    bounds = objective.model.bounds
+    widths: dict[str, float] = {}
+    named: dict[str, str] = {}
+    for i, name in enumerate(names):
+        if not (in_unseen[i] or correlated[i] or name in PROFILED):
+            continue
+        room = max(theta[i] - bounds[i, 0], bounds[i, 1] - theta[i])
+        step = 0.5 * room if in_unseen[i] or not (np.isfinite(se[i]) and se[i] > 0) else float(se[i])
+        found = profile(objective, theta, i, cov, rebuild, unit, step)
+        if found.flat:
+            with_what = partners(jac, i, names)
+            named[name] = (f"trades off with {', '.join(with_what)}: " if with_what else "") + \
+                "its profile is flat over its range (the data determine only a combination)"
+        else:
+            curvature = float(se[i]) if np.isfinite(se[i]) and not in_unseen[i] and name not in PROFILED else 0.0
+            widths[name] = max(found.width, curvature)
+    full = corrected(cov, directions, scale, {names.index(n): w for n, w in widths.items()})
+    flat_dirs = directions[:, [k for k in range(directions.shape[1])
+                               if any(abs(directions[names.index(n), k]) > PARTICIPATION for n in named)]] if named else np.zeros((len(names), 0))
+    return Identifiability(names=names, not_identifiable=named, full=full, profiled=widths, flat=flat_dirs, scale=scale)
+
+
+def corrected(cov: np.ndarray, directions: np.ndarray, scale: np.ndarray, widths: dict[int, float]) -> np.ndarray:
+    """``cov`` with the profile half-widths ``widths`` (parameter index -> width) on its diagonal: along each
+    unseen direction (in parameter units) the variance the inverse dropped added back, as much as its widest
+    participant needs (so that what the data do determine, a combination across that direction, keeps its
+    error); every other parameter's row and column scaled to its half-width (its correlations kept)."""
+    out = np.where(np.isfinite(cov), cov, 0.0)
+    unseen_part = np.abs(directions).max(axis=1) > PARTICIPATION if directions.size else np.zeros(len(out), dtype=bool)
+    for k in range(directions.shape[1]):
+        u = directions[:, k] / scale
+        need = [(w**2 - out[i, i]) / u[i] ** 2 for i, w in widths.items() if abs(directions[i, k]) > PARTICIPATION]
+        if need and max(need) > 0:
+            out = out + max(need) * np.outer(u, u)
+    factor = np.ones(len(out))
+    for i, w in widths.items():
+        if not unseen_part[i] and out[i, i] > 0:
+            factor[i] = w / np.sqrt(out[i, i])
+    return out * np.outer(factor, factor)

@@ -70,9 +70,9 @@ PRESET_EXPLANATIONS: dict[str, str] = {
     "baseline": "The 1-DOF oscillator of Eq. 4.4 / 4.6: mass, constant viscous damping ratio and natural frequency.",
     "thesis": "The thesis' final model (Eq. 4.8-4.10): damping ratio and natural frequency linear in the amplitude.",
     "mr_damper": (
-        "A magnetorheological damper as Spencer et al. (1997) model it without the internal dashpot: "
-        "F = c x' + k x + k_bw z, a Bouc-Wen spring (Eq. 2.1, exponent n free) beside the oscillator's "
-        "dashpot and spring (and mass)."
+        "The oscillator plus a Bouc-Wen spring, exponent n free (Eq. 2.1): F = c x' + k x + k_bw z (and the mass), "
+        "Spencer et al.'s (1997) simple model of MR dampers that fits any smooth hysteretic device (elastomeric "
+        "bearings, wire-rope isolators); reports name it baseline + bouc_wen (bw_n free)."
     ),
 }
 """Preset -> what it models (``hysid models``).

@@ -31,12 +31,19 @@ def test_fit_tables_hold_parameters_with_errors_and_every_amplitude(result):
     for name, value in result.params.items():
         assert rows[name]["value"] == value and rows[name]["stderr"] == result.stderr[name] and rows[name]["status"] == "fitted"
     assert rows["meq"] == {"parameter": "meq", "value": 0.04, "stderr": 0.0, "unit": "kg", "lower": 0.04, "upper": 0.04, "status": "fixed"}
-    amplitudes = tables["amplitudes"]
-    assert [a["x0_m"] for a in amplitudes] == [0.0005, 0.001, 0.0015]
-    for row, a, hp in zip(amplitudes, result.amplitudes, result.half_power):
+    assert rows["k"]["status"] == "derived: meq w0^2" and rows["k"]["stderr"] == result.combinations["k"][1] > 0
+    amplitudes = tables["amplitudes"]  # one row per amplitude level and frequency
+    assert len(amplitudes) == 120 and sorted({a["x0_m"] for a in amplitudes}) == [0.0005, 0.001, 0.0015]
+    level = {a.x0: (a, hp) for a, hp in zip(result.amplitudes, result.half_power)}
+    for row in amplitudes:
+        a, hp = level[row["x0_m"]]
         assert (row["fn_hz"], row["xi"], row["xi_stderr"], row["k_n_per_m"], row["c_n_s_per_m"]) == (
             a.values["fn_hz"], a.values["xi"], a.stderr["xi"], a.values["k"], a.values["c"])
         assert row["xi_half_power"] == hp.xi and row["xi_half_power"] == pytest.approx(row["xi"], rel=0.05)
+        w = 2 * np.pi * row["f_hz"]  # the linear oscillator's k_eff is k - m w^2, its xi_eq c w / (2 k_eff) below resonance
+        k_dyn = a.values["k"] - a.values["m"] * w**2
+        assert row["k_eff_n_per_m"] == pytest.approx(k_dyn, rel=1e-6) and row["k_eff_n_per_m_stderr"] > 0
+        assert row["xi_eq"] == (pytest.approx(a.values["c"] * w / (2 * k_dyn), rel=1e-3) if k_dyn > 0 else None)
     assert json.loads(json.dumps(tables)) == tables  # plain dicts of plain values
 
 
@@ -55,7 +62,8 @@ def test_dataframes_when_pandas_is_there_and_a_clear_error_when_not(result, monk
     pd = pytest.importorskip("pandas")
     frames = result.to_dataframes()
     assert isinstance(frames["amplitudes"], pd.DataFrame)
-    np.testing.assert_array_equal(frames["amplitudes"]["xi"].to_numpy(), [a.values["xi"] for a in result.amplitudes])
+    level = {a.x0: a.values["xi"] for a in result.amplitudes}
+    np.testing.assert_array_equal(frames["amplitudes"]["xi"].to_numpy(), [level[x0] for x0 in frames["amplitudes"]["x0_m"]])
     monkeypatch.setitem(sys.modules, "pandas", None)  # as if pandas were not installed
     with pytest.raises(HysidInputError, match=r"DataFrames need pandas \(pip install 'hysid\[pandas\]'\)"):
         result.to_dataframes()

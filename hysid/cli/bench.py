@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 import typer
 
-from hysid.bench import accuracy, coordinator, environment, ingest, islands, objective, search, sites, validation
+from hysid.bench import accuracy, coordinator, coverage, environment, ingest, islands, objective, search, sites, validation
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -47,6 +47,15 @@ def accuracy_command(
 ) -> None:
     """Accuracy on the Synth set: clean to 1e-6, RMS error vs the Cramer-Rao bound, thesis-faithful vs Table 5.13."""
     emit(accuracy.run(seeds, thesis_runs), accuracy.to_text, as_json)
+
+
+@bench_app.command("coverage", help=(coverage.run.__doc__ or "").strip().splitlines()[0])
+def coverage_command(
+    seeds: int = typer.Option(coverage.SEEDS, "--seeds", help="Noise seeds per specimen (at least 10)."),
+    specimens: str = typer.Option(",".join(coverage.specimens()), "--specimens", help="Comma-separated specimens to run."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    emit(coverage.run(seeds, tuple(s for s in specimens.split(",") if s)), coverage.to_text, as_json)
 
 
 @bench_app.command("islands")

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hysid.identifiability import PROFILED, profile
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import MAX_WIDENINGS, Model, spec_of
 from hysid_model.problem import prepare_model, starting_point
@@ -126,37 +127,20 @@ def initial_fit(harmonics: Harmonics, start: str) -> Fit:
     return fit_objective(HarmonicObjective(harmonics, model), start, (), [starting_point(harmonics.loops, model)])
 
 
-PROFILED = ("delay_s",)
-"""Parameters whose standard error comes from the chi^2 profile: a delay moves non-smooth forces (a friction
-jump) across the samples, so the chi^2's curvature at the optimum says little about its spread."""
-PROFILE_STEPS = (1.0, 10.0, 100.0)
-"""Multiples of the curvature's standard error tried, in turn, until the profile rises by one unit."""
-
-
 def profile_errors(fit: Fit) -> Fit:
-    """``fit`` with the standard error of each of its :data:`PROFILED` parameters from the profile of its
-    chi^2: the parameter moved either way with the others refitted, the rise taken as quadratic on each side,
-    the half-width where it reaches one unit (chi^2 / dof where the model misses the noise floor), the wider
-    side counted."""
+    """``fit`` with the standard error of each of its non-smooth parameters (:data:`hysid.identifiability.PROFILED`,
+    a delay) from the profile of its chi^2 (:func:`hysid.identifiability.profile`, the rule of the final model's
+    errors too): the half-width where it rises by one unit (chi^2 / dof where the model misses the noise floor)."""
     unit = max(1.0, fit.whitened_rms**2)
+    cov = unit * jacobian_covariance(fit.jacobian)
     for name in PROFILED:
         if name not in fit.model.names:
             continue
         i = fit.model.names.index(name)
         lower, upper = fit.model.bounds[i]
-        value, se = float(fit.theta[i]), float(fit.stderr[i])
+        se = float(fit.stderr[i])
         step = se if np.isfinite(se) and se > 0 else 1e-3 * (upper - lower)
-        widths = []
-        for side in (-1.0, 1.0):
-            for k in PROFILE_STEPS:
-                target = float(np.clip(value + side * k * step, lower, upper))
-                if target == value:
-                    break
-                reduced = HarmonicObjective(fit.objective.harmonics, fit.model.fix({name: target}))
-                rise = polish(reduced, np.delete(fit.theta, i), max_nfev=NFEV_PER_PARAMETER * reduced.dim).fitness - fit.chi2
-                if rise >= unit or k == PROFILE_STEPS[-1]:
-                    widths.append(abs(target - value) * np.sqrt(unit / max(rise, 1e-300)))
-                    break
-        if widths:
-            fit.profiled[name] = float(max(widths))
+        found = profile(fit.objective, fit.theta, i, cov, lambda m: HarmonicObjective(fit.objective.harmonics, m), unit, step)
+        if found.width > 0:
+            fit.profiled[name] = float(found.width)
     return fit

@@ -4,6 +4,7 @@ itself like :class:`hysid.fitting.FitResult`) and its :class:`Step` s, one per e
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -12,15 +13,18 @@ import numpy as np
 from hysid.diagnosis.fitting import Fit
 from hysid.diagnosis.metrics import GapMetrics, References
 from hysid.diagnosis.plausible import mass_note
+from hysid.diagnosis.pruning import zero_like
 from hysid.diagnosis.scoring import Candidate
 from hysid.identifiability import Identifiability
 from hysid.motion import MotionChoice
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid_model import notices
+from hysid_model.effective import OperatingPoint, effective_table, operating_points
 from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import Harmonics
 from hysid_model.model import effect_term
+from hysid_model.model_names import named
 from hysid_model.notices import Notice
 
 
@@ -70,6 +74,8 @@ class Diagnosis:
     last_scores: list[Candidate] = field(default_factory=list)
     impossible: dict[str, str] = field(default_factory=dict)
     """Effects set aside as impossible on these loops, and why (:mod:`hysid.diagnosis.plausible`)."""
+    pruned: dict[str, str] = field(default_factory=dict)
+    """Terms dropped from the final model at the end as consistent with zero, and why (:mod:`hysid.diagnosis.pruning`)."""
     motion: MotionChoice | None = None
     """Which displacement drove the models, how that was decided and the evidence (:mod:`hysid.motion`)."""
     report: str | None = None
@@ -90,7 +96,8 @@ class Diagnosis:
 
     def fits(self) -> list[tuple[str, Fit]]:
         """(label, fit) for the start and after every step."""
-        return [("start: " + self.start.spec, self.start)] + [("+ " + s.effect, s.after) for s in self.steps]
+        pruned = [("- " + ", ".join(self.pruned) + " (consistent with zero)", self.final)] if self.pruned else []
+        return [("start: " + self.start.spec, self.start)] + [("+ " + s.effect, s.after) for s in self.steps] + pruned
 
     @property
     def params(self) -> dict[str, float]:
@@ -99,10 +106,16 @@ class Diagnosis:
 
     @property
     def stderr(self) -> dict[str, float]:
-        """The final model's standard errors (NaN where the data cannot determine a parameter; a profile's
-        half-width where the chi^2 is not quadratic, :func:`hysid.diagnosis.fitting.profile_errors`)."""
-        errors = self.final.model.as_dict(self.identifiability.stderr * max(1.0, self.final.whitened_rms))
-        return {**errors, **{n: e for n, e in self.final.profiled.items() if n in errors and np.isfinite(errors[n])}}
+        """The final model's standard errors by the rule of :mod:`hysid.identifiability` (``fit``'s): NaN where
+        the data cannot determine a parameter, a profile's half-width where the chi^2 is not quadratic."""
+        return self.final.model.as_dict(self.identifiability.stderr)
+
+    @cached_property
+    def effective(self) -> list[OperatingPoint]:
+        """The final model's effective stiffness, equivalent damping and energy per cycle at each amplitude and
+        frequency of the loops, with standard errors (:mod:`hysid_model.effective`, as a fit reports them)."""
+        loops = self.harmonics.loops
+        return effective_table(self.final.model, self.final.theta, self.identifiability.propagate, *operating_points(loops)[:2])
 
     @property
     def at_bounds(self) -> dict[str, str]:
@@ -111,9 +124,13 @@ class Diagnosis:
 
     @property
     def notes(self) -> list[str]:
-        """What a reader must know about the final values: a mass the loops' inertia does not support."""
+        """What a reader must know about the final values: a mass the loops' inertia does not support, parameters
+        kept although consistent with zero."""
         note = mass_note(self.final.model, self.final.theta, self.harmonics.loops)
-        return [note] if note else []
+        se = self.stderr
+        zeros = [f"{n} = {v:.4g} +- {se[n]:.2g}" for n, v in self.params.items() if n in zero_like(self.params, se)]
+        kept = [f"consistent with zero but kept (an oscillator parameter, or the BIC rises without it): {', '.join(zeros)}"] if zeros else []
+        return ([note] if note else []) + kept
 
     @property
     def warnings(self) -> list[dict[str, str]]:
@@ -162,6 +179,7 @@ class Diagnosis:
             "warnings": self.warnings,
             "start_model": self.start.spec,
             "final_model": self.final.spec,
+            "final_model_name": named(self.final.model),
             "displacement_model": self.motion.as_dict() if self.motion else None,
             "steps": [
                 {
@@ -184,6 +202,7 @@ class Diagnosis:
             "not_identifiable": sorted(self.not_identifiable) + list(self.identifiability.not_identifiable),
             "not_identifiable_reasons": {**self.effects_not_identifiable(), **self.identifiability.not_identifiable},
             "impossible": self.impossible,
+            "pruned": self.pruned,
             "correlation": self.identifiability.correlation_dict(),
             "rejected": self.rejected,
             "final_params": self.final.params(),
@@ -194,6 +213,7 @@ class Diagnosis:
             "at_bounds_kind": self.at_bounds,
             "notes": self.notes,
             "bounds_from_data": sorted(p.name for p in self.final.model.parameters if p.soft),
+            "effective": [p.as_dict() for p in self.effective],
             "whitened_rms": self.final.whitened_rms,
             "references": self.references.as_dict(),
             "reaches": self.reaches,

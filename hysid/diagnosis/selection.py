@@ -25,7 +25,10 @@ the motion, or the sensor's distortion of its fundamental):
    named as two steps, its better member first. Every other passing refit
    within ``BIC_MARGIN`` of the one taken is named as confusable with it (this
    data set cannot tell them apart);
-4. repeat until no contender is left or none is taken.
+4. repeat until no contender is left or none is taken;
+5. drop from the final model every term whose strength is consistent with
+   zero where the BIC does not rise (:mod:`.pruning`: a start model's amplitude
+   slopes the loops do not need, an effect a later one made redundant).
 
 The reading of the displacement is then confirmed with the final model; if
 that model reads it the other way (:func:`hysid.motion.confirm_motion`), the
@@ -48,6 +51,7 @@ from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bound
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
 from hysid.diagnosis.naming import adequacy, residual_signature
 from hysid.diagnosis.plausible import implausible_effect
+from hysid.diagnosis.pruning import prune
 from hysid.diagnosis.refits import refit
 from hysid.diagnosis.result import Diagnosis, Step
 from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
@@ -237,8 +241,10 @@ def search(
         count[1] += len(chosen)  # the gap after each step
         fit = steps[-1].after
         bounds.update(soft_bounds(fit.model))
+    fit, pruned = prune(fit, harmonics)  # the last step: terms consistent with zero dropped
+    count[1] += bool(pruned)
     check = adequacy(fit, harmonics)
-    fits = [first] + [s.after for s in steps]
+    fits = [first] + [s.after for s in steps] + ([fit] if pruned else [])
 
     def gap(f: Fit, i: int) -> GapMetrics:
         metrics = gap_metrics(f, harmonics, cross_validate)
@@ -259,6 +265,7 @@ def search(
         identifiability=final_identifiability(fit, harmonics),
         last_scores=candidates,
         impossible=impossible,
+        pruned=pruned,
     )
 
 
@@ -289,8 +296,8 @@ def pair_steps(
 
 
 def final_identifiability(fit: Fit, harmonics: Harmonics) -> Identifiability:
-    """Which parameters of the final fit the harmonics cannot determine (:mod:`hysid.identifiability`)."""
-    return assess(
-        fit.objective, fit.theta, lambda objective, theta: jacobian_covariance(objective.jacobian(theta)),
-        lambda model: HarmonicObjective(harmonics, model), noise=1.0,
-    )
+    """The final fit's standard errors and what the harmonics cannot determine, by the rule of :mod:`hysid.identifiability`
+    (as ``fit``'s): the full covariance scaled up by chi^2 / dof where the model misses the noise floor, the profile where
+    the curvature cannot be trusted."""
+    unit = max(1.0, fit.whitened_rms**2)
+    return assess(fit.objective, fit.theta, unit * jacobian_covariance(fit.jacobian), lambda model: HarmonicObjective(harmonics, model), unit)

@@ -14,10 +14,13 @@ import numpy as np
 
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc
-from hysid.report.markdown import image, num, table, warnings_section, with_error
+from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows
+from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_section, with_error
 from hysid.report.text import band_text, mass_text, reference_text
 from hysid_model.frf import amplitude_levels
+from hysid_model.survey import survey
 from hysid_model.model import effect_term
+from hysid_model.model_names import named
 
 if TYPE_CHECKING:
     from hysid.diagnosis.result import Diagnosis
@@ -48,12 +51,12 @@ def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
 
 
 def _summary(diagnosis: "Diagnosis") -> str:
-    named = [s.effect + (f" (confusable with {', '.join(s.confusable_with)})" if s.confusable_with else "") for s in diagnosis.steps]
-    found = "The start model misses: " + ", ".join(named) + "." if named else "No library effect is missing from the start model."
+    effects = [s.effect + (f" (confusable with {', '.join(s.confusable_with)})" if s.confusable_with else "") for s in diagnosis.steps]
+    found = "The start model misses: " + ", ".join(effects) + "." if effects else "No library effect is missing from the start model."
     if diagnosis.status == "adequate":
-        return f"{found} The final model {diagnosis.final.spec} leaves only noise (whitened RMS {num(diagnosis.final.whitened_rms, 3)})."
+        return f"{found} The final model {named(diagnosis.final.model)} leaves only noise (whitened RMS {num(diagnosis.final.whitened_rms, 3)})."
     return (
-        f"{found} What the final model {diagnosis.final.spec} leaves is still not noise (whitened RMS "
+        f"{found} What the final model {named(diagnosis.final.model)} leaves is still not noise (whitened RMS "
         f"{num(diagnosis.final.whitened_rms, 3)}), and no effect of the library explains it: "
         f"{diagnosis.unexplained['description']}."
     )
@@ -80,6 +83,7 @@ def overview(diagnosis: "Diagnosis") -> str:
 def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset: str) -> Path:
     """Write ``diagnosis.md``, its figures and ``diagnosis.json`` into ``out_dir``; returns the Markdown path."""
     from hysid.report import diagnosis_figures as figures  # matplotlib loads only when a report is drawn
+    from hysid.report.effective_figure import effective_figure
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -133,6 +137,8 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in diagnosis.rejected.items()) + "."]
     for effect, why in diagnosis.impossible.items():
         lines += ["", f"**{effect} is impossible here**: {why}."]
+    for term, why in diagnosis.pruned.items():
+        lines += ["", f"**{term} dropped from the final model**: {why}."]
     if diagnosis.at_bounds:
         lines += ["", "**On a bound**: " + "; ".join(f"`{n}` on its {kind}" for n, kind in diagnosis.at_bounds.items()) + "."]
     for note in diagnosis.notes:
@@ -146,6 +152,12 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
     lines += ["", "Correlation between the final model's parameters:", "",
               table([""] + [f"`{n}`" for n in names],
                     [[f"`{a}`"] + ["" if not np.isfinite(corr[i, j]) else f"{corr[i, j]:+.3f}" for j in range(len(names))] for i, a in enumerate(names)])]
+    effective = effective_figure(out / "effective.png", h.loops, survey(h.loops, diagnosis.final.model.fixed.get("meq")), diagnosis.effective)
+    lines += ["", "## Effective stiffness and equivalent damping", "",
+              f"The final model's {EFFECTIVE_TITLE}; one standard error (delta method through the full covariance); "
+              "every row in `amplitudes.csv`.", "", table(*effective_rows(diagnosis.effective, MARKDOWN_POINTS)), "",
+              image(effective, out, "Effective stiffness and equivalent damping per amplitude against frequency: final model "
+                    "(one standard error) and each loop's own (the forces at its branches' ends, its area)")]
     lines += [
         "",
         image(maps, out, "Residual per loop over frequency x amplitude, before and after"),

@@ -15,15 +15,20 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from hysid.report import jsondoc
+from hysid.report.amplitudes import combination_rows, effective_rows
 from hysid.report.text import fixed_text, loops_description, migrations_text, quality_text, share_lines
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
+from hysid_model.survey import survey
+from hysid_model.model_names import named
 
 if TYPE_CHECKING:
     from hysid.campaigns import CampaignResult
     from hysid.fitting import FitResult
 
 MODEL_CURVE_POINTS = 1500
+MARKDOWN_POINTS = 60
+"""Amplitude-frequency points a report lists one by one (beyond, each amplitude's range)."""
 
 FITNESS_LABEL = {
     "thesis": "best fitness: weighted MSE (N$^2$)",
@@ -74,7 +79,10 @@ def write_figures(result: "FitResult", out_dir: Path) -> dict[str, Path]:
     predicted = obj.predict(result.theta)[0]
     algos = sorted({r.algo for r in result.runs})
     panels = [(a.upper() if len(algos) > 1 else "", [r for r in result.runs if r.algo == a]) for a in algos]
+    from hysid.report.effective_figure import effective_figure
+
     return {
+        "effective": effective_figure(out_dir / "effective.png", loops, survey(loops, result.model.fixed.get("meq")), result.effective),
         "convergence": figures.convergence_figure(out_dir / "convergence.png", panels, FITNESS_LABEL[result.weights]),
         "loops": figures.loops_figure(out_dir / "loops.png", loops, predicted),
         "residuals": figures.residuals_figure(out_dir / "residuals.png", loops, predicted - obj.y, np.abs(first_harmonic(loops))),
@@ -97,7 +105,7 @@ def summary_lines(result: "FitResult") -> list[str]:
     polish = "then a least-squares polish" if s.get("polish") else "no polish"
     lines = [
         f"- **Data**: `{result.loops.name}`: {loops_description(result)}.",
-        f"- **Model**: `{result.model.spec}`, parameters {', '.join(result.model.names)}{fixed_text(result.model.fixed)}.",
+        f"- **Model**: {named(result.model)}, parameters {', '.join(result.model.names)}{fixed_text(result.model.fixed)}.",
         f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; "
         f"{result.weights} loop weights.",
         f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
@@ -128,7 +136,7 @@ def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
             ratio = abs(value - t) / se[p.name] if t is not None and se[p.name] > 0 else float("nan")
             row += [num(t, 7), num(ratio, 3)]
         rows.append(row)
-    return headers, rows
+    return headers, rows + combination_rows(result, len(headers))
 
 
 def correlation_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
@@ -187,7 +195,7 @@ def fit_overview(result: "FitResult") -> str:
     p_head, p_rows = parameter_rows(result)
     a_head, a_rows = amplitude_rows(result)
     parts = ["\n".join(summary_lines(result)), *warnings_section(result.warnings), table(p_head, p_rows)]
-    return "\n\n".join(parts + [table(a_head, a_rows)])
+    return "\n\n".join(parts + [table(a_head, a_rows), table(*effective_rows(result.effective))])
 
 
 def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
@@ -254,6 +262,15 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         "(Eq. 4.6) at each excitation amplitude, and the physical stiffness k = m wn^2, damping "
         "coefficient c = 2 m xi wn and mass m (Eq. 2.4). Uncertainties are one standard error (delta method).",
         table(a_head, a_rows),
+        "## Effective stiffness and equivalent damping at each amplitude and frequency",
+        "How isolator and damper tests characterise a device (ISO 10846, EN 15129, AASHTO), from the whole fitted model "
+        "(every term, the oscillator's inertia included; the measurement chain left out) under X0 sin(wt): "
+        "k_eff = (F+ - F-) / (2 X0) from the forces at the peak displacements, and xi_eq = E_d / (4 pi E_s) with E_d "
+        "the energy dissipated per cycle and E_s = k_eff X0^2 / 2 (none where the inertia makes k_eff negative). "
+        "Uncertainties are one standard error (delta method through the full covariance); every row is in `amplitudes.csv`.",
+        table(*effective_rows(result.effective, MARKDOWN_POINTS)),
+        image(figs["effective"], out_dir, "Effective stiffness and equivalent damping per amplitude against frequency: "
+              "fitted model (one standard error) and each loop's own (the forces at its branches' ends, its area)"),
         "## Half-power cross-check of the damping (Eq. 2.7)",
         "Independently of the model: the compliance |X0/F1| of every loop (F1 = first harmonic of the measured "
         "force) gives one frequency response per amplitude; its resonance peak and -3 dB points give "

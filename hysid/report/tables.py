@@ -13,7 +13,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from hysid_model.effective import OperatingPoint
 from hysid_model.errors import HysidInputError
+from hysid_model.modal import COMBINATIONS, DERIVED_UNITS
 
 if TYPE_CHECKING:
     from hysid.diagnosis.result import Diagnosis
@@ -23,6 +25,8 @@ Rows = list[dict[str, Any]]
 
 AMPLITUDE_COLUMNS = {"fn_hz": "fn_hz", "xi": "xi", "k": "k_n_per_m", "c": "c_n_s_per_m", "m": "m_kg"}
 """Per-amplitude quantities (:mod:`hysid_model.modal`) and their CSV column names."""
+EFFECTIVE_COLUMNS = {"k_eff": "k_eff_n_per_m", "xi_eq": "xi_eq", "energy": "energy_per_cycle_j"}
+"""Per amplitude and frequency (:mod:`hysid_model.effective`) and their CSV column names."""
 
 
 def parameter_rows(params: Mapping[str, float], stderr: Mapping[str, float], model: Any, at_bounds: Sequence[str] = ()) -> Rows:
@@ -41,18 +45,27 @@ def parameter_rows(params: Mapping[str, float], stderr: Mapping[str, float], mod
 
 
 def fit_tables(result: "FitResult") -> dict[str, Rows]:
-    """``parameters`` (with standard errors) and ``amplitudes`` (fn, xi, k, c, m with standard errors and
-    the half-power damping of Eq. 2.7 at each amplitude level) of a fit."""
+    """``parameters`` (with standard errors, and the combinations k = meq w0^2, c = 2 xi0 meq w0) and
+    ``amplitudes``: one row per amplitude level and frequency of the loops, with fn, xi, k, c, m of that level,
+    the whole model's effective stiffness, equivalent damping and energy per cycle at that amplitude and
+    frequency (:mod:`hysid_model.effective`), all with standard errors, and the level's half-power damping (Eq. 2.7)."""
+    level = {a.x0: k for k, a in enumerate(result.amplitudes)}
     amplitudes = []
-    for a, hp in zip(result.amplitudes, result.half_power):
-        row: dict[str, Any] = {"x0_m": a.x0}
+    for point in result.effective:
+        k = level[point.x0]
+        a, hp = result.amplitudes[k], result.half_power[k]
+        row: dict[str, Any] = {"x0_m": a.x0, "f_hz": point.freq_hz}
         for quantity, column in AMPLITUDE_COLUMNS.items():
             row[column] = a.values[quantity]
             row[f"{column}_stderr"] = a.stderr[quantity]
+        row.update(effective_cells(point))
         row.update({"xi_half_power": hp.xi if hp.ok else None, "xi_half_power_resolution": hp.resolution if hp.ok else None,
                     "half_power_loops": hp.n_loops, "half_power_note": hp.note})
         amplitudes.append(row)
-    return {"parameters": parameter_rows(result.params, result.stderr, result.model, result.at_bounds), "amplitudes": amplitudes}
+    parameters = parameter_rows(result.params, result.stderr, result.model, result.at_bounds)
+    parameters += [{"parameter": name, "value": value, "stderr": se, "unit": DERIVED_UNITS[name], "lower": None, "upper": None,
+                    "status": f"derived: {COMBINATIONS[name]}"} for name, (value, se) in result.combinations.items()]
+    return {"parameters": parameters, "amplitudes": amplitudes}
 
 
 def diagnosis_tables(diagnosis: "Diagnosis") -> dict[str, Rows]:
@@ -65,7 +78,18 @@ def diagnosis_tables(diagnosis: "Diagnosis") -> dict[str, Rows]:
     ]
     gap = [{"step": label, **g.as_dict()} for (label, _), g in zip(diagnosis.fits(), diagnosis.gap)]
     final = diagnosis.final
-    return {"parameters": parameter_rows(final.params(), final.errors(), final.model), "steps": steps, "gap": gap}
+    return {"parameters": parameter_rows(final.params(), diagnosis.stderr, final.model), "steps": steps, "gap": gap,
+            "amplitudes": [{"x0_m": p.x0, "f_hz": p.freq_hz, **effective_cells(p)} for p in diagnosis.effective]}
+
+
+def effective_cells(point: OperatingPoint) -> dict[str, Any]:
+    """k_eff, xi_eq and the energy per cycle at one amplitude and frequency with their standard errors (None where not given)."""
+    out: dict[str, Any] = {}
+    for quantity, column in EFFECTIVE_COLUMNS.items():
+        value, se = point.values[quantity], point.stderr[quantity]
+        out[column] = value if math.isfinite(value) else None
+        out[f"{column}_stderr"] = se if math.isfinite(se) else None
+    return out
 
 
 def cell(value: Any) -> Any:

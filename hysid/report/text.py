@@ -13,11 +13,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hysid.diagnosis.plausible import mass_note
+from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
 from hysid_model.model import PRESET_EXPLANATIONS, PRESETS, build_model
 from hysid_model import notices
+from hysid_model.model_names import named
 from hysid_model.notices import Notice
 from hysid_model.survey import survey
 from hysid_model.user_terms import made_terms
@@ -138,7 +140,7 @@ def fit_warnings(result: "FitResult") -> list[Notice]:
             f"warning: the model does not describe these loops: the residual is {misfit:.3g} x the noise; a diagnosis "
             "(hysid diagnose, or hysid.diagnose) tells what it is missing"
         ))
-    if misfit is not None and misfit > STDERR_TRUST:
+    if misfit is not None and misfit > STDERR_TRUST and result.weights != "ml":  # ML weights' errors are scaled up by it
         out.append(Notice("stderr_understated",
             f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
             f"understate the uncertainty, by a factor of about {misfit:.2g}"
@@ -190,7 +192,7 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     wall = s.get("wall_s", sum(r.wall_s for r in result.runs))  # a campaign's islands search side by side
     lines = [
         f"{command} {result.loops.name}: {loops_description(result)}",
-        f"model {result.model.spec} ({', '.join(result.model.names)}{fixed_text(result.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
+        f"model {named(result.model)} ({', '.join(result.model.names)}{fixed_text(result.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
         f"fit quality: {quality_text(result)}",
     ]
@@ -207,25 +209,11 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
         if true:
             row.append(f"{true[p.name]:.7g}" if p.name in true else "")
         rows.append(row)
-    lines += [text_table(headers, rows), f"  (standard errors: {result.stderr_method})"]
+    lines += [text_table(headers, rows + combination_rows(result, len(headers))), f"  (standard errors: {result.stderr_method})"]
     lines += [f"  not identifiable: {name} {why}" for name, why in result.not_identifiable.items()]
     lines += [f"  {warning}" for warning in fit_warnings(result)]
     lines.append("")
-    rows = []
-    for a, hp in zip(result.amplitudes, result.half_power):
-        half = f"{hp.xi:.5f} (grid resolution {hp.resolution:.2g})" if hp.ok else f"n/a ({hp.note})"
-        rows.append([
-            f"{a.x0 * 1e3:.4g}",
-            f"{a.values['fn_hz']:.4f}",
-            f"{a.values['xi']:.5f} +- {a.stderr['xi']:.1g}",
-            half,
-            f"{a.values['k']:.5g}",
-            f"{a.values['c']:.4g}",
-        ])
-    lines += [
-        text_table(["X0 (mm)", "fn (Hz)", "xi (fit)", "xi half-power (Eq. 2.7)", "k (N/m)", "c (N s/m)"], rows),
-        "",
-    ]
+    lines += [text_table(*modal_rows(result)), "", f"  {EFFECTIVE_TITLE}:", text_table(*effective_rows(result.effective)), ""]
     if result.report:
         lines.append(f"report: {result.report} (figures and result.json alongside)")
     return "\n".join(lines)
@@ -392,15 +380,15 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
         also = f" (confusable with {', '.join(step['confusable_with'])})" if step["confusable_with"] else ""
         freed = f" ({', '.join(step['freed'])} free)" if step["freed"] else ""
         labels.append(step["effect"] + freed + also + (f" (with {step['joint_with']})" if step["joint_with"] else ""))
-    width = max([38, *map(len, labels)])
+    pruned = ", ".join(doc["pruned"]) + " (consistent with zero)" if doc["pruned"] else ""
+    width = max([38, *map(len, labels), len(pruned)])
     lines.append(f"  {'start':<{width + 2}} whitened RMS {gap[0]['whitened_rms']:10.4g}")
     for label, step, after in zip(labels, doc["steps"], gap[1:]):
         lines.append(f"  + {label:<{width}} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
-    preset = doc["final_model"].split("+")[0]
-    if preset != doc["start_model"] and preset in PRESET_EXPLANATIONS:
-        lines.append(f"the final model is the {preset} preset: {PRESET_EXPLANATIONS[preset]}")
+    if pruned:
+        lines.append(f"  - {pruned:<{width}} whitened RMS {gap[-1]['whitened_rms']:10.4g}")
     if doc["status"] == "adequate":
-        lines.append(f"status: adequate, the final model {doc['final_model']} leaves only noise")
+        lines.append(f"status: adequate, the final model {doc['final_model_name']} leaves only noise")
     else:
         lines.append(f"status: unexplained, {doc['unexplained_signature']['description']}")
         lines.append(reference_text(doc))
@@ -408,9 +396,12 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
         lines.append(f"not identifiable here: {name} ({doc['not_identifiable_reasons'][name]})")
     for effect, why in doc["impossible"].items():
         lines.append(f"impossible here: {effect} ({why})")
+    for term, why in doc["pruned"].items():
+        lines.append(f"dropped from the final model: {term} ({why})")
     if doc["at_bounds_kind"]:
         lines.append(bounds_sentence(doc["at_bounds_kind"]))
     lines += [f"note: {note}" for note in doc["notes"]]
+    lines += [f"final model's {EFFECTIVE_TITLE}:", text_table(*effective_rows(diagnosis.effective))]
     if diagnosis.report:
         lines.append(f"report: {diagnosis.report}")
     return "\n".join(lines)
