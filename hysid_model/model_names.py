@@ -11,7 +11,7 @@ the parameters searched that the term fixes by default.
 
 from __future__ import annotations
 
-from hysid_model.model import Model
+from hysid_model.model import Model, spec_of
 from hysid_model.terms import Oscillator
 
 
@@ -27,6 +27,8 @@ def model_name(model: Model) -> str:
 
 
 def named(model: Model) -> str:
-    """The name and, where it differs, the model string that rebuilds it: ``baseline + bouc_wen (bw_n free) [model string mr_damper]``."""
+    """The name and, where it differs, the model string that rebuilds it (:func:`hysid_model.model.spec_of`: its
+    preset frees what it searches): ``baseline + bouc_wen (bw_n free) [model string mr_damper]``."""
     name = model_name(model)
-    return name if name.replace(" + ", "+") == model.spec else f"{name} [model string {model.spec}]"
+    spec = spec_of(model.terms, model.names)
+    return name if name.replace(" + ", "+") == spec else f"{name} [model string {spec}]"

@@ -78,7 +78,9 @@ def test_csv_flag_of_fit_campaign_and_diagnose(tmp_path, capsys):
     islands = read_csv(tmp_path / "c" / "islands.csv")
     assert [i["island"] for i in islands] == ["ga-0", "pso-1"] and all(i["iterations"] == "10" for i in islands)
     doc = json.loads((tmp_path / "c" / "result.json").read_text())
-    assert {r["parameter"]: float(r["value"]) for r in read_csv(tmp_path / "c" / "parameters.csv")} == {**doc["params"], **doc["fixed"]}
+    rows = read_csv(tmp_path / "c" / "parameters.csv")
+    assert {r["parameter"]: float(r["value"]) for r in rows if not r["status"].startswith("derived")} == {**doc["params"], **doc["fixed"]}
+    assert {r["parameter"]: float(r["value"]) for r in rows if r["status"].startswith("derived")} == {k: v["value"] for k, v in doc["combinations"].items()}
 
     loops = hysid.load("synth", noise_pct=5.0, noise_seed=2)
     subset = loops.subset(np.arange(0, loops.n_loops, 4))
@@ -87,4 +89,4 @@ def test_csv_flag_of_fit_campaign_and_diagnose(tmp_path, capsys):
     assert [s["effect"] for s in tables["steps"]] == ["amplitude_dependent_frequency", "amplitude_dependent_damping"]
     assert [g["step"] for g in tables["gap"]] == [label for label, _ in diagnosis.fits()]
     assert {r["parameter"]: r["value"] for r in tables["parameters"] if r["status"] == "fitted"} == diagnosis.params
-    assert sorted(diagnosis.to_csv(tmp_path / "d")) == ["gap", "parameters", "steps"]
+    assert sorted(diagnosis.to_csv(tmp_path / "d")) == ["amplitudes", "gap", "parameters", "steps"]

@@ -46,7 +46,6 @@ from hysid.motion import choose_motion
 from hysid.report import jsondoc
 from hysid_model.effective import EFFECTIVE, device_model, effective_values, sine_loops
 from hysid_model.errors import HysidInputError
-from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
 from hysid_model.modal import DERIVED, derived_quantities
 from hysid_model.model import Model, build_model

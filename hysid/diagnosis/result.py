@@ -23,6 +23,7 @@ from hysid_model import notices
 from hysid_model.effective import OperatingPoint, effective_table, operating_points
 from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import Harmonics
+from hysid_model.modal import combinations
 from hysid_model.model import effect_term
 from hysid_model.model_names import named
 from hysid_model.notices import Notice
@@ -109,6 +110,11 @@ class Diagnosis:
         """The final model's standard errors by the rule of :mod:`hysid.identifiability` (``fit``'s): NaN where
         the data cannot determine a parameter, a profile's half-width where the chi^2 is not quadratic."""
         return self.final.model.as_dict(self.identifiability.stderr)
+
+    @cached_property
+    def combinations(self) -> dict[str, tuple[float, float]]:
+        """The final model's stiffness k = meq w0^2 and damping coefficient c = 2 xi0 meq w0 with standard errors."""
+        return combinations(self.final.model, self.final.theta, self.identifiability.propagate)
 
     @cached_property
     def effective(self) -> list[OperatingPoint]:
@@ -207,6 +213,7 @@ class Diagnosis:
             "rejected": self.rejected,
             "final_params": self.final.params(),
             "final_stderr": self.stderr,
+            "combinations": {name: {"value": v, "stderr": se} for name, (v, se) in self.combinations.items()},
             "final_bounds": {p.name: [p.lower, p.upper] for p in self.final.model.parameters},
             "final_fixed": self.final.model.fixed,
             "at_bounds": sorted(self.at_bounds),

@@ -62,10 +62,14 @@ def fit_tables(result: "FitResult") -> dict[str, Rows]:
         row.update({"xi_half_power": hp.xi if hp.ok else None, "xi_half_power_resolution": hp.resolution if hp.ok else None,
                     "half_power_loops": hp.n_loops, "half_power_note": hp.note})
         amplitudes.append(row)
-    parameters = parameter_rows(result.params, result.stderr, result.model, result.at_bounds)
-    parameters += [{"parameter": name, "value": value, "stderr": se, "unit": DERIVED_UNITS[name], "lower": None, "upper": None,
-                    "status": f"derived: {COMBINATIONS[name]}"} for name, (value, se) in result.combinations.items()]
+    parameters = parameter_rows(result.params, result.stderr, result.model, result.at_bounds) + combination_rows(result.combinations)
     return {"parameters": parameters, "amplitudes": amplitudes}
+
+
+def combination_rows(found: Mapping[str, tuple[float, float]]) -> Rows:
+    """The stiffness k = meq w0^2 and damping coefficient c = 2 xi0 meq w0 as rows of the parameter table (status 'derived')."""
+    return [{"parameter": name, "value": value, "stderr": se, "unit": DERIVED_UNITS[name], "lower": None, "upper": None,
+             "status": f"derived: {COMBINATIONS[name]}"} for name, (value, se) in found.items()]
 
 
 def diagnosis_tables(diagnosis: "Diagnosis") -> dict[str, Rows]:
@@ -78,7 +82,8 @@ def diagnosis_tables(diagnosis: "Diagnosis") -> dict[str, Rows]:
     ]
     gap = [{"step": label, **g.as_dict()} for (label, _), g in zip(diagnosis.fits(), diagnosis.gap)]
     final = diagnosis.final
-    return {"parameters": parameter_rows(final.params(), diagnosis.stderr, final.model), "steps": steps, "gap": gap,
+    return {"parameters": parameter_rows(final.params(), diagnosis.stderr, final.model) + combination_rows(diagnosis.combinations),
+            "steps": steps, "gap": gap,
             "amplitudes": [{"x0_m": p.x0, "f_hz": p.freq_hz, **effective_cells(p)} for p in diagnosis.effective]}
 
 
