@@ -23,7 +23,8 @@ from collections.abc import Callable, Collection, Sized
 
 import numpy as np
 
-from coordinator.store import Span, Store, merged
+from coordinator.queries import Span, merged
+from coordinator.store import Store
 from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer

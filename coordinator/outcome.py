@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from coordinator.members import STATUS_AFTER
-from coordinator.store import IslandRecord
+from coordinator.queries import IslandRecord
 from hysid_model.errors import HysidInputError
 from hysid_model.model import MAX_WIDENINGS
 from hysid_model.objective import Objective

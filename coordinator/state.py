@@ -7,9 +7,10 @@ and is handled (:meth:`Coordinator.handle`) by one thread, the run loop of
 The coordinator
 
 * serves ``config`` (campaign configuration + loop set) and ``best``;
-* holds the campaign secret (:class:`island.secret.CampaignSecret`, made at
-  the campaign's start and kept in the database with the coordinator's
-  private signing key) and signs everything it sends with that key;
+* holds the campaign's keys (:class:`coordinator.keys.CampaignKeys`: the
+  admission secret and its private signing key, made at the campaign's start and
+  kept in an owner-only key file beside the database, never in it) and signs
+  everything it sends with that key;
 * admits islands (the join handshake, a challenge-response): only an island
   that proves it holds the admission secret, for a challenge this process
   issued within the last :data:`CHALLENGE_S`, gets a run id; the run's public
@@ -88,7 +89,9 @@ from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignOutcome, campaign_outcome
 from coordinator.progress import CampaignProgress, IslandView
 from coordinator.sharing import Sharing
-from coordinator.store import RUN_LOCK_WAIT_S, IslandRecord, Store, StoredBest, StoreError
+from coordinator.keys import CampaignKeys, campaign_keys
+from coordinator.queries import IslandRecord, StoredBest
+from coordinator.store import RUN_LOCK_WAIT_S, Store, StoreError
 from coordinator.thinning import HistoryPolicy
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
@@ -110,7 +113,7 @@ from island.protocol import (
     encode_signed_config,
     proof_holds,
 )
-from island.secret import KEY_BYTES, CampaignSecret
+from island.secret import KEY_BYTES
 from island.sealing import Credentials, ReplayGuard, check_replay, new_key, public_key
 from island.termination import Termination
 from island.transports import key_prefix
@@ -176,8 +179,11 @@ class Coordinator:
     """One campaign's coordinator state machine (see the module docstring)."""
 
     def __init__(
-        self, store: Store, config: CampaignConfig, loops: LoopSet, termination: Termination | None = None, *, dataset: str = "", resume: bool = False
+        self, store: Store, config: CampaignConfig, loops: LoopSet, termination: Termination | None = None, *, dataset: str = "", resume: bool = False,
+        keys: CampaignKeys | None = None,
     ) -> None:
+        """``keys``: the campaign's keys (default: its key file's, :func:`coordinator.keys.campaign_keys`; fresh ones,
+        written there, for a new campaign)."""
         self.store = store
         self.config = config
         self.name = config.name
@@ -192,6 +198,10 @@ class Coordinator:
             self.config = config
         self.config_message = encode_config(config, loops)
         if not resume:
+            store.check_new(self.name)  # before its key file is written: an existing campaign's keys stay
+        self.keys = keys or campaign_keys(store.path, self.name, resume)
+        """The admission secret and the private signing key (:mod:`coordinator.keys`: in an owner-only file, never in the database)."""
+        if not resume:
             store.create_campaign(self.name, dataset, self.config_message)
         else:
             store.set_status(self.name, "running")
@@ -200,9 +210,8 @@ class Coordinator:
             store.hold(len(self.config_message))
         except OSError as exc:
             raise StoreError(f"cannot reserve disk space next to the campaign database {store.path}: {exc.strerror or exc}") from None
-        admission, self.signing = store.campaign_secrets(self.name, secrets.token_bytes(KEY_BYTES), new_key())
-        store.commit()
-        self.secret = CampaignSecret(self.name, admission, public_key(self.signing))
+        self.signing = self.keys.signing
+        self.secret = self.keys.secret
         """What islands need to join (:func:`island.secret.secret_path` is where the CLI keeps it)."""
         self.run_id = secrets.token_hex(6)
         """This coordinator process, as the sender run of what it signs."""
@@ -594,7 +603,8 @@ class Coordinator:
 
 
 def resume(store: Store, name: str, termination: Termination | None = None) -> Coordinator:
-    """The coordinator of a stored campaign, with its history, islands, runs and best as they were."""
+    """The coordinator of a stored campaign, with its history, islands, runs and best as they were, and its keys
+    (:mod:`coordinator.keys`)."""
     _, message, _ = store.campaign(name)
     config, loops = decode_config(message, name)
     return Coordinator(store, config, loops, termination, resume=True)

@@ -1,26 +1,16 @@
 """The campaign database (SQLite): what a coordinator must not lose.
 
-One file holds any number of campaigns. Tables: ``campaigns`` (configuration
-message with the loop set, status, stop reason, final result), ``members``
-(join / leave / lost / back events), ``history`` (the islands' convergence
-rows, keyed by island, run and iteration so that a row sent twice is stored
-once), ``thinned`` (the stretches of a run's history whose rows the coordinator
-did not keep, over capacity, and how many: :mod:`coordinator.thinning`),
-``islands`` (each island run's algorithm, evaluations and migration
-counters), ``migrations`` (every migrant message handled), ``superseded``
-(per island, migrant messages a newer one replaced before they were handled),
-``unfollowed`` (when, with how many islands alive, the coordinator stopped
-following migrant messages: :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`),
-``rejected`` (every message that failed validation, with the reason) and
-``best`` (the global best, as re-evaluated by the coordinator).
+One file holds any number of campaigns (its tables: :mod:`coordinator.schema`; what it holds, read:
+:mod:`coordinator.queries`). History rows, island records and thinned stretches are written in batches
+(:meth:`Store.queue_history` and its siblings, one ``executemany`` each at :meth:`Store.flush`), the rest as
+it comes. The journal is WAL with ``synchronous=NORMAL``; the coordinator commits (flushing first) at least
+every half second, stamping its heartbeat, so a crash (or kill) of the coordinator process loses nothing it
+has committed and ``--resume`` carries on from the file (only a power loss of the machine may drop the last
+commits).
 
-History rows, island records and thinned stretches are written in batches
-(:meth:`Store.queue_history` and its siblings, one ``executemany`` each at
-:meth:`Store.flush`), the rest as it comes. The journal is WAL with
-``synchronous=NORMAL``; the coordinator commits (flushing first) at least every
-half second, so a crash (or kill) of the coordinator process loses nothing it
-has committed and ``--resume`` carries on from the file (only a power loss of
-the machine may drop the last commits).
+The file is created owner-only (mode 0600; SQLite gives its ``-wal`` and ``-shm`` files the database's
+mode, and so does the reserve file here): a user who wants others to read the results makes it so with
+``chmod``. It holds no key (:mod:`coordinator.keys`).
 """
 
 from __future__ import annotations
@@ -28,125 +18,46 @@ from __future__ import annotations
 import functools
 import json
 import os
+import socket
 import sqlite3
+import stat
 import time
+import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
 
-from hysid_model.errors import HysidInputError
+from coordinator.queries import IslandRecord, Queries, Span, StoredBest
+from coordinator.schema import UPSERT_ISLAND, move_keys_out, prepare
+from hysid_model.errors import HysidInputError, HysidWarning
 from island.share import Move
 
 T = TypeVar("T")
-Span = tuple[int, int]
-"""Iterations ``first..last`` of an island run (both included)."""
 
-SCHEMA = """
-CREATE TABLE IF NOT EXISTS campaigns (
-    name TEXT PRIMARY KEY, dataset TEXT NOT NULL, config BLOB NOT NULL, created REAL NOT NULL,
-    status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT);
-CREATE TABLE IF NOT EXISTS members (
-    id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, event TEXT NOT NULL, t REAL NOT NULL);
-CREATE TABLE IF NOT EXISTS history (
-    campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, iteration INTEGER NOT NULL,
-    best_fitness REAL NOT NULL, evaluations INTEGER NOT NULL, wall_s REAL NOT NULL, t REAL NOT NULL,
-    PRIMARY KEY (campaign, island, run, iteration));
-CREATE TABLE IF NOT EXISTS islands (
-    campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, algo TEXT NOT NULL, seed INTEGER NOT NULL,
-    iterations INTEGER NOT NULL, evaluations INTEGER NOT NULL, best_fitness REAL NOT NULL, best_x BLOB NOT NULL,
-    sent INTEGER NOT NULL, received INTEGER NOT NULL, taken INTEGER NOT NULL, rejected INTEGER NOT NULL,
-    final INTEGER NOT NULL, PRIMARY KEY (campaign, island, run));
-CREATE TABLE IF NOT EXISTS migrations (
-    id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL,
-    iteration INTEGER NOT NULL, n INTEGER NOT NULL, best_claimed REAL NOT NULL, sent_at REAL NOT NULL, t REAL NOT NULL,
-    seq INTEGER);
-CREATE TABLE IF NOT EXISTS rejected (
-    id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, key TEXT NOT NULL, reason TEXT NOT NULL,
-    detail TEXT NOT NULL, size INTEGER NOT NULL, t REAL NOT NULL, n INTEGER NOT NULL DEFAULT 1);
-CREATE TABLE IF NOT EXISTS best (
-    campaign TEXT PRIMARY KEY, island TEXT NOT NULL, x BLOB NOT NULL, fitness REAL NOT NULL,
-    evaluations INTEGER NOT NULL, t REAL NOT NULL);
-CREATE TABLE IF NOT EXISTS runs (
-    campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, key BLOB NOT NULL, algo TEXT NOT NULL,
-    seed INTEGER NOT NULL, joined REAL NOT NULL, PRIMARY KEY (campaign, island, run));
-CREATE TABLE IF NOT EXISTS moves (
-    id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, src TEXT NOT NULL,
-    dst TEXT NOT NULL, evaluations INTEGER NOT NULL, credit TEXT NOT NULL, t REAL NOT NULL);
-CREATE TABLE IF NOT EXISTS secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL, admission BLOB, signing BLOB);
-CREATE TABLE IF NOT EXISTS commits (campaign TEXT PRIMARY KEY, t REAL NOT NULL, elapsed_s REAL NOT NULL DEFAULT 0);
-CREATE TABLE IF NOT EXISTS thinned (
-    campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, first INTEGER NOT NULL, last INTEGER NOT NULL,
-    rows INTEGER NOT NULL, t REAL NOT NULL);
-CREATE TABLE IF NOT EXISTS superseded (
-    campaign TEXT NOT NULL, island TEXT NOT NULL, messages INTEGER NOT NULL, PRIMARY KEY (campaign, island));
-CREATE TABLE IF NOT EXISTS unfollowed (campaign TEXT PRIMARY KEY, islands INTEGER NOT NULL, up_to INTEGER NOT NULL, t REAL NOT NULL);
-"""
-UPGRADES = (
-    ("migrations", "seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
-    ("rejected", "n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
-    ("secrets", "admission", "ALTER TABLE secrets ADD COLUMN admission BLOB"),
-    ("secrets", "signing", "ALTER TABLE secrets ADD COLUMN signing BLOB"),
-    ("commits", "elapsed_s", "ALTER TABLE commits ADD COLUMN elapsed_s REAL NOT NULL DEFAULT 0"),
-)
-"""Columns added since the first schema: a database written by an earlier hysid gets them on open."""
-INDEXES = """
-CREATE UNIQUE INDEX IF NOT EXISTS migration_once ON migrations (campaign, island, run, seq);
-CREATE INDEX IF NOT EXISTS thinned_runs ON thinned (campaign, island, run, first);
-"""
-"""A migrant message (sender run and number) is stored once, also when it is replayed after a restart; a run's
-thinned stretches are found in order."""
 LOCK_WAIT_S = 10.0
 """How long a write waits for another process' lock on the database before it fails (when it opens)."""
 RUN_LOCK_WAIT_S = 2.0
 """The same once a campaign runs (:meth:`Store.set_lock_wait`): a database locked by another process
 mid-run is a fault found within seconds, not a stall."""
-COORDINATOR_LEASE_S = 10.0
-"""A campaign not stopped whose coordinator committed nothing for this long has lost its coordinator: a running one
-commits at least every :data:`coordinator.loop.COMMIT_EVERY_S` (stamping ``commits``) and waits at most
-:data:`RUN_LOCK_WAIT_S` for a lock (as long as Zenoh's lease of a silent peer)."""
 RESERVE_BYTES = 256 << 10
 """Disk space held next to the database (``<db>-reserve``) and given back when the disk is full, so
 that the campaign can still be marked interrupted (plus twice its configuration message: SQLite
 rewrites the whole campaign row, loop set included, when its status changes)."""
 
 
-UPSERT_ISLAND = """INSERT INTO islands VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
-    ON CONFLICT (campaign, island, run) DO UPDATE SET
-    algo = CASE WHEN excluded.iterations >= iterations THEN excluded.algo ELSE algo END,
-    iterations = max(iterations, excluded.iterations), evaluations = max(evaluations, excluded.evaluations),
-    best_x = CASE WHEN excluded.best_fitness < best_fitness THEN excluded.best_x ELSE best_x END,
-    best_fitness = min(best_fitness, excluded.best_fitness), sent = max(sent, excluded.sent),
-    received = max(received, excluded.received), taken = max(taken, excluded.taken),
-    rejected = max(rejected, excluded.rejected), final = max(final, excluded.final)"""
-"""An island run's record: counters only grow, the best vector follows the best fitness (messages may come late)."""
+def _create_owner_only(path: str) -> None:
+    """Create an empty database file of mode 0600 (SQLite would make it 0644), unless one is there."""
+    try:
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+    except FileExistsError:
+        pass
 
 
 def _identity(path: str) -> tuple[int, int]:
     info = os.stat(path)
     return info.st_dev, info.st_ino
-
-
-def prepare(db: sqlite3.Connection) -> None:
-    """Create the tables, and add to a database of an earlier hysid the columns it lacks."""
-    db.executescript(SCHEMA)
-    for table, column, upgrade in UPGRADES:
-        if column not in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}:
-            db.execute(upgrade)
-    db.executescript(INDEXES)
-
-
-def merged(spans: list[Span]) -> list[Span]:
-    """Spans of iterations joined where they overlap or touch, in order."""
-    out: list[list[int]] = []
-    for first, last in sorted(spans):
-        if out and first <= out[-1][1] + 1:
-            out[-1][1] = max(out[-1][1], last)
-        else:
-            out.append([first, last])
-    return [(a, b) for a, b in out]
 
 
 class StoreError(HysidInputError):
@@ -166,36 +77,7 @@ def _writes(method: Callable[..., T]) -> Callable[..., T]:
     return guarded
 
 
-@dataclass(frozen=True)
-class StoredBest:
-    island: str
-    x: np.ndarray
-    fitness: float
-    evaluations: int
-    """Total campaign evaluations when this best was found (for the stall rule)."""
-
-
-@dataclass(frozen=True)
-class IslandRecord:
-    island: str
-    run: str
-    algo: str
-    seed: int
-    iterations: int
-    evaluations: int
-    best_fitness: float
-    best_x: np.ndarray
-    sent: int
-    received: int
-    taken: int
-    rejected: int
-    final: bool
-
-    def as_dict(self) -> dict[str, Any]:
-        return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "best_x"}
-
-
-class Store:
+class Store(Queries):
     """A campaign database file (``":memory:"`` for a throw-away one)."""
 
     def __init__(self, path: Path | str, lock_wait_s: float = LOCK_WAIT_S) -> None:
@@ -204,10 +86,13 @@ class Store:
         try:
             if self.path != ":memory:":
                 Path(self.path).parent.mkdir(parents=True, exist_ok=True)
+                _create_owner_only(self.path)
             self.db = sqlite3.connect(self.path, check_same_thread=False, timeout=lock_wait_s)
             self.db.execute("PRAGMA journal_mode=WAL")
             self.db.execute("PRAGMA synchronous=NORMAL")
             prepare(self.db)
+            if self.path != ":memory:":
+                move_keys_out(self.db, self.path)
             self.db.execute("BEGIN IMMEDIATE")  # the write lock: fails now if the file cannot be written
             self.db.execute("ROLLBACK")
             self.reserve = None if self.path == ":memory:" else Path(f"{self.path}-reserve")
@@ -241,9 +126,10 @@ class Store:
                 raise StoreError(f"cannot write the campaign database {self.path}: the file was replaced by another")
 
     def hold(self, row_bytes: int) -> None:
-        """Hold :data:`RESERVE_BYTES` plus twice ``row_bytes`` of disk space in the reserve file."""
+        """Hold :data:`RESERVE_BYTES` plus twice ``row_bytes`` of disk space in the reserve file (of the database's mode)."""
         if self.reserve is not None:
-            with open(self.reserve, "wb") as f:
+            with os.fdopen(os.open(self.reserve, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600), "wb") as f:
+                os.fchmod(f.fileno(), stat.S_IMODE(os.stat(self.path).st_mode))
                 f.write(bytes(RESERVE_BYTES + 2 * row_bytes))
                 f.flush()
                 os.fsync(f.fileno())
@@ -263,6 +149,11 @@ class Store:
         store = cls.__new__(cls)
         store.path, store.db, store.reserve, store.identity = str(path), db, None, None
         store._pending()
+        if store._has("secrets"):
+            warnings.warn(HysidWarning(
+                f"{path} still holds campaign keys (an earlier hysid kept them there): anyone who can read it can join its campaigns "
+                "and sign as their coordinator; open it once with this hysid for writing (hysid coordinator --resume) to move them "
+                "to owner-only key files"), stacklevel=2)
         return store
 
     @classmethod
@@ -321,41 +212,16 @@ class Store:
 
     @_writes
     def commit(self, campaign: str | None = None, elapsed_s: float = 0.0) -> None:
-        """Commit (what is queued first); with ``campaign``, stamp the time and the campaign's elapsed seconds
-        in ``commits`` first (how old the last commit is tells what a kill right now would lose; the elapsed
-        time is where ``--resume`` carries the time rule on). A file deleted meanwhile is a :class:`StoreError`."""
+        """Commit (what is queued first); with ``campaign``, stamp the coordinator's heartbeat first: the time, this
+        process and host, and the campaign's elapsed seconds in ``commits`` (how old the last commit is tells what a
+        kill right now would lose, and a reader whether the coordinator is still there: :meth:`gone_since`; the
+        elapsed time is where ``--resume`` carries the time rule on). A file deleted meanwhile is a :class:`StoreError`."""
         self.check_file()
         self.flush()
         if campaign is not None:
-            self.db.execute("INSERT OR REPLACE INTO commits (campaign, t, elapsed_s) VALUES (?, ?, ?)", (campaign, time.time(), elapsed_s))
+            self.db.execute("INSERT OR REPLACE INTO commits (campaign, t, elapsed_s, pid, host) VALUES (?, ?, ?, ?, ?)",
+                            (campaign, time.time(), elapsed_s, os.getpid(), socket.gethostname()))
         self.db.commit()
-
-    def elapsed(self, campaign: str) -> float:
-        """Seconds the campaign has run, by its last commit (0 before one)."""
-        row = self.db.execute("SELECT elapsed_s FROM commits WHERE campaign = ?", (campaign,)).fetchone()
-        return 0.0 if row is None else float(row[0])
-
-    def last_commit(self, campaign: str) -> float | None:
-        """Unix time of the campaign's last stamped commit (None before its coordinator's first pass)."""
-        try:
-            row = self.db.execute("SELECT t FROM commits WHERE campaign = ?", (campaign,)).fetchone()
-        except sqlite3.OperationalError:  # no commits table: an earlier hysid's database
-            return None
-        return None if row is None else float(row[0])
-
-    def gone_since(self, campaign: str, lease_s: float = COORDINATOR_LEASE_S) -> float | None:
-        """Unix time of the last sign of life of a campaign's coordinator (its last commit, else the campaign's
-        creation) if the campaign did not stop and nothing was committed for ``lease_s``: its coordinator is gone
-        (killed, or its machine). None while it commits, once the campaign stopped, and for a database of a hysid
-        that stamped no commits."""
-        try:
-            status, created, last = self.db.execute(
-                "SELECT status, created, t FROM campaigns LEFT JOIN commits ON commits.campaign = campaigns.name WHERE name = ?", (campaign,)
-            ).fetchone()
-        except sqlite3.OperationalError:  # no commits table: an earlier hysid's database
-            return None
-        seen = created if last is None else last
-        return seen if status != "stopped" and time.time() - seen > lease_s else None
 
     def rollback(self) -> None:
         """Drop what was not committed (after a failed write), queued or written."""
@@ -365,28 +231,20 @@ class Store:
         except sqlite3.Error:
             pass
 
-    # --- campaigns --------------------------------------------------------------
-    def has_campaign(self, name: str) -> bool:
-        return self.db.execute("SELECT 1 FROM campaigns WHERE name = ?", (name,)).fetchone() is not None
+    def check_new(self, name: str) -> None:
+        """A :class:`HysidInputError` if the database holds campaign ``name`` already."""
+        if self.has_campaign(name):
+            raise HysidInputError(f"{self.path}: campaign {name!r} already exists; resume it, or choose another campaign name or database")
 
     @_writes
     def create_campaign(self, name: str, dataset: str, config: bytes) -> None:
         """Register a new campaign; an existing one is never overwritten."""
-        if self.has_campaign(name):
-            raise HysidInputError(f"{self.path}: campaign {name!r} already exists; resume it, or choose another campaign name or database")
+        self.check_new(name)
         self.db.execute(
             "INSERT INTO campaigns (name, dataset, config, created, status) VALUES (?, ?, ?, ?, 'running')",
             (name, dataset, config, time.time()),
         )
         self.db.commit()
-
-    def campaign(self, name: str) -> tuple[str, bytes, str]:
-        """``(dataset, config message, status)`` of a stored campaign."""
-        row = self.db.execute("SELECT dataset, config, status FROM campaigns WHERE name = ?", (name,)).fetchone()
-        if row is None:
-            known = [r[0] for r in self.db.execute("SELECT name FROM campaigns ORDER BY created")]
-            raise HysidInputError(f"{self.path}: no campaign {name!r} to resume (stored: {', '.join(known) or 'none'})")
-        return row[0], bytes(row[1]), row[2]
 
     @_writes
     def set_status(self, name: str, status: str, reason: str | None = None) -> None:
@@ -403,15 +261,6 @@ class Store:
         self.db.execute("UPDATE campaigns SET result = ? WHERE name = ?", (result_json, name))
         self.db.commit()
 
-    def result(self, name: str) -> dict[str, Any] | None:
-        row = self.db.execute("SELECT result FROM campaigns WHERE name = ?", (name,)).fetchone()
-        return None if row is None or row[0] is None else json.loads(row[0])
-
-    def stop_reason(self, name: str) -> str | None:
-        row = self.db.execute("SELECT stop_reason FROM campaigns WHERE name = ?", (name,)).fetchone()
-        return None if row is None else row[0]
-
-    # --- records as messages arrive (committed by the caller per batch) ------------------
     @_writes
     def member_event(self, campaign: str, island: str, event: str) -> None:
         self.db.execute("INSERT INTO members (campaign, island, event, t) VALUES (?, ?, ?, ?)", (campaign, island, event, time.time()))
@@ -477,17 +326,6 @@ class Store:
             (campaign, key[:200], reason, detail[:300], size, time.time(), n),
         )
 
-    # --- who joined ---------------------------------------------------------------------
-    @_writes
-    def campaign_secrets(self, campaign: str, admission: bytes, signing: bytes) -> tuple[bytes, bytes]:
-        """The campaign's admission secret and the coordinator's private signing key: stored once (the
-        given ones the first time; a campaign of an earlier hysid gets them on its first resume)."""
-        self.db.execute("INSERT OR IGNORE INTO secrets (campaign, campaign_key) VALUES (?, x'')", (campaign,))
-        self.db.execute("UPDATE secrets SET admission = coalesce(admission, ?), signing = coalesce(signing, ?) WHERE campaign = ?",
-                        (admission, signing, campaign))
-        row = self.db.execute("SELECT admission, signing FROM secrets WHERE campaign = ?", (campaign,)).fetchone()
-        return bytes(row[0]), bytes(row[1])
-
     @_writes
     def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int, joined: float) -> None:
         """A run admitted, with the public key it signs with and when it joined (Unix time)."""
@@ -501,114 +339,9 @@ class Store:
             (campaign, move.island, move.run, move.src, move.dst, move.evaluations, json.dumps(move.credit), time.time()),
         )
 
-    def moves(self, campaign: str) -> list[Move]:
-        """The moves of the campaign in the order they were made."""
-        rows = self.db.execute("SELECT island, run, src, dst, evaluations, credit FROM moves WHERE campaign = ? ORDER BY id", (campaign,))
-        return [Move(i, r, a, b, int(e), json.loads(c)) for i, r, a, b, e, c in rows]
-
-    def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int, float]]:
-        """Every run that joined: ``(island, run, public key, algo, seed, joined)`` in the order they joined."""
-        rows = self.db.execute("SELECT island, run, key, algo, seed, joined FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
-        return [(i, r, bytes(k), a, s, float(j)) for i, r, k, a, s, j in rows]
-
     @_writes
     def set_best(self, campaign: str, best: StoredBest) -> None:
         self.db.execute(
             "INSERT OR REPLACE INTO best VALUES (?, ?, ?, ?, ?, ?)",
             (campaign, best.island, np.asarray(best.x, dtype="<f8").tobytes(), best.fitness, best.evaluations, time.time()),
         )
-
-    # --- queries -------------------------------------------------------------------
-    def best(self, campaign: str) -> StoredBest | None:
-        row = self.db.execute("SELECT island, x, fitness, evaluations FROM best WHERE campaign = ?", (campaign,)).fetchone()
-        if row is None:
-            return None
-        return StoredBest(row[0], np.frombuffer(row[1], dtype="<f8").copy(), float(row[2]), int(row[3]))
-
-    def islands(self, campaign: str) -> list[IslandRecord]:
-        rows = self.db.execute(
-            "SELECT island, run, algo, seed, iterations, evaluations, best_fitness, best_x, sent, received, taken, rejected, final "
-            "FROM islands WHERE campaign = ? ORDER BY island, run", (campaign,),
-        )
-        return [
-            IslandRecord(*r[:7], np.frombuffer(r[7], dtype="<f8").copy(), *r[8:12], bool(r[12]))
-            for r in rows
-        ]
-
-    def total_evaluations(self, campaign: str) -> int:
-        return int(self.db.execute("SELECT coalesce(sum(evaluations), 0) FROM islands WHERE campaign = ?", (campaign,)).fetchone()[0])
-
-    def handled(self, campaign: str, island: str, run: str) -> list[Span]:
-        """The iterations of an island run the coordinator handled, stored or thinned, as disjoint sorted spans."""
-        where = "campaign = ? AND island = ? AND run = ?"
-        key = (campaign, island, run)
-        starts = self.db.execute(f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
-            g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration - 1) ORDER BY iteration""", key)
-        ends = self.db.execute(f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
-            g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration + 1) ORDER BY iteration""", key)
-        spans = list(zip((s for (s,) in starts.fetchall()), (e for (e,) in ends.fetchall())))
-        if self._has("thinned"):
-            spans += self.db.execute(f"SELECT first, last FROM thinned WHERE {where}", key).fetchall()
-        return merged(spans)
-
-    def thinned(self, campaign: str) -> dict[tuple[str, str], int]:
-        """History rows the coordinator did not keep, per island run."""
-        if not self._has("thinned"):
-            return {}
-        rows = self.db.execute("SELECT island, run, sum(rows) FROM thinned WHERE campaign = ? GROUP BY island, run", (campaign,))
-        return {(i, r): int(n) for i, r, n in rows}
-
-    def superseded(self, campaign: str) -> int:
-        """Migrant messages a newer one of the same island replaced before the coordinator handled them."""
-        if not self._has("superseded"):
-            return 0
-        return int(self.db.execute("SELECT coalesce(sum(messages), 0) FROM superseded WHERE campaign = ?", (campaign,)).fetchone()[0])
-
-    def unfollowed(self, campaign: str) -> dict[str, Any] | None:
-        """When the coordinator stopped following migrant messages: ``islands`` alive then, the rule's ``up_to``
-        and the Unix time ``t`` (None: it never did)."""
-        if not self._has("unfollowed"):
-            return None
-        row = self.db.execute("SELECT islands, up_to, t FROM unfollowed WHERE campaign = ?", (campaign,)).fetchone()
-        return None if row is None else {"islands": int(row[0]), "up_to": int(row[1]), "t": float(row[2])}
-
-    def _has(self, table: str) -> bool:
-        """Whether the file has ``table`` (a file of an earlier hysid opened read-only may lack it)."""
-        return self.db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,)).fetchone() is not None
-
-    def history(self, campaign: str) -> list[tuple[str, str, int, float, int, float]]:
-        """All rows ``(island, run, iteration, best_fitness, evaluations, wall_s)``."""
-        return self.db.execute(
-            "SELECT island, run, iteration, best_fitness, evaluations, wall_s FROM history WHERE campaign = ? ORDER BY island, run, iteration",
-            (campaign,),
-        ).fetchall()
-
-    def members(self, campaign: str) -> list[tuple[str, str, float]]:
-        """Membership events ``(island, event, unix time)`` in order."""
-        return self.db.execute("SELECT island, event, t FROM members WHERE campaign = ? ORDER BY id", (campaign,)).fetchall()
-
-    def campaign_list(self) -> list[dict[str, Any]]:
-        """Every stored campaign, oldest first: name, dataset, status, stop reason, created and ended (unix time)."""
-        rows = self.db.execute("SELECT name, dataset, status, stop_reason, created, ended FROM campaigns ORDER BY created")
-        return [dict(zip(("name", "dataset", "status", "stop_reason", "created", "ended"), r)) for r in rows]
-
-    def migrations_by_island(self, campaign: str) -> dict[str, int]:
-        """Migrant messages the coordinator saw from each island."""
-        rows = self.db.execute("SELECT island, count(*) FROM migrations WHERE campaign = ? GROUP BY island", (campaign,))
-        return {island: int(n) for island, n in rows}
-
-    def count(self, table: str, campaign: str) -> int:
-        """Rows of a table (for ``rejected``: messages, summaries counting ``n``)."""
-        if table not in ("migrations", "rejected", "history", "members"):
-            raise ValueError(f"no countable table {table!r}")
-        what = "coalesce(sum(n), 0)" if table == "rejected" and self._counted_rejects() else "count(*)"
-        return int(self.db.execute(f"SELECT {what} FROM {table} WHERE campaign = ?", (campaign,)).fetchone()[0])
-
-    def _counted_rejects(self) -> bool:
-        """Whether ``rejected`` has its ``n`` column (a file of an earlier hysid opened read-only has not)."""
-        return "n" in {row[1] for row in self.db.execute("PRAGMA table_info(rejected)")}
-
-    def rejected_reasons(self, campaign: str) -> dict[str, int]:
-        n = "sum(n)" if self._counted_rejects() else "count(*)"
-        rows = self.db.execute(f"SELECT reason, {n} FROM rejected WHERE campaign = ? GROUP BY reason", (campaign,))
-        return {r: int(n) for r, n in rows}

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from coordinator.keys import CampaignKeys
 from coordinator.launch import island_specs, run_campaign
 from coordinator.outcome import CampaignOutcome, polished
 from coordinator.progress import CampaignProgress
@@ -77,20 +78,18 @@ class CampaignResult:
         store = Store.snapshot(db)
         try:
             name = pick_campaign(store, name)
-            dataset, message, status = store.campaign(name)
-            reason, stored = store.stop_reason(name), store.result(name)
+            dataset, message, _ = store.campaign(name)
+            (status, reason), stored, gone = store.state(name), store.result(name), store.gone_since(name)
             try:
                 config, loops = decode_config(message, name)
             except MessageRejected as exc:
                 raise HysidInputError(f"{db}: campaign {name!r} has an unreadable configuration ({exc})") from None
             settings = (stored or {}).get("settings", {})
             termination = Termination(**settings["stop_rules"]) if "stop_rules" in settings else None
-            gone = store.gone_since(name)
-            coordinator = Coordinator(store, config, loops, termination, dataset=dataset, resume=True)
-            coordinator.stop_reason = reason if status == "stopped" and reason else (
-                f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else "")
-                + ("" if gone is None else f", {text.gone_text(gone)}")
-            )
+            # nothing is signed or sent: keys of its own, the campaign's stay in their file (the database holds none)
+            coordinator = Coordinator(store, config, loops, termination, dataset=dataset, resume=True, keys=CampaignKeys.create(name))
+            coordinator.stop_reason = reason if status in ("stopped", "interrupted") and reason else (
+                f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else ""))
             result = cls.from_outcome(confirmed(coordinator, coordinator.outcome(polish_best=bool(settings.get("polish", True)))))
         finally:
             store.close()
@@ -144,7 +143,7 @@ class CampaignResult:
 
     def write_report(self, out_dir: str | Path) -> Path:
         """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document."""
-        interrupted = " (interrupted)" if self.fit.settings.get("stop_reason") == "interrupted" else ""
+        interrupted = " (interrupted)" if str(self.fit.settings.get("stop_reason")).startswith("interrupted") else ""
         return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{interrupted}", document=self.to_dict(),
                                          sections=markdown.campaign_sections(self))
 

@@ -32,7 +32,8 @@ class CampaignSnapshot:
     name: str
     dataset: str
     status: str
-    """running, stopping or stopped (a campaign left running was interrupted if nothing writes any more)."""
+    """running, stopping, stopped or interrupted (also a campaign stored running or stopping whose coordinator is
+    gone: :meth:`coordinator.queries.Queries.state`)."""
     stop_reason: str | None
     progress: CampaignProgress
     best_island: str | None
@@ -43,13 +44,14 @@ class CampaignSnapshot:
     events: list[tuple[str, str, float]]
     """The latest membership events ``(island, event, unix time)``."""
     gone_since: float | None = None
-    """Unix time of the coordinator's last sign of life if it is gone (nothing committed for a lease while the
-    campaign did not stop: :meth:`coordinator.store.Store.gone_since`); the islands it saw alive are then unknown."""
+    """Unix time of the coordinator's last sign of life if it is gone while the campaign did not stop (its heartbeat
+    stale, or its process ended: :meth:`coordinator.queries.Queries.gone_since`); the islands it saw alive are then
+    unknown."""
 
     @property
     def over(self) -> bool:
-        """Nothing more will come: the campaign stopped, or its coordinator is gone."""
-        return self.status == "stopped" or self.gone_since is not None
+        """Nothing more will come: the campaign stopped, or was interrupted (its coordinator is gone)."""
+        return self.status in ("stopped", "interrupted") or self.gone_since is not None
 
 
 def trend(values: list[float], points: int = TREND_POINTS) -> list[float]:
@@ -64,6 +66,7 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
     """Read campaign ``name`` (default: the latest) from ``store`` as it is now."""
     name = pick_campaign(store, name)
     meta = next(c for c in store.campaign_list() if c["name"] == name)
+    status, reason = store.state(name)
     records = store.islands(name)
     by_run: dict[tuple[str, str], list[float]] = {}
     for island, run, _, best, _, _ in store.history(name):
@@ -92,5 +95,5 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
         migrations_followed=store.unfollowed(name) is None,
         rejected=store.count("rejected", name),
     )
-    return CampaignSnapshot(name, meta["dataset"], meta["status"], meta["stop_reason"], progress,
+    return CampaignSnapshot(name, meta["dataset"], status, reason, progress,
                             None if best is None else best.island, islands, events[-5:], gone)

@@ -78,31 +78,11 @@ class CampaignSecret:
     @classmethod
     def read(cls, path: Path | str) -> "CampaignSecret":
         """The secret kept in file ``path``; a :class:`HysidWarning` if others than its owner may read it."""
-        path = Path(path)
-        try:
-            mode = path.stat().st_mode
-            text = path.read_text(encoding="ascii", errors="replace")[:1000]
-        except FileNotFoundError:
-            raise HysidInputError("no such file", param="secret_file", value=path) from None
-        except OSError as exc:
-            raise HysidInputError(f"cannot be read ({exc.strerror or exc})", param="secret_file", value=path) from None
-        if mode & (stat.S_IRWXG | stat.S_IRWXO):
-            warnings.warn(HysidWarning(f"{path}: the campaign secret is readable by others than its owner (chmod 600 {path})"), stacklevel=2)
-        return cls.parse(text, str(path))
+        return cls.parse(read_owner_only(path, "secret_file", "the campaign secret"), str(path))
 
     def write(self, path: Path | str) -> Path:
         """Keep the secret in ``path`` (mode 0600, replaced whole: never a half-written file)."""
-        path = Path(path)
-        partial = path.with_name(f".{path.name}.{secrets.token_hex(4)}")
-        fd = os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        try:
-            with os.fdopen(fd, "w", encoding="ascii") as f:
-                f.write(self.text() + "\n")
-            os.replace(partial, path)
-        except BaseException:
-            partial.unlink(missing_ok=True)
-            raise
-        return path
+        return write_owner_only(path, self.text() + "\n")
 
     def check_campaign(self, campaign: str, source: str) -> "CampaignSecret":
         if self.campaign != campaign:
@@ -113,3 +93,41 @@ class CampaignSecret:
 def secret_path(db: Path | str, campaign: str) -> Path:
     """Where a coordinator keeps the secret of ``campaign`` of database ``db``: ``<db>-<campaign>.secret``."""
     return Path(f"{db}-{check_name('campaign', campaign)}.secret")
+
+
+def write_owner_only(path: Path | str, text: str) -> Path:
+    """Write ``text`` to ``path`` readable and writable by its owner only (mode 0600 from the start: no moment
+    when another user may open it), replacing the file whole (never a half-written one)."""
+    path = Path(path)
+    partial = path.with_name(f".{path.name}.{secrets.token_hex(4)}")
+    fd = os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    try:
+        with os.fdopen(fd, "w", encoding="ascii") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(partial, path)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def read_owner_only(path: Path | str, param: str | None, what: str) -> str:
+    """The text of an owner-only file (at most 1,000 characters), a one-line :class:`HysidInputError` naming
+    ``param`` (None: the file) if it cannot be read, a :class:`HysidWarning` if others than its owner may read it."""
+    path = Path(path)
+
+    def failed(why: str) -> HysidInputError:
+        return HysidInputError(why, param=param, value=path) if param else HysidInputError(f"{path}: {what}: {why}")
+
+    try:
+        mode = path.stat().st_mode
+        text = path.read_text(encoding="ascii", errors="replace")[:1000]
+    except FileNotFoundError:
+        raise failed("no such file") from None
+    except OSError as exc:
+        raise failed(f"cannot be read ({exc.strerror or exc})") from None
+    if mode & (stat.S_IRWXG | stat.S_IRWXO):
+        warnings.warn(HysidWarning(f"{path}: {what} is readable by others than its owner (chmod 600 {path})"), stacklevel=3)
+    return text

@@ -13,6 +13,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -396,3 +397,46 @@ def test_the_threat_model_cites_tests_that_exist() -> None:
     assert len(cited) >= 25
     for file, name in cited:
         assert re.search(rf"^def {name}\(", (tests_dir / file).read_text(), re.M), f"{file}::{name}"
+
+
+def read_as_another_user(path: Path) -> bytes | None:
+    """``path`` read by user ``nobody`` (None: it may not), where this process can act as it (root with ``setpriv``);
+    else by the mode bits alone (what a user neither owner nor in the file's group may read)."""
+    if os.geteuid() == 0 and shutil.which("setpriv"):
+        got = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", "--", "cat", str(path)], capture_output=True)
+        return got.stdout if got.returncode == 0 else None
+    return path.read_bytes() if path.stat().st_mode & 0o004 else None
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(180)
+def test_another_user_finds_no_key_in_any_file_a_campaign_leaves(tmp_path: Path) -> None:
+    """A campaign of two island processes in a directory every user may enter: its database, WAL, shared memory,
+    reserve, key and secret files are 0600, and every file it leaves that another user can read (its report, figures,
+    result) holds no byte of the admission secret or the coordinator's private key, raw or in hex."""
+    from coordinator.keys import CampaignKeys, key_path
+
+    base = Path(tempfile.mkdtemp(prefix="hysid-other-user-"))
+    try:
+        base.chmod(0o755)
+        out = base / "out"
+        done = subprocess.run([sys.executable, "-m", "hysid", "campaign", "--islands", "2", "--iterations", "30", "--population", "10",
+                               "--initial", "20", "--out", str(out), "--quiet", "--json"], capture_output=True, text=True, timeout=150)
+        assert done.returncode == 0, done.stderr
+        db = out / "campaign.sqlite"
+        keys = CampaignKeys.read(key_path(db, "campaign"), "campaign")
+        forms = [k for key in (keys.admission, keys.signing) for k in (key, key.hex().encode(), key.hex().upper().encode())]
+        owner_only = {db.name, f"{db.name}-wal", f"{db.name}-shm", f"{db.name}-reserve", key_path(db, "campaign").name, f"{db.name}-campaign.secret"}
+        left = [p for p in base.rglob("*") if p.is_file()]
+        assert {db.name, key_path(db, "campaign").name, f"{db.name}-campaign.secret", "report.md", "result.json"} <= {p.name for p in left}
+        readable = []
+        for p in left:
+            if p.name in owner_only:
+                assert oct(p.stat().st_mode & 0o777) == "0o600", p
+            data = read_as_another_user(p)
+            if data is not None:
+                readable.append(p.name)
+                assert not any(k in data for k in forms), f"{p} holds a key and another user can read it"
+        assert "report.md" in readable and not owner_only & set(readable)
+    finally:
+        shutil.rmtree(base, ignore_errors=True)

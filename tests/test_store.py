@@ -9,7 +9,8 @@ import signal
 import numpy as np
 import pytest
 
-from coordinator.store import IslandRecord, Store, StoredBest
+from coordinator.queries import IslandRecord, StoredBest
+from coordinator.store import Store
 from hysid_model.errors import HysidInputError
 
 
@@ -116,3 +117,95 @@ def test_a_file_that_is_not_a_database_is_a_clear_error(tmp_path):
     with pytest.raises(HysidInputError, match="notes.sqlite: not a usable campaign database"):
         Store(bad)
     assert bad.read_text().startswith("these are my notes")
+
+
+def side_files(db) -> list:
+    """The database file and every file SQLite and the store keep beside it."""
+    return [p for p in (db.parent / f"{db.name}{s}" for s in ("", "-wal", "-shm", "-reserve")) if p.exists()]
+
+
+def test_a_new_database_its_side_files_and_its_keys_are_owner_only_and_it_holds_no_key(tmp_path):
+    """The database, its WAL, shared memory and reserve are created 0600 (SQLite would make them 0644), the campaign's
+    keys go to an owner-only key file that a resumed coordinator reads, and no byte of them is in the database."""
+    from coordinator.keys import CampaignKeys, key_path
+    from coordinator.state import Coordinator, resume
+    from hysid_model.synth import synth_loops
+    from island.config import CampaignConfig
+
+    loops = synth_loops(n_points=20)
+    db = tmp_path / "c.sqlite"
+    c = Coordinator(Store(db), CampaignConfig.create(loops, name="c1"), loops)
+    c.store.add_history("c1", "a", "r", np.array([[0, 1.0, 10, 0.1]]))
+    c.store.commit("c1", 1.0)
+    keys = CampaignKeys.read(key_path(db, "c1"), "c1")
+    assert keys == c.keys and keys.secret == c.secret
+    files = side_files(db) + [key_path(db, "c1")]
+    assert {p.name for p in files} == {"c.sqlite", "c.sqlite-wal", "c.sqlite-shm", "c.sqlite-reserve", "c.sqlite-c1.keys"}
+    assert {oct(p.stat().st_mode & 0o777) for p in files} == {"0o600"}
+    for p in side_files(db):
+        data = p.read_bytes()
+        assert all(k not in data and k.hex().encode() not in data for k in (keys.admission, keys.signing)), p
+    c.store.close()
+    again = resume(Store(db), "c1")
+    assert again.keys == keys  # --resume signs with the same key: its islands can be taken up
+    again.store.close()
+
+
+def test_a_database_that_still_holds_keys_has_them_moved_out_when_opened_for_writing(tmp_path):
+    """A database of an earlier hysid kept the admission secret and the coordinator's private key in its ``secrets``
+    table: read-only it warns; opened for writing they move to an owner-only key file, and neither the database nor
+    its journal holds a byte of them afterwards (the table dropped, the file vacuumed)."""
+    import sqlite3
+
+    from coordinator.keys import CampaignKeys, key_path
+    from hysid_model.errors import HysidWarning
+
+    db = tmp_path / "old.sqlite"
+    admission, signing = os.urandom(32), os.urandom(32)
+    con = sqlite3.connect(db)
+    con.execute("PRAGMA journal_mode=WAL")
+    con.execute("CREATE TABLE campaigns (name TEXT PRIMARY KEY, dataset TEXT NOT NULL, config BLOB NOT NULL, created REAL NOT NULL, "
+                "status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT)")
+    con.execute("CREATE TABLE secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL, admission BLOB, signing BLOB)")
+    con.execute("INSERT INTO campaigns VALUES ('old', 'synth', x'00', 0, 'stopped', 'budget', 1, NULL)")
+    con.execute("INSERT INTO secrets VALUES ('old', ?, ?, ?)", (os.urandom(32), admission, signing))
+    con.commit()
+    con.close()
+    assert admission in db.read_bytes()  # where an earlier hysid left it, for anyone who could read the file
+    with pytest.warns(HysidWarning, match="still holds campaign keys"):
+        Store.read_only(db).close()
+    Store(db).close()
+    assert CampaignKeys.read(key_path(db, "old"), "old") == CampaignKeys("old", admission, signing)
+    assert oct(key_path(db, "old").stat().st_mode & 0o777) == "0o600"
+    for p in side_files(db):
+        data = p.read_bytes()
+        assert all(k not in data and k.hex().encode() not in data for k in (admission, signing)), p
+    reader = Store.read_only(db)  # no warning any more
+    assert not reader._has("secrets") and reader.campaign_list()[0]["name"] == "old"
+    reader.close()
+
+
+def test_a_campaign_left_running_by_a_coordinator_that_is_gone_reads_interrupted(tmp_path):
+    """A coordinator that could not mark its campaign interrupted (its database locked) leaves it 'running': as soon as
+    its process is gone (on this host), or its heartbeat is older than the lease (elsewhere), the database reads
+    interrupted, and why; while its process runs it reads running."""
+    import subprocess
+    import sys
+
+    from coordinator.queries import COORDINATOR_LEASE_S
+
+    store = Store(tmp_path / "c.sqlite")
+    store.create_campaign("c1", "synth", b"config")
+    store.commit("c1", 3.0)  # this process' heartbeat: it runs
+    assert store.state("c1") == ("running", None) and store.gone_since("c1") is None
+    ended = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True, check=True)
+    store.db.execute("UPDATE commits SET pid = ?", (int(ended.stdout),))  # the heartbeat of a coordinator process that ended
+    store.db.commit()
+    status, reason = store.state("c1")
+    assert status == "interrupted" and reason.startswith("interrupted: its coordinator is gone (last heartbeat ") and reason.endswith(
+        "and left the campaign running")
+    store.db.execute("UPDATE commits SET pid = ?, host = 'elsewhere', t = t - ?", (os.getpid(), COORDINATOR_LEASE_S + 1))  # another host's, stale
+    store.db.commit()
+    assert store.state("c1")[0] == "interrupted"
+    store.set_status("c1", "stopped", "budget")
+    assert store.state("c1") == ("stopped", "budget")

@@ -7,13 +7,14 @@ import json
 import re
 import signal
 import subprocess
+import time
 
 import pytest
 
-from coordinator.store import COORDINATOR_LEASE_S, Store
+from coordinator.queries import COORDINATOR_LEASE_S
+from coordinator.store import Store
 from hysid.cli import main
 from hysid.campaigns import CampaignResult
-from hysid.report.text import gone_text
 from support import hysid, interruptible, rows_of, screen_of, wait_for
 
 SMALL = ["--population", "20", "--initial", "40"]
@@ -116,9 +117,10 @@ def test_watch_follows_a_running_campaign_on_a_terminal_until_it_stops(tmp_path)
 
 @pytest.mark.slow
 def test_watch_and_report_of_a_campaign_whose_coordinator_was_killed(tmp_path, capsys):
-    """A second run on the --out of a running campaign is refused as such. Its coordinator SIGKILLed: once it committed
-    nothing for a lease, watch and report say it is gone (since its last commit) and its islands' state unknown; watch
-    shows it and ends instead of refreshing a 'running' campaign; the --out is then one to --resume."""
+    """A second run on the --out of a running campaign is refused as such. Its coordinator SIGKILLed: once its process is
+    gone (or it committed nothing for a lease), watch and report say the campaign was interrupted, since its last
+    heartbeat, and its islands' state unknown; watch shows it and ends instead of refreshing a 'running' campaign; the
+    --out is then one to --resume."""
     db, campaign = start_campaign(tmp_path)
     store = Store.read_only(db)
     assert store.gone_since("campaign") is None  # running: it commits
@@ -128,15 +130,16 @@ def test_watch_and_report_of_a_campaign_whose_coordinator_was_killed(tmp_path, c
     campaign.kill()  # SIGKILL: no stop, no result, the database left as it was
     campaign.communicate()
     wait_for(lambda: store.gone_since("campaign") is not None, 3 * COORDINATOR_LEASE_S, "the coordinator's lease to run out")
-    since = gone_text(store.gone_since("campaign"))
+    since = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(store.gone_since("campaign")))
+    gone = f"its coordinator is gone (last heartbeat {since}) and left the campaign running"
     store.close()
     code, text = screen_of(hysid("watch", str(db), "--interval", "0.2"), 60)
     screen = ANSI.sub("", text)
-    assert code == 0 and f"campaign 'campaign' on synth: running, {since}, after " in screen
+    assert code == 0 and f"campaign 'campaign' on synth: interrupted ({gone}) after " in screen
     assert re.search(r"pso-0\s+PSO\s+unknown\s+\d+", screen) and "members: 0 alive, 0 left, 0 lost, 2 unknown (its coordinator gone)" in screen
     assert main(["report", str(db), "--out", str(tmp_path / "r")]) == 0
     summary = capsys.readouterr().out
-    assert f"stopped because not finished: the database was left while the campaign was running, {since}" in summary
+    assert f"stopped because interrupted: {gone}" in summary
     assert re.search(r"pso-0 +PSO +seed 0 +unknown +best ", summary) and (tmp_path / "r" / "report.md").is_file()
     assert main(["campaign", "--single-node", "--out", str(db.parent)]) == 2
     assert "holds the database of a campaign that did not finish" in capsys.readouterr().err

@@ -24,9 +24,11 @@ from typing import Optional
 import typer
 
 from coordinator.launch import island_specs
+from coordinator.keys import key_path
 from coordinator.links import ZenohLink
 from coordinator.loop import serve
 from coordinator.progress import CampaignProgress
+from coordinator.queries import COORDINATOR_LEASE_S
 from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult, campaign, finish
@@ -77,6 +79,22 @@ def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) 
     return path
 
 
+def resumed_from(store: Store, name: str) -> str:
+    """The line ``--resume`` says of the state it takes campaign ``name`` up from (as :meth:`Queries.state` reads it:
+    a campaign left running by a coordinator that is gone was interrupted); a :class:`HysidInputError` while its
+    coordinator still runs (two coordinators of one campaign would each think it theirs)."""
+    if not store.has_campaign(name):
+        return ""  # resume() names the campaigns the database holds
+    status, reason = store.state(name)
+    if status in ("running", "stopping"):
+        last = store.last_commit(name)
+        ago = "" if last is None else f", its heartbeat {time.time() - last:.0f} s ago"
+        raise HysidInputError(f"{store.path}: campaign {name!r} is {status} (its coordinator is alive{ago}); stop it first, or wait "
+                              f"{COORDINATOR_LEASE_S:g} s after a crash on another machine")
+    why = (reason or "").removeprefix("interrupted: ")
+    return f"hysid: resuming campaign {name!r}, {status}" + (f" ({why})" if why else "")
+
+
 def exit_status(result: CampaignResult) -> int | None:
     """:data:`hysid.cli.options.INTERRUPTED` for a campaign stopped by Ctrl-C (its report written and marked
     so), None (exit status 0) for one that ended by its rules."""
@@ -100,6 +118,7 @@ def discard_failed(out: Path, db: Path, campaign_name: str) -> None:
     for suffix in ("", "-wal", "-shm", "-journal", "-reserve"):
         Path(f"{db}{suffix}").unlink(missing_ok=True)
     secret_path(db, campaign_name).unlink(missing_ok=True)
+    key_path(db, campaign_name).unlink(missing_ok=True)
     if out.is_dir() and not any(out.iterdir()):
         out.rmdir()
 
@@ -244,7 +263,10 @@ def register(app: typer.Typer) -> None:
         store = Store(path)
         try:
             if resume_db:
+                said = resumed_from(store, name)
                 coordinator = resume(store, name, termination)
+                if said and not quiet:
+                    print(said, file=sys.stderr, flush=True)
             else:
                 coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
             kept = keep_secret(coordinator.secret, secret_file or secret_path(path, name))

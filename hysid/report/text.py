@@ -334,17 +334,11 @@ def sparkline(values: Sequence[float]) -> str:
     return "".join(SPARK[int(round((x - v.min()) / span * (len(SPARK) - 1)))] for x in v)
 
 
-def gone_text(since: float) -> str:
-    """What ``hysid watch`` and ``hysid report`` say of a campaign whose coordinator is gone."""
-    return f"coordinator gone since {time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(since))}"
-
-
 def watch_text(snap: "CampaignSnapshot") -> str:
     """The screen of ``hysid watch``: status, global best, one row per island run, membership."""
     p = snap.progress
-    state = f"stopped ({snap.stop_reason})" if snap.status == "stopped" else snap.status
-    if snap.gone_since is not None:
-        state += f", {gone_text(snap.gone_since)},"
+    why = (snap.stop_reason or "").removeprefix("interrupted: ")
+    state = f"{snap.status} ({why})" if snap.status in ("stopped", "interrupted") and why else snap.status
     rejected = f" | rejected messages {p.rejected}" if p.rejected else ""
     best = f"{p.best:.6g} from {snap.best_island}" if np.isfinite(p.best) else "none yet"
     lines = [
