@@ -23,6 +23,7 @@ import zenoh
 from coordinator.launch import free_port
 from coordinator.loop import COMMIT_EVERY_S
 from coordinator.store import Store
+from hysid.cli.campaign import resumed_from
 from hostile import RogueCoordinator, join_flood
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config, encode_config
@@ -292,8 +293,21 @@ def test_a_database_locked_by_another_process_ends_the_campaign_within_seconds(s
     errors = [line for line in err.splitlines() if line.startswith("hysid: error:")]
     assert coord.returncode == 2 and len(errors) == 1 and "Traceback" not in err, err
     assert "campaign 'locked' stopped: cannot write the campaign database" in errors[0] and "database is locked" in errors[0]
+    assert "it could not be marked interrupted" in errors[0]  # the lock still held: the record says 'running'
     assert took < 20.0  # found within seconds (a 2 s wait for the lock, the islands told, one more try to mark it)
     assert a.wait(30) == 0  # told to stop; it did
+    assert query(db, "SELECT status FROM campaigns") == [("running",)]
+    gone = "interrupted (its coordinator is gone (last heartbeat "  # its process ended: no lease to wait for
+    watched = subprocess.run([sys.executable, "-m", "hysid", "watch", "--once", str(db)], capture_output=True, text=True, timeout=60)
+    assert watched.returncode == 0 and f"campaign 'locked' on synth: {gone}" in watched.stdout, watched.stdout
+    reported = subprocess.run([sys.executable, "-m", "hysid", "report", str(db), "--out", str(tmp_path / "report")], capture_output=True, text=True,
+                              timeout=120)
+    assert reported.returncode == 0 and "stopped because interrupted: its coordinator is gone (last heartbeat " in reported.stdout, reported.stderr
+    store = Store(db)
+    try:
+        assert resumed_from(store, "locked").startswith(f"hysid: resuming campaign 'locked', {gone}")
+    finally:
+        store.close()
 
 
 def test_a_database_deleted_mid_run_ends_the_campaign_with_one_line(spawn, tmp_path):

@@ -193,11 +193,14 @@ def test_a_campaign_left_running_by_a_coordinator_that_is_gone_reads_interrupted
     import sys
 
     from coordinator.queries import COORDINATOR_LEASE_S
+    from hysid.cli.campaign import resumed_from
 
     store = Store(tmp_path / "c.sqlite")
     store.create_campaign("c1", "synth", b"config")
     store.commit("c1", 3.0)  # this process' heartbeat: it runs
     assert store.state("c1") == ("running", None) and store.gone_since("c1") is None
+    with pytest.raises(HysidInputError, match=r"campaign 'c1' is running \(its coordinator is alive, its heartbeat 0 s ago\); stop it first"):
+        resumed_from(store, "c1")  # --resume: two coordinators of one campaign would each think it theirs
     ended = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True, check=True)
     store.db.execute("UPDATE commits SET pid = ?", (int(ended.stdout),))  # the heartbeat of a coordinator process that ended
     store.db.commit()
@@ -207,5 +210,6 @@ def test_a_campaign_left_running_by_a_coordinator_that_is_gone_reads_interrupted
     store.db.execute("UPDATE commits SET pid = ?, host = 'elsewhere', t = t - ?", (os.getpid(), COORDINATOR_LEASE_S + 1))  # another host's, stale
     store.db.commit()
     assert store.state("c1")[0] == "interrupted"
+    assert resumed_from(store, "c1").startswith("hysid: resuming campaign 'c1', interrupted (its coordinator is gone (last heartbeat ")
     store.set_status("c1", "stopped", "budget")
     assert store.state("c1") == ("stopped", "budget")
