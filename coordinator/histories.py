@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Collection, Sized
 
@@ -42,8 +43,8 @@ may evaluate: a faster or less loaded host, a measurement taken while this one w
 more effort than that, for the time since it joined, is lying (an honest one on a like host spends about
 1/SPEEDUP of it, loaded ones less)."""
 MEASURE_S = 0.3
-"""How long the coordinator runs an island's algorithm here to measure its rate (at the first history
-message of a run of it; again, at most every :data:`REMEASURE_S`, before a claim would be refused)."""
+"""How long the coordinator runs an island's algorithm here to measure its rate (in a thread of its own, from the
+join of the first run of it; again, at most every :data:`REMEASURE_S`, when a claim is refused)."""
 REMEASURE_S = 30.0
 WALL_SLACK_S = 5.0
 """A run's wall time may exceed the time since the coordinator admitted it by this much (its clock
@@ -61,14 +62,22 @@ class HistoryChecks:
     with which the rate of each algorithm is measured here.
     """
 
-    def __init__(self, config: CampaignConfig, objective: Objective | ThesisObjective, runs: Sized) -> None:
+    def __init__(self, config: CampaignConfig, objective: Objective | ThesisObjective, runs: Sized,
+                 fresh: Callable[[], Objective | ThesisObjective] | None = None) -> None:
+        """``fresh()``: another instance of ``objective`` (a measurement runs beside the run loop, and an objective
+        keeps caches of its own); default: ``objective`` itself."""
         self.config = config
         self.objective = objective
+        self.fresh = fresh or (lambda: objective)
         self.bounds = objective.bounds
         self.runs = runs
         self._optimizers: dict[str, PopulationOptimizer] = {}
         self._rates: dict[str, float] = {}
         self._measured_at: dict[str, float] = {}
+        self._measuring: dict[str, threading.Thread] = {}
+        """The measurement of each algorithm's rate under way, in a thread of its own (the run loop never waits for
+        one but the first of an algorithm, which starts when a run of it joins: long before its first history)."""
+        self._lock = threading.Lock()
 
     def optimizer(self, algo: str) -> PopulationOptimizer:
         """An (unused) optimizer with an island's settings: what its evaluation counts may be."""
@@ -76,28 +85,58 @@ class HistoryChecks:
             self._optimizers[algo] = make_optimizer(algo, self.bounds, 0, self.config.island_options(algo))
         return self._optimizers[algo]
 
-    def rate(self, algo: str, again: bool = False) -> float:
-        """Evaluations per second an island of ``algo`` reaches here: its optimizer with the campaign's
-        settings (its initial population cut to one population) run on the campaign's objective for
-        :data:`MEASURE_S`, per second of this thread's CPU time (a machine busy with other work does
-        not lower it). Measured once, or ``again`` (keeping the higher rate)."""
-        if algo not in self._rates or again:
-            options = self.config.island_options(algo)
-            probe = self.optimizer(algo)
-            optimizer = make_optimizer(algo, self.bounds, 0, {**options, "initial_population": probe.population, "iterations": MAX_ITERATIONS})
-            start, cpu = time.perf_counter(), time.thread_time()
-            run(optimizer, self.objective, should_stop=lambda: time.perf_counter() - start >= MEASURE_S)
-            measured = optimizer.evaluations / max(time.thread_time() - cpu, 1e-3)  # per CPU second: what other work takes is not counted
-            self._rates[algo] = max(self._rates.get(algo, 0.0), measured)
-            self._measured_at[algo] = time.monotonic()
-        return self._rates[algo]
+    def expect(self, algos: Collection[str]) -> None:
+        """Runs of ``algos`` may report: start measuring the rate of each not measured yet."""
+        for algo in algos:
+            if algo not in self._measuring:
+                self.measure(algo)
 
-    def _remeasured(self, algos: Collection[str]) -> bool:
-        """Measure the rates of ``algos`` again (before refusing a claim), at most every :data:`REMEASURE_S`."""
-        due = [a for a in algos if time.monotonic() - self._measured_at.get(a, -np.inf) >= REMEASURE_S]
-        for algo in due:
-            self.rate(algo, again=True)
-        return bool(due)
+    def measure(self, algo: str) -> None:
+        """Start measuring the rate of ``algo`` (:meth:`rate`) in a thread of its own, unless that is under way."""
+        with self._lock:
+            if algo in self._measuring and self._measuring[algo].is_alive():
+                return
+            thread = threading.Thread(target=self._measure, args=(algo,), name=f"rate-{algo}", daemon=True)
+            self._measuring[algo] = thread
+            self._measured_at[algo] = time.monotonic()
+        thread.start()
+
+    def _measure(self, algo: str) -> None:
+        """Evaluations per second an island of ``algo`` reaches here: its optimizer with the campaign's settings (its
+        initial population cut to one population) run on (another instance of) the campaign's objective for
+        :data:`MEASURE_S`, per second of this thread's CPU time (a machine busy with other work does not lower it);
+        the higher of this and any earlier measurement is kept."""
+        options = self.config.island_options(algo)
+        probe = self.optimizer(algo)
+        optimizer = make_optimizer(algo, self.bounds, 0, {**options, "initial_population": probe.population, "iterations": MAX_ITERATIONS})
+        objective = self.fresh()  # the run loop evaluates with its own meanwhile
+        start, cpu = time.perf_counter(), time.thread_time()
+        run(optimizer, objective, should_stop=lambda: time.perf_counter() - start >= MEASURE_S)
+        measured = optimizer.evaluations / max(time.thread_time() - cpu, 1e-3)
+        with self._lock:
+            self._rates[algo] = max(self._rates.get(algo, 0.0), measured)
+
+    def rate(self, algo: str) -> float:
+        """Evaluations per second an island of ``algo`` reaches here (:meth:`_measure`): the latest measurement,
+        waiting for the first one if it has not ended (started now if it never was)."""
+        with self._lock:
+            rate = self._rates.get(algo)
+        if rate is None:
+            self.measure(algo)
+            self._measuring[algo].join()
+            with self._lock:
+                rate = self._rates.get(algo)
+        if rate is None:  # the measurement failed in its thread: once more, here, so that its error shows
+            self._measure(algo)
+            rate = self._rates[algo]
+        return rate
+
+    def _remeasured(self, algos: Collection[str]) -> None:
+        """Measure the rates of ``algos`` again, in the background, at most every :data:`REMEASURE_S` (a claim beyond
+        the bound is refused meanwhile; its rows are asked for again once a later message shows the gap)."""
+        for algo in algos:
+            if time.monotonic() - self._measured_at.get(algo, -np.inf) >= REMEASURE_S:
+                self.measure(algo)
 
     def effort_bound(self, algos: Collection[str], seconds: float) -> tuple[float, float]:
         """The most evaluations and iterations a run of ``algos`` can claim ``seconds`` after it joined:
@@ -132,9 +171,8 @@ class HistoryChecks:
             if h.rows[-1, 3] > seconds + WALL_SLACK_S:
                 raise MessageRejected("out_of_range", f"a wall time of {h.rows[-1, 3]:.6g} s; the run joined {seconds:.0f} s ago")
             most_evaluations, most_iterations = self.effort_bound(algos, seconds)
-            if (h.rows[-1, 2] > most_evaluations or h.rows[-1, 0] > most_iterations) and self._remeasured(algos):
-                most_evaluations, most_iterations = self.effort_bound(algos, seconds)
             if h.rows[-1, 2] > most_evaluations or h.rows[-1, 0] > most_iterations:
+                self._remeasured(algos)
                 raise MessageRejected("implausible", f"{h.rows[-1, 2]:.0f} evaluations in {h.rows[-1, 0]:.0f} iterations {seconds:.0f} s after it "
                                                      f"joined; at most {most_evaluations:.0f} in {most_iterations:.0f} possible")
             iterations = h.rows[:, 0]

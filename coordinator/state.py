@@ -228,7 +228,7 @@ class Coordinator:
         for island, run, key, algo, seed, joined in store.runs(self.name):
             self.runs[(island, run)] = RunInfo(key, algo, seed, joined)
             self.current[island] = run
-        self.checks = HistoryChecks(config, self.objective, self.runs)
+        self.checks = HistoryChecks(config, self.objective, self.runs, fresh=lambda: config.objective(loops))
         self.sharing = Sharing(store, config, {key: info.algo for key, info in self.runs.items()}, self.checks.optimizer)
         self.islands: dict[tuple[str, str], IslandView] = {}
         self.run_evaluations: dict[tuple[str, str], int] = {}
@@ -460,6 +460,8 @@ class Coordinator:
         self.sharing.joined((island, run), algo)
         self.current[island] = run
         self.membership.joined(island, run, nonce)
+        self.checks.expect(self.config.algos)  # measured meanwhile: before the run's first history comes
+        self.review_following()
         self.store.commit()
         return run
 
@@ -546,6 +548,8 @@ class Coordinator:
             self.sharing.review(self.evaluations, self.members, self.islands, key)
 
     def _migrants(self, link: Link, m: Migrants, arrived: float) -> None:
+        if not self.follows_migrants:
+            return  # queued before the coordinator stopped following them: the islands count it
         check_replay(self._replays, "migrants", m.island, m.run, m.seq)
         self._heard(m.island, m.run, arrived)
         if not self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at, m.seq):
@@ -553,15 +557,16 @@ class Coordinator:
         self.migrations += 1
         self._candidates[m.island] = m  # of an island's messages only the newest matters: its best never gets worse
 
-    def review_following(self, link: Link) -> None:
-        """Stop following migrant messages once more than :data:`FOLLOWS_MIGRANTS_UP_TO` islands are alive
-        (the run loop calls it at every commit)."""
-        if not self.follows_migrants:
-            return
-        alive = sum(m.status == "alive" for m in self.members.values())
-        if alive > FOLLOWS_MIGRANTS_UP_TO:
-            self.follows_migrants = False
-            self.store.set_unfollowed(self.name, alive, FOLLOWS_MIGRANTS_UP_TO)
+    def review_following(self, link: Link | None = None) -> None:
+        """Stop following migrant messages once more than :data:`FOLLOWS_MIGRANTS_UP_TO` islands are alive: at the
+        join that makes them so (:meth:`admit`, before the island hears it joined: none of its migrants, nor of those
+        it makes start, is followed), and then at every commit, where ``link`` stops their delivery."""
+        if self.follows_migrants:
+            alive = sum(m.status == "alive" for m in self.members.values())
+            if alive > FOLLOWS_MIGRANTS_UP_TO:
+                self.follows_migrants = False
+                self.store.set_unfollowed(self.name, alive, FOLLOWS_MIGRANTS_UP_TO)
+        if not self.follows_migrants and link is not None:
             link.unfollow_migrants()
 
     def consider_migrants(self, link: Link) -> None:

@@ -333,54 +333,6 @@ def test_only_islands_that_prove_the_secret_are_admitted_and_each_id_has_bounded
     assert len(c.runs) == 3
 
 
-def test_commits_come_every_few_thousand_rows_under_a_burst(tmp_path, link, monkeypatch):
-    """A burst bigger than COMMIT_ROWS is committed in steps, not only once the queue is empty."""
-    monkeypatch.setattr("coordinator.histories.SPEEDUP", 1e9)  # an island that ran for long before (here: at once)
-    c = make(tmp_path, iterations=10**6)
-    island = c.join("pso-1", "pso", 1)
-    x = truth(c)
-    f = float(c.objective(x[None, :])[0])
-    per_message = 2000
-    messages = 3 * COMMIT_ROWS // per_message
-    for m in range(messages):
-        rows = [[i, 1.0, 20 + 25 * i, 0.0] for i in range(m * per_message, (m + 1) * per_message)]
-        assert c.receive("hysid/c1/history/pso-1", history(island, rows, x, max(f, 0.0), seq=m))
-    committed: list[int] = []
-    commit = c.store.commit
-
-    def observed_commit(campaign=None, elapsed_s=0.0):
-        commit(campaign, elapsed_s)
-        with sqlite3.connect(tmp_path / "c.sqlite") as reader:  # what another process sees
-            committed.append(reader.execute("SELECT count(*) FROM history").fetchone()[0])
-
-    c.store.commit = observed_commit
-    pump(c, link, 600.0)
-    assert committed[-1] == messages * per_message
-    steps = np.diff([0, *committed])
-    assert len(committed) >= 3 and steps.max() <= COMMIT_ROWS + per_message  # never more than one window at risk
-
-
-@pytest.mark.slow  # over 3 s
-def test_stop_rules_and_progress_are_checked_while_a_backlog_of_32_islands_waits(tmp_path, link, monkeypatch):
-    monkeypatch.setattr("coordinator.histories.SPEEDUP", 1e9)  # islands that ran for long before (here: at once)
-    c = make(tmp_path, Termination(budget=400_000), iterations=10**6)
-    x = truth(c)
-    f = float(c.objective(x[None, :])[0])
-    islands = [c.join(f"pso-{i}", "pso", i) for i in range(32)]
-    for cred in islands:
-        c.member(cred.island, False)  # their tokens went: the stop does not wait for goodbyes
-    for m in range(200):  # 6400 messages; the budget is spent after about 1600 of them
-        for i, cred in enumerate(islands):
-            rows = [[it, 1.0, 20 + 25 * it, 0.0] for it in range(m * 10, m * 10 + 10)]
-            c.receive(f"hysid/c1/history/{cred.island}", history(cred, rows, x, f, seq=m, seed=i))
-    shown: list[tuple[int, int]] = []
-    reason = serve(c, link, lambda p: shown.append((p.evaluations, len(c.inbox))), progress_every_s=0.0)
-    assert reason == "budget of 400,000 evaluations spent"
-    assert len(shown) >= 2
-    waiting_at_stop = next(queued for evaluations, queued in shown if evaluations >= 400_000)
-    assert waiting_at_stop > 1000  # stopped with most of the backlog queued, instead of draining it first
-
-
 def test_a_resumed_campaign_whose_islands_all_finished_ends_at_once_with_its_report(tmp_path, link):
     c = make(tmp_path, min_islands=4)  # fewer joined than the islands it once waited for
     x = truth(c)
@@ -443,28 +395,6 @@ def test_a_database_deleted_mid_run_stops_the_campaign_with_one_line(tmp_path, l
         serve(c, link)
     assert link.stop.is_set()
     assert not c.inbox.put("late", "anything", wait_s=None)  # closed: nothing arriving can block a producer any more
-
-
-def test_the_inbox_serves_sources_in_turn_and_bounds_each():
-    inbox = Inbox(per_source=3, max_sources=2, max_bytes=100)
-    assert all(inbox.put("flood", i, 1, wait_s=0) for i in range(3))
-    assert not inbox.put("flood", 3, 1, wait_s=0.01)  # full: dropped after the wait, counted
-    assert inbox.put("honest", "h", 1, wait_s=0)
-    assert not inbox.put("third", "t", 1, wait_s=0)  # no room for a third source
-    assert not inbox.put("honest", "big", 200, wait_s=0)  # more bytes than allowed
-    assert [inbox.get() for _ in range(5)] == [0, "h", 1, 2, None]
-    assert inbox.take_dropped() == {"flood": 1, "third": 1, "honest": 1}
-
-
-def test_urgent_items_are_served_first_but_never_more_than_a_run_of_them_while_others_wait():
-    inbox = Inbox()
-    for i in range(3):
-        assert inbox.put("a", f"a{i}", 1)
-    for i in range(URGENT_RUN + 2):
-        assert inbox.put(f"!{i % 2}", f"u{i}", 0, urgent=True)
-    served = [inbox.get() for _ in range(URGENT_RUN + 6)]
-    urgent = [f"u{i}" for i in range(URGENT_RUN + 2)]  # sources !0 and !1 in turn: u0, u1, u2, ...
-    assert served == urgent[:URGENT_RUN] + ["a0"] + urgent[URGENT_RUN:] + ["a1", "a2", None]
 
 
 def test_a_database_locked_by_another_process_stops_the_campaign_cleanly(tmp_path, link):
