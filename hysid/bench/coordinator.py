@@ -20,22 +20,13 @@ loopback.
 * **backlog**: 32 islands with a backlog of 6400 messages queued at once and a budget spent after about a
   quarter of them: seconds from the start to the stop decision and how much was still queued (it must not
   drain the queue first);
-* **flood**: one island over Zenoh on loopback (coordinator, island and flooder are three processes) running a
-  fixed number of iterations, alone and while a joined island floods it with 1000 migrant messages of 256
-  migrants per second: its run time (ratio) and how many migrants it re-evaluated (at most ``k`` per
-  in-neighbour and migration);
-* **host**: :data:`HOST_ISLANDS` islands in one process (``hysid island --count``) against a coordinator
-  process: the process's peak resident memory per island (target: 25 MB at most), against one island
-  process's; and the same islands (isolated, seeded) as separate processes: the same answers (iterations,
-  evaluations, best fitness and vector) and rows, island by island.
+* **commits**, **flood**, **host**: with processes of their own (:mod:`hysid.bench.processes`): the longest
+  gap between two commits with and without a migrant flood, an island under a flood, islands many to a process.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import resource
-import sqlite3
 import subprocess
 import sys
 import tempfile
@@ -49,28 +40,13 @@ import numpy as np
 from coordinator.launch import free_port
 from coordinator.links import MemoryLink, ZenohLink
 from coordinator.loop import pump, serve
-from coordinator.state import Coordinator
-from coordinator.store import Store
-from hysid_model.synth import synth_loops
-from island.config import CampaignConfig, decode_config
-from island.migration import Migration
-from island.node import HISTORY_EVERY_S, IslandNode, history_period
-from island.protocol import History, Migrants, encode_history, encode_migrants
-from island.secret import CampaignSecret, secret_path
+from hysid.bench.processes import commits, coordinator, flood, host
+from island.node import HISTORY_EVERY_S, history_period
+from island.protocol import History, encode_history
 from island.session import open_session, session_config
 from island.termination import Termination
-from island.transports import ZenohTransport, fetch_config, join
 
 ISLANDS = 32
-SIZES = {a: {"population": 20, "initial_population": 40, "iterations": 10**9} for a in ("ga", "pso")}
-
-
-def coordinator(workdir: Path, name: str, termination: Termination | None = None) -> Coordinator:
-    loops = synth_loops(n_points=30)
-    config = CampaignConfig.create(loops, name=name, options=SIZES, migration=Migration(interval=5, k=2))
-    return Coordinator(Store(workdir / f"{name}.sqlite"), config, loops, termination)
-
-
 RATE = 50.0
 """Iterations a second of a simulated island."""
 INTERVAL = 5
@@ -288,191 +264,19 @@ def backlog(rounds: int = 200, budget: int = 400_000) -> dict[str, Any]:
                 "stop_checks_before": sum(1 for s in seen if s[1] < budget)}
 
 
-def flooder(endpoint: str, secret_file: str, per_s: float = 1000.0) -> None:
-    """A joined island that floods ``migrants/flooder`` until killed (run in its own process)."""
-    secret = CampaignSecret.read(secret_file)
-    campaign = secret.campaign
-    session = open_session(session_config("client", connect=[endpoint]), endpoint)
-    cred = join(session, campaign, "flooder", "pso", 9, secret, 30)
-    token = session.liveliness().declare_token(f"hysid/{campaign}/members/flooder")
-    publisher = session.declare_publisher(f"hysid/{campaign}/migrants/flooder")
-    x = np.tile(np.array([0.05, 0.0, 300.0, 0.0]), (256, 1))
-    print("ready", flush=True)
-    seq, started = 0, time.monotonic()
-    while token is not None:
-        publisher.put(encode_migrants(Migrants(campaign, "flooder", cred.run, 1, x, np.zeros(256), time.time(), seq), cred))
-        seq += 1
-        time.sleep(max(0.0, started + seq / per_s - time.monotonic()))
+PARTS = ("load", "sustain", "ramp", "backlog", "commits", "flood", "host")
 
 
-def wait_for_secret(path: Path, timeout_s: float) -> CampaignSecret:
-    """The secret a coordinator process writes when it starts."""
-    deadline = time.monotonic() + timeout_s
-    while not path.exists() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    return CampaignSecret.read(path)
-
-
-def flood_run(iterations: int, flood: bool) -> dict[str, Any]:
-    """One island run (in this process) against a coordinator process; optionally flooded by a
-    joined island in a third process."""
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
-        coordinator_process = subprocess.Popen(
-            [sys.executable, "-m", "hysid", "coordinator", "--listen", endpoint, "--campaign", "flood", "--db", f"{tmp}/f.sqlite",
-             "--out", f"{tmp}/out", "--quiet", "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", str(iterations),
-             "--interval", "1", "--topology", "full", "--no-polish"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )
-        flooding = None
-        client = open_session(session_config("client", connect=[endpoint], connect_timeout_s=30), endpoint)
-        try:
-            secret = wait_for_secret(secret_path(f"{tmp}/f.sqlite", "flood"), 30)
-            config, loops = decode_config(fetch_config(client, secret, 30), "flood")
-            if flood:
-                flooding = subprocess.Popen(
-                    [sys.executable, "-c", f"from hysid.bench.coordinator import flooder; flooder({endpoint!r}, {str(secret_path(f'{tmp}/f.sqlite', 'flood'))!r})"],
-                    stdout=subprocess.PIPE, text=True,
-                )
-                assert flooding.stdout is not None and flooding.stdout.readline().strip() == "ready"
-            node = IslandNode("target", "pso", 1, config, config.objective(loops))
-            transport = ZenohTransport(client, node, secret, 10)
-            started, cpu, own = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF), time.thread_time()
-            node.run(transport)
-            elapsed, own = time.perf_counter() - started, time.thread_time() - own
-            after = resource.getrusage(resource.RUSAGE_SELF)
-            process_cpu = after.ru_utime + after.ru_stime - cpu.ru_utime - cpu.ru_stime
-            transport.close()
-        finally:
-            for p in (flooding, coordinator_process):
-                if p is not None:
-                    p.kill()
-                    p.wait()
-            client.close()
-        return {"run_s": elapsed, "evolution_cpu_s": own, "process_cpu_s": process_cpu, "iterations": iterations,
-                "migrants_evaluated": node.migrant_evaluations, "rejected": node.stats["rejected"], "received": node.stats["received"]}
-
-
-def flood(iterations: int = 1000) -> dict[str, Any]:
-    quiet, flooded = flood_run(iterations, False), flood_run(iterations, True)
-    return {"quiet": quiet, "flooded": flooded, "run_time_ratio": flooded["run_s"] / quiet["run_s"], "flood_messages_per_s": 1000,
-            "most_migrants_allowed": 2 * iterations + 1}  # k = 2 from its one in-neighbour per migration, plus the global best
-
-
-HOST_ISLANDS = 64
-HOST_ITERATIONS = 40
-HOST_SETTINGS = ["--iterations", str(HOST_ITERATIONS), "--population", "30", "--initial", "60", "--interval", "0", "--share", "fixed", "--no-polish"]
-"""Isolated islands with a budget of their own, each keeping its algorithm: its seed alone decides its search."""
-SEPARATE_AT_ONCE = 16
-"""Island processes started together in the comparison (a campaign each), so that the machine's memory holds them."""
-MB_PER_HOSTED_ISLAND = 25.0
-
-
-class Watched:
-    """A process whose peak resident memory (``VmHWM``) and CPU time are read every 0.1 s until it ends."""
-
-    def __init__(self, process: subprocess.Popen) -> None:
-        self.process = process
-        self.peak_mb = 0.0
-        self.cpu_s = 0.0
-        self._thread = threading.Thread(target=self._watch, daemon=True)
-        self._thread.start()
-
-    def _watch(self) -> None:
-        tick = os.sysconf("SC_CLK_TCK")
-        while self.process.poll() is None:
-            try:
-                with open(f"/proc/{self.process.pid}/status", encoding="utf-8") as status:
-                    self.peak_mb = next(int(x.split()[1]) for x in status if x.startswith("VmHWM:")) / 1024.0
-                with open(f"/proc/{self.process.pid}/stat", encoding="utf-8") as stat:
-                    fields = stat.read().rsplit(")", 1)[1].split()
-                    self.cpu_s = (int(fields[11]) + int(fields[12])) / tick
-            except (OSError, StopIteration, IndexError):
-                pass
-            time.sleep(0.1)
-
-    def wait(self, timeout_s: float) -> int:
-        code = self.process.wait(timeout=timeout_s)
-        self._thread.join()
-        return code
-
-
-def hysid_process(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "hysid", *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-
-
-def host_campaign(workdir: Path, name: str, islands: list[tuple[str, int]], hosted: bool) -> tuple[dict[str, Any], list[Watched]]:
-    """One campaign of isolated islands ``(id, seed)``: in one process (``hosted``, ids ``h-k``, seeds from the
-    first) or one process each; every island's answer (iterations, evaluations, best fitness and vector) and
-    stored rows (iteration -> best, evaluations), and the processes."""
-    endpoint, db = f"tcp/127.0.0.1:{free_port()}", workdir / f"{name}.sqlite"
-    coordinator = hysid_process("coordinator", "--listen", endpoint, "--campaign", name, "--db", str(db), "--out", str(workdir / name), "--quiet",
-                                "--min-islands", str(len(islands)), *HOST_SETTINGS, "synth")
-    secret = secret_path(db, name)
-    common = ["--connect", endpoint, "--campaign", name, "--secret-file", str(secret), "--wait", "120", "--quiet"]
-    try:
-        wait_for_secret(secret, 60)
-        if hosted:
-            processes = [Watched(hysid_process("island", *common, "--id", "h", "--count", str(len(islands)), "--seed", str(islands[0][1])))]
-        else:
-            processes = [Watched(hysid_process("island", *common, "--id", i, "--seed", str(seed))) for i, seed in islands]
-        for w in processes:
-            if w.wait(600) != 0:
-                raise RuntimeError(f"island process exited with {w.process.returncode}: {w.process.stderr.read().strip()[-300:] if w.process.stderr else ''}")
-        if coordinator.wait(timeout=120) != 0:
-            raise RuntimeError(f"coordinator exited with {coordinator.returncode}: {coordinator.stderr.read().strip()[-300:] if coordinator.stderr else ''}")
-    finally:
-        for p in (coordinator, *(w.process for w in locals().get("processes", []))):
-            if p.poll() is None:
-                p.kill()
-                p.wait()
-    with sqlite3.connect(db) as con:
-        found: dict[str, Any] = {island: {"answer": tuple(answer), "rows": {}} for island, *answer in con.execute(
-            "SELECT island, iterations, evaluations, best_fitness, best_x FROM islands WHERE campaign = ?", (name,))}
-        for island, iteration, *row in con.execute("SELECT island, iteration, best_fitness, evaluations FROM history WHERE campaign = ?", (name,)):
-            found[island]["rows"][iteration] = tuple(row)
-    return found, processes
-
-
-def host(islands: int = HOST_ISLANDS) -> dict[str, Any]:
-    """``islands`` isolated, seeded islands in one process, then each in a process of its own
-    (:data:`SEPARATE_AT_ONCE` at a time): peak resident memory per island, CPU time, and whether each
-    island's stored rows are the same either way."""
-    specs = [(f"h-{k}", 100 + k) for k in range(islands)]
-    with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
-        started = time.monotonic()
-        together, [hosted] = host_campaign(Path(tmp), "hosted", specs, hosted=True)
-        hosted_s = time.monotonic() - started
-        alone: dict[str, Any] = {}
-        separate: list[Watched] = []
-        started = time.monotonic()
-        for k in range(0, islands, SEPARATE_AT_ONCE):
-            rows, processes = host_campaign(Path(tmp), f"alone{k}", specs[k : k + SEPARATE_AT_ONCE], hosted=False)
-            alone.update(rows)
-            separate += processes
-        separate_s = time.monotonic() - started
-    same = [i for i, _ in specs if i in together and i in alone and together[i]["answer"] == alone[i]["answer"]]
-    both = [(together[i]["rows"], alone[i]["rows"]) for i, _ in specs if i in together and i in alone]
-    rows_same = sum(a[it] == b[it] for a, b in both for it in a.keys() & b.keys())
-    single = float(np.median([w.peak_mb for w in separate]))
-    return {
-        "islands": islands, "iterations": HOST_ITERATIONS, "host_peak_rss_mb": hosted.peak_mb, "host_rss_mb_per_island": hosted.peak_mb / islands,
-        "island_process_peak_rss_mb": single, "memory_ratio": single / (hosted.peak_mb / islands), "mb_per_island_limit": MB_PER_HOSTED_ISLAND,
-        "host_cpu_s": hosted.cpu_s, "separate_cpu_s": sum(w.cpu_s for w in separate), "host_wall_s": hosted_s, "separate_wall_s": separate_s,
-        "separate_at_once": SEPARATE_AT_ONCE, "same_answers": len(same),
-        "rows_compared": sum(len(a.keys() & b.keys()) for a, b in both), "same_rows": rows_same,
-    }
-
-
-def run(seconds: float = 10.0, sustain_s: float = 180.0, ramp_s: float = 12.0) -> dict[str, Any]:
-    """A coordinator with 32 islands (gaps, memory over 3 minutes), more islands until it lags, a backlog, an island under a
-    migrant flood; 64 islands in one process (memory, same answers)."""
-    return {"load": load(seconds), "sustain": sustain(sustain_s), "ramp": ramp(seconds=ramp_s), "backlog": backlog(), "flood": flood(),
-            "host": host()}
+def run(seconds: float = 10.0, sustain_s: float = 180.0, ramp_s: float = 12.0, parts: tuple[str, ...] = PARTS) -> dict[str, Any]:
+    """A coordinator with 32 islands (gaps, memory over 3 minutes), more islands until it lags, a backlog, commit gaps with and
+    without a flood, an island under a migrant flood; 64 islands in one process (memory, same answers)."""
+    benches = {"load": lambda: load(seconds), "sustain": lambda: sustain(sustain_s), "ramp": lambda: ramp(seconds=ramp_s), "backlog": backlog,
+               "commits": commits, "flood": flood, "host": host}
+    return {part: benches[part]() for part in parts}
 
 
 def to_text(r: dict[str, Any]) -> str:
-    lo, su, ra, bl, fl, ho = r["load"], r["sustain"], r["ramp"], r["backlog"], r["flood"], r["host"]
+    """One line (or a few) per part that ran."""
 
     def traffic(x: dict[str, Any]) -> str:
         return (f"{x['islands']} islands for {x['elapsed_s']:.1f} s: {x['rows_per_s']:,.0f} rows/s stored of {x['rows_sent_per_s']:,.0f} sent "
@@ -484,22 +288,41 @@ def to_text(r: dict[str, Any]) -> str:
                 f"between stop-rule checks {x['max_stop_check_gap_s']:.3f} s; deepest inbox {x['deepest_inbox']}; "
                 f"RSS {x['rss_mb']:.0f} MB ({x['rss_mb_per_island']:.2f} MB per island)")
 
-    return "\n".join([
-        f"load: {traffic(lo)}",
-        f"sustain: {traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
-        f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min",
-        *(f"ramp: {traffic(x)}{' <- lags' if lags(x) else ''}" for x in ra["steps"]),
-        f"ramp: held {ra['held_at_islands']} islands; degrades at {ra['degrades_at_islands'] or 'none of the steps'}",
-        f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
-        f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)",
-        f"flood: an island of {fl['quiet']['iterations']} iterations ran {fl['quiet']['run_s']:.2f} s alone and "
-        f"{fl['flooded']['run_s']:.2f} s under {fl['flood_messages_per_s']:,} migrant messages/s of 256 migrants each "
-        f"(ratio {fl['run_time_ratio']:.2f}); CPU of its evolution thread {fl['quiet']['evolution_cpu_s']:.2f} -> "
-        f"{fl['flooded']['evolution_cpu_s']:.2f} s, of the whole island process {fl['quiet']['process_cpu_s']:.2f} -> "
-        f"{fl['flooded']['process_cpu_s']:.2f} s; it re-evaluated {fl['flooded']['migrants_evaluated']} migrants "
-        f"(at most {fl['most_migrants_allowed']} allowed)",
-        f"host: {ho['islands']} islands in one process: peak RSS {ho['host_peak_rss_mb']:.0f} MB, {ho['host_rss_mb_per_island']:.1f} MB per island "
-        f"(an island process: {ho['island_process_peak_rss_mb']:.0f} MB, x {ho['memory_ratio']:.0f}); CPU {ho['host_cpu_s']:.0f} s against "
-        f"{ho['separate_cpu_s']:.0f} s as separate processes; the same answer in {ho['same_answers']} of {ho['islands']} islands, "
-        f"the same rows in {ho['same_rows']:,} of {ho['rows_compared']:,} stored both times",
-    ])
+    lines = []
+    if "load" in r:
+        lines.append(f"load: {traffic(r['load'])}")
+    if "sustain" in r:
+        su = r["sustain"]
+        lines.append(f"sustain: {traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
+                     f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min")
+    if "ramp" in r:
+        ra = r["ramp"]
+        lines += [f"ramp: {traffic(x)}{' <- lags' if lags(x) else ''}" for x in ra["steps"]]
+        lines.append(f"ramp: held {ra['held_at_islands']} islands; degrades at {ra['degrades_at_islands'] or 'none of the steps'}")
+    if "backlog" in r:
+        bl = r["backlog"]
+        lines.append(f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
+                     f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)")
+    if "commits" in r:
+        co = r["commits"]
+        lines += [f"commits: {'under ' + format(x['flood_messages_per_s'], ',.0f') + ' migrant messages/s of 256 new migrants' if x['flood'] else 'no flood'}, "
+                  f"{x['seconds']:g} s on {co['cores']} cores: {x['commits']} commits, longest gap {x['max_gap_s']:.3f} s (p99 {x['p99_gap_s']:.3f} s, "
+                  f"median {x['median_gap_s']:.3f} s; target {co['target_s']:g} s); {x['migrant_messages_per_s']:,.0f} migrant messages/s handled, "
+                  f"{x['superseded']:,} superseded" for x in (co["quiet"], co["flooded"])]
+    if "flood" in r:
+        fl = r["flood"]
+        lines.append(
+            f"flood: an island of {fl['quiet']['iterations']} iterations ran {fl['quiet']['run_s']:.2f} s alone and "
+            f"{fl['flooded']['run_s']:.2f} s under {fl['flood_messages_per_s']:,} migrant messages/s of 256 migrants each "
+            f"(ratio {fl['run_time_ratio']:.2f}); CPU of its evolution thread {fl['quiet']['evolution_cpu_s']:.2f} -> "
+            f"{fl['flooded']['evolution_cpu_s']:.2f} s, of the whole island process {fl['quiet']['process_cpu_s']:.2f} -> "
+            f"{fl['flooded']['process_cpu_s']:.2f} s; it re-evaluated {fl['flooded']['migrants_evaluated']} migrants "
+            f"(at most {fl['most_migrants_allowed']} allowed)")
+    if "host" in r:
+        ho = r["host"]
+        lines.append(
+            f"host: {ho['islands']} islands in one process: peak RSS {ho['host_peak_rss_mb']:.0f} MB, {ho['host_rss_mb_per_island']:.1f} MB per island "
+            f"(an island process: {ho['island_process_peak_rss_mb']:.0f} MB, x {ho['memory_ratio']:.0f}); CPU {ho['host_cpu_s']:.0f} s against "
+            f"{ho['separate_cpu_s']:.0f} s as separate processes; the same answer in {ho['same_answers']} of {ho['islands']} islands, "
+            f"the same rows in {ho['same_rows']:,} of {ho['rows_compared']:,} stored both times")
+    return "\n".join(lines)

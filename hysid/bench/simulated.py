@@ -55,7 +55,7 @@ class Planned:
 
 
 def evaluations(iterations: np.ndarray) -> np.ndarray:
-    """What a PSO island of the bench's size (:data:`hysid.bench.coordinator.SIZES`) has evaluated after each iteration."""
+    """What a PSO island of the bench's size (:data:`hysid.bench.processes.SIZES`) has evaluated after each iteration."""
     return 40 + 20 * iterations
 
 

@@ -100,12 +100,15 @@ def validation_command(
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
 def coordinator_command(
+    part: str = typer.Argument("all", help=f"{', '.join(coordinator.PARTS)} or all."),
     seconds: float = typer.Option(10.0, "--seconds", help="Duration of the 32-island load."),
     sustain: float = typer.Option(180.0, "--sustain", help="Duration of the 32-island run whose memory is watched."),
     ramp: float = typer.Option(12.0, "--ramp-seconds", help="Duration of each step of the island ramp."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    emit(coordinator.run(seconds, sustain, ramp), coordinator.to_text, as_json)
+    if part != "all" and part not in coordinator.PARTS:
+        raise HysidInputError(f"unknown part {part!r}; choose from {', '.join(coordinator.PARTS)} or all")
+    emit(coordinator.run(seconds, sustain, ramp, coordinator.PARTS if part == "all" else (part,)), coordinator.to_text, as_json)
 
 
 @bench_app.command("ingest")
