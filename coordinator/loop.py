@@ -9,7 +9,7 @@ inbox (:func:`pump`) through :meth:`coordinator.state.Coordinator.handle` and
   took, so that no message started just before the deadline pushes the commit
   past it), with the campaign's elapsed time (``--resume`` carries the time
   rule on from there), and after each commit publishes the signed ``control``
-  message (:func:`control_message`): the roster, how far each island's history
+  message (:meth:`coordinator.admission.Admission.control_message`, also sent at every join): the roster, how far each island's history
   is committed (an island waits for that before it leaves) and, at the end,
   the stop order (at each commit it also decides whether to go on following migrant messages:
   :meth:`coordinator.state.Coordinator.review_following`); every :data:`coordinator.thinning.REVIEW_EVERY_S` it measures what storage holds (the time its
@@ -38,10 +38,10 @@ from collections.abc import Callable
 
 from coordinator.members import LEAVE_GRACE_S, Member
 from coordinator.progress import CampaignProgress
-from coordinator.state import Coordinator, Link
+from coordinator.link import Link
+from coordinator.state import Coordinator
 from coordinator.store import StoreError
 from coordinator.thinning import REVIEW_EVERY_S
-from island.protocol import Control, MemberState, encode_control
 
 ORPHAN_S = 30.0
 """Once islands have joined, a campaign with none alive for this long ends."""
@@ -63,17 +63,6 @@ PASS_S = 0.2
 """Longest stretch of message handling between two checks of the stop rules and progress."""
 CONTROL_EVERY_S = 1.0
 """The control message goes out after commits that changed something, and at least this often."""
-
-
-def control_message(c: Coordinator, stop: str = "") -> bytes:
-    """The signed roster (every run that joined, in that order, alive or not, how far its rows are
-    committed, its algorithm and public key) and the stop order."""
-    members = tuple(
-        MemberState(island, run, c.membership.alive(island, run), c.gaps.stored((island, run)), c.sharing.assigned[(island, run)], info.key)
-        for (island, run), info in c.runs.items()
-    )
-    c.control_seq = max(c.control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
-    return encode_control(Control(c.name, members, stop, c.control_seq), c.run_id, c.signing)
 
 
 def check_stop(c: Coordinator) -> str | None:
@@ -126,8 +115,7 @@ def commit(c: Coordinator, link: Link, *, announce: bool = False) -> None:
         c.window_at, c.busy_s, c.writing_s, c.written = c.committed_at, 0.0, 0.0, 0
     changed = c.changed or c.membership.events != c.announced_events
     if c.runs and (announce or changed or c.committed_at - c.control_at >= CONTROL_EVERY_S):
-        link.publish_control(control_message(c, c.stop_reason or ""), c.stop_reason is not None)
-        c.control_at, c.changed, c.announced_events = time.monotonic(), False, c.membership.events
+        c.announce(link, c.stop_reason)
 
 
 def flush(c: Coordinator) -> None:
@@ -242,7 +230,7 @@ def _interrupted(c: Coordinator, link: Link, fault: StoreError) -> StoreError:
     try:
         for _ in range(FAULT_ANNOUNCEMENTS):
             if c.runs:
-                link.publish_control(control_message(c, f"interrupted: {fault.detail}"), True)
+                c.announce(link, f"interrupted: {fault.detail}")
             time.sleep(0.5)
     except sqlite3.Error:
         pass  # the file cannot even be read: islands end on their own after their wait

@@ -135,7 +135,8 @@ def migration_summary(c: Coordinator, records: list[IslandRecord]) -> dict[str, 
     """The migration settings; migrant messages the coordinator handled (``messages``) and, if it stopped following
     them (:data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`), with how many islands alive and how long after the
     campaign's start (``unfollowed``); what the islands counted: messages ``sent``, migrants ``received``
-    (re-evaluated) and ``taken`` in; messages the coordinator ``rejected`` and why."""
+    (re-evaluated) and ``taken`` in, and those that waited in vain for the roster to list their run (``unlisted``, apart
+    from any rejected); messages the coordinator ``rejected`` and why."""
     unfollowed = c.store.unfollowed(c.name)
     created = next((k["created"] for k in c.store.campaign_list() if k["name"] == c.name), None)
     return {
@@ -146,6 +147,7 @@ def migration_summary(c: Coordinator, records: list[IslandRecord]) -> dict[str, 
         "sent": sum(r.sent for r in records),
         "received": sum(r.received for r in records),
         "taken": sum(r.taken for r in records),
+        "unlisted": sum(r.unlisted for r in records),
         "rejected": c.store.count("rejected", c.name),
         "rejected_reasons": c.store.rejected_reasons(c.name),
     }

@@ -75,6 +75,8 @@ class IslandRecord:
     taken: int
     rejected: int
     final: bool
+    unlisted: int = 0
+    """Migrant messages it counted as having waited in vain for the roster to list their run (apart from ``rejected``)."""
 
     def as_dict(self) -> dict[str, Any]:
         return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "best_x"}
@@ -117,7 +119,7 @@ class Queries:
 
     def _process_gone(self, campaign: str) -> bool:
         """Whether the coordinator process that last stamped the campaign's heartbeat ran on this host and runs no more."""
-        if not {"pid", "host"} <= {row[1] for row in self.db.execute("PRAGMA table_info(commits)")}:
+        if not self._has_column("commits", "host"):
             return False  # an earlier hysid's heartbeat: only its age tells
         row = self.db.execute("SELECT pid, host FROM commits WHERE campaign = ?", (campaign,)).fetchone()
         if row is None or row[0] is None or row[1] != socket.gethostname():
@@ -160,10 +162,11 @@ class Queries:
         rows = self.db.execute("SELECT island, run, src, dst, evaluations, credit FROM moves WHERE campaign = ? ORDER BY id", (campaign,))
         return [Move(i, r, a, b, int(e), json.loads(c)) for i, r, a, b, e, c in rows]
 
-    def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int, float]]:
-        """Every run that joined: ``(island, run, public key, algo, seed, joined)`` in the order they joined."""
-        rows = self.db.execute("SELECT island, run, key, algo, seed, joined FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
-        return [(i, r, bytes(k), a, s, float(j)) for i, r, k, a, s, j in rows]
+    def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int, float, str]]:
+        """Every run that joined: ``(island, run, public key, algo, seed, joined, member)`` in the order they joined."""
+        member = "member" if self._has_column("runs", "member") else "''"
+        rows = self.db.execute(f"SELECT island, run, key, algo, seed, joined, {member} FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
+        return [(i, r, bytes(k), a, s, float(j), m) for i, r, k, a, s, j, m in rows]
 
     def best(self, campaign: str) -> StoredBest | None:
         row = self.db.execute("SELECT island, x, fitness, evaluations FROM best WHERE campaign = ?", (campaign,)).fetchone()
@@ -172,12 +175,13 @@ class Queries:
         return StoredBest(row[0], np.frombuffer(row[1], dtype="<f8").copy(), float(row[2]), int(row[3]))
 
     def islands(self, campaign: str) -> list[IslandRecord]:
+        unlisted = "unlisted" if self._has_column("islands", "unlisted") else "0"
         rows = self.db.execute(
-            "SELECT island, run, algo, seed, iterations, evaluations, best_fitness, best_x, sent, received, taken, rejected, final "
-            "FROM islands WHERE campaign = ? ORDER BY island, run", (campaign,),
+            "SELECT island, run, algo, seed, iterations, evaluations, best_fitness, best_x, sent, received, taken, rejected, final, "
+            f"{unlisted} FROM islands WHERE campaign = ? ORDER BY island, run", (campaign,),
         )
         return [
-            IslandRecord(*r[:7], np.frombuffer(r[7], dtype="<f8").copy(), *r[8:12], bool(r[12]))
+            IslandRecord(*r[:7], np.frombuffer(r[7], dtype="<f8").copy(), *r[8:12], bool(r[12]), int(r[13]))
             for r in rows
         ]
 
@@ -252,7 +256,11 @@ class Queries:
 
     def _counted_rejects(self) -> bool:
         """Whether ``rejected`` has its ``n`` column (a file of an earlier hysid opened read-only has not)."""
-        return "n" in {row[1] for row in self.db.execute("PRAGMA table_info(rejected)")}
+        return self._has_column("rejected", "n")
+
+    def _has_column(self, table: str, column: str) -> bool:
+        """Whether ``table`` has ``column`` (a file of an earlier hysid opened read-only may lack it)."""
+        return column in {row[1] for row in self.db.execute(f"PRAGMA table_info({table})")}
 
     def rejected_reasons(self, campaign: str) -> dict[str, int]:
         n = "sum(n)" if self._counted_rejects() else "count(*)"

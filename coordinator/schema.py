@@ -9,7 +9,7 @@ migrant message handled), ``superseded`` (per island, migrant messages a newer o
 were handled), ``unfollowed`` (when, with how many islands alive, the coordinator stopped following
 migrant messages: :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`), ``rejected`` (every message that
 failed validation, with the reason), ``best`` (the global best, as re-evaluated by the coordinator),
-``runs`` (every run admitted, its public key), ``moves`` (the share's moves) and ``commits`` (the
+``runs`` (every run admitted, its public key and the member it joined for), ``moves`` (the share's moves) and ``commits`` (the
 coordinator's heartbeat: when it last committed, from which process on which host, and the campaign's
 elapsed time).
 
@@ -37,7 +37,7 @@ CREATE TABLE IF NOT EXISTS islands (
     campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, algo TEXT NOT NULL, seed INTEGER NOT NULL,
     iterations INTEGER NOT NULL, evaluations INTEGER NOT NULL, best_fitness REAL NOT NULL, best_x BLOB NOT NULL,
     sent INTEGER NOT NULL, received INTEGER NOT NULL, taken INTEGER NOT NULL, rejected INTEGER NOT NULL,
-    final INTEGER NOT NULL, PRIMARY KEY (campaign, island, run));
+    final INTEGER NOT NULL, unlisted INTEGER NOT NULL DEFAULT 0, PRIMARY KEY (campaign, island, run));
 CREATE TABLE IF NOT EXISTS migrations (
     id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL,
     iteration INTEGER NOT NULL, n INTEGER NOT NULL, best_claimed REAL NOT NULL, sent_at REAL NOT NULL, t REAL NOT NULL,
@@ -50,7 +50,7 @@ CREATE TABLE IF NOT EXISTS best (
     evaluations INTEGER NOT NULL, t REAL NOT NULL);
 CREATE TABLE IF NOT EXISTS runs (
     campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, key BLOB NOT NULL, algo TEXT NOT NULL,
-    seed INTEGER NOT NULL, joined REAL NOT NULL, PRIMARY KEY (campaign, island, run));
+    seed INTEGER NOT NULL, joined REAL NOT NULL, member TEXT NOT NULL DEFAULT '', PRIMARY KEY (campaign, island, run));
 CREATE TABLE IF NOT EXISTS moves (
     id INTEGER PRIMARY KEY, campaign TEXT NOT NULL, island TEXT NOT NULL, run TEXT NOT NULL, src TEXT NOT NULL,
     dst TEXT NOT NULL, evaluations INTEGER NOT NULL, credit TEXT NOT NULL, t REAL NOT NULL);
@@ -69,6 +69,8 @@ UPGRADES = (
     ("commits", "elapsed_s", "ALTER TABLE commits ADD COLUMN elapsed_s REAL NOT NULL DEFAULT 0"),
     ("commits", "pid", "ALTER TABLE commits ADD COLUMN pid INTEGER"),
     ("commits", "host", "ALTER TABLE commits ADD COLUMN host TEXT"),
+    ("islands", "unlisted", "ALTER TABLE islands ADD COLUMN unlisted INTEGER NOT NULL DEFAULT 0"),
+    ("runs", "member", "ALTER TABLE runs ADD COLUMN member TEXT NOT NULL DEFAULT ''"),
 )
 """Columns added since the first schema: a database written by an earlier hysid gets them on open."""
 INDEXES = """
@@ -78,14 +80,15 @@ CREATE INDEX IF NOT EXISTS thinned_runs ON thinned (campaign, island, run, first
 """A migrant message (sender run and number) is stored once, also when it is replayed after a restart; a run's
 thinned stretches are found in order."""
 
-UPSERT_ISLAND = """INSERT INTO islands VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
+UPSERT_ISLAND = """INSERT INTO islands (campaign, island, run, algo, seed, iterations, evaluations, best_fitness, best_x, sent, received, taken,
+    rejected, final, unlisted) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
     ON CONFLICT (campaign, island, run) DO UPDATE SET
     algo = CASE WHEN excluded.iterations >= iterations THEN excluded.algo ELSE algo END,
     iterations = max(iterations, excluded.iterations), evaluations = max(evaluations, excluded.evaluations),
     best_x = CASE WHEN excluded.best_fitness < best_fitness THEN excluded.best_x ELSE best_x END,
     best_fitness = min(best_fitness, excluded.best_fitness), sent = max(sent, excluded.sent),
     received = max(received, excluded.received), taken = max(taken, excluded.taken),
-    rejected = max(rejected, excluded.rejected), final = max(final, excluded.final)"""
+    rejected = max(rejected, excluded.rejected), final = max(final, excluded.final), unlisted = max(unlisted, excluded.unlisted)"""
 """An island run's record: counters only grow, the best vector follows the best fitness (messages may come late)."""
 
 

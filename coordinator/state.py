@@ -72,88 +72,50 @@ single-node campaigns feed the same inbox from island threads
 
 from __future__ import annotations
 
-import hashlib
-import hmac
 import secrets
 import time
 from collections import Counter, OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
+from coordinator.admission import Admission
 from coordinator.histories import Gaps, HistoryChecks, check_claim
 from coordinator.inbox import Inbox
+from coordinator.keys import CampaignKeys, campaign_keys
+from coordinator.link import Link
 from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignOutcome, campaign_outcome
 from coordinator.progress import CampaignProgress, IslandView
-from coordinator.sharing import Sharing
-from coordinator.keys import CampaignKeys, campaign_keys
 from coordinator.queries import IslandRecord, StoredBest
+from coordinator.sharing import Sharing
 from coordinator.store import RUN_LOCK_WAIT_S, Store, StoreError
 from coordinator.thinning import HistoryPolicy
-from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
-from island.algorithms import ALGORITHMS
 from island.config import CampaignConfig, decode_config, encode_config
 from island.protocol import (
     Best,
     History,
     HistoryQuery,
-    JoinRequest,
     Migrants,
     decode_history,
-    decode_join_step,
     decode_migrants,
     encode_best,
-    encode_challenge,
     encode_history_query,
-    encode_joined,
     encode_signed_config,
-    proof_holds,
 )
-from island.secret import KEY_BYTES
-from island.sealing import Credentials, ReplayGuard, check_replay, new_key, public_key
+from island.sealing import ReplayGuard, check_replay
 from island.termination import Termination
 from island.transports import key_prefix
-from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
+from island.wire import NAME_PATTERN, MessageRejected
 
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
 EVALUATED_CACHE = 4096
-CHALLENGE_S = 30.0
-"""A join challenge holds for this long (to at most twice this): the proof must come within it."""
 FOLLOWS_MIGRANTS_UP_TO = 64
 """A coordinator follows every migrant message while at most this many islands are alive (see the module docstring)."""
-RUNS_PER_ISLAND = 64
-"""Runs one island id may be admitted (restarts): an island that proved the secret cannot take every run
-slot of the campaign under its own id."""
-
-
-class Link(Protocol):
-    """What the coordinator sends out (Zenoh publications, or in-process for single-node campaigns)."""
-
-    def publish_control(self, message: bytes, stop: bool) -> None:
-        """The sealed roster and stop order (``stop``: it carries the stop order)."""
-
-    def publish_best(self, message: bytes) -> None: ...
-
-    def request_history(self, island: str, run: str, since: int) -> None:
-        """Ask an island for its rows after ``since``; the answer arrives in the inbox as a history message."""
-
-    def unfollow_migrants(self) -> None:
-        """Stop the delivery of migrant messages (:data:`FOLLOWS_MIGRANTS_UP_TO`)."""
-
-
-@dataclass(frozen=True)
-class RunInfo:
-    """A run that joined: the public key it signs with, what it said it runs, and when it joined (Unix time)."""
-
-    key: bytes
-    algo: str
-    seed: int
-    joined: float
 
 
 class TokenBucket:
@@ -175,8 +137,9 @@ SLIPPED_THROUGH = (ValueError, TypeError, OverflowError, ArithmeticError, IndexE
 """What a message the checks let through may still raise when it is handled: it is rejected, never raised."""
 
 
-class Coordinator:
-    """One campaign's coordinator state machine (see the module docstring)."""
+class Coordinator(Admission):
+    """One campaign's coordinator state machine (see the module docstring; joins, members' shares and the roster:
+    :class:`coordinator.admission.Admission`)."""
 
     def __init__(
         self, store: Store, config: CampaignConfig, loops: LoopSet, termination: Termination | None = None, *, dataset: str = "", resume: bool = False,
@@ -217,17 +180,10 @@ class Coordinator:
         """This coordinator process, as the sender run of what it signs."""
         self.config_signed = encode_signed_config(self.config_message, self.name, self.run_id, self.signing)
         """The ``config`` message as served: signed."""
-        self._challenges = secrets.token_bytes(KEY_BYTES)
-        """This process' key for join challenges (a proof for a challenge of another process is stale)."""
         self.query_seq = 0
         """Number of the last history query (rises across coordinator restarts)."""
         self.inbox = Inbox()
-        self.runs: dict[tuple[str, str], RunInfo] = {}
-        self.current: dict[str, str] = {}
-        """Each island's latest run."""
-        for island, run, key, algo, seed, joined in store.runs(self.name):
-            self.runs[(island, run)] = RunInfo(key, algo, seed, joined)
-            self.current[island] = run
+        self._admitted(store.runs(self.name))
         self.checks = HistoryChecks(config, self.objective, self.runs, fresh=lambda: config.objective(loops))
         self.sharing = Sharing(store, config, {key: info.algo for key, info in self.runs.items()}, self.checks.optimizer)
         self.islands: dict[tuple[str, str], IslandView] = {}
@@ -236,7 +192,9 @@ class Coordinator:
             self.run_evaluations[(rec.island, rec.run)] = rec.evaluations
             self.islands[(rec.island, rec.run)] = IslandView(rec.algo, rec.iterations, rec.best_fitness, rec.final)
         self.evaluations = int(sum(self.run_evaluations.values()))
-        """Evaluations of every run together (each run's as its histories last said)."""
+        """Evaluations of every run together (each run's as its histories last said; those that count toward the
+        budget and the stall rule: :meth:`countable`)."""
+        self.solo_effort = self.evaluations  # before this process: as they came
         self.membership = Membership(store, self.name, config.min_islands, self._finished)
         if resume:
             self.membership.take_up(self.current)
@@ -374,7 +332,7 @@ class Coordinator:
                 self._member(link, item[1], item[2])
             elif item[0] == "join":
                 key, size = f"join/{item[1]}", len(item[2])
-                self._join(item[1], item[2], item[3])
+                self._join(link, item[1], item[2], item[3])
             elif item[0] == "migrants":
                 key = item[1]
                 self._migrants(link, item[2], item[3])
@@ -407,73 +365,19 @@ class Coordinator:
         info = self.runs.get((island, run))
         return None if info is None else info.key
 
-    # --- joining and membership --------------------------------------------------------------
-    def _join(self, island: str, payload: bytes, reply: Callable[[bytes], None]) -> None:
-        """A request gets a signed challenge; a proof that holds for a fresh challenge gets the run
-        (:meth:`admit`), signed; a proof that does not hold, or comes too late, is rejected unanswered."""
-        step = decode_join_step(payload, self.name, sender=island)
-        if isinstance(step, JoinRequest):
-            reply(encode_challenge(self.name, island, step.nonce, self._challenge(step, 0), self.run_id, self.signing))
-            return
-        request = step.request
-        if not any(hmac.compare_digest(step.challenge, self._challenge(request, age)) for age in (0, 1)):
-            raise MessageRejected("replay", f"join proof of {island!r} answers no challenge of the last {2 * CHALLENGE_S:g} s")
-        if not proof_holds(step, self.secret.admission):
-            raise MessageRejected("forged", f"join proof of {island!r} does not hold: not a holder of the campaign secret")
-        try:
-            run = self.admit(request.island, request.algo, request.seed, request.key, request.nonce)
-        except HysidInputError as exc:
-            reply(encode_joined(self.name, request.nonce, island, "refused", self.run_id, self.signing, refused=exc.detail))
-            return
-        reply(encode_joined(self.name, request.nonce, island, run, self.run_id, self.signing))
-
-    def _challenge(self, request: JoinRequest, age: int) -> bytes:
-        """The challenge for ``request`` in the window ``age`` windows of :data:`CHALLENGE_S` ago (kept by nobody: recomputed)."""
-        window = int(time.monotonic() // CHALLENGE_S) - age
-        return hmac.new(self._challenges, request.transcript(window.to_bytes(8, "big", signed=True)), hashlib.sha256).digest()[:16]
-
-    def admit(self, island: str, algo: str, seed: int, key: bytes, nonce: bytes = b"") -> str:
-        """Admit a new run of ``island`` that signs with public ``key``: its run id, stored (and
-        committed) before the island hears of it. Refused (:class:`HysidInputError`) while the id
-        has a live run, for an unknown algorithm, for an id that had :data:`RUNS_PER_ISLAND` runs,
-        for a full campaign and once the campaign is stopping. The same request again (``nonce``:
-        its answer was lost) gets the same run."""
-        member = self.members.get(island)
-        if member is not None and nonce and member.nonce == nonce and self.runs[(island, member.run)].key == key:
-            return member.run
-        if not NAME_PATTERN.match(island):
-            raise HysidInputError(f"island id {island[:64]!r} is not a valid name")
-        if algo not in ALGORITHMS:
-            raise HysidInputError(f"unknown algorithm {algo!r}; this campaign runs {', '.join(ALGORITHMS)}")
-        if self.stop_reason is not None:
-            raise HysidInputError(f"the campaign is stopping ({self.stop_reason})")
-        if member is not None and member.status == "alive":
-            raise HysidInputError(f"island id {island!r} is taken by a running island; give another --id")
-        if sum(i == island for i, _ in self.runs) >= RUNS_PER_ISLAND:
-            raise HysidInputError(f"island id {island!r} has joined {RUNS_PER_ISLAND} times, its limit; give another --id")
-        if len(self.runs) >= MAX_MEMBERS:
-            raise HysidInputError(f"the campaign has admitted {MAX_MEMBERS} island runs, its limit")
-        run = secrets.token_hex(6)
-        joined = time.time()
-        self.store.add_run(self.name, island, run, key, algo, seed, joined)
-        self.runs[(island, run)] = RunInfo(key, algo, seed, joined)
-        self.sharing.joined((island, run), algo)
-        self.current[island] = run
-        self.membership.joined(island, run, nonce)
-        self.checks.expect(self.config.algos)  # measured meanwhile: before the run's first history comes
-        self.review_following()
-        self.store.commit()
-        return run
-
-    def join(self, island: str, algo: str, seed: int) -> Credentials:
-        """A run of an island of this process (benches, tests) admitted with a signing key made here."""
-        key = new_key()
-        return Credentials(island, self.admit(island, algo, seed, public_key(key)), key, self.secret.coordinator)
-
+    # --- membership --------------------------------------------------------------
     def history_query(self, island: str, run: str, since: int) -> str:
         """The signed selector parameters asking ``island`` for the rows of ``run`` after ``since``."""
         self.query_seq = max(self.query_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
         return encode_history_query(HistoryQuery(self.name, island, run, since, self.query_seq), self.signing)
+
+    def _known(self, key: tuple[str, str]) -> tuple[int, float]:
+        """What is known of a run's message numbers before its first message here: it numbers from 0, since it joined."""
+        return -1, time.time() - self.runs[key].joined
+
+    def last_seq(self, island: str, run: str) -> int:
+        """The last message number of that run accepted here (-1: none; the roster says it)."""
+        return max(self._replays.high(("history", island, run)), self._replays.high(("migrants", island, run)))
 
     def _heard(self, island: str, run: str, arrived: float) -> None:
         """A signed message of that run, arrived at ``arrived`` (``time.monotonic()``): its latest run is alive
@@ -508,7 +412,7 @@ class Coordinator:
     def _history(self, link: Link, h: History, arrived: float) -> None:
         key = (h.island, h.run)
         info = self.runs[key]
-        check_replay(self._replays, "history", h.island, h.run, h.seq)
+        check_replay(self._replays, "history", h.island, h.run, h.seq, self._known(key))
         self._heard(h.island, h.run, arrived)
         self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration, time.time() - info.joined)
         if not h.rows.size and not h.final:
@@ -527,12 +431,9 @@ class Coordinator:
         evaluations = int(h.rows[:, 2].max()) if h.rows.size else 0
         self.store.queue_island(self.name, IslandRecord(
             h.island, h.run, h.algo, h.seed, iterations, evaluations, f, h.best_x,
-            h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final,
+            h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final, h.stats["unlisted"],
         ))
-        before = self.run_evaluations.get(key, 0)
-        if evaluations > before:
-            self.run_evaluations[key] = evaluations
-            self.evaluations += evaluations - before
+        self.count_effort(key, evaluations)
         self.sharing.credit(key, h.algo, h.gain)
         view = self.islands.setdefault(key, IslandView(h.algo))
         view.algo = h.algo
@@ -550,7 +451,7 @@ class Coordinator:
     def _migrants(self, link: Link, m: Migrants, arrived: float) -> None:
         if not self.follows_migrants:
             return  # queued before the coordinator stopped following them: the islands count it
-        check_replay(self._replays, "migrants", m.island, m.run, m.seq)
+        check_replay(self._replays, "migrants", m.island, m.run, m.seq, self._known((m.island, m.run)))
         self._heard(m.island, m.run, arrived)
         if not self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at, m.seq):
             raise MessageRejected("replay", f"migrant message {m.seq} of {m.island!r} run {m.run!r} is stored already")
@@ -584,7 +485,7 @@ class Coordinator:
         """A candidate with the coordinator's own fitness ``f``: if it beats the global best, it is the new one."""
         if not np.isfinite(f) or (self.best is not None and not f < self.best.fitness):
             return
-        self.best = StoredBest(island, np.array(x, dtype=float), f, self.evaluations)
+        self.best = StoredBest(island, np.array(x, dtype=float), f, self.countable())
         self.best_trace.append((time.monotonic(), f, self.evaluations, self.best.x))
         self.store.set_best(self.name, self.best)
         self.best_message = self._best_message()
@@ -592,10 +493,11 @@ class Coordinator:
 
     # --- the stop rules (checked by the run loop, coordinator.loop) ------------------------
     def rule_stop(self) -> str | None:
-        """The stop rule (budget, target, stall, time) that holds now, if any."""
+        """The stop rule (budget, target, stall, time) that holds now, if any (the budget and the stall rule count the
+        evaluations that count: :meth:`countable`)."""
         best = self.best
         return self.termination.reason(
-            evaluations=self.evaluations,
+            evaluations=self.countable(),
             best=np.inf if best is None else best.fitness,
             best_at=0 if best is None else best.evaluations,
             elapsed_s=self.elapsed(),

@@ -285,7 +285,7 @@ class Store(Queries):
         """Upsert an island run's counters (iterations and evaluations only grow) and its latest algorithm, at the next flush."""
         r = record
         self._records.append((campaign, r.island, r.run, r.algo, r.seed, r.iterations, r.evaluations, r.best_fitness,
-                              np.asarray(r.best_x, dtype="<f8").tobytes(), r.sent, r.received, r.taken, r.rejected, int(r.final)))
+                              np.asarray(r.best_x, dtype="<f8").tobytes(), r.sent, r.received, r.taken, r.rejected, int(r.final), r.unlisted))
 
     def update_island(self, campaign: str, record: IslandRecord) -> None:
         """:meth:`queue_island`, written now."""
@@ -327,9 +327,10 @@ class Store(Queries):
         )
 
     @_writes
-    def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int, joined: float) -> None:
-        """A run admitted, with the public key it signs with and when it joined (Unix time)."""
-        self.db.execute("INSERT INTO runs VALUES (?, ?, ?, ?, ?, ?, ?)", (campaign, island, run, key, algo, seed, joined))
+    def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int, joined: float, member: str = "") -> None:
+        """A run admitted, with the public key it signs with, when it joined (Unix time) and the member it joined for."""
+        self.db.execute("INSERT INTO runs (campaign, island, run, key, algo, seed, joined, member) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                        (campaign, island, run, key, algo, seed, joined, member))
 
     @_writes
     def add_move(self, campaign: str, move: Move) -> None:

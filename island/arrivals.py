@@ -8,16 +8,19 @@ however many islands of the process take from its sender.
 
 * Each message is validated as it arrives (:mod:`island.protocol`: form, the
   signature of its sender's run with the public key the roster lists for it,
-  then replays: nobody can sign as another island, nor move another's replay
-  window); rejects are counted (``on_reject``).
+  then replays and numbers too far ahead, the first one a run is heard with
+  bounded by the last number the coordinator accepted of it: nobody can sign as
+  another island, nor move another's replay window); rejects are counted
+  (``on_reject``).
 * Of each sender only the newest valid message is kept (at most
   :data:`MAX_SENDERS` senders; strangers are forgotten first), so that a flood
   cannot grow it; an island takes at most ``k`` migrants of it per migration
   (:meth:`island.node.IslandNode._intake`).
 * A message from a run the roster does not list yet waits (the newest of each
-  sender, up to :data:`JOIN_GRACE_S`) for it: Zenoh does not order the
-  coordinator's roster before a joiner's first publications. One that waited in
-  vain counts as rejected: its run was never listed within the grace
+  sender, up to :data:`JOIN_GRACE_S`) for it: the coordinator sends its roster at
+  every join, before the joiner hears it joined, but Zenoh does not promise the
+  order of two publishers. One that waited in vain is counted apart from those
+  rejected (``on_unlisted``): its run was never listed within the grace
   (:meth:`Arrivals.listed`), a newer one of its sender came, there was no room,
   or the last island taking from it ended first (:meth:`Arrivals.leave`).
 """
@@ -32,7 +35,7 @@ from collections.abc import Callable, Collection
 import numpy as np
 
 from island.protocol import Migrants, migrants_of
-from island.sealing import Envelope, KeyLookup, ReplayGuard, check_replay, envelope, open_envelope
+from island.sealing import Envelope, KeyLookup, Known, ReplayGuard, check_replay, envelope, open_envelope
 from island.wire import MAX_MEMBERS, MessageRejected
 
 MAX_SENDERS = MAX_MEMBERS
@@ -44,16 +47,21 @@ JOIN_GRACE_S = 5.0
 class Arrivals:
     """The migrant messages of campaign ``campaign`` (search space ``bounds``) that arrived (see the module
     docstring). ``key_for(island, run)`` is the public key the roster lists for a run (None: not listed),
-    ``members()`` the islands alive, ``on_reject()`` counts a rejected message. Thread-safe."""
+    ``members()`` the islands alive, ``on_reject()`` counts a rejected message, ``on_unlisted()`` one that waited
+    in vain for the roster; ``known(island, run)`` what the roster says of a run's message numbers
+    (:data:`island.sealing.Known`; None: nothing). Thread-safe."""
 
     def __init__(
-        self, campaign: str, bounds: np.ndarray, key_for: KeyLookup, members: Callable[[], list[str]], on_reject: Callable[[], None]
+        self, campaign: str, bounds: np.ndarray, key_for: KeyLookup, members: Callable[[], list[str]], on_reject: Callable[[], None],
+        on_unlisted: Callable[[], None], known: Callable[[str, str], Known | None] | None = None,
     ) -> None:
         self.campaign = campaign
         self.bounds = bounds
         self.key_for = key_for
         self.members = members
         self.on_reject = on_reject
+        self.on_unlisted = on_unlisted
+        self.known = known or (lambda island, run: None)
         self._lock = threading.Lock()
         self._replays = ReplayGuard()
         self._latest: OrderedDict[str, tuple[float, Migrants]] = OrderedDict()
@@ -70,7 +78,7 @@ class Arrivals:
 
     def leave(self, island: str) -> int:
         """``island`` takes no more; if it was the last, what still waits for its run to be listed has waited
-        in vain: returns how many such messages (the caller counts them as rejected, in its last history)."""
+        in vain: returns how many such messages (the caller counts them as unlisted, in its last history)."""
         with self._lock:
             self._takers.discard(island)
             if self._takers:
@@ -94,14 +102,14 @@ class Arrivals:
                     self._pending.popitem(last=False)
                     waited += 1
             for _ in range(waited):
-                self.on_reject()
+                self.on_unlisted()
             return
         self._open(env, key)
 
     def _open(self, env: Envelope, key: bytes) -> None:
         try:
             m = migrants_of(open_envelope(env, key), self.campaign, self.bounds, time.time())
-            check_replay(self._replays, "migrants", m.island, m.run, m.seq)
+            check_replay(self._replays, "migrants", m.island, m.run, m.seq, self.known(m.island, m.run))
         except MessageRejected:
             self.on_reject()
             return
@@ -117,7 +125,7 @@ class Arrivals:
 
     def listed(self) -> None:
         """Check the waiting messages whose run the roster lists by now; those older than
-        :data:`JOIN_GRACE_S` are rejected (their run never joined)."""
+        :data:`JOIN_GRACE_S` waited in vain (their run was never listed): counted as unlisted."""
         now = time.monotonic()
         with self._lock:
             waiting = list(self._pending.items())
@@ -132,7 +140,7 @@ class Arrivals:
                 if key is not None:
                     self._open(env, key)
                 else:
-                    self.on_reject()
+                    self.on_unlisted()
 
     def heard(self, within_s: float) -> set[str]:
         """Senders whose newest message arrived within the last ``within_s`` seconds."""

@@ -19,7 +19,7 @@ evaluate -> tell) and uses its hooks:
   and of each sender only the newest message is kept: an epoch takes at most
   ``k`` migrants from each in-neighbour, so a flood cannot starve the
   evolution. A message from a run the roster does not list yet waits for it;
-  one that waited in vain counts as rejected.
+  one that waited in vain is counted apart (``unlisted``) from those rejected.
   Every migrant's fitness is **re-evaluated locally** (the claimed value is
   never used), and the optimizer's migrant policy decides what to replace;
 * who is a member, and the stop order, come from the coordinator's signed
@@ -222,13 +222,18 @@ class IslandNode:
         with self._lock:
             self.stats["rejected"] += 1
 
+    def count_unlisted(self) -> None:
+        """A migrant message waited in vain for the roster to list its run (:mod:`island.arrivals`)."""
+        with self._lock:
+            self.stats["unlisted"] += 1
+
     # --- the loop ---------------------------------------------------------------
     def attach(self, transport: Transport) -> None:
         """Take messages through ``transport`` from now on (its credentials are the island's)."""
         self._transport = transport
         self.credentials = transport.credentials
         self.arrivals = transport.arrivals or Arrivals(
-            self.config.name, self.objective.bounds, transport.key_for, transport.members, self.count_rejected
+            self.config.name, self.objective.bounds, transport.key_for, transport.members, self.count_rejected, self.count_unlisted
         )
         self.arrivals.join(self.island)
 
@@ -256,7 +261,7 @@ class IslandNode:
             self.finished = True
             waited = self._arrivals().leave(self.island)  # what still waits for its run to be listed waited in vain
             with self._lock:
-                self.stats["rejected"] += waited
+                self.stats["unlisted"] += waited
             self._flush(final=True)
         self.confirmed = transport.confirm(self.rows[-1][0] if self.rows else -1)
         return list(self.rows)

@@ -1,4 +1,4 @@
-"""Messages of a campaign (msgpack), their strict validation and who may send them (protocol version 4).
+"""Messages of a campaign (msgpack), their strict validation and who may send them (protocol version 5).
 
 The dissertation leaves cooperating islands as future work (section 6.1); here
 they exchange these messages under ``hysid/<campaign>/`` (see
@@ -10,10 +10,11 @@ they exchange these messages under ``hysid/<campaign>/`` (see
   served by the coordinator so that islands need no shared file system; it
   is served sealed (signed) by the coordinator, and stored unsealed;
 * the *join handshake*, a challenge-response on ``join/<id>`` (two queries):
-  ``join`` (the island's id, algorithm, seed, a fresh nonce and the public
-  key its run will sign with) is answered by a signed ``challenge``; ``prove``
-  (the request again with the challenge, an HMAC over both with the campaign's
-  admission secret, :mod:`island.secret`, and a signature with the run's key)
+  ``join`` (the island's id, the member it joins for, its algorithm, seed, a
+  fresh nonce and the public key its run will sign with) is answered by a
+  signed ``challenge``; ``prove`` (the request again with the challenge, an
+  HMAC over both with that member's admission secret, :mod:`island.secret`, and
+  a signature with the run's key)
   is answered by a signed ``joined`` holding the run id, or the refusal. The
   secret never travels; an island takes answers only with the signature of the
   coordinator named in its secret, and the coordinator admits only islands
@@ -25,7 +26,8 @@ they exchange these messages under ``hysid/<campaign>/`` (see
   s]`` of one island, its current best and its migration counters;
 * ``control``: the coordinator's roster (which island runs joined, in that order,
   which are alive, how many of each one's history rows it has committed, which
-  algorithm each runs and the public key each signs with) and its stop order;
+  algorithm each runs, the public key each signs with and the last message
+  number the coordinator accepted of it) and its stop order;
 * ``best``: the coordinator's global best (fitness re-evaluated by it);
 * a *history query* (``history/<id>?run=R;since=N;seq=Q;sig=S``): the
   coordinator asking an island for rows it missed, signed, its ``seq`` rising.
@@ -37,7 +39,9 @@ is decoded (:mod:`island.wire`), times and fitness values against the ranges
 a campaign can produce; a bad message raises
 :class:`island.wire.MessageRejected` naming why.
 
-Version 3 (before): HMAC tags instead of signatures, a campaign key every
+Version 4 (before): a join proved the one campaign secret (every holder was alike), an island's history counted
+migrant messages that waited in vain for the roster among those it rejected, the roster held no message numbers.
+Version 3: HMAC tags instead of signatures, a campaign key every
 joined island shared (so a member could tag migrants as another), the run key
 sent in the clear in an unauthenticated ``joined`` answer, ``config``,
 ``best`` and history queries unauthenticated. Messages of another version are
@@ -195,8 +199,9 @@ def decode_config(data: bytes, campaign: str) -> tuple[dict[str, Any], LoopSet]:
 # --- the join handshake ----------------------------------------------------------------
 @dataclass(frozen=True)
 class JoinRequest:
-    """An island asking to join: its id, algorithm and seed, a fresh ``nonce`` every answer echoes, and
-    ``key``, the public half of the signing key its run will sign with."""
+    """An island asking to join: its id, algorithm and seed, a fresh ``nonce`` every answer echoes,
+    ``key``, the public half of the signing key its run will sign with, and ``member``, the member it joins for
+    ("": a holder of the campaign's own secret; :mod:`island.secret`)."""
 
     campaign: str
     island: str
@@ -204,23 +209,29 @@ class JoinRequest:
     seed: int
     nonce: bytes
     key: bytes
+    member: str = ""
 
     def transcript(self, challenge: bytes) -> bytes:
         """What the island's proof and signature cover: the request and the coordinator's challenge."""
-        return _dumps([PROTOCOL_VERSION, "prove", self.campaign, self.island, self.algo, int(self.seed), self.nonce, self.key, challenge])
+        return _dumps([PROTOCOL_VERSION, "prove", self.campaign, self.island, self.member, self.algo, int(self.seed), self.nonce, self.key,
+                       challenge])
 
 
 def _request(msg: dict[str, Any], campaign: str, sender: str | None) -> JoinRequest:
     island = _name(msg, "island")
     if sender is not None and island != sender:
         raise MessageRejected("sender", f"join request on the key of {sender!r} names island {island!r}")
-    return JoinRequest(campaign, island, _algo(msg, "algo"), _int(msg, "seed"), _bytes(msg, "nonce", NONCE_BYTES), _bytes(msg, "key", KEY_BYTES))
+    member = _get(msg, "member", str)
+    if member and not NAME_PATTERN.match(member):
+        raise MessageRejected("schema", "join request names no valid member")
+    return JoinRequest(campaign, island, _algo(msg, "algo"), _int(msg, "seed"), _bytes(msg, "nonce", NONCE_BYTES), _bytes(msg, "key", KEY_BYTES),
+                       member)
 
 
 def encode_join(r: JoinRequest) -> bytes:
-    """The first step of the handshake (``join/<id>``): who asks, with which key; answered by a challenge."""
-    return _dumps({"v": PROTOCOL_VERSION, "type": "join", "campaign": r.campaign, "island": r.island, "algo": r.algo, "seed": int(r.seed),
-                   "nonce": r.nonce, "key": r.key})
+    """The first step of the handshake (``join/<id>``): who asks, for which member, with which key; answered by a challenge."""
+    return _dumps({"v": PROTOCOL_VERSION, "type": "join", "campaign": r.campaign, "island": r.island, "member": r.member, "algo": r.algo,
+                   "seed": int(r.seed), "nonce": r.nonce, "key": r.key})
 
 
 def decode_join(data: bytes, campaign: str, sender: str | None = None) -> JoinRequest:
@@ -254,10 +265,11 @@ class Proof:
 
 
 def encode_prove(r: JoinRequest, challenge: bytes, admission: bytes, key: bytes) -> bytes:
-    """Proof of the admission secret (:func:`island.sealing.prove`) and of the run's private ``key``."""
+    """Proof of the admission secret of the request's member (:func:`island.sealing.prove`) and of the run's private ``key``."""
     transcript = r.transcript(challenge)
-    return _dumps({"v": PROTOCOL_VERSION, "type": "prove", "campaign": r.campaign, "island": r.island, "algo": r.algo, "seed": int(r.seed),
-                   "nonce": r.nonce, "key": r.key, "challenge": challenge, "proof": prove(admission, transcript), "sig": sign(key, transcript)})
+    return _dumps({"v": PROTOCOL_VERSION, "type": "prove", "campaign": r.campaign, "island": r.island, "member": r.member, "algo": r.algo,
+                   "seed": int(r.seed), "nonce": r.nonce, "key": r.key, "challenge": challenge, "proof": prove(admission, transcript),
+                   "sig": sign(key, transcript)})
 
 
 def decode_join_step(data: bytes, campaign: str, sender: str | None = None) -> JoinRequest | Proof:
@@ -270,7 +282,7 @@ def decode_join_step(data: bytes, campaign: str, sender: str | None = None) -> J
 
 
 def proof_holds(p: Proof, admission: bytes) -> bool:
-    """Whether ``p`` proves the admission secret and the private half of the key it registers."""
+    """Whether ``p`` proves ``admission`` (the admission secret of the member it names) and the private half of the key it registers."""
     transcript = p.request.transcript(p.challenge)
     return proven(admission, transcript, p.proof) and verify(p.request.key, p.signature, transcript)
 
@@ -349,9 +361,10 @@ def migrants_of(s: Sealed, campaign: str, bounds: np.ndarray, now: float | None 
 
 # --- history ----------------------------------------------------------------------
 HISTORY_COLUMNS = ("iteration", "best_fitness", "evaluations", "wall_s")
-STAT_NAMES = ("sent", "received", "taken", "rejected")
+STAT_NAMES = ("sent", "received", "taken", "rejected", "unlisted")
 """Island migration counters: migrant messages sent, migrants received from in-neighbours,
-migrants taken in by the optimizer, messages rejected by validation."""
+migrants taken in by the optimizer, messages rejected by validation, and migrant messages that waited in vain for
+the roster to list their run (none in an honest campaign: the coordinator sends the roster at every join)."""
 
 
 @dataclass(frozen=True)
@@ -374,9 +387,10 @@ class History:
 
 
 def encode_history(h: History, credentials: Credentials) -> bytes:
+    """Signed with the island run's key (a counter ``h.stats`` lacks is sent as 0)."""
     fields = {
         "algo": h.algo, "seed": int(h.seed), "rows": pack_array(np.asarray(h.rows, dtype=float).reshape(-1, 4)),
-        "best_x": pack_array(h.best_x), "best_f": float(h.best_f), "stats": {k: int(h.stats[k]) for k in STAT_NAMES},
+        "best_x": pack_array(h.best_x), "best_f": float(h.best_f), "stats": {k: int(h.stats.get(k, 0)) for k in STAT_NAMES},
         "final": bool(h.final), "gain": float(h.gain),
     }
     return seal("history", h.campaign, h.island, h.run, h.seq, fields, credentials.key)
@@ -421,8 +435,9 @@ def decode_history(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: K
 class MemberState:
     """One joined island run as the coordinator sees it: alive or not, the last iteration up to
     which all of its history rows are committed to the database (-1: none), the algorithm it
-    is to run (a mixed campaign may move it to another one, :mod:`island.share`), and the public
-    key its messages are signed with."""
+    is to run (a mixed campaign may move it to another one, :mod:`island.share`), the public
+    key its messages are signed with, and the last message number of it the coordinator accepted
+    (-1: none; how far an island lets the run's first message it hears be ahead, :class:`island.sealing.ReplayGuard`)."""
 
     island: str
     run: str
@@ -430,6 +445,7 @@ class MemberState:
     stored: int
     algo: str
     key: bytes
+    seq: int = -1
 
 
 @dataclass(frozen=True)
@@ -444,7 +460,7 @@ class Control:
 
 def encode_control(c: Control, run: str, key: bytes) -> bytes:
     """Signed by the coordinator run ``run`` with the coordinator's private ``key``."""
-    fields = {"members": [[m.island, m.run, bool(m.alive), int(m.stored), m.algo, m.key] for m in c.members], "stop": c.stop[:MAX_TEXT]}
+    fields = {"members": [[m.island, m.run, bool(m.alive), int(m.stored), m.algo, m.key, int(m.seq)] for m in c.members], "stop": c.stop[:MAX_TEXT]}
     return seal("control", c.campaign, COORDINATOR, run, c.seq, fields, key)
 
 
@@ -456,12 +472,12 @@ def decode_control(data: bytes, campaign: str, coordinator: bytes) -> Control:
         raise MessageRejected("oversized", f"roster of {len(entries)} runs exceeds {MAX_MEMBERS}")
     members = []
     for e in entries:
-        if not (isinstance(e, list) and len(e) == 6):
-            raise MessageRejected("schema", "roster entry is not [island, run, alive, stored, algo, key]")
-        entry = dict(zip(("island", "run", "alive", "stored", "algo", "key"), e))
+        if not (isinstance(e, list) and len(e) == 7):
+            raise MessageRejected("schema", "roster entry is not [island, run, alive, stored, algo, key, seq]")
+        entry = dict(zip(("island", "run", "alive", "stored", "algo", "key", "seq"), e))
         members.append(MemberState(
             _name(entry, "island"), _name(entry, "run"), _get(entry, "alive", bool), _int(entry, "stored", -1, MAX_COUNT), _algo(entry, "algo"),
-            _bytes(entry, "key", KEY_BYTES),
+            _bytes(entry, "key", KEY_BYTES), _int(entry, "seq", -1, INT64_MAX),
         ))
     return Control(campaign, tuple(members), _text(s.fields, "stop"), s.seq)
 

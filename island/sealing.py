@@ -25,6 +25,7 @@ import hashlib
 import hmac
 import secrets
 import threading
+import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -192,45 +193,91 @@ class Counter:
             return n
 
 
+MESSAGES_PER_S = 10_000.0
+"""The most messages a second a run may number: far beyond what an island sends (its history every 0.02-0.75 s, a
+migrant message every migration interval: a thousand a second at the fastest tiny problem), far below what takes one
+message further than a replay window ahead of its sender."""
+AHEAD_BURST = 2048
+"""How far ahead of the last number accepted from a run a message may be at once (half a window: a run's next
+messages stay inside it)."""
+Known = tuple[int, float]
+"""``(number, seconds ago)``: a message number a run had reached that long ago (what a receiver knows of a run it has
+not heard from yet: the run just joined, ``(-1, since the join)``, or the coordinator's roster says so)."""
+
+
 class ReplayGuard:
-    """Drops replays: remembers, per sender run, which of the last ``window`` message numbers it saw
-    (a bit mask: a few hundred bytes per run).
+    """Drops replays, and numbers no run can have reached: remembers, per sender run, which of the last ``window``
+    message numbers it saw (a bit mask: a few hundred bytes per run), and how far ahead its numbers may go.
 
     A number seen before, or older than the window, is a replay. Messages may
     arrive out of order within the window (a history re-sent on request passes
-    a newer publication). At most ``runs`` sender runs are tracked; the least
-    recently heard one is forgotten first. Only messages whose signature
-    verified under their sender run's own key may be shown to it: a number is
-    the sender's word, and nobody else's can move its window.
+    a newer publication). A number may run ahead of the highest one accepted by
+    at most ``burst``, and by ``rate`` a second more since (a token bucket): one
+    message numbered 2**63-1, even validly signed with the run's own key, is
+    refused (``ahead``) instead of moving the window beyond every later message
+    of the run. At most ``runs`` sender runs are tracked; the least recently
+    heard one is forgotten first. Only messages whose signature verified under
+    their sender run's own key may be shown to it: a number is the sender's
+    word, and nobody else's can move its window.
     """
 
-    def __init__(self, window: int = 4096, runs: int = 2 * MAX_MEMBERS) -> None:
+    def __init__(self, window: int = 4096, runs: int = 2 * MAX_MEMBERS, rate: float = MESSAGES_PER_S, burst: int = AHEAD_BURST) -> None:
         self.window = window
         self.runs = runs
-        self._seen: OrderedDict[tuple[str, ...], tuple[int, int]] = OrderedDict()
-        """key -> (highest number, bit i set when number highest - i was seen)"""
+        self.rate = rate
+        self.burst = burst
+        self._seen: OrderedDict[tuple[str, ...], tuple[int, int, float, float]] = OrderedDict()
+        """key -> (highest number, bit i set when number highest - i was seen, how far ahead a number may go, when that was)"""
         self._lock = threading.Lock()
 
-    def fresh(self, key: tuple[str, ...], seq: int) -> bool:
-        """True (and remembered) the first time ``seq`` comes from ``key``; False for a replay."""
+    def check(self, key: tuple[str, ...], seq: int, known: Known | None = None, now: float | None = None) -> str:
+        """``"fresh"`` (and remembered) the first time ``seq`` comes from ``key``, ``"replay"`` for a number seen
+        before or older than the window, ``"ahead"`` for one further ahead than the run can have numbered (nothing is
+        remembered of either). ``known``: what is known of a run not heard from yet (None: nothing; its first number
+        is taken as it comes); ``now``: ``time.monotonic()``."""
+        now = time.monotonic() if now is None else now
         with self._lock:
-            high, seen = self._seen.pop(key, (-1, 0))
-            if seq > high:
-                shift = seq - high
-                seen = ((seen << shift) | 1) & ((1 << self.window) - 1) if shift < self.window else 1
-                high, fresh = seq, True
+            entry = self._seen.get(key)
+            if entry is None:
+                if known is not None and seq - known[0] > self.burst + self.rate * max(known[1], 0.0):
+                    return "ahead"
+                high, seen, allowance = seq, 1, float(self.burst)
             else:
-                age = high - seq
-                fresh = age < self.window and not (seen >> age) & 1
-                if fresh:
+                high, seen, allowance, at = entry
+                allowance = min(float(self.burst), allowance + self.rate * (now - at))
+                if seq > high:
+                    shift = seq - high
+                    if shift > allowance:
+                        return "ahead"
+                    seen = ((seen << shift) | 1) & ((1 << self.window) - 1) if shift < self.window else 1
+                    high, allowance = seq, allowance - shift
+                else:
+                    age = high - seq
+                    if age >= self.window or (seen >> age) & 1:
+                        return "replay"
                     seen |= 1 << age
-            self._seen[key] = (high, seen)
+            self._seen.pop(key, None)
+            self._seen[key] = (high, seen, allowance, now)
             while len(self._seen) > self.runs:
                 self._seen.popitem(last=False)
-            return fresh
+            return "fresh"
+
+    def fresh(self, key: tuple[str, ...], seq: int) -> bool:
+        """True (and remembered) the first time ``seq`` comes from ``key``; False for a replay or a number too far ahead."""
+        return self.check(key, seq) == "fresh"
+
+    def high(self, key: tuple[str, ...]) -> int:
+        """The highest number accepted from ``key`` (-1: none)."""
+        with self._lock:
+            entry = self._seen.get(key)
+            return -1 if entry is None else entry[0]
 
 
-def check_replay(guard: ReplayGuard, kind: str, sender: str, run: str, seq: int) -> None:
-    """:class:`MessageRejected` ("replay") unless message ``seq`` of ``kind`` is new from that sender run."""
-    if not guard.fresh((kind, sender, run), seq):
+def check_replay(guard: ReplayGuard, kind: str, sender: str, run: str, seq: int, known: Known | None = None) -> None:
+    """:class:`MessageRejected` unless message ``seq`` of ``kind`` is new from that sender run: ``replay`` for a number
+    seen, ``ahead`` for one further ahead than the run can have numbered (``known``: :meth:`ReplayGuard.check`)."""
+    verdict = guard.check((kind, sender, run), seq, known)
+    if verdict == "replay":
         raise MessageRejected("replay", f"{kind} message {seq} of {sender!r} run {run!r} was seen before")
+    if verdict == "ahead":
+        raise MessageRejected("ahead", f"{kind} message {seq} of {sender!r} run {run!r} is further ahead of its last one than it can have sent since")

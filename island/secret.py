@@ -1,7 +1,7 @@
 """The campaign secret: what a coordinator hands its islands, so that each side can tell the other from a stranger.
 
-A coordinator makes one per campaign (:meth:`CampaignSecret.create`, kept in
-its database). It holds
+A coordinator makes one per campaign (its keys, :mod:`coordinator.keys`, kept in
+an owner-only file beside its database). It holds
 
 * ``admission``: 32 random bytes that an island proves it holds when it joins
   (an HMAC over the coordinator's fresh challenge, :func:`island.sealing.prove`;
@@ -11,17 +11,30 @@ its database). It holds
   which islands check everything the coordinator sends (the ``config``, the
   answers of the join handshake, ``control`` with its stop order, ``best``,
   its history queries): a party without the coordinator's private key (which
-  stays in its database) cannot pose as the coordinator, even one that holds
+  stays in its key file) cannot pose as the coordinator, even one that holds
   the secret.
 
+The campaign's own secret is its operator's: its holder may join for any
+*member* of the campaign. A **member secret** (:meth:`CampaignSecret.for_member`)
+holds instead the admission secret of one member, derived from the campaign's
+(:func:`member_admission`): its holder joins only for that member, under island ids
+that are the member's name or begin with it and a ``-``, and everything its runs
+do counts for that member, whose share of the campaign's run slots and of its
+effort is bounded (:mod:`coordinator.members`). Hand each host, or each party,
+a member secret of its own; keep the campaign's secret to yourself.
+
 Its text form is one line, ``hysid-secret 1 <campaign> <admission hex>
-<coordinator hex>``, kept in a file of mode 0600 beside the campaign database
-(:func:`secret_path`, ``<db>-<campaign>.secret``) and handed to islands by file
-(``hysid island --secret-file``) or in the environment (:data:`SECRET_ENV`).
+<coordinator hex>`` (the campaign's) or ``hysid-secret 2 <campaign> <member>
+<admission hex> <coordinator hex>`` (a member's), kept in a file of mode 0600
+beside the campaign database (:func:`secret_path`, ``<db>-<campaign>.secret``;
+:func:`member_path` for a member's) and handed to islands by file (``hysid island
+--secret-file``) or in the environment (:data:`SECRET_ENV`).
 """
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import os
 import secrets
 import stat
@@ -38,16 +51,42 @@ SECRET_FILE_ENV = "HYSID_SECRET_FILE"
 """Environment variable naming a campaign secret's file."""
 MAGIC = "hysid-secret"
 FORMAT = "1"
+MEMBER_FORMAT = "2"
 KEY_BYTES = 32
+
+
+def member_admission(admission: bytes, member: str) -> bytes:
+    """The admission secret of ``member`` of a campaign whose own admission secret is ``admission``."""
+    return hmac.new(admission, b"hysid member\x00" + member.encode(), hashlib.sha256).digest()
+
+
+def of_member(island: str, member: str) -> bool:
+    """Whether island id ``island`` may be one of ``member``'s: the member's name, or it and a ``-`` and more."""
+    return island == member or island.startswith(member + "-")
 
 
 @dataclass(frozen=True)
 class CampaignSecret:
-    """A campaign's admission secret and its coordinator's public signing key (see the module docstring)."""
+    """A campaign's admission secret (or one member's: ``member``) and its coordinator's public signing key (see the
+    module docstring)."""
 
     campaign: str
     admission: bytes
     coordinator: bytes
+    member: str = ""
+    """The member this secret admits for ("": the campaign's own secret, which admits for any member)."""
+
+    def for_member(self, member: str) -> "CampaignSecret":
+        """The secret of ``member`` (from the campaign's own secret only)."""
+        if self.member:
+            raise HysidInputError(f"a member's secret ({self.member!r}) makes no other member's; the campaign's own secret does")
+        return CampaignSecret(self.campaign, member_admission(self.admission, check_name("member", member)), self.coordinator, member)
+
+    def admission_for(self, member: str) -> bytes:
+        """What a join for ``member`` proves: this secret's admission if it is that member's, derived if it is the campaign's."""
+        if self.member == member:
+            return self.admission
+        return self.for_member(member).admission
 
     @classmethod
     def create(cls, campaign: str, coordinator: bytes) -> "CampaignSecret":
@@ -55,25 +94,29 @@ class CampaignSecret:
         return cls(check_name("campaign", campaign), secrets.token_bytes(KEY_BYTES), coordinator)
 
     def text(self) -> str:
+        if self.member:
+            return f"{MAGIC} {MEMBER_FORMAT} {self.campaign} {self.member} {self.admission.hex()} {self.coordinator.hex()}"
         return f"{MAGIC} {FORMAT} {self.campaign} {self.admission.hex()} {self.coordinator.hex()}"
 
     @classmethod
     def parse(cls, text: str, source: str) -> "CampaignSecret":
         """The secret in ``text``; anything else is a one-line :class:`HysidInputError` naming ``source``."""
         parts = text.split()
-        if len(parts) != 5 or parts[0] != MAGIC:
-            raise HysidInputError(f"{source}: not a hysid campaign secret (one line '{MAGIC} {FORMAT} <campaign> <hex> <hex>')")
-        if parts[1] != FORMAT:
-            raise HysidInputError(f"{source}: campaign secret of format {parts[1][:10]!r}; this hysid reads format {FORMAT}")
-        if not NAME_PATTERN.match(parts[2]):
-            raise HysidInputError(f"{source}: the campaign secret names no valid campaign")
+        if len(parts) not in (5, 6) or parts[0] != MAGIC:
+            raise HysidInputError(f"{source}: not a hysid campaign secret (one line '{MAGIC} {FORMAT} <campaign> <hex> <hex>', "
+                                  f"or a member's '{MAGIC} {MEMBER_FORMAT} <campaign> <member> <hex> <hex>')")
+        if (parts[1], len(parts)) not in ((FORMAT, 5), (MEMBER_FORMAT, 6)):
+            raise HysidInputError(f"{source}: campaign secret of format {parts[1][:10]!r}; this hysid reads formats {FORMAT} and {MEMBER_FORMAT}")
+        member = parts[3] if parts[1] == MEMBER_FORMAT else ""
+        if not NAME_PATTERN.match(parts[2]) or (member and not NAME_PATTERN.match(member)):
+            raise HysidInputError(f"{source}: the campaign secret names no valid campaign" + (" or member" if member else ""))
         try:
-            admission, coordinator = bytes.fromhex(parts[3]), bytes.fromhex(parts[4])
+            admission, coordinator = bytes.fromhex(parts[-2]), bytes.fromhex(parts[-1])
         except ValueError:
             raise HysidInputError(f"{source}: the campaign secret's keys are not hexadecimal") from None
         if len(admission) != KEY_BYTES or len(coordinator) != KEY_BYTES:
             raise HysidInputError(f"{source}: the campaign secret's keys must be {KEY_BYTES} bytes each")
-        return cls(parts[2], admission, coordinator)
+        return cls(parts[2], admission, coordinator, member)
 
     @classmethod
     def read(cls, path: Path | str) -> "CampaignSecret":
@@ -93,6 +136,12 @@ class CampaignSecret:
 def secret_path(db: Path | str, campaign: str) -> Path:
     """Where a coordinator keeps the secret of ``campaign`` of database ``db``: ``<db>-<campaign>.secret``."""
     return Path(f"{db}-{check_name('campaign', campaign)}.secret")
+
+
+def member_path(db: Path | str, campaign: str, member: str) -> Path:
+    """Where a coordinator writes the secret of ``member`` of ``campaign`` of database ``db``: ``<db>-<campaign>+<member>.secret``
+    (a ``+`` is in no name: no campaign's secret can have that path)."""
+    return Path(f"{db}-{check_name('campaign', campaign)}+{check_name('member', member)}.secret")
 
 
 def write_owner_only(path: Path | str, text: str) -> Path:

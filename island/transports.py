@@ -101,7 +101,7 @@ def join(
                     on_reject()
         return None
 
-    request = JoinRequest(campaign, island, algo, seed, secrets.token_bytes(16), public_key(key))  # asked again as it is: one run
+    request = JoinRequest(campaign, island, algo, seed, secrets.token_bytes(16), public_key(key), secret.member)  # asked again as it is: one run
     while True:
         challenge = answers(encode_join(request), lambda a: decode_challenge(a, campaign, island, request.nonce, secret.coordinator))
         if challenge is not None:
@@ -159,6 +159,8 @@ class ZenohHost:
         self._control_seq = -1
         self._roster: dict[tuple[str, str], MemberState] = {}
         """(island, run) -> its entry in the coordinator's last control message, in join order."""
+        self._roster_at = time.monotonic()
+        """When that control message came."""
         self._alive: list[str] = []
         """Islands alive by that roster, in the order they joined."""
         self._listed: set[str] = set()
@@ -170,7 +172,7 @@ class ZenohHost:
         self._gone = ""
         """Why the islands stopped on their own: the coordinator was silent for too long, or :meth:`stop`."""
         self._islands: dict[str, ZenohTransport] = {}
-        self.arrivals = Arrivals(self.campaign, bounds, self.key_for, self.members, self._reject)
+        self.arrivals = Arrivals(self.campaign, bounds, self.key_for, self.members, self._reject, self._unlisted, self.known)
         self._migrants = session.declare_subscriber(f"{self.prefix}/migrants/*", zenoh.handlers.FifoChannel(MIGRANT_QUEUE))
         self._control = session.declare_subscriber(f"{self.prefix}/control", zenoh.handlers.FifoChannel(CONTROL_QUEUE))
         self._closing = threading.Event()
@@ -191,6 +193,13 @@ class ZenohHost:
             islands = list(self._islands.values())
         for t in islands:
             t.node.count_rejected()
+
+    def _unlisted(self) -> None:
+        """A migrant message that waited in vain for the roster, for every island of the host: counted by each."""
+        with self._cond:
+            islands = list(self._islands.values())
+        for t in islands:
+            t.node.count_unlisted()
 
     def add(self, transport: "ZenohTransport") -> None:
         """An island of this host joined: the coordinator answered it."""
@@ -232,6 +241,7 @@ class ZenohHost:
             if not replay:
                 self._control_seq = control.seq
                 self._roster = {(m.island, m.run): m for m in control.members}
+                self._roster_at = time.monotonic()
                 self._alive = list(dict.fromkeys(m.island for m in control.members if m.alive))
                 self._listed = {m.island for m in control.members}
                 self._stop = self._stop or control.stop
@@ -259,6 +269,13 @@ class ZenohHost:
         if entry is not None:
             return entry.key
         return own.credentials.public if own is not None and own.credentials.run == run else None
+
+    def known(self, island: str, run: str) -> tuple[int, float] | None:
+        """The last message number of that run the coordinator accepted, and how long ago it said so (None: the roster
+        does not list the run; :class:`island.sealing.ReplayGuard`)."""
+        with self._cond:
+            entry = self._roster.get((island, run))
+            return None if entry is None else (entry.seq, time.monotonic() - self._roster_at)
 
     def stored(self, island: str, run: str) -> int:
         """The last iteration of that run whose history the coordinator said it committed (-1: none)."""

@@ -30,8 +30,11 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 
-PROTOCOL_VERSION = 4
-"""4: every message a party relies on is signed (Ed25519) by its sender: the coordinator's by the key whose
+PROTOCOL_VERSION = 5
+"""5: a join names the member it is made for (its admission proof is made with that member's secret, and its run
+counts for that member: :mod:`island.secret`); an island's history counts apart the migrant messages that waited in
+vain for the roster to list their run; the roster says the last message number the coordinator accepted of each run.
+4: every message a party relies on is signed (Ed25519) by its sender: the coordinator's by the key whose
 public half is in the campaign secret (:mod:`island.secret`), an island's by the key of its run, registered
 when it joined (a challenge-response that proves it holds the campaign secret); no key is shared any more.
 3: HMAC tags with per-run keys and a campaign key every joined island shared."""
@@ -65,7 +68,7 @@ MAX_COUNT = 2**53
 """Largest count (iterations, evaluations) carried exactly in a float64 array."""
 REASONS = (
     "oversized", "undecodable", "schema", "version", "campaign", "sender", "unjoined", "forged", "replay",
-    "shape", "not_finite", "out_of_bounds", "out_of_range", "implausible", "overflow",
+    "shape", "not_finite", "out_of_bounds", "out_of_range", "implausible", "overflow", "ahead",
 )
 """Why a message is rejected. ``sender``: the key it came on names another island; ``unjoined``: its
 sender or run never joined (or did not prove it holds the campaign secret); ``forged``: its signature
@@ -73,7 +76,8 @@ does not verify under its sender's key; ``replay``: its number was seen; ``out_o
 fitness no campaign can produce (a send time decades away, a wall time longer than the run has existed,
 a fitness beyond :data:`MAX_FITNESS`);
 ``implausible``: well-formed but impossible (e.g. more evaluations than the island could have done);
-``overflow``: dropped because the receiver's queue for that sender was full."""
+``overflow``: dropped because the receiver's queue for that sender was full; ``ahead``: its number is further ahead of
+the last one accepted from its sender run than that run can have sent since (:class:`island.sealing.ReplayGuard`)."""
 
 
 class MessageRejected(HysidInputError):

@@ -14,9 +14,8 @@ import time
 import numpy as np
 import pytest
 
-from coordinator.inbox import URGENT_RUN, Inbox
 from coordinator.links import MemoryLink
-from coordinator.loop import COMMIT_ROWS, check_stop, control_message, pump, serve
+from coordinator.loop import check_stop, pump, serve
 from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS, synth_loops
@@ -302,12 +301,12 @@ def test_joining_is_refused_while_the_id_is_alive_and_a_repeated_request_gets_th
     c.join_request("pso-1", b"\xc1 not a join request", lambda answer: pytest.fail("answered junk"))
     pump(c, link, 1.0)
     assert reasons(c) == {"undecodable": 1}
-    control = decode_control(control_message(c), "c1", c.secret.coordinator)
+    control = decode_control(c.control_message(), "c1", c.secret.coordinator)
     assert [(m.island, m.run, m.alive, m.key) for m in control.members] == [("pso-1", first, True, public_key(key))]
 
 
 def test_only_islands_that_prove_the_secret_are_admitted_and_each_id_has_bounded_runs(tmp_path, link, monkeypatch):
-    monkeypatch.setattr("coordinator.state.RUNS_PER_ISLAND", 3)
+    monkeypatch.setattr("coordinator.admission.RUNS_PER_ISLAND", 3)
     monkeypatch.setattr("coordinator.members.LEAVE_GRACE_S", 0.0)
     c = make(tmp_path)
     key = new_key()

@@ -9,7 +9,7 @@ import pytest
 
 from coordinator.launch import island_specs, run_campaign
 from coordinator.links import MemoryLink
-from coordinator.loop import control_message, pump
+from coordinator.loop import pump
 from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
@@ -250,7 +250,7 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
     assert [(m.island, m.src, m.dst) for m in c.sharing.moves] == [("ga-0", "ga", "pso")]
     assert rounds <= WINDOW + 1  # the first history only sets each island's baseline
     assert [(m.island, m.src, m.dst) for m in c.store.moves("c1")] == [("ga-0", "ga", "pso")]
-    control = decode_control(control_message(c), "c1", c.secret.coordinator)
+    control = decode_control(c.control_message(), "c1", c.secret.coordinator)
     assert {m.island: m.algo for m in control.members} == {"ga-0": "pso", "pso-1": "pso"}
     report("ga-0", 5 * rounds, 0.001 * rounds, "ga")  # rows sent before the island heard of its move
     report("ga-0", 5 * rounds + 5, 0.3 * rounds, "pso")  # and after
@@ -294,7 +294,7 @@ def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_i
     c.member("ga-4", True, wait_s=None)
     assert report("ga-4", 8, 8) == ["ga-0", "ga-4"]
     assert report("pso-1", 0, 9) == ["ga-0", "ga-4"]  # PSO converges: it stays
-    assert {m.island: m.algo for m in decode_control(control_message(c), "c2", c.secret.coordinator).members}["ga-0"] == "pso"
+    assert {m.island: m.algo for m in decode_control(c.control_message(), "c2", c.secret.coordinator).members}["ga-0"] == "pso"
     taken_up = resume(c.store, "c2")  # a restarted coordinator follows the moves stored, and makes none again
     assert {k[0]: v for k, v in taken_up.sharing.assigned.items()} == {"ga-0": "pso", "pso-1": "pso", "ga-2": "ga", "ga-4": "pso"}
     c.store.close()

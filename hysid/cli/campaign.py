@@ -42,7 +42,7 @@ from island.algorithms import check_algorithm
 from island.config import MAX_SEED, CampaignConfig, decode_config
 from island.migration import Migration
 from island.host import cores, describe, host_specs, run_islands
-from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret, secret_path
+from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret, member_path, of_member, secret_path
 from island.session import DEFAULT_ENDPOINT, authenticated_name, open_session, session_config
 from island.termination import Termination
 from island.transports import fetch_config
@@ -208,6 +208,12 @@ def register(app: typer.Typer) -> None:
             None, "--secret-file",
             help="Where to keep the campaign secret that islands need to join (mode 0600; default DB-CAMPAIGN.secret beside the database).",
         ),
+        members: list[str] = typer.Option(
+            [], "--member",
+            help="Also write a member secret for NAME (repeatable; DB-CAMPAIGN+NAME.secret, mode 0600): its holder joins only as NAME's "
+                 "islands (ids NAME or NAME-...), and no member's runs take more than half the run slots or count more effort than all "
+                 "the other members' together. Hand each host or party its own; keep the campaign's secret to yourself.",
+        ),
         min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
         algos: str = o.ALGOS,
         share: str = o.SHARE,
@@ -238,6 +244,8 @@ def register(app: typer.Typer) -> None:
     ) -> Optional[int]:
         """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
         check_name("campaign", name)
+        for member in members:
+            check_name("member", member)
         bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
         if resume_db and dataset is not None:
@@ -270,6 +278,10 @@ def register(app: typer.Typer) -> None:
             else:
                 coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
             kept = keep_secret(coordinator.secret, secret_file or secret_path(path, name))
+            for member in members:
+                kept_member = keep_secret(coordinator.secret.for_member(member), member_path(path, name, member))
+                if not quiet:
+                    print(f"hysid: member {member!r}'s secret {kept_member}", file=sys.stderr, flush=True)
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
             session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
             link = ZenohLink(session, coordinator)
@@ -327,6 +339,11 @@ def register(app: typer.Typer) -> None:
         island = check_name("island", island_id or identity or default_island_id())
         where = ', '.join(connect) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)
         secret = island_secret(secret_file, name, wait, island)
+        if secret.member and island_id is None and identity is None:
+            island = secret.member  # a member's island bears its name
+        elif secret.member and not of_member(island, secret.member):
+            raise HysidInputError(f"the secret is member {secret.member!r}'s: its islands' ids are {secret.member!r} or begin with "
+                                  f"'{secret.member}-'", param="island", value=island)
         waiting = threading.Timer(WAIT_NOTICE_S, lambda: say(f"island {island}: no coordinator of campaign {name!r} at {where} yet; waiting up to {wait:g} s (--wait)"))
         waiting.start()  # an island started before its coordinator waits for it, and says so
         try:
@@ -363,7 +380,8 @@ def register(app: typer.Typer) -> None:
                 print(
                     f"island {node.island} ({node.algo.upper()}, seed {node.seed}): best {best:.6g} after {rows[-1][0] if rows else 0} iterations, "
                     f"{rows[-1][2] if rows else 0:,} evaluations; {node.stop_reason}; migrant messages sent {s['sent']}, "
-                    f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}",
+                    f"migrants received {s['received']}, taken {s['taken']}, rejected messages {s['rejected']}"
+                    + (f", messages that waited in vain for the roster {s['unlisted']}" if s["unlisted"] else ""),
                     file=sys.stderr,
                 )
         if failed:

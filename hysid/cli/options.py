@@ -44,6 +44,7 @@ FLAGS = {
     "campaign": "--campaign",
     "name": "--campaign",
     "island": "--id",
+    "member": "--member",
     "population": "--population",
     "initial_population": "--initial",
     "iterations": "--iterations",

@@ -201,9 +201,10 @@ def fit_overview(result: "FitResult") -> str:
 def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
     """One row per island run of a campaign: its algorithm, status, best and what it exchanged."""
     headers = ["island", "algorithm", "seed", "status", "best fitness", "iterations", "evaluations",
-               "migrant messages sent", "migrants received", "taken in", "messages rejected"]
+               "migrant messages sent", "migrants received", "taken in", "messages rejected", "messages unlisted (waited for the roster)"]
     rows = [[f"`{i['island']}`", i["algo"].upper(), str(i["seed"]), i["status"], num(i["best_fitness"], 4), f"{i['iterations']:,}",
-             f"{i['evaluations']:,}", f"{i['sent']:,}", f"{i['received']:,}", f"{i['taken']:,}", f"{i['rejected']:,}"] for i in islands]
+             f"{i['evaluations']:,}", f"{i['sent']:,}", f"{i['received']:,}", f"{i['taken']:,}", f"{i['rejected']:,}", f"{i.get('unlisted', 0):,}"]
+            for i in islands]
     return headers, rows
 
 

@@ -222,13 +222,14 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
 def migrations_text(m: dict[str, Any]) -> str:
     """A campaign's migrations (its ``migrations`` document) in one phrase, as the summary and the report say them."""
     unfollowed = m.get("unfollowed")
+    unlisted = f", {m['unlisted']:,} that waited in vain for the roster to list their run" if m.get("unlisted") else ""
     if not unfollowed:
         return (f"{m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
-                f"{m['received']} migrants re-evaluated, {m['taken']} taken in, {m['rejected']} messages rejected")
+                f"{m['received']} migrants re-evaluated, {m['taken']} taken in{unlisted}, {m['rejected']} messages rejected")
     return (f"{m['messages']:,} messages handled by the coordinator ({m['topology']}, every {m['interval']} iterations) until "
             f"{unfollowed['islands']:,} islands were alive, {unfollowed['after_s']:.0f} s in (it follows those of at most "
             f"{unfollowed['follows_up_to']} islands); by the islands' own counts {m['sent']:,} messages sent, {m['received']:,} "
-            f"migrants re-evaluated, {m['taken']:,} taken in; {m['rejected']:,} messages rejected by the coordinator")
+            f"migrants re-evaluated, {m['taken']:,} taken in{unlisted}; {m['rejected']:,} messages rejected by the coordinator")
 
 
 def campaign_summary(result: "CampaignResult") -> str:
