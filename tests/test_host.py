@@ -30,6 +30,7 @@ from island.config import CampaignConfig
 from island.host import Hosted, IslandSpec, Turns, host_specs, run_islands
 from island.migration import Migration
 from island.session import open_session, session_config
+from island.termination import Termination
 from support import query, ready, rows_of, secret_file, wait_for
 
 LOOPS = synth_loops(n_points=30)
@@ -91,10 +92,10 @@ def test_islands_take_turns_to_compute_in_the_order_they_asked() -> None:
 class Campaign:
     """A coordinator in this process (real SQLite, Zenoh router on loopback) serving until :meth:`end`."""
 
-    def __init__(self, tmp_path: Path, cfg: CampaignConfig) -> None:
+    def __init__(self, tmp_path: Path, cfg: CampaignConfig, termination: Termination | None = None) -> None:
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
         self.router = open_session(session_config("router", listen=[self.endpoint]), self.endpoint)
-        self.c = Coordinator(Store(tmp_path / f"{cfg.name}.sqlite"), cfg, LOOPS)
+        self.c = Coordinator(Store(tmp_path / f"{cfg.name}.sqlite"), cfg, LOOPS, termination)
         self.link = ZenohLink(self.router, self.c)
         self._done = threading.Event()
         self.thread = threading.Thread(target=lambda: serve(self.c, self.link, extra_stop=lambda: "ended" if self._done.is_set() else None))
