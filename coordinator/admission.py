@@ -31,7 +31,8 @@ from dataclasses import dataclass
 from coordinator.link import Link
 from hysid_model.errors import HysidInputError
 from island.algorithms import ALGORITHMS
-from island.protocol import Control, JoinRequest, MemberState, decode_join_step, encode_challenge, encode_control, encode_joined, proof_holds
+from island.handshake import JoinRequest, decode_join_step, encode_challenge, encode_joined, proof_holds
+from island.protocol import Control, MemberState, encode_control
 from island.secret import of_member
 from island.sealing import Credentials, new_key, public_key
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected

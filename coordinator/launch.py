@@ -5,7 +5,7 @@ coordinator in this process, listening on a free loopback port; each is handed
 the campaign secret in its environment. With
 ``single_node`` (or automatically, with a :class:`HysidWarning`, when Zenoh
 cannot open a session here) the islands are threads of this process
-exchanging migrants in memory (:class:`island.transports.MemoryBus`); the
+exchanging migrants in memory (:class:`island.memory.MemoryBus`); the
 coordinator, the database and the outcome are the same.
 """
 
@@ -36,7 +36,7 @@ from island.host import IslandSpec
 from island.node import IslandNode
 from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret
 from island.session import open_session, session_config
-from island.transports import MemoryBus, MemoryTransport
+from island.memory import MemoryBus, MemoryTransport
 from island.wire import MAX_MEMBERS
 
 ISLAND_EXIT_WAIT_S = 15.0

@@ -12,7 +12,7 @@ import threading
 import zenoh
 
 from coordinator.state import Coordinator
-from island.transports import key_prefix
+from island.joining import key_prefix
 
 
 class ZenohLink:

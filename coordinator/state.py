@@ -108,8 +108,8 @@ from island.protocol import (
 )
 from island.sealing import ReplayGuard, check_replay
 from island.termination import Termination
-from island.transports import key_prefix
-from island.wire import NAME_PATTERN, MessageRejected
+from island.joining import key_prefix
+from island.wire import MAX_BYTES, NAME_PATTERN, MessageRejected
 
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
@@ -294,6 +294,8 @@ class Coordinator(Admission):
         if kind == "migrants" and not self.follows_migrants:
             return True  # on its way when the coordinator stopped following them: the islands count it
         source = self._source(sender)
+        if len(payload) > MAX_BYTES.get(kind, 0) > 0:  # rejected as it is: its bytes need not wait (a flood of them would fill the inbox)
+            return self.inbox.put(source, ("oversized", key, len(payload), MAX_BYTES[kind]), 0, wait_s)
         m = self._authentic(payload, sender) if kind == "migrants" and source != "?" and self.inbox.is_crowded() else None
         if m is not None:
             return self.inbox.put(source, ("migrants", key, m, time.monotonic()), len(payload), wait_s, replace=True)
@@ -318,7 +320,8 @@ class Coordinator(Admission):
     # --- handling what arrives ----------------------------------------------------------
     def handle(self, link: Link, item: tuple[Any, ...]) -> None:
         """One inbox item: ``("msg", key, payload, arrived)``, ``("migrants", key, message, arrived)`` (checked
-        as it arrived but for replays; ``arrived``: its ``time.monotonic()`` then), ``("member", island, alive)``
+        as it arrived but for replays; ``arrived``: its ``time.monotonic()`` then), ``("oversized", key, size, most)``
+        (a publication too large for its kind, its bytes dropped as it came), ``("member", island, alive)``
         or ``("join", island, payload, reply)``.
 
         Nothing a message holds can raise out of here: a rejected message is
@@ -336,6 +339,9 @@ class Coordinator(Admission):
             elif item[0] == "migrants":
                 key = item[1]
                 self._migrants(link, item[2], item[3])
+            elif item[0] == "oversized":
+                key, size = item[1], item[2]
+                raise MessageRejected("oversized", f"a message of {item[2]} bytes under {key[:100]} exceeds {item[3]}")
             else:
                 _, key, payload, arrived = item
                 size = len(payload)

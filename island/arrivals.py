@@ -1,7 +1,7 @@
 """Migrant messages as they arrive: checked once, each sender's newest kept for the islands that take them.
 
 One :class:`Arrivals` serves one island (in memory, :mod:`island.transports`'
-:class:`~island.transports.MemoryTransport`), or every island of a process
+:class:`~island.memory.MemoryTransport`), or every island of a process
 over one Zenoh session (:class:`~island.transports.ZenohHost`): a message is
 read, its signature verified and its number checked against replays once,
 however many islands of the process take from its sender.

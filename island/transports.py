@@ -1,24 +1,17 @@
-"""How an island's messages travel: over Zenoh, or in memory between island threads.
+"""How an island's messages travel over Zenoh (in memory between island threads: :mod:`island.memory`).
 
-* :class:`ZenohTransport`: an island over Zenoh, key space
-  ``hysid/<campaign>/...`` (:func:`key_prefix`, which the coordinator's
-  :mod:`coordinator.links` speaks too), on a :class:`ZenohHost` that the
-  islands of one process share (one session, migrants and the roster checked
-  once for all of them); :func:`join` is its join handshake,
-  :func:`fetch_config` asks the coordinator for the campaign's ``config``
-  message before the island is built. Queries go to every queryable and
-  every answer is checked against the coordinator's key in the campaign
-  secret (:mod:`island.secret`): a stranger that answers first changes nothing;
-* :class:`MemoryBus` and its :class:`MemoryTransport`: islands as threads of
-  one process, in lock step at every epoch so that a single-node campaign is
-  reproducible.
-
-Both are :class:`island.node.Transport` s of an :class:`island.node.IslandNode`.
+:class:`ZenohTransport`: an island over Zenoh, key space ``hysid/<campaign>/...``
+(:func:`island.joining.key_prefix`, which the coordinator's :mod:`coordinator.links`
+speaks too), on a :class:`ZenohHost` that the islands of one process share (one
+session, migrants and the roster checked once for all of them); it joins with
+:func:`island.joining.join`. Every answer and every roster is checked against the
+coordinator's key in the campaign secret (:mod:`island.secret`): a stranger that
+answers first changes nothing. It is the :class:`island.node.Transport` of an
+:class:`island.node.IslandNode` over Zenoh.
 """
 
 from __future__ import annotations
 
-import secrets
 import threading
 import time
 from collections import deque
@@ -27,31 +20,18 @@ from collections.abc import Callable
 import numpy as np
 import zenoh
 
-from hysid_model.errors import HysidInputError
 from island.arrivals import Arrivals
+from island.joining import join, key_prefix, replies
 from island.node import IslandNode
-from island.protocol import (
-    Control,
-    JoinRequest,
-    MemberState,
-    decode_challenge,
-    decode_control,
-    decode_history_query,
-    decode_joined,
-    decode_signed_config,
-    encode_join,
-    encode_prove,
-)
+from island.protocol import Control, MemberState, decode_control, decode_history_query
 from island.secret import CampaignSecret
-from island.sealing import Credentials, new_key, public_key
-from island.wire import MAX_MEMBERS, MessageRejected, check_name
+from island.wire import MessageRejected
 
 SILENT_S = 4.0
 """An island whose coordinator sent no control message for this long (it sends one every second at
 least) says so and waits for it, searching on, up to its ``wait_s`` more; then it stops."""
 HISTORY_QUERIES_PER_S = 4.0
 """History queries an island answers per second (the coordinator asks every 2 s at most)."""
-QUERY_TIMEOUT_S = 5.0
 HEARTBEAT_S = 1.0
 """An island with no new history row for this long sends a heartbeat (a signed history without rows):
 the coordinator counts an island alive by what it signs, not by its liveliness token."""
@@ -65,53 +45,6 @@ for room (nothing is dropped unread: a flood of bad messages is read, and counte
 SILENT_MEMBER_S = 5.0
 """A ring member whose migrants have not arrived for this long is skipped by the island after it
 (:meth:`island.node.IslandNode._sending`): a member that sends nothing cannot starve its successor."""
-
-
-def key_prefix(campaign: str) -> str:
-    """The key space of ``campaign``: ``hysid/<campaign>``."""
-    return f"hysid/{check_name('campaign', campaign)}"
-
-
-def replies(session: zenoh.Session, selector: str, timeout: float, payload: bytes | None = None) -> list[bytes]:
-    """Every answer to a query, from every queryable (a stranger may answer too: the caller checks each)."""
-    got = session.get(selector, payload=payload, timeout=timeout, target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE)
-    return [r.ok.payload.to_bytes() for r in got if r.ok is not None]
-
-
-def join(
-    session: zenoh.Session, campaign: str, island: str, algo: str, seed: int, secret: CampaignSecret, wait_s: float,
-    on_reject: Callable[[], None] | None = None, key: bytes | None = None,
-) -> Credentials:
-    """The join handshake on ``join/<id>`` (until the coordinator admits the island or ``wait_s`` passes): ask
-    with the public half of the run's signing ``key`` (a fresh one by default), take the challenge signed
-    by the coordinator of ``secret``, prove the admission secret, take the signed run id. Answers that
-    fail validation (a stranger posing as the coordinator) are counted by ``on_reject``; a refusal by
-    the coordinator (e.g. the id is taken) is a :class:`HysidInputError`."""
-    key = key if key is not None else new_key()
-    where = f"{key_prefix(campaign)}/join/{island}"
-    deadline = time.monotonic() + wait_s
-    timeout = min(QUERY_TIMEOUT_S, max(wait_s, 0.5))
-
-    def answers(payload: bytes, decode: Callable[[bytes], str | bytes]) -> str | bytes | None:
-        for answer in replies(session, where, timeout, payload):
-            try:
-                return decode(answer)
-            except MessageRejected:
-                if on_reject is not None:
-                    on_reject()
-        return None
-
-    request = JoinRequest(campaign, island, algo, seed, secrets.token_bytes(16), public_key(key), secret.member)  # asked again as it is: one run
-    while True:
-        challenge = answers(encode_join(request), lambda a: decode_challenge(a, campaign, island, request.nonce, secret.coordinator))
-        if challenge is not None:
-            proof = encode_prove(request, challenge, secret.admission, key)
-            run = answers(proof, lambda a: decode_joined(a, campaign, island, request.nonce, secret.coordinator))
-            if run is not None:
-                return Credentials(island, str(run), key, secret.coordinator)
-        if time.monotonic() >= deadline:
-            raise HysidInputError(f"no coordinator admitted island {island!r} on {where} within {wait_s:g} s")
-        time.sleep(0.2)
 
 
 class ZenohHost:
@@ -467,133 +400,3 @@ class ZenohTransport:
         self._token.undeclare()
         if self._own_host:
             self.host.close()
-
-
-def fetch_config(session: zenoh.Session, secret: CampaignSecret, wait_s: float, on_reject: Callable[[], None] | None = None) -> bytes:
-    """The ``config`` message of the campaign of ``secret``, signed by its coordinator (answers of anyone
-    else are refused, counted by ``on_reject``), asking until one answers or ``wait_s`` passes."""
-    key = f"{key_prefix(secret.campaign)}/config"
-    deadline = time.monotonic() + wait_s
-    while True:
-        for answer in replies(session, key, min(2.0, max(wait_s, 0.1))):
-            try:
-                return decode_signed_config(answer, secret.campaign, secret.coordinator)
-            except MessageRejected:
-                if on_reject is not None:
-                    on_reject()
-        if time.monotonic() >= deadline:
-            raise HysidInputError(
-                f"no coordinator answered on {key} within {wait_s:g} s (is the coordinator of campaign {secret.campaign!r} running and "
-                "reachable, and is this its secret?)"
-            )
-        time.sleep(0.2)
-
-
-Admit = Callable[[str, str, int, bytes], str]
-"""``admit(island, algo, seed, public key)``: the run id the coordinator issues an in-process island."""
-
-
-class MemoryBus:
-    """In-process migration between island threads, in lock step per epoch.
-
-    At epoch ``e`` every island posts its migrants and waits until each island
-    still running has posted for ``e`` (or finished), so the exchange does not
-    depend on thread timing and a seeded single-node campaign is reproducible.
-    ``admit`` registers each island's signing key and issues its run (the
-    coordinator's, in a single-node campaign; by default the bus' own);
-    ``assigned(island)`` is the algorithm the coordinator tells an island to run
-    (None: not said).
-    """
-
-    def __init__(
-        self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], None], stop: threading.Event, admit: Admit | None = None,
-        assigned: Callable[[str], str | None] | None = None, coordinator: bytes = b"",
-    ) -> None:
-        self.prefix = key_prefix(campaign)
-        self.islands = sorted(islands)
-        if len(self.islands) > MAX_MEMBERS:
-            raise HysidInputError(f"at most {MAX_MEMBERS} islands", param="islands", value=len(self.islands))
-        self.deliver = deliver
-        """Receives every publication as ``(key, message)``, as the coordinator's subscribers would."""
-        self.stop = stop
-        self.coordinator = coordinator
-        """The coordinator's public key (in one process nothing it sends goes through the bus)."""
-        self.admit = admit or (lambda island, algo, seed, key: secrets.token_hex(6))
-        self.assigned = assigned or (lambda island: None)
-        self._keys: dict[tuple[str, str], bytes] = {}
-        self._active = set(islands)
-        self._posts: dict[int, dict[str, bytes]] = {}
-        self._cond = threading.Condition()
-
-    def transport(self, island: str, algo: str = "", seed: int = 0) -> "MemoryTransport":
-        key = new_key()
-        run = self.admit(island, algo, seed, public_key(key))
-        with self._cond:
-            self._keys[(island, run)] = public_key(key)
-        return MemoryTransport(self, island, Credentials(island, run, key, self.coordinator))
-
-    def key_for(self, island: str, run: str) -> bytes | None:
-        with self._cond:
-            return self._keys.get((island, run))
-
-    def exchange(self, island: str, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
-        self.deliver(f"{self.prefix}/migrants/{island}", payload)
-        with self._cond:
-            posts = self._posts.setdefault(epoch, {})
-            posts[island] = payload
-            self._cond.notify_all()
-            self._cond.wait_for(lambda: self._active <= set(posts) or self.stop.is_set())
-            return [(sender, data) for sender, data in sorted(posts.items()) if sender != island]
-
-    def leave(self, island: str) -> None:
-        with self._cond:
-            self._active.discard(island)
-            self._cond.notify_all()
-
-
-class MemoryTransport:
-    """One island's view of a :class:`MemoryBus`."""
-
-    silent_s: float | None = None
-    """In lock step every member posts at every epoch."""
-    arrivals = None
-    """Each island keeps its own (:class:`island.arrivals.Arrivals`)."""
-
-    def __init__(self, bus: MemoryBus, island: str, credentials: Credentials) -> None:
-        self.bus = bus
-        self.island = island
-        self.credentials = credentials
-
-    def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
-        return self.bus.exchange(self.island, epoch, payload)
-
-    def publish_history(self, payload: bytes) -> None:
-        self.bus.deliver(f"{self.bus.prefix}/history/{self.island}", payload)
-
-    def members(self) -> list[str]:
-        return list(self.bus.islands)
-
-    def key_for(self, island: str, run: str) -> bytes | None:
-        return self.bus.key_for(island, run)
-
-    def stop_requested(self) -> bool:
-        return self.bus.stop.is_set()
-
-    def stop_reason(self) -> str:
-        return "stopped by the coordinator"
-
-    def global_best(self) -> list[bytes]:
-        return []
-
-    def assigned_algo(self) -> str | None:
-        return self.bus.assigned(self.island)
-
-    def wait_for_members(self, n: int, timeout_s: float) -> None:
-        """Every island of the bus exists from the start."""
-
-    def confirm(self, iteration: int) -> bool:
-        """The coordinator is in this process: what was delivered is in its queue."""
-        return True
-
-    def close(self) -> None:
-        self.bus.leave(self.island)

@@ -106,7 +106,7 @@ def ready(endpoint: str, campaign: str, timeout: float = 90.0, process: subproce
     the first look, and the caller reads how it ended. The session retries its connection every
     0.05-0.2 s, not Zenoh's 1-4 s, so that a coordinator listening only briefly is still seen."""
     from island.session import open_session, session_config
-    from island.transports import replies
+    from island.joining import replies
 
     deadline = time.monotonic() + timeout
     config = session_config("client", connect=[endpoint], connect_timeout_s=1.0)
@@ -178,7 +178,7 @@ class Peer:
     def __init__(self, endpoint: str, campaign: str, island: str, *, secret=None, algo: str = "pso", seed: int = 0) -> None:
         from island.sealing import Counter
         from island.session import open_session, session_config
-        from island.transports import join
+        from island.joining import join
 
         self.campaign, self.island = campaign, island
         self.session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=60.0), endpoint)

@@ -72,6 +72,21 @@ def test_campaign_of_island_processes_over_zenoh(tmp_path):
     assert sorted(events(db)) == sorted([("pso-0", "join"), ("pso-1", "join"), ("pso-0", "left"), ("pso-1", "left")])
 
 
+@pytest.mark.slow
+def test_an_honest_campaign_of_two_island_processes_counts_no_message_rejected_or_unlisted(tmp_path):
+    """The main job with two islands of 400 iterations (GA and PSO, the staged share): no island counts a message
+    rejected, nor one that waited for the roster in vain (the roster goes out at every join, before the joiner hears
+    it joined), the coordinator rejects none, and every move of the share is followed."""
+    out = tmp_path / "out"
+    proc = subprocess.run(hysid("campaign", "--islands", "2", "--iterations", "400", "--json", "--out", str(out)),
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads(proc.stdout)
+    assert [(i["island"], i["rejected"], i["unlisted"]) for i in doc["islands"]] == [("ga-0", 0, 0), ("pso-1", 0, 0)]
+    assert doc["migrations"]["rejected"] == 0 and doc["migrations"]["unlisted"] == 0 and doc["migrations"]["received"] > 0
+    assert "not followed" not in (out / "report.md").read_text()
+
+
 def test_campaign_falls_back_to_one_process_when_zenoh_cannot_open(tmp_path):
     loops = synth_loops(n_points=30)
     sizes = {"ga": {"population": 10, "initial_population": 20, "iterations": 6}, "pso": {"population": 10, "initial_population": 20, "iterations": 6}}

@@ -21,18 +21,8 @@ from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from island.protocol import (
-    History,
-    JoinRequest,
-    Migrants,
-    decode_challenge,
-    decode_control,
-    decode_joined,
-    encode_history,
-    encode_join,
-    encode_migrants,
-    encode_prove,
-)
+from island.handshake import JoinRequest, decode_challenge, decode_joined, encode_join, encode_prove
+from island.protocol import History, Migrants, decode_control, encode_history, encode_migrants
 from island.sealing import Credentials, new_key, public_key
 from island.termination import Termination
 

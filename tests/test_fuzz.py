@@ -18,9 +18,9 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
 from island.node import IslandNode
-from island.protocol import JoinRequest, decode_challenge, decode_joined, encode_join, encode_prove
+from island.handshake import JoinRequest, decode_challenge, decode_joined, encode_join, encode_prove
 from island.sealing import Counter, Credentials, new_key, public_key
-from island.transports import MemoryBus
+from island.memory import MemoryBus
 from hostile import Hostile, stream
 
 pytestmark = pytest.mark.slow  # a few seconds of messages

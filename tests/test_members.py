@@ -16,12 +16,14 @@ import pytest
 from coordinator.loop import check_stop, pump
 from hysid_model.errors import HysidInputError
 from island.node import IslandNode
-from island.protocol import JoinRequest, decode_joined, encode_history, History
+from island.handshake import JoinRequest, decode_joined
+from island.protocol import encode_history, History
 from island.secret import CampaignSecret, member_admission
 from island.sealing import new_key, public_key
 from island.session import open_session, session_config
 from island.termination import Termination
-from island.transports import ZenohTransport, join
+from island.joining import join
+from island.transports import ZenohTransport
 from support import query, wait_for
 from test_coordinator import STATS, handshake, history, link, make, reasons, truth  # noqa: F401  (link: the fixture)
 from test_host import LOOPS, Campaign, config

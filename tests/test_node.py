@@ -20,30 +20,28 @@ from island.ga import GA
 from island.memetic import Island
 from island.migration import Migration
 from island.node import HISTORY_MESSAGES_PER_S, HISTORY_PERIOD_MAX_S, IslandNode, history_period
+from island.handshake import JoinRequest, decode_join_step, encode_challenge, encode_joined, proof_holds
 from island.protocol import (
     Best,
     Control,
     HistoryQuery,
-    JoinRequest,
     MemberState,
     Migrants,
     decode_history,
-    decode_join_step,
     decode_migrants,
     encode_best,
-    encode_challenge,
     encode_control,
     encode_history_query,
-    encode_joined,
     encode_migrants,
     encode_signed_config,
-    proof_holds,
 )
 from island.secret import CampaignSecret
 from island.sealing import Credentials, new_key, public_key
 from island.session import open_session, session_config
 from island.pso import PSO
-from island.transports import MemoryBus, ZenohTransport, fetch_config
+from island.joining import fetch_config
+from island.memory import MemoryBus
+from island.transports import ZenohTransport
 from support import wait_for
 
 LOOPS = synth_loops(n_points=30)

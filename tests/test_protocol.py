@@ -12,36 +12,38 @@ from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
 from island.migration import Migration, in_neighbours
+from island.handshake import (
+    JoinRequest,
+    Proof,
+    decode_challenge,
+    decode_join,
+    decode_join_step,
+    decode_joined,
+    encode_challenge,
+    encode_join,
+    encode_joined,
+    encode_prove,
+    proof_holds,
+)
 from island.protocol import (
     Best,
     Control,
     History,
     HistoryQuery,
-    JoinRequest,
     MemberState,
     Migrants,
-    Proof,
     decode_best,
-    decode_challenge,
     decode_control,
     decode_history,
     decode_history_query,
-    decode_join,
-    decode_join_step,
-    decode_joined,
     decode_migrants,
     decode_signed_config,
     encode_best,
-    encode_challenge,
     encode_control,
     encode_history,
     encode_history_query,
-    encode_join,
-    encode_joined,
     encode_migrants,
-    encode_prove,
     encode_signed_config,
-    proof_holds,
 )
 from island.secret import CampaignSecret
 from island.sealing import Credentials, ReplayGuard, check_replay, new_key, public_key, seal

@@ -24,7 +24,7 @@ from island.protocol import History, decode_control, decode_history, encode_hist
 from island.pso import PSO
 from island.share import LEADING, WINDOW, Share, Staged, check_share
 from island.termination import Termination
-from island.transports import MemoryBus
+from island.memory import MemoryBus
 
 BOUNDS = np.array([[-5.0, 5.0]] * 4)
 SIZES = {"population": 10, "initial_population": 20, "iterations": 1000}

@@ -43,7 +43,8 @@ from island.protocol import Migrants, encode_migrants
 from island.secret import CampaignSecret, secret_path
 from island.session import open_session, session_config
 from island.termination import Termination
-from island.transports import ZenohTransport, fetch_config, join
+from island.joining import fetch_config, join
+from island.transports import ZenohTransport
 
 SIZES = {a: {"population": 20, "initial_population": 40, "iterations": 10**9} for a in ("ga", "pso")}
 """Islands of the benches: the default sizes of a PSO island on the Synth set, an endless budget."""

@@ -1,6 +1,6 @@
 """Simulated islands for the coordinator bench: any number of island sessions in one process, speaking the real protocol.
 
-Each simulated island joins through the real handshake (:func:`island.transports.join`: its own run and signing
+Each simulated island joins through the real handshake (:func:`island.joining.join`: its own run and signing
 key), holds its liveliness token and sends what an island of the campaign's size sends (:func:`traffic`): a
 history row per iteration at ``rate`` iterations a second, in messages every
 :func:`island.node.history_period` (with improvements of its best now and then), a migrant message every
@@ -34,7 +34,7 @@ from island.protocol import STAT_NAMES, History, Migrants, encode_history, encod
 from island.sealing import Credentials
 from island.secret import CampaignSecret
 from island.session import open_session, session_config
-from island.transports import fetch_config, join, key_prefix
+from island.joining import fetch_config, join, key_prefix
 
 IMPROVES = 0.02
 """Chance that an iteration improves a simulated island's best (by 1 %)."""

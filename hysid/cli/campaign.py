@@ -45,7 +45,7 @@ from island.host import cores, describe, host_specs, run_islands
 from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret, member_path, of_member, secret_path
 from island.session import DEFAULT_ENDPOINT, authenticated_name, open_session, session_config
 from island.termination import Termination
-from island.transports import fetch_config
+from island.joining import fetch_config
 from island.wire import MAX_MEMBERS, check_name
 
 
