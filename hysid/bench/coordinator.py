@@ -37,13 +37,11 @@ from typing import Any
 
 import numpy as np
 
-from coordinator.launch import free_port
-from coordinator.links import MemoryLink, ZenohLink
+from coordinator.links import MemoryLink
 from coordinator.loop import pump, serve
-from hysid.bench.processes import commits, coordinator, flood, host
+from hysid.bench.processes import commits, coordinator, flood, host, listening
 from island.node import HISTORY_EVERY_S, history_period
 from island.protocol import History, encode_history
-from island.session import open_session, session_config
 from island.termination import Termination
 
 ISLANDS = 32
@@ -119,11 +117,7 @@ def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, A
     between commits and between stop-rule checks, the deepest inbox and this process's RSS every ``rss_every_s``
     (from before the islands joined)."""
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
-        c = coordinator(Path(tmp), "load")
-        endpoint = f"tcp/127.0.0.1:{free_port()}"
-        session = open_session(session_config("router", listen=[endpoint]), endpoint)
-        link = ZenohLink(session, c)
-        secret = c.secret.write(Path(tmp) / "load.secret")
+        c, endpoint, session, link, secret = listening(Path(tmp), "load")
         rss: list[tuple[float, float]] = []
         baseline = rss_now_mb()
         feeder = simulated(endpoint, secret, islands, seconds)

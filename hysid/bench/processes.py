@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import zenoh
 
 from coordinator.launch import free_port
 from coordinator.links import ZenohLink
@@ -58,6 +59,15 @@ def coordinator(workdir: Path, name: str, termination: Termination | None = None
     return Coordinator(Store(workdir / f"{name}.sqlite"), config, loops, termination)
 
 
+def listening(workdir: Path, name: str) -> tuple[Coordinator, str, zenoh.Session, ZenohLink, Path]:
+    """A coordinator of campaign ``name`` (:func:`coordinator`) listening on a free loopback port: it, the endpoint, its
+    session and link, and the file of its secret (in ``workdir``)."""
+    c = coordinator(workdir, name)
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    session = open_session(session_config("router", listen=[endpoint]), endpoint)
+    return c, endpoint, session, ZenohLink(session, c), c.secret.write(workdir / f"{name}.secret")
+
+
 FLOOD_PER_S = 250.0
 """Migrant messages a second of the commits part's flood (256 new migrants each: 64,000 candidates a second to check)."""
 COMMITS_S = 20.0
@@ -68,11 +78,7 @@ def commit_gaps(flood: bool, seconds: float = COMMITS_S) -> dict[str, Any]:
     """The gaps between commits of a coordinator in this process serving one island process, for ``seconds`` once the
     island reports; with ``flood``, while a joined island floods (:func:`flooder`, varied migrants)."""
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
-        c = coordinator(Path(tmp), "gaps")
-        endpoint = f"tcp/127.0.0.1:{free_port()}"
-        session = open_session(session_config("router", listen=[endpoint]), endpoint)
-        link = ZenohLink(session, c)
-        secret = c.secret.write(Path(tmp) / "gaps.secret")
+        c, endpoint, session, link, secret = listening(Path(tmp), "gaps")
         island = subprocess.Popen([sys.executable, "-m", "hysid", "island", "--connect", endpoint, "--campaign", "gaps", "--id", "a",
                                    "--secret-file", str(secret), "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         stamps: list[float] = []
