@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import math
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -35,10 +36,12 @@ from hysid_model.extraction import extract_loop
 from hysid_model.loops import LoopSet
 from hysid_model.readers.csv_series import write_series
 from hysid_model.readers.dataset_dir import (
-    MANIFEST_NAME, DatasetConfig, confined, frequency_in_name, inside, listed_file, read_config, read_manifest,
+    MANIFEST_NAME, DatasetConfig, check_skip_rows, confined, frequency_in_name, inside, listed_file, read_config, read_manifest,
 )
 from hysid_model.readers.matfile import read_mat_dataset
-from hysid_model.readers.records import RAW_SUFFIXES, RawSource, directory_sources, manifest_sources, manifest_text, sources_of_file
+from hysid_model.readers.records import (
+    RAW_SUFFIXES, RawSource, check_records, directory_sources, manifest_sources, manifest_text, sources_of_file,
+)
 from hysid_model.readers.tidy import is_tidy_file, read_loops, write_loops
 from hysid_model.synth import RawRecord, check_noise, synth_loops
 
@@ -46,11 +49,15 @@ TIDY_NAME = "loops.csv"
 DEFAULT_POINTS = 100
 
 
-def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 0, n_points: int | None = None) -> LoopSet:
+def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 0, n_points: int | None = None,
+                 skip_rows: int | None = None) -> LoopSet:
     """Load the loops of ``spec`` (see the module docstring), with optional added noise.
 
     ``n_points`` samples per branch (default 100, the thesis' ``interppts``);
     a tidy loops file keeps its own and only checks it when one is given.
+    ``skip_rows``: the lines before the header of every CSV record (a preamble of free text), as
+    ``skip_rows`` in ``dataset.toml`` says (which it overrides); by default a preamble is found and skipped
+    with a warning.
     ``noise_pct`` adds Gaussian force noise of std noise_pct % of each loop's
     peak force (the thesis' ``maxF*noiselevel/100*randn``, Appendix A) and
     raises ``sigma`` accordingly (an unknown sigma stays unknown).
@@ -58,13 +65,18 @@ def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 
     if n_points is not None and (isinstance(n_points, bool) or not isinstance(n_points, int) or n_points < 2):
         raise HysidInputError("points per branch must be an integer >= 2", param="n_points", value=n_points)
     check_noise(noise_pct)
+    if skip_rows is not None:
+        check_skip_rows(skip_rows)
     if str(spec) == "synth":
         return synth_loops(noise_pct, noise_seed, n_points or DEFAULT_POINTS)
     path = Path(spec)
     if not path.exists():
         raise HysidInputError(f"{spec}: no such dataset (expected a dataset directory, a loops file, .mat/.lvm files or 'synth')")
+    config = read_config(path if path.is_dir() else path.parent)
+    if skip_rows is not None:
+        config = replace(config, skip_rows=skip_rows)
     with notices.recorded() as raised:
-        loops = _load_dir(path, n_points) if path.is_dir() else _load_file(path, n_points)
+        loops = _load_dir(path, config, n_points) if path.is_dir() else _load_file(path, config, n_points)
     loops.meta[notices.META_KEY] = notices.merged(notices.stored(loops.meta), raised)
     return add_noise(loops, noise_pct, noise_seed)
 
@@ -101,8 +113,7 @@ def _tidy(path: Path, config: DatasetConfig, n_points: int | None) -> LoopSet:
     return loops
 
 
-def _load_file(path: Path, n_points: int | None) -> LoopSet:
-    config = read_config(path.parent)
+def _load_file(path: Path, config: DatasetConfig, n_points: int | None) -> LoopSet:
     suffix = path.suffix.lower()
     if is_tidy_file(path):
         return _tidy(path, config, n_points)
@@ -116,8 +127,7 @@ def _load_file(path: Path, n_points: int | None) -> LoopSet:
     raise HysidInputError(f"{path}: unknown dataset file type (expected a hysid loops file, .mat, or a raw record: {', '.join(RAW_SUFFIXES)})")
 
 
-def _load_dir(directory: Path, n_points: int | None) -> LoopSet:
-    config = read_config(directory)
+def _load_dir(directory: Path, config: DatasetConfig, n_points: int | None) -> LoopSet:
     manifest = directory / MANIFEST_NAME
     tidy = directory / TIDY_NAME
     if manifest.is_file() and tidy.is_file():
@@ -160,6 +170,7 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     from neither a manifest nor their name get the data's; a warning says so, and ``meta`` keeps
     ``estimated_manifest``, the ``manifest.csv`` that would fix those frequencies.
     """
+    check_records(sources, str(config.directory))
     extracted, read = [], []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", HysidWarning)

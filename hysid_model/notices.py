@@ -26,6 +26,7 @@ CODES = {
     # reading the files
     "no_unit": "a displacement or force channel states no unit and is read as SI",
     "records_left_out": "files of the dataset directory that hold no record were left out",
+    "preamble_skipped": "lines of free text before a CSV record's header were skipped (skip_rows says how many)",
     "estimated_frequencies": "no manifest: the records' frequencies were estimated from the data",
     "sub_loops": "a displacement that reverses more than twice per cycle (sub-loops, a clipped top)",
     "distortion": "the displacement is not a pure sine (THD above 5 %)",

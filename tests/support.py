@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
+from hysid_model.synth import RawRecord
 from hysid.bench.sites import query  # noqa: F401  (read a campaign database while a coordinator writes it)
 from island.run import run
 
@@ -249,3 +251,25 @@ def screen_of(argv: list[str], timeout: float, until: Callable[[str], bool] | No
             proc.kill()
             proc.wait()
         os.close(master)
+
+
+FS = 3000.0
+"""Sample rate of :func:`record`."""
+
+
+def record(label: str, freq: float, x0: float, seed: int, cycles: int = 10) -> RawRecord:
+    """A small raw record: a sine displacement with noise, a phase-shifted force with a third harmonic and noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(cycles / freq * FS)) / FS
+    theta = 2 * np.pi * freq * t + 0.3
+    force = 2e4 * x0 * (np.sin(theta + 0.5) + 0.1 * np.sin(3 * theta)) + 0.02 * rng.standard_normal(t.size)
+    return RawRecord(label, freq, x0, t, x0 * np.sin(theta) + 1e-3 * x0 * rng.standard_normal(t.size), force, 0.02)
+
+
+def same_loops(loops: LoopSet, reference: LoopSet) -> None:
+    """The same loops as the reference, up to the 12 significant digits the CSV records keep."""
+    assert loops.labels == reference.labels
+    np.testing.assert_allclose(loops.freq_hz, reference.freq_hz, rtol=1e-9)
+    np.testing.assert_allclose(loops.x0, reference.x0, rtol=1e-8)
+    np.testing.assert_allclose(loops.top, reference.top, rtol=1e-6, atol=1e-9 * np.abs(reference.top).max())
+    np.testing.assert_allclose(loops.bottom, reference.bottom, rtol=1e-6, atol=1e-9 * np.abs(reference.bottom).max())

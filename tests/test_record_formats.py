@@ -17,18 +17,7 @@ from hysid.cli import main
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.loops import LoopSet
-from hysid_model.synth import RawRecord
-
-FS = 3000.0
-
-
-def record(label: str, freq: float, x0: float, seed: int, cycles: int = 10) -> RawRecord:
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(cycles / freq * FS)) / FS
-    theta = 2 * np.pi * freq * t + 0.3
-    force = 2e4 * x0 * (np.sin(theta + 0.5) + 0.1 * np.sin(3 * theta)) + 0.02 * rng.standard_normal(t.size)
-    return RawRecord(label, freq, x0, t, x0 * np.sin(theta) + 1e-3 * x0 * rng.standard_normal(t.size), force, 0.02)
-
+from support import FS, record, same_loops
 
 RECORDS = [record("run1", 9.0, 1e-3, 1), record("run2", 12.5, 2e-3, 2)]
 
@@ -37,15 +26,6 @@ RECORDS = [record("run1", 9.0, 1e-3, 1), record("run2", 12.5, 2e-3, 2)]
 def reference(tmp_path_factory) -> LoopSet:
     """The loops of RECORDS written as hysid's own CSV records."""
     return load_dataset(write_dataset(tmp_path_factory.mktemp("ref") / "d", RECORDS))
-
-
-def same_loops(loops: LoopSet, reference: LoopSet) -> None:
-    """The same loops as the reference, up to the 12 significant digits the CSV records keep."""
-    assert loops.labels == reference.labels
-    np.testing.assert_allclose(loops.freq_hz, reference.freq_hz, rtol=1e-9)
-    np.testing.assert_allclose(loops.x0, reference.x0, rtol=1e-8)
-    np.testing.assert_allclose(loops.top, reference.top, rtol=1e-6, atol=1e-9 * np.abs(reference.top).max())
-    np.testing.assert_allclose(loops.bottom, reference.bottom, rtol=1e-6, atol=1e-9 * np.abs(reference.bottom).max())
 
 
 def manifest(directory: Path, files: list[str]) -> None:

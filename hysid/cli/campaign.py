@@ -146,6 +146,7 @@ def register(app: typer.Typer) -> None:
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         points: Optional[int] = o.POINTS,
+        skip_rows: Optional[int] = o.SKIP_ROWS,
         budget: Optional[int] = o.BUDGET,
         target: Optional[float] = o.TARGET,
         stall: Optional[int] = o.STALL,
@@ -177,7 +178,7 @@ def register(app: typer.Typer) -> None:
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
         new_db = not path.exists()
-        loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
+        loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
         sizes, termination, until_stopped, iterations = o.island_plan(
             loops, model, bounds, algo_list, population, initial, given_iterations, termination)
         try:
@@ -230,6 +231,7 @@ def register(app: typer.Typer) -> None:
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         points: Optional[int] = o.POINTS,
+        skip_rows: Optional[int] = o.SKIP_ROWS,
         budget: Optional[int] = o.BUDGET,
         target: Optional[float] = o.TARGET,
         stall: Optional[int] = o.STALL,
@@ -258,7 +260,7 @@ def register(app: typer.Typer) -> None:
         if not resume_db:  # every argument is checked before the database is written or a session opened
             o.island_sizes(population, initial, iterations)  # checked before the loops are read
             migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
-            loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points)
+            loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
             sizes, termination, until_stopped, iterations = o.island_plan(
                 loops, model, bounds, o.parse_algos(algos), population, initial, iterations, termination)
             motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)

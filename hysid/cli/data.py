@@ -47,6 +47,7 @@ def register(app: typer.Typer) -> None:
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         points: int | None = o.POINTS,
+        skip_rows: Optional[int] = o.SKIP_ROWS,
         out: Optional[Path] = typer.Option(
             None, "--out", help="Also write the loops (loops.csv: fit, diagnose and campaign read this directory without extracting again), survey.png and loops.json to this new (or empty) directory."
         ),
@@ -55,7 +56,7 @@ def register(app: typer.Typer) -> None:
         dynamic stiffness, equivalent damping, loss factor, energy per cycle, and fn, xi where the mass is known or estimated;
         displacement distortion and clipping, and, without a manifest, the manifest.csv of the frequencies estimated."""
         target = None if out is None else o.report_dir(out, "loops")
-        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
+        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
         found = survey(loops)
         rows = [{**row, **extra} for row, extra in zip(loops.rows(), found.rows())]
         if target is not None:

@@ -24,6 +24,7 @@ def register(app: typer.Typer) -> None:
         out: Optional[Path] = o.OUT,
         as_json: bool = o.JSON,
         points: Optional[int] = o.POINTS,
+        skip_rows: Optional[int] = o.SKIP_ROWS,
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         csv: bool = o.CSV,
@@ -35,7 +36,7 @@ def register(app: typer.Typer) -> None:
         """Find which effects of the library (and --candidates of your own) the model misses, step by step, and write a report."""
         bounds, effects = o.parse_bounds(bound), candidate_effects(o.parse_list(candidates))
         target = o.report_dir(out, "diagnose")
-        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
+        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
         with Progress("diagnosing", 2, enabled=not (quiet or as_json)) as progress:
             result = diagnose(
                 loops, model, bounds=bounds, candidates=effects, displacement=displacement,

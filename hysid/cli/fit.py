@@ -37,6 +37,7 @@ def register(app: typer.Typer) -> None:
         noise: float = o.NOISE,
         noise_seed: int = o.NOISE_SEED,
         points: Optional[int] = o.POINTS,
+        skip_rows: Optional[int] = o.SKIP_ROWS,
         csv: bool = o.CSV,
         quiet: bool = o.QUIET,
         bound: Optional[list[str]] = o.BOUND,
@@ -46,7 +47,7 @@ def register(app: typer.Typer) -> None:
         """Identify the model's parameters from DATASET in this process (no network)."""
         bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
         target = o.report_dir(out, "fit")
-        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points)
+        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
         with Progress("fitting", max(runs, 1) * ROWS_PER_RUN, enabled=not (quiet or as_json)) as progress:
 
             def show(i: int, row: HistoryRow) -> None:

@@ -39,6 +39,7 @@ FLAGS = {
     "noise_seed": "--noise-seed",
     "noise_seeds": "--seeds-noise",
     "n_points": "--points",
+    "skip_rows": "--skip-rows",
     "islands": "--islands",
     "count": "--count",
     "campaign": "--campaign",
@@ -107,6 +108,11 @@ NOISE = typer.Option(0.0, "--noise", help="Gaussian force noise, % of each loop'
 NOISE_SEED = typer.Option(0, "--noise-seed", help="Seed of that noise.")
 SYNTH_NOISE_SEED = typer.Option(0, "--noise-seed", "--seed", help="Seed of that noise (--seed, its old name, works too).")
 POINTS = typer.Option(None, "--points", help="Points per branch when loops are extracted from raw records (default 100; a loops file keeps its own).")
+SKIP_ROWS = typer.Option(
+    None, "--skip-rows", metavar="N",
+    help="Lines before the header of every CSV record (a preamble of free text), as skip_rows in dataset.toml. "
+    "Default: a preamble is found by the rows of numbers under the header and skipped with a warning.",
+)
 ALGO = typer.Option("pso", "--algo", help="Optimizer: ga or pso (the thesis' settings, section 5.1).")
 RUNS = typer.Option(1, "--runs", help="Independent runs with seeds SEED..SEED+RUNS-1; the best is reported.")
 SEED = typer.Option(0, "--seed", help="Seed of the first run (island i of a campaign uses SEED + i).")

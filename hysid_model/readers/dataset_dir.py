@@ -10,6 +10,7 @@
     time_channel = "Time"       # channels (CSV columns, TDMS/HDF5/.lvm channels) by name, or by number (1 = first)
     displacement_channel = "Displacement"
     force_channel = 2
+    skip_rows = 3               # CSV records: lines before the header (a preamble of free text); found by itself, with a warning, when absent
     description = "..."
 
     [bounds]                    # search-space overrides, stored in LoopSet.meta["bounds"]
@@ -24,7 +25,9 @@
     steady_t1_s = 20
 
 ``manifest.csv`` lists one record per row under the header ``file,frequency_hz``
-(further columns are allowed and ignored), in the order the loops are numbered.
+(further columns are allowed and ignored), in the order the loops are numbered;
+``;`` or tab separators (with decimal commas), Windows-1252 text and file names
+holding the separator unquoted (``probe_f0,2Hz.csv``) are read too.
 """
 
 from __future__ import annotations
@@ -64,6 +67,9 @@ class DatasetConfig:
     time_channel: str | int | None = None
     displacement_channel: str | int | None = None
     force_channel: str | int | None = None
+    skip_rows: int | None = None
+    """Lines before a CSV record's header (``skip_rows`` in ``dataset.toml``, or ``--skip-rows``); None: found by
+    :func:`hysid_model.readers.csv_series.sniff`."""
     steady: dict[str, tuple[float, float]] = field(default_factory=dict)
     steady_default: tuple[float, float] | None = None
     """The top-level steady window, for every record without its own [[tests]] window."""
@@ -151,6 +157,22 @@ def _channel(doc: dict[str, Any], key: str, where: str) -> str | int | None:
     raise HysidInputError(f"{where}: {key} must be a channel name or a channel number >= 1, got {value!r}")
 
 
+def _skip_rows(doc: dict[str, Any], where: str) -> int | None:
+    value = doc.get("skip_rows")
+    if value is None:
+        return None
+    check_skip_rows(value, where)
+    return int(value)
+
+
+def check_skip_rows(value: Any, where: str | None = None) -> None:
+    """``skip_rows`` must be a whole number of lines >= 0 (``where`` names the file, else the Python parameter)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        if where is None:
+            raise HysidInputError("must be a whole number of lines >= 0", param="skip_rows", value=value)
+        raise HysidInputError(f"{where}: skip_rows must be a whole number of lines >= 0, got {value!r}")
+
+
 def _bounds(doc: dict[str, Any], where: str) -> dict[str, tuple[float, float]]:
     table = doc.get("bounds", {})
     if not isinstance(table, dict):
@@ -221,6 +243,7 @@ def read_config(directory: Path) -> DatasetConfig:
         time_channel=_channel(doc, "time_channel", where),
         displacement_channel=_channel(doc, "displacement_channel", where),
         force_channel=_channel(doc, "force_channel", where),
+        skip_rows=_skip_rows(doc, where),
         steady=_steady_windows(doc, where),
         steady_default=_window(doc, "", where),
         info=info,
@@ -228,30 +251,72 @@ def read_config(directory: Path) -> DatasetConfig:
     )
 
 
-def read_manifest(path: Path) -> list[ManifestRow]:
-    """Rows of ``manifest.csv`` (header ``file,frequency_hz``), checked for duplicates and bad frequencies."""
+def _manifest_text(path: Path) -> str:
+    """The manifest's text: UTF-8, else Windows-1252 (a spreadsheet's CSV export in Western Europe)."""
+    data = path.read_bytes()
+    for encoding in ("utf-8-sig", "cp1252"):
+        try:
+            return data.decode(encoding)
+        except UnicodeDecodeError:
+            continue
+    raise HysidInputError(f"{path}: not UTF-8 text")
+
+
+def _frequency(text: str, delimiter: str) -> float:
+    """A frequency cell (a decimal comma where the separator is not a comma), NaN if it is no number."""
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise HysidInputError(f"{path}: not UTF-8 text") from None
+        return float(text.replace(",", ".") if delimiter != "," else text)
+    except ValueError:
+        return math.nan
+
+
+def _row_cells(cells: list[str], columns: int, i_file: int, i_freq: int, delimiter: str, directory: Path) -> list[str]:
+    """A row's cells, as many as the header's: a row with more is a file name holding the separator, unquoted
+    (``probe_f0,2Hz.csv,0.2``), and, in a comma-separated file, maybe a decimal comma in the frequency too. Of the
+    ways to join the surplus cells, the one naming a file in the directory, with a positive frequency, wins."""
+    extra = len(cells) - columns
+    if extra <= 0:
+        return cells
+    joins = []
+    for in_freq in (0, 1) if delimiter == "," else (0,):
+        widths = [1] * columns
+        widths[i_file] += extra - in_freq
+        widths[i_freq] += in_freq
+        if min(widths) < 1:
+            continue
+        bounds = [sum(widths[:k]) for k in range(columns + 1)]
+        joined = [("." if k == i_freq else delimiter).join(cells[bounds[k] : bounds[k + 1]]) for k in range(columns)]
+        if _frequency(joined[i_freq], delimiter) > 0:
+            joins.append(joined)
+    named = [j for j in joins if (directory / j[i_file]).is_file()]
+    return (named or joins or [cells])[0]
+
+
+def read_manifest(path: Path) -> list[ManifestRow]:
+    """Rows of ``manifest.csv`` (header ``file,frequency_hz``, in any case), checked for duplicates and bad frequencies.
+
+    Written as spreadsheets write it too: separated by ``;`` or tabs (then the frequency may have a decimal comma),
+    in Windows-1252, and with file names holding the separator unquoted (German names such as ``probe_f0,2Hz.csv``).
+    """
+    text = _manifest_text(path)
     lines = [(k, line) for k, line in enumerate(text.splitlines(), start=1) if line.strip()]
     if not lines:
         raise HysidInputError(f"{path}: the file is empty (expected the header 'file,frequency_hz' and one row per record)")
-    header = [c.strip() for c in next(csv.reader([lines[0][1]]))]
+    first = lines[0][1]
+    delimiter = ";" if ";" in first else ("\t" if "\t" in first else ",")
+    header = [c.strip().lower() for c in next(csv.reader([first], delimiter=delimiter))]
     if not all(c in header for c in MANIFEST_COLUMNS):
-        raise HysidInputError(f"{path}: the first line must be the header 'file,frequency_hz' (found {lines[0][1].strip()!r})")
+        raise HysidInputError(f"{path}: the first line must be the header 'file,frequency_hz' (found {first.strip()!r})")
     i_file, i_freq = header.index("file"), header.index("frequency_hz")
     rows: list[ManifestRow] = []
     seen: dict[str, int] = {}
     for number, line in lines[1:]:
-        cells = [c.strip() for c in next(csv.reader([line]))]
+        cells = [c.strip() for c in next(csv.reader([line], delimiter=delimiter))]
         if len(cells) <= max(i_file, i_freq):
             raise HysidInputError(f"{path}: line {number}: expected {len(header)} columns ({', '.join(header)}), got {len(cells)}")
+        cells = _row_cells(cells, len(header), i_file, i_freq, delimiter, path.parent)
         name, freq_text = cells[i_file], cells[i_freq]
-        try:
-            freq = float(freq_text)
-        except ValueError:
-            freq = math.nan
+        freq = _frequency(freq_text, delimiter)
         if not (math.isfinite(freq) and freq > 0):
             raise HysidInputError(f"{path}: line {number}: frequency_hz {freq_text!r} is not a positive number")
         if not name:

@@ -32,7 +32,7 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 from hysid_model.readers import channels
-from hysid_model.readers.csv_series import Dialect, TimeSeries, checked_series, read_columns, sniff
+from hysid_model.readers.csv_series import Dialect, TimeSeries, checked_series, read_columns, read_text_columns, sniff
 from hysid_model.readers.dataset_dir import DatasetConfig
 
 RECORD = "record"
@@ -75,21 +75,21 @@ def _nominal(path: Path, label: str, values: np.ndarray) -> float | None:
 
 def read_long(path: Path, config: DatasetConfig | None) -> list[LongRecord]:
     """The records of a tidy long CSV file (see the module docstring)."""
-    dialect = sniff(path)
+    dialect = sniff(path, None if config is None else config.skip_rows)
     where = str(path)
     record_col = _column(dialect, RECORD)
     if record_col is None:
         raise HysidInputError(f"{path}: no {RECORD!r} column; not a tidy file of several records")
     time = channels.choose(dialect.names, "time", config, where)
     freq_col = _column(dialect, "frequency_hz")
-    labels_of_rows = read_columns(path, dialect, [record_col], dtype=str)[:, 0]
+    labels_of_rows = read_text_columns(path, dialect, [record_col])[:, 0]
     if labels_of_rows.size == 0:
         raise HysidInputError(f"{path}: the header is there but there are no data rows")
     unique, row_record = _groups(labels_of_rows)
     labels = [str(label) for label in unique]
     del labels_of_rows
     rows_of = _rows_by_group(row_record, len(labels))
-    freq = read_columns(path, dialect, [freq_col])[:, 0] if freq_col is not None else np.full(row_record.size, math.nan)
+    freq = read_columns(path, dialect, [freq_col])[0] if freq_col is not None else np.full(row_record.size, math.nan)
     channel_col, value_col = _column(dialect, "channel"), _column(dialect, "value")
     if channel_col is not None and value_col is not None:
         return _long(path, dialect, config, labels, rows_of, freq, time, channel_col, value_col)
@@ -97,7 +97,7 @@ def read_long(path: Path, config: DatasetConfig | None) -> list[LongRecord]:
     data = read_columns(path, dialect, [time.index] + [c.index for c in picked])
     out = []
     for label, rows in zip(labels, rows_of):
-        t, x, force = data[rows, 0] * time.factor, data[rows, 1] * picked[0].factor, data[rows, 2] * picked[1].factor
+        t, x, force = data[0, rows] * time.factor, data[1, rows] * picked[0].factor, data[2, rows] * picked[1].factor
         order = np.argsort(t, kind="stable")
         series = checked_series(f"{path} (record {label})", t[order], x[order], force[order], names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1,
                                 units=(picked[0].unit, picked[1].unit))
@@ -115,11 +115,11 @@ def _long(path: Path, dialect: Dialect, config: DatasetConfig | None, labels: li
           freq: np.ndarray, time: channels.Channel, channel_col: int, value_col: int) -> list[LongRecord]:
     """Pivot the long format: per record, the displacement and force rows, each sorted by time."""
     where = str(path)
-    names, row_channel = _groups(read_columns(path, dialect, [channel_col], dtype=str)[:, 0])
+    names, row_channel = _groups(read_text_columns(path, dialect, [channel_col])[:, 0])
     unit_col = _column(dialect, "unit")
     units: list[str | None] = [None] * names.size
     if unit_col is not None:
-        row_unit = read_columns(path, dialect, [unit_col], dtype=str)[:, 0]
+        row_unit = read_text_columns(path, dialect, [unit_col])[:, 0]
         for k, name in enumerate(names):
             stated = np.unique(row_unit[row_channel == k])
             if stated.size > 1:
@@ -132,8 +132,8 @@ def _long(path: Path, dialect: Dialect, config: DatasetConfig | None, labels: li
         parts = []
         for channel in picked:
             rows = mine[row_channel[mine] == channel.index]
-            order = rows[np.argsort(data[rows, 0], kind="stable")]
-            parts.append((data[order, 0] * time.factor, data[order, 1] * channel.factor))
+            order = rows[np.argsort(data[0, rows], kind="stable")]
+            parts.append((data[0, order] * time.factor, data[1, order] * channel.factor))
         (t, x), (t_f, force) = parts
         if t.size != t_f.size or not np.array_equal(t, t_f):
             raise HysidInputError(

@@ -1,16 +1,21 @@
 """The raw records of a dataset: which files, in which order, at which nominal frequency, read how.
 
 A record is a ``.csv`` (:mod:`.csv_series`), ``.lvm`` (:mod:`.lvm`),
-``.tdms`` or ``.h5``/``.hdf5`` (:mod:`.daq`) file, or one record of a tidy
-long CSV holding several (:mod:`.long_csv`). They come from ``manifest.csv``
+``.tdms`` or ``.h5``/``.hdf5`` (:mod:`.daq`) file, or one record of a file
+holding several: a tidy long CSV (:mod:`.long_csv`), a TDMS or HDF5 file of one
+group per test (:func:`~.daq.record_groups`). They come from ``manifest.csv``
 (its order and frequencies), or, without one, from the files of the
 directory in natural order (``run2`` before ``run10``) with frequencies from
 their names (``..._12Hz``) or, failing that, from the data. Every file must lie
-inside the dataset directory (:func:`~.dataset_dir.confined`).
+inside the dataset directory (:func:`~.dataset_dir.confined`). The headers and
+channels of every record are checked before any record is read
+(:func:`check_records`), so that the mistakes of several files come in one error.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -18,8 +23,8 @@ from pathlib import Path
 
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.readers import channels
-from hysid_model.readers.csv_series import TimeSeries, read_series, sniff
-from hysid_model.readers.daq import HDF5_SUFFIXES, TDMS_SUFFIXES, read_daq
+from hysid_model.readers.csv_series import Dialect, TimeSeries, read_series, record_columns, sniff
+from hysid_model.readers.daq import HDF5_SUFFIXES, TDMS_SUFFIXES, check_daq, read_daq, record_groups
 from hysid_model.readers.dataset_dir import DatasetConfig, ManifestRow, frequency_in_name, inside, natural_key
 from hysid_model.readers.long_csv import is_long_csv, read_long
 from hysid_model.readers.lvm import read_lvm
@@ -37,6 +42,8 @@ class RawSource:
     path: Path
     nominal_hz: float | None
     read: Callable[[], TimeSeries]
+    check: Callable[[], object] | None = None
+    """The checks of ``read`` that need no samples (header, channels), or None."""
 
     @property
     def whole_file(self) -> bool:
@@ -49,8 +56,8 @@ class RawSource:
         return self.file if self.whole_file else self.label
 
 
-def read_record(path: Path, config: DatasetConfig) -> TimeSeries:
-    """One record file as (t in s, x in m, F in N)."""
+def read_record(path: Path, config: DatasetConfig, dialect: Dialect | None = None) -> TimeSeries:
+    """One record file as (t in s, x in m, F in N) (a CSV file's ``dialect`` if sniffed already)."""
     if path.stat().st_size == 0:
         raise HysidInputError(f"{path}: the file is empty")
     suffix = path.suffix.lower()
@@ -58,22 +65,61 @@ def read_record(path: Path, config: DatasetConfig) -> TimeSeries:
         return read_lvm(path, config)
     if suffix in TDMS_SUFFIXES + HDF5_SUFFIXES:
         return read_daq(path, config)
-    return read_series(path, config)
+    return read_series(path, config, dialect)
 
 
 def sources_of_file(path: Path, config: DatasetConfig, nominal_hz: float | None, name: str | None = None) -> list[RawSource]:
-    """The records of one file: a tidy long CSV holds several, any other file one."""
+    """The records of one file: a tidy long CSV holds several, so does a TDMS or HDF5 file of one group per test;
+    any other file one."""
     name = name or path.name
-    if path.suffix.lower() == ".csv" and path.stat().st_size > 0 and is_long_csv(sniff(path)):
+    suffix = path.suffix.lower()
+    empty = path.stat().st_size == 0
+    dialect = sniff(path, config.skip_rows) if suffix == ".csv" and not empty else None
+    if dialect is not None and is_long_csv(dialect):
         return [RawSource(r.label, name, path, r.nominal_hz if r.nominal_hz is not None else frequency_in_name(r.label),
                           lambda s=r.series: s) for r in read_long(path, config)]
-    return [RawSource(path.stem, name, path, nominal_hz, lambda: read_record(path, config))]
+    if suffix in TDMS_SUFFIXES + HDF5_SUFFIXES and not empty:
+        groups = record_groups(path, config)
+        if groups:
+            return [RawSource(g.group, name, path, g.nominal_hz if g.nominal_hz is not None else frequency_in_name(g.group),
+                              lambda g=g.group: read_daq(path, config, g), lambda g=g.group: check_daq(path, config, g)) for g in groups]
+    check = None
+    if dialect is not None:
+        check = lambda: record_columns(path, config, dialect)  # noqa: E731
+    elif suffix in TDMS_SUFFIXES + HDF5_SUFFIXES and not empty:
+        check = lambda: check_daq(path, config)  # noqa: E731
+    return [RawSource(path.stem, name, path, nominal_hz, lambda: read_record(path, config, dialect), check)]
+
+
+def check_records(sources: list[RawSource], where: str) -> None:
+    """Check every record's header and channels before any is read: one error names every file whose record
+    cannot be read (files with the same mistake together), not one file per run. What it would warn, reading
+    each record warns again."""
+    problems: dict[str, list[str]] = {}
+    errors = []
+    for source in sources:
+        if source.check is None:
+            continue
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", HysidWarning)
+                source.check()
+        except HysidInputError as exc:
+            errors.append(exc)
+            name = source.file if source.whole_file else f"{source.file} (group {source.label})"
+            detail = str(exc).removeprefix(f"{source.path} (group {source.label})").removeprefix(str(source.path))
+            problems.setdefault(detail.removeprefix(": "), []).append(name)
+    if len(errors) == 1:
+        raise errors[0]
+    if errors:
+        listed = "; ".join(f"{', '.join(files)}: {detail}" for detail, files in problems.items())
+        raise HysidInputError(f"{where}: {len(errors)} of {len(sources)} records cannot be read: {listed}")
 
 
 def is_record_csv(path: Path, config: DatasetConfig) -> bool:
     """Whether a ``.csv`` file holds raw records (time, displacement and force columns, or a ``record`` column)."""
     try:
-        dialect = sniff(path)
+        dialect = sniff(path, config.skip_rows)
         return is_long_csv(dialect) or all(
             channels.choose(dialect.names, q, config, str(path), required=False) is not None for q in channels.QUANTITIES
         )
@@ -87,7 +133,10 @@ def manifest_sources(manifest: Path, rows: list[ManifestRow], files: list[Path],
     for row, path in zip(rows, files):
         found = sources_of_file(path, config, row.frequency_hz, row.file)
         if len(found) != 1:
-            raise HysidInputError(f"{manifest}: line {row.line}: {row.file!r} holds {len(found)} records; list a tidy file of records without a manifest")
+            raise HysidInputError(
+                f"{manifest}: line {row.line}: {row.file!r} holds {len(found)} records; a file of several records (a tidy long CSV, "
+                "a TDMS or HDF5 file of one group per test) is read without a manifest: load it alone, or a folder without manifest.csv"
+            )
         out.append(found[0])
     return out
 
@@ -102,7 +151,8 @@ def directory_sources(directory: Path, config: DatasetConfig) -> list[RawSource]
     skipped = [p.name for p in candidates if p.suffix.lower() == ".csv" and not is_record_csv(p, config)]
     if skipped:
         warnings.warn(HysidWarning(
-            f"{directory}: left out {', '.join(skipped)}: no time, displacement and force columns (nor a record column)", "records_left_out",
+            f"{directory}: left out {', '.join(skipped)}: no time, displacement and force columns (nor a record column)"
+            + ("" if config.skip_rows is None else f" in the header after skip_rows = {config.skip_rows} lines"), "records_left_out",
         ), stacklevel=3)
     out = []
     for path in candidates:
@@ -113,6 +163,8 @@ def directory_sources(directory: Path, config: DatasetConfig) -> list[RawSource]
 
 def manifest_text(sources: list[RawSource], frequencies: list[float]) -> str:
     """The ``manifest.csv`` of these records at these frequencies (one row per file record)."""
-    rows = [f"{s.file},{f:.6g}" for s, f in zip(sources, frequencies)]
-    return "\n".join(["file,frequency_hz"] + rows) + "\n"
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")  # a name holding a comma is quoted
+    writer.writerows([("file", "frequency_hz")] + [(s.file, f"{f:.6g}") for s, f in zip(sources, frequencies)])
+    return out.getvalue()
 
