@@ -192,12 +192,13 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     """Frequency of the largest displacement spectral peak (Hann window, zero padding to a power of 2, Gaussian interpolation).
 
     Accurate to a few percent of a bin (1 / record length); :func:`hysid_model.steady.phase_slope_frequency`
-    refines it.
+    refines it. A record of more than ``MAX_SAMPLES`` samples takes the memory of 1.5 copies of its padded length
+    (:func:`_long_spectrum`), not 3 and a cached window.
     """
     n = t.size
     dt = (t[-1] - t[0]) / (n - 1)
     nfft = 1 << int(np.ceil(np.log2(n)))
-    mag = np.abs(np.fft.rfft((x - x.mean()) * _hann(n), nfft))
+    mag = np.abs(np.fft.rfft((x - x.mean()) * _hann(n), nfft)) if n <= steady.MAX_SAMPLES else _long_spectrum(x, nfft)
     first = int(np.ceil(nfft / (n - 1)))  # below one period per record there is no cycle to extract
     if first >= mag.size - 1 or not np.any(mag[first:] > 0):
         raise HysidInputError(f"{source}: the displacement does not oscillate")
@@ -209,16 +210,39 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     return float(k / (nfft * dt))
 
 
+def _long_spectrum(x: np.ndarray, nfft: int) -> np.ndarray:
+    """``|rfft((x - mean) * hanning, nfft)|`` of a long record, in the memory of the padded record and half of it:
+    the windowed samples are written a piece at a time into one buffer, whose pairs (even, odd) are a complex
+    sequence of length nfft / 2 transformed in place; the real transform's bins are unpacked from it a piece at a
+    time (X_k = E_k + e^(-2 pi i k / nfft) O_k, E and O the transforms of the even and odd samples)."""
+    from scipy import fft  # on first use: loading data stays quick to start
+
+    n, half = x.size, nfft // 2
+    buf = np.zeros(nfft)
+    mean = x.mean()
+    for a in range(0, n, steady.PIECE):
+        b = min(a + steady.PIECE, n)
+        np.subtract(x[a:b], mean, out=buf[a:b])
+        buf[a:b] *= 0.5 + 0.5 * np.cos(np.pi * np.arange(1 - n + 2 * a, 1 - n + 2 * b, 2) / (n - 1))  # np.hanning's
+    z = fft.fft(buf.view(np.complex128), overwrite_x=True)
+    mag = np.empty(half + 1)
+    for a in range(0, half + 1, steady.PIECE):
+        k = np.arange(a, min(a + steady.PIECE, half + 1))
+        zk, zc = z[k % half], np.conj(z[(half - k) % half])
+        mag[k] = np.abs(0.5 * (zk + zc) - 0.5j * np.exp(-2j * np.pi * k / nfft) * (zk - zc))
+    return mag
+
+
 def _check_values(x: np.ndarray, force: np.ndarray, source: str) -> None:
     """Records no loop can come from: a value beyond ``LARGEST`` in size, or a force that never changes."""
     for values, what, unit in ((x, "displacement", "m"), (force, "force", "N")):
-        peak = float(np.max(np.abs(values))) if values.size else 0.0
+        peak = max(abs(float(values.max())), abs(float(values.min()))) if values.size else 0.0
         if peak > LARGEST:
             raise HysidInputError(
                 f"{source}: the {what} reaches {peak:.3g} {unit}, beyond any physical {what} and beyond what the fits' "
                 "sums of squares keep in floating point (a corrupt file, or a column of another quantity?)"
             )
-    if force.size and np.ptp(force) == 0:
+    if force.size and force.max() == force.min():
         raise HysidInputError(f"{source}: the force is {force[0]:g} N in every sample: no loop to extract (a load cell not connected?)")
 
 
@@ -267,16 +291,23 @@ def _given_window(t: np.ndarray, window: tuple[float, float], source: str) -> tu
 
 
 def _cycle_mean(t: np.ndarray, y: np.ndarray, t_a: float, t_b: float) -> float:
-    """Time average of y over [t_a, t_b] (trapezoid of the linear interpolant, exact end points).
+    """Time average of y over [t_a, t_b] (trapezoid of the linear interpolant, exact end points), a piece at a time
+    beyond ``MAX_SAMPLES`` samples.
 
     A plain sample mean over "whole cycles" is off by up to one sample's share
     of the waveform, which for a 400 N loop sampled 700 times a cycle is
     already a visible 0.05 N offset.
     """
-    inner = slice(np.searchsorted(t, t_a, side="right"), np.searchsorted(t, t_b, side="left"))
-    grid = np.concatenate([[t_a], t[inner], [t_b]])
-    vals = np.concatenate([np.interp([t_a], t, y), y[inner], np.interp([t_b], t, y)])
-    return float(np.sum(0.5 * (vals[1:] + vals[:-1]) * np.diff(grid)) / (t_b - t_a))
+    first, stop = np.searchsorted(t, t_a, side="right"), np.searchsorted(t, t_b, side="left")
+    ends = np.interp([t_a, t_b], t, y)
+    total = 0.0
+    starts = list(range(first, stop, steady.MAX_SAMPLES)) if stop - first > steady.MAX_SAMPLES else [first]
+    for a in starts:
+        b = stop if a == starts[-1] else a + steady.MAX_SAMPLES
+        grid = np.concatenate([[t_a] if a == first else t[a - 1 : a], t[a:b], [t_b] if b == stop else []])
+        vals = np.concatenate([ends[:1] if a == first else y[a - 1 : a], y[a:b], ends[1:] if b == stop else []])
+        total += float(np.sum(0.5 * (vals[1:] + vals[:-1]) * np.diff(grid)))
+    return total / (t_b - t_a)
 
 
 def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float, source: str) -> tuple[np.ndarray, float]:
@@ -349,11 +380,13 @@ def extract_loop(
     if cycles < 2:
         raise HysidInputError(f"{source}: fewer than 2 steady whole cycles at {freq:.6g} Hz in [{t_a:g}, {t_b:g}] s")
     t_end = t_a + cycles / freq
-    span = slice(np.searchsorted(t, t_a), np.searchsorted(t, t_end))
+    bounds = steady.cycle_bounds(t, t_a, freq, cycles)
+    sampled = steady.sampled_cycles(bounds)  # every cycle, or every k-th of a record longer than MAX_SAMPLES
+    span = steady.samples_of(bounds, sampled)
     ts, xs, fs = t[span], x[span], force[span]
     w = 2 * np.pi * freq
     theta = w * (ts - t_a)
-    harmonics = max(1, min(X_HARMONICS, int((ts.size / cycles - 1) // 2)))  # below the Nyquist frequency
+    harmonics = max(1, min(X_HARMONICS, int((ts.size / sampled.size - 1) // 2)))  # below the Nyquist frequency
     design = harmonic_design(theta, harmonics)
     gram = design @ design.T
     projection = np.stack([design @ xs, design @ fs], axis=1)
@@ -374,7 +407,7 @@ def extract_loop(
     psi = half_cycle_phases(theta + phi, (lo, hi))
     centred = fs - force_mean
     values, var, sigma_raw, overlap, force_harmonics = branch_values(
-        psi, centred, sample_phases, (lo, hi), ts.size / cycles, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
+        psi, centred, sample_phases, (lo, hi), ts.size / sampled.size, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
         lambda: smooth_part(theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred,
                             harmonic_design(sample_phases - phi, harmonics), kept),
     )
@@ -388,7 +421,7 @@ def extract_loop(
         bottom=np.column_stack([grid, values[n_points:]]),
         sigma=sigma_raw * float(np.sqrt(var.mean())),
         sigma_raw=sigma_raw,
-        cycles=cycles,
+        cycles=int(sampled.size),
         phase_deg=float(phase),
         force_amplitude=float(np.hypot(cf[1], cf[2])),
         x_offset=float(cx[0]),
@@ -396,7 +429,7 @@ def extract_loop(
         x_distortion=thd,
         force_distortion=float(np.sqrt(np.sum(np.hypot(cf[3::2], cf[4::2]) ** 2)) / max(float(np.hypot(cf[1], cf[2])), 1e-300)),
         force_mean=force_mean,
-        window_s=(float(ts[0]), float(ts[-1])),
+        window_s=(float(t[bounds[0]]), float(t[bounds[-1] - 1])),
         samples_per_point=float(np.mean(1.0 / var)),
         window_overlap=overlap,
         force_harmonics=force_harmonics,

@@ -60,6 +60,13 @@ PARTITION_KTH = 8
 """Distinct middle positions up to which the phase bins' medians are found by a partition rather than a sort."""
 SHAPES_KEPT = 64
 """Window lengths whose line and parabola terms the band test keeps (:func:`_band_test`)."""
+PIECE = 1 << 18
+"""Samples (whole cycles) taken at once by the passes over every sample of a record, so that their memory is that of
+a piece, not of the record (a 7.2 M-sample record's per-cycle fits took 14 copies of it at once)."""
+MAX_SAMPLES = 1 << 19
+"""Most samples the steps that need their samples together use: the median cycle (:func:`waveform_steady`) and the
+branch values (:func:`hysid_model.extraction.extract_loop`) of a longer record are those of every k-th cycle, evenly
+over it (524,288 samples: 52 s at 10 kHz; a longer record has its own loop's noise to a fraction of a percent)."""
 
 
 @dataclass
@@ -149,11 +156,24 @@ def _exact_ends(t: np.ndarray, signals: list[np.ndarray], bounds: np.ndarray, t_
     return np.diff(bounds) + (0.5 - alpha[:-1]) - (0.5 - alpha[1:])
 
 
+def pieces(bounds: np.ndarray) -> list[tuple[int, int]]:
+    """The cycles ``bounds`` delimits in runs ``(first, stop)`` of whole cycles of about ``PIECE`` samples (at least one
+    cycle each)."""
+    cuts = [0]
+    while cuts[-1] < bounds.size - 1:
+        stop = int(np.searchsorted(bounds, bounds[cuts[-1]] + PIECE, side="right")) - 1
+        cuts.append(min(max(stop, cuts[-1] + 1), bounds.size - 1))
+    return list(zip(cuts[:-1], cuts[1:]))
+
+
 def cycle_fits(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: float, n_cycles: int) -> CycleFits:
     """One 3-term least-squares fit per cycle [t_a + k/f, t_a + (k+1)/f), k < ``n_cycles``, of every signal (batched),
-    each over exactly its period (:func:`_exact_ends`)."""
+    each over exactly its period (:func:`_exact_ends`); the sums are taken a piece of cycles at a time (:func:`pieces`)."""
     bounds = cycle_bounds(t, t_a, freq, n_cycles)
-    sums = per_cycle_sums(_fit_rows(t, signals, slice(bounds[0], bounds[-1]), t_a, freq), bounds)
+    sums = np.empty((6 + 4 * len(signals), n_cycles))
+    for first, stop in pieces(bounds):
+        part = bounds[first : stop + 1]
+        sums[:, first:stop] = per_cycle_sums(_fit_rows(t, signals, slice(part[0], part[-1]), t_a, freq), part)
     weight = _exact_ends(t, signals, bounds, t_a, freq, sums)
     count = np.diff(bounds).astype(float)
     s, c, ss, sc, cc = sums[:5]
@@ -201,12 +221,22 @@ def sampling_error(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: f
     bounds = cycle_bounds(t, t_a, freq, n_cycles)
     per_cycle = (bounds[-1] - bounds[0]) / max(n_cycles, 1)
     out = np.zeros(len(signals))
-    if bounds[-1] - bounds[0] < 3:
+    size = bounds[-1] - bounds[0] - 2  # second differences of the samples of the cycles
+    if size < 1:
         return out
+    starts = np.minimum(bounds[:-1] - bounds[0], size - 1)
     for k, y in enumerate(signals):
-        second = np.abs(np.diff(y[bounds[0] : bounds[-1]], 2))
-        starts = np.minimum(bounds[:-1] - bounds[0], second.size - 1)
-        out[k] = 2.0 * float(np.median(np.maximum.reduceat(second, starts))) / per_cycle
+        peaks = np.empty(n_cycles)
+        for first, stop in pieces(bounds):
+            lo = starts[first]
+            hi = size if stop == n_cycles else min(starts[stop] + 1, size)  # one past the piece: a cycle with no sample
+            part = y[bounds[0] + lo : bounds[0] + hi + 2]
+            second = np.abs(np.diff(part, 2))
+            cut = starts[first:stop] - lo
+            if stop < n_cycles and hi > starts[stop]:
+                cut = np.append(cut, starts[stop] - lo)  # ends the piece's last cycle before the sample past it
+            peaks[first:stop] = np.maximum.reduceat(second, cut)[: stop - first]
+        out[k] = 2.0 * float(np.median(peaks)) / per_cycle
     return out
 
 
@@ -349,13 +379,36 @@ def _periodic_interp(phase: np.ndarray, centre: np.ndarray, value: np.ndarray) -
     return np.interp(phase, xp, fp)
 
 
-def cycle_excess(phase: np.ndarray, bounds: np.ndarray, y: np.ndarray, per_cycle: float) -> np.ndarray:
-    """Per cycle, the mean squared difference of its samples from the median cycle (phase in [0, 1))."""
-    centre, median = _bin_medians(phase, y, max(4, int(per_cycle // 2)))
+def _excess(phase: np.ndarray, y: np.ndarray, bounds: np.ndarray, centre: np.ndarray, median: np.ndarray) -> np.ndarray:
+    """Per cycle of ``bounds`` (the samples ``y`` at ``phase``), the mean squared difference from the median cycle."""
     sq = np.empty((1, y.size + 1))
     sq[0, -1] = 0.0
     np.square(y - _periodic_interp(phase, centre, median), out=sq[0, :-1])
     return per_cycle_sums(sq, bounds)[0] / np.maximum(np.diff(bounds), 1)
+
+
+def sampled_cycles(bounds: np.ndarray, limit: int = MAX_SAMPLES) -> np.ndarray:
+    """The cycles of ``bounds`` to use where at most about ``limit`` samples may be: all of them, or every k-th."""
+    n_cycles = bounds.size - 1
+    step = max(1, -(-int(bounds[-1] - bounds[0]) // limit))
+    return np.arange(0, n_cycles, step)
+
+
+def samples_of(bounds: np.ndarray, cycles: np.ndarray) -> np.ndarray | slice:
+    """The sample indices of ``cycles`` (increasing; a slice when they follow one another)."""
+    if cycles[-1] - cycles[0] + 1 == cycles.size:
+        return slice(int(bounds[cycles[0]]), int(bounds[cycles[-1] + 1]))
+    first, stop = bounds[cycles], bounds[cycles + 1]
+    counts = stop - first
+    return np.repeat(first - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
+
+
+def _normalized(t: np.ndarray, y: np.ndarray, bounds: np.ndarray, cycles: np.ndarray, t_a: float, freq: float,
+                offset: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(phase in [0, 1), ``y`` less its offset trend, times its amplitude's ``scale``) of the samples of ``cycles``."""
+    index = samples_of(bounds, cycles)
+    cycle = np.repeat(cycles, bounds[cycles + 1] - bounds[cycles])
+    return (t[index] - t_a) * freq - cycle, (y[index] - offset[cycle]) * scale[cycle]
 
 
 def waveform_steady(
@@ -364,19 +417,25 @@ def waveform_steady(
     """(first, stop) of the steady cycles after leading and trailing transients are dropped (stage 2).
 
     ``trends`` gives each signal's amplitude and offset per cycle (``(n,)``
-    each), divided out before the comparison.
+    each), divided out before the comparison. The median cycle is that of at most ``MAX_SAMPLES`` samples
+    (:func:`sampled_cycles`); every cycle is compared with it a piece at a time (:func:`pieces`).
     """
     bounds = cycle_bounds(t, t_a, freq, n_cycles)
-    span = slice(bounds[0], bounds[-1])
-    cycle = np.repeat(np.arange(n_cycles), np.diff(bounds))
-    phase = (t[span] - t_a) * freq - cycle
     per_cycle = (bounds[-1] - bounds[0]) / n_cycles
+    sampled = sampled_cycles(bounds)
     steady = np.ones(n_cycles, dtype=bool)
     for y, (amplitude, offset) in zip(signals, trends):
         scale = np.where(amplitude > 0, np.mean(amplitude) / np.where(amplitude > 0, amplitude, 1.0), 1.0)
-        yk = (y[span] - offset[cycle]) * scale[cycle]
-        excess = cycle_excess(phase, bounds, yk, per_cycle)
-        limit = max(np.median(excess) * (1.0 + NOISE_SIGMAS * np.sqrt(2.0 / per_cycle)), (WAVEFORM_TOLERANCE * np.std(yk)) ** 2)
+
+        phase, yk = _normalized(t, y, bounds, sampled, t_a, freq, offset, scale)
+        centre, median = _bin_medians(phase, yk, max(4, int(per_cycle // 2)))
+        spread = np.std(yk)
+        del phase, yk
+        excess = np.empty(n_cycles)
+        for first, stop in pieces(bounds):
+            phase, yk = _normalized(t, y, bounds, np.arange(first, stop), t_a, freq, offset, scale)
+            excess[first:stop] = _excess(phase, yk, bounds[first : stop + 1], centre, median)
+        limit = max(np.median(excess) * (1.0 + NOISE_SIGMAS * np.sqrt(2.0 / per_cycle)), (WAVEFORM_TOLERANCE * spread) ** 2)
         steady &= excess <= limit
     if not steady.any():
         return 0, 0
