@@ -137,12 +137,14 @@ class Store(Queries):
     @classmethod
     def read_only(cls, path: Path | str) -> "Store":
         """A campaign database opened for reading only (never written, never created), also while a
-        coordinator writes it: WAL lets readers see every committed batch without blocking the writer."""
+        coordinator writes it: WAL lets readers see every committed batch without blocking the writer. Without
+        a -wal file no writer has it open, and it opens as immutable (a WAL reader would create -wal and -shm)."""
         path = Path(path)
         if not path.is_file():
             raise HysidInputError(f"{path}: no such campaign database")
+        settled = "" if Path(f"{path}-wal").exists() else "&immutable=1"
         try:
-            db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, check_same_thread=False, timeout=10.0)
+            db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro{settled}", uri=True, check_same_thread=False, timeout=10.0)
             db.execute("SELECT count(*) FROM campaigns").fetchone()
         except sqlite3.DatabaseError as exc:
             raise HysidInputError(f"{path}: not a campaign database ({exc})") from None

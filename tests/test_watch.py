@@ -76,6 +76,24 @@ def test_watch_and_report_name_what_is_wrong_and_create_nothing(finished, tmp_pa
     assert "not a campaign database" in capsys.readouterr().err and junk.read_text() == "not a database\n"
 
 
+def test_watch_and_report_of_a_finished_campaign_create_no_file_and_take_its_output_directory(finished, tmp_path, capsys):
+    """The README's "never written, nor created": watching or reporting a finished campaign leaves no -wal or -shm
+    file beside its database (a read-only reader of a WAL database would create both); the campaign's output
+    directory names its database."""
+    db, original = finished
+    before = digest(db)
+    assert main(["watch", str(db), "--once"]) == 0
+    assert not [p.name for p in db.parent.iterdir() if p.name.endswith(("-wal", "-shm"))]
+    assert main(["watch", str(db.parent), "--once"]) == 0
+    capsys.readouterr()
+    assert main(["report", str(db.parent), "--json", "--out", str(tmp_path / "again")]) == 0
+    assert json.loads(capsys.readouterr().out)["params"] == pytest.approx(original["params"], rel=1e-9)
+    assert not [p.name for p in db.parent.iterdir() if p.name.endswith(("-wal", "-shm"))] and digest(db) == before
+    assert main(["report", str(tmp_path), "--out", str(tmp_path / "r")]) == 2
+    assert capsys.readouterr().err == (f"hysid: error: {tmp_path}: a directory without campaign.sqlite; give the campaign database "
+                                       "(--db of the campaign, or OUT/campaign.sqlite)\n")
+
+
 def start_campaign(tmp_path, islands: int = 2):
     db = tmp_path / "out" / "campaign.sqlite"
     proc = subprocess.Popen(

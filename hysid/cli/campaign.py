@@ -61,7 +61,7 @@ def print_progress(p: CampaignProgress) -> None:
 def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) -> Path:
     """The campaign database: ``--db`` or OUT/campaign.sqlite; a stored campaign is only ever resumed.
     Whether it can be written is checked here, before any work."""
-    path = db if db is not None else out / "campaign.sqlite"
+    path = db if db is not None else out / o.DB_NAME
     if resuming:
         if db is None:
             raise HysidInputError("--resume needs --db FILE, the database of the coordinator to carry on")

@@ -163,6 +163,19 @@ DISPLACEMENT = typer.Option(
 FIX = typer.Option(None, "--fix", metavar="NAME=VALUE", help="A parameter known, not searched (repeatable), e.g. --fix meq=0.2.")
 
 
+DB_NAME = "campaign.sqlite"
+"""The database a campaign's output directory holds (``--db`` not given)."""
+
+
+def campaign_database(path: Path) -> Path:
+    """The database ``path`` names: itself, or for a campaign's output directory the ``campaign.sqlite`` in it."""
+    if not path.is_dir():
+        return path
+    if (path / DB_NAME).is_file():
+        return path / DB_NAME
+    raise HysidInputError(f"{path}: a directory without {DB_NAME}; give the campaign database (--db of the campaign, or OUT/{DB_NAME})")
+
+
 def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
     """Where a command writes: ``out`` if new or empty, else (not given) a new ``hysid-out/<kind>-<time>``.
 
@@ -184,17 +197,17 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
     if out.exists() and not out.is_dir():
         raise HysidInputError("exists and is not a directory", param=param, value=out)
     if out.exists() and any(out.iterdir()):
-        if (out / "campaign.sqlite").is_file() and not (out / "report.md").exists():
-            running = running_campaign(out / "campaign.sqlite")
+        if (out / DB_NAME).is_file() and not (out / "report.md").exists():
+            running = running_campaign(out / DB_NAME)
             if running is not None:
                 raise HysidInputError(
                     f"is the output directory of campaign {running!r}, which is still running (its coordinator writes "
-                    f"{out / 'campaign.sqlite'}): two runs cannot share one {FLAGS.get(param, param)}; choose a new directory "
+                    f"{out / DB_NAME}): two runs cannot share one {FLAGS.get(param, param)}; choose a new directory "
                     "(nothing was written)", param=param, value=out,
                 )
             raise HysidInputError(
-                f"holds the database of a campaign that did not finish ({out / 'campaign.sqlite'}, no report.md): carry it on with "
-                f"'hysid coordinator --resume --db {out / 'campaign.sqlite'} --out NEW_DIR', or choose a new directory (nothing was written)",
+                f"holds the database of a campaign that did not finish ({out / DB_NAME}, no report.md): carry it on with "
+                f"'hysid coordinator --resume --db {out / DB_NAME} --out NEW_DIR', or choose a new directory (nothing was written)",
                 param=param, value=out,
             )
         raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)

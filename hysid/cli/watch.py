@@ -19,7 +19,7 @@ from hysid.report.text import campaign_progress_line, watch_text
 from hysid.watch import snapshot
 from hysid_model.errors import HysidInputError
 
-CAMPAIGN_DB = typer.Argument(..., help="Campaign database (SQLite) of 'hysid campaign' or 'hysid coordinator'.")
+CAMPAIGN_DB = typer.Argument(..., help="Campaign database (SQLite) of 'hysid campaign' or 'hysid coordinator', or the output directory holding it.")
 CAMPAIGN_NAME = typer.Option(None, "--campaign", help="Campaign in the database (default: the latest).")
 
 
@@ -39,7 +39,7 @@ def register(app: typer.Typer) -> None:
         On a terminal the view redraws in place; otherwise one progress line per refresh, and the full view at the end."""
         if not interval > 0:
             raise HysidInputError("must be a positive number of seconds", param="interval", value=interval)
-        store = Store.read_only(db)
+        store = Store.read_only(o.campaign_database(db))
         try:
             snap = snapshot(store, name)
             if once:
@@ -71,4 +71,4 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """The report and figures of a finished or interrupted campaign, rebuilt from its database alone."""
         target = o.report_dir(out, "report")
-        o.show_result(CampaignResult.from_database(db, name), target, as_json, csv)
+        o.show_result(CampaignResult.from_database(o.campaign_database(db), name), target, as_json, csv)
