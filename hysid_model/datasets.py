@@ -40,7 +40,7 @@ from hysid_model.readers.dataset_dir import (
 )
 from hysid_model.readers.matfile import read_mat_dataset
 from hysid_model.readers.records import (
-    RAW_SUFFIXES, RawSource, check_records, directory_sources, manifest_sources, manifest_text, sources_of_file,
+    RAW_SUFFIXES, RawSource, check_records, directory_sources, load_compiled_reader, manifest_sources, manifest_text, sources_of_file,
 )
 from hysid_model.readers.tidy import is_tidy_file, read_loops, write_loops
 from hysid_model.synth import RawRecord, check_noise, synth_loops
@@ -171,6 +171,7 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     ``estimated_manifest``, the ``manifest.csv`` that would fix those frequencies.
     """
     check_records(sources, str(config.directory))
+    load_compiled_reader(sources)
     extracted, read = [], []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", HysidWarning)

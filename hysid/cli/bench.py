@@ -113,14 +113,14 @@ def coordinator_command(
 
 @bench_app.command("ingest")
 def ingest_command(
-    part: str = typer.Argument("all", help="generated, daq, small or all."),
+    part: str = typer.Argument("all", help="generated, large, lab, damper, daq, small or all."),
     records: int = typer.Option(ingest.RECORDS, "--records", help="Raw records of the generated set (at least 1)."),
     seconds: float = typer.Option(ingest.SECONDS, "--seconds", help="Length of each generated record in s."),
     rate: float = typer.Option(ingest.SAMPLE_RATE_HZ, "--rate", help="Sample rate of the generated records in Hz."),
     rounds: int = typer.Option(ingest.ROUNDS, "--rounds", help="Alternating rounds of parse and load per set (at least 1)."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    """Ingestion: hysid.load of raw records (a generated set, DAQ-shaped sets) against numpy's parse of the same files, and memory."""
+    """Ingestion: hysid.load of raw records (200 MB and 800 MB sets, a lab's export, the real damper, DAQ-shaped sets) against numpy's parse of the same files, and memory against the largest file."""
     emit(ingest.run(ingest.PARTS if part == "all" else [part], records, seconds, rate, rounds), ingest.to_text, as_json)
 
 
