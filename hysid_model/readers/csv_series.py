@@ -79,13 +79,13 @@ def checked_series(source: str, t: np.ndarray, x: np.ndarray, force: np.ndarray,
 
 @dataclass
 class Dialect:
-    """How a CSV record is written: the header's line (0-based) and names, the separator, decimal commas, and the
-    lines of free text skipped before the header (0-based; found by :func:`sniff`, not given by ``skip_rows``)."""
+    """How a CSV record is written: the header's line (0-based) and names, the separator (with ``;`` or a tab,
+    numbers may have a decimal comma), the encoding, and the lines of free text skipped before the header (0-based;
+    found by :func:`sniff`, not given by ``skip_rows``)."""
 
     header_line: int
     names: list[str]
     delimiter: str
-    decimal_comma: bool
     encoding: str
     skipped: tuple[tuple[int, str], ...] = ()
     data_header: int | None = None
@@ -160,8 +160,7 @@ def _data_header(lines: list[str], content: list[int]) -> int | None:
 
 
 def sniff(path: Path, skip_rows: int | None = None) -> Dialect:
-    """The header, its separator (``;``, tab or ``,``) and whether numbers use a decimal comma (a line after the
-    header holds ``,`` with another separator).
+    """The header and its separator (``;``, tab or ``,``).
 
     The header is the first line that is neither blank nor a ``#`` comment after the first ``skip_rows`` lines;
     without ``skip_rows``, a preamble of free text is skipped when the rows of numbers start under a later line
@@ -188,10 +187,8 @@ def sniff(path: Path, skip_rows: int | None = None) -> Dialect:
         header = found
     text = lines[header].rstrip("\r\n")
     delimiter = _separator(text)
-    data = [line for line in lines[header + 1 :] if line.strip() and not line.lstrip().startswith("#")]
-    decimal_comma = delimiter != "," and any("," in line for line in data)
     names = [c.strip('"').strip() for c in _cells(text, delimiter)]
-    return Dialect(header, names, delimiter, decimal_comma, encoding, skipped, found)
+    return Dialect(header, names, delimiter, encoding, skipped, found)
 
 
 def _bad_line(path: Path, dialect: Dialect, used: list[tuple[int, str]]) -> HysidInputError:
