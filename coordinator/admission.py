@@ -3,12 +3,13 @@
 The coordinator's admission (:class:`Admission`, part of :class:`coordinator.state.Coordinator`):
 
 * the join handshake, a challenge-response (:mod:`island.protocol`): a request gets a challenge signed by the
-  coordinator; a proof of the admission secret of the *member* the request names (the campaign's own secret for
-  member "", a member's secret, :mod:`island.secret`, for a named one: a member's islands bear its name) for a
-  challenge this process issued within the last :data:`CHALLENGE_S` gets a run id, stored (with the run's public key
-  and its member) before the island hears of it;
-* what a member may hold: each island id at most :data:`RUNS_PER_ISLAND` runs, each named member at most
-  :data:`MEMBER_RUNS` (its share of the campaign's run slots: another member still finds room);
+  coordinator; a proof of the admission secret of the *member* the request names (the campaign's shared secret for
+  the shared member "", a member's secret for a named one, made from the members' key only the coordinator holds,
+  :meth:`coordinator.keys.CampaignKeys.admission_for`: a member's islands bear its name) for a challenge this process
+  issued within the last :data:`CHALLENGE_S` gets a run id, stored (with the run's public key and its member) before
+  the island hears of it;
+* what a member may hold: each island id at most :data:`RUNS_PER_ISLAND` runs, each member (the shared one too) at
+  most :data:`MEMBER_RUNS` (its share of the campaign's run slots: another member still finds room);
 * what a member's effort counts toward the budget and the stall rule (:meth:`Admission.countable`): while more than
   one member is alive, a member's effort counts no further than all the other members' of that time together, so
   that one member, however plausible each of its runs' claims, cannot spend the campaign's budget alone;
@@ -43,20 +44,25 @@ RUNS_PER_ISLAND = 64
 """Runs one island id may be admitted (restarts): an island that proved the secret cannot take every run
 slot of the campaign under its own id."""
 MEMBER_RUNS = MAX_MEMBERS // 2
-"""Runs one named member may be admitted: its share of the campaign's run slots (the campaign's own secret's holder,
-its operator, is not bounded so)."""
+"""Runs one member may be admitted (the shared member, all holders of the campaign's shared secret together, too): its
+share of the campaign's run slots."""
 
 
 @dataclass(frozen=True)
 class RunInfo:
     """A run that joined: the public key it signs with, what it said it runs, when it joined (Unix time) and the
-    member it joined for ("": the campaign's own secret's)."""
+    member it joined for ("": the shared member, of the campaign's shared secret)."""
 
     key: bytes
     algo: str
     seed: int
     joined: float
     member: str = ""
+
+
+def member_name(member: str) -> str:
+    """How a message names ``member``: ``member 'lab2'``, or the shared member of the campaign's shared secret."""
+    return f"member {member!r}" if member else "the shared member (the campaign's shared secret)"
 
 
 class Admission:
@@ -96,9 +102,8 @@ class Admission:
             raise MessageRejected("sender", f"join of island {island!r} for member {request.member!r}: a member's islands bear its name")
         if not any(hmac.compare_digest(step.challenge, self._challenge(request, age)) for age in (0, 1)):
             raise MessageRejected("replay", f"join proof of {island!r} answers no challenge of the last {2 * CHALLENGE_S:g} s")
-        if not proof_holds(step, self.secret.admission_for(request.member)):
-            raise MessageRejected("forged", f"join proof of {island!r} does not hold: not a holder of the secret of "
-                                            + (f"member {request.member!r}" if request.member else "the campaign"))
+        if not proof_holds(step, self.keys.admission_for(request.member)):
+            raise MessageRejected("forged", f"join proof of {island!r} does not hold: not a holder of the secret of {member_name(request.member)}")
         try:
             run = self.admit(request.island, request.algo, request.seed, request.key, request.nonce, request.member)
         except HysidInputError as exc:
@@ -131,8 +136,8 @@ class Admission:
             raise HysidInputError(f"island id {island!r} is taken by a running island; give another --id")
         if sum(i == island for i, _ in self.runs) >= RUNS_PER_ISLAND:
             raise HysidInputError(f"island id {island!r} has joined {RUNS_PER_ISLAND} times, its limit; give another --id")
-        if member and self.member_runs[member] >= MEMBER_RUNS:
-            raise HysidInputError(f"member {member!r} holds {self.member_runs[member]:,} runs, its share of the campaign's {MAX_MEMBERS:,}")
+        if self.member_runs[member] >= MEMBER_RUNS:
+            raise HysidInputError(f"{member_name(member)} holds {self.member_runs[member]:,} runs, its share of the campaign's {MAX_MEMBERS:,}")
         if len(self.runs) >= MAX_MEMBERS:
             raise HysidInputError(f"the campaign has admitted {MAX_MEMBERS} island runs, its limit")
         run = secrets.token_hex(6)

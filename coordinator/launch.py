@@ -2,7 +2,9 @@
 
 Islands run as separate processes (``hysid island``) connected over Zenoh to a
 coordinator in this process, listening on a free loopback port; each is handed
-the campaign secret in its environment. With
+a member secret of its own in its environment (its island id is the member's
+name): whoever reads one process' secret is one member, bounded like any other
+(:mod:`coordinator.admission`). With
 ``single_node`` (or automatically, with a :class:`HysidWarning`, when Zenoh
 cannot open a session here) the islands are threads of this process
 exchanging migrants in memory (:class:`island.memory.MemoryBus`); the
@@ -68,7 +70,8 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
     stop = threading.Event()
     bus = MemoryBus(
         coordinator.name, [s.id for s in specs], lambda key, data: coordinator.receive(key, data, wait_s=MEMORY_WAIT_S), stop,
-        admit=coordinator.admit, assigned=lambda island: coordinator.sharing.assigned.get((island, coordinator.current.get(island, ""))),
+        admit=lambda island, algo, seed, key: coordinator.admit(island, algo, seed, key, member=island),  # each a member, as processes
+        assigned=lambda island: coordinator.sharing.assigned.get((island, coordinator.current.get(island, ""))),
         coordinator=coordinator.secret.coordinator,
     )
     nodes = [
@@ -108,7 +111,7 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
 def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
     """``hysid island`` for ``spec`` with this interpreter; ``-P`` keeps the working directory off
     ``sys.path``, so that a folder named ``hysid`` there (e.g. a clone's parent) cannot shadow the package.
-    The campaign secret goes in the environment (:func:`island_environment`), never on the command line."""
+    Its member secret goes in the environment (:func:`island_environment`), never on the command line."""
     return [
         sys.executable, "-P", "-m", "hysid", "island", "--connect", endpoint, "--campaign", campaign,
         "--algo", spec.algo, "--seed", str(spec.seed), "--id", spec.id, "--quiet",
@@ -116,7 +119,7 @@ def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
 
 
 def island_environment(secret: CampaignSecret, model: Model) -> dict[str, str]:
-    """This process' environment for an island process: the campaign secret (:data:`island.secret.SECRET_ENV`),
+    """This process' environment for an island process: its ``secret`` (:data:`island.secret.SECRET_ENV`),
     and the directories of ``model``'s own terms' modules added to ``PYTHONPATH``: an island process imports
     them by their model string (``-P`` keeps its working directory off its path)."""
     env = {k: v for k, v in os.environ.items() if k != SECRET_FILE_ENV}
@@ -133,9 +136,9 @@ def run_processes(
     """One ``hysid island`` process per spec, connected to ``endpoint``; returns the stop reason."""
     with tempfile.TemporaryDirectory(prefix="hysid-islands-") as logs:
         procs = []
-        env = island_environment(coordinator.secret, coordinator.objective.model)
         for spec in specs:
             log = open(Path(logs) / f"{spec.id}.log", "w+")
+            env = island_environment(coordinator.keys.member_secret(spec.id), coordinator.objective.model)  # a member of its own
             procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log, env=env), log))
 
         def all_exited() -> str | None:

@@ -111,7 +111,7 @@ def move_keys_out(db: sqlite3.Connection, path: str) -> int:
     if {"admission", "signing"} <= columns:
         for campaign, admission, signing in db.execute("SELECT campaign, admission, signing FROM secrets").fetchall():
             if admission and signing:  # a campaign of protocol 3 held only a key no island speaks any more
-                CampaignKeys(campaign, bytes(admission), bytes(signing)).keep(key_path(path, campaign))
+                CampaignKeys(campaign, bytes(admission), bytes(signing)).with_members_key().keep(key_path(path, campaign))
                 moved += 1
     db.execute("PRAGMA secure_delete = ON")
     db.execute("DROP TABLE secrets")

@@ -7,12 +7,12 @@ and is handled (:meth:`Coordinator.handle`) by one thread, the run loop of
 The coordinator
 
 * serves ``config`` (campaign configuration + loop set) and ``best``;
-* holds the campaign's keys (:class:`coordinator.keys.CampaignKeys`: the
-  admission secret and its private signing key, made at the campaign's start and
+* holds the campaign's keys (:class:`coordinator.keys.CampaignKeys`: the shared
+  admission secret, the members' key and its signing key, made at the start and
   kept in an owner-only key file beside the database, never in it) and signs
   everything it sends with that key;
 * admits islands (the join handshake, a challenge-response): only an island
-  that proves it holds the admission secret, for a challenge this process
+  that proves it holds its member's admission secret, for a challenge this process
   issued within the last :data:`CHALLENGE_S`, gets a run id; the run's public
   key is stored before the island hears of it, and each island id gets at
   most :data:`RUNS_PER_ISLAND` runs. Only an island that joined may speak:
@@ -163,7 +163,7 @@ class Coordinator(Admission):
         if not resume:
             store.check_new(self.name)  # before its key file is written: an existing campaign's keys stay
         self.keys = keys or campaign_keys(store.path, self.name, resume)
-        """The admission secret and the private signing key (:mod:`coordinator.keys`: in an owner-only file, never in the database)."""
+        """The admission secrets and the private signing key (:mod:`coordinator.keys`: in an owner-only file, never in the database)."""
         if not resume:
             store.create_campaign(self.name, dataset, self.config_message)
         else:
@@ -175,7 +175,7 @@ class Coordinator(Admission):
             raise StoreError(f"cannot reserve disk space next to the campaign database {store.path}: {exc.strerror or exc}") from None
         self.signing = self.keys.signing
         self.secret = self.keys.secret
-        """What islands need to join (:func:`island.secret.secret_path` is where the CLI keeps it)."""
+        """The shared secret: islands join with it as the shared member (a member's secret: ``keys.member_secret``)."""
         self.run_id = secrets.token_hex(6)
         """This coordinator process, as the sender run of what it signs."""
         self.config_signed = encode_signed_config(self.config_message, self.name, self.run_id, self.signing)

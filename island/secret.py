@@ -14,14 +14,18 @@ an owner-only file beside its database). It holds
   stays in its key file) cannot pose as the coordinator, even one that holds
   the secret.
 
-The campaign's own secret is its operator's: its holder may join for any
-*member* of the campaign. A **member secret** (:meth:`CampaignSecret.for_member`)
-holds instead the admission secret of one member, derived from the campaign's
-(:func:`member_admission`): its holder joins only for that member, under island ids
-that are the member's name or begin with it and a ``-``, and everything its runs
-do counts for that member, whose share of the campaign's run slots and of its
-effort is bounded (:mod:`coordinator.members`). Hand each host, or each party,
-a member secret of its own; keep the campaign's secret to yourself.
+Nobody holds more than one member's say with one secret. The campaign's **shared secret**
+(the one above, ``member`` ""), which the coordinator writes for islands started by hand,
+admits as one member only, the *shared* one: every run joined with it, by whoever holds
+it, counts for that member, whose share of the campaign's run slots and of its effort is
+bounded like any other's (:mod:`coordinator.admission`). A **member secret** holds instead
+the admission secret of one named member, which the coordinator makes from a members' key
+that only it holds (:class:`coordinator.keys.CampaignKeys`): its holder joins only for that
+member, under island ids that are the member's name or begin with it and a ``-``. No secret
+an island is handed makes another's: neither the shared secret nor a member's gives any
+other member's admission secret. Hand each host, process or party a member secret of its
+own (``hysid coordinator --member NAME``; ``hysid campaign`` gives each island process
+one), so that whoever holds one of them, or the shared one, is one bounded member.
 
 Its text form is one line, ``hysid-secret 1 <campaign> <admission hex>
 <coordinator hex>`` (the campaign's) or ``hysid-secret 2 <campaign> <member>
@@ -33,8 +37,6 @@ beside the campaign database (:func:`secret_path`, ``<db>-<campaign>.secret``;
 
 from __future__ import annotations
 
-import hashlib
-import hmac
 import os
 import secrets
 import stat
@@ -55,11 +57,6 @@ MEMBER_FORMAT = "2"
 KEY_BYTES = 32
 
 
-def member_admission(admission: bytes, member: str) -> bytes:
-    """The admission secret of ``member`` of a campaign whose own admission secret is ``admission``."""
-    return hmac.new(admission, b"hysid member\x00" + member.encode(), hashlib.sha256).digest()
-
-
 def of_member(island: str, member: str) -> bool:
     """Whether island id ``island`` may be one of ``member``'s: the member's name, or it and a ``-`` and more."""
     return island == member or island.startswith(member + "-")
@@ -67,26 +64,14 @@ def of_member(island: str, member: str) -> bool:
 
 @dataclass(frozen=True)
 class CampaignSecret:
-    """A campaign's admission secret (or one member's: ``member``) and its coordinator's public signing key (see the
-    module docstring)."""
+    """A campaign's shared admission secret (or one member's: ``member``) and its coordinator's public signing key (see
+    the module docstring)."""
 
     campaign: str
     admission: bytes
     coordinator: bytes
     member: str = ""
-    """The member this secret admits for ("": the campaign's own secret, which admits for any member)."""
-
-    def for_member(self, member: str) -> "CampaignSecret":
-        """The secret of ``member`` (from the campaign's own secret only)."""
-        if self.member:
-            raise HysidInputError(f"a member's secret ({self.member!r}) makes no other member's; the campaign's own secret does")
-        return CampaignSecret(self.campaign, member_admission(self.admission, check_name("member", member)), self.coordinator, member)
-
-    def admission_for(self, member: str) -> bytes:
-        """What a join for ``member`` proves: this secret's admission if it is that member's, derived if it is the campaign's."""
-        if self.member == member:
-            return self.admission
-        return self.for_member(member).admission
+    """The member this secret admits for ("": the campaign's shared secret, which admits as the shared member)."""
 
     @classmethod
     def create(cls, campaign: str, coordinator: bytes) -> "CampaignSecret":

@@ -413,7 +413,7 @@ def read_as_another_user(path: Path) -> bytes | None:
 def test_another_user_finds_no_key_in_any_file_a_campaign_leaves(tmp_path: Path) -> None:
     """A campaign of two island processes in a directory every user may enter: its database, WAL, shared memory,
     reserve, key and secret files are 0600, and every file it leaves that another user can read (its report, figures,
-    result) holds no byte of the admission secret or the coordinator's private key, raw or in hex."""
+    result) holds no byte of the admission secret, the members' key or the coordinator's private key, raw or in hex."""
     from coordinator.keys import CampaignKeys, key_path
 
     base = Path(tempfile.mkdtemp(prefix="hysid-other-user-"))
@@ -425,7 +425,7 @@ def test_another_user_finds_no_key_in_any_file_a_campaign_leaves(tmp_path: Path)
         assert done.returncode == 0, done.stderr
         db = out / "campaign.sqlite"
         keys = CampaignKeys.read(key_path(db, "campaign"), "campaign")
-        forms = [k for key in (keys.admission, keys.signing) for k in (key, key.hex().encode(), key.hex().upper().encode())]
+        forms = [k for key in (keys.admission, keys.signing, keys.members) for k in (key, key.hex().encode(), key.hex().upper().encode())]
         owner_only = {db.name, f"{db.name}-wal", f"{db.name}-shm", f"{db.name}-reserve", key_path(db, "campaign").name, f"{db.name}-campaign.secret"}
         left = [p for p in base.rglob("*") if p.is_file()]
         assert {db.name, key_path(db, "campaign").name, f"{db.name}-campaign.secret", "report.md", "result.json"} <= {p.name for p in left}

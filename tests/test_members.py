@@ -7,18 +7,25 @@ plausibly have done, against honest islands over Zenoh on loopback, with a late 
 
 from __future__ import annotations
 
+import hashlib
+import hmac
+import secrets
 import threading
 import time
 
 import numpy as np
 import pytest
 
+from coordinator.keys import CampaignKeys, key_path
+from coordinator.launch import island_environment
 from coordinator.loop import check_stop, pump
-from hysid_model.errors import HysidInputError
+from coordinator.state import resume
+from coordinator.store import Store
+from hysid_model.errors import HysidInputError, HysidWarning
 from island.node import IslandNode
 from island.handshake import JoinRequest, decode_joined
 from island.protocol import encode_history, History
-from island.secret import CampaignSecret, member_admission
+from island.secret import CampaignSecret
 from island.sealing import new_key, public_key
 from island.session import open_session, session_config
 from island.termination import Termination
@@ -31,10 +38,8 @@ from test_host import LOOPS, Campaign, config
 
 def test_a_member_secret_admits_only_that_members_islands_and_its_runs_are_bound_to_it(tmp_path, link):
     c = make(tmp_path)
-    theirs = c.secret.for_member("lab2")
-    assert CampaignSecret.parse(theirs.text(), "x") == theirs and theirs.admission == member_admission(c.secret.admission, "lab2")
-    with pytest.raises(HysidInputError, match="makes no other member's"):
-        theirs.for_member("lab3")
+    theirs = c.keys.member_secret("lab2")
+    assert CampaignSecret.parse(theirs.text(), "x") == theirs and theirs.member == "lab2"
     key = new_key()
     ok = JoinRequest("c1", "lab2-0", "pso", 1, b"a" * 16, public_key(key), "lab2")
     run = decode_joined(handshake(c, link, ok, key, admission=theirs.admission)[0], "c1", "lab2-0", ok.nonce, c.secret.coordinator)
@@ -44,8 +49,58 @@ def test_a_member_secret_admits_only_that_members_islands_and_its_runs_are_bound
     assert handshake(c, link, other_id, key, admission=theirs.admission) == []
     assert handshake(c, link, other_member, key, admission=theirs.admission) == []
     assert reasons(c) == {"sender": 1, "forged": 1} and len(c.runs) == 1
-    own = JoinRequest("c1", "lab3-0", "pso", 1, b"d" * 16, public_key(key), "lab3")  # the campaign's secret joins for any member
-    decode_joined(handshake(c, link, own, key, admission=c.secret.admission_for("lab3"))[0], "c1", "lab3-0", own.nonce, c.secret.coordinator)
+
+
+def test_no_secret_an_island_holds_makes_another_members_secret(tmp_path, link):
+    """What an island is handed (the campaign's shared secret in its file, a member's in a launched island's environment)
+    holds no byte of the members' key, and no admission secret an attacker can compute from it (the secret itself, an
+    HMAC of another member's name under it: what this campaign's hysid derived member secrets by before) admits for
+    another member, or for the shared one; the members' own secrets do."""
+    c = make(tmp_path)
+    shared, lab2 = c.secret, c.keys.member_secret("lab2")
+    handed = (shared.text(), lab2.text(), *island_environment(c.keys.member_secret("pso-1"), c.objective.model).values())
+    assert not any(k.hex() in text for text in handed for k in (c.keys.members, c.keys.signing))
+    assert not any(c.keys.admission.hex() in text for text in handed[1:])  # a member's secret holds not the shared one either
+
+    def derived(secret, member: str) -> bytes:
+        return hmac.new(secret.admission, b"hysid member\x00" + member.encode(), hashlib.sha256).digest()
+
+    key, attempts = new_key(), 0
+    for member, island in (("lab3", "lab3-0"), ("", "anyone")):
+        for admission in {shared.admission, lab2.admission, derived(shared, member), derived(lab2, member), derived(lab2, "lab2")} - {
+                c.keys.admission_for(member)}:
+            request = JoinRequest("c1", island, "pso", 1, secrets.token_bytes(16), public_key(key), member)
+            assert handshake(c, link, request, key, admission=admission) == []
+            attempts += 1
+    assert reasons(c) == {"forged": attempts} and attempts >= 9 and not c.runs
+    for secret, island in ((c.keys.member_secret("lab3"), "lab3-0"), (shared, "anyone")):
+        request = JoinRequest("c1", island, "pso", 1, secrets.token_bytes(16), public_key(key), secret.member)
+        run = decode_joined(handshake(c, link, request, key, admission=secret.admission)[0], "c1", island, request.nonce, c.secret.coordinator)
+        assert c.runs[(island, run)].member == secret.member
+
+
+def test_a_resumed_coordinator_admits_its_members_again_and_an_old_key_file_gets_a_members_key(tmp_path, link):
+    """The members' key is in the key file that --resume reads: a member secret written before the restart admits after
+    it. A key file of an earlier hysid (format 1, no members' key) gets one when resumed, with one warning naming what
+    to do; the shared secret of before still admits."""
+    c = make(tmp_path)
+    lab2 = c.keys.member_secret("lab2")
+    c.store.close()
+    again = resume(Store(tmp_path / "c.sqlite"), "c1")
+    key = new_key()
+    request = JoinRequest("c1", "lab2", "pso", 1, b"a" * 16, public_key(key), "lab2")
+    assert decode_joined(handshake(again, link, request, key, admission=lab2.admission)[0], "c1", "lab2", request.nonce, again.secret.coordinator)
+    again.store.close()
+    path = key_path(tmp_path / "c.sqlite", "c1")
+    path.write_text(f"hysid-keys 1 c1 {c.keys.admission.hex()} {c.keys.signing.hex()}\n")  # as an earlier hysid wrote it
+    with pytest.warns(HysidWarning, match="without a members' key; one was added .* write them again with --member NAME"):
+        old = resume(Store(tmp_path / "c.sqlite"), "c1")
+    upgraded = CampaignKeys.read(path, "c1")
+    assert upgraded == old.keys and (upgraded.admission, upgraded.signing) == (c.keys.admission, c.keys.signing)
+    assert len(upgraded.members) == 32 and path.read_text().startswith("hysid-keys 2 c1 ")
+    request = JoinRequest("c1", "pso-9", "pso", 1, b"b" * 16, public_key(key))
+    assert decode_joined(handshake(old, link, request, key)[0], "c1", "pso-9", request.nonce, old.secret.coordinator)  # the shared secret
+    old.store.close()
 
 
 def test_a_member_holds_at_most_its_share_of_the_run_slots(tmp_path, link, monkeypatch):
@@ -93,7 +148,7 @@ def test_a_member_with_16_runs_claiming_the_most_it_can_neither_ends_the_campaig
     campaign = Campaign(tmp_path, cfg, Termination(budget=4_000_000))
     db = tmp_path / "mb.sqlite"
     c = campaign.c
-    theirs = c.secret.for_member("mallory")
+    theirs = c.keys.member_secret("mallory")
     thief = open_session(session_config("client", connect=[campaign.endpoint]), campaign.endpoint)
     nodes = [IslandNode(name, "pso", seed, cfg, cfg.objective(LOOPS), history_every_s=0.05) for name, seed in (("a", 1), ("b", 2), ("late", 3))]
     threads = [threading.Thread(target=lambda n=n: n.run(ZenohTransport(campaign.client, n, c.secret, wait_s=20.0))) for n in nodes]

@@ -144,7 +144,7 @@ def test_a_new_database_its_side_files_and_its_keys_are_owner_only_and_it_holds_
     assert {oct(p.stat().st_mode & 0o777) for p in files} == {"0o600"}
     for p in side_files(db):
         data = p.read_bytes()
-        assert all(k not in data and k.hex().encode() not in data for k in (keys.admission, keys.signing)), p
+        assert all(k not in data and k.hex().encode() not in data for k in (keys.admission, keys.signing, keys.members)), p
     c.store.close()
     again = resume(Store(db), "c1")
     assert again.keys == keys  # --resume signs with the same key: its islands can be taken up
@@ -175,7 +175,8 @@ def test_a_database_that_still_holds_keys_has_them_moved_out_when_opened_for_wri
     with pytest.warns(HysidWarning, match="still holds campaign keys"):
         Store.read_only(db).close()
     Store(db).close()
-    assert CampaignKeys.read(key_path(db, "old"), "old") == CampaignKeys("old", admission, signing)
+    moved = CampaignKeys.read(key_path(db, "old"), "old")
+    assert (moved.admission, moved.signing) == (admission, signing) and len(moved.members) == 32  # and a members' key
     assert oct(key_path(db, "old").stat().st_mode & 0o777) == "0o600"
     for p in side_files(db):
         data = p.read_bytes()

@@ -3,10 +3,10 @@
 ``campaign`` is the one-machine job (coordinator + N island processes on
 loopback, or ``--single-node``); ``coordinator`` and ``island`` are its two
 halves for clusters (see ``deploy/``), connected by Zenoh endpoints or a Zenoh
-configuration file. The coordinator keeps the campaign secret in a file of mode
-0600 beside its database (or at ``--secret-file``); an island takes it from
-``--secret-file`` or the environment (:mod:`island.secret`), and without it
-cannot join.
+configuration file. The coordinator keeps the campaign's shared secret in a file
+of mode 0600 beside its database (or at ``--secret-file``), and a member secret
+for each ``--member``; an island takes one from ``--secret-file`` or the
+environment (:mod:`island.secret`), and without it cannot join.
 """
 
 from __future__ import annotations
@@ -207,13 +207,15 @@ def register(app: typer.Typer) -> None:
         resume_db: bool = typer.Option(False, "--resume", help="Carry on the campaign stored in --db after a crash (its settings and loop set come from there)."),
         secret_file: Optional[Path] = typer.Option(
             None, "--secret-file",
-            help="Where to keep the campaign secret that islands need to join (mode 0600; default DB-CAMPAIGN.secret beside the database).",
+            help="Where to keep the campaign's shared secret (mode 0600; default DB-CAMPAIGN.secret beside the database): islands joined "
+                 "with it, whoever holds it, count as one member.",
         ),
         members: list[str] = typer.Option(
             [], "--member",
-            help="Also write a member secret for NAME (repeatable; DB-CAMPAIGN+NAME.secret, mode 0600): its holder joins only as NAME's "
-                 "islands (ids NAME or NAME-...), and no member's runs take more than half the run slots or count more effort than all "
-                 "the other members' together. Hand each host or party its own; keep the campaign's secret to yourself.",
+            help="Also write a member secret for NAME (repeatable; DB-CAMPAIGN+NAME.secret, mode 0600; the same again with --resume): "
+                 "its holder joins only as NAME's islands (ids NAME or NAME-...), and no member (the shared secret's holders together "
+                 "are one) takes more than half the run slots or counts more effort than all the other members together. Hand each "
+                 "host or process its own.",
         ),
         min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
         algos: str = o.ALGOS,
@@ -281,13 +283,13 @@ def register(app: typer.Typer) -> None:
                 coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
             kept = keep_secret(coordinator.secret, secret_file or secret_path(path, name))
             for member in members:
-                kept_member = keep_secret(coordinator.secret.for_member(member), member_path(path, name, member))
+                kept_member = keep_secret(coordinator.keys.member_secret(member), member_path(path, name, member))
                 if not quiet:
                     print(f"hysid: member {member!r}'s secret {kept_member}", file=sys.stderr, flush=True)
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
             session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
             link = ZenohLink(session, coordinator)
-            print(f"coordinator of campaign {name!r} ready (database {store.path}, islands' secret {kept})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
+            print(f"coordinator of campaign {name!r} ready (database {store.path}, islands' shared secret {kept})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
             try:
                 serve(coordinator, link, None if quiet else print_progress)
             finally:
@@ -315,7 +317,8 @@ def register(app: typer.Typer) -> None:
         ),
         secret_file: Optional[Path] = typer.Option(
             None, "--secret-file", envvar=SECRET_FILE_ENV, show_envvar=False,
-            help=f"The campaign secret its coordinator wrote (DB-CAMPAIGN.secret beside its database; waited for up to --wait); "
+            help=f"The secret its coordinator wrote beside its database (waited for up to --wait): this host's member secret "
+                 f"(DB-CAMPAIGN+NAME.secret, hysid coordinator --member NAME; ids NAME or NAME-...), or the shared one (DB-CAMPAIGN.secret); "
                  f"or give its text in ${SECRET_ENV}, or the file in ${SECRET_FILE_ENV}.",
         ),
         count: str = typer.Option(
