@@ -4,8 +4,9 @@
 # commands a cluster runs, each process with its own log. Use it to rehearse a
 # multi-machine campaign (same configs, same key space) before going to
 # several machines. (`hysid campaign` does the same in one command.) The
-# coordinator writes the campaign secret beside its database; the islands read
-# it there (--secret-file, waiting for it while the coordinator starts).
+# coordinator writes a member secret for each island beside its database
+# (--member island-K); each island reads its own there (--secret-file, waiting
+# for it while the coordinator starts), so that each is a member of its own.
 #
 # usage: run-campaign.sh [-n ISLANDS] [-p PORT] [-c CAMPAIGN] [-o DIR] [-z ZENOH_DIR] [DATASET] [-- COORDINATOR_OPTION...]
 #
@@ -58,19 +59,21 @@ command -v "$hysid" >/dev/null || die "'$hysid' not found: activate the venv whe
 
 mkdir -p "$outdir"
 endpoint=tcp/127.0.0.1:$port
+members=()
+for ((k = 1; k <= islands; k++)); do members+=(--member "island-$k"); done
 pids=()
 stop_all() { for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done; }
 trap 'stop_all; exit 130' INT TERM
 
 "$hysid" coordinator --config "$zenoh_dir/coordinator.json5" --listen "$endpoint" --campaign "$campaign" \
-  --min-islands "$islands" --db "$outdir/campaign.sqlite" --out "$outdir/report" "$@" "$dataset" \
+  --min-islands "$islands" --db "$outdir/campaign.sqlite" --out "$outdir/report" "${members[@]}" "$@" "$dataset" \
   > "$outdir/coordinator.log" 2>&1 &
 coordinator=$!
 pids+=("$coordinator")
 for ((k = 1; k <= islands; k++)); do
   algo=ga; (( k % 2 )) || algo=pso
   "$hysid" island --config "$zenoh_dir/island.json5" --connect "$endpoint" --campaign "$campaign" \
-    --secret-file "$outdir/campaign.sqlite-$campaign.secret" \
+    --secret-file "$outdir/campaign.sqlite-$campaign+island-$k.secret" \
     --id "island-$k" --seed "$k" --algo "$algo" > "$outdir/island-$k.log" 2>&1 &
   pids+=("$!")
 done
