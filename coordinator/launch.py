@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import TextIO
 
 from coordinator.links import MemoryLink, ZenohLink
+from coordinator.interrupt import INTERRUPTED
 from coordinator.loop import serve
 from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
@@ -42,6 +43,9 @@ from island.memory import MemoryBus, MemoryTransport
 from island.wire import MAX_MEMBERS
 
 ISLAND_EXIT_WAIT_S = 15.0
+"""After the campaign stopped, how long its island processes are given to exit before they are killed."""
+INTERRUPTED_EXIT_WAIT_S = 0.5
+"""The same after Ctrl-C: their last rows are in (or were given up on), and the user waits."""
 MEMORY_WAIT_S = 5.0
 """How long an island thread waits for room in the coordinator's inbox before its message is dropped."""
 MEMORY_HISTORY_EVERY_S = 0.02
@@ -150,8 +154,13 @@ def run_processes(
 
         try:
             reason = serve(coordinator, link, on_progress, extra_stop=all_exited)
+        except KeyboardInterrupt:  # a second Ctrl-C leaves at once: the islands too (also one frozen)
+            for _, p, _ in procs:
+                if p.poll() is None:
+                    p.kill()
+            raise
         finally:
-            deadline = time.monotonic() + ISLAND_EXIT_WAIT_S
+            deadline = time.monotonic() + (INTERRUPTED_EXIT_WAIT_S if coordinator.stop_reason == INTERRUPTED else ISLAND_EXIT_WAIT_S)
             for _, p, log in procs:
                 try:
                     p.wait(timeout=max(deadline - time.monotonic(), 0.1))

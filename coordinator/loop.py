@@ -20,7 +20,11 @@ inbox (:func:`pump`) through :meth:`coordinator.state.Coordinator.handle` and
   :meth:`coordinator.state.Coordinator.rule_stop`), when every island has
   finished (or finished or was lost), or when no island has been alive for
   :data:`ORPHAN_S`; then announces the stop and stores the islands' final
-  histories (for at most :data:`STOP_GRACE_S`). A database that cannot be
+  histories (for at most :data:`STOP_GRACE_S`). Ctrl-C (:class:`coordinator.interrupt.CtrlC`)
+  stops it the same way, ``interrupted``, waiting at most :data:`INTERRUPT_GRACE_S` for the
+  islands' last rows and recording each island run ``stopped`` (by the user); a second Ctrl-C
+  leaves at once: the database rolled back to its last commit (nothing half written) and
+  marked ``interrupted``, the runs still alive recorded ``stopped``. A database that cannot be
   written (locked by another process for :data:`coordinator.store.RUN_LOCK_WAIT_S`,
   full, read-only, deleted) stops the campaign cleanly (:class:`StoreError`): the
   islands are told to stop and the campaign is marked ``interrupted`` where the
@@ -36,6 +40,7 @@ import sqlite3
 import time
 from collections.abc import Callable
 
+from coordinator.interrupt import INTERRUPTED, CtrlC
 from coordinator.members import LEAVE_GRACE_S, Member
 from coordinator.progress import CampaignProgress
 from coordinator.link import Link
@@ -47,6 +52,10 @@ ORPHAN_S = 30.0
 """Once islands have joined, a campaign with none alive for this long ends."""
 STOP_GRACE_S = 10.0
 """After the stop order, how long to wait for islands' final histories."""
+INTERRUPT_GRACE_S = 2.0
+"""After Ctrl-C, how long to wait for them (an island's iteration ends well within it; the user may leave sooner)."""
+LEFT_AT_ONCE = "interrupted: left at a second Ctrl-C, without waiting for the islands' last rows"
+"""The stop reason stored when a second Ctrl-C leaves at once."""
 FAULT_ANNOUNCEMENTS = 4
 """After a database fault, how many times (every 0.5 s) the stop order goes out before the coordinator ends."""
 COMMIT_EVERY_S = 0.5
@@ -169,39 +178,56 @@ def serve(
 ) -> str:
     """Run until a stop rule, ``extra_stop()`` or Ctrl-C; announce the stop, collect final histories; returns the reason.
 
-    A database that cannot be written ends the campaign: islands are told to
-    stop, the campaign is marked ``interrupted`` if the file lets us, and
+    ``on_progress`` is called every ``progress_every_s``, at each membership event, at once when the campaign
+    starts to stop (its :attr:`CampaignProgress.stopping` says why) and at the end. A second Ctrl-C raises
+    ``KeyboardInterrupt`` at once (see the module docstring). A database that cannot be written ends the
+    campaign: islands are told to stop, the campaign is marked ``interrupted`` if the file lets us, and
     :class:`StoreError` says what happened.
     """
     try:
-        return _serve(c, link, on_progress, extra_stop, progress_every_s)
+        with CtrlC(c.membership.stopped_by_user) as ctrl_c:  # goodbyes handled from the key on record "stopped"
+            return _serve(c, link, on_progress, extra_stop, progress_every_s, ctrl_c)
     finally:
         c.inbox.close()
 
 
 def _serve(
     c: Coordinator, link: Link, on_progress: Callable[[CampaignProgress], None] | None, extra_stop: Callable[[], str | None] | None,
-    progress_every_s: float,
+    progress_every_s: float, ctrl_c: CtrlC,
 ) -> str:
     last, shown_events = 0.0, -1
     fault: StoreError | None = None
     try:
         while c.stop_reason is None:
             pump(c, link, PASS_S)
-            c.stop_reason = check_stop(c) or (extra_stop() if extra_stop is not None else None)
-            if on_progress is not None and (time.monotonic() - last >= progress_every_s or c.membership.events != shown_events):
+            c.stop_reason = INTERRUPTED if ctrl_c.asked else check_stop(c) or (extra_stop() if extra_stop is not None else None)
+            if c.stop_reason is None and on_progress is not None and (
+                    time.monotonic() - last >= progress_every_s or c.membership.events != shown_events):
                 on_progress(c.progress())
                 last, shown_events = time.monotonic(), c.membership.events
-    except KeyboardInterrupt:  # Ctrl-C (SIGINT) stops the campaign like a stop rule; a second one aborts
-        c.stop_reason = "interrupted"
+    except KeyboardInterrupt:  # Ctrl-C where CtrlC could not take SIGINT over stops the campaign as one it took
+        if ctrl_c.asked:  # the second: leave at once
+            _leave_now(c)
+            raise
+        c.stop_reason = INTERRUPTED
     except StoreError as exc:
-        fault, c.stop_reason = exc, "interrupted"
+        fault, c.stop_reason = exc, INTERRUPTED
     try:
         if fault is None:
+            by_user = c.stop_reason == INTERRUPTED
+            if by_user:
+                c.membership.stopped_by_user()
             c.store.set_status(c.name, "stopping", c.stop_reason)
-            _stop_islands(c, link)
+            if on_progress is not None:
+                on_progress(c.progress())
+            _stop_islands(c, link, INTERRUPT_GRACE_S if by_user else STOP_GRACE_S)
+            if by_user:
+                c.membership.stopped_by_user(give_up=True)
     except StoreError as exc:
         fault = exc
+    except KeyboardInterrupt:  # Ctrl-C while the islands' last rows come: leave at once
+        _leave_now(c)
+        raise
     if fault is not None:
         raise _interrupted(c, link, fault)
     c.store.set_status(c.name, "stopped", c.stop_reason)
@@ -210,14 +236,28 @@ def _serve(
     return c.stop_reason
 
 
-def _stop_islands(c: Coordinator, link: Link) -> None:
-    """Announce the stop until every island left (at most :data:`STOP_GRACE_S`), storing their
+def _stop_islands(c: Coordinator, link: Link, grace_s: float) -> None:
+    """Announce the stop until every island left (at most ``grace_s``), storing their
     final histories and confirming them."""
-    deadline = time.monotonic() + STOP_GRACE_S
+    deadline = time.monotonic() + grace_s
     while time.monotonic() < deadline and c.membership.any_alive():
         commit(c, link, announce=True)
-        pump(c, link, 0.5)
+        pump(c, link, min(0.5, max(deadline - time.monotonic(), 0.0)))
     pump(c, link, LEAVE_GRACE_S, first_wait=LEAVE_GRACE_S)
+
+
+def _leave_now(c: Coordinator) -> None:
+    """A second Ctrl-C: the database back at its last commit (a batch the key cut short is not half
+    written; only committed rows were ever confirmed to islands), the runs still alive recorded
+    ``stopped``, the campaign marked interrupted (:data:`LEFT_AT_ONCE`); a file that will not take
+    it keeps what was committed."""
+    c.stop_reason = INTERRUPTED
+    c.store.rollback()
+    try:
+        c.membership.stopped_by_user(give_up=True)
+        c.store.set_status(c.name, INTERRUPTED, LEFT_AT_ONCE)
+    except (StoreError, sqlite3.Error):
+        c.store.rollback()
 
 
 def _interrupted(c: Coordinator, link: Link, fault: StoreError) -> StoreError:

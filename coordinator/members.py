@@ -13,8 +13,10 @@ history is its leave (:meth:`Membership.final_history`), whatever token stays
 (also one handled after the run was found lost: it was sent before);
 a token that goes without it for :data:`LEAVE_GRACE_S`, or no signed message
 for :data:`STALE_S`, is a loss (:meth:`Membership.settle`): crash, kill, or a
-frozen process. A lost run is back with its next signed message; a run that
-left never comes back (a new run of the island joins anew). After a restart
+frozen process. Once the user stopped the campaign (Ctrl-C), a run's final history records
+that it was ``stopped`` (by the user) instead of ``left`` (:meth:`Membership.stopped_by_user`).
+A lost run is back with its next signed message; a run that
+left or was stopped never comes back (a new run of the island joins anew). After a restart
 (``--resume``) the runs that were alive when the previous coordinator died are
 taken up again (:meth:`Membership.take_up`), lost unless they are heard from
 within :data:`STALE_S`. Every event is stored as it happens
@@ -34,14 +36,15 @@ LEAVE_GRACE_S = 0.3
 STALE_S = 10.0
 """A joined island run with no signed message for this long is lost (an island sends one every second
 at least)."""
-STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left", "lost": "lost"}
+STATUS_AFTER = {"join": "alive", "seen": "alive", "back": "alive", "left": "left", "lost": "lost", "stopped": "stopped"}
 """A member's status after each recorded membership event."""
 
 
 @dataclass
 class Member:
     status: str = "alive"
-    """alive, left (said goodbye), lost (vanished: crash, kill, lease expired, silent)"""
+    """alive, left (said goodbye), stopped (said goodbye, or was given up on, once the user stopped the
+    campaign), lost (vanished: crash, kill, lease expired, silent)"""
     run: str = ""
     gone_at: float | None = None
     token: bool = False
@@ -77,6 +80,8 @@ class Membership:
         """Since when no island has been alive, once some joined (None while one is)."""
         self.events = 0
         """Membership events recorded by this process (progress is shown at each)."""
+        self.leave_event = "left"
+        """What a final history records: ``left``, or ``stopped`` once the user stopped the campaign."""
 
     def alive(self, island: str, run: str) -> bool:
         member = self.members.get(island)
@@ -144,7 +149,17 @@ class Membership:
         final history that came first and waited longer than :data:`LEAVE_GRACE_S`; the loss stays recorded, then the leave."""
         member = self.members.get(island)
         if member is not None and member.run == run and member.status in ("alive", "lost"):
-            self._leave(island, member, "left")
+            self._leave(island, member, self.leave_event)
+
+    def stopped_by_user(self, *, give_up: bool = False) -> None:
+        """The user stopped the campaign (Ctrl-C): final histories from now on record ``stopped``; with
+        ``give_up`` (the coordinator no longer waits for their last rows) every run still alive is recorded
+        ``stopped`` now."""
+        self.leave_event = "stopped"
+        if give_up:
+            for island, member in self.members.items():
+                if member.status == "alive":
+                    self._leave(island, member, "stopped")
 
     def settle(self, waiting: Callable[[str], bool] | None = None) -> None:
         """A token gone without a final history for :data:`LEAVE_GRACE_S`, or no signed message for

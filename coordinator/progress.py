@@ -33,3 +33,6 @@ class CampaignProgress:
     rejected: int
     migrations_followed: bool = True
     """False once the coordinator stopped following migrant messages (:data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`)."""
+    stopping: str | None = None
+    """Why the campaign stops (``interrupted``: the user's Ctrl-C) once it does, while it waits for the islands'
+    last rows and after; None while it runs."""

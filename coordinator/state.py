@@ -273,6 +273,7 @@ class Coordinator(Admission):
             migrations=self.migrations,
             rejected=self.rejected,
             migrations_followed=self.follows_migrants,
+            stopping=self.stop_reason,
         )
 
     def _best_message(self) -> bytes:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from coordinator.interrupt import INTERRUPTED
 from coordinator.keys import CampaignKeys
 from coordinator.launch import island_specs, run_campaign
 from coordinator.outcome import CampaignOutcome, polished
@@ -141,11 +142,18 @@ class CampaignResult:
         """The fit summary, why the campaign stopped, its migrations and every island."""
         return text.campaign_summary(self)
 
-    def write_report(self, out_dir: str | Path) -> Path:
-        """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document."""
-        interrupted = " (interrupted)" if str(self.fit.settings.get("stop_reason")).startswith("interrupted") else ""
-        return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{interrupted}", document=self.to_dict(),
-                                         sections=markdown.campaign_sections(self))
+    @property
+    def interrupted(self) -> bool:
+        """Whether the user stopped the campaign (Ctrl-C), or a database fault or a coordinator gone ended it, not one of its rules."""
+        return str(self.fit.settings.get("stop_reason")).startswith(INTERRUPTED)
+
+    def write_report(self, out_dir: str | Path, *, figures: bool = True) -> Path:
+        """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document. ``figures=False``
+        leaves the figures out (a campaign stopped by Ctrl-C reports in seconds; ``hysid report DB`` draws them)."""
+        db = self.fit.settings.get("db")
+        left_out = None if figures else "the campaign was interrupted" + (f" (`hysid report {db}` draws them)" if db and db != ":memory:" else "")
+        return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{' (interrupted)' if self.interrupted else ''}", document=self.to_dict(),
+                                         sections=markdown.campaign_sections(self), figures_left_out=left_out)
 
     def _repr_markdown_(self) -> str:
         return markdown.fit_overview(self.fit)
@@ -167,9 +175,11 @@ def pick_campaign(store: Store, name: str | None = None) -> str:
 
 
 def finish(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None) -> CampaignResult:
-    """The result of a stopped campaign (its displacement reading :func:`confirmed`), also kept in its database.
+    """The result of a stopped campaign (its displacement reading :func:`confirmed`; after Ctrl-C without a search
+    under the other reading: the user waits), also kept in its database.
     ``motion``: the choice the campaign started with (None: rebuilt from its configuration)."""
-    result = CampaignResult.from_outcome(confirmed(coordinator, outcome, motion))
+    interrupted = outcome.settings.get("stop_reason") == INTERRUPTED
+    result = CampaignResult.from_outcome(confirmed(coordinator, outcome, motion, search=not interrupted))
     coordinator.store.set_result(coordinator.name, jsondoc.dumps(result.to_dict()))
     return result
 
@@ -190,13 +200,14 @@ def stored_evidence(loops: LoopSet, config: CampaignConfig) -> list[dict[str, fl
         return []
 
 
-def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None) -> CampaignOutcome:
+def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None, *, search: bool = True) -> CampaignOutcome:
     """``outcome`` under the displacement reading its fitted model prefers, by ``hysid fit``'s rule: where the
     data chose the reading (:func:`hysid.motion.choose_motion`, with the linear start) and the polished best
     reads the loops the other way (:func:`hysid.motion.confirm_motion`), the best is searched again under that
     reading from the islands' best (memetic islands on a model with memory, as ``fit``; then polished and
     widened as the campaign's best is) and every island run's best is re-evaluated under it; the islands'
-    own records stay as they searched. ``settings['displacement_model']`` says which reading and why."""
+    own records stay as they searched. ``settings['displacement_model']`` says which reading and why.
+    Without ``search`` the reading stays, its reason saying that the model prefers the other one."""
     config = coordinator.config
     if motion is None:
         motion = MotionChoice(config.displacement, config.displacement_by, MOTION_REASONS[config.displacement_by], orders=stored_evidence(coordinator.loops, config))
@@ -206,6 +217,10 @@ def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: Motion
     best = min(outcome.runs, key=lambda r: r.fitness)
     flipped = confirm_motion(coordinator.loops, outcome.objective.model, best.theta, motion)
     if flipped is None:
+        return outcome
+    if not search:
+        motion.reason += f"; the fitted model reads it as {flipped.displacement}, not searched again (interrupted: hysid report does)"
+        outcome.settings["displacement_model"] = motion.as_dict()
         return outcome
     objective = replace(config, objective_kind="closed_form", displacement=flipped.displacement).objective(coordinator.loops)
     start = np.clip(best.theta, objective.bounds[:, 0], objective.bounds[:, 1])

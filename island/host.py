@@ -32,7 +32,7 @@ import threading
 import zlib
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import zenoh
 
@@ -116,6 +116,9 @@ class Hosted:
     spec: IslandSpec
     node: IslandNode | None = None
     error: BaseException | None = None
+    ended: threading.Event = field(default_factory=threading.Event)
+    """Set when its thread ended: waited on instead of ``Thread.join``, which CPython 3.11 reports done at once
+    after a Ctrl-C interrupted it (the island's last history would go unsent as the process exits)."""
 
 
 def run_islands(
@@ -153,19 +156,21 @@ def run_islands(
             h.error = exc
             if len(hosted) > 1:
                 say(f"island {h.spec.id} failed: {describe(exc)}; the other islands of this process carry on")
+        finally:
+            h.ended.set()
 
     threads = [threading.Thread(target=island, args=(h,), name=f"island-{h.spec.id}", daemon=True) for h in hosted]
     for t in threads:
         t.start()
     try:
-        for t in threads:
-            t.join()
+        for h in hosted:
+            h.ended.wait()
     except KeyboardInterrupt:
         host.stop("interrupted (Ctrl-C)")
         host.confirm_s = min(wait_s, INTERRUPT_CONFIRM_S)
         say(f"{len(threads)} island(s) of this process interrupted: sending their last history rows (Ctrl-C again to leave at once)")
-        for t in threads:
-            t.join()
+        for h in hosted:
+            h.ended.wait()
         raise
     finally:
         host.close()

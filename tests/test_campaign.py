@@ -136,8 +136,8 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     islands = {i["island"]: i for i in doc["islands"]}
     assert islands["late"]["received"] == 1 and islands["late"]["taken"] == 1  # the global best, taken in
     assert islands["early"]["received"] == 0  # isolated islands: --interval 0
-    assert doc["settings"]["stop_reason"] == "interrupted"
-    assert all(i["status"] == "left" for i in doc["islands"])
+    assert doc["settings"]["stop_reason"] == "interrupted" and "hysid: stopping: waiting for 2 islands' last rows" in err
+    assert all(i["status"] == "stopped" and i["final"] for i in doc["islands"])  # by the user, each with its last rows
 
 
 @pytest.mark.slow  # over 3 s
@@ -162,9 +162,12 @@ def test_ctrl_c_mid_campaign_reports_it_interrupted_and_exits_130(tmp_path, caps
         signal.signal(signal.SIGINT, previous)
     captured = capsys.readouterr()
     assert code == 130 and captured.err.endswith("hysid: error: interrupted\n"), captured.err
-    assert json.loads(captured.out)["settings"]["stop_reason"] == "interrupted"
+    assert captured.err.startswith("hysid: stopping: waiting for 2 islands' last rows (Ctrl-C again to leave now)\n")  # also --quiet
+    doc = json.loads(captured.out)
+    assert doc["settings"]["stop_reason"] == "interrupted" and [i["status"] for i in doc["islands"]] == ["stopped", "stopped"]
     report = (out / "report.md").read_text()
     assert report.startswith("# hysid campaign (interrupted): synth") and "- **Stopped**: interrupted." in report
+    assert "not drawn, the campaign was interrupted" in report and not list(out.glob("*.png"))  # out in seconds
 
 
 @pytest.mark.parametrize(

@@ -96,7 +96,7 @@ def test_a_frozen_island_is_lost_within_3_s_and_back_after_sigcont(spawn, tmp_pa
     wait_for(lambda: rows_of(db, "b") > rows_frozen + 20, 20, "new history after SIGCONT")
     doc = interrupted(coord)  # Ctrl-C: the campaign stops and reports
     assert doc["settings"]["stop_reason"] == "interrupted"
-    assert events(db, "b") == ["join", "lost", "back", "left"] and events(db, "a") == ["join", "left"]
+    assert events(db, "b") == ["join", "lost", "back", "stopped"] and events(db, "a") == ["join", "stopped"]  # by the user
     assert a.wait(30) == b.wait(30) == 0
 
 

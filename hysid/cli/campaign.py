@@ -33,7 +33,7 @@ from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult, campaign, finish
 from hysid.cli import options as o
-from hysid.cli.progress import Progress, campaign_reporter
+from hysid.cli.progress import Progress, announcing_stop, campaign_reporter
 from hysid.motion import choose_motion
 from hysid.report.text import campaign_progress_line
 from hysid_model.datasets import load_dataset
@@ -55,7 +55,11 @@ WAIT_NOTICE_S = 1.0
 
 
 def print_progress(p: CampaignProgress) -> None:
-    print(campaign_progress_line(p), file=sys.stderr, flush=True)
+    print_line(campaign_progress_line(p))
+
+
+def print_line(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
 
 
 def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) -> Path:
@@ -98,7 +102,7 @@ def resumed_from(store: Store, name: str) -> str:
 def exit_status(result: CampaignResult) -> int | None:
     """:data:`hysid.cli.options.INTERRUPTED` for a campaign stopped by Ctrl-C (its report written and marked
     so), None (exit status 0) for one that ended by its rules."""
-    return o.INTERRUPTED if result.fit.settings.get("stop_reason") == "interrupted" else None
+    return o.INTERRUPTED if result.interrupted else None
 
 
 def discard_failed(out: Path, db: Path, campaign_name: str) -> None:
@@ -193,7 +197,7 @@ def register(app: typer.Typer) -> None:
             if new_db:
                 discard_failed(target_dir, path, name)
             raise
-        o.show_result(result, target_dir, as_json, csv)
+        o.show_result(result, target_dir, as_json, csv, figures=not result.interrupted)  # Ctrl-C: out in seconds
         return exit_status(result)
 
     @app.command("coordinator")
@@ -291,12 +295,12 @@ def register(app: typer.Typer) -> None:
             link = ZenohLink(session, coordinator)
             print(f"coordinator of campaign {name!r} ready (database {store.path}, islands' shared secret {kept})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
             try:
-                serve(coordinator, link, None if quiet else print_progress)
+                serve(coordinator, link, announcing_stop(None if quiet else print_progress, print_line))
             finally:
                 link.close()
                 session.close()
             result = finish(coordinator, coordinator.outcome(polish_best=polish), motion)
-            o.show_result(result, target_dir, as_json, csv=False)
+            o.show_result(result, target_dir, as_json, csv=False, figures=not result.interrupted)
         finally:
             store.close()
         return exit_status(result)

@@ -255,9 +255,12 @@ def check_writable(directory: Path, param: str) -> Path:
     return directory
 
 
-def show_result(result: Any, target: Path, as_json: bool, csv: bool, dataset: str | None = None) -> None:
-    """Write a result's report (and with ``csv`` its tables) to ``target``; print its JSON document or its summary."""
-    if dataset is None:
+def show_result(result: Any, target: Path, as_json: bool, csv: bool, dataset: str | None = None, figures: bool = True) -> None:
+    """Write a result's report (and with ``csv`` its tables) to ``target``; print its JSON document or its summary.
+    ``figures=False``: a campaign's report without its figures (:meth:`hysid.campaigns.CampaignResult.write_report`)."""
+    if not figures:
+        result.write_report(target, figures=False)
+    elif dataset is None:
         result.write_report(target)
     else:
         result.write_report(target, dataset)

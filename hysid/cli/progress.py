@@ -21,7 +21,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, TaskProgressColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.progress import Progress as RichProgress
 
-from hysid.report.text import campaign_progress_line, migrant_messages
+from coordinator.interrupt import INTERRUPTED
+from hysid.report.text import campaign_progress_line, migrant_messages, stopping_line
 from island.termination import Termination
 
 if TYPE_CHECKING:
@@ -82,6 +83,13 @@ class Progress:
             self.shown_step = step
             print(self.line(status), file=self.stream, flush=True)
 
+    def say(self, line: str) -> None:
+        """``line`` on its own, above the bar on a terminal (also when the bar is off)."""
+        if self.bar is not None:
+            self.bar.console.print(line, markup=False, highlight=False, soft_wrap=True)
+        else:
+            print(line, file=self.stream, flush=True)
+
     def advance(self, status: str = "", by: float = 1.0) -> None:
         """One more unit (or ``by``) of work done."""
         self.update(self.done + by, status)
@@ -116,16 +124,34 @@ def campaign_status(p: CampaignProgress) -> str:
     return f"best {p.best:.4g} | members {alive} | migrations {migrant_messages(p)}" + (f" | rejected {p.rejected}" if p.rejected else "")
 
 
-def campaign_reporter(bar: Progress, islands: int, iterations: int | None, termination: Termination) -> Callable[[CampaignProgress], None] | None:
+def campaign_reporter(bar: Progress, islands: int, iterations: int | None, termination: Termination) -> Callable[[CampaignProgress], None]:
     """The coordinator's progress callback for ``bar``: the bar on a terminal, else one line per
-    report (:func:`hysid.report.text.campaign_progress_line`); None when the bar is off."""
-    if not bar.enabled:
-        return None
+    report (:func:`hysid.report.text.campaign_progress_line`); with the bar off (``--quiet``, ``--json``)
+    only the answer to Ctrl-C (:func:`announcing_stop`)."""
 
     def report(p: CampaignProgress) -> None:
+        if not bar.enabled:
+            return
         if bar.terminal:
             bar.update(campaign_done(p, islands, iterations, termination), campaign_status(p))
         else:
             print(campaign_progress_line(p), file=bar.stream, flush=True)
 
-    return report
+    return announcing_stop(report, bar.say)
+
+
+def announcing_stop(report: Callable[[CampaignProgress], None] | None, say: Callable[[str], None]) -> Callable[[CampaignProgress], None]:
+    """``report`` (a progress callback, or None) that first says, once, what the campaign does after Ctrl-C
+    (:func:`hysid.report.text.stopping_line`, a line handed to ``say``): a user's key is answered whatever
+    ``--quiet`` says."""
+    said = False
+
+    def on_progress(p: CampaignProgress) -> None:
+        nonlocal said
+        if p.stopping == INTERRUPTED and not said:
+            said = True
+            say(f"hysid: {stopping_line(p)}")
+        if report is not None:
+            report(p)
+
+    return on_progress

@@ -220,16 +220,20 @@ def campaign_sections(result: "CampaignResult") -> list[str]:
 
 
 def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "hysid fit", document: dict[str, Any] | None = None,
-                     sections: Sequence[str] = ()) -> Path:
+                     sections: Sequence[str] = (), figures_left_out: str | None = None) -> Path:
     """Write ``report.md``, ``result.json`` and the PNG figures into ``out_dir``; returns the report path.
 
     Sets ``result.report`` so that the JSON names the report; ``document`` is
     the JSON to write instead of the fit's own (a campaign's, which holds it),
-    ``sections`` Markdown parts after the runs (a campaign's islands and migrations).
+    ``sections`` Markdown parts after the runs (a campaign's islands and migrations);
+    ``figures_left_out``: why the figures are not drawn (said where each would be), None to draw them.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    figs = write_figures(result, out_dir)
+    figs = write_figures(result, out_dir) if figures_left_out is None else {}
+
+    def picture(name: str, caption: str) -> str:
+        return image(figs[name], out_dir, caption) if figs else f"*{caption}: not drawn, {figures_left_out}.*"
     report = out_dir / "report.md"
     result.report = str(report)
     jsondoc.write(out_dir / "result.json", result.to_dict() if document is None else {**document, "report": str(report)})
@@ -278,20 +282,20 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         "xi = (w2 - w1) / (2 w0) (Eq. 2.7, Fig. 6.1). The resolution is what the frequency spacing alone "
         "guarantees; the estimate interpolates between frequencies and is much closer for a 1-DOF response.",
         table(h_head, h_rows),
-        image(figs["half_power"], out_dir, "Compliance per amplitude: loops (dots) and fitted model (lines)"
-              + ("; (b) the resonance with its peak and -3 dB points" if any(hp.ok for hp in result.half_power) else "")),
+        picture("half_power", "Compliance per amplitude: loops (dots) and fitted model (lines)"
+                + ("; (b) the resonance with its peak and -3 dB points" if any(hp.ok for hp in result.half_power) else "")),
         "## Runs",
         table(r_head, r_rows),
-        image(figs["convergence"], out_dir, "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "
-              "stars: after the least-squares polish"),
+        picture("convergence", "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "
+                "stars: after the least-squares polish"),
         *sections,
         "## Model vs measured loops",
-        image(figs["loops"], out_dir, "Trial and model loops; rows: amplitudes, columns: frequencies across the band "
-              "(as Figs. 5.10-5.13)"),
+        picture("loops", "Trial and model loops; rows: amplitudes, columns: frequencies across the band "
+                "(as Figs. 5.10-5.13)"),
         "## Residuals",
         "Residuals that are noise-like and at the noise level mean the model explains the loops; a pattern "
         "repeated over loops (panel b) points to physics the model is missing.",
-        image(figs["residuals"], out_dir, "(a) RMS residual of each loop; (b) residual vs phase with binned means"),
+        picture("residuals", "(a) RMS residual of each loop; (b) residual vs phase with binned means"),
         "## Settings",
         "\n".join(f"- `{key}`: {jsondoc.dumps(value)}" for key, value in result.settings.items()),
     ]

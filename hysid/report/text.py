@@ -320,6 +320,15 @@ def campaign_progress_line(p: "CampaignProgress") -> str:
     )
 
 
+def stopping_line(p: "CampaignProgress") -> str:
+    """What the user reads at once after Ctrl-C in a campaign: how many islands' last rows it waits for, and
+    that a second Ctrl-C leaves without them."""
+    alive = sum(s == "alive" for s in p.members.values())
+    owner = "island's" if alive == 1 else "islands'"
+    waits = f"waiting for {alive} {owner} last rows" if alive else "no island is alive; writing the report"
+    return f"stopping: {waits} (Ctrl-C again to leave now)"
+
+
 SPARK = "▁▂▃▄▅▆▇█"
 
 
@@ -355,10 +364,11 @@ def watch_text(snap: "CampaignSnapshot") -> str:
     ]
     headers = ["island", "algo", "status", "iteration", "evaluations", "best", "sent", "received/taken", "best over iterations"]
     lines.append(text_table(headers, rows) if rows else "  no island has reported yet")
-    counts = {s: sum(v == s for v in p.members.values()) for s in ("alive", "left", "lost", "unknown")}
+    counts = {s: sum(v == s for v in p.members.values()) for s in ("alive", "left", "stopped", "lost", "unknown")}
     latest = ", ".join(f"{island} {event} {time.strftime('%H:%M:%S', time.localtime(t))}" for island, event, t in snap.events)
+    stopped = f", {counts['stopped']} stopped by the user" if counts["stopped"] else ""
     unknown = f", {counts['unknown']} unknown (its coordinator gone)" if counts["unknown"] else ""
-    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left, {counts['lost']} lost{unknown}" + (f"; latest: {latest}" if latest else "")]
+    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left{stopped}, {counts['lost']} lost{unknown}" + (f"; latest: {latest}" if latest else "")]
     return "\n".join(lines)
 
 
