@@ -4,11 +4,14 @@ The front door for Python (the ``hysid`` command line does the same):
 
     import hysid
     loops = hysid.load("synth", noise_pct=10)              # or a dataset directory, a loops file, .mat/.lvm files
-    result = hysid.fit(loops, model="thesis", algo="pso")   # GA or PSO, then a least-squares polish
+    result = hysid.fit(loops, "thesis", algo="pso")         # GA or PSO, then a least-squares polish
     result.params, result.stderr                            # identified parameters, standard errors
     print(result.summary())                                 # and result.to_dict(), result.write_report("out")
-    diagnosis = hysid.diagnose(loops)                       # which physical effect is the model missing?
-    campaign = hysid.campaign(loops, islands=4)             # cooperating GA/PSO islands over Zenoh
+    diagnosis = hysid.diagnose(loops, "baseline")           # which physical effect is the model missing?
+    campaign = hysid.campaign(loops, "thesis", islands=4)   # cooperating GA/PSO islands over Zenoh
+
+``fit``, ``diagnose`` and ``campaign`` take ``(loops, model, ...)`` in that order, every other argument
+a keyword.
 
 Models are data: ``hysid.models.thesis + hysid.effects.coulomb_friction``, with
 ``.fix(meq=...)`` for known values and ``.with_bounds({...})``; ``hysid.term(fn, ...)``

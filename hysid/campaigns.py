@@ -1,7 +1,7 @@
 """Campaigns: GA and PSO islands that share their best partial solutions (section 6.1, item 3).
 
-    result = hysid.campaign(loops, islands=4)            # island processes over Zenoh on loopback
-    result = hysid.campaign(loops, islands=4, single_node=True)   # island threads, migrating in memory
+    result = hysid.campaign(loops, "thesis", islands=4)                    # island processes over Zenoh on loopback
+    result = hysid.campaign(loops, "thesis", islands=4, single_node=True)  # island threads, migrating in memory
 
 The coordinator (:mod:`coordinator.state`) serves the loop set, records every
 island's history in SQLite and stops by its rules (:mod:`coordinator.loop`); :class:`CampaignResult` is
@@ -271,10 +271,10 @@ def island_settings(
 @notices.keeps_warnings
 def campaign(
     loops: LoopSet,
-    islands: int = 4,
-    *,
-    name: str = "campaign",
     model: str | Model = "thesis",
+    *,
+    islands: int = 4,
+    name: str = "campaign",
     bounds: Mapping[str, tuple[float, float]] | None = None,
     fixed: Mapping[str, float] | None = None,
     weights: str | None = None,
@@ -292,8 +292,10 @@ def campaign(
     until_stopped: bool | None = None,
     share: str = "staged",
 ) -> CampaignResult:
-    """Run ``islands`` GA/PSO islands on ``loops`` to a stop rule and report the polished global best.
+    """Run ``islands`` GA/PSO islands on ``loops`` to a stop rule and report the polished global best of ``model``.
 
+    ``model`` is a string (``"thesis+coulomb_friction"``, ``"baseline+myterms:drag"``) or a
+    :class:`~hysid_model.model.Model`, as for :func:`hysid.fit`; every other argument is a keyword.
     Islands are processes connected over Zenoh on loopback (threads of this
     process with ``single_node``, or when Zenoh cannot open a session here, with
     a warning); island i runs ``algos[i % len(algos)]`` with seed ``seed + i``.
@@ -316,6 +318,9 @@ def campaign(
     algorithm whose own moves gain more (:mod:`island.share`; the moves are in
     ``result.fit.settings["moves"]``), ``fixed`` keeps every island's algorithm.
     """
+    if isinstance(model, int) and not isinstance(model, bool):  # the island count where the model goes (its place before)
+        raise HysidInputError("a model is a string such as 'thesis+coulomb_friction' or a hysid Model; "
+                              f"the number of islands is a keyword: campaign(loops, model, islands={model})", param="model", value=model)
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
     motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)

@@ -1,6 +1,6 @@
 """The single-node fit: GA or PSO runs on one loop set, a polish, and a result that reports itself.
 
-    result = hysid.fit(loops, model="thesis", algo="pso", runs=2)
+    result = hysid.fit(loops, "thesis", algo="pso", runs=2)
     print(result.summary())
     result.write_report("out")
 

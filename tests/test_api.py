@@ -4,6 +4,7 @@ errors in Python's words, and the one-way flow between the packages."""
 from __future__ import annotations
 
 import ast
+import inspect
 import json
 import subprocess
 import sys
@@ -63,12 +64,21 @@ def test_diagnosis_and_campaign_report_themselves_like_a_fit(loops, tmp_path, ca
     assert diagnosis.write_report(tmp_path / "d") == tmp_path / "d" / "diagnosis.md"
     assert "whitened RMS" in diagnosis.summary() and "**Status:" in diagnosis._repr_markdown_()
     sizes = {"population": 20, "initial_population": 40, "iterations": 10}
-    campaign = hysid.campaign(subset, islands=2, single_node=True, options={"ga": sizes, "pso": sizes}, migration=hysid.Migration(interval=5))
+    campaign = hysid.campaign(subset, "thesis", islands=2, single_node=True, options={"ga": sizes, "pso": sizes}, migration=hysid.Migration(interval=5))
     doc = campaign.to_dict()
     assert [i["island"] for i in doc["islands"]] == ["ga-0", "pso-1"] and doc["params"] == campaign.params
     assert campaign.write_report(tmp_path / "c").read_text().startswith("# hysid campaign:")
     assert "stopped because every island finished" in campaign.summary() and "| `w0` |" in campaign._repr_markdown_()
     assert capsys.readouterr() == ("", "")
+
+
+def test_fit_diagnose_and_campaign_take_loops_then_model_and_the_rest_as_keywords():
+    """One API shape: ``(loops, model, ...)`` in that order, everything else a keyword, as the README's table shows."""
+    for function in (hysid.fit, hysid.diagnose, hysid.campaign):
+        parameters = list(inspect.signature(function).parameters.values())
+        assert [p.name for p in parameters[:2]] == ["loops", "model"], function.__name__
+        assert all(p.kind is inspect.Parameter.POSITIONAL_OR_KEYWORD for p in parameters[:2])
+        assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for p in parameters[2:]), function.__name__
 
 
 @pytest.mark.parametrize(
@@ -81,6 +91,8 @@ def test_diagnosis_and_campaign_report_themselves_like_a_fit(loops, tmp_path, ca
         (lambda lp: hysid.fit(lp, bounds={"omega": (1.0, 2.0)}), "unknown parameter 'omega'"),
         (lambda lp: hysid.diagnose(lp, "quadratic"), "model='quadratic': "),
         (lambda lp: hysid.campaign(lp, islands=0), "islands=0: "),
+        (lambda lp: hysid.campaign(lp, 4), "model=4: a model is a string such as 'thesis+coulomb_friction' or a hysid Model; "
+                                           "the number of islands is a keyword: campaign(loops, model, islands=4)"),
         (lambda lp: hysid.campaign(lp, options={"ga": {"population": 0}}), "population"),
         (lambda lp: hysid.load("synth", n_points=1), "n_points=1: "),
         (lambda lp: hysid.load("synth", noise_pct=-5), "noise_pct=-5: "),

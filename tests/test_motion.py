@@ -119,7 +119,7 @@ def test_cli_fit_and_diagnose_say_which_and_why(tmp_path, capsys):
 def test_a_campaign_reads_the_displacement_as_fit_does_and_keeps_it_in_its_database(tmp_path):
     loops = loops_of("sensor", tmp_path)
     db = tmp_path / "c.sqlite"
-    result = hysid.campaign(loops, 2, model="baseline", single_node=True, db=db, seed=1,
+    result = hysid.campaign(loops, "baseline", islands=2, single_node=True, db=db, seed=1,
                             options={"pso": {"initial_population": 300, "population": 30, "iterations": 8},
                                      "ga": {"initial_population": 300, "population": 30, "iterations": 8}})
     assert result.fit.displacement_model["displacement"] == "fundamental"
@@ -141,7 +141,7 @@ def test_a_campaign_confirms_the_reading_with_its_fitted_model_as_fit_does(tmp_p
         fit = hysid.fit(loops, "baseline+bouc_wen")
         start = choose_motion(loops, "baseline+bouc_wen")
         db = tmp_path / "c.sqlite"
-        result = hysid.campaign(loops, 2, model="baseline+bouc_wen", single_node=True, db=db, termination=Termination(budget=2000))
+        result = hysid.campaign(loops, "baseline+bouc_wen", islands=2, single_node=True, db=db, termination=Termination(budget=2000))
         again = hysid.CampaignResult.from_database(db)
     assert start.displacement == "fundamental" and fit.displacement_model["displacement"] == "measured"
     for campaign in (result.fit, again.fit):

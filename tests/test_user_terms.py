@@ -328,7 +328,7 @@ def test_a_candidate_needs_a_strength(labterms, capsys):
 def test_island_processes_need_a_term_they_can_import(loops):
     local = hysid.term(lambda x, v, c8: c8 * v * np.abs(v), name="unimportable_probe", units={"c8": "N s^2/m^2"}, bounds={"c8": (0.0, 200.0)})
     with pytest.raises(HysidInputError, match=r"model: term 'unimportable_probe' is no attribute of an importable module .* or run single_node"):
-        hysid.campaign(loops, islands=1, model=hysid.models.baseline + local)
+        hysid.campaign(loops, hysid.models.baseline + local, islands=1)
 
 
 # --- a known law recovered: fit, diagnose, campaigns -----------------------------------------------------------
@@ -361,7 +361,7 @@ def test_diagnose_takes_the_users_term_as_a_candidate(labterms, loops):
 
 def test_a_single_node_campaign_recovers_the_known_law(loops):
     options = {"ga": GA_SMALL, "pso": PSO_SMALL}
-    result = hysid.campaign(loops, islands=2, single_node=True, model=SPEC, options=options, seed=3)
+    result = hysid.campaign(loops, SPEC, islands=2, single_node=True, options=options, seed=3)
     assert result.fit.model.spec == SPEC
     recovered(result.params, result.stderr)
 
@@ -371,7 +371,7 @@ def test_island_processes_import_the_users_module_and_recover_the_law(loops, tmp
     """The module is on this process' path only (not the island processes' working directory, which ``-P``
     keeps off theirs): the launcher hands its directory to the islands, which import it by the model string."""
     options = {"ga": GA_SMALL, "pso": PSO_SMALL}
-    result = hysid.campaign(loops, islands=2, model=SPEC, options=options, seed=3, db=tmp_path / "c.sqlite")
+    result = hysid.campaign(loops, SPEC, islands=2, options=options, seed=3, db=tmp_path / "c.sqlite")
     assert result.fit.model.spec == SPEC and len(result.islands) == 2 and all(i["evaluations"] > 0 for i in result.islands)
     recovered(result.params, result.stderr)
     again = hysid.CampaignResult.from_database(tmp_path / "c.sqlite")  # the stored model string rebuilds the same model

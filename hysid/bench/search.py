@@ -105,7 +105,7 @@ def run_method(problem: Problem, method: str, seed: int, budget: int) -> dict[st
         return {"fitness": result.fitness, "evaluations": result.evaluations, "wall_s": time.perf_counter() - began, "trace": trace}
     if method in CAMPAIGNS:
         islands, single = CAMPAIGNS[method]
-        result = hysid.campaign(problem.loops, islands, name=f"search-{seed}", model=problem.model, bounds=problem.bounds, displacement=DISPLACEMENT,
+        result = hysid.campaign(problem.loops, problem.model, islands=islands, name=f"search-{seed}", bounds=problem.bounds, displacement=DISPLACEMENT,
                                 seed=1000 * seed, termination=Termination(budget=budget), single_node=single)
         return {"fitness": result.fit.fitness, "evaluations": result.fit.evaluations, "wall_s": time.perf_counter() - began, "trace": []}
     objective = build_objective(problem.loops, problem.model, bounds=problem.bounds)

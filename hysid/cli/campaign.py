@@ -188,7 +188,7 @@ def register(app: typer.Typer) -> None:
         try:
             with Progress("campaign", islands * (iterations or 0) or 100, enabled=not (quiet or as_json)) as bar:
                 result = campaign(
-                    loops, islands, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
+                    loops, model, islands=islands, name=name, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
                     algos=algo_list, options=sizes, migration=migration,
                     seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
                     polish=polish, progress=campaign_reporter(bar, islands, iterations, termination), until_stopped=until_stopped, share=share,
