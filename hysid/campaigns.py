@@ -159,7 +159,8 @@ class CampaignResult:
         return markdown.fit_overview(self.fit)
 
     def __repr__(self) -> str:
-        return f"<CampaignResult {self.fit.settings.get('campaign')!r}: {len(self.islands)} island run(s), fitness {self.fit.fitness:.6g}>"
+        return (f"<CampaignResult {self.fit.settings.get('campaign')!r}, {self.fit.model.spec} on {self.fit.loops.name}: "
+                f"{len(self.islands)} island run(s), fitness {self.fit.fitness:.6g}, {self.fit.settings.get('stop_reason')}>")
 
 
 def pick_campaign(store: Store, name: str | None = None) -> str:

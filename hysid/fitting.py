@@ -51,6 +51,8 @@ WIDENED_SHARE = 0.25
 """The share of the budget of a memetic search after a widening: it starts from the best so far."""
 MIN_SEARCH_S = 1.0
 """The least time a memetic run is given once the fit's time limit is spent (its final polish follows)."""
+REPR_PARAMS = 6
+"""Parameters a result's one-line repr shows (the rest are in ``params`` and ``summary()``)."""
 RunCallback = Callable[[int, HistoryRow], None]
 """Called with (run index, history row) after every iteration of a run."""
 
@@ -255,7 +257,9 @@ class FitResult:
         return markdown.fit_overview(self)
 
     def __repr__(self) -> str:
-        return f"<FitResult {self.model.spec} on {self.loops.name}: fitness {self.fitness:.6g}, {self.params}>"
+        shown = [f"{name} {value:.4g}" for name, value in self.params.items()]
+        values = ", ".join(shown[:REPR_PARAMS]) + (f", ... ({len(shown)} in all)" if len(shown) > REPR_PARAMS else "")
+        return f"<FitResult {self.model.spec} on {self.loops.name}: fitness {self.fitness:.6g}; {values}>"
 
 
 def parameter_covariance(objective: Objective, theta: np.ndarray) -> np.ndarray:

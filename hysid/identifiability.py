@@ -92,6 +92,10 @@ class Identifiability:
                 out[i, :] = out[:, i] = np.nan
         return out
 
+    def __repr__(self) -> str:
+        missing = f"not identifiable: {', '.join(self.not_identifiable)}" if self.not_identifiable else "every one determined by the data"
+        return f"<Identifiability of {', '.join(self.names)}: {missing}>"
+
     @property
     def stderr(self) -> np.ndarray:
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))

@@ -71,6 +71,9 @@ class Harmonics:
         coef = np.linalg.solve(r, np.einsum("lnm,ln->lm", q, loops.forces())[..., None])[..., 0]
         return cls(loops=loops, names=names, coef=coef, sigma=sigma, sigma_known=known, q=q, r=r)
 
+    def __repr__(self) -> str:
+        return f"<Harmonics of {self.loops.name}: {self.coef.shape[0]} loops x {self.coef.shape[1]} coefficients ({self.names[0]} .. {self.names[-1]})>"
+
     @property
     def n_coefficients(self) -> int:
         return int(self.coef.size)

@@ -201,6 +201,11 @@ class LoopSet:
             out.append(row)
         return out
 
+    def __repr__(self) -> str:
+        mass = "unknown" if self.meq_kg is None else f"{self.meq_kg:.4g} kg"
+        return (f"<LoopSet {self.name}: {self.n_loops} loops at {self.freq_hz.min():.4g}-{self.freq_hz.max():.4g} Hz, "
+                f"X0 {1e3 * self.x0.min():.4g}-{1e3 * self.x0.max():.4g} mm, {self.n_samples} samples per branch, meq {mass}>")
+
     def subset(self, index: np.ndarray | list[int]) -> "LoopSet":
         idx = np.asarray(index, dtype=int)
         return LoopSet(

@@ -100,6 +100,10 @@ class RunResult:
     wall_s: float
     polish: dict[str, Any] | None = None
 
+    def __repr__(self) -> str:
+        polish = ", polished" if self.polish else ""
+        return f"<RunResult {self.label} ({self.algo}, seed {self.seed}): fitness {self.fitness:.6g} after {self.evaluations:,} evaluations{polish}>"
+
     def as_dict(self, names: list[str]) -> dict[str, Any]:
         return {
             "label": self.label,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import inspect
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -14,6 +15,9 @@ import numpy as np
 import pytest
 
 import hysid
+from hysid.diagnosis.fitting import initial_fit
+from hysid.diagnosis.result import Step
+from hysid_model.harmonics import Harmonics
 from hysid_model.objective import Objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS
 from support import GA_SMALL as SMALL
@@ -43,6 +47,25 @@ def test_fit_returns_a_result_that_reports_itself(loops, tmp_path, capsys):
     assert capsys.readouterr() == ("", "")  # library code never prints
 
 
+def test_results_and_their_parts_print_as_one_line_naming_what_they_are(loops):
+    """``print(diagnosis.steps)`` and friends: a line each (the arrays are in the attributes, the rest in ``summary()``)."""
+    few = loops.subset(np.arange(0, loops.n_loops, 8))
+    result = hysid.fit(few, "thesis+coulomb_friction", algo="ga", options=SMALL, polish=False)
+    assert re.fullmatch(r"<FitResult thesis\+coulomb_friction on synth-5pct-seed2: fitness [^;]+; xi0 \S+, S_xi \S+, w0 \S+, S_w \S+, F_d \S+>", repr(result))
+    assert re.fullmatch(r"\[<RunResult run 1 \(ga, seed 0\): fitness \S+ after [\d,]+ evaluations>\]", repr(result.runs))
+    assert repr(loops) == "<LoopSet synth-5pct-seed2: 120 loops at 25-34 Hz, X0 0.5-1.5 mm, 100 samples per branch, meq 0.04 kg>"
+    assert repr(result.identifiability).startswith("<Identifiability of xi0, S_xi, w0, S_w, F_d: ")
+    harmonics = Harmonics.from_loops(few)
+    start = initial_fit(harmonics, "baseline")
+    assert repr(harmonics) == "<Harmonics of synth-5pct-seed2: 15 loops x 15 coefficients (dc .. c7)>"
+    assert re.fullmatch(r"<Fit baseline: whitened RMS \S+, BIC \S+, 2 parameters>", repr(start))
+    step = Step("coulomb_friction", ["viscous_damping"], 12.5, start, start, {})
+    assert re.fullmatch(r"\[<Step \+ coulomb_friction: score 12.5, whitened RMS (\S+) -> \1, BIC \+0.0; confusable with viscous_damping>\]",
+                        repr([step]))
+    many = hysid.fit(few, "thesis+coulomb_friction+zener_thermoelastic", algo="ga", options=SMALL, polish=False)
+    assert repr(many).endswith(", ... (7 in all)>") and "\n" not in repr(many)
+
+
 def test_models_compose_and_a_known_value_is_one_fixed_parameter(loops):
     model = hysid.models.thesis + hysid.effects.coulomb_friction
     assert model.spec == "thesis+coulomb_friction" and model.names[-1] == "F_d"
@@ -68,6 +91,9 @@ def test_diagnosis_and_campaign_report_themselves_like_a_fit(loops, tmp_path, ca
     doc = campaign.to_dict()
     assert [i["island"] for i in doc["islands"]] == ["ga-0", "pso-1"] and doc["params"] == campaign.params
     assert campaign.write_report(tmp_path / "c").read_text().startswith("# hysid campaign:")
+    assert re.fullmatch(r"<CampaignResult 'campaign', thesis on \S+: 2 island run\(s\), fitness \S+, every island finished>", repr(campaign))
+    assert repr(diagnosis).startswith(f"<Diagnosis of {subset.name}: baseline -> baseline+amplitude_dependent_frequency")
+    assert len(repr(diagnosis.steps).splitlines()) == 1 and len(repr(diagnosis.steps)) < 200 * len(diagnosis.steps)
     assert "stopped because every island finished" in campaign.summary() and "| `w0` |" in campaign._repr_markdown_()
     assert capsys.readouterr() == ("", "")
 

@@ -86,6 +86,9 @@ class Fit:
     def params(self) -> dict[str, float]:
         return self.model.as_dict(self.theta)
 
+    def __repr__(self) -> str:
+        return f"<Fit {self.spec}: whitened RMS {self.whitened_rms:.4g}, BIC {self.bic:.6g}, {self.model.dim} parameters>"
+
     def errors(self) -> dict[str, float]:
         return {**self.model.as_dict(self.stderr), **self.profiled}
 

@@ -52,6 +52,12 @@ class Step:
     def errors(self) -> dict[str, float]:
         return {n: v for n, v in self.after.errors().items() if n in self.params}
 
+    def __repr__(self) -> str:
+        joint = f" (with {self.joint_with})" if self.joint_with else ""
+        confusable = f"; confusable with {', '.join(self.confusable_with)}" if self.confusable_with else ""
+        return (f"<Step + {self.effect}{joint}: score {self.score:.4g}, whitened RMS {self.before.whitened_rms:.4g} -> "
+                f"{self.after.whitened_rms:.4g}, BIC {self.after.bic - self.before.bic:+.1f}{confusable}>")
+
 
 @dataclass
 class Diagnosis:
@@ -176,7 +182,7 @@ class Diagnosis:
         return diagnosis_report.overview(self)
 
     def __repr__(self) -> str:
-        return f"<Diagnosis of {self.harmonics.loops.name}: {self.start.spec} -> {self.final.spec}, {self.status}>"
+        return f"<Diagnosis of {self.harmonics.loops.name}: {self.start.spec} -> {self.final.spec} in {len(self.steps)} step(s), {self.status}>"
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document of ``hysid diagnose --json``."""

@@ -59,6 +59,11 @@ class Candidate:
     """|g_perp| for the best shape (whitened residual per unit strength)."""
     n_shapes: int
 
+    def __repr__(self) -> str:
+        kind = "" if self.physical else ", unphysical"
+        kind += "" if self.identifiable else f", not identifiable (absorbed by {', '.join(self.absorbed_by)})"
+        return f"<Candidate {self.effect}: score {self.score:.4g}{kind}>"
+
 
 def effects_in(fit: Fit) -> tuple[str, ...]:
     return PRESETS[fit.start] + fit.effects
