@@ -11,6 +11,7 @@ import pytest
 import hysid
 from hysid.cli import main
 from hysid.cli.progress import PLAIN_STEPS, Progress
+from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT, Tally
 from support import hysid as hysid_argv, screen_of
 
 SMALL = ["--islands", "2", "--population", "20", "--initial", "40", "--iterations", "10"]
@@ -49,17 +50,44 @@ def test_fit_and_campaign_print_plain_progress_off_a_terminal_and_nothing_with_j
     assert capsys.readouterr().err == ""
 
 
+def test_a_diagnosis_tally_never_falls_and_is_done_only_at_the_end():
+    """Work expected, found larger, then smaller, and work nobody expected: the share done only grows, stays
+    below 1 until finish, and done/total is that share."""
+    calls = []
+    tally = Tally(lambda done, total, what: calls.append((done, total, what)))
+    tally.expect(10)
+    for k in range(3):
+        tally.done(f"fit {k}")
+    tally.expect(20)  # a round found more contenders than expected
+    tally.done("heavy fit", MEMORY_FIT_WEIGHT)
+    tally.expect(-40)  # the rounds that never came
+    for k in range(3):
+        tally.done(f"more than expected {k}")
+    tally.finish("done")
+    shares = [done / total for done, total, _ in calls]
+    assert all(b > a for a, b in zip(shares, shares[1:])) and max(shares[:-1]) < 1.0 == shares[-1]
+    heavy = 3 + MEMORY_FIT_WEIGHT
+    assert [done for done, _, _ in calls] == [1, 2, 3, heavy, heavy + 1, heavy + 2, heavy + 3, heavy + 3]  # the work done, in fits
+    assert calls[0][1] == pytest.approx(11.0) and calls[-1][1] == 6 + MEMORY_FIT_WEIGHT  # 10 fits and the closing unit at first
+
+
 @pytest.mark.slow  # over 3 s
 def test_diagnose_reports_each_fit_without_changing_the_result():
+    """Honest progress: an estimate of the fits from the start (the held-out checks and gaps among them) whose share done
+    never falls and is 1 only once the diagnosis is done (it went 1/2, 1/6, ... and 100 % at the last gap)."""
     loops = hysid.load("synth", noise_pct=5.0, noise_seed=2)
     subset = loops.subset(np.arange(0, loops.n_loops, 4))
     calls = []
-    watched = hysid.diagnose(subset, cross_validate=False, progress=lambda done, total, what: calls.append((done, total, what)))
-    plain = hysid.diagnose(subset, cross_validate=False)
+    watched = hysid.diagnose(subset, progress=lambda done, total, what: calls.append((done, total, what)))
+    plain = hysid.diagnose(subset)
     assert watched.to_dict() == plain.to_dict()
-    assert [c[0] for c in calls] == list(range(1, len(calls) + 1)) and all(done <= total for done, total, _ in calls)
-    assert calls[-1][:2] == (len(calls), len(calls)) and calls[-1][2] == "gap after step 2"
-    assert calls[0][2] == "start model baseline fitted" and any("refitted with amplitude_dependent_frequency" in c[2] for c in calls)
+    shares = [done / total for done, total, _ in calls]
+    assert all(b > a for a, b in zip(shares, shares[1:])) and max(shares[:-1]) < 1.0 == shares[-1]
+    assert calls[0][2] == "start model baseline fitted" and calls[0][1] > 20  # the whole diagnosis expected from the start
+    whats = [c[2] for c in calls]
+    assert any("refitted with amplitude_dependent_frequency" in w for w in whats) and "gap after step 2" in whats
+    assert "step 1: amplitude_dependent_frequency checked on held-out frequencies" in whats
+    assert whats[-1] == "diagnosis done: baseline+amplitude_dependent_frequency+amplitude_dependent_damping, adequate"
 
 
 @pytest.mark.slow
@@ -74,3 +102,6 @@ def test_a_bar_with_an_eta_on_a_terminal(argv, label, total, tmp_path):
     bar = [frame for frame in re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", screen).split("\r") if frame.startswith(label)]
     assert bar and any("ETA" in frame and total in frame for frame in bar), screen[-2000:]
     assert any(re.search(r"ETA\s+\d+:\d\d:\d\d", frame) for frame in bar)
+    if label == "diagnosing":  # the share shown never falls, and the report's figures are part of the work
+        shares = [int(m[1]) for frame in bar if (m := re.search(r"\s(\d+)%\s", frame))]
+        assert shares == sorted(shares) and any("writing the report" in frame for frame in bar), bar

@@ -258,13 +258,22 @@ def check_writable(directory: Path, param: str) -> Path:
 def show_result(result: Any, target: Path, as_json: bool, csv: bool, dataset: str | None = None, figures: bool = True) -> None:
     """Write a result's report (and with ``csv`` its tables) to ``target``; print its JSON document or its summary.
     ``figures=False``: a campaign's report without its figures (:meth:`hysid.campaigns.CampaignResult.write_report`)."""
+    print_result(result, as_json, write_result(result, target, csv, dataset, figures))
+
+
+def write_result(result: Any, target: Path, csv: bool, dataset: str | None = None, figures: bool = True) -> dict[str, Path]:
+    """The first half of :func:`show_result`: the report (and with ``csv`` the tables, returned) in ``target``."""
     if not figures:
         result.write_report(target, figures=False)
     elif dataset is None:
         result.write_report(target)
     else:
         result.write_report(target, dataset)
-    tables = result.to_csv(target) if csv else {}
+    return result.to_csv(target) if csv else {}
+
+
+def print_result(result: Any, as_json: bool, tables: dict[str, Path]) -> None:
+    """The second half of :func:`show_result`: the JSON document or the summary (and the ``tables`` written)."""
     if as_json:
         print(jsondoc.dumps(result.to_dict()))
         return

@@ -100,7 +100,7 @@ class Progress:
         left = elapsed * (self.total - self.done) / self.done if self.done > 0 else float("nan")
         eta = f", about {clock(left)} left" if self.done < self.total and left == left else ""
         return (
-            f"{self.label}: {100 * self.done / self.total:.0f}% ({self.done:g}/{self.total:g}), "
+            f"{self.label}: {100 * self.done / self.total:.0f}% ({self.done:.0f}/{self.total:.0f}), "
             f"{clock(elapsed)} elapsed{eta}" + (f"; {status}" if status else "")
         )
 

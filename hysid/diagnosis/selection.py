@@ -39,7 +39,7 @@ lower BIC is kept. The result is ``adequate`` when the final residual is noise
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from itertools import combinations
 from dataclasses import replace
 
@@ -55,13 +55,14 @@ from hysid.diagnosis.pruning import prune
 from hysid.diagnosis.refits import refit
 from hysid.diagnosis.result import Diagnosis, Step
 from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
+from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT, Report, Tally
 from hysid.identifiability import Identifiability, assess
 from hysid.motion import choose_motion, confirm_motion
 from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
-from hysid_model.model import PRESETS, build_model
+from hysid_model.model import PRESETS, build_model, effect_term
 from hysid_model.terms import Term, TermGroup
 from hysid_model.problem import dataset_bounds, displaced
 from hysid_model.uncertainty import jacobian_covariance
@@ -73,8 +74,30 @@ PARALLEL = 0.9
 MAX_STEPS = 6
 PAIRS = 5
 """Best contenders whose pairs are scored together."""
+EXPECTED_STEPS = 2
+"""Effects a diagnosis is expected to name, for its progress estimate (:mod:`.tally`; more or fewer revise it)."""
+EXPECTED_TRIALS = TRIALS + 1
+"""Refits a round is expected to make: the best few contenders and a pair (the round's scores revise it)."""
+EXPECTED_REFITS = EXPECTED_TRIALS + MEMORY_FIT_WEIGHT - 1
+"""Their work in fits (:mod:`.tally`): one of them of a model with memory, as Bouc-Wen is scored in every round."""
 
-Progress = Callable[[str], None]
+
+def round_work(cross_validate: bool) -> float:
+    """The work a round is expected to make: the scores (a fit's work), its refits and, with ``cross_validate``,
+    the held-out check of the one taken."""
+    return 1 + EXPECTED_REFITS + int(cross_validate)
+
+
+def search_work(max_steps: int, cross_validate: bool) -> float:
+    """The work one search is expected to make (:func:`search`), in fits: the start fit, a round per expected step
+    and the round that finds nothing more, the pruning (:mod:`.pruning`), and the gap after the start and after each step."""
+    rounds = min(EXPECTED_STEPS, max_steps) + 1
+    return 1 + rounds * round_work(cross_validate) + 1 + rounds
+
+
+def weight(fit: Fit, effects: tuple[str, ...]) -> float:
+    """The work of a fit of ``fit``'s model plus ``effects``: :data:`MEMORY_FIT_WEIGHT` where its force has memory."""
+    return MEMORY_FIT_WEIGHT if fit.model.has_memory or any(effect_term(e).memory for e in effects) else 1.0
 
 
 def threshold(candidates: list[Candidate]) -> float:
@@ -142,7 +165,7 @@ def diagnose(
     displacement: str = "auto",
     max_steps: int = MAX_STEPS,
     cross_validate: bool = True,
-    progress: Callable[[int, int, str], None] | None = None,
+    progress: Report | None = None,
 ) -> Diagnosis:
     """Find which library effects the start ``model`` (a preset) misses on ``loops`` (see the module docstring).
 
@@ -152,46 +175,49 @@ def diagnose(
     ``displacement``: ``auto`` (the data decide whether the displacement's harmonics are the motion or the
     sensor's, :mod:`hysid.motion`), ``measured``, ``fundamental`` or ``sine``, as :func:`hysid.fit`;
     ``cross_validate`` adds the leave-one-frequency-out gap of every step and judges every effect by it
-    (a refit per frequency). ``progress(done, total, what)`` is called after every fit; ``total`` is what is
-    known so far (it grows while effects are found). It does not change the result.
+    (a refit per frequency). ``progress(done, total, what)`` is called after every fit: ``done`` of ``total``
+    fits, an estimate from the start revised as the diagnosis learns how many effects it names, whose share
+    done never falls and is 1 only at the end (:mod:`hysid.diagnosis.tally`). It does not change the result.
     """
     if model not in PRESETS:
         raise HysidInputError(f"the start model must be one of {', '.join(PRESETS)}", param="model", value=model)
-    count = [0, 2]  # fits done, fits known to come (the start fit, and the gap of the start model)
-
-    def done(what: str, more: int = 0) -> None:
-        count[0] += 1
-        count[1] += more
-        if progress is not None:
-            progress(count[0], count[1], what)
-
+    tally = Tally(progress)
     scored = candidate_effects(candidates)
     given = with_given_bounds(loops, model, bounds, scored)
     motion = choose_motion(given, model, displacement, bounds=bounds)
-    result = search(Harmonics.from_loops(displaced(given, motion.displacement)), model, scored, max_steps, cross_validate, done, count)
+    tally.expect(search_work(max_steps, cross_validate) + (motion.decided_by == "data"))  # and the reading confirmed
+    result = search(Harmonics.from_loops(displaced(given, motion.displacement)), model, scored, max_steps, cross_validate, tally)
     flipped = confirm_motion(given, result.final.model, result.final.theta, motion)
+    if motion.decided_by == "data":
+        tally.done(f"the {motion.displacement} reading of the displacement checked with the final model")
     if flipped is not None:
-        count[1] += 2
-        other = search(Harmonics.from_loops(displaced(given, flipped.displacement)), model, scored, max_steps, cross_validate, done, count)
+        tally.expect(search_work(max_steps, cross_validate))
+        other = search(Harmonics.from_loops(displaced(given, flipped.displacement)), model, scored, max_steps, cross_validate, tally)
         if other.final.bic < result.final.bic:
             result, motion = other, flipped
         else:
             motion.reason += f"; read the other way the diagnosis ends {other.final.bic - result.final.bic:.4g} higher in BIC"
     result.motion = motion
+    tally.finish(f"diagnosis done: {result.final.spec}, {result.status}")
     return result
 
 
-def search(
-    harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps: int, cross_validate: bool, done: Callable[..., None], count: list[int]
-) -> Diagnosis:
-    """The diagnosis loop of the module docstring on ``harmonics`` from the preset ``start``, scoring the effects ``scored``."""
+def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps: int, cross_validate: bool, tally: Tally) -> Diagnosis:
+    """The diagnosis loop of the module docstring on ``harmonics`` from the preset ``start``, scoring the effects ``scored``;
+    its fits counted in ``tally``, which expects :func:`search_fits` of them (revised here as rounds and steps come)."""
+    done = tally.done
     fit = initial_fit(harmonics, start)
     bounds = soft_bounds(fit.model)
     done(f"start model {start} fitted")
     first = fit
     steps: list[Step] = []
+    expected_rounds, rounds = min(EXPECTED_STEPS, max_steps) + 1, 0
     while True:
+        rounds += 1
+        if rounds > expected_rounds:  # more steps than expected: this round is to come too
+            tally.expect(round_work(cross_validate))
         candidates = score_candidates(fit, harmonics, bounds, scored)
+        done(f"step {len(steps) + 1}: {len(candidates)} effects scored")
         impossible = {c.effect: why for c in candidates if (why := implausible_effect(c.effect, harmonics.loops)) is not None}
         candidates = [c for c in candidates if c.effect not in impossible]
         not_identifiable = {c.effect: c.absorbed_by for c in candidates if not c.identifiable}
@@ -199,13 +225,14 @@ def search(
         pairs = best_pairs(candidates, fit.residual) if trials else None
         if pairs is not None:
             trials.append(pairs[0])
-        count[1] += len(trials) + (pairs is not None)
+        work = [weight(fit, tuple(c.effect for c in members)) for members, _ in trials]
+        tally.expect(sum(work) + (weight(fit, tuple(c.effect for c in pairs[1][0])) if pairs else 0) - EXPECTED_REFITS)  # as the scores tell
         refits: dict[tuple[str, ...], Fit] = {}
         scores = {c.effect: c.score for c in candidates}
-        for members, joint in trials:
+        for (members, joint), w in zip(trials, work):
             effects = tuple(c.effect for c in members)
             refits[effects] = profile_errors(refit(fit, harmonics, members, bounds, joint))
-            done(f"step {len(steps) + 1}: refitted with {label(effects)}")
+            done(f"step {len(steps) + 1}: refitted with {label(effects)}", w)
         verdicts = {effects: judge(fit, r, effects, harmonics) for effects, r in refits.items()}
         for effects, why in [(e, degenerate(refits[e], e)) for e, v in verdicts.items() if v is None]:
             rivals = [r.bic for e, r in refits.items() if e != effects and verdicts[e] is None and degenerate(r, e) is None]
@@ -214,15 +241,22 @@ def search(
         if pairs is not None:  # the pair of others counts only where it beats the greedy pair and every single by BIC_MARGIN
             others, (members, joint) = tuple(c.effect for c in pairs[0][0]), pairs[1]
             greedy = refit(fit, harmonics, members, bounds, joint)
-            done(f"step {len(steps) + 1}: refitted with {label(tuple(c.effect for c in members))} (the greedy pair)")
+            done(f"step {len(steps) + 1}: refitted with {label(tuple(c.effect for c in members))} (the greedy pair)",
+                 weight(fit, tuple(c.effect for c in members)))
             rivals = [greedy.bic] + [r.bic for e, r in refits.items() if len(e) == 1 and verdicts[e] is None]
             if verdicts[others] is None and refits[others].bic > min(rivals) - BIC_MARGIN:
                 verdicts[others] = (f"fits no better than {label(tuple(c.effect for c in members))} together or one effect alone "
                                     f"(BIC {refits[others].bic - min(rivals):+.1f})")
         ranked = sorted((r.bic, effects) for effects, r in refits.items() if verdicts[effects] is None)
         chosen = None
-        for _, effects in ranked:
-            verdicts[effects] = held_out(fit, refits[effects], harmonics) if cross_validate else None
+        if cross_validate and not ranked:
+            tally.expect(-1)  # no held-out check this round
+        for checked, (_, effects) in enumerate(ranked):
+            if cross_validate:
+                w = weight(fit, effects)
+                tally.expect(w - (checked == 0))  # one check was expected
+                verdicts[effects] = held_out(fit, refits[effects], harmonics)
+                done(f"step {len(steps) + 1}: {label(effects)} checked on held-out frequencies", w)
             if verdicts[effects] is None:
                 chosen = effects
                 break
@@ -237,12 +271,13 @@ def search(
         if len(chosen) == 1:
             steps.append(Step(effect=chosen[0], confusable_with=confusable, score=scores[chosen[0]], before=fit, after=best, rejected=reasons))
         else:
-            steps += pair_steps(fit, harmonics, chosen, refits, bounds, candidates, confusable, reasons, done)
-        count[1] += len(chosen)  # the gap after each step
+            steps += pair_steps(fit, harmonics, chosen, refits, bounds, candidates, confusable, reasons, tally)
         fit = steps[-1].after
         bounds.update(soft_bounds(fit.model))
+    tally.expect(-max(expected_rounds - rounds, 0) * round_work(cross_validate) + len(steps) + 1 - expected_rounds)  # rounds never run; the gaps
     fit, pruned = prune(fit, harmonics)  # the last step: terms consistent with zero dropped
-    count[1] += bool(pruned)
+    tally.expect(bool(pruned))  # and the gap after it
+    done(f"terms consistent with zero looked for{': dropped ' + ', '.join(pruned) if pruned else ''}")
     check = adequacy(fit, harmonics)
     fits = [first] + [s.after for s in steps] + ([fit] if pruned else [])
 
@@ -278,15 +313,16 @@ def pair_steps(
     candidates: list[Candidate],
     confusable: list[str],
     reasons: dict[str, str],
-    done: Callable[..., None],
+    tally: Tally,
 ) -> list[Step]:
     """The two steps that name ``pair``: the member whose refit alone fits better first (its single refit in
     between, refitted here if this round did not), then the joint refit."""
     by_effect = {c.effect: c for c in candidates}
     for effect in pair:
         if (effect,) not in refits:
+            tally.expect(work := weight(fit, (effect,)))
             refits[(effect,)] = profile_errors(refit(fit, harmonics, (by_effect[effect],), bounds))
-            done(f"refitted with {effect} alone", more=1)
+            tally.done(f"refitted with {effect} alone", work)
     first, second = sorted(pair, key=lambda e: refits[(e,)].bic)
     scores = {c.effect: c.score for c in candidates}
     return [
