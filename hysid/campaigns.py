@@ -28,7 +28,7 @@ from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
 from hysid.motion import MotionChoice, choose_motion, confirm_motion, order_evidence
-from hysid.report import jsondoc, markdown, tables, text
+from hysid.report import campaign_text, jsondoc, markdown, tables
 from hysid_model import notices
 from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
@@ -140,7 +140,7 @@ class CampaignResult:
 
     def summary(self) -> str:
         """The fit summary, why the campaign stopped, its migrations and every island."""
-        return text.campaign_summary(self)
+        return campaign_text.campaign_summary(self)
 
     @property
     def interrupted(self) -> bool:

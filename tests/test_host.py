@@ -21,7 +21,7 @@ from coordinator.loop import serve
 from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
-from hysid.report.text import campaign_progress_line, watch_text
+from hysid.report.campaign_text import campaign_progress_line, watch_text
 from hysid.watch import snapshot
 from hysid.cli import main
 from hysid_model.errors import HysidInputError

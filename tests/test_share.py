@@ -389,7 +389,7 @@ def test_a_fixed_share_moves_nobody(tmp_path):
     ("adaptive", 5, "none: each algorithm held its due share of the islands after every round"),
 ])
 def test_a_share_that_moved_no_island_says_why(share, interval, why):
-    from hysid.report.text import SHARE_RULES, share_lines
+    from hysid.report.campaign_text import SHARE_RULES, share_lines
 
     settings = {"algos": ["ga", "pso"], "share": share, "moves": [], "migration": {"interval": interval, "k": 2}}
     lines = share_lines(settings)
@@ -401,7 +401,7 @@ def test_a_share_that_moved_no_island_says_why(share, interval, why):
 def test_a_move_the_island_ended_before_hearing_is_reported_as_not_followed():
     """An island that spent its own iterations before the coordinator's order reached it (island processes, a
     fixed iteration budget) ended with its first algorithm: the summary says the move was ordered, not followed."""
-    from hysid.report.text import share_lines
+    from hysid.report.campaign_text import share_lines
 
     move = {"island": "ga-0", "src": "ga", "dst": "pso", "evaluations": 3076, "credit": {"ga": 0.0, "pso": 0.0}}
     settings = {"algos": ["ga", "pso"], "share": "staged", "moves": [move], "migration": {"interval": 5, "k": 2}}

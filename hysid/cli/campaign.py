@@ -35,7 +35,7 @@ from hysid.campaigns import CampaignResult, campaign, finish
 from hysid.cli import options as o
 from hysid.cli.progress import Progress, announcing_stop, campaign_reporter
 from hysid.motion import choose_motion
-from hysid.report.text import campaign_progress_line
+from hysid.report.campaign_text import campaign_progress_line
 from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError, HysidWarning
 from island.algorithms import check_algorithm

@@ -22,7 +22,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, TaskProgressColumn, Tex
 from rich.progress import Progress as RichProgress
 
 from coordinator.interrupt import INTERRUPTED
-from hysid.report.text import campaign_progress_line, migrant_messages, stopping_line
+from hysid.report.campaign_text import campaign_progress_line, migrant_messages, stopping_line
 from island.termination import Termination
 
 if TYPE_CHECKING:
@@ -126,7 +126,7 @@ def campaign_status(p: CampaignProgress) -> str:
 
 def campaign_reporter(bar: Progress, islands: int, iterations: int | None, termination: Termination) -> Callable[[CampaignProgress], None]:
     """The coordinator's progress callback for ``bar``: the bar on a terminal, else one line per
-    report (:func:`hysid.report.text.campaign_progress_line`); with the bar off (``--quiet``, ``--json``)
+    report (:func:`hysid.report.campaign_text.campaign_progress_line`); with the bar off (``--quiet``, ``--json``)
     only the answer to Ctrl-C (:func:`announcing_stop`)."""
 
     def report(p: CampaignProgress) -> None:
@@ -142,7 +142,7 @@ def campaign_reporter(bar: Progress, islands: int, iterations: int | None, termi
 
 def announcing_stop(report: Callable[[CampaignProgress], None] | None, say: Callable[[str], None]) -> Callable[[CampaignProgress], None]:
     """``report`` (a progress callback, or None) that first says, once, what the campaign does after Ctrl-C
-    (:func:`hysid.report.text.stopping_line`, a line handed to ``say``): a user's key is answered whatever
+    (:func:`hysid.report.campaign_text.stopping_line`, a line handed to ``say``): a user's key is answered whatever
     ``--quiet`` says."""
     said = False
 

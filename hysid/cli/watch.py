@@ -15,7 +15,7 @@ from rich.text import Text
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
 from hysid.cli import options as o
-from hysid.report.text import campaign_progress_line, watch_text
+from hysid.report.campaign_text import campaign_progress_line, watch_text
 from hysid.watch import snapshot
 from hysid_model.errors import HysidInputError
 

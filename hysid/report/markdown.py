@@ -16,7 +16,8 @@ import numpy as np
 
 from hysid.report import jsondoc
 from hysid.report.amplitudes import combination_rows, effective_rows
-from hysid.report.text import fixed_text, loops_description, migrations_text, quality_text, share_lines
+from hysid.report.campaign_text import migrations_text, share_lines
+from hysid.report.text import fixed_text, loops_description, quality_text
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
 from hysid_model.survey import survey
