@@ -54,12 +54,14 @@ coordinator's count of evaluations (budget, the share of a mixed campaign) follo
 
 
 def island_specs(n: int, algos: list[str], seed: int) -> list[IslandSpec]:
-    """``n`` islands cycling through ``algos``, seeds ``seed .. seed+n-1``."""
+    """``n`` islands ``island-0`` .. ``island-<n-1>`` cycling through ``algos``, seeds ``seed .. seed+n-1``. An island
+    is named by its index, not its algorithm: a mixed campaign's share may move it to another (its algorithms are
+    shown beside its name, ``island-0 (ga -> pso)``)."""
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise HysidInputError("a campaign needs at least one island", param="islands", value=n)
     if n > MAX_MEMBERS:
         raise HysidInputError(f"a campaign admits at most {MAX_MEMBERS} islands", param="islands", value=n)
-    return [IslandSpec(f"{algos[i % len(algos)]}-{i}", algos[i % len(algos)], seed + i) for i in range(n)]
+    return [IslandSpec(f"island-{i}", algos[i % len(algos)], seed + i) for i in range(n)]
 
 
 def free_port() -> int:

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from coordinator.members import STATUS_AFTER
+from coordinator.progress import algorithm_paths
 from coordinator.queries import IslandRecord
 from hysid_model.errors import HysidInputError
 from hysid_model.model import MAX_WIDENINGS
@@ -115,12 +116,15 @@ def polished(objective: Objective, run: RunResult) -> tuple[Objective, RunResult
 
 
 def island_summaries(c: Coordinator, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
-    """Each island run's record with its re-evaluated best and its membership status (as last recorded)."""
+    """Each island run's record with its re-evaluated best, its membership status (as last recorded) and the
+    ``algorithms`` it searched with, in order (``algo`` is the last)."""
     recorded = {island: STATUS_AFTER[event] for island, event, _ in c.store.members(c.name)}
     status = recorded | {i: m.status for i, m in c.members.items()}
     thinned = c.store.thinned(c.name)
+    paths = algorithm_paths(((key, info.algo) for key, info in c.runs.items()), c.sharing.moves)
     return [
-        {**rec.as_dict(), "best_fitness": run.search_fitness, "status": status.get(rec.island, "unknown"), "thinned": thinned.get((rec.island, rec.run), 0)}
+        {**rec.as_dict(), "algorithms": list(paths.get((rec.island, rec.run), (rec.algo,))), "best_fitness": run.search_fitness,
+         "status": status.get(rec.island, "unknown"), "thinned": thinned.get((rec.island, rec.run), 0)}
         for rec, run in zip(records, runs)
     ]
 

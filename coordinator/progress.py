@@ -4,9 +4,14 @@ database, with an :class:`IslandView` per island run."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from island.share import Move
 
 
 @dataclass
@@ -17,6 +22,18 @@ class IslandView:
     iteration: int = 0
     best: float = np.inf
     final: bool = False
+    algos: tuple[str, ...] = ()
+    """The algorithms it searched with, in order: the one it joined with, then each the share moved it to
+    (:func:`algorithm_paths`; empty: only ``algo`` is known)."""
+
+
+def algorithm_paths(joined: Iterable[tuple[tuple[str, str], str]], moves: Iterable["Move"]) -> dict[tuple[str, str], tuple[str, ...]]:
+    """Per island run ``(island, run)``: the algorithm it ``joined`` with, then each one its share's ``moves``
+    moved it to, in order (``("ga", "pso")``: the staged share moved a GA island to the PSO)."""
+    paths = {key: [algo] for key, algo in joined}
+    for move in moves:
+        paths.setdefault((move.island, move.run), [move.src]).append(move.dst)
+    return {key: tuple(path) for key, path in paths.items()}
 
 
 @dataclass

@@ -127,8 +127,9 @@ class CampaignResult:
         return {**self.fit.to_dict(), "islands": self.islands, "migrations": self.migrations, "members": self.members, "stored": self.stored}
 
     def tables(self) -> dict[str, list[dict[str, Any]]]:
-        """The fit's tables (``parameters``, ``amplitudes``) plus ``islands`` (one row per island run)."""
-        return {**self.fit.tables(), "islands": [dict(i) for i in self.islands]}
+        """The fit's tables (``parameters``, ``amplitudes``) plus ``islands`` (one row per island run; ``algorithms``:
+        what it searched with, in order, ``ga -> pso`` where the share moved it)."""
+        return {**self.fit.tables(), "islands": [{**i, "algorithms": " -> ".join(i.get("algorithms") or [i["algo"]])} for i in self.islands]}
 
     def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
         """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from coordinator.members import STATUS_AFTER
-from coordinator.progress import CampaignProgress, IslandView
+from coordinator.progress import CampaignProgress, IslandView, algorithm_paths
 from coordinator.store import Store
 from hysid.campaigns import pick_campaign
 
@@ -38,7 +38,7 @@ class CampaignSnapshot:
     progress: CampaignProgress
     best_island: str | None
     islands: list[dict[str, Any]]
-    """Per island run: ``island``, ``run``, ``algo``, ``status``, ``iterations``, ``evaluations``,
+    """Per island run: ``island``, ``run``, ``algo`` (its last), ``algorithms`` (in order), ``status``, ``iterations``, ``evaluations``,
     ``best_fitness``, ``sent``, ``received``, ``taken``, ``messages`` (migrant messages the coordinator saw)
     and ``trend`` (best fitness at up to :data:`TREND_POINTS` iterations)."""
     events: list[tuple[str, str, float]]
@@ -79,9 +79,10 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
     sent = store.migrations_by_island(name)
     best = store.best(name)
     several = {r.island for r in records if sum(q.island == r.island for q in records) > 1}
+    paths = algorithm_paths((((island, run), algo) for island, run, _, algo, _, _ in store.runs(name)), store.moves(name))
     islands = [
-        {**r.as_dict(), "status": members.get(r.island, "unknown"), "messages": sent.get(r.island, 0),
-         "trend": trend(by_run.get((r.island, r.run), []))}
+        {**r.as_dict(), "algorithms": list(paths.get((r.island, r.run), (r.algo,))), "status": members.get(r.island, "unknown"),
+         "messages": sent.get(r.island, 0), "trend": trend(by_run.get((r.island, r.run), []))}
         for r in records
     ]
     ended = meta["ended"] if meta["status"] == "stopped" and meta["ended"] else gone or time.time()
@@ -90,7 +91,8 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
         evaluations=store.total_evaluations(name),
         best=np.inf if best is None else best.fitness,
         members=members,
-        islands={f"{r.island}/{r.run}" if r.island in several else r.island: IslandView(r.algo, r.iterations, r.best_fitness, r.final) for r in records},
+        islands={f"{r.island}/{r.run}" if r.island in several else r.island:
+                 IslandView(r.algo, r.iterations, r.best_fitness, r.final, paths.get((r.island, r.run), ())) for r in records},
         migrations=store.count("migrations", name),
         migrations_followed=store.unfollowed(name) is None,
         rejected=store.count("rejected", name),

@@ -89,7 +89,7 @@ def test_diagnosis_and_campaign_report_themselves_like_a_fit(loops, tmp_path, ca
     sizes = {"population": 20, "initial_population": 40, "iterations": 10}
     campaign = hysid.campaign(subset, "thesis", islands=2, single_node=True, options={"ga": sizes, "pso": sizes}, migration=hysid.Migration(interval=5))
     doc = campaign.to_dict()
-    assert [i["island"] for i in doc["islands"]] == ["ga-0", "pso-1"] and doc["params"] == campaign.params
+    assert [i["island"] for i in doc["islands"]] == ["island-0", "island-1"] and doc["params"] == campaign.params
     assert campaign.write_report(tmp_path / "c").read_text().startswith("# hysid campaign:")
     assert re.fullmatch(r"<CampaignResult 'campaign', thesis on \S+: 2 island run\(s\), fitness \S+, every island finished>", repr(campaign))
     assert repr(diagnosis).startswith(f"<Diagnosis of {subset.name}: baseline -> baseline+amplitude_dependent_frequency")

@@ -36,20 +36,21 @@ def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations
     assert FIT_KEYS | {"islands", "migrations"} <= set(doc)
     for name, true in TRUE_PARAMS.items():  # noiseless data: the polished global best is the truth
         assert doc["params"][name] == pytest.approx(true, rel=1e-6)
-    assert [i["island"] for i in doc["islands"]] == ["ga-0", "ga-2", "pso-1"]
+    assert [i["island"] for i in doc["islands"]] == ["island-0", "island-1", "island-2"]  # by index: the share may move an island
     assert all(i["status"] == "left" and i["iterations"] == 15 for i in doc["islands"])
     assert doc["migrations"]["messages"] == 6  # 3 islands x migrations after iterations 5 and 10
     migrants = query(out / "campaign.sqlite", "SELECT SUM(n) FROM migrations")[0][0]
     assert 6 <= migrants <= 12  # 2 per message; 1 from an island handed over from GA to PSO with one distinct best (the staged share)
     assert doc["migrations"]["received"] == migrants and doc["migrations"]["rejected"] == 0  # a ring: each message taken by one island
     assert doc["evaluations"] == sum(i["evaluations"] for i in doc["islands"]) + doc["runs"][doc["best_run"]]["polish"]["evaluations"]
-    assert history_iterations(out / "campaign.sqlite") == {i: list(range(16)) for i in ("ga-0", "ga-2", "pso-1")}
+    assert history_iterations(out / "campaign.sqlite") == {i: list(range(16)) for i in ("island-0", "island-1", "island-2")}
     assert json.loads((out / "result.json").read_text())["islands"] == doc["islands"]
     assert (out / "report.md").is_file() and (out / "convergence.png").is_file()
     report = (out / "report.md").read_text()  # why it stopped (the summary), then its own section: migrations, moves, islands
     section = report[report.index("## Islands and migrations"):report.index("## Model vs measured loops")]
     assert "- **Stopped**: every island finished." in report and f"Migrations: {doc['migrations']['messages']} messages (ring, every 5" in section
-    assert "- share: staged" in section and all(f"| `{i['island']}` | {i['algo'].upper()} |" in section for i in doc["islands"])
+    assert "- share: staged" in section and all(f"| `{i['island']}` | {' -> '.join(i['algorithms']).upper()} |" in section for i in doc["islands"])
+    assert [i["algorithms"][0] for i in doc["islands"]] == ["ga", "pso", "ga"] and all(i["algorithms"][-1] == i["algo"] for i in doc["islands"])
 
 
 @pytest.mark.slow
@@ -63,13 +64,13 @@ def test_campaign_of_island_processes_over_zenoh(tmp_path):
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert doc["fitness"] < 1e-20
-    assert {i["island"]: (i["algo"], i["status"]) for i in doc["islands"]} == {"pso-0": ("pso", "left"), "pso-1": ("pso", "left")}
+    assert {i["island"]: (i["algo"], i["status"]) for i in doc["islands"]} == {"island-0": ("pso", "left"), "island-1": ("pso", "left")}
     assert doc["migrations"]["messages"] == 2 * 39  # after iterations 5, 10, ..., 195
     assert doc["migrations"]["received"] > 0  # how many arrive in time is up to the network
     assert "members" not in proc.stderr  # --json: no live progress (tests/test_progress.py has it)
     db = out / "campaign.sqlite"
-    assert history_iterations(db) == {"pso-0": list(range(201)), "pso-1": list(range(201))}
-    assert sorted(events(db)) == sorted([("pso-0", "join"), ("pso-1", "join"), ("pso-0", "left"), ("pso-1", "left")])
+    assert history_iterations(db) == {"island-0": list(range(201)), "island-1": list(range(201))}
+    assert sorted(events(db)) == sorted([("island-0", "join"), ("island-1", "join"), ("island-0", "left"), ("island-1", "left")])
 
 
 @pytest.mark.slow
@@ -148,7 +149,7 @@ def test_ctrl_c_mid_campaign_reports_it_interrupted_and_exits_130(tmp_path, caps
     db = out / "campaign.sqlite"
 
     def ctrl_c_once_searching() -> None:
-        wait_for(lambda: db.is_file() and rows_of(db, "pso-1") > 5, 60, "the islands to search")
+        wait_for(lambda: db.is_file() and rows_of(db, "island-1") > 5, 60, "the islands to search")
         os.kill(os.getpid(), signal.SIGINT)
 
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # a user's Ctrl-C, also where the runner ignores SIGINT
@@ -248,7 +249,7 @@ def test_a_folder_named_hysid_in_the_working_directory_does_not_shadow_the_islan
     argv = ["campaign", "--islands", "2", "--algos", "pso", *SMALL, "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
     assert main(argv) == 0, capsys.readouterr().err
     doc = json.loads(capsys.readouterr().out)
-    assert [(i["island"], i["iterations"], i["status"]) for i in doc["islands"]] == [("pso-0", 15, "left"), ("pso-1", 15, "left")]
+    assert [(i["island"], i["iterations"], i["status"]) for i in doc["islands"]] == [("island-0", 15, "left"), ("island-1", 15, "left")]
 
 
 @pytest.mark.slow

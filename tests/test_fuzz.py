@@ -76,7 +76,7 @@ def test_ten_thousand_hostile_messages_leave_coordinator_and_islands_running_wit
         try:
             hostile = Hostile(np.random.default_rng(12), "fz", c.objective.bounds, broken, Counter(10**6))
             implausible = float(c.checks.evaluation_bound("pso", np.array([1.0]))[0] + 1e6)
-            for entry, where, payload in stream(hostile, COORDINATOR_MESSAGES, "pso", 7, implausible, ["ga-0", "pso-1", "ga-2", "broken"]):
+            for entry, where, payload in stream(hostile, COORDINATOR_MESSAGES, "pso", 7, implausible, ["island-0", "island-1", "island-2", "broken"]):
                 if entry == "msg":
                     c.receive(where, payload, wait_s=None)
                 elif entry == "member":

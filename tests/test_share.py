@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import threading
 
 import numpy as np
@@ -351,7 +352,8 @@ def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_
     records = {r["island"]: r for r in outcome.islands}
     heard = {i: m["dst"] for i, m in last.items() if m["evaluations"] <= 10_000}  # a move ordered in the last round may meet the stop first
     assert all(records[i]["algo"] == algo for i, algo in heard.items())  # each moved island's own history says where it went
-    assert all(records[i]["algo"] == i.split("-")[0] for i in records if i not in last)
+    assert all(records[i]["algorithms"] == [records[i]["algo"]] for i in records if i not in last)  # named by index, never by algorithm
+    assert all(records[i]["algorithms"][:2] == [m["src"], m["dst"]] for i, m in {m["island"]: m for m in reversed(moves)}.items())
     store = Store(db)
     try:
         for island, run, *_ in store.runs(coordinator.name):
@@ -372,10 +374,14 @@ def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_ro
     monkeypatch.setattr("coordinator.launch.MEMORY_HISTORY_EVERY_S", 1.0)  # a timed history at most every second: it decides nothing
     _, outcome, db = mixed_campaign(tmp_path, "staged", budget=4_000)
     moves = outcome.settings["moves"]
-    assert sorted((m["island"], m["src"], m["dst"]) for m in moves) == [("ga-0", "ga", "pso"), ("ga-2", "ga", "pso")]
+    assert sorted((m["island"], m["src"], m["dst"]) for m in moves) == [("island-0", "ga", "pso"), ("island-2", "ga", "pso")]
     assert all(m["evaluations"] < 2_000 for m in moves)  # one round: every island's first migration interval
-    assert {r["island"]: r["algo"] for r in outcome.islands} == dict.fromkeys(["ga-0", "pso-1", "ga-2", "pso-3"], "pso")
-    assert "share: staged, 2 island move(s) of the exploring algorithm (GA) to the converging one (PSO)" in CampaignResult.from_database(db).summary()
+    assert {r["island"]: r["algo"] for r in outcome.islands} == dict.fromkeys(["island-0", "island-1", "island-2", "island-3"], "pso")
+    assert {r["island"]: r["algorithms"] for r in outcome.islands} == {  # the name never contradicts the algorithm: it is beside it
+        "island-0": ["ga", "pso"], "island-1": ["pso"], "island-2": ["ga", "pso"], "island-3": ["pso"]}
+    summary = CampaignResult.from_database(db).summary()
+    assert "share: staged, 2 island move(s) of the exploring algorithm (GA) to the converging one (PSO)" in summary
+    assert re.search(r"\n  island-0 +GA -> PSO +seed 40 ", summary) and re.search(r"\n  island-1 +PSO +seed 41 ", summary)
 
 
 def test_a_fixed_share_moves_nobody(tmp_path):

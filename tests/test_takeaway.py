@@ -76,7 +76,8 @@ def test_csv_flag_of_fit_campaign_and_diagnose(tmp_path, capsys):
     out = capsys.readouterr().out
     assert out.rstrip().endswith(f"tables: {tmp_path / 'c' / 'parameters.csv'}, {tmp_path / 'c' / 'amplitudes.csv'}, {tmp_path / 'c' / 'islands.csv'}")
     islands = read_csv(tmp_path / "c" / "islands.csv")
-    assert [i["island"] for i in islands] == ["ga-0", "pso-1"] and all(i["iterations"] == "10" for i in islands)
+    assert [i["island"] for i in islands] == ["island-0", "island-1"] and all(i["iterations"] == "10" for i in islands)
+    assert [i["algorithms"].split(" -> ")[0] for i in islands] == ["ga", "pso"]  # what each searched with, beside its name
     doc = json.loads((tmp_path / "c" / "result.json").read_text())
     rows = read_csv(tmp_path / "c" / "parameters.csv")
     assert {r["parameter"]: float(r["value"]) for r in rows if not r["status"].startswith("derived")} == {**doc["params"], **doc["fixed"]}

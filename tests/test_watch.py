@@ -48,7 +48,7 @@ def test_report_rebuilds_a_campaign_from_its_database_alone(finished, tmp_path, 
     assert all((tmp_path / "again" / f).is_file() for f in ("convergence.png", "loops.png", "residuals.png", "half_power.png"))
     assert digest(db) == before  # read only
     result = CampaignResult.from_database(db)
-    assert [i["island"] for i in result.islands] == ["ga-0", "ga-2", "pso-1"]
+    assert [i["island"] for i in result.islands] == ["island-0", "island-1", "island-2"]
 
 
 def test_watch_once_shows_islands_migrations_and_members(finished, capsys):
@@ -101,7 +101,7 @@ def start_campaign(tmp_path, islands: int = 2):
               "--time-limit", "300", "--quiet", "--json", "--out", str(tmp_path / "out")),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
-    wait_for(lambda: all(rows_of(db, f"pso-{i}") > 20 for i in range(islands)), 120, "both islands' history")
+    wait_for(lambda: all(rows_of(db, f"island-{i}") > 20 for i in range(islands)), 120, "both islands' history")
     return db, proc
 
 
@@ -112,7 +112,7 @@ def test_watch_follows_a_running_campaign_on_a_terminal_until_it_stops(tmp_path)
 
     def stop_once_seen_running(text: str) -> bool:
         screen = ANSI.sub("", text)
-        if not stopped and "running after" in screen and "pso-1" in screen and " alive " in screen:
+        if not stopped and "running after" in screen and "island-1" in screen and " alive " in screen:
             campaign.send_signal(signal.SIGINT)  # Ctrl-C on the campaign: it stops and reports
             stopped.append(True)
         return False
@@ -126,9 +126,9 @@ def test_watch_follows_a_running_campaign_on_a_terminal_until_it_stops(tmp_path)
     assert stopped and code == 0  # watch ended by itself when the campaign stopped
     screen = ANSI.sub("", text)
     assert "campaign 'campaign' on synth: running after" in screen and "global best " in screen
-    assert re.search(r"pso-0\s+PSO\s+alive\s+\d+", screen) and re.search(r"pso-1\s+PSO\s+alive\s+\d+", screen)
+    assert re.search(r"island-0\s+PSO\s+alive\s+\d+", screen) and re.search(r"island-1\s+PSO\s+alive\s+\d+", screen)
     final = screen[screen.rindex("campaign 'campaign' on synth: stopped (interrupted)"):]
-    assert re.search(r"pso-0\s+PSO\s+left\s+\d+", final) and "members: 0 alive, 2 left, 0 lost" in final
+    assert re.search(r"island-0\s+PSO\s+stopped\s+\d+", final) and "members: 0 alive, 0 left, 2 stopped by the user, 0 lost" in final
     assert campaign.returncode == 130 and err.endswith("hysid: error: interrupted\n"), err  # interrupted, and reported
     assert json.loads(out)["settings"]["stop_reason"] == "interrupted"
 
@@ -154,10 +154,10 @@ def test_watch_and_report_of_a_campaign_whose_coordinator_was_killed(tmp_path, c
     code, text = screen_of(hysid("watch", str(db), "--interval", "0.2"), 60)
     screen = ANSI.sub("", text)
     assert code == 0 and f"campaign 'campaign' on synth: interrupted ({gone}) after " in screen
-    assert re.search(r"pso-0\s+PSO\s+unknown\s+\d+", screen) and "members: 0 alive, 0 left, 0 lost, 2 unknown (its coordinator gone)" in screen
+    assert re.search(r"island-0\s+PSO\s+unknown\s+\d+", screen) and "members: 0 alive, 0 left, 0 lost, 2 unknown (its coordinator gone)" in screen
     assert main(["report", str(db), "--out", str(tmp_path / "r")]) == 0
     summary = capsys.readouterr().out
     assert f"stopped because interrupted: {gone}" in summary
-    assert re.search(r"pso-0 +PSO +seed 0 +unknown +best ", summary) and (tmp_path / "r" / "report.md").is_file()
+    assert re.search(r"island-0 +PSO +seed 0 +unknown +best ", summary) and (tmp_path / "r" / "report.md").is_file()
     assert main(["campaign", "--single-node", "--out", str(db.parent)]) == 2
     assert "holds the database of a campaign that did not finish" in capsys.readouterr().err

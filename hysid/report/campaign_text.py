@@ -30,6 +30,17 @@ def migrations_text(m: dict[str, Any]) -> str:
             f"migrants re-evaluated, {m['taken']:,} taken in{unlisted}; {m['rejected']:,} messages rejected by the coordinator")
 
 
+def algorithms_text(island: dict[str, Any]) -> str:
+    """The algorithms an island run searched with, in order (``GA -> PSO``: its share moved it); a record of an
+    earlier hysid knows only its last."""
+    return " -> ".join(a.upper() for a in island.get("algorithms") or [island["algo"]])
+
+
+def island_label(name: str, algos: Sequence[str]) -> str:
+    """An island and its algorithms, as the live progress line shows it: ``island-0 (ga -> pso)``."""
+    return f"{name} ({' -> '.join(algos)})" if algos else name
+
+
 def campaign_summary(result: "CampaignResult") -> str:
     """The fit summary of a campaign, then why it stopped, its migrations and every island."""
     fit = result.fit
@@ -43,7 +54,7 @@ def campaign_summary(result: "CampaignResult") -> str:
     lines += share_lines(fit.settings, result.islands)
     for isl in result.islands:
         lines.append(
-            f"  {isl['island']:<12} {isl['algo'].upper():<4} seed {isl['seed']:<4} {isl['status']:<6} best {isl['best_fitness']:.4g} "
+            f"  {isl['island']:<12} {algorithms_text(isl):<10} seed {isl['seed']:<4} {isl['status']:<7} best {isl['best_fitness']:.4g} "
             f"after {isl['iterations']} iterations, {isl['evaluations']:,} evaluations" + (f", {isl['thinned']:,} rows thinned" if isl["thinned"] else "")
         )
     return "\n".join(lines)
@@ -111,7 +122,7 @@ def campaign_progress_line(p: "CampaignProgress") -> str:
     """One line of live progress: members, evaluations, global best, migrations, each island's best."""
     alive = sum(s == "alive" for s in p.members.values())
     gone = ", ".join(f"{i} {s}" for i, s in sorted(p.members.items()) if s != "alive")
-    islands = "  ".join(f"{i}:{v.best:.3g}@{v.iteration}" for i, v in sorted(p.islands.items()))
+    islands = "  ".join(f"{island_label(i, v.algos or (v.algo,))}:{v.best:.3g}@{v.iteration}" for i, v in sorted(p.islands.items()))
     return (
         f"[{p.elapsed_s:6.1f} s] members {alive}{f' ({gone})' if gone else ''} | evaluations {p.evaluations:,} | "
         f"best {p.best:.4g} | migrations {migrant_messages(p)}{f' | rejected {p.rejected}' if p.rejected else ''} | {islands}"
@@ -156,7 +167,7 @@ def watch_text(snap: "CampaignSnapshot") -> str:
     ]
     several = {i["island"] for i in snap.islands if sum(j["island"] == i["island"] for j in snap.islands) > 1}
     rows = [
-        [f"{i['island']}/{i['run']}" if i["island"] in several else i["island"], i["algo"].upper(), i["status"], str(i["iterations"]),
+        [f"{i['island']}/{i['run']}" if i["island"] in several else i["island"], algorithms_text(i), i["status"], str(i["iterations"]),
          f"{i['evaluations']:,}", f"{i['best_fitness']:.4g}", str(i["messages"]), f"{i['received']}/{i['taken']}", sparkline(i["trend"])]
         for i in snap.islands
     ]

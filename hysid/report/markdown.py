@@ -16,7 +16,7 @@ import numpy as np
 
 from hysid.report import jsondoc
 from hysid.report.amplitudes import combination_rows, effective_rows
-from hysid.report.campaign_text import migrations_text, share_lines
+from hysid.report.campaign_text import algorithms_text, migrations_text, share_lines
 from hysid.report.text import fixed_text, loops_description, quality_text
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
@@ -203,7 +203,7 @@ def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list
     """One row per island run of a campaign: its algorithm, status, best and what it exchanged."""
     headers = ["island", "algorithm", "seed", "status", "best fitness", "iterations", "evaluations",
                "migrant messages sent", "migrants received", "taken in", "messages rejected", "messages unlisted (waited for the roster)"]
-    rows = [[f"`{i['island']}`", i["algo"].upper(), str(i["seed"]), i["status"], num(i["best_fitness"], 4), f"{i['iterations']:,}",
+    rows = [[f"`{i['island']}`", algorithms_text(i), str(i["seed"]), i["status"], num(i["best_fitness"], 4), f"{i['iterations']:,}",
              f"{i['evaluations']:,}", f"{i['sent']:,}", f"{i['received']:,}", f"{i['taken']:,}", f"{i['rejected']:,}", f"{i.get('unlisted', 0):,}"]
             for i in islands]
     return headers, rows
