@@ -24,7 +24,7 @@ inbox (:func:`pump`) through :meth:`coordinator.state.Coordinator.handle` and
   stops it the same way, ``interrupted``, waiting at most :data:`INTERRUPT_GRACE_S` for the
   islands' last rows and recording each island run ``stopped`` (by the user); a second Ctrl-C
   leaves at once: the database rolled back to its last commit (nothing half written) and
-  marked ``interrupted``, the runs still alive recorded ``stopped``. A database that cannot be
+  marked ``interrupted``, the runs it holds alive recorded ``stopped``. A database that cannot be
   written (locked by another process for :data:`coordinator.store.RUN_LOCK_WAIT_S`,
   full, read-only, deleted) stops the campaign cleanly (:class:`StoreError`): the
   islands are told to stop and the campaign is marked ``interrupted`` where the
@@ -41,7 +41,7 @@ import time
 from collections.abc import Callable
 
 from coordinator.interrupt import INTERRUPTED, CtrlC
-from coordinator.members import LEAVE_GRACE_S, Member
+from coordinator.members import LEAVE_GRACE_S, STATUS_AFTER, Member
 from coordinator.progress import CampaignProgress
 from coordinator.link import Link
 from coordinator.state import Coordinator
@@ -248,13 +248,16 @@ def _stop_islands(c: Coordinator, link: Link, grace_s: float) -> None:
 
 def _leave_now(c: Coordinator) -> None:
     """A second Ctrl-C: the database back at its last commit (a batch the key cut short is not half
-    written; only committed rows were ever confirmed to islands), the runs still alive recorded
+    written; only committed rows were ever confirmed to islands), every run it holds alive recorded
     ``stopped``, the campaign marked interrupted (:data:`LEFT_AT_ONCE`); a file that will not take
     it keeps what was committed."""
     c.stop_reason = INTERRUPTED
     c.store.rollback()
     try:
-        c.membership.stopped_by_user(give_up=True)
+        last = {island: event for island, event, _ in c.store.members(c.name)}
+        for island, event in last.items():
+            if STATUS_AFTER[event] == "alive":
+                c.store.member_event(c.name, island, "stopped")
         c.store.set_status(c.name, INTERRUPTED, LEFT_AT_ONCE)
     except (StoreError, sqlite3.Error):
         c.store.rollback()

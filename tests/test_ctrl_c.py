@@ -21,7 +21,9 @@ from support import Lines, hysid, interruptible, query, wait_for
 
 SEARCH = ["--islands", "2", "--algos", "pso", "--population", "20", "--initial", "40", "--time-limit", "600", "--no-polish"]
 """Two island processes that search until stopped (the time limit only bounds a test gone wrong)."""
-STOPPING = re.compile(r"hysid: stopping: waiting for [12] island(?:'s|s') last rows \(Ctrl-C again to leave now\)\n")
+STOPPING = re.compile(r"hysid: stopping: (?:waiting for [12] island(?:'s|s') last rows|every island's last rows are in; writing the report) "
+                      r"\(Ctrl-C again to leave now\)\n")
+"""The islands got the key too: their last rows may all be in before the coordinator's loop looks (within 0.2 s)."""
 
 
 def test_the_first_ctrl_c_asks_the_second_leaves() -> None:
@@ -74,7 +76,7 @@ def test_ctrl_c_in_a_terminal_says_it_stops_records_the_islands_stopped_and_exit
     err.thread.join(timeout=10)
     text = err.text()
     assert p.returncode == 130 and STOPPING.search(text) and text.endswith("hysid: error: interrupted\n"), text
-    assert text.index("stopping: waiting") < text.index("hysid: error: interrupted")
+    assert text.index("hysid: stopping: ") < text.index("hysid: error: interrupted")
     islands = [i for (i,) in query(db, "SELECT DISTINCT island FROM runs")]
     assert len(islands) == 2
     for island in islands:  # each said goodbye, at the user's stop: never "lost"
@@ -102,7 +104,7 @@ def test_a_second_ctrl_c_leaves_at_once_with_the_database_as_committed_and_marke
         os.kill(kids[0], signal.SIGSTOP)
         rows_before = query(db, "SELECT count(*) FROM history")[0][0]
         p.send_signal(signal.SIGINT)
-        err.wait_for("hysid: stopping: waiting for", 30)
+        err.wait_for("hysid: stopping: waiting for", 30)  # the frozen island's rows never come
         p.send_signal(signal.SIGINT)
         p.wait(timeout=60)
     finally:

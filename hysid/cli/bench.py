@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 import typer
 
-from hysid.bench import accuracy, coordinator, coverage, environment, ingest, islands, objective, search, sites, validation
+from hysid.bench import accuracy, coordinator, coverage, environment, ingest, interrupt, islands, objective, search, sites, validation
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -138,6 +138,19 @@ def sites_command(
         typer.echo(f"hysid: error: the sites bench stopped: {exc}", err=True)
         raise typer.Exit(1) from None
     emit(result, sites.to_text, as_json)
+
+
+@bench_app.command("interrupt", help=(interrupt.run.__doc__ or "").strip().splitlines()[0])
+def interrupt_command(
+    runs: int = typer.Option(interrupt.RUNS, "--runs", help="Campaigns stopped by Ctrl-C per model."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    try:
+        result = interrupt.run(runs)
+    except RuntimeError as exc:  # a campaign that did not search, say it stops or exit in time
+        typer.echo(f"hysid: error: the interrupt bench stopped: {exc}", err=True)
+        raise typer.Exit(1) from None
+    emit(result, interrupt.to_text, as_json)
 
 
 def bench_names() -> list[str]:

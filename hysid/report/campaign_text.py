@@ -134,7 +134,7 @@ def stopping_line(p: "CampaignProgress") -> str:
     that a second Ctrl-C leaves without them."""
     alive = sum(s == "alive" for s in p.members.values())
     owner = "island's" if alive == 1 else "islands'"
-    waits = f"waiting for {alive} {owner} last rows" if alive else "no island is alive; writing the report"
+    waits = f"waiting for {alive} {owner} last rows" if alive else "every island's last rows are in; writing the report"
     return f"stopping: {waits} (Ctrl-C again to leave now)"
 
 
