@@ -200,7 +200,7 @@ def test_load_warnings_travel_into_a_campaign_and_its_database(tmp_path, bearing
     stored the loop set with them)."""
     loops, _ = loaded(lab_files(tmp_path / "swapped", bearing, swap=True))
     db = tmp_path / "c.sqlite"
-    run = hysid.campaign(loops, 2, model="baseline", single_node=True, options={"ga": TINY, "pso": TINY}, db=db)
+    run = hysid.campaign(loops, "baseline", islands=2, single_node=True, options={"ga": TINY, "pso": TINY}, db=db)
     swapped = [w for w in run.to_dict()["warnings"] if w["code"] == "swapped_columns"]
     assert swapped == [w for w in loops.meta["warnings"] if w["code"] == "swapped_columns"]
     assert [w for w in hysid.CampaignResult.from_database(db).warnings if w["code"] == "swapped_columns"] == swapped
