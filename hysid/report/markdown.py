@@ -275,8 +275,8 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         "the energy dissipated per cycle and E_s = k_eff X0^2 / 2 (none where the inertia makes k_eff negative). "
         "Uncertainties are one standard error (delta method through the full covariance); every row is in `amplitudes.csv`.",
         table(*effective_rows(result.effective, MARKDOWN_POINTS)),
-        image(figs["effective"], out_dir, "Effective stiffness and equivalent damping per amplitude against frequency: "
-              "fitted model (one standard error) and each loop's own (the forces at its branches' ends, its area)"),
+        picture("effective", "Effective stiffness and equivalent damping per amplitude against frequency: "
+                "fitted model (one standard error) and each loop's own (the forces at its branches' ends, its area)"),
         "## Half-power cross-check of the damping (Eq. 2.7)",
         "Independently of the model: the compliance |X0/F1| of every loop (F1 = first harmonic of the measured "
         "force) gives one frequency response per amplitude; its resonance peak and -3 dB points give "
