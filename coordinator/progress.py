@@ -4,8 +4,9 @@ database, with an :class:`IslandView` per island run."""
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -25,6 +26,15 @@ class IslandView:
     algos: tuple[str, ...] = ()
     """The algorithms it searched with, in order: the one it joined with, then each the share moved it to
     (:func:`algorithm_paths`; empty: only ``algo`` is known)."""
+
+
+def island_views(islands: dict[tuple[str, str], IslandView], joined: Iterable[tuple[tuple[str, str], str]],
+                 moves: Iterable["Move"]) -> dict[str, IslandView]:
+    """The ``islands`` runs' views by name (an island with several runs shows each as ``island/run``), each with
+    its algorithms (:func:`algorithm_paths` of the runs ``joined`` and the share's ``moves``)."""
+    runs = Counter(i for i, _ in islands)
+    paths = algorithm_paths(joined, moves)
+    return {f"{i}" if runs[i] == 1 else f"{i}/{r}": replace(v, algos=paths.get((i, r), ())) for (i, r), v in islands.items()}
 
 
 def algorithm_paths(joined: Iterable[tuple[tuple[str, str], str]], moves: Iterable["Move"]) -> dict[tuple[str, str], tuple[str, ...]]:

@@ -88,7 +88,7 @@ from coordinator.keys import CampaignKeys, campaign_keys
 from coordinator.link import Link
 from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignOutcome, campaign_outcome
-from coordinator.progress import CampaignProgress, IslandView, algorithm_paths
+from coordinator.progress import CampaignProgress, IslandView, island_views
 from coordinator.queries import IslandRecord, StoredBest
 from coordinator.sharing import Sharing
 from coordinator.store import RUN_LOCK_WAIT_S, Store, StoreError
@@ -263,14 +263,12 @@ class Coordinator(Admission):
         return self.islands.get((island, run), IslandView("")).final
 
     def progress(self) -> CampaignProgress:
-        runs = Counter(i for i, _ in self.islands)  # an island with several runs shows each as island/run
-        paths = algorithm_paths(((key, info.algo) for key, info in self.runs.items()), self.sharing.moves)
         return CampaignProgress(
             elapsed_s=self.elapsed(),
             evaluations=self.evaluations,
             best=np.inf if self.best is None else self.best.fitness,
             members={i: m.status for i, m in self.members.items()},
-            islands={f"{i}" if runs[i] == 1 else f"{i}/{r}": replace(v, algos=paths.get((i, r), ())) for (i, r), v in self.islands.items()},
+            islands=island_views(self.islands, ((key, info.algo) for key, info in self.runs.items()), self.sharing.moves),
             migrations=self.migrations,
             rejected=self.rejected,
             migrations_followed=self.follows_migrants,

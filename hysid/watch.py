@@ -79,7 +79,7 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
     sent = store.migrations_by_island(name)
     best = store.best(name)
     several = {r.island for r in records if sum(q.island == r.island for q in records) > 1}
-    paths = algorithm_paths((((island, run), algo) for island, run, _, algo, _, _ in store.runs(name)), store.moves(name))
+    paths = algorithm_paths((((run[0], run[1]), run[3]) for run in store.runs(name)), store.moves(name))  # (island, run), algo
     islands = [
         {**r.as_dict(), "algorithms": list(paths.get((r.island, r.run), (r.algo,))), "status": members.get(r.island, "unknown"),
          "messages": sent.get(r.island, 0), "trend": trend(by_run.get((r.island, r.run), []))}

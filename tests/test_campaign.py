@@ -83,7 +83,7 @@ def test_an_honest_campaign_of_two_island_processes_counts_no_message_rejected_o
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
-    assert [(i["island"], i["rejected"], i["unlisted"]) for i in doc["islands"]] == [("ga-0", 0, 0), ("pso-1", 0, 0)]
+    assert [(i["island"], i["rejected"], i["unlisted"]) for i in doc["islands"]] == [("island-0", 0, 0), ("island-1", 0, 0)]
     assert doc["migrations"]["rejected"] == 0 and doc["migrations"]["unlisted"] == 0 and doc["migrations"]["received"] > 0
     assert "not followed" not in (out / "report.md").read_text()
 
