@@ -58,9 +58,10 @@ class CampaignResult:
     migrant messages a newer one superseded before it handled them."""
 
     @classmethod
-    def from_outcome(cls, outcome: CampaignOutcome) -> "CampaignResult":
+    def from_outcome(cls, outcome: CampaignOutcome, *, profiles: bool = True) -> "CampaignResult":
+        """The result of a campaign's outcome (``profiles``: as :meth:`FitResult.from_runs`)."""
         return cls(
-            FitResult.from_runs(outcome.objective, outcome.runs, outcome.settings),
+            FitResult.from_runs(outcome.objective, outcome.runs, outcome.settings, profiles=profiles),
             islands=outcome.islands,
             migrations=outcome.migrations,
             members=outcome.members,
@@ -178,10 +179,10 @@ def pick_campaign(store: Store, name: str | None = None) -> str:
 
 def finish(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None) -> CampaignResult:
     """The result of a stopped campaign (its displacement reading :func:`confirmed`; after Ctrl-C without a search
-    under the other reading: the user waits), also kept in its database.
+    under the other reading, nor the objective's profiles for the errors: the user waits), also kept in its database.
     ``motion``: the choice the campaign started with (None: rebuilt from its configuration)."""
     interrupted = outcome.settings.get("stop_reason") == INTERRUPTED
-    result = CampaignResult.from_outcome(confirmed(coordinator, outcome, motion, search=not interrupted))
+    result = CampaignResult.from_outcome(confirmed(coordinator, outcome, motion, search=not interrupted), profiles=not interrupted)
     coordinator.store.set_result(coordinator.name, jsondoc.dumps(result.to_dict()))
     return result
 

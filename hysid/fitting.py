@@ -84,8 +84,10 @@ class FitResult:
     """The warnings raised while fitting (:func:`hysid_model.notices.keeps_warnings`)."""
 
     @classmethod
-    def from_runs(cls, objective: Objective, runs: list[RunResult], settings: dict[str, Any]) -> "FitResult":
-        """Pick the best run, and derive standard errors, per-amplitude quantities and the half-power check."""
+    def from_runs(cls, objective: Objective, runs: list[RunResult], settings: dict[str, Any], *, profiles: bool = True) -> "FitResult":
+        """Pick the best run, and derive standard errors, per-amplitude quantities and the half-power check.
+        ``profiles=False``: the errors that need the objective's profile (:func:`hysid.identifiability.assess`) are
+        the curvature's, and ``stderr_method`` says so (a campaign stopped by Ctrl-C reports in seconds)."""
         if not runs:
             raise HysidInputError("a fit result needs at least one run")
         best = int(np.argmin([r.fitness for r in runs]))
@@ -100,9 +102,12 @@ class FitResult:
         if scale > 1.0:
             method += f", scaled up by sqrt(chi^2/dof) = {np.sqrt(scale):.3g} (the model misses the noise floor)"
         ident = assess(objective, theta, scale * parameter_covariance(objective, theta),
-                       lambda m: Objective(objective.loops, m, weights=objective.weights), scale * noise_unit(objective, theta))
+                       lambda m: Objective(objective.loops, m, weights=objective.weights), scale * noise_unit(objective, theta), profiles=profiles)
         if ident.profiled:
             method += "; from the profile of the objective for " + ", ".join(ident.profiled)
+        if ident.unprofiled:
+            method += (f"; from the curvature alone for {', '.join(ident.unprofiled)}, whose profile was left out (the campaign was "
+                       "interrupted; hysid report computes it)")
         ident.not_identifiable.update(one_amplitude(loops, model))
         levels, _ = amplitude_levels(loops.x0)
         force_amplitude = np.abs(first_harmonic(loops))

@@ -81,6 +81,8 @@ class Identifiability:
     """``(D, k)``: directions (column-scaled parameter space) along which the profile is flat, with ``scale``."""
     scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """Column norms of the Jacobian: parameter -> scaled coordinates (``theta * scale``)."""
+    unprofiled: list[str] = field(default_factory=list)
+    """Parameters whose profile was due but left out (``assess(..., profiles=False)``): their error is the curvature's."""
 
     @property
     def covariance(self) -> np.ndarray:
@@ -245,12 +247,13 @@ def crossing(near: float, r_near: float, far: float, r_far: float) -> float:
     return near + (far - near) * (1.0 - np.sqrt(r_near)) / (np.sqrt(r_far) - np.sqrt(r_near))
 
 
-def assess(objective: Any, theta: np.ndarray, cov: np.ndarray, rebuild: Rebuild, unit: float) -> Identifiability:
+def assess(objective: Any, theta: np.ndarray, cov: np.ndarray, rebuild: Rebuild, unit: float, *, profiles: bool = True) -> Identifiability:
     """Standard errors and identifiability of ``objective``'s parameters at its optimum ``theta`` (the module
     docstring's rule). ``cov`` is the covariance of all the free parameters as the caller computes it (Cramer-Rao,
     sandwich, or on the harmonics; scaled up where the model misses the noise floor), ``rebuild(model)`` the
     objective with another model, ``unit`` the objective's rise of one standard error (one unit of chi^2, times
-    the same scaling)."""
+    the same scaling). Without ``profiles`` (a result wanted in seconds: a campaign stopped by Ctrl-C) the
+    parameters whose profile is due keep the curvature's error and are named in ``unprofiled``."""
     names = objective.model.names
     theta = np.asarray(theta, dtype=float).reshape(-1)
     jac = objective.jacobian(theta)
@@ -265,8 +268,12 @@ def assess(objective: Any, theta: np.ndarray, cov: np.ndarray, rebuild: Rebuild,
     bounds = objective.model.bounds
     widths: dict[str, float] = {}
     named: dict[str, str] = {}
+    unprofiled: list[str] = []
     for i, name in enumerate(names):
         if not (in_unseen[i] or correlated[i] or name in PROFILED):
+            continue
+        if not profiles:
+            unprofiled.append(name)
             continue
         room = max(theta[i] - bounds[i, 0], bounds[i, 1] - theta[i])
         step = 0.5 * room if in_unseen[i] or not (np.isfinite(se[i]) and se[i] > 0) else float(se[i])
@@ -281,7 +288,7 @@ def assess(objective: Any, theta: np.ndarray, cov: np.ndarray, rebuild: Rebuild,
     full = corrected(cov, directions, scale, {names.index(n): w for n, w in widths.items()})
     flat_dirs = directions[:, [k for k in range(directions.shape[1])
                                if any(abs(directions[names.index(n), k]) > PARTICIPATION for n in named)]] if named else np.zeros((len(names), 0))
-    return Identifiability(names=names, not_identifiable=named, full=full, profiled=widths, flat=flat_dirs, scale=scale)
+    return Identifiability(names=names, not_identifiable=named, full=full, profiled=widths, flat=flat_dirs, scale=scale, unprofiled=unprofiled)
 
 
 def corrected(cov: np.ndarray, directions: np.ndarray, scale: np.ndarray, widths: dict[int, float]) -> np.ndarray:
