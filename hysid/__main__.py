@@ -7,6 +7,7 @@ interrupt can be caught around that import.
 
 from __future__ import annotations
 
+import gc
 import sys
 
 INTERRUPTED = 130
@@ -26,6 +27,10 @@ def main() -> int:
         # ended a string exec on the way (dataclasses and namedtuples build their methods so while modules load),
         # even one caught since; a string exec of its own clears that mark, and the status stays 130.
         exec("")
+    # The interpreter's last collection walks every object left (numpy, numba, Zenoh, a campaign's loops): 0.7-1.0 s
+    # of a campaign's exit after Ctrl-C under load, 0.08 s with them frozen. What must be written is by now (files,
+    # databases and sessions are closed where they were opened); objects not in cycles are still freed as modules go.
+    gc.freeze()
     return status
 
 
