@@ -146,8 +146,8 @@ def test_the_secret_of_one_launched_island_process_is_one_member_and_cannot_end_
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
     db, sybil, late = out / "campaign.sqlite", None, None
     try:
-        wait_for(lambda: db.exists() and rows_of(db, "pso-0") > 5 and rows_of(db, "pso-1") > 5, 120, "the islands to search")
-        env, argv = island_processes(campaign.pid)["pso-1"]
+        wait_for(lambda: db.exists() and rows_of(db, "island-0") > 5 and rows_of(db, "island-1") > 5, 120, "the islands to search")
+        env, argv = island_processes(campaign.pid)["island-1"]
         stolen = CampaignSecret.parse(env[SECRET_ENV], "/proc/PID/environ")
         endpoint = argv[argv.index("--connect") + 1]
         assert stolen.member == argv[argv.index("--id") + 1] and stolen.text() != secret_path(db, "campaign").read_text().strip()
