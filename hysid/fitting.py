@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from hysid.adequacy import Adequacy, model_adequacy
 from hysid.identifiability import Identifiability, assess, one_amplitude
 from hysid.motion import MotionChoice, choose_motion, confirm_motion
 from hysid.report import markdown, tables, text
@@ -78,6 +79,9 @@ class FitResult:
     """k_eff, xi_eq and the energy per cycle of the whole model at each amplitude level and frequency of the loops."""
     combinations: dict[str, tuple[float, float]]
     """The stiffness k = meq w0^2 and damping coefficient c = 2 xi0 meq w0: (value, standard error)."""
+    adequacy: Adequacy | None = None
+    """Whether the model describes the loops (:mod:`hysid.adequacy`, the rule ``hysid diagnose`` applies);
+    None where the loops are too coarse to judge."""
     report: str | None = None
     """The report written last (:meth:`write_report`), named in the JSON document."""
     raised: list[dict[str, str]] = field(default_factory=list)
@@ -111,7 +115,7 @@ class FitResult:
         ident.not_identifiable.update(one_amplitude(loops, model))
         levels, _ = amplitude_levels(loops.x0)
         force_amplitude = np.abs(first_harmonic(loops))
-        relative = objective.residuals(theta) / force_amplitude[:, None]
+        relative = (objective.residuals(theta) / force_amplitude[:, None])[objective.keep]
         quality = {
             "rms_residual_pct": float(100.0 * np.sqrt(np.mean(relative**2))),
             "noise_sigma_pct": float(100.0 * np.sqrt(np.mean((loops.sigma / force_amplitude) ** 2))) if loops.has_sigma else None,
@@ -131,6 +135,7 @@ class FitResult:
             quality=quality,
             effective=effective_table(model, theta, ident.propagate, *operating_points(loops)[:2]),
             combinations=combinations(model, theta, ident.propagate),
+            adequacy=model_adequacy(loops, model, theta),
         )
 
     @property
@@ -233,6 +238,7 @@ class FitResult:
             "settings": self.settings,
             "best_run": self.best,
             "quality": self.quality,
+            "adequacy": None if self.adequacy is None else self.adequacy.to_dict(),
             "runs": [r.as_dict(names) for r in self.runs],
             "report": self.report,
         }

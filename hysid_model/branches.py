@@ -101,7 +101,7 @@ def harmonic_design(theta: np.ndarray, harmonics: int) -> np.ndarray:
     return design
 
 
-def _phase_windows(theta: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+def phase_windows(theta: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """Phase windows of the 2n branch samples at phases ``theta`` (``[top(n), bottom(n)]`` order).
 
     ``lo`` and ``hi`` are the phases of the displacement's minimum and maximum
@@ -216,7 +216,7 @@ def branch_values(
     (1: independent); where windows overlap, each value's v counts its samples' shares
     (:func:`_shared_variance`).
     """
-    centre, start, width, half_lo, half_hi, h = _phase_windows(sample_phases, *reversal)
+    centre, start, width, half_lo, half_hi, h = phase_windows(sample_phases, *reversal)
     guard = min(guard, 0.5 * h)  # a displacement too noisy to place its reversals better keeps most of its windows
     half_lo, half_hi = half_lo + guard, half_hi - guard
     order = np.argsort(psi, kind="stable")
@@ -320,7 +320,7 @@ def _harmonic_branches(
 
 def _window_bounds(centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray, half_hi: np.ndarray,
                    rh: float) -> tuple[np.ndarray, np.ndarray]:
-    """Phase windows at width ``rh`` clipped to their half cycles (see :func:`_phase_windows`)."""
+    """Phase windows at width ``rh`` clipped to their half cycles (see :func:`phase_windows`)."""
     return np.maximum(centre + start * rh, half_lo), np.minimum(centre + (start + width) * rh, half_hi)
 
 

@@ -35,6 +35,7 @@ from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.extraction import extract_loop
 from hysid_model.loops import LoopSet
 from hysid_model.readers.csv_series import write_series
+from hysid_model.resolution import reversals_resolved
 from hysid_model.readers.dataset_dir import (
     MANIFEST_NAME, DatasetConfig, check_skip_rows, confined, frequency_in_name, inside, listed_file, read_config, read_manifest,
 )
@@ -193,8 +194,10 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     facts = plausibility.Measured(*(np.array([getattr(e, name) for e in extracted]) for name in (
         "freq_hz", "x0", "force_amplitude", "phase_deg", "x_distortion", "force_distortion", "drift")))
     plausibility.warn_loops(labels, facts, [e.clipping for e in extracted], str(config.directory))
+    resolved, meta_reversals = reversals_resolved([e.reversal_steps for e in extracted if e.reversal_steps is not None])
+    per_loop["reversals_resolved"] = [resolved] * len(extracted)
     meta = config.meta()
-    meta.update({"format": fmt, "per_loop": per_loop})
+    meta.update({"format": fmt, "per_loop": per_loop, "reversals": meta_reversals})
     estimated = [k for k, s in enumerate(sources) if s.nominal_hz is None]
     if estimate_manifest and estimated:
         files = [k for k, s in enumerate(sources) if s.whole_file]

@@ -62,6 +62,7 @@ from hysid_model import plausibility, steady, waveform
 from hysid_model.blas import on_one_blas_thread
 from hysid_model.branches import CHUNK, branch_values, half_cycle_phases, harmonic_design, reversal_guard, smooth_part
 from hysid_model.errors import HysidInputError, HysidWarning
+from hysid_model.resolution import reversal_steps
 
 FREQ_TOLERANCE = 0.02
 """Largest relative difference between the nominal and the measured frequency."""
@@ -108,6 +109,9 @@ class ExtractedLoop:
     drift: tuple[float, float] = (0.0, 0.0)
     """Relative change of the displacement and force amplitudes over the cycles used."""
     clipping: plausibility.Clipping = field(default_factory=plausibility.Clipping)
+    reversal_steps: np.ndarray | None = None
+    """The reversal values less their fits on half windows at 1, 2, 4, 8 times the points per branch, in standard
+    errors (:func:`hysid_model.resolution.reversal_steps`); None where the force's harmonics gave the branches."""
 
     def meta(self) -> dict[str, float]:
         """Per-loop facts kept in ``LoopSet.meta['per_loop']``."""
@@ -406,8 +410,9 @@ def extract_loop(
     sample_phases = waveform.branch_phases(xh, grid[None], grid[None])[0]
     psi = half_cycle_phases(theta + phi, (lo, hi))
     centred = fs - force_mean
+    guard = reversal_guard(xh, (lo, hi), x_sigma, xs.size)
     values, var, sigma_raw, overlap, force_harmonics = branch_values(
-        psi, centred, sample_phases, (lo, hi), ts.size / sampled.size, reversal_guard(xh, (lo, hi), x_sigma, xs.size),
+        psi, centred, sample_phases, (lo, hi), ts.size / sampled.size, guard,
         lambda: smooth_part(theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred,
                             harmonic_design(sample_phases - phi, harmonics), kept),
     )
@@ -436,4 +441,5 @@ def extract_loop(
         drift=tuple(float(d) for d in plausibility.amplitude_drift(used)),
         clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), plausibility.mean_cycle(theta / (2 * np.pi), fs),
                                        plausibility.saturation(fs), xh, freq),
+        reversal_steps=None if force_harmonics is not None else reversal_steps(psi, centred, sample_phases, (lo, hi), guard, sigma_raw),
     )

@@ -12,7 +12,8 @@ With independent force noise of standard deviation sigma_j per sample, the
 coefficients of loop j have covariance sigma_j^2 (Phi^T Phi)^-1. With
 Phi = Q R (QR), ``Q^T f / sigma_j`` are the whitened coefficients: unit
 variance, independent, and ``||Q^T (model - data)||^2 / sigma_j^2`` is the
-loop's chi^2 on its 15 harmonic coefficients. :class:`HarmonicObjective` fits
+loop's chi^2 on its 15 harmonic coefficients. Samples that extraction could not
+resolve (:meth:`hysid_model.loops.LoopSet.kept`) are left out of the projection. :class:`HarmonicObjective` fits
 a model on them (the sum of squares is that chi^2 over all loops).
 """
 
@@ -64,7 +65,7 @@ class Harmonics:
         names = harmonic_names(max_order)
         if loops.n_samples * 2 <= len(names):
             raise HysidInputError(f"{loops.name}: {loops.n_samples} samples per branch are too few for harmonics up to order {max_order}")
-        phi = design_matrix(names, loops.phases(), loops.n_samples)
+        phi = design_matrix(names, loops.phases(), loops.n_samples) * loops.kept()[:, :, None]  # samples left out weigh nothing
         q, r = np.linalg.qr(phi)
         known = np.isfinite(loops.sigma) & (loops.sigma > 0)
         sigma = np.where(known, loops.sigma, estimate_sigma(loops))

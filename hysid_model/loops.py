@@ -175,6 +175,17 @@ class LoopSet:
         """Measured force at every sample, shape ``(L, 2n)``: top branch, then bottom."""
         return np.concatenate([self.top[:, :, 1], self.bottom[:, :, 1]], axis=1)
 
+    def kept(self) -> np.ndarray:
+        """Which samples a model must explain, ``(L, 2n)`` bool (top branch, then bottom): all but the four
+        reversal samples of a loop whose force extraction could not resolve there
+        (``meta["per_loop"]["reversals_resolved"]``, :mod:`hysid_model.resolution`)."""
+        n = self.n_samples
+        keep = np.ones((self.n_loops, 2 * n), dtype=bool)
+        resolved = (self.meta.get("per_loop") or {}).get("reversals_resolved")
+        if resolved is not None:
+            keep[np.ix_(~np.asarray(resolved, dtype=bool), [0, n - 1, n, 2 * n - 1])] = False
+        return keep
+
     def rows(self) -> list[dict[str, Any]]:
         """One dict per loop: label, frequency, X0, peak force, noise sigma, cycles (+ phase, displacement
         distortion and clipping, ``clipped`` "displacement"/"force"/"velocity" at ``clip_level`` m, N or m/s, when extracted

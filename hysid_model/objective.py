@@ -20,6 +20,8 @@ of O(P L N) and needs no interpolation or time integration. Models with memory
 terms (or the sign of the velocity behind a measurement chain) add a force
 evaluated sample by sample, by compiled kernels at the loops' fixed phases
 (:mod:`hysid_model.sampled`; ``compiled=False`` keeps the numpy reference).
+Samples that extraction could not resolve (the reversal samples of a force
+with a cusp there, :mod:`hysid_model.resolution`) count in no sum of squares.
 """
 
 from __future__ import annotations
@@ -93,12 +95,19 @@ class Objective(ModelSpace):
         self.kin = loops.kinematics()
         self.phase = loops.phases()
         self.y = loops.forces()
+        self.keep = loops.kept()
+        """The samples the model must explain (:meth:`LoopSet.kept`): the rest count in no sum of squares."""
+        self._masked = not bool(self.keep.all())
+        self._y = self.y * self.keep
         self.loop_weight = loop_weights(loops, weights)
         self.evaluations = 0
         probe = model.bounds.mean(axis=1)[None, :]
         self.features = list(model.coefficients(probe, self.kin))
-        self.phi = design_matrix(self.features, self.phase, loops.n_samples)
+        full = design_matrix(self.features, self.phase, loops.n_samples)
+        self.phi = full * self.keep[:, :, None] if self._masked else full
+        """The features at every sample kept (0 at the others), ``(L, 2n, M)``."""
         self._features = np.ascontiguousarray(self.phi.transpose(0, 2, 1))
+        self._all_features = np.ascontiguousarray(full.transpose(0, 2, 1)) if self._masked else self._features
         self.sampled = model.sampled(self.kin, self.phase, loops.n_samples) if compiled else None
         """The per-sample force compiled at these loops' phases (:mod:`hysid_model.sampled`); None for a
         memoryless model or ``compiled=False`` (the numpy reference :meth:`Model.memory_force`)."""
@@ -118,12 +127,12 @@ class Objective(ModelSpace):
     @cached_property
     def a_star(self) -> np.ndarray:
         """Least-squares feature coefficients of each loop, ``(L, M)``."""
-        return np.stack([np.linalg.lstsq(p, y, rcond=None)[0] for p, y in zip(self.phi, self.y)])
+        return np.stack([np.linalg.lstsq(p, y, rcond=None)[0] for p, y in zip(self.phi, self._y)])
 
     @cached_property
     def r_min(self) -> np.ndarray:
         """Each loop's least-squares residual sum of squares, ``(L,)``."""
-        return np.sum((np.einsum("lnm,lm->ln", self.phi, self.a_star) - self.y) ** 2, axis=1)
+        return np.sum((np.einsum("lnm,lm->ln", self.phi, self.a_star) - self._y) ** 2, axis=1)
 
     @cached_property
     def _gram_terms(self) -> list[tuple[int, int, np.ndarray]]:
@@ -148,9 +157,10 @@ class Objective(ModelSpace):
         """
         if self.sampled is not None:
             modal = self.model.modal_state(pop, self.kin)
-            return self.sampled.sum_of_squares(modal, self._coefficient_array(pop, modal), self._features, self.y)
+            return self.sampled.sum_of_squares(modal, self._coefficient_array(pop, modal), self._features, self._y,
+                                               self.keep if self._masked else None)
         if self.model.has_memory:
-            return np.sum((self.predict(pop) - self.y) ** 2, axis=2)
+            return np.sum(((self.predict(pop) - self.y) * self.keep) ** 2, axis=2)
         d = [c - self.a_star[:, m] for m, c in enumerate(self._coefficients(pop))]
         sse = np.broadcast_to(self.r_min, d[0].shape)
         for i, k, g in self._gram_terms:
@@ -170,10 +180,10 @@ class Objective(ModelSpace):
         return np.where(np.isfinite(fitness), fitness, np.inf)
 
     def predict(self, pop: np.ndarray) -> np.ndarray:
-        """Model force at every sample, ``(P, L, 2n)`` (top branch first)."""
+        """Model force at every sample, ``(P, L, 2n)`` (top branch first), those left out (:attr:`keep`) included."""
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
         modal = self.model.modal_state(pop, self.kin)
-        force = np.ascontiguousarray(np.matmul(self._coefficient_array(pop, modal).transpose(1, 0, 2), self._features).transpose(1, 0, 2))
+        force = np.ascontiguousarray(np.matmul(self._coefficient_array(pop, modal).transpose(1, 0, 2), self._all_features).transpose(1, 0, 2))
         if self.sampled is not None:
             return self.sampled.force(modal, out=force)
         memory = self.model.memory_force(pop, self.kin, self.phase)
@@ -186,7 +196,7 @@ class Objective(ModelSpace):
         return self.model.memory_force(pop, self.kin, self.phase)
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
-        """Model minus measured force per loop and sample, ``(L, 2n)``."""
+        """Model minus measured force per loop and sample, ``(L, 2n)``, those left out (:attr:`keep`) included."""
         return self.predict(np.asarray(theta, dtype=float).reshape(1, -1))[0] - self.y
 
     def weighted_residuals(self, theta: np.ndarray) -> np.ndarray:
@@ -196,7 +206,7 @@ class Objective(ModelSpace):
     def residual_rows(self, pop: np.ndarray) -> np.ndarray:
         """:meth:`weighted_residuals` of each row of ``pop`` ``(P, D)`` in one call, ``(P, L*2n)``."""
         pop = np.atleast_2d(np.asarray(pop, dtype=float))
-        return ((self.predict(pop) - self.y) * np.sqrt(self.loop_weight)[:, None]).reshape(pop.shape[0], -1)
+        return ((self.predict(pop) - self.y) * (self.keep * np.sqrt(self.loop_weight)[:, None])).reshape(pop.shape[0], -1)
 
     def jacobian(self, theta: np.ndarray, weighted: bool = True) -> np.ndarray:
         """d(residuals)/d(theta), ``(L*2n, D)``, by central differences on the closed form."""
@@ -206,11 +216,11 @@ class Objective(ModelSpace):
         probes = np.concatenate([theta + np.diag(h), theta - np.diag(h)])
         pred = self.predict(probes)
         d = self.dim
-        jac = ((pred[:d] - pred[d:]) / (2.0 * h)[:, None, None]).reshape(d, -1).T
+        jac = ((pred[:d] - pred[d:]) * self.keep / (2.0 * h)[:, None, None]).reshape(d, -1).T
         if weighted:
             jac = jac * np.repeat(np.sqrt(self.loop_weight), 2 * self.loops.n_samples)[:, None]
         return jac
 
     def per_loop_sse(self, theta: np.ndarray) -> np.ndarray:
-        """Unweighted sum of squared errors of each loop for one parameter vector."""
-        return np.sum(self.residuals(theta) ** 2, axis=1)
+        """Unweighted sum of squared errors of each loop for one parameter vector (over the samples kept)."""
+        return np.sum((self.residuals(theta) * self.keep) ** 2, axis=1)

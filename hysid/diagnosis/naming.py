@@ -1,57 +1,24 @@
-"""Is what is left noise? And if not, what does it look like (when no effect explains it)?
+"""What is left, where a model is not adequate (when no effect explains it).
 
-The whitened harmonic residual of an adequate model is standard normal noise:
-its chi^2 follows chi^2(dof), and so does every coefficient group (one
-harmonic order, in phase or in quadrature, over all loops) with L dof / N.
-A structured miss shows up far more clearly in its own group than in the
-total, so both are tested (Bonferroni over the groups).
+Whether what is left is noise is :mod:`hysid.adequacy`'s rule, the same for ``hysid fit``, campaigns and the
+diagnosis; here the excess chi^2 is described by harmonic coefficient and by its trend over the loops.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from hysid.adequacy import Adequacy, groups, judge
 from hysid.diagnosis.fitting import Fit
 from hysid_model.harmonics import Harmonics
 
-ADEQUATE_ALPHA = 1e-3
-"""Family-wise level at which the residual is declared not to be noise."""
-SIGMA_SLACK = 0.1
-"""With noise estimated from the data (not known), chi^2/dof up to 1 + this still counts as the noise floor."""
 TREND = 0.5
 """|Spearman correlation| of the per-loop excess with amplitude or frequency worth reporting."""
 
 
-@dataclass
-class Adequacy:
-    chi2_per_dof: float
-    p_global: float
-    p_groups: dict[str, float]
-    adequate: bool
-
-
-def _groups(fit: Fit, harmonics: Harmonics) -> tuple[np.ndarray, np.ndarray]:
-    """Per-coefficient chi^2 over loops ``(M,)`` and its expectation under noise."""
-    e = fit.residual.reshape(harmonics.loops.n_loops, -1)
-    return np.sum(e**2, axis=0), np.full(e.shape[1], e.shape[0] * fit.dof / fit.n)
-
-
 def adequacy(fit: Fit, harmonics: Harmonics) -> Adequacy:
-    from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
-    observed, expected = _groups(fit, harmonics)
-    p_groups = chi2_dist.sf(observed, expected)
-    p_global = float(chi2_dist.sf(fit.chi2, fit.dof))
-    level = ADEQUATE_ALPHA / (observed.size + 1)
-    ratio = fit.chi2 / max(fit.dof, 1)
-    global_ok = p_global > level or (not np.all(harmonics.sigma_known) and ratio <= 1.0 + SIGMA_SLACK)
-    return Adequacy(
-        chi2_per_dof=float(ratio),
-        p_global=p_global,
-        p_groups=dict(zip(harmonics.names, map(float, p_groups))),
-        adequate=bool(global_ok and np.all(p_groups > level)),
-    )
+    """The verdict of :func:`hysid.adequacy.judge` on a diagnosis' fit (at its optimum on the harmonics already)."""
+    return judge(fit.residual, fit.model.dim, harmonics)
 
 
 def _coefficient_words(name: str) -> str:
@@ -85,7 +52,7 @@ def excess_words(names: list[str], orders: np.ndarray, share: np.ndarray) -> str
 def residual_signature(fit: Fit, harmonics: Harmonics) -> dict:
     """Where the chi^2 above the noise floor sits: by harmonic coefficient, and its trend over the loops."""
     from scipy.stats import spearmanr  # on first use: a fast CLI and island start
-    observed, expected = _groups(fit, harmonics)
+    observed, expected = groups(fit.residual, fit.dof, harmonics)
     excess = np.maximum(observed - expected, 0.0)
     total = float(excess.sum())
     share = excess / total if total > 0 else excess

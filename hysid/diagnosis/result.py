@@ -231,5 +231,6 @@ class Diagnosis:
             "references": self.references.as_dict(),
             "reaches": self.reaches,
             "noise_sigma": "known" if np.all(self.harmonics.sigma_known) else "estimated from the data",
+            "samples_left_out": None if self.harmonics.loops.kept().all() else self.harmonics.loops.meta.get("reversals"),
             "gap": [g.as_dict() for g in self.gap],
         }

@@ -113,6 +113,8 @@ def summary_lines(result: "FitResult") -> list[str]:
         f"after {result.evaluations:,} evaluations in total.",
         f"- **Fit quality**: {quality_text(result)}.",
     ]
+    if result.adequacy is not None:
+        lines.append(f"- **Adequacy**: {result.adequacy.words()}.")
     if s.get("stop_reason"):  # a campaign's: why it stopped (interrupted, a rule, its islands)
         lines.append(f"- **Stopped**: {s['stop_reason']}.")
     if result.displacement_model and result.displacement_model["decided_by"] != "none":

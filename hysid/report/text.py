@@ -101,8 +101,6 @@ def fixed_text(fixed: dict[str, float]) -> str:
     return "; fixed " + ", ".join(f"{k} = {v:.6g}" for k, v in known.items()) if known else ""
 
 
-MISFIT = 3.0
-"""A residual beyond this many times the noise: the model does not describe the data."""
 STDERR_TRUST = 1.3
 """A residual beyond this many times the noise makes the standard errors too small (a note says by how much)."""
 
@@ -114,7 +112,7 @@ def quality_text(result: "FitResult") -> str:
     if q["noise_sigma_pct"] is not None:
         source = result.loops.sigma_source
         out += f" (noise sigma {'given' if source == 'given' else 'estimated from the records'}: {q['noise_sigma_pct']:.3g} %)"
-    return out
+    return out + ("" if result.loops.kept().all() else "; the four reversal samples of each loop are left out: extraction did not resolve the force there")
 
 
 def fit_warnings(result: "FitResult") -> list[Notice]:
@@ -132,11 +130,9 @@ def fit_warnings(result: "FitResult") -> list[Notice]:
     if implausible:
         out.append(Notice("mass_implausible", f"warning: {implausible}"))
     misfit = result.misfit
-    if misfit is not None and misfit > MISFIT:
-        out.append(Notice("misfit",
-            f"warning: the model does not describe these loops: the residual is {misfit:.3g} x the noise; a diagnosis "
-            "(hysid diagnose, or hysid.diagnose) tells what it is missing"
-        ))
+    missed = result.adequacy is not None and not result.adequacy.adequate
+    if missed:
+        out.append(Notice("misfit", f"warning: {result.adequacy.words()}; a diagnosis (hysid diagnose, or hysid.diagnose) tells what it is missing"))
     if misfit is not None and misfit > STDERR_TRUST and result.weights != "ml":  # ML weights' errors are scaled up by it
         out.append(Notice("stderr_understated",
             f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
@@ -158,7 +154,7 @@ def fit_warnings(result: "FitResult") -> list[Notice]:
         times = max(widened.count(n) for n in derived)
         out.append(Notice("on_data_bound",
             f"warning: {', '.join(derived)} ended on a bound derived from the data even after {times} widening(s): "
-            + ("the model cannot reach the data there" if misfit is not None and misfit > MISFIT else "its value and standard error mean little")
+            + ("the model cannot reach the data there" if missed else "its value and standard error mean little")
         ))
     return out
 
@@ -193,6 +189,8 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
         f"fit quality: {quality_text(result)}",
     ]
+    if result.adequacy is not None and result.adequacy.adequate:
+        lines.append(f"adequacy: {result.adequacy.words()}")
     if result.displacement_model and result.displacement_model["decided_by"] != "none":
         lines.append(displacement_text(result.displacement_model))
     lines += told_line(notices.merged(notices.stored(result.loops.meta), result.raised), "result.json")
@@ -219,7 +217,8 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
 def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     """The gap after each step, the status, and what cannot be identified."""
     doc = diagnosis.to_dict()
-    lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"]
+    lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"
+             + (f"; {doc['samples_left_out']}" if doc["samples_left_out"] else "")]
     if doc["displacement_model"] and doc["displacement_model"]["decided_by"] != "none":
         lines.append(displacement_text(doc["displacement_model"]))
     lines += told_line(notices.merged(notices.stored(diagnosis.harmonics.loops.meta), diagnosis.raised), "diagnosis.json")
@@ -305,5 +304,6 @@ def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | No
     if survey is not None and survey.mass_source != "known":
         found = f"{survey.meq_kg:.4g} kg, estimated from all loops (Re(F1/X1) = k - m w^2)" if survey.has_mass else survey.mass_source
         head += f"; survey mass {found}"
+    head += "" if loops.kept().all() else f"\nnote: {loops.meta.get('reversals')}"
     return head + "\n" + text_table([title for _, title, _ in columns], cells, indent="")
 
