@@ -20,6 +20,7 @@ from coordinator.queries import IslandRecord
 from hysid_model.errors import HysidInputError
 from hysid_model.model import MAX_WIDENINGS
 from hysid_model.objective import Objective
+from island.memetic import BUDGET, WIDENED_SHARE, memetic_search, needs_islands
 from island.run import RunResult, polish_run
 
 if TYPE_CHECKING:
@@ -69,7 +70,7 @@ def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOut
     best = int(np.argmin([r.fitness for r in runs]))
     widened: list[dict[str, Any]] = []
     if polish_best:
-        objective, runs[best], widened = polished(objective, runs[best])
+        objective, runs[best], widened = polished(objective, runs[best], c.config.seed)
     settings = {
         "campaign": c.name,
         "algo": "/".join(c.config.algos),
@@ -98,10 +99,12 @@ def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOut
         stored=stored_summary(c),
     )
 
-def polished(objective: Objective, run: RunResult) -> tuple[Objective, RunResult, list[dict[str, Any]]]:
-    """``run`` polished on ``objective`` (as ``hysid fit`` polishes its best); a best on a bound derived from the
-    data widens it and is polished again, up to ``MAX_WIDENINGS`` times: the objective it ends on, the run,
-    and each bound widened (``param``, ``from``, ``to``)."""
+def polished(objective: Objective, run: RunResult, seed: int = 0) -> tuple[Objective, RunResult, list[dict[str, Any]]]:
+    """``run`` polished on ``objective`` (as ``hysid fit`` polishes its best); a best on a search bound that is not
+    physical (from the data, or a term's default) widens it and is searched again, up to ``MAX_WIDENINGS`` times,
+    as ``hysid fit`` does: memetic islands from the best (``WIDENED_SHARE`` of their budget, seed ``seed``) on a
+    model that needs them (:func:`island.memetic.needs_islands`), else a polish. Returns the objective it ends
+    on, the run, and each bound widened (``param``, ``from``, ``to``)."""
     widened: list[dict[str, Any]] = []
     run = polish_run(objective, run)
     for _ in range(MAX_WIDENINGS):
@@ -111,6 +114,11 @@ def polished(objective: Objective, run: RunResult) -> tuple[Objective, RunResult
         old = dict(zip(objective.model.names, objective.model.bounds.tolist()))
         widened += [{"param": n, "from": old[n], "to": [float(b) for b in pair]} for n, pair in changed.items()]
         objective = Objective(objective.loops, wider, weights=objective.weights)
+        if needs_islands(wider):
+            found = memetic_search(objective, [run.theta], seed, budget=int(WIDENED_SHARE * BUDGET), label=f"{run.label}, searched again")
+            if found.fitness < run.fitness:
+                run = replace(run, theta=found.theta, fitness=found.fitness, evaluations=run.evaluations + found.evaluations)
+            continue
         run = polish_run(objective, run)
     return objective, run, widened
 

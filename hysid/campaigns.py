@@ -232,7 +232,7 @@ def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: Motion
     else:
         f = float(objective(start[None, :])[0])
         refit = RunResult(f"refit under the {flipped.displacement} reading", "polish", config.seed, start, f, 1, [], start, f, 0.0)
-    objective, refit, widened = polished(objective, refit)
+    objective, refit, widened = polished(objective, refit, config.seed)
     runs = [replace(r, fitness=float(objective(r.theta[None, :])[0])) for r in outcome.runs]
     flipped.reason += f"; the islands searched under the {motion.displacement} reading, the result is searched again under this one from their best"
     settings = {**outcome.settings, "displacement": flipped.displacement, "displacement_model": flipped.as_dict(),

@@ -44,12 +44,10 @@ from hysid_model.objective import Objective
 from hysid_model.problem import build_objective, starting_point
 from hysid_model.uncertainty import covariance, fisher_information, scaled_inverse
 from island.algorithms import check_algorithm
-from island.memetic import BUDGET, TIME_LIMIT_S, memetic_search, needs_islands
+from island.memetic import BUDGET, TIME_LIMIT_S, WIDENED_SHARE, memetic_search, needs_islands
 from island.run import HistoryRow, RunResult, optimize
 from island.termination import Termination
 
-WIDENED_SHARE = 0.25
-"""The share of the budget of a memetic search after a widening: it starts from the best so far."""
 MIN_SEARCH_S = 1.0
 """The least time a memetic run is given once the fit's time limit is spent (its final polish follows)."""
 REPR_PARAMS = 6

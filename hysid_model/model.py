@@ -240,7 +240,7 @@ class Model:
                 low = value - p.lower <= p.upper - value
                 side = p.lower if low else p.upper
                 default = side == defaults[p.name][0 if low else 1]
-                kind = PHYSICAL_LIMIT if side in p.physical else ("data-derived" if p.soft else "default" if default else "given")
+                kind = PHYSICAL_LIMIT if side in p.physical else ("default" if default else "data-derived" if p.soft else "given")
                 out.append((p.name, kind, "lower" if low else "upper", side))
         return out
 

@@ -43,11 +43,12 @@ CODES = {
     # the fit's own judgments (hysid.report.text.fit_warnings)
     "mass_unknown": "the mass is fitted but the loops show no inertia to estimate it from",
     "mass_implausible": "the fitted mass is not what the loops' inertia supports",
-    "misfit": "the model does not describe the loops (residual well above the noise)",
+    "misfit": "the model does not describe the loops: what it leaves is not noise (hysid.adequacy)",
     "stderr_understated": "the residual exceeds the noise, so the standard errors understate the uncertainty",
     "on_bound": "parameters ended on a bound",
     "on_given_bound": "parameters ended on a bound given by the dataset or the call",
-    "on_data_bound": "parameters ended on a bound derived from the data even after widening",
+    "on_data_bound": "parameters ended on a search bound (from the data or a term's default) even after widening",
+    "bounds_widened": "search bounds were widened within the physical ranges after an optimum on one",
     # running
     "single_node_fallback": "Zenoh could not open a session: the campaign ran its islands in one process",
     "warning": "any other warning",

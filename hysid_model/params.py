@@ -4,8 +4,9 @@ A parameter is either searched within its bounds (``vary=True``) or fixed at a
 known ``value`` (``vary=False``), as in lmfit. The known equivalent mass of a
 specimen is the fixed parameter ``meq``.
 
-Bounds are *soft* when hysid derived them from the data (they may be widened
-when a fit ends on one) and hard when a user or a dataset gave them; no bound
+Bounds are *soft* when hysid derived them from the data or took a term's
+default that the physics does not set (they may be widened when a fit ends on
+one) and hard when a user or a dataset gave them; no bound
 ever leaves the parameter's ``physical`` range (a damping ratio is not
 negative, a mass is positive).
 """
@@ -38,7 +39,7 @@ class Parameter:
     value: float | None = None
     """The fixed value (``vary=False``); None while the parameter is searched."""
     soft: bool = False
-    """The bounds were derived from the data and may be widened."""
+    """The bounds were derived from the data (or are a term's default) and may be widened."""
     physical: tuple[float, float] = (-math.inf, math.inf)
     """Values outside this range mean nothing (bounds are never widened past it)."""
 
@@ -60,14 +61,14 @@ class Parameter:
         return replace(self, lower=float(lower), upper=float(upper), soft=soft)
 
     def widened(self, lower: bool, upper: bool) -> "Parameter":
-        """These soft bounds widened on the given sides, within the physical range: a decade for a
-        positive scale (a stiffness, a frequency), one more range width for a signed quantity."""
+        """These soft bounds widened on the given sides, within the physical range: by a decade away from 0 (a
+        stiffness, a frequency, an upper shape bound of 3 to 30), else by one more range width."""
         lo, hi = self.lower, self.upper
         span = hi - lo
         if lower:
-            lo = lo / 10.0 if lo > 0 and self.physical[0] >= 0 else lo - span
+            lo = lo / 10.0 if lo > 0 and self.physical[0] >= 0 else lo * 10.0 if lo < 0 else lo - span
         if upper:
-            hi = hi * 10.0 if hi > 0 and self.physical[0] >= 0 else hi + span
+            hi = hi * 10.0 if hi > 0 else hi + span
         return replace(self, lower=max(lo, self.physical[0]), upper=min(hi, self.physical[1]))
 
     def fixed_at(self, value: float) -> "Parameter":

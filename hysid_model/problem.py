@@ -10,8 +10,10 @@ their islands, the diagnosis and the benches all come here):
   (bounds mean: fit it);
 * bounds, one rule for every model and every command: each term derives its
   parameters' bounds from the loops' equivalent-linear survey with generous
-  margins (:meth:`hysid_model.terms.Term.data_bounds`); these are *soft*, a fit
-  that ends on one widens it and refits. The dataset's own bounds (``[bounds]``
+  margins (:meth:`hysid_model.terms.Term.data_bounds`), the others keep their
+  term's default (Bouc-Wen's shape r from -0.9 to 3); these are *soft*, a fit
+  that ends on one widens it within the parameter's physical range (r >= -0.9)
+  and refits. The dataset's own bounds (``[bounds]``
   of ``dataset.toml``; Table 5.4 for the Synth set and the thesis' own ``.mat``
   loops) and the caller's ``bounds`` are hard; ``fixed`` values come last;
 * loops at a single amplitude level cannot tell the amplitude slopes S_xi,
@@ -103,6 +105,7 @@ def prepare_model(
     if derived is None:
         scale = survey(loops, m.fixed.get("meq")).scale()
         derived = {name: pair for t in m.terms for name, pair in t.data_bounds(scale).items()}
+        derived |= {p.name: (p.lower, p.upper) for p in m.parameters if p.name not in derived}  # a term's default: a guess as well
     soft = {n: b for n, b in derived.items() if n in m.names and n not in given and n not in bounds}
     m = m.with_bounds(soft, soft=True).with_bounds({n: b for n, b in given.items() if n in m.names})
     unseen = {n: 0.0 for n in single_amplitude_slopes(loops, m) if n not in bounds and n not in fixed}

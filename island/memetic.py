@@ -78,6 +78,9 @@ QUIET = 9
 BUDGET = 10_000
 """Default evaluations of a search (and of a campaign on such a model): enough for the hard problems of
 ``hysid bench search``, a few seconds on ten loops."""
+WIDENED_SHARE = 0.25
+"""The share of the budget of a search again after a search bound was widened (fit and campaign alike): it
+starts from the best so far."""
 TIME_LIMIT_S = 40.0
 """Default time limit of ``hysid fit``'s search (the final polish comes after it): a fit within a minute."""
 ISLAND_OPTIONS = {"population": POPULATION, "initial_population": 2 * POPULATION, "addpop_level": 1}

@@ -13,6 +13,13 @@ fitness any method found is one number per problem.
   (RK4 of z' = x' - gamma |x'| |z| z - beta x' z^2, independently of the
   library's orbit); the model fitted is the ``mr_damper`` preset (oscillator
   + Bouc-Wen with its exponent ``bw_n`` free);
+* ``mr_damper_sharp``: an MR damper as a real one at high control fits (an outside
+  multi-start least-squares fit of a real damper at 1.98 V found this shape): a
+  Bouc-Wen force with the shape r = 39, far above r's default search bound of 3
+  (a knee right after each reversal), exponent n = 2.6, yield at 0.3 mm, a
+  7 kg moving mass, a viscous damper and a negligible spring; 9 loops at 1-5 Hz
+  and 5-15 mm, RK4 as above; its box takes r up to 300 (the default bound
+  widened twice, as a fit that ends on it widens it);
 * ``friction_bouc_wen``: a damper with Bouc-Wen hysteresis and Coulomb friction
   (``baseline+coulomb_friction+bouc_wen``), 9 loops at 2-8 Hz and 2-6 mm;
 * ``wire_rope_sensor``: a softening wire-rope-like Bouc-Wen isolator
@@ -27,6 +34,8 @@ fitness any method found is one number per problem.
 * ``thesis_easy``: the thesis model on the same 30 Synth loops with 1 % noise:
   the easy control, where the survey's linear start and a polish suffice.
 
+As real data, the four reversal samples of each loop are left out where
+extraction cannot resolve the force there (:mod:`hysid_model.resolution`).
 Sizes are cut for a bench on two cores: 24 samples per branch (the Synth
 subset 32), 4 cycles per record.
 """
@@ -42,6 +51,7 @@ from hysid_model.extraction import extract_loop
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.problem import prepare_model
+from hysid_model.resolution import reversals_resolved
 from hysid_model.synth import FREQUENCIES_HZ, AMPLITUDES_M, MEQ_KG, TRUE_PARAMS, RawRecord, simulate_raw, synth_loops
 from hysid_model.waveform import displacement
 
@@ -63,6 +73,12 @@ MR_LEVELS = {
 f_y = k_bw z_y (N) and yield displacement z_y (m); gamma = beta (r = 0), exponent n = 2, no mass.
 The field strengthens the hysteretic force and the viscous one with the level, as Spencer's
 alpha(u) and c0(u) do."""
+MR_SHARP = {"c0": 800.0, "k0": 50.0, "f_y": 600.0, "zy": 0.3e-3, "r": 39.0, "n": 2.6, "mass": 7.0}
+"""The sharp-kneed damper of ``mr_damper_sharp``: viscous c0, a negligible spring k0, Bouc-Wen yield force f_y at
+z_y, shape r and exponent n, moving mass (kg)."""
+MR_SHARP_FREQ_HZ = np.array([1.0, 2.5, 5.0])
+MR_SHARP_SUBSTEPS = 16
+"""RK4 substeps per sample of the sharp damper: z' reaches (1 + r) x' / z_y at the knee, 1e4 per second at 5 Hz."""
 MR_FREQ_HZ = np.array([1.0, 2.0, 3.0])
 MR_AMPLITUDES_M = np.array([5e-3, 10e-3, 15e-3])
 MR_RATE_HZ = 1000.0
@@ -96,11 +112,13 @@ def extracted(name: str, records: list[RawRecord], meq_kg: float | None, points:
         x = r.x if sensor is None else sensor(r)
         loops.append(extract_loop(r.t, x, r.force, source=r.label, n_points=points, nominal_freq_hz=r.freq_hz, steady_window=(r.t[0], r.t[-1])))
     k = max(e.x_harmonics.size for e in loops)
+    resolved, reversals = reversals_resolved([e.reversal_steps for e in loops if e.reversal_steps is not None])
     return LoopSet(
         name=name, freq_hz=np.array([e.freq_hz for e in loops]), x0=np.array([e.x0 for e in loops]),
         top=np.stack([e.top for e in loops]), bottom=np.stack([e.bottom for e in loops]), sigma=np.array([e.sigma for e in loops]),
         meq_kg=meq_kg, labels=[r.label for r in records], cycles=np.array([e.cycles for e in loops], dtype=float),
         x_harmonics=np.stack([np.pad(e.x_harmonics, (0, k - e.x_harmonics.size)) for e in loops]),
+        meta={"per_loop": {"reversals_resolved": [resolved] * len(loops)}, "reversals": reversals},
     )
 
 
@@ -109,20 +127,23 @@ def grid(freqs: np.ndarray, amps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: float = 2.0, *, rate_hz: float = MR_RATE_HZ,
-                      cycles: int = CYCLES, freqs_hz: np.ndarray = MR_FREQ_HZ, amplitudes_m: np.ndarray = MR_AMPLITUDES_M) -> list[RawRecord]:
-    """Raw records of a Spencer-type damper, F = c0 x' + k0 x + k_bw z with
-    z' = x' - gamma |x'| |z|^(n-1) z - beta x' |z|^n (A = 1, gamma = beta = 1 / (2 z_y^n)),
-    integrated in time by RK4 from z = 0 over one extra cycle that is dropped; ``cycles`` kept, sampled at ``rate_hz``,
-    at every pair of ``freqs_hz`` and ``amplitudes_m``."""
+                      cycles: int = CYCLES, freqs_hz: np.ndarray = MR_FREQ_HZ, amplitudes_m: np.ndarray = MR_AMPLITUDES_M,
+                      substeps: int = MR_SUBSTEPS) -> list[RawRecord]:
+    """Raw records of a Spencer-type damper, F = m x'' + c0 x' + k0 x + k_bw z with
+    z' = x' - gamma |x'| |z|^(n-1) z - beta x' |z|^n (A = 1, gamma = (1 + r) / (2 z_y^n), beta = (1 - r) / (2 z_y^n):
+    the shape ``level['r']``, 0 unless given, the mass ``level['mass']``, 0 unless given, the exponent ``level['n']``
+    or ``exponent``), integrated in time by RK4 (``substeps`` per sample) from z = 0 over one extra cycle that is
+    dropped; ``cycles`` kept, sampled at ``rate_hz``, at every pair of ``freqs_hz`` and ``amplitudes_m``."""
     rng = np.random.default_rng(seed)
     freq, amp = grid(np.asarray(freqs_hz, dtype=float), np.asarray(amplitudes_m, dtype=float))
-    gamma = beta = 0.5 / level["zy"] ** exponent
+    exponent, shape, mass = level.get("n", exponent), level.get("r", 0.0), level.get("mass", 0.0)
+    gamma, beta = (1.0 + shape) / (2.0 * level["zy"] ** exponent), (1.0 - shape) / (2.0 * level["zy"] ** exponent)
     k_bw = level["f_y"] / level["zy"]
     records = []
     for f, a in zip(freq, amp):
         w = 2.0 * np.pi * f
         n = int(round((cycles + 1) * rate_hz / f))
-        dt = 1.0 / (rate_hz * MR_SUBSTEPS)
+        dt = 1.0 / (rate_hz * substeps)
         phase0 = rng.uniform(0.0, 2.0 * np.pi)
         velocity = lambda t: a * w * np.cos(w * t + phase0)
 
@@ -134,7 +155,7 @@ def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: 
         zs = np.empty(n)
         for i in range(n):
             zs[i] = z
-            for _ in range(MR_SUBSTEPS):
+            for _ in range(substeps):
                 k1 = rhs(t, z)
                 k2 = rhs(t + dt / 2, z + dt / 2 * k1)
                 k3 = rhs(t + dt / 2, z + dt / 2 * k2)
@@ -143,7 +164,7 @@ def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: 
                 t += dt
         time = np.arange(n) / rate_hz
         x = a * np.sin(w * time + phase0)
-        clean = level["c0"] * velocity(time) + level["k0"] * x + k_bw * zs
+        clean = level["c0"] * velocity(time) + (level["k0"] - mass * w**2) * x + k_bw * zs
         keep = time >= 1.0 / f
         sigma = NOISE_PCT / 100.0 * np.abs(clean[keep]).max()
         force = clean + sigma * rng.standard_normal(n)
@@ -200,6 +221,10 @@ def build(name: str) -> Problem:
         loops = extracted(name, mr_damper_records(MR_LEVELS[name]), None)
         model, truth = "mr_damper", {k: v for k, v in MR_LEVELS[name].items()}
         description = f"Spencer-type MR damper (Bouc-Wen n = 2, viscous, spring), f_y {MR_LEVELS[name]['f_y']:g} N; exponent free"
+    elif name == "mr_damper_sharp":
+        loops = extracted(name, mr_damper_records(MR_SHARP, freqs_hz=MR_SHARP_FREQ_HZ, substeps=MR_SHARP_SUBSTEPS), None)
+        model, truth = "mr_damper", dict(MR_SHARP)
+        description = "MR damper with a sharp knee (Bouc-Wen r = 39, n = 2.6), 7 kg, negligible spring; exponent free"
     elif name == "friction_bouc_wen":
         freq, amp = grid(np.array([2.0, 4.0, 8.0]), np.array([2e-3, 4e-3, 6e-3]))
         loops = extracted(name, simulated("baseline+coulomb_friction+bouc_wen", FRICTION_BW, freq, amp, rate_hz=1000.0), None)
@@ -227,7 +252,10 @@ def build(name: str) -> Problem:
         raise KeyError(name)
     wide = [p.widened(True, True) if p.soft else p for p in prepare_model(loops, model).parameters]
     bounds = {p.name: (p.lower, p.upper) for p in wide}
+    if name == "mr_damper_sharp":  # r = 39: the default bound 3 widened twice
+        bounds["bw_r"] = (bounds["bw_r"][0], 300.0)
     return Problem(name, description, loops, model, bounds, truth)
 
 
-PROBLEMS = ("synth_bouc_wen_distorted", "mr_damper_0v", "friction_bouc_wen", "mr_damper_1v", "mr_damper_2v", "wire_rope_sensor", "thesis_easy")
+PROBLEMS = ("synth_bouc_wen_distorted", "mr_damper_0v", "friction_bouc_wen", "mr_damper_1v", "mr_damper_2v", "mr_damper_sharp", "wire_rope_sensor",
+            "thesis_easy")

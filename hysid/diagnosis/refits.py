@@ -27,6 +27,10 @@ the closed form) is refitted with it free as well, from that refit's optimum,
 the shapes with n = 2 and the loops' own starts; the free variant is kept
 where its BIC is lower by ``BIC_MARGIN`` (Bouc-Wen as practitioners fit it,
 the ``mr_damper`` preset where the start is the baseline).
+
+Where the motion is the fundamental (the displacement's harmonics the
+sensor's), a Bouc-Wen spring and a channel delay are also refitted together
+as one contender (:func:`joint_contender`), judged as any other.
 """
 
 from __future__ import annotations
@@ -40,6 +44,8 @@ from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import Model, effect_term
 from island.memetic import memetic_search, needs_islands
 
+JOINT = ("bouc_wen", "channel_delay")
+"""Effects refitted together as one contender where the motion is the fundamental (:func:`joint_contender`)."""
 LINE_SEARCH = (0.25, 0.5, 1.0, 2.0, 4.0)
 """Multiples of the one-step estimate tried before polishing."""
 STARTS = 3
@@ -47,6 +53,17 @@ STARTS = 3
 SEARCH_BUDGET = 5000
 """Evaluations of the memetic search of a refit that brings memory or a non-smooth force into the model
 (half of ``hysid fit``'s: the diagnosis' harmonic objective is smooth in the rest, and starts near the optimum)."""
+
+
+def joint_contender(candidates: list[Candidate], harmonics: Harmonics) -> tuple[Candidate, ...] | None:
+    """A Bouc-Wen spring and a channel delay as one contender (refitted together, the exponent freed as for
+    any Bouc-Wen refit), where the displacement is read as the fundamental (its harmonics the sensor's) and
+    both are candidates the data can identify: a wire-rope isolator's loops behind a delaying chain, which
+    neither explains alone well enough to be taken first. None elsewhere."""
+    by_effect = {c.effect: c for c in candidates if c.physical and c.identifiable}
+    if harmonics.loops.motion != "fundamental" or not set(JOINT) <= set(by_effect):
+        return None
+    return tuple(by_effect[e] for e in JOINT)
 
 
 def data_starts(effect: str, harmonics: Harmonics, free: list[str]) -> list[dict[str, float]]:

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from hysid.diagnosis.fitting import Fit
+from hysid.diagnosis.fitting import Fit, make_model
 from hysid.diagnosis.metrics import GapMetrics, References
 from hysid.diagnosis.plausible import mass_note
 from hysid.diagnosis.pruning import zero_like
@@ -19,6 +19,7 @@ from hysid.identifiability import Identifiability
 from hysid.motion import MotionChoice
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
+from hysid.report.bounds import widenings
 from hysid_model import notices
 from hysid_model.effective import OperatingPoint, effective_table, operating_points
 from hysid_model.frf import amplitude_levels
@@ -224,6 +225,7 @@ class Diagnosis:
             "final_fixed": self.final.model.fixed,
             "at_bounds": sorted(self.at_bounds),
             "at_bounds_kind": self.at_bounds,
+            "bounds_widened": widenings(make_model(self.harmonics, self.final.start, self.final.effects, {}, self.final.freed), self.final.model),
             "notes": self.notes,
             "bounds_from_data": sorted(p.name for p in self.final.model.parameters if p.soft),
             "effective": [p.as_dict() for p in self.effective],

@@ -31,9 +31,11 @@ the motion, or the sensor's distortion of its fundamental):
    slopes the loops do not need, an effect a later one made redundant).
 
 The reading of the displacement is then confirmed with the final model; if
-that model reads it the other way (:func:`hysid.motion.confirm_motion`), the
-diagnosis runs again under the other reading and the final model with the
-lower BIC is kept. The result is ``adequate`` when the final residual is noise
+that model reads it the other way (:func:`hysid.motion.confirm_motion`), or
+the diagnosis ends unexplained under the reading the data chose (the linear
+start reads a nonlinear device's odd harmonics as the force's response to the
+displacement's), the diagnosis runs again under the other reading and the
+final model with the lower BIC is kept. The result is ``adequate`` when the final residual is noise
 (:mod:`.naming`), else ``unexplained`` with a description of what is left.
 """
 
@@ -52,12 +54,12 @@ from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
 from hysid.diagnosis.naming import adequacy, residual_signature
 from hysid.diagnosis.plausible import implausible_effect
 from hysid.diagnosis.pruning import prune
-from hysid.diagnosis.refits import refit
+from hysid.diagnosis.refits import joint_contender, refit
 from hysid.diagnosis.result import Diagnosis, Step
 from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
 from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT, Report, Tally
 from hysid.identifiability import Identifiability, assess
-from hysid.motion import choose_motion, confirm_motion
+from hysid.motion import WORDS, MotionChoice, choose_motion, confirm_motion
 from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
@@ -190,6 +192,8 @@ def diagnose(
     flipped = confirm_motion(given, result.final.model, result.final.theta, motion)
     if motion.decided_by == "data":
         tally.done(f"the {motion.displacement} reading of the displacement checked with the final model")
+    if flipped is None and result.status != "adequate":
+        flipped = other_reading(motion)
     if flipped is not None:
         tally.expect(search_work(max_steps, cross_validate))
         other = search(Harmonics.from_loops(displaced(given, flipped.displacement)), model, scored, max_steps, cross_validate, tally)
@@ -200,6 +204,17 @@ def diagnose(
     result.motion = motion
     tally.finish(f"diagnosis done: {result.final.spec}, {result.status}")
     return result
+
+
+def other_reading(motion: MotionChoice) -> MotionChoice | None:
+    """The reading the data did not choose, to be searched as well where the diagnosis under the chosen one ends
+    unexplained (the linear start reads a nonlinear device's odd harmonics as the force's response to the
+    displacement's); None where the reading was not the data's choice."""
+    if motion.decided_by != "data":
+        return None
+    other = "fundamental" if motion.displacement == "measured" else "measured"
+    return MotionChoice(other, "data", f"{WORDS[other]}: the diagnosis under the reading the {motion.model} start chose ended unexplained",
+                        dict(motion.chi2), motion.model, motion.orders)
 
 
 def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps: int, cross_validate: bool, tally: Tally) -> Diagnosis:
@@ -225,6 +240,9 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
         pairs = best_pairs(candidates, fit.residual) if trials else None
         if pairs is not None:
             trials.append(pairs[0])
+        together = joint_contender(candidates, harmonics) if trials else None
+        if together is not None and all({c.effect for c in t} != {c.effect for c in together} for t, _ in trials):
+            trials.append((together, None))
         work = [weight(fit, tuple(c.effect for c in members)) for members, _ in trials]
         tally.expect(sum(work) + (weight(fit, tuple(c.effect for c in pairs[1][0])) if pairs else 0) - EXPECTED_REFITS)  # as the scores tell
         refits: dict[tuple[str, ...], Fit] = {}

@@ -129,10 +129,12 @@ def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
         headers += ["true", "error / std. error"]
     rows = []
     se = result.stderr
+    defaults = {q.name: (q.lower, q.upper) for t in result.model.terms for q in t.params}
+    widened = {w["param"] for w in result.settings.get("bounds_widened", [])}
     for p in result.model.parameters:
         value = result.params[p.name]
         error = "not identifiable" if p.name in result.not_identifiable else num(se[p.name], 3)
-        where = "from the data" if p.soft else "given"
+        where = ("widened" if p.name in widened else "default" if (p.lower, p.upper) == defaults[p.name] else "from the data") if p.soft else "given"
         row = [f"`{p.name}`", num(value, 7), error, p.unit, f"[{p.lower:g}, {p.upper:g}] ({where})"]
         if true:
             t = true.get(p.name)

@@ -14,6 +14,7 @@ import numpy as np
 
 from hysid.diagnosis.plausible import mass_note
 from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
+from hysid.report.bounds import bounds_sentence, widened_sentence
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
@@ -144,6 +145,8 @@ def fit_warnings(result: "FitResult") -> list[Notice]:
     derived = [n for n in searched if n in soft]
     if result.bound_kinds:
         out.append(Notice("on_bound", bounds_sentence(result.bound_kinds)))
+    if result.settings.get("bounds_widened"):
+        out.append(Notice("bounds_widened", f"note: {widened_sentence(result.settings['bounds_widened'])}"))
     if given:
         out.append(Notice("on_given_bound",
             f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
@@ -153,16 +156,10 @@ def fit_warnings(result: "FitResult") -> list[Notice]:
         widened = [w["param"] for w in result.settings.get("bounds_widened", [])]
         times = max(widened.count(n) for n in derived)
         out.append(Notice("on_data_bound",
-            f"warning: {', '.join(derived)} ended on a bound derived from the data even after {times} widening(s): "
+            f"warning: {', '.join(derived)} ended on a search bound (from the data or its term's default) even after {times} widening(s): "
             + ("the model cannot reach the data there" if missed else "its value and standard error mean little")
         ))
     return out
-
-
-def bounds_sentence(kinds: dict[str, str]) -> str:
-    """The parameters on a bound, each with which (:meth:`hysid_model.model.Model.bound_kinds`), in one sentence."""
-    return "on a bound: " + "; ".join(f"{name} on its {kind}" for name, kind in kinds.items()) + (
-        " (a physical limit is an answer, e.g. no damping of that kind; any other bound means the optimum may lie beyond it)")
 
 
 def told_line(found: list[dict[str, str]], document: str) -> list[str]:
@@ -248,6 +245,8 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
         lines.append(f"dropped from the final model: {term} ({why})")
     if doc["at_bounds_kind"]:
         lines.append(bounds_sentence(doc["at_bounds_kind"]))
+    if doc["bounds_widened"]:
+        lines.append(f"note: {widened_sentence(doc['bounds_widened'])}")
     lines += [f"note: {note}" for note in doc["notes"]]
     lines += [f"final model's {EFFECTIVE_TITLE}:", text_table(*effective_rows(diagnosis.effective))]
     if diagnosis.report:
