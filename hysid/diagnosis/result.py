@@ -136,6 +136,11 @@ class Diagnosis:
         return self.final.model.bound_kinds(self.final.theta)
 
     @property
+    def bounds_widened(self) -> list[dict[str, Any]]:
+        """The final model's search bounds that its fits widened (each after an optimum on one), from where to where."""
+        return widenings(make_model(self.harmonics, self.final.start, self.final.effects, {}, self.final.freed), self.final.model)
+
+    @property
     def notes(self) -> list[str]:
         """What a reader must know about the final values: a mass the loops' inertia does not support, parameters
         kept although consistent with zero."""
@@ -225,7 +230,7 @@ class Diagnosis:
             "final_fixed": self.final.model.fixed,
             "at_bounds": sorted(self.at_bounds),
             "at_bounds_kind": self.at_bounds,
-            "bounds_widened": widenings(make_model(self.harmonics, self.final.start, self.final.effects, {}, self.final.freed), self.final.model),
+            "bounds_widened": self.bounds_widened,
             "notes": self.notes,
             "bounds_from_data": sorted(p.name for p in self.final.model.parameters if p.soft),
             "effective": [p.as_dict() for p in self.effective],

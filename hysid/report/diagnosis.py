@@ -15,6 +15,7 @@ import numpy as np
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc
 from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows
+from hysid.report.bounds import widened_sentence
 from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_section, with_error
 from hysid.report.text import band_text, mass_text, reference_text
 from hysid_model.frf import amplitude_levels
@@ -141,7 +142,7 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         lines += ["", f"**{term} dropped from the final model**: {why}."]
     if diagnosis.at_bounds:
         lines += ["", "**On a bound**: " + "; ".join(f"`{n}` on its {kind}" for n, kind in diagnosis.at_bounds.items()) + "."]
-    for note in diagnosis.notes:
+    for note in diagnosis.notes + ([widened_sentence(diagnosis.bounds_widened)] if diagnosis.bounds_widened else []):
         lines += ["", f"**Note**: {note}."]
     for effect, why in diagnosis.effects_not_identifiable().items():
         lines += ["", f"**{effect} cannot be identified with this setup**: {why}."]
