@@ -16,6 +16,7 @@ import numpy as np
 from hysid.identifiability import PROFILED, profile
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import MAX_WIDENINGS, Model, spec_of
+from hysid_model.terms import Oscillator
 from hysid_model.problem import prepare_model, starting_point
 from hysid_model.uncertainty import jacobian_covariance
 from island.polish import polish
@@ -110,18 +111,31 @@ def make_model(harmonics: Harmonics, start: str, effects: tuple[str, ...], bound
 
 
 def fit_objective(objective: HarmonicObjective, start: str, effects: tuple[str, ...], starts: list[np.ndarray]) -> Fit:
-    """Polish every start and keep the best (lowest chi^2); where it ends on a soft bound, widen that bound
-    and polish again (up to ``MAX_WIDENINGS`` times): a bound the data suggested decides nothing."""
+    """Polish every start and keep the best (lowest chi^2); where it ends on a soft bound (from the data, or a term's
+    default the physics does not set), widen that bound within the physical range and polish again (up to
+    ``MAX_WIDENINGS`` times): such a bound decides nothing. An effect's shape parameter that runs to the end of
+    every widening has no optimum the data resolve: the effect degenerates into another there (a Bouc-Wen
+    spring of unbounded shape r is a friction jump), so the fit within its first bounds is kept and the
+    acceptance rules judge it pressing on them (:func:`hysid.diagnosis.acceptance.degenerate`)."""
     nfev = NFEV_PER_PARAMETER * objective.dim
     results = [polish(objective, s, max_nfev=nfev) for s in starts]
-    best = min(results, key=lambda r: r.fitness)
+    best = first = min(results, key=lambda r: r.fitness)
+    within, widened = objective, set()
     for _ in range(MAX_WIDENINGS):
         wider, changed = objective.model.widen_at(best.theta)
         if not changed:
             break
+        widened |= set(changed)
         objective = HarmonicObjective(objective.harmonics, wider)
         best = polish(objective, best.theta, max_nfev=nfev)
+    if widened & set(objective.model.at_bounds(best.theta)) & shape_parameters(objective.model):
+        objective, best = within, first
     return Fit(effects, start, objective, best.theta, objective.weighted_residuals(best.theta), objective.jacobian(best.theta))
+
+
+def shape_parameters(model: Model) -> set[str]:
+    """The effects' parameters other than their strengths (a yield displacement, a shape, an exponent)."""
+    return {p.name for t in model.terms if not isinstance(t, Oscillator) for p in t.params if p.name != t.strength}
 
 
 def initial_fit(harmonics: Harmonics, start: str) -> Fit:
