@@ -283,14 +283,14 @@ def inflation(objective: Objective, theta: np.ndarray) -> float:
     scaled up by it, as the diagnosis does), else 1 (the thesis' weights estimate their unit from the residuals)."""
     if objective.weights != "ml":
         return 1.0
-    return max(1.0, float(objective(theta[None, :])[0]) / max(objective.y.size - objective.dim, 1))
+    return max(1.0, float(objective(theta[None, :])[0]) / max(int(objective.keep.sum()) - objective.dim, 1))
 
 
 def noise_unit(objective: Objective, theta: np.ndarray) -> float:
     """The objective's value of one unit of chi^2: 1 for ML weights, else the mean weighted residual at the optimum."""
     if objective.weights == "ml":
         return 1.0
-    return max(float(objective(theta[None, :])[0]) / max(objective.y.size - objective.dim, 1), 1e-300)
+    return max(float(objective(theta[None, :])[0]) / max(int(objective.keep.sum()) - objective.dim, 1), 1e-300)
 
 
 @notices.keeps_warnings

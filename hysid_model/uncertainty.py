@@ -39,9 +39,10 @@ def noise_sigma(obj: Objective, theta: np.ndarray) -> np.ndarray:
     sigma = obj.loops.sigma.copy()
     unknown = ~(np.isfinite(sigma) & (sigma > 0))
     if np.any(unknown):
-        n_total = obj.y.size
+        kept = obj.keep.sum(axis=1)  # the samples that count (:attr:`Objective.keep`)
+        n_total = int(kept.sum())
         dof_factor = n_total / max(n_total - obj.dim, 1)
-        rms = np.sqrt(obj.per_loop_sse(theta) / obj.y.shape[1] * dof_factor)
+        rms = np.sqrt(obj.per_loop_sse(theta) / kept * dof_factor)
         sigma[unknown] = rms[unknown]
     return sigma
 
