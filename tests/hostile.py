@@ -95,7 +95,7 @@ class Hostile:
 
     def history_body(self, algo: str, seed: int, implausible: float) -> dict:
         good = {"algo": algo, "seed": seed, "rows": pack_array(np.array([[0, 5.0, 20, 0.1], [1, 4.0, 45, 0.2]])),
-                "best_x": pack_array(self._x(1)[0]), "best_f": 1e9, "stats": {"sent": 0, "received": 0, "taken": 0, "rejected": 0},
+                "best_x": pack_array(self._x(1)[0]), "best_f": 1e9, "stats": {"sent": 0, "received": 0, "taken": 0, "rejected": 0, "unlisted": 0},
                 "final": False, "gain": 0.5}
         field = self._pick(["rows", "best_x", "best_f", "stats", "seed", "algo", "final", "gain", "missing", "implausible"])
         if field == "missing":
