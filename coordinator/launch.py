@@ -130,7 +130,7 @@ def island_environment(secret: CampaignSecret, model: Model) -> dict[str, str]:
     them by their model string (``-P`` keeps its working directory off its path)."""
     env = {k: v for k, v in os.environ.items() if k != SECRET_FILE_ENV}
     env[SECRET_ENV] = secret.text()
-    roots = [r for r in module_roots(model) if r not in env.get("PYTHONPATH", "").split(os.pathsep)]
+    roots = [r for r in module_roots(model.terms) if r not in env.get("PYTHONPATH", "").split(os.pathsep)]
     if roots:
         env["PYTHONPATH"] = os.pathsep.join(([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []) + roots)
     return env

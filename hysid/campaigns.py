@@ -334,7 +334,7 @@ def campaign(
         displacement_by=motion.decided_by, until_stopped=until_stopped, share=share,
     )
     if not single_node:
-        check_importable(build_model(config.model))
+        check_importable(build_model(config.model).terms)
     store = Store(db)
     try:
         coordinator = Coordinator(store, config, loops, termination, dataset=dataset or loops.name)

@@ -27,9 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from hysid_model.basis import design_matrix, harmonic_names
+from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from hysid_model.terms import Kinematics
 
 MODEL_CYCLE_SAMPLES = 512
 """Phases per cycle at which :func:`model_compliance` samples a model's force."""

@@ -16,7 +16,7 @@ import numpy as np
 
 from hysid_model import waveform
 from hysid_model.errors import HysidInputError
-from hysid_model.terms import Kinematics
+from hysid_model.kinematics import Kinematics
 
 
 MOTIONS = ("measured", "fundamental")
@@ -153,7 +153,7 @@ class LoopSet:
         return self.x_harmonics if self.x_harmonics is not None and self.motion == "measured" else waveform.ideal(self.x0)
 
     def kinematics(self) -> Kinematics:
-        """The motion a model of these loops is driven by (:class:`~hysid_model.terms.Kinematics`): X0, w and,
+        """The motion a model of these loops is driven by (:class:`~hysid_model.kinematics.Kinematics`): X0, w and,
         where the measured waveform is the motion, its harmonics."""
         return Kinematics(x0=self.x0, omega=self.omega, xh=self.x_harmonics if self.motion == "measured" else None)
 

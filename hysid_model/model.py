@@ -1,6 +1,6 @@
 """A model is an ordered list of terms; this module evaluates it for a population.
 
-Presets (:data:`PRESETS`): ``baseline`` = the oscillator of Eq. 4.4/4.6 with
+Presets (:data:`hysid_model.presets.PRESETS`): ``baseline`` = the oscillator of Eq. 4.4/4.6 with
 constant xi and wn; ``thesis`` = the final model of Eq. 4.8-4.10 (xi0, S_xi,
 w0, S_w); ``mr_damper`` = the oscillator plus a Bouc-Wen spring with its
 exponent free, the simple Bouc-Wen model of a magnetorheological damper. Any
@@ -11,21 +11,18 @@ and any term of a user's own, ``thesis+<module>:<attribute>`` (:mod:`hysid_model
 from __future__ import annotations
 
 from collections.abc import Collection, Mapping, Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hysid_model import waveform
 from hysid_model.basis import design_matrix
 from hysid_model.effects import EFFECTS
-from hysid_model.effects.bouc_wen import BoucWen
 from hysid_model.errors import HysidInputError
+from hysid_model.kinematics import Kinematics
 from hysid_model.params import Parameter, on_bounds
+from hysid_model.presets import PRESET_FREES, PRESETS
 from hysid_model.terms import (
-    AmplitudeDependentDamping,
-    AmplitudeDependentFrequency,
     Coefficients,
-    Kinematics,
     MeasurementTerm,
     ModalState,
     Oscillator,
@@ -35,9 +32,6 @@ from hysid_model.terms import (
     add_coefficient,
 )
 from hysid_model.user_terms import resolve
-
-if TYPE_CHECKING:
-    from hysid_model.sampled import SampledMemory
 
 PHYSICAL_LIMIT = "physical"
 """The kind of a bound that is the end of a parameter's physical range (:meth:`Model.bound_kinds`)."""
@@ -55,35 +49,6 @@ neglected tail of a unit step is below 0.005 w_c/w for a high-pass at w_c."""
 
 _SQUARE_WAVE = np.where(CHAIN_ORDERS % 2 == 1, 4.0 / (np.pi * np.maximum(CHAIN_ORDERS, 1)) * (-1.0) ** ((CHAIN_ORDERS - 1) // 2), 0.0)
 """Complex amplitudes of sgn(cos wt) = (4/pi) sum_k odd (-1)^((k-1)/2) cos(k wt) / k (the ideal sine's sgn(x'))."""
-
-PRESETS: dict[str, tuple[str, ...]] = {
-    "baseline": (),
-    "thesis": (AmplitudeDependentDamping.id, AmplitudeDependentFrequency.id),
-    "mr_damper": (BoucWen.id,),
-}
-"""Preset -> the effects it adds to the oscillator."""
-
-PRESET_FREES: dict[str, tuple[str, ...]] = {"mr_damper": ("bw_n",)}
-"""Preset -> parameters its effects fix by default that it searches (the Bouc-Wen exponent of ``mr_damper``)."""
-
-PRESET_EXPLANATIONS: dict[str, str] = {
-    "baseline": "The 1-DOF oscillator of Eq. 4.4 / 4.6: mass, constant viscous damping ratio and natural frequency.",
-    "thesis": "The thesis' final model (Eq. 4.8-4.10): damping ratio and natural frequency linear in the amplitude.",
-    "mr_damper": (
-        "The oscillator plus a Bouc-Wen spring, exponent n free (Eq. 2.1): F = c x' + k x + k_bw z (and the mass), "
-        "Spencer et al.'s (1997) simple model of MR dampers that fits any smooth hysteretic device (elastomeric "
-        "bearings, wire-rope isolators); reports name it baseline + bouc_wen (bw_n free)."
-    ),
-}
-"""Preset -> what it models (``hysid models``).
-
-``mr_damper`` is the simple Bouc-Wen model of Spencer et al. (1997), F = c0 x' + k0 x + alpha z: the
-oscillator's dashpot and spring are c0 and k0, the Bouc-Wen spring alpha z with the exponent n free.
-Their 'modified' model's internal dashpot c1 (with the spring k1 of the accumulator) is left out: it
-drives z by an internal displacement y with y' = (alpha z + c0 x' + k0 (x - y)) / (c0 + c1), which
-makes the damper a two-state system whose loops depend on the rate, so the orbit is no longer a
-function of the travel (:mod:`hysid_model.bouc_wen_orbit`) but would need a time integration per
-candidate, and c1 trades off with c0 and the shape of z on loops at one frequency."""
 
 
 class Model:
@@ -347,15 +312,6 @@ class Model:
         """The coefficient of the sign-of-velocity feature before the measurement chain, ``(P, L)``."""
         return self._force_coefficients(v, state, kin)["sgn"]
 
-    def sampled(self, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> "SampledMemory | None":
-        """:meth:`memory_force` at these fixed phases for any population, compiled
-        (:class:`hysid_model.sampled.SampledMemory`); None for a model without per-sample force."""
-        if not self.has_memory:
-            return None
-        from hysid_model.sampled import SampledMemory
-
-        return SampledMemory(self, kin, phase, phase.shape[-1] // 2 if n_top is None else n_top)
-
     def _through_chain(
         self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int, sgn: np.ndarray | None, memory_terms: list[Term]
     ) -> np.ndarray:
@@ -442,12 +398,12 @@ def effect_term(spec: str) -> Term:
 
 
 def build_model(spec: str = "thesis") -> Model:
-    """Build a model from a preset (:data:`PRESETS`) plus ``+effect`` ids (``thesis+coulomb_friction``) and
+    """Build a model from a preset (:data:`~hysid_model.presets.PRESETS`) plus ``+effect`` ids (``thesis+coulomb_friction``) and
     a user's terms (``thesis+myterms:drag``, :func:`effect_term`).
 
     Every parameter is free, the equivalent mass ``meq`` too, except those an
     effect fixes by default (the Bouc-Wen exponent ``bw_n`` = 1) and its preset
-    does not free (:data:`PRESET_FREES`); fix what is known with
+    does not free (:data:`~hysid_model.presets.PRESET_FREES`); fix what is known with
     :meth:`Model.fix` (:func:`hysid_model.problem.prepare_model` fixes a
     dataset's known mass), free a fixed one with :meth:`Model.vary`.
     """

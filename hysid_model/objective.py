@@ -34,6 +34,7 @@ from hysid_model.basis import design_matrix
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
+from hysid_model.sampled import SampledMemory
 from hysid_model.terms import ModalState, Values
 
 Modal = tuple[Values, ModalState]
@@ -108,7 +109,7 @@ class Objective(ModelSpace):
         """The features at every sample kept (0 at the others), ``(L, 2n, M)``."""
         self._features = np.ascontiguousarray(self.phi.transpose(0, 2, 1))
         self._all_features = np.ascontiguousarray(full.transpose(0, 2, 1)) if self._masked else self._features
-        self.sampled = model.sampled(self.kin, self.phase, loops.n_samples) if compiled else None
+        self.sampled = SampledMemory(model, self.kin, self.phase, loops.n_samples) if compiled and model.has_memory else None
         """The per-sample force compiled at these loops' phases (:mod:`hysid_model.sampled`); None for a
         memoryless model or ``compiled=False`` (the numpy reference :meth:`Model.memory_force`)."""
         if self.sampled is not None:  # compile (or load from the disk cache) here, not in the first evaluation

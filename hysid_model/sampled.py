@@ -9,7 +9,7 @@ once and evaluates a population through the kernels:
 * memory terms through their :meth:`~hysid_model.terms.Term.sampler`
   (Bouc-Wen: its exact orbit, one multiply-add per sample on a uniform travel
   grid; a user's terms: their numpy law at motion prepared once,
-  :mod:`hysid_model.user_terms`), at phases delayed by the chain's delay;
+  :mod:`hysid_model.user_laws`), at phases delayed by the chain's delay;
 * F sgn(x') delayed and through a single-pole high-pass exactly: the periodic
   response of G = s / (s + w_c) to the square wave sgn(x') is exponential
   between the reversals (:func:`hysid_model.kernels.velocity_sign_chain`);
@@ -25,15 +25,12 @@ single-pole high-pass (:meth:`~hysid_model.terms.MeasurementTerm.corner`).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from hysid_model import kernels, waveform
-from hysid_model.terms import Kinematics, MeasurementTerm, ModalState, Term, Values
-
-if TYPE_CHECKING:
-    from hysid_model.model import Model
+from hysid_model.kinematics import Kinematics
+from hysid_model.model import Model
+from hysid_model.terms import MeasurementTerm, ModalState, Term, Values
 
 
 def has_gain(term: MeasurementTerm) -> bool:
@@ -44,7 +41,7 @@ def has_gain(term: MeasurementTerm) -> bool:
 class SampledMemory:
     """``model.memory_force(pop, kin, phase, n_top)`` for any population at these fixed phases."""
 
-    def __init__(self, model: "Model", kin: Kinematics, phase: np.ndarray, n_top: int) -> None:
+    def __init__(self, model: Model, kin: Kinematics, phase: np.ndarray, n_top: int) -> None:
         self.model, self.kin, self.n_top = model, kin, int(n_top)
         self.phase = np.ascontiguousarray(np.broadcast_to(phase, (kin.x0.size, phase.shape[-1])), dtype=float)
         memory_terms: list[Term] = [t for t in model.terms if t.memory]

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from hysid_model.errors import HysidInputError
+from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from hysid_model.terms import Kinematics
 from hysid_model.waveform import displacement
 
 FREQUENCIES_HZ = np.array([

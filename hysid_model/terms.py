@@ -11,6 +11,9 @@ stages, always vectorized over a population ``P`` and the loops ``L``:
    the steady-state force, e.g. Eq. 4.6 / 4.10 for the oscillator;
 3. ``measure``: transform the force as the measurement chain sees it.
 
+Each stage sees the prescribed motion of the loops as a
+:class:`~hysid_model.kinematics.Kinematics`.
+
 Terms with memory (internal state, e.g. Bouc-Wen) instead return their force at
 the sample phases (:meth:`Term.time_force`), from their periodic steady state
 under the prescribed motion.
@@ -33,83 +36,22 @@ from __future__ import annotations
 
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass
-from functools import cached_property
-from typing import TYPE_CHECKING, Callable, ClassVar, Protocol
+from typing import Callable, ClassVar, Protocol
 
 import math
 
 import numpy as np
 
-from hysid_model import waveform
 from hysid_model.errors import HysidInputError
+from hysid_model.kinematics import Kinematics
+from hysid_model.loops import LoopSet
 from hysid_model.params import Parameter
-
-if TYPE_CHECKING:
-    from hysid_model.loops import LoopSet
 
 Values = dict[str, np.ndarray]
 """Parameter values by name, each of shape ``(P, 1)`` so they broadcast over loops."""
 
 Coefficients = dict[str, np.ndarray]
 """Feature name -> coefficient (N) of shape ``(P, L)``."""
-
-
-@dataclass(frozen=True)
-class Kinematics:
-    """What the prescribed motion of each loop gives a term: its fundamental amplitude X0, its
-    frequency w and, where measured, its displacement harmonics (:mod:`hysid_model.waveform`).
-
-    ``xh`` None is the thesis' x = X0 sin(wt) (Eq. 4.5).
-    """
-
-    x0: np.ndarray
-    omega: np.ndarray
-    xh: np.ndarray | None = None
-
-    @property
-    def harmonics(self) -> np.ndarray:
-        """``(L, K)`` complex displacement harmonics (K = 1 for the ideal sine)."""
-        return waveform.ideal(self.x0) if self.xh is None else self.xh
-
-    @cached_property
-    def orders(self) -> np.ndarray:
-        """Harmonic orders k = 1..K of the displacement."""
-        return np.arange(1, 1 + (1 if self.xh is None else self.xh.shape[1]))
-
-    @cached_property
-    def order_parts(self) -> tuple[list[tuple[str, str]], np.ndarray, np.ndarray]:
-        """Per harmonic order the coefficient names (s_k, c_k), and the displacement harmonics' real and imaginary
-        parts ``(K, 1, L)`` each (measured displacement only: :func:`linear_response`)."""
-        assert self.xh is not None
-        return [(f"s{k}", f"c{k}") for k in self.orders], self.xh.real.T[:, None, :].copy(), self.xh.imag.T[:, None, :].copy()
-
-    def displacement(self, phase: np.ndarray, derivative: int = 0) -> np.ndarray:
-        """d^n x / d(wt)^n at phases ``(L, N)`` or ``(P, L, N)``."""
-        if self.xh is None:
-            x0 = self.x0[:, None]
-            return x0 * (np.sin(phase), np.cos(phase), -np.sin(phase))[derivative]
-        return waveform.displacement(self.xh, phase, derivative)
-
-    @cached_property
-    def extremes(self) -> tuple[np.ndarray, np.ndarray]:
-        """(x_min, x_max) of each loop's displacement, ``(L,)`` each."""
-        return (-self.x0, self.x0) if self.xh is None else waveform.extremes(self.xh)
-
-    @cached_property
-    def reversals(self) -> tuple[np.ndarray, np.ndarray]:
-        """Phases (theta_lo, theta_hi) of each loop's displacement minimum and maximum, ``(L,)`` each."""
-        if self.xh is None:
-            return np.full(self.x0.size, -0.5 * np.pi), np.full(self.x0.size, 0.5 * np.pi)
-        return waveform.reversals(self.xh)
-
-    def power_harmonics(self, power: int) -> np.ndarray:
-        """Complex amplitudes of x^power at orders 1..power*K, ``(L, power*K)`` (x^power = sum Re[A_k e^{ik wt}] + mean)."""
-        xh = self.harmonics
-        top = power * xh.shape[1]
-        samples = 2 * top + 2
-        theta = np.broadcast_to(np.arange(samples) * (2 * np.pi / samples), (xh.shape[0], samples))
-        spectrum = np.fft.rfft(waveform.displacement(xh, theta) ** power, axis=1) * (2.0 / samples)
-        return spectrum[:, 1 : top + 1]
 
 
 @dataclass
@@ -184,7 +126,7 @@ class Term:
         which the model would ignore."""
         return [{}]
 
-    def data_starts(self, loops: "LoopSet", free: Collection[str] = ()) -> list[dict[str, float]]:
+    def data_starts(self, loops: LoopSet, free: Collection[str] = ()) -> list[dict[str, float]]:
         """Starting points for this term's parameters read off the measured ``loops`` (e.g. Bouc-Wen's
         stiffness and yield displacement from the loops' slopes and height), a few, best first; default
         none. Like :meth:`shape_grid` it gives values for a parameter fixed by default only where ``free``

@@ -52,8 +52,8 @@ from typing import Any
 import numpy as np
 
 from hysid_model.errors import HysidInputError
+from hysid_model.kinematics import Kinematics
 from hysid_model.model import Model
-from hysid_model.terms import Kinematics
 from island.algorithms import make_optimizer, switch_algorithm
 from island.polish import MEMORY_NFEV, polish
 from island.population import MAX_ITERATIONS

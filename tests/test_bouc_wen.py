@@ -13,11 +13,12 @@ from hysid.cli import main
 from hysid_model import bouc_wen_orbit
 from hysid_model.effects.bouc_wen import BoucWen, _closed_form, _any_exponent
 from hysid_model.errors import HysidInputError
-from hysid_model.model import PRESET_EXPLANATIONS, PRESETS, Model, build_model, spec_of
+from hysid_model.kinematics import Kinematics
+from hysid_model.model import Model, build_model, spec_of
 from hysid_model.objective import Objective
+from hysid_model.presets import PRESET_EXPLANATIONS, PRESETS
 from hysid_model.problem import prepare_model
 from hysid_model.synth import MEQ_KG, synth_loops
-from hysid_model.terms import Kinematics
 from island.config import CampaignConfig
 from timedomain_reference import odd_periodic_orbit, periodic_steady_state
 

@@ -23,11 +23,12 @@ from hysid_model.datasets import write_dataset
 from hysid_model.effects import EFFECTS
 from hysid_model.extraction import extract_loop
 from hysid_model.harmonics import Harmonics
+from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, build_model
 from hysid_model.params import Parameter
 from hysid_model.synth import model_force, simulate_raw, synth_loops
-from hysid_model.terms import Coefficients, Kinematics, ModalState, Oscillator, Term, Values
+from hysid_model.terms import Coefficients, ModalState, Oscillator, Term, Values
 
 SEEDS = range(10)
 REQUIRED = 9

@@ -10,9 +10,9 @@ import pytest
 
 from hysid_model import steady, waveform
 from hysid_model.extraction import extract_loop
+from hysid_model.kinematics import Kinematics
 from hysid_model.model import build_model
 from hysid_model.synth import model_force, simulate_raw
-from hysid_model.terms import Kinematics
 
 MEQ = 0.04
 PARAMS = {

@@ -16,12 +16,13 @@ from hysid.cli import main
 from hysid_model import waveform
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.errors import HysidInputError
+from hysid_model.kinematics import Kinematics
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
 from hysid_model.params import Parameter
 from hysid_model.synth import harmonics, simulate_raw, synth_loops
-from hysid_model.terms import Kinematics, ModalState, TermGroup
-from hysid_model.user_terms import Cycle, FunctionTerm, RateTerm
+from hysid_model.terms import ModalState, TermGroup
+from hysid_model.user_laws import Cycle, FunctionTerm, RateTerm
 from support import GA_SMALL, PSO_SMALL
 
 MODULE = "hysid_test_labterms"

@@ -51,7 +51,8 @@ from hysid_model.modal import DERIVED, derived_quantities
 from hysid_model.model import Model, build_model
 from hysid_model.problem import build_objective
 from hysid_model.synth import simulate_raw
-from hysid_model.user_terms import UserTerm, term
+from hysid_model.user_laws import UserTerm
+from hysid_model.user_terms import term
 from island.polish import polish
 from island.run import RunResult
 

@@ -38,12 +38,12 @@ import numpy as np
 
 from hysid.bench import peak_rss_mb, run_on_one_core
 from hysid_model import waveform
+from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
 from hysid_model.problem import build_objective, prepare_model
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS, synth_loops
-from hysid_model.terms import Kinematics
 from hysid_model.thesis_port import ThesisObjective
 from island.ga import GA
 from island.run import run as run_optimizer

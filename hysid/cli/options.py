@@ -20,7 +20,7 @@ from hysid.campaigns import default_options, island_settings
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
-from hysid_model.model import PRESETS
+from hysid_model.presets import PRESETS
 from island.algorithms import ALGORITHMS
 from island.termination import Termination
 

@@ -30,7 +30,8 @@ from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import amplitude_levels
 from hysid_model.harmonics import HarmonicObjective, Harmonics
-from hysid_model.model import PRESETS, effect_term
+from hysid_model.model import effect_term
+from hysid_model.presets import PRESETS
 from hysid_model.terms import Term, TermGroup
 from hysid_model.user_terms import specs_of
 

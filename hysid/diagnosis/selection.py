@@ -64,7 +64,8 @@ from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
-from hysid_model.model import PRESETS, build_model, effect_term
+from hysid_model.model import build_model, effect_term
+from hysid_model.presets import PRESETS
 from hysid_model.terms import Term, TermGroup
 from hysid_model.problem import dataset_bounds, displaced
 from hysid_model.uncertainty import jacobian_covariance

@@ -18,7 +18,8 @@ from hysid.report.bounds import bounds_sentence, widened_sentence
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
-from hysid_model.model import PRESET_EXPLANATIONS, PRESETS, build_model
+from hysid_model.model import build_model
+from hysid_model.presets import PRESET_EXPLANATIONS, PRESETS
 from hysid_model import notices
 from hysid_model.model_names import named
 from hysid_model.notices import Notice

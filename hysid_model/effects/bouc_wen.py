@@ -8,8 +8,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hysid_model.kinematics import Kinematics
 from hysid_model.params import Parameter
-from hysid_model.terms import DataScale, Kinematics, ModalState, Term, Values
+from hysid_model.terms import DataScale, ModalState, Term, Values
 
 if TYPE_CHECKING:
     from hysid_model.loops import LoopSet

@@ -31,8 +31,8 @@ from __future__ import annotations
 import numpy as np
 
 from hysid_model import bouc_wen_orbit
+from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
-from hysid_model.terms import Kinematics
 
 CENTRE = 0.3
 """Half width (in half spans) of the loop's centre, where z is on its plateau (its samples fit the linear force)."""

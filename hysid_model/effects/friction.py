@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 
 from hysid_model import waveform
+from hysid_model.kinematics import Kinematics
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values
+from hysid_model.terms import Coefficients, DataScale, ModalState, Term, Values
 
 
 class CoulombFriction(Term):

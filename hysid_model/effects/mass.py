@@ -7,7 +7,8 @@ import math
 
 import numpy as np
 
-from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values, linear_response
+from hysid_model.kinematics import Kinematics
+from hysid_model.terms import Coefficients, DataScale, ModalState, Term, Values, linear_response
 
 
 class TransducerMass(Term):

@@ -10,8 +10,9 @@ import math
 
 import numpy as np
 
+from hysid_model.kinematics import Kinematics
 from hysid_model.params import Parameter
-from hysid_model.terms import DataScale, Kinematics, MeasurementTerm, Values
+from hysid_model.terms import DataScale, MeasurementTerm, Values
 
 
 class ChargeAmplifierHighpass(MeasurementTerm):

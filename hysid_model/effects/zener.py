@@ -7,8 +7,9 @@ from collections.abc import Collection
 
 import numpy as np
 
+from hysid_model.kinematics import Kinematics
 from hysid_model.params import Parameter
-from hysid_model.terms import Coefficients, DataScale, Kinematics, ModalState, Term, Values, linear_response
+from hysid_model.terms import Coefficients, DataScale, ModalState, Term, Values, linear_response
 
 
 class ZenerThermoelastic(Term):
