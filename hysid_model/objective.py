@@ -27,15 +27,19 @@ with a cusp there, :mod:`hysid_model.resolution`) count in no sum of squares.
 from __future__ import annotations
 
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hysid_model.basis import design_matrix
 from hysid_model.errors import HysidInputError
+from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model
-from hysid_model.sampled import SampledMemory
 from hysid_model.terms import ModalState, Values
+
+if TYPE_CHECKING:
+    from hysid_model.sampled import SampledMemory
 
 Modal = tuple[Values, ModalState]
 """Parameter values and modal state of a population (:meth:`hysid_model.model.Model.modal_state`)."""
@@ -69,6 +73,17 @@ def loop_weights(loops: LoopSet, scheme: str) -> np.ndarray:
             )
         return 1.0 / loops.sigma**2
     raise HysidInputError(f"unknown weights; choose one of {', '.join(WEIGHTS)}", param="weights", value=scheme)
+
+
+def sampled_memory(model: Model, kin: Kinematics, phase: np.ndarray, n_top: int) -> "SampledMemory | None":
+    """:meth:`Model.memory_force` at the fixed ``phase`` of a loop set for any population, compiled
+    (:class:`hysid_model.sampled.SampledMemory`); None for a model without per-sample force. Imported here, not
+    with this module: numba loads with the first objective that needs it (``hysid --help`` never does)."""
+    if not model.has_memory:
+        return None
+    from hysid_model.sampled import SampledMemory
+
+    return SampledMemory(model, kin, phase, n_top)
 
 
 class ModelSpace:
@@ -109,7 +124,7 @@ class Objective(ModelSpace):
         """The features at every sample kept (0 at the others), ``(L, 2n, M)``."""
         self._features = np.ascontiguousarray(self.phi.transpose(0, 2, 1))
         self._all_features = np.ascontiguousarray(full.transpose(0, 2, 1)) if self._masked else self._features
-        self.sampled = SampledMemory(model, self.kin, self.phase, loops.n_samples) if compiled and model.has_memory else None
+        self.sampled = sampled_memory(model, self.kin, self.phase, loops.n_samples) if compiled else None
         """The per-sample force compiled at these loops' phases (:mod:`hysid_model.sampled`); None for a
         memoryless model or ``compiled=False`` (the numpy reference :meth:`Model.memory_force`)."""
         if self.sampled is not None:  # compile (or load from the disk cache) here, not in the first evaluation
