@@ -21,7 +21,7 @@ with ``memory_waveform_cost`` the cost of the memory force there relative to
 the ideal sine (``memory_waveform_objective_cost`` for the whole objective,
 whose linear part has 10 harmonic features there instead of 2), and
 ``memory_exponent_evals_per_s`` with the Bouc-Wen exponent n free in [1, 6]
-(the tabulated orbit of :mod:`hysid_model.bouc_wen_orbit` instead of n = 1's
+(the tabulated orbit of :mod:`hysid_model.bouc_wen_tables` instead of n = 1's
 closed form), ``memory_exponent_cost`` its cost relative to n = 1. On one core:
 a Bouc-Wen fit of the 5 % noise Synth set with the default budget
 (``bouc_wen_fit_s``, as ``hysid fit synth --noise 5 --model thesis+bouc_wen``;

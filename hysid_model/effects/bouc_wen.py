@@ -264,7 +264,7 @@ def travel_runs(travel: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.nd
 
 class BoucWenSampler:
     """:meth:`BoucWen.time_force` at fixed phases through the compiled kernels of :mod:`hysid_model.kernels`
-    (n = 1) and :mod:`hysid_model.bouc_wen_orbit` (any other n).
+    (n = 1) and :mod:`hysid_model.bouc_wen_tables` (any other n).
 
     What depends only on the loops is prepared once: each sample's travel since
     the last reversal, the samples of each branch by increasing travel and the
@@ -334,7 +334,7 @@ class BoucWenSampler:
         out += v["bw_k"][:, 0, None, None] * unit[inverse.reshape(-1)]
 
     def _add_orbits(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
-        """The closed form for candidates with n = 1, the tabulated orbit (:mod:`hysid_model.bouc_wen_orbit`) for the others."""
+        """The closed form for candidates with n = 1, the tabulated orbit (:mod:`hysid_model.bouc_wen_tables`) for the others."""
         one = v["bw_n"][:, 0] == 1.0
         if one.all() or not one.any():
             (self._add_one if one.all() else self._add_any)(v, shift, out)
@@ -359,7 +359,7 @@ class BoucWenSampler:
         )
 
     def _add_any(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
-        from hysid_model import bouc_wen_orbit
+        from hysid_model import bouc_wen_tables
 
         columns = [np.ascontiguousarray(v[name][:, 0], dtype=float) for name in ("bw_n", "bw_r", "bw_zy", "bw_k")]
         if self.mean_nodes is None:
@@ -367,8 +367,8 @@ class BoucWenSampler:
         else:
             mean = self.mean_nodes
         if shift is None:
-            bouc_wen_orbit.bouc_wen_samples(*columns, self.spans, self.which, *self._samples(), *mean, out)
+            bouc_wen_tables.bouc_wen_samples(*columns, self.spans, self.which, *self._samples(), *mean, out)
             return
-        bouc_wen_orbit.bouc_wen_shifted(
+        bouc_wen_tables.bouc_wen_shifted(
             *columns, self.spans, self.which, *mean, np.ascontiguousarray(shift, dtype=float), *self._motion_tables(), self.x_min, self.x_max, out
         )
