@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hysid.bench.islands import ended_lower, paired, wilson
+from hysid.bench.rates import ended_lower, paired, wilson
 
 
 def test_paired_counts_the_seeds_only_one_campaign_passed_and_tests_them() -> None:

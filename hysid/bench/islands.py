@@ -34,7 +34,10 @@ Each part is a ratio (or a rate) measured in one run on the Synth set (section 5
   dependency (``pip install pygmo``); without it this part says so;
 * **latency**: migrant messages through a Zenoh router on loopback (two
   client sessions, as two islands): messages and migrants per second, and the
-  one-way latency (median, 99th percentile), also in units of one GA iteration.
+  one-way latency (median, 99th percentile), also in units of one GA iteration
+  (:mod:`hysid.bench.latency`).
+
+The success rates of migration and mixed are compared as :mod:`hysid.bench.rates` does.
 
 Times run from the moment every island is a member (islands start together)
 to the coordinator's record of the global best reaching the target. Every part
@@ -44,30 +47,24 @@ reaches the Synth set's optimum, which would leave nothing to measure.
 
 from __future__ import annotations
 
-import secrets
 from dataclasses import replace
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import zenoh
 
-from coordinator.launch import free_port, island_specs, run_campaign
+from coordinator.launch import island_specs, run_campaign
 from coordinator.state import Coordinator
 from coordinator.store import Store
+from hysid.bench.latency import latency
+from hysid.bench.rates import NON_INFERIORITY_MARGIN, ended_lower, paired, wilson
 from hysid_model.errors import HysidInputError
 from hysid_model.problem import build_objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
-from island.ga import GA
 from island.migration import Migration
-from island.protocol import Migrants, decode_migrants, encode_migrants
-from island.run import run as run_optimizer
-from island.sealing import Credentials
-from island.session import open_session, session_config
 from island.termination import Termination
 
 SPEEDUP_TARGET = 1.7
@@ -188,48 +185,9 @@ MIXED_SEEDS = 300
 run, and at 100 seeds that spread alone moved a rate by several points."""
 
 
-def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """The 95 % Wilson score interval of a success rate."""
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return float(max(centre - half, 0.0)), float(min(centre + half, 1.0))
-
-
 MIXED_FIRST_SEED = 1300
 """The mixed part's seeds start here, on seeds no share policy was ever tried on (they were designed on
 0-59, 200-259, 300-359 and 3000-3099; this bench ran on 1000-1099 three times and on 1000-1299 once)."""
-NON_INFERIORITY_MARGIN = 0.10
-"""How far below the better single algorithm's success rate the default mix may lie and still count as
-at least as good: its seed-by-seed difference's 95 % interval must lie above minus this margin. Two
-searches that are equally good tie, and a plain "rate >= rate" then decides by the seeds' luck (this
-bench's earlier runs: met twice and missed twice, by two seeds in 100 and by one in 300); a margin of 10
-points is the usual one for non-inferiority of success rates (e.g. the FDA's for antibacterial trials),
-and with 300 seeds the interval's half-width is about 6 points, so only a real deficit fails."""
-
-
-def paired(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
-    """Two campaigns' successes compared seed by seed: how many seeds only ``a`` or only ``b`` passed,
-    the difference of their success rates with its 95 % (Wald, paired) interval, and the exact
-    two-sided sign-test (McNemar) p-value of the seeds only one of them passed."""
-    from scipy.stats import binomtest  # on first use: a fast CLI and island start
-    only_a, only_b, n = int(np.sum(a & ~b)), int(np.sum(b & ~a)), a.size
-    d = (only_a - only_b) / n
-    half = 1.96 * np.sqrt(max(only_a + only_b - n * d * d, 0.0)) / n
-    p = binomtest(only_a, only_a + only_b).pvalue if only_a + only_b else 1.0
-    return {"only_a": only_a, "only_b": only_b, "difference": d, "difference95": (d - half, d + half), "sign_test_p": float(p)}
-
-
-def ended_lower(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
-    """Two campaigns' final fitness compared seed by seed: in how many seeds ``a`` ended lower (and
-    higher), and the two-sided Wilcoxon signed-rank p-value of the log10 ratios."""
-    from scipy.stats import wilcoxon  # on first use: a fast CLI and island start
-    r = np.log10(np.maximum(a, 1e-300)) - np.log10(np.maximum(b, 1e-300))
-    r = r[np.isfinite(r)]
-    p = wilcoxon(r).pvalue if np.any(r != 0) else 1.0
-    return {"lower": int(np.sum(r < 0)), "higher": int(np.sum(r > 0)), "wilcoxon_p": float(p)}
-
-
 def mixed(seeds: int = MIXED_SEEDS, islands: int = 4, population: int = 20) -> dict[str, Any]:
     """Part mixed: GA+PSO islands (each share) against GA-only and PSO-only ones at
     equal total evaluations (a campaign budget; every island searches until the coordinator stops) on
@@ -351,73 +309,6 @@ def versus_pygmo(seeds: int = 3, islands: int = 4, population: int = 20, budget:
         "islands": islands, "population": population, "budget_evaluations": budget, "target_fitness": target, "seeds": seeds,
         "runs": out, "summary": summary,
         "time_ratio_pygmo_over_hysid": both[1] / both[0] if None not in both else None,
-    }
-
-
-def ga_iteration_s(population: int = 500) -> float:
-    """Median wall time of one thesis GA iteration on the closed-form Synth objective."""
-    objective = build_objective(synth_loops())
-    ga = GA(objective.bounds, 0, population=population, initial_population=population, iterations=20)
-    rows = run_optimizer(ga, objective)
-    return float(np.median(np.diff([r.wall_s for r in rows])))
-
-
-def latency(messages: int = 5000, paced: int = 500, k: int = 2) -> dict[str, Any]:
-    """Part (d): migrant messages between two island sessions through a router on loopback.
-
-    A burst of ``messages`` gives the rate; then ``paced`` messages, one every 5 ms,
-    give the one-way latency of a migration on an idle link.
-    """
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    bounds = build_objective(synth_loops()).bounds
-    router = open_session(session_config("router", listen=[endpoint]), endpoint)
-    sender = open_session(session_config("client", connect=[endpoint]), endpoint)
-    receiver = open_session(session_config("client", connect=[endpoint]), endpoint)
-    delays: list[float] = []
-    arrived = threading.Semaphore(0)
-    credentials = Credentials.issue("a", secrets.token_bytes(32))
-    public = credentials.public
-
-    def on_sample(sample: zenoh.Sample) -> None:
-        m = decode_migrants(sample.payload.to_bytes(), "bench", bounds, key_for=lambda s, r: public, sender="a")  # as an island would
-        delays.append(time.time() - m.sent_at)
-        arrived.release()
-
-    rng = np.random.default_rng(0)
-    x = bounds[:, 0] + rng.random((k, bounds.shape[0])) * (bounds[:, 1] - bounds[:, 0])
-
-    def send(i: int) -> None:
-        publisher.put(encode_migrants(Migrants("bench", "a", credentials.run, i, x, np.arange(k, dtype=float), time.time(), i), credentials))
-
-    def wait_all(n: int) -> None:
-        for _ in range(n):
-            if not arrived.acquire(timeout=30):
-                raise RuntimeError(f"latency bench: only {len(delays)} messages arrived")
-
-    try:
-        subscriber = receiver.declare_subscriber("hysid/bench/migrants/a", on_sample)
-        publisher = sender.declare_publisher("hysid/bench/migrants/a", congestion_control=zenoh.CongestionControl.BLOCK)
-        time.sleep(0.5)  # let the subscription reach the router
-        start = time.perf_counter()
-        for i in range(messages):
-            send(i)
-        wait_all(messages)
-        elapsed = time.perf_counter() - start
-        delays.clear()
-        for i in range(paced):
-            send(i)
-            time.sleep(0.005)
-        wait_all(paced)
-        subscriber.undeclare()
-    finally:
-        for s in (receiver, sender, router):
-            s.close()
-    iteration = ga_iteration_s()
-    median = float(np.median(delays))
-    return {
-        "messages": messages, "migrants_per_message": k, "messages_per_s": messages / elapsed, "migrants_per_s": k * messages / elapsed,
-        "paced_messages": paced, "latency_median_ms": 1e3 * median, "latency_p99_ms": 1e3 * float(np.percentile(delays, 99)),
-        "ga_iteration_ms": 1e3 * iteration, "latency_in_ga_iterations": median / iteration,
     }
 
 

@@ -28,7 +28,7 @@ final fitness quantiles relative to the best. ``ok``: hysid's default
 campaign (:data:`CAMPAIGN`) is non-inferior to every peer on every problem by
 the paired rule of ``hysid bench islands mixed`` (the seed-by-seed
 difference of success rates has its 95 % interval above -10 points,
-:func:`hysid.bench.islands.paired`) and ahead of all of them (a higher
+:func:`hysid.bench.rates.paired`) and ahead of all of them (a higher
 success rate than each) on the hardest half of the problems: the
 ``len(problems) // 2`` problems whose best peer has the lowest success rate
 (ties: the lower mean peer rate first).
@@ -57,7 +57,8 @@ import hysid
 from coordinator.launch import island_specs, run_campaign
 from coordinator.state import Coordinator
 from coordinator.store import Store
-from hysid.bench.islands import NON_INFERIORITY_MARGIN, SPEEDUP_TARGET, paired, wilson
+from hysid.bench.islands import SPEEDUP_TARGET
+from hysid.bench.rates import NON_INFERIORITY_MARGIN, paired, wilson
 from hysid.bench.search_peers import PEERS, pygmo_available
 from hysid.bench.search_problems import MR_LEVELS, PROBLEMS, Problem, build, extracted, mr_damper_records
 from hysid.bench.validation import DAMPER
