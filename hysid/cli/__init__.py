@@ -17,7 +17,7 @@ from typing import Any, Optional, TextIO
 
 import typer
 
-from hysid.cli import bench, campaign, data, diagnose, fit, router, watch
+from hysid.cli import bench, campaign, data, diagnose, fit, island, router, watch
 from hysid.cli.options import INTERRUPTED, error_line
 from hysid_model.errors import HysidInputError, HysidWarning
 
@@ -51,7 +51,7 @@ def root(
     """Identify damping, natural frequency and missing physics from hysteresis loops."""
 
 
-for module in (data, fit, bench, campaign, router, diagnose, watch):
+for module in (data, fit, bench, campaign, island, router, diagnose, watch):
     module.register(app)
 
 
