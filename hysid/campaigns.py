@@ -27,17 +27,18 @@ from coordinator.progress import CampaignProgress
 from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.fitting import FitResult
-from hysid.motion import MotionChoice, choose_motion, confirm_motion, order_evidence
+from hysid.motion import MotionChoice, choose_motion, confirm_motion, order_evidence, refit_under_other_reading
 from hysid.report import campaign_text, jsondoc, markdown, tables
 from hysid_model import notices
 from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, build_model
+from hysid_model.objective import Objective
 from hysid_model.user_terms import check_importable
 from hysid_model.errors import HysidInputError
 from hysid_model.problem import prepare_model
 from island.config import CampaignConfig, decode_config
-from island.memetic import BUDGET, ISLAND_OPTIONS, memetic_search, needs_islands
+from island.memetic import BUDGET, ISLAND_OPTIONS, memetic_search, needs_islands, search_limits
 from island.migration import Migration
 from island.run import RunResult
 from island.secret import secret_path
@@ -206,9 +207,10 @@ def stored_evidence(loops: LoopSet, config: CampaignConfig) -> list[dict[str, fl
 def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None, *, search: bool = True) -> CampaignOutcome:
     """``outcome`` under the displacement reading its fitted model prefers, by ``hysid fit``'s rule: where the
     data chose the reading (:func:`hysid.motion.choose_motion`, with the linear start) and the polished best
-    reads the loops the other way (:func:`hysid.motion.confirm_motion`), the best is searched again under that
-    reading from the islands' best (memetic islands on a model with memory, as ``fit``; then polished and
-    widened as the campaign's best is) and every island run's best is re-evaluated under it; the islands'
+    reads the loops the other way (:func:`hysid.motion.refit_under_other_reading`), the best is searched again
+    under that reading from the islands' best (memetic islands on a model with memory, as ``fit``, within the
+    campaign's own budget: its evaluations and time limit, :func:`island.memetic.search_limits`; then polished
+    and widened as the campaign's best is) and every island run's best is re-evaluated under it; the islands'
     own records stay as they searched. ``settings['displacement_model']`` says which reading and why.
     Without ``search`` the reading stays, its reason saying that the model prefers the other one."""
     config = coordinator.config
@@ -218,26 +220,35 @@ def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: Motion
     if not outcome.settings.get("polish") or motion.decided_by != "data":
         return outcome
     best = min(outcome.runs, key=lambda r: r.fitness)
-    flipped = confirm_motion(coordinator.loops, outcome.objective.model, best.theta, motion)
-    if flipped is None:
-        return outcome
     if not search:
-        motion.reason += f"; the fitted model reads it as {flipped.displacement}, not searched again (interrupted: hysid report does)"
-        outcome.settings["displacement_model"] = motion.as_dict()
+        flipped = confirm_motion(coordinator.loops, outcome.objective.model, best.theta, motion)
+        if flipped is not None:
+            motion.reason += f"; the fitted model reads it as {flipped.displacement}, not searched again (interrupted: hysid report does)"
+            outcome.settings["displacement_model"] = motion.as_dict()
         return outcome
-    objective = replace(config, objective_kind="closed_form", displacement=flipped.displacement).objective(coordinator.loops)
-    start = np.clip(best.theta, objective.bounds[:, 0], objective.bounds[:, 1])
-    if needs_islands(objective.model):
-        refit = memetic_search(objective, [start], config.seed, budget=BUDGET, label=f"refit under the {flipped.displacement} reading")
-    else:
-        f = float(objective(start[None, :])[0])
-        refit = RunResult(f"refit under the {flipped.displacement} reading", "polish", config.seed, start, f, 1, [], start, f, 0.0)
-    objective, refit, widened = polished(objective, refit, config.seed)
+
+    def under(reading: str) -> Objective:
+        return replace(config, objective_kind="closed_form", displacement=reading).objective(coordinator.loops)
+
+    def refit(objective: Objective, start: np.ndarray) -> tuple[Objective, RunResult, list[dict[str, Any]]]:
+        label = f"refit under the {objective.loops.motion} reading"
+        if needs_islands(objective.model):
+            budget, seconds = search_limits(coordinator.termination, None)
+            found = memetic_search(objective, [start], config.seed, budget=budget, time_limit_s=seconds, label=label)
+        else:
+            f = float(objective(start[None, :])[0])
+            found = RunResult(label, "polish", config.seed, start, f, 1, [], start, f, 0.0)
+        return polished(objective, found, config.seed)
+
+    again = refit_under_other_reading(coordinator.loops, outcome.objective.model, best.theta, motion, under, refit)
+    if again is None:
+        return outcome
+    flipped, (objective, found, widened) = again
     runs = [replace(r, fitness=float(objective(r.theta[None, :])[0])) for r in outcome.runs]
     flipped.reason += f"; the islands searched under the {motion.displacement} reading, the result is searched again under this one from their best"
     settings = {**outcome.settings, "displacement": flipped.displacement, "displacement_model": flipped.as_dict(),
                 "bounds_widened": list(outcome.settings.get("bounds_widened", [])) + widened}
-    return replace(outcome, objective=objective, runs=runs + [refit], settings=settings)
+    return replace(outcome, objective=objective, runs=runs + [found], settings=settings)
 
 
 def islands_until_stopped(termination: Termination | None, options: Mapping[str, Mapping[str, Any]] | None) -> bool:

@@ -30,7 +30,7 @@ import numpy as np
 
 from hysid.adequacy import Adequacy, model_adequacy
 from hysid.identifiability import Identifiability, assess, one_amplitude
-from hysid.motion import MotionChoice, choose_motion, confirm_motion
+from hysid.motion import MotionChoice, choose_motion, refit_under_other_reading
 from hysid.report import markdown, tables, text
 from hysid_model import notices
 from hysid_model.errors import HysidInputError
@@ -44,7 +44,7 @@ from hysid_model.objective import Objective
 from hysid_model.problem import build_objective, starting_point
 from hysid_model.uncertainty import covariance, fisher_information, scaled_inverse
 from island.algorithms import check_algorithm
-from island.memetic import BUDGET, TIME_LIMIT_S, WIDENED_SHARE, memetic_search, needs_islands
+from island.memetic import TIME_LIMIT_S, WIDENED_SHARE, memetic_search, needs_islands, search_limits
 from island.run import HistoryRow, RunResult, optimize
 from island.termination import Termination
 
@@ -345,8 +345,7 @@ def fit(
     first = starting_point(objective.loops, objective.model) if start else None
     widened: list[dict[str, Any]] = []
     memetic = needs_islands(objective.model) and options is None if islands is None else bool(islands)
-    budget = BUDGET if termination is None or not termination.bounded else termination.budget
-    seconds = TIME_LIMIT_S if termination is None or not termination.bounded else termination.time_limit_s
+    budget, seconds = search_limits(termination, TIME_LIMIT_S)
     deadline = None if seconds is None else time.monotonic() + seconds
     """The memetic runs share the time limit, the searches after a widening included."""
 
@@ -378,13 +377,14 @@ def fit(
             results[0].evaluations += spent  # what the narrower searches cost counts too
         return objective, results
 
+    def under(reading: str) -> Objective:
+        return build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=reading)
+
     objective, results = identify(objective, first)
-    best = min(results, key=lambda r: r.fitness)
-    flipped = confirm_motion(loops, objective.model, best.theta, motion)
-    if flipped is not None:  # the fitted model reads the displacement the other way: refit under that reading
-        motion, spent = flipped, sum(r.evaluations for r in results)
-        objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=motion.displacement)
-        objective, results = identify(objective, np.clip(best.theta, objective.bounds[:, 0], objective.bounds[:, 1]))
+    spent = sum(r.evaluations for r in results)
+    again = refit_under_other_reading(loops, objective.model, min(results, key=lambda r: r.fitness).theta, motion, under, identify)
+    if again is not None:  # the runs repeated under the reading the fitted model prefers, what the first ones spent counting too
+        motion, (objective, results) = again
         results[0].evaluations += spent
     settings = {
         "algo": "memetic islands" if memetic else algo,

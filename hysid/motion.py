@@ -25,15 +25,17 @@ finds its optimum from one start, so ``fit``, ``campaign`` and ``diagnose``
 read the same loops the same way whatever model they fit.
 :func:`confirm_motion` repeats the comparison with the fitted model itself at
 its optimum; ``fit``, ``diagnose`` and a campaign's result
-(:func:`hysid.campaigns.confirmed`) refit under its reading where it differs. The evidence travels with the choice: both chi^2, and order by
+(:func:`hysid.campaigns.confirmed`) refit under its reading where it differs (``fit`` and a campaign by
+one rule, :func:`refit_under_other_reading`, each within its own budget). The evidence travels with the choice: both chi^2, and order by
 order how strongly the force carries the displacement's harmonics
 (:func:`order_evidence`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -43,6 +45,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, as_model
+from hysid_model.objective import Objective
 from hysid_model.problem import DISPLACEMENTS, displaced, prepare_model, starting_point
 from island.polish import polish
 
@@ -183,3 +186,23 @@ def confirm_motion(loops: LoopSet, model: Model, theta: np.ndarray, choice: Moti
         return None
     flipped.reason += f" (the {linear_start(model)} start alone preferred the other reading)"
     return flipped
+
+
+Refit = TypeVar("Refit")
+
+
+def refit_under_other_reading(
+    loops: LoopSet, model: Model, theta: np.ndarray, choice: MotionChoice,
+    under: Callable[[str], Objective], search: Callable[[Objective, np.ndarray], Refit],
+) -> tuple[MotionChoice, Refit] | None:
+    """The refit under the other displacement reading, one rule for ``hysid fit`` and a campaign's result: where
+    ``model``, fitted under ``choice`` to its best ``theta``, reads the loops the other way (:func:`confirm_motion`),
+    the problem ``under`` that reading is searched again from ``theta`` (within its bounds) by ``search`` (the
+    fit's runs; a campaign's refit, within the campaign's own budget). Returns that reading and what ``search``
+    returned; None where the reading stands."""
+    flipped = confirm_motion(loops, model, theta, choice)
+    if flipped is None:
+        return None
+    objective = under(flipped.displacement)
+    return flipped, search(objective, np.clip(theta, objective.bounds[:, 0], objective.bounds[:, 1]))
+

@@ -59,6 +59,7 @@ from island.polish import MEMORY_NFEV, polish
 from island.population import MAX_ITERATIONS
 from island.run import HistoryRow, RunResult
 from island.space import SpaceObjective
+from island.termination import Termination
 
 ISLANDS = 4
 POPULATION = 16
@@ -88,6 +89,15 @@ ISLAND_OPTIONS = {"population": POPULATION, "initial_population": 2 * POPULATION
 small swarms that the refinement feeds, as here."""
 IMPROVED = 1e-9
 """Relative decrease of an island's best that counts as progress."""
+
+
+def search_limits(termination: Termination | None, time_limit_s: float | None) -> tuple[int | None, float | None]:
+    """The evaluations and seconds a memetic search may spend under the stop rules ``termination``: its budget and
+    time limit where it has one of them (:attr:`~island.termination.Termination.bounded`), else :data:`BUDGET`
+    evaluations and ``time_limit_s`` (``hysid fit``: :data:`TIME_LIMIT_S`; a campaign's refit: none)."""
+    if termination is None or not termination.bounded:
+        return BUDGET, time_limit_s
+    return termination.budget, termination.time_limit_s
 
 
 def needs_islands(model: Model) -> bool:

@@ -19,6 +19,7 @@ import pytest
 import hysid
 from hysid.cli import main
 from hysid.motion import choose_motion, confirm_motion
+from island.memetic import BUDGET
 from island.termination import Termination
 from support import DAMPER
 from hysid_model.datasets import write_dataset
@@ -149,3 +150,18 @@ def test_a_campaign_confirms_the_reading_with_its_fitted_model_as_fit_does(tmp_p
         assert "searched again under this one" in campaign.displacement_model["reason"]
         assert campaign.fitness == pytest.approx(fit.fitness, rel=1e-6)
     assert [r.label for r in result.fit.runs][-1] == "refit under the measured reading"
+
+
+@pytest.mark.slow  # about 10 s
+def test_a_campaigns_refit_under_the_other_reading_spends_the_campaigns_budget_not_fits():
+    """The rule: a campaign's refit under the reading its fitted model prefers searches within the campaign's own
+    evaluation budget, as its islands did, not within ``hysid fit``'s default (:data:`island.memetic.BUDGET`).
+    The friction damper read as the linear start reads it, searched again as its Bouc-Wen fit reads it."""
+    budget = 2000
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = hysid.campaign(hysid.load(DAMPER), "baseline+bouc_wen", islands=2, single_node=True, termination=Termination(budget=budget))
+    refit = result.fit.runs[-1]
+    assert refit.label == "refit under the measured reading"
+    searched = refit.history[-1]["evaluations"]  # the memetic search's, before its polish
+    assert budget <= searched < BUDGET / 2
