@@ -242,6 +242,17 @@ class Queries:
         rows = self.db.execute("SELECT name, dataset, status, stop_reason, created, ended FROM campaigns ORDER BY created")
         return [dict(zip(("name", "dataset", "status", "stop_reason", "created", "ended"), r)) for r in rows]
 
+    def pick_campaign(self, name: str | None = None) -> str:
+        """``name`` if the database holds it, else (None) its latest campaign; a one-line error otherwise."""
+        names = [c["name"] for c in self.campaign_list()]
+        if name is None:
+            if not names:
+                raise HysidInputError(f"{self.path}: holds no campaign yet")
+            return names[-1]
+        if name not in names:
+            raise HysidInputError(f"{self.path}: no campaign {name!r} (stored: {', '.join(map(repr, names)) or 'none'})")
+        return name
+
     def migrations_by_island(self, campaign: str) -> dict[str, int]:
         """Migrant messages the coordinator saw from each island."""
         rows = self.db.execute("SELECT island, count(*) FROM migrations WHERE campaign = ? GROUP BY island", (campaign,))

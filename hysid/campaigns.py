@@ -80,7 +80,7 @@ class CampaignResult:
         """
         store = Store.snapshot(db)
         try:
-            name = pick_campaign(store, name)
+            name = store.pick_campaign(name)
             dataset, message, _ = store.campaign(name)
             (status, reason), stored, gone = store.state(name), store.result(name), store.gone_since(name)
             try:
@@ -164,18 +164,6 @@ class CampaignResult:
     def __repr__(self) -> str:
         return (f"<CampaignResult {self.fit.settings.get('campaign')!r}, {self.fit.model.spec} on {self.fit.loops.name}: "
                 f"{len(self.islands)} island run(s), fitness {self.fit.fitness:.6g}, {self.fit.settings.get('stop_reason')}>")
-
-
-def pick_campaign(store: Store, name: str | None = None) -> str:
-    """``name`` if the database holds it, else (None) its latest campaign; a one-line error otherwise."""
-    names = [c["name"] for c in store.campaign_list()]
-    if name is None:
-        if not names:
-            raise HysidInputError(f"{store.path}: holds no campaign yet")
-        return names[-1]
-    if name not in names:
-        raise HysidInputError(f"{store.path}: no campaign {name!r} (stored: {', '.join(map(repr, names)) or 'none'})")
-    return name
 
 
 def finish(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None) -> CampaignResult:

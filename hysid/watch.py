@@ -19,7 +19,6 @@ import numpy as np
 from coordinator.members import STATUS_AFTER
 from coordinator.progress import CampaignProgress, IslandView, algorithm_paths
 from coordinator.store import Store
-from hysid.campaigns import pick_campaign
 
 TREND_POINTS = 24
 """Iterations shown in each island's best-fitness trend."""
@@ -64,7 +63,7 @@ def trend(values: list[float], points: int = TREND_POINTS) -> list[float]:
 
 def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
     """Read campaign ``name`` (default: the latest) from ``store`` as it is now."""
-    name = pick_campaign(store, name)
+    name = store.pick_campaign(name)
     meta = next(c for c in store.campaign_list() if c["name"] == name)
     status, reason = store.state(name)
     records = store.islands(name)
