@@ -32,6 +32,7 @@ from hysid.adequacy import Adequacy, model_adequacy
 from hysid.identifiability import Identifiability, assess, one_amplitude
 from hysid.motion import MotionChoice, choose_motion, refit_under_other_reading
 from hysid.report import markdown, tables, text
+from hysid.report.records import Estimates
 from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
@@ -196,6 +197,10 @@ class FitResult:
         """Each parameter on a bound with which bound it is (:meth:`hysid_model.model.Model.bound_kinds`)."""
         return self.model.bound_kinds(self.theta)
 
+    def estimates(self) -> Estimates:
+        """What this fit estimated, as the writers of :mod:`hysid.report` take it."""
+        return Estimates(self.model, self.params, self.stderr, self.combinations, self.effective, self.at_bounds, self.amplitudes, self.half_power)
+
     def objective(self) -> Objective:
         """A fresh objective of this fit (same loops, model and weights)."""
         return Objective(self.loops, self.model, weights=self.weights)
@@ -244,7 +249,7 @@ class FitResult:
     def tables(self) -> dict[str, list[dict[str, Any]]]:
         """``parameters`` (value, standard error, unit, bounds, status) and ``amplitudes`` (fn, xi, k, c, m with
         standard errors, and the half-power xi of Eq. 2.7) as lists of plain dicts."""
-        return tables.fit_tables(self)
+        return tables.fit_tables(self.estimates())
 
     def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
         """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""

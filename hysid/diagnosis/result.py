@@ -20,6 +20,7 @@ from hysid.motion import MotionChoice
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid.report.bounds import widenings
+from hysid.report.records import Estimates
 from hysid_model import notices
 from hysid_model.effective import OperatingPoint, effective_table, operating_points
 from hysid_model.frf import amplitude_levels
@@ -163,7 +164,11 @@ class Diagnosis:
 
     def tables(self) -> dict[str, list[dict[str, Any]]]:
         """``parameters`` of the final model, ``steps`` (the effects named, with their parameters) and ``gap``."""
-        return tables.diagnosis_tables(self)
+        return tables.diagnosis_tables(self.estimates(), self.to_dict(), [label for label, _ in self.fits()])
+
+    def estimates(self) -> Estimates:
+        """What the final model estimated, as the writers of :mod:`hysid.report` take it."""
+        return Estimates(self.final.model, self.final.params(), self.stderr, self.combinations, self.effective)
 
     def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
         """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""

@@ -12,14 +12,11 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Mapping, Sequence
 
 from hysid_model.effective import OperatingPoint
-from hysid_model.modal import COMBINATIONS, DERIVED_UNITS
-
-if TYPE_CHECKING:
-    from hysid.fitting import FitResult
+from hysid_model.frf import HalfPower
+from hysid_model.modal import COMBINATIONS, DERIVED_UNITS, AmplitudeResult
 
 Table = tuple[list[str], list[list[str]]]
 MAX_POINTS = 24
@@ -37,10 +34,10 @@ def pm(value: float, stderr: float, digits: int = 4) -> str:
     return f"{value:.{digits}g} +- " + (f"{stderr:.2g}" if math.isfinite(stderr) else "n/a")
 
 
-def modal_rows(result: "FitResult") -> Table:
-    """xi, fn, k, c at each amplitude level with the half-power damping (the summary's 'at each amplitude' table)."""
+def modal_rows(levels: Sequence[AmplitudeResult], half_power: Sequence[HalfPower]) -> Table:
+    """xi, fn, k, c at each amplitude level with the half-power damping there (the summary's 'at each amplitude' table)."""
     rows = []
-    for a, hp in zip(result.amplitudes, result.half_power):
+    for a, hp in zip(levels, half_power):
         half = f"{hp.xi:.5f} (grid resolution {hp.resolution:.2g})" if hp.ok else f"n/a ({hp.note})"
         rows.append([f"{a.x0 * 1e3:.4g}", pm(a.values["fn_hz"], a.stderr["fn_hz"], 6), pm(a.values["xi"], a.stderr["xi"]), half,
                      pm(a.values["k"], a.stderr["k"], 5), pm(a.values["c"], a.stderr["c"])])
@@ -64,10 +61,11 @@ def effective_rows(points: Sequence[OperatingPoint], most: int | None = MAX_POIN
     return ["X0 (mm)", "f (Hz)", "k_eff (N/m), range", "xi_eq, range", "E_d per cycle (J), range"], rows
 
 
-def combination_rows(result: "FitResult", columns: int) -> list[list[str]]:
-    """The combinations k and c as rows of the parameter table (``columns`` cells each): name, value, error, unit."""
+def combination_rows(found: Mapping[str, tuple[float, float]], columns: int) -> list[list[str]]:
+    """The combinations k and c ``found`` (value, standard error) as rows of the parameter table (``columns`` cells
+    each): name, value, error, unit."""
     rows = []
-    for name, (value, se) in result.combinations.items():
+    for name, (value, se) in found.items():
         row = [f"{name} = {COMBINATIONS[name]}", f"{value:.7g}", "not determined" if not math.isfinite(se) else f"{se:.2g}", DERIVED_UNITS[name]]
         rows.append(row + [""] * (columns - len(row)))
     return rows

@@ -141,7 +141,7 @@ def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
             ratio = abs(value - t) / se[p.name] if t is not None and se[p.name] > 0 else float("nan")
             row += [num(t, 7), num(ratio, 3)]
         rows.append(row)
-    return headers, rows + combination_rows(result, len(headers))
+    return headers, rows + combination_rows(result.combinations, len(headers))
 
 
 def correlation_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:

@@ -11,15 +11,12 @@ import csv
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from hysid.report.records import Estimates
 from hysid_model.effective import OperatingPoint
 from hysid_model.errors import HysidInputError
 from hysid_model.modal import COMBINATIONS, DERIVED_UNITS
-
-if TYPE_CHECKING:
-    from hysid.diagnosis.result import Diagnosis
-    from hysid.fitting import FitResult
 
 Rows = list[dict[str, Any]]
 
@@ -44,16 +41,16 @@ def parameter_rows(params: Mapping[str, float], stderr: Mapping[str, float], mod
     return rows
 
 
-def fit_tables(result: "FitResult") -> dict[str, Rows]:
+def fit_tables(result: Estimates) -> dict[str, Rows]:
     """``parameters`` (with standard errors, and the combinations k = meq w0^2, c = 2 xi0 meq w0) and
     ``amplitudes``: one row per amplitude level and frequency of the loops, with fn, xi, k, c, m of that level,
     the whole model's effective stiffness, equivalent damping and energy per cycle at that amplitude and
     frequency (:mod:`hysid_model.effective`), all with standard errors, and the level's half-power damping (Eq. 2.7)."""
-    level = {a.x0: k for k, a in enumerate(result.amplitudes)}
+    level = {a.x0: k for k, a in enumerate(result.levels)}
     amplitudes = []
     for point in result.effective:
         k = level[point.x0]
-        a, hp = result.amplitudes[k], result.half_power[k]
+        a, hp = result.levels[k], result.half_power[k]
         row: dict[str, Any] = {"x0_m": a.x0, "f_hz": point.freq_hz}
         for quantity, column in AMPLITUDE_COLUMNS.items():
             row[column] = a.values[quantity]
@@ -72,19 +69,19 @@ def combination_rows(found: Mapping[str, tuple[float, float]]) -> Rows:
              "status": f"derived: {COMBINATIONS[name]}"} for name, (value, se) in found.items()]
 
 
-def diagnosis_tables(diagnosis: "Diagnosis") -> dict[str, Rows]:
-    """``parameters`` of the final model, ``steps`` (each effect named, with its parameters) and ``gap``
-    (whitened RMS, loop NRMSE, energy error after each step)."""
+def diagnosis_tables(final: Estimates, document: Mapping[str, Any], labels: Sequence[str]) -> dict[str, Rows]:
+    """``parameters`` of the ``final`` model, ``steps`` (each effect named, with its parameters) and ``gap``
+    (whitened RMS, loop NRMSE, energy error after each fit, ``labels`` naming them), from a diagnosis's
+    ``document`` (:meth:`hysid.diagnosis.result.Diagnosis.to_dict`)."""
     steps = [
-        {"step": i + 1, "effect": s.effect, "parameter": name, "value": value, "stderr": s.errors[name],
-         "confusable_with": " ".join(s.confusable_with), "whitened_rms_after": s.after.whitened_rms}
-        for i, s in enumerate(diagnosis.steps) for name, value in s.params.items()
+        {"step": i + 1, "effect": s["effect"], "parameter": name, "value": value, "stderr": s["stderr"][name],
+         "confusable_with": " ".join(s["confusable_with"]), "whitened_rms_after": s["whitened_rms_after"]}
+        for i, s in enumerate(document["steps"]) for name, value in s["params"].items()
     ]
-    gap = [{"step": label, **g.as_dict()} for (label, _), g in zip(diagnosis.fits(), diagnosis.gap)]
-    final = diagnosis.final
-    return {"parameters": parameter_rows(final.params(), diagnosis.stderr, final.model) + combination_rows(diagnosis.combinations),
+    gap = [{"step": label, **g} for label, g in zip(labels, document["gap"])]
+    return {"parameters": parameter_rows(final.params, final.stderr, final.model) + combination_rows(final.combinations),
             "steps": steps, "gap": gap,
-            "amplitudes": [{"x0_m": p.x0, "f_hz": p.freq_hz, **effective_cells(p)} for p in diagnosis.effective]}
+            "amplitudes": [{"x0_m": p.x0, "f_hz": p.freq_hz, **effective_cells(p)} for p in final.effective]}
 
 
 def effective_cells(point: OperatingPoint) -> dict[str, Any]:

@@ -202,11 +202,11 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
         if true:
             row.append(f"{true[p.name]:.7g}" if p.name in true else "")
         rows.append(row)
-    lines += [text_table(headers, rows + combination_rows(result, len(headers))), f"  (standard errors: {result.stderr_method})"]
+    lines += [text_table(headers, rows + combination_rows(result.combinations, len(headers))), f"  (standard errors: {result.stderr_method})"]
     lines += [f"  not identifiable: {name} {why}" for name, why in result.not_identifiable.items()]
     lines += [f"  {warning}" for warning in fit_warnings(result)]
     lines.append("")
-    lines += [text_table(*modal_rows(result)), "", f"  {EFFECTIVE_TITLE}:", text_table(*effective_rows(result.effective)), ""]
+    lines += [text_table(*modal_rows(result.amplitudes, result.half_power)), "", f"  {EFFECTIVE_TITLE}:", text_table(*effective_rows(result.effective)), ""]
     if result.report:
         lines.append(f"report: {result.report} (figures and result.json alongside)")
     return "\n".join(lines)
