@@ -152,7 +152,7 @@ def test_a_campaign_confirms_the_reading_with_its_fitted_model_as_fit_does(tmp_p
     assert [r.label for r in result.fit.runs][-1] == "refit under the measured reading"
 
 
-@pytest.mark.slow  # about 10 s
+@pytest.mark.slow  # a campaign on the real damper: 40 s on a loaded machine
 def test_a_campaigns_refit_under_the_other_reading_spends_the_campaigns_budget_not_fits():
     """The rule: a campaign's refit under the reading its fitted model prefers searches within the campaign's own
     evaluation budget, as its islands did, not within ``hysid fit``'s default (:data:`island.memetic.BUDGET`).
