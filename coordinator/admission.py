@@ -28,6 +28,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from coordinator.link import Link
 from hysid_model.errors import HysidInputError
@@ -37,6 +38,15 @@ from island.protocol import Control, MemberState, encode_control
 from island.secret import of_member
 from island.sealing import Credentials, new_key, public_key
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
+
+if TYPE_CHECKING:
+    from coordinator.histories import Gaps, HistoryChecks
+    from coordinator.keys import CampaignKeys
+    from coordinator.members import Member, Membership
+    from coordinator.sharing import Sharing
+    from coordinator.store import Store
+    from island.config import CampaignConfig
+    from island.secret import CampaignSecret
 
 CHALLENGE_S = 30.0
 """A join challenge holds for this long (to at most twice this): the proof must come within it."""
@@ -69,6 +79,33 @@ class Admission:
     """The admission part of :class:`coordinator.state.Coordinator` (see the module docstring): its joins, runs,
     members' shares and roster (a part of the coordinator's state, which holds the store, membership, sharing and
     checks it uses)."""
+
+    if TYPE_CHECKING:  # what the coordinator holds and this part uses (set in Coordinator.__init__)
+        store: Store
+        config: CampaignConfig
+        name: str
+        run_id: str
+        keys: CampaignKeys
+        signing: bytes
+        secret: CampaignSecret
+        checks: HistoryChecks
+        sharing: Sharing
+        membership: Membership
+        gaps: Gaps
+        run_evaluations: dict[tuple[str, str], int]
+        evaluations: int
+        stop_reason: str | None
+        control_seq: int
+        control_at: float
+        changed: bool
+        announced_events: int
+
+        @property
+        def members(self) -> dict[str, Member]: ...
+
+        def review_following(self, link: Link | None = None) -> None: ...
+
+        def last_seq(self, island: str, run: str) -> int: ...
 
     def _admitted(self, stored: list[tuple[str, str, bytes, str, int, float, str]]) -> None:
         """The runs a stored campaign admitted (``store.runs``): each island's latest run, each member's runs."""

@@ -143,7 +143,7 @@ def run_processes(
     with tempfile.TemporaryDirectory(prefix="hysid-islands-") as logs:
         procs = []
         for spec in specs:
-            log = open(Path(logs) / f"{spec.id}.log", "w+")
+            log = open(Path(logs) / f"{spec.id}.log", "w+")  # noqa: SIM115 (the island's stderr while it runs; closed with it below)
             env = island_environment(coordinator.keys.member_secret(spec.id), coordinator.objective.model)  # a member of its own
             procs.append((spec, subprocess.Popen(island_command(endpoint, coordinator.name, spec), stdout=subprocess.DEVNULL, stderr=log, env=env), log))
 

@@ -203,7 +203,7 @@ def profile(objective: Any, theta: np.ndarray, i: int, cov: np.ndarray, rebuild:
     for side, room in ((-1.0, value - lower), (1.0, upper - value)):
         if not room > 0.0:
             continue
-        found = side_width(lambda d: rise(value + side * d), min(step, room), room)
+        found = side_width(lambda d: rise(value + side * d), min(step, room), room)  # noqa: B023 (called within this iteration)
         widths.append(room if found is None else found)
         flat.append(widths[-1] >= FLAT_SHARE * room)
     return Profile(width=max(widths) if widths else 0.0, flat=bool(flat) and all(flat))

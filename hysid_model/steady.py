@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -163,7 +164,7 @@ def pieces(bounds: np.ndarray) -> list[tuple[int, int]]:
     while cuts[-1] < bounds.size - 1:
         stop = int(np.searchsorted(bounds, bounds[cuts[-1]] + PIECE, side="right")) - 1
         cuts.append(min(max(stop, cuts[-1] + 1), bounds.size - 1))
-    return list(zip(cuts[:-1], cuts[1:]))
+    return list(pairwise(cuts))
 
 
 def cycle_fits(t: np.ndarray, signals: list[np.ndarray], t_a: float, freq: float, n_cycles: int) -> CycleFits:
@@ -311,9 +312,9 @@ def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Call
         line = level[:, None] + beta[:, None] * u
         resid = a - line
         out = (np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor)).any(axis=0)
-        if out.any():  # an isolated cycle outside the band is scatter; a transient is a run of them, or the window's end
-            if out[0] or out[-1] or (out[1:] & out[:-1]).any() or np.count_nonzero(out) > max(1, OUTLIERS * n):
-                return False
+        # an isolated cycle outside the band is scatter; a transient is a run of them, or the window's end
+        if out.any() and (out[0] or out[-1] or (out[1:] & out[:-1]).any() or np.count_nonzero(out) > max(1, OUTLIERS * n)):
+            return False
         if n < WAVEFORM_MIN_CYCLES:
             return True
         bend = np.abs(resid @ q) / qq * top  # the largest departure of the best parabola from the line

@@ -74,6 +74,8 @@ def blx_crossover(
     (so child1 lies on the line from p1 through p2 up to 1 + alpha times their
     distance). A blended gene outside its bounds keeps that parent's gene.
     """
+    n: int
+    dim: int
     n, dim = p1.shape
     point = rng.integers(dim, size=n)[:, None]
     t = (1.0 + alpha) * rng.random(n)[:, None]
@@ -193,8 +195,10 @@ class GA(PopulationOptimizer):
         if kind == "initial":
             keep = np.argsort(f, kind="stable")[: self.population]
             self._adopt(x[keep], f[keep])
+            assert self.fit is not None  # just adopted
             self.history.append(float(self.fit[0]))
             return
+        assert self.pop is not None and self.fit is not None  # set by the initial population
         mu = self.population
         self._gained(float(self.fit[0]), float(np.min(f[:mu])))
         pool_x, pool_f = [x[:mu]], [f[:mu]]
@@ -213,6 +217,7 @@ class GA(PopulationOptimizer):
         self.pop, self.fit = x, f
 
     def _take(self, x: np.ndarray, f: float) -> bool:
+        assert self.pop is not None and self.fit is not None  # set by the initial population
         if not f < self.fit[-1]:
             return False
         slot = int(np.searchsorted(self.fit, f, side="right"))
@@ -221,6 +226,7 @@ class GA(PopulationOptimizer):
         return True
 
     def _known(self) -> tuple[np.ndarray, np.ndarray]:
+        assert self.pop is not None and self.fit is not None  # set by the initial population
         return self.pop, self.fit
 
     def _state(self) -> dict[str, Any]:

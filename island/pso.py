@@ -138,6 +138,7 @@ class PSO(PopulationOptimizer):
 
     def _social(self, movers: slice) -> np.ndarray:
         """The P_g the movers follow: the global best, or each one's ring-neighbourhood best P."""
+        assert self.P is not None and self.Pf is not None and self.Pg is not None  # set by the initial swarm
         if self.neighbourhood == "global":
             return self.Pg
         ring = (np.arange(movers.start, movers.stop)[:, None] + np.array([-1, 0, 1])) % self.population
@@ -145,6 +146,7 @@ class PSO(PopulationOptimizer):
 
     def _move(self, movers: slice) -> np.ndarray:
         """Eq. 3.9 and the bounded position update for the movers; returns their new positions."""
+        assert self.x is not None and self.v is not None and self.P is not None and self.Pf is not None and self.Pg is not None  # set by the initial swarm
         x = self.x[movers]
         r = self.rng.random((2,) + x.shape)
         v = self.K * (self.v[movers] + self.phi1 * r[0] * (self.P[movers] - x) + self.phi2 * r[1] * (self._social(movers) - x))
@@ -154,6 +156,7 @@ class PSO(PopulationOptimizer):
     def _next_batch(self) -> tuple[str, np.ndarray]:
         if self.P is None:
             return "initial", uniform_population(self.rng, self.bounds, self.initial_population)
+        assert self.Pg is not None  # set with P
         if self._moved:
             return "addpop", additional_population(self.Pg, self.bounds, self.rng, amount=self.addpop_amount, level=self.addpop_level)
         return "move", self._move(self._movers())
@@ -165,6 +168,7 @@ class PSO(PopulationOptimizer):
             self._adopt(x[keep], f[keep])
             self.history.append(self.Pgf)
         elif kind == "addpop":
+            assert self.P is not None and self.Pf is not None  # set by the initial swarm
             j = int(np.argmin(f))
             if f[j] < self.Pgf:
                 self.Pg, self.Pgf = x[j].copy(), float(f[j])
@@ -185,6 +189,7 @@ class PSO(PopulationOptimizer):
 
     def _moved_to(self, movers: slice, x: np.ndarray, f: np.ndarray) -> None:
         """New positions and fitness of the movers: personal bests, then Pg (Figs. 3.11/3.12)."""
+        assert self.x is not None and self.v is not None and self.P is not None and self.Pf is not None and self.Pg is not None  # set by the initial swarm
         self.x[movers] = x
         better = np.flatnonzero(f < self.Pf[movers])
         if better.size:
@@ -203,6 +208,7 @@ class PSO(PopulationOptimizer):
 
     def _take(self, x: np.ndarray, f: float) -> bool:
         """A migrant becomes the worst particle's position and personal best, with zero velocity."""
+        assert self.x is not None and self.v is not None and self.P is not None and self.Pf is not None and self.Pg is not None  # set by the initial swarm
         w = int(np.argmax(self.Pf))
         if not f < self.Pf[w]:
             return False
@@ -212,6 +218,7 @@ class PSO(PopulationOptimizer):
         return True
 
     def _known(self) -> tuple[np.ndarray, np.ndarray]:
+        assert self.P is not None and self.Pf is not None and self.Pg is not None  # set by the initial swarm
         others = ~np.all(self.P == self.Pg, axis=1)
         return np.vstack([self.Pg, self.P[others]]), np.concatenate([[self.Pgf], self.Pf[others]])
 

@@ -134,7 +134,7 @@ def test_a_mass_far_above_the_loops_inertia_is_named(fits, harmonics):
 def test_the_delay_error_comes_from_its_profile(fits, harmonics):
     """The profile's half-width, not the curvature at the optimum: the chi^2 rises by about one unit (times
     chi^2/dof) when the delay is moved by it with the rest refitted."""
-    start, friction = fits
+    _start, friction = fits
     candidate = next(c for c in score_candidates(friction, harmonics, soft_bounds(friction.model)) if c.effect == "channel_delay")
     delayed = profile_errors(refit(friction, harmonics, (candidate,), soft_bounds(friction.model)))
     se = delayed.errors()["delay_s"]

@@ -102,7 +102,7 @@ def test_candidates_that_share_an_orbit_share_it_and_each_force_is_its_own(spec,
 def test_exponent_one_by_the_general_solver_is_the_closed_form(ideal, distorted):
     for loops in (ideal, distorted):
         kin = Kinematics(loops.x0, loops.omega, loops.x_harmonics)
-        zy, r = (np.array([[z], [z]]) for z in (3e-4, 0.7))
+        _zy, _r = (np.array([[z], [z]]) for z in (3e-4, 0.7))
         v = {"bw_k": np.ones((2, 1)), "bw_zy": np.array([[3e-4], [2e-5]]), "bw_r": np.array([[0.7], [-0.6]]), "bw_n": np.ones((2, 1))}
         closed = _closed_form(v, kin, loops.phases())
         assert relative_error(_any_exponent(v, kin, loops.phases()), closed) < 1e-12
@@ -118,7 +118,7 @@ def test_travel_series_are_the_quadrature():
         for c in (1.0, 0.9, 0.55, 0.3, -0.3, -0.6, -1.9, -2.5, -30.0, -1e4):
             for w in (1e-3, 0.3, 0.7, 0.95, 0.999, 1.0):
                 if c * w**n < 1.0:
-                    expected = quad(lambda u: np.exp(u) / (1.0 - c * np.exp(n * u)), -60.0, np.log(w), epsabs=0.0, epsrel=1e-13, limit=500)[0]
+                    expected = quad(lambda u: np.exp(u) / (1.0 - c * np.exp(n * u)), -60.0, np.log(w), epsabs=0.0, epsrel=1e-13, limit=500)[0]  # noqa: B023 (called within this iteration)
                     assert bouc_wen_orbit.travel(w, c, n, a, psi) == pytest.approx(expected, rel=1e-11)
 
 

@@ -75,7 +75,7 @@ def test_a_bearing_fitted_with_mr_damper_is_named_by_its_terms_and_gets_its_effe
     for p, t in zip(result.effective, truth):
         for q in ("k_eff", "xi_eq", "energy"):
             assert abs(p.values[q] - t.values[q]) < 4 * p.stderr[q], (p.x0, p.freq_hz, q)
-    own_k, own_xi = loop_effective(result.loops, survey(result.loops).energy_per_cycle)
+    _own_k, own_xi = loop_effective(result.loops, survey(result.loops).energy_per_cycle)
     assert np.median(np.abs(own_xi / np.array([p.values["xi_eq"] for p in result.effective]) - 1)) < 0.05  # the loops agree
     with open(result.to_csv(tmp_path)["amplitudes"], newline="") as f:
         rows = list(csv.DictReader(f))

@@ -140,7 +140,7 @@ def test_few_samples_per_cycle_locked_or_not_give_the_loop_of_a_band_limited_for
         if fs == per_cycle * f:
             assert loop.force_harmonics is not None and loop.force_harmonics <= (per_cycle - 1) // 2
         truth = lambda ph: 3.0 * np.cos(ph + 0.2) + 0.5 * np.sin(3 * ph)
-        z = branch_errors(loop, lambda th, _c: truth(th)) / loop.sigma
+        z = branch_errors(loop, lambda th, _c: truth(th)) / loop.sigma  # noqa: B023 (called within this iteration)
         assert np.abs(z).max() < 5.0 and np.sqrt(np.mean(z**2)) < 1.5, (fs, loop.force_harmonics, np.abs(z).max())
         assert abs(loop.sigma_raw / 0.01 - 1) < 0.1
 

@@ -46,7 +46,7 @@ def test_fit_synth_reaches_table_5_3(clean_json):
 
 
 def test_fit_json_schema(clean_json):
-    code, stdout, stderr, out = clean_json
+    _code, stdout, stderr, out = clean_json
     assert stderr == ""  # no progress bar when stderr is not a terminal
     assert stdout.count("\n") == 1 and stdout.startswith("{")  # exactly one JSON object
     doc = json.loads(stdout)

@@ -36,7 +36,7 @@ def test_a_mass_that_trades_off_with_w0_widens_the_errors_of_w0_and_xi0(bearing)
     """meq and w0 are correlated beyond 0.999: their errors come from the full covariance (checked against the
     profile), not from one with meq held at its estimate, which makes w0's error 60 x too small; the stiffness
     and damping coefficient the data determine best are reported with their (small) errors."""
-    specimen, loops, result = bearing
+    specimen, _loops, result = bearing
     names = result.model.names
     cov = parameter_covariance(result.objective(), result.theta)
     w, m = names.index("w0"), names.index("meq")

@@ -132,7 +132,7 @@ def outlast(campaign: subprocess.Popen, db: Path, sybil: Sybil, attacker: str, l
     running()
     sybil.leave()
     campaign.send_signal(signal.SIGINT)
-    out, err = campaign.communicate(timeout=120)
+    out, _err = campaign.communicate(timeout=120)
     assert late.wait(60) == 0
     return json.loads(out)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import re
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -66,7 +67,7 @@ def test_a_diagnosis_tally_never_falls_and_is_done_only_at_the_end():
         tally.done(f"more than expected {k}")
     tally.finish("done")
     shares = [done / total for done, total, _ in calls]
-    assert all(b > a for a, b in zip(shares, shares[1:])) and max(shares[:-1]) < 1.0 == shares[-1]
+    assert all(b > a for a, b in pairwise(shares)) and max(shares[:-1]) < 1.0 == shares[-1]
     heavy = 3 + MEMORY_FIT_WEIGHT
     assert [done for done, _, _ in calls] == [1, 2, 3, heavy, heavy + 1, heavy + 2, heavy + 3, heavy + 3]  # the work done, in fits
     assert calls[0][1] == pytest.approx(11.0) and calls[-1][1] == 6 + MEMORY_FIT_WEIGHT  # 10 fits and the closing unit at first
@@ -83,7 +84,7 @@ def test_diagnose_reports_each_fit_without_changing_the_result():
     plain = hysid.diagnose(subset)
     assert jsondoc.dumps(watched.to_dict()) == jsondoc.dumps(plain.to_dict())  # NaN (an error not given) as null: equal
     shares = [done / total for done, total, _ in calls]
-    assert all(b > a for a, b in zip(shares, shares[1:])) and max(shares[:-1]) < 1.0 == shares[-1]
+    assert all(b > a for a, b in pairwise(shares)) and max(shares[:-1]) < 1.0 == shares[-1]
     assert calls[0][2] == "start model baseline fitted" and calls[0][1] > 20  # the whole diagnosis expected from the start
     whats = [c[2] for c in calls]
     assert any("refitted with amplitude_dependent_frequency" in w for w in whats) and "gap after step 2" in whats

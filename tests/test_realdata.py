@@ -40,7 +40,11 @@ def branches(model, theta: np.ndarray, freqs: np.ndarray, amps: np.ndarray, nois
                    sigma=np.where(sigma > 0, sigma, np.nan), meq_kg=meq)
 
 
-def isolator(noise_pct: float = 0.0, amps=(1e-3, 2e-3, 3e-3), freqs=np.linspace(6.0, 20.0, 8), seed: int = 0, hidden: dict | None = None):
+ISOLATOR_FREQS = np.linspace(6.0, 20.0, 8)
+"""The isolator's default test frequencies (Hz)."""
+
+
+def isolator(noise_pct: float = 0.0, amps=(1e-3, 2e-3, 3e-3), freqs=ISOLATOR_FREQS, seed: int = 0, hidden: dict | None = None):
     """A 1-DOF specimen far from the thesis' beams: 12 Hz, xi0 = 0.5, 0.2 kg, stiffness softening by
     40 % over its amplitude range (wn by 23 %), optionally with hidden effects ``{effect: {param: value}}``."""
     w0 = 2 * math.pi * 12.0

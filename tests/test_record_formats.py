@@ -17,6 +17,7 @@ from hysid.cli import main
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.loops import LoopSet
+from hysid_model.synth import RawRecord
 from support import FS, record, same_loops
 
 RECORDS = [record("run1", 9.0, 1e-3, 1), record("run2", 12.5, 2e-3, 2)]

@@ -86,7 +86,7 @@ def test_reproduce_json_has_every_cell(reproduction):
     assert doc["noise_seeds"] == [3, 4]
     cells = {(c["setting"], c["algo"], c["noise_pct"]): c for c in doc["cells"]}
     assert len(cells) == 2 * 2 * 4
-    for (setting, algo, noise), c in cells.items():
+    for (setting, _algo, noise), c in cells.items():
         assert len(c["runs"]["xi0"]) == 2
         assert c["polish"] == (setting == "hysid")
         assert c["weights"] == ("ml" if setting == "hysid" and noise > 0 else "thesis")

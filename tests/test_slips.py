@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import re
 import warnings
+from typing import ClassVar
 from pathlib import Path
 
 import numpy as np
@@ -69,7 +70,7 @@ def test_swapped_columns_of_a_german_lab_csv_are_named_with_the_lines_that_read_
     """Both columns look plausible (4-10 'mm', 2-12 'kN'): the loops generate energy and the 'displacement' carries
     the Bouc-Wen force's harmonics. The lines the warning gives, pasted into dataset.toml, read the right loops."""
     right, _ = loaded(lab_files(tmp_path / "right", bearing))
-    loops, found = loaded(lab_files(tmp_path / "swapped", bearing, swap=True))
+    _loops, found = loaded(lab_files(tmp_path / "swapped", bearing, swap=True))
     assert "swapped_columns" in found and not UNIT_CODES & set(found)
     fix = ('displacement_channel = "Kraft [kN]", displacement_unit = "mm", force_channel = "Weg [mm]" and force_unit = "kN"'
            " in dataset.toml")
@@ -156,12 +157,12 @@ def test_warnings_are_kept_whatever_the_filters_and_said_again():
     """A result keeps every HysidWarning its work raised, also under an 'ignore' filter, and the warning still reaches
     Python's own handling (the command line prints it from there)."""
     class Result:
-        raised: list = []
+        raised: ClassVar[list] = []
 
     @keeps_warnings
     def work() -> Result:
-        warnings.warn(HysidWarning("a channel states no unit", "no_unit"))
-        warnings.warn(HysidWarning("a channel states no unit", "no_unit"))
+        warnings.warn(HysidWarning("a channel states no unit", "no_unit"), stacklevel=1)
+        warnings.warn(HysidWarning("a channel states no unit", "no_unit"), stacklevel=1)
         return Result()
 
     with warnings.catch_warnings(record=True) as caught:
@@ -174,7 +175,7 @@ def test_warnings_are_kept_whatever_the_filters_and_said_again():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with pytest.raises(ValueError), recorded() as kept:
-            warnings.warn(HysidWarning("said before the error", "drift"))
+            warnings.warn(HysidWarning("said before the error", "drift"), stacklevel=1)
             raise ValueError
     assert [n.code for n in kept] == ["drift"]
     left_out = merged([{"code": "records_left_out", "message": "d: left out " + ", ".join(f"run{k}.csv" for k in range(2000))}])

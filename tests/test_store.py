@@ -24,7 +24,7 @@ def test_campaign_is_created_once_and_never_overwritten(tmp_path):
     with pytest.raises(HysidInputError, match="already exists; resume it"):
         store.create_campaign("c1", "other", b"other")
     assert store.campaign("c1") == ("synth", b"config-bytes", "running")
-    with pytest.raises(HysidInputError, match="no campaign 'c9' to resume.*c1"):
+    with pytest.raises(HysidInputError, match=r"no campaign 'c9' to resume.*c1"):
         store.campaign("c9")
 
 
@@ -114,7 +114,7 @@ def test_status_and_result_are_recorded(tmp_path):
 def test_a_file_that_is_not_a_database_is_a_clear_error(tmp_path):
     bad = tmp_path / "notes.sqlite"
     bad.write_text("these are my notes, not a database\n" * 100)
-    with pytest.raises(HysidInputError, match="notes.sqlite: not a usable campaign database"):
+    with pytest.raises(HysidInputError, match=r"notes\.sqlite: not a usable campaign database"):
         Store(bad)
     assert bad.read_text().startswith("these are my notes")
 

@@ -120,7 +120,7 @@ def periodic_steady_state(
     if k1.shape != z.shape:
         raise ValueError(f"rhs returned shape {k1.shape} for a state of shape {z.shape}")
     with np.errstate(all="ignore"):
-        for cycle in range(1, max_cycles + 1):
+        for _cycle in range(1, max_cycles + 1):
             start = z
             z, k1, amplitude = _rk4_cycle(rhs, z, k1, steps_per_cycle)
             change = np.abs(z - start)
@@ -178,7 +178,7 @@ def odd_periodic_orbit(rhs: ScalarRhs, theta0: float, bracket: tuple[float, floa
     from scipy.optimize import brentq
 
     def end(z0: float) -> float:
-        start, stop, sol = _half_period(rhs, theta0, z0, rtol, atol)[-1]
+        _start, stop, sol = _half_period(rhs, theta0, z0, rtol, atol)[-1]
         return float(sol(stop)[0])
 
     lo, hi = bracket

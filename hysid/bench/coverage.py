@@ -198,7 +198,7 @@ def specimen_coverage(specimen: Specimen, seeds: int) -> dict[str, Any]:
 def run(seeds: int = SEEDS, names: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Coverage of the reported standard errors: the truth within 2 of them in >= 90 % of 40 noise seeds, every quantity."""
     known = specimens()
-    names = tuple(known) if not names else names
+    names = names if names else tuple(known)
     unknown = [n for n in names if n not in known]
     if unknown:
         raise HysidInputError(f"unknown specimen {unknown[0]!r}; choose from {', '.join(known)}", param="specimens", value=unknown[0])

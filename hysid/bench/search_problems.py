@@ -145,10 +145,10 @@ def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: 
         n = int(round((cycles + 1) * rate_hz / f))
         dt = 1.0 / (rate_hz * substeps)
         phase0 = rng.uniform(0.0, 2.0 * np.pi)
-        velocity = lambda t: a * w * np.cos(w * t + phase0)
+        velocity = lambda t: a * w * np.cos(w * t + phase0)  # noqa: B023 (called within this iteration)
 
         def rhs(t: float, z: float) -> float:
-            v = velocity(t)
+            v = velocity(t)  # noqa: B023 (called within this iteration)
             return v - gamma * abs(v) * abs(z) ** (exponent - 1.0) * z - beta * v * abs(z) ** exponent
 
         z, t = 0.0, 0.0

@@ -216,15 +216,15 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
         stood = db.history(names[k])
         lab.link(k, False)
         cut = time.time()
-        lost = wait_for(f"site {k} lost", lambda: (e := db.events("lost", names[k], cut)) and len(e) == len(names[k]) and e, 60, [coordinator])
+        lost = wait_for(f"site {k} lost", lambda: (e := db.events("lost", names[k], cut)) and len(e) == len(names[k]) and e, 60, [coordinator])  # noqa: B023 (called within this iteration)
         time.sleep(max(0.0, cut + site.cut_for_s - time.time()))
         lab.link(k, True)
         up = time.time()
-        back = wait_for(f"site {k} back", lambda: (e := db.events("back", names[k], up)) and len(e) == len(names[k]) and e, 60, [coordinator])
+        back = wait_for(f"site {k} back", lambda: (e := db.events("back", names[k], up)) and len(e) == len(names[k]) and e, 60, [coordinator])  # noqa: B023 (called within this iteration)
 
         def caught_up() -> float | None:
-            now = db.history(names[k])
-            ok = all(n in now and now[n][0] == now[n][1] + 1 and now[n][1] > stood.get(n, (0, -1))[1] for n in names[k])
+            now = db.history(names[k])  # noqa: B023 (called within this iteration)
+            ok = all(n in now and now[n][0] == now[n][1] + 1 and now[n][1] > stood.get(n, (0, -1))[1] for n in names[k])  # noqa: B023 (called within this iteration)
             return time.time() if ok else None
 
         links.append({"site": k, "cut_at_s": cut - t0, "cut_for_s": up - cut, "detect_s": max(lost.values()) - cut,

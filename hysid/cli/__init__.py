@@ -13,7 +13,7 @@ from __future__ import annotations
 import sys
 import warnings
 from importlib.metadata import PackageNotFoundError, version
-from typing import Any, Optional, TextIO
+from typing import Any, TextIO
 
 import typer
 
@@ -57,7 +57,7 @@ for module in (data, fit, bench, campaign, island, router, diagnose, watch):
 
 @app.command("models")
 def models_command(
-    modules: Optional[list[str]] = typer.Option(
+    modules: list[str] | None = typer.Option(
         None, "--import", metavar="MODULE", help="Import this module (repeatable) and list the terms of your own it makes (hysid.term).",
     ),
 ) -> None:

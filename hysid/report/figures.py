@@ -337,7 +337,7 @@ def scatter_figure(
                 if bound > 0:
                     ax.fill_between([i - 0.45, i + 0.45], true_value - bound, true_value + bound, color="0.85", linewidth=0)
         ax.axhline(true_value, color=TRUE, linestyle="--", linewidth=1.0)
-        for s, (label, by_noise) in enumerate(series):
+        for s, (_label, by_noise) in enumerate(series):
             color = series_color(s)
             for i, lvl in enumerate(noise):
                 values = np.asarray(by_noise.get(lvl, []), dtype=float)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import re
 import warnings
 from dataclasses import dataclass
+from typing import Literal, overload
 
 from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.readers.dataset_dir import DISPLACEMENT_UNITS, FORCE_UNITS, TIME_UNITS, DatasetConfig
@@ -103,6 +104,12 @@ def _configured(config: DatasetConfig | None, quantity: str) -> tuple[str | int 
     return getattr(config, f"{quantity}_channel"), getattr(config, f"{quantity}_unit")
 
 
+@overload
+def choose(names: list[str], quantity: str, config: DatasetConfig | None, source: str,
+           file_units: list[str | None] | None = None, required: Literal[True] = True) -> Channel: ...
+@overload
+def choose(names: list[str], quantity: str, config: DatasetConfig | None, source: str,
+           file_units: list[str | None] | None = None, required: bool = True) -> Channel | None: ...
 def choose(names: list[str], quantity: str, config: DatasetConfig | None, source: str,
            file_units: list[str | None] | None = None, required: bool = True) -> Channel | None:
     """The channel of ``quantity`` among ``names`` (see the module docstring); ``file_units`` are the units the

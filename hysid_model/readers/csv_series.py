@@ -74,7 +74,7 @@ def checked_series(source: str, t: np.ndarray, x: np.ndarray, force: np.ndarray,
             f"{source}: {unit} {first_line + k + 1}: {names[0]} does not increase ({float(t[k + 1])!r} after {float(t[k])!r}); "
             "time must be strictly increasing"
         )
-    return TimeSeries(source, *columns, names, units)
+    return TimeSeries(source, columns[0], columns[1], columns[2], names, units)
 
 
 @dataclass
@@ -180,7 +180,8 @@ def sniff(path: Path, skip_rows: int | None = None) -> Dialect:
     if not content or content[0] >= start + PREAMBLE_LINES:
         raise HysidInputError(f"{path}: the file is empty" if not "".join(lines).strip() else f"{path}: no header line (expected {','.join(COLUMNS)})")
     found = _data_header(lines, content)
-    header, skipped = content[0], ()
+    header = content[0]
+    skipped: tuple[tuple[int, str], ...] = ()
     if skip_rows is None and found is not None and found != header and len(_cells(lines[header], _separator(lines[found]))) < len(
             _cells(lines[found], _separator(lines[found]))):
         skipped = tuple((k, lines[k]) for k in content if k < found)
@@ -312,15 +313,16 @@ def read_series(path: Path, config: DatasetConfig | None = None, dialect: Dialec
     """Read a raw record (``dialect`` if sniffed already); errors name the file, and the column/line where they can
     (see :mod:`.channels`). A preamble :func:`sniff` skipped is a warning naming it."""
     dialect, chosen = record_columns(path, config, dialect)
-    if dialect.skipped:
-        warnings.warn(HysidWarning(dialect.preamble_note(), "preamble_skipped"), stacklevel=2)
+    note = dialect.preamble_note()
+    if note is not None:  # something was skipped
+        warnings.warn(HysidWarning(note, "preamble_skipped"), stacklevel=2)
     data = read_columns(path, dialect, [c.index for c in chosen])
     if data.shape[1] == 0:
         raise HysidInputError(f"{path}: the header is there but there are no data rows")
     for column, channel in zip(data, chosen):
         if channel.factor != 1.0:
             column *= channel.factor
-    return checked_series(str(path), *data, names=tuple(c.name for c in chosen), first_line=dialect.header_line + 2,
+    return checked_series(str(path), data[0], data[1], data[2], names=(chosen[0].name, chosen[1].name, chosen[2].name), first_line=dialect.header_line + 2,
                           units=(chosen[1].unit, chosen[2].unit))
 
 

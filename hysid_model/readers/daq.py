@@ -237,8 +237,8 @@ def _record(path: Path, found: _Channels, config: DatasetConfig, source: str) ->
     x, force = _samples(path, found, x_ch), _samples(path, found, f_ch)
     if t_ch is not None:
         t = _samples(path, found, t_ch)
-    elif found.timing[x_ch.index] is not None:
-        start, dt = found.timing[x_ch.index]
+    elif (timing := found.timing[x_ch.index]) is not None:
+        start, dt = timing
         t = start + dt * np.arange(x.size)
     elif config.sample_rate_hz is not None:
         t = np.arange(x.size) / config.sample_rate_hz

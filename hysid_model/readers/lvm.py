@@ -190,7 +190,9 @@ def _read_standard(path: Path, text: str, config: DatasetConfig) -> TimeSeries:
     segments = _segments(path, lines, end + 1, sep)
     if not segments or not any(seg.lines for seg in segments):
         raise HysidInputError(f"{path}: no data rows after the headers")
-    t_parts, x_parts, f_parts = [], [], []
+    t_parts: list[np.ndarray] = []
+    x_parts: list[np.ndarray] = []
+    f_parts: list[np.ndarray] = []
     for seg in segments:
         if not seg.lines:
             continue

@@ -44,7 +44,7 @@ def _word(buf: np.ndarray, p: int, end: int, word: bytes) -> bool:
     """Whether ``buf[p:]`` starts with ``word`` (lower-case ASCII), in any case."""
     if end - p < len(word):
         return False
-    for k in range(len(word)):
+    for k in range(len(word)):  # noqa: SIM110 (a numba kernel: no generator in all())
         if buf[p + k] | 32 != word[k]:
             return False
     return True

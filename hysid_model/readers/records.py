@@ -19,6 +19,7 @@ import io
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 from hysid_model.errors import HysidInputError, HysidWarning
@@ -58,6 +59,11 @@ class RawSource:
         return self.file if self.whole_file else self.label
 
 
+def _given(series: TimeSeries) -> Callable[[], TimeSeries]:
+    """A reader of a record read already (a tidy long file's records come all at once)."""
+    return lambda: series
+
+
 def read_record(path: Path, config: DatasetConfig, dialect: Dialect | None = None) -> TimeSeries:
     """One record file as (t in s, x in m, F in N) (a CSV file's ``dialect`` if sniffed already)."""
     if path.stat().st_size == 0:
@@ -79,13 +85,13 @@ def sources_of_file(path: Path, config: DatasetConfig, nominal_hz: float | None,
     dialect = sniff(path, config.skip_rows) if suffix == ".csv" and not empty else None
     if dialect is not None and is_long_csv(dialect):
         return [RawSource(r.label, name, path, r.nominal_hz if r.nominal_hz is not None else frequency_in_name(r.label),
-                          lambda s=r.series: s) for r in read_long(path, config)]
+                          _given(r.series)) for r in read_long(path, config)]
     if suffix in TDMS_SUFFIXES + HDF5_SUFFIXES and not empty:
         groups = record_groups(path, config)
         if groups:
             return [RawSource(g.group, name, path, g.nominal_hz if g.nominal_hz is not None else frequency_in_name(g.group),
-                              lambda g=g.group: read_daq(path, config, g), lambda g=g.group: check_daq(path, config, g)) for g in groups]
-    check = None
+                              partial(read_daq, path, config, g.group), partial(check_daq, path, config, g.group)) for g in groups]
+    check: Callable[[], object] | None = None
     if dialect is not None:
         check = lambda: record_columns(path, config, dialect)  # noqa: E731
     elif suffix in TDMS_SUFFIXES + HDF5_SUFFIXES and not empty:
