@@ -205,6 +205,7 @@ def run_campaign(
     else:
         link = ZenohLink(session, coordinator)
         try:
+            assert endpoint is not None  # set with the session
             run_processes(coordinator, specs, endpoint, link, on_progress)
         finally:
             link.close()

@@ -53,7 +53,7 @@ class ZenohLink:
 
         self._control = session.declare_publisher(f"{prefix}/control", congestion_control=zenoh.CongestionControl.BLOCK)
         self._best = session.declare_publisher(f"{prefix}/best")
-        self._entities = [
+        self._entities: list[zenoh.Queryable | zenoh.Subscriber] = [
             session.declare_queryable(f"{prefix}/config", on_config),
             session.declare_queryable(f"{prefix}/best", on_best),
             session.declare_queryable(f"{prefix}/join/*", on_join),

@@ -58,11 +58,12 @@ def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOut
             theta=rec.best_x, fitness=f, evaluations=rec.evaluations, history=rows, search_theta=rec.best_x,
             search_fitness=f, wall_s=rows[-1]["wall_s"] if rows else 0.0,
         ))
-    global_best = None if c.best is None else float(objective(c.best.x[None, :])[0])
-    if global_best is not None and (not runs or global_best < min(r.fitness for r in runs)):
+    best_stored = c.best
+    global_best = None if best_stored is None else float(objective(best_stored.x[None, :])[0])
+    if best_stored is not None and global_best is not None and (not runs or global_best < min(r.fitness for r in runs)):
         runs.append(RunResult(
-            label=f"global best (from {c.best.island})", algo=runs[0].algo if runs else c.config.algos[0], seed=c.config.seed,
-            theta=c.best.x, fitness=global_best, evaluations=0, history=[], search_theta=c.best.x,
+            label=f"global best (from {best_stored.island})", algo=runs[0].algo if runs else c.config.algos[0], seed=c.config.seed,
+            theta=best_stored.x, fitness=global_best, evaluations=0, history=[], search_theta=best_stored.x,
             search_fitness=global_best, wall_s=0.0,
         ))
     if not runs:

@@ -181,7 +181,7 @@ class Queries:
             f"{unlisted} FROM islands WHERE campaign = ? ORDER BY island, run", (campaign,),
         )
         return [
-            IslandRecord(*r[:7], np.frombuffer(r[7], dtype="<f8").copy(), *r[8:12], bool(r[12]), int(r[13]))
+            IslandRecord(r[0], r[1], r[2], r[3], r[4], r[5], r[6], np.frombuffer(r[7], dtype="<f8").copy(), r[8], r[9], r[10], r[11], bool(r[12]), int(r[13]))
             for r in rows
         ]
 

@@ -11,7 +11,7 @@ the campaign database as they are made and read back on ``--resume``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Protocol
 
 from coordinator.members import Member
@@ -95,7 +95,7 @@ class Sharing:
             return []
         alive: dict[tuple[str, str], str] = {}
         iterations: dict[tuple[str, str], int] = {}
-        offered = members.items()
+        offered: Iterable[tuple[str, Member]] = members.items()
         if sender is not None and isinstance(self.policy, Staged):
             offered = [(sender[0], members[sender[0]])] if sender[0] in members else []
         for island, m in offered:

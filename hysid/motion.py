@@ -33,7 +33,7 @@ order how strongly the force carries the displacement's harmonics
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -102,6 +102,7 @@ def order_evidence(harmonics: Harmonics) -> list[dict[str, float]]:
     harmonics as a spring would (more for inertia, k^2), far below 1 where the harmonics are the sensor's."""
     loops = harmonics.loops
     xh = loops.x_harmonics
+    assert xh is not None  # harmonics are fitted only where the displacement's are known
     names = harmonics.names
     force = harmonics.coef
     f1 = np.hypot(force[:, names.index("s1")], force[:, names.index("c1")])
@@ -122,7 +123,7 @@ def linear_start(model: Model) -> str:
     return "thesis" if {"S_xi", "S_w"} <= {p.name for p in model.all_parameters} else "baseline"
 
 
-def _reading_fit(harmonics: Harmonics, start: str, loops: LoopSet, bounds: dict | None, fixed: dict | None) -> float:
+def _reading_fit(harmonics: Harmonics, start: str, loops: LoopSet, bounds: Mapping[str, tuple[float, float]] | None, fixed: Mapping[str, float] | None) -> float:
     model = prepare_model(harmonics.loops, start, bounds={k: v for k, v in (bounds or {}).items() if k in ("xi0", "w0", "meq", "S_xi", "S_w")},
                           fixed={k: v for k, v in (fixed or {}).items() if k in ("xi0", "w0", "meq", "S_xi", "S_w")})
     fit = fit_objective(HarmonicObjective(harmonics, model), start, (), [starting_point(harmonics.loops, model)])
@@ -134,8 +135,8 @@ def choose_motion(
     model: "str | Model" = "baseline",
     displacement: str = "auto",
     *,
-    bounds: dict | None = None,
-    fixed: dict | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    fixed: Mapping[str, float] | None = None,
 ) -> MotionChoice:
     """How ``loops``' displacement drives a ``model``: as asked, or (``auto``) the reading of the module
     docstring the data prefer. ``bounds``/``fixed`` as for the fit (those of the linear start apply)."""

@@ -68,8 +68,8 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
     status, reason = store.state(name)
     records = store.islands(name)
     by_run: dict[tuple[str, str], list[float]] = {}
-    for island, run, _, best, _, _ in store.history(name):
-        by_run.setdefault((island, run), []).append(best)
+    for island, run, _, fitness, _, _ in store.history(name):
+        by_run.setdefault((island, run), []).append(fitness)
     gone = store.gone_since(name)
     members: dict[str, str] = {}
     events = store.members(name)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import secrets
 import time
 from collections.abc import Callable
+from typing import TypeVar
 
 import zenoh
 
@@ -19,6 +20,10 @@ from island.sealing import Credentials, new_key, public_key
 from island.wire import MessageRejected, check_name
 
 QUERY_TIMEOUT_S = 5.0
+
+
+_Answer = TypeVar("_Answer", str, bytes)
+"""What an answer to a join step decodes to: the challenge (bytes) or the run id (str)."""
 
 
 def key_prefix(campaign: str) -> str:
@@ -46,7 +51,7 @@ def join(
     deadline = time.monotonic() + wait_s
     timeout = min(QUERY_TIMEOUT_S, max(wait_s, 0.5))
 
-    def answers(payload: bytes, decode: Callable[[bytes], str | bytes]) -> str | bytes | None:
+    def answers(payload: bytes, decode: Callable[[bytes], _Answer]) -> _Answer | None:
         for answer in replies(session, where, timeout, payload):
             try:
                 return decode(answer)

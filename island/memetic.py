@@ -248,9 +248,9 @@ class Island:
                 u = np.asarray(p.theta, dtype=float)
                 self.polished[u.tobytes()] = p.fitness
                 self.optimizer.inject(u[None, :], np.array([p.fitness]))
-        f = self.fitness
-        self.stalled = 0 if f < self.last_best * (1 - IMPROVED) else self.stalled + 1
-        self.last_best = min(self.last_best, f)
+        best = float(self.fitness)
+        self.stalled = 0 if best < self.last_best * (1 - IMPROVED) else self.stalled + 1
+        self.last_best = min(self.last_best, best)
 
     def restart(self) -> None:
         """Start afresh at the next :meth:`ask`: a new initial population from a random stream of its own."""

@@ -30,7 +30,7 @@ class MemoryBus:
     """
 
     def __init__(
-        self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], None], stop: threading.Event, admit: Admit | None = None,
+        self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], object], stop: threading.Event, admit: Admit | None = None,
         assigned: Callable[[str], str | None] | None = None, coordinator: bytes = b"",
     ) -> None:
         self.prefix = key_prefix(campaign)

@@ -111,9 +111,10 @@ class Transport(Protocol):
 
     credentials: Credentials
     """The island run's identity: issued when it joined."""
-    arrivals: Arrivals | None
-    """The migrant messages this island takes from, if the transport shares them between the islands of a
-    process (None: the island keeps its own)."""
+    @property
+    def arrivals(self) -> Arrivals | None:
+        """The migrant messages this island takes from, if the transport shares them between the islands of a
+        process (None: the island keeps its own)."""
     silent_s: float | None
     """A ring member that sent no migrants for this long is skipped (None: every member sends at every epoch)."""
 
@@ -289,7 +290,7 @@ class IslandNode:
         if sender != self.island:  # not our own publication, back through a subscription to every island's migrants
             self._arrivals().receive(sender, data)
 
-    def _follow_assignment(self) -> PopulationOptimizer:
+    def _follow_assignment(self) -> PopulationOptimizer | Island:
         """The optimizer to go on with: this one, or its search carried on by the algorithm the
         coordinator now assigns this run (a mixed campaign's staged or adaptive share, :mod:`island.share`)."""
         transport, _ = self._attached()
@@ -301,7 +302,7 @@ class IslandNode:
             self.algo = algo
         return self.optimizer
 
-    def _migrate(self, optimizer: PopulationOptimizer) -> PopulationOptimizer:
+    def _migrate(self, optimizer: PopulationOptimizer | Island) -> PopulationOptimizer | Island:
         """After an iteration: follow a new assignment, take the starting point and the global best
         in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
         transport, credentials = self._attached()

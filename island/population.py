@@ -103,6 +103,11 @@ class Batch:
 class PopulationOptimizer(AskTell):
     """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring)."""
 
+    population: int
+    """The population (GA) or swarm (PSO) size: set by the subclass."""
+    initial_population: int
+    """Candidates of iteration 0: set by the subclass."""
+
     def __init__(
         self,
         bounds: np.ndarray,
@@ -188,8 +193,8 @@ class PopulationOptimizer(AskTell):
         """The most candidates ``tell`` can have counted by the end of ``iteration`` (a number or an
         array): the initial population, then a population plus the additional population per
         iteration, each batch told at most ``1 + redraw_limit`` times (a claim above it is impossible)."""
-        per_iteration = self.population + self.addpop_number  # type: ignore[attr-defined]
-        return (self.initial_population + iteration * per_iteration) * (1 + self.redraw_limit)  # type: ignore[attr-defined]
+        per_iteration = self.population + self.addpop_number
+        return (self.initial_population + iteration * per_iteration) * (1 + self.redraw_limit)
 
     @property
     def done(self) -> bool:
@@ -240,7 +245,7 @@ class PopulationOptimizer(AskTell):
         if not other.history or other._batch is not None:
             raise ValueError(f"{other.name}: a search is carried on only between two of its iterations")
         x, f = other.best(other._known()[1].size)
-        rows = np.arange(self.population) % f.size  # type: ignore[attr-defined]
+        rows = np.arange(self.population) % f.size
         self._adopt(x[rows], f[rows])
         self.rng, self._iteration, self._evaluations = other.rng, other._iteration, other._evaluations
         self.history, self.gain = list(other.history), other.gain

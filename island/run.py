@@ -20,7 +20,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -28,6 +28,25 @@ from island.algorithms import make_optimizer
 from island.polish import polish
 from island.population import PopulationOptimizer
 from island.termination import Termination
+
+
+class Searcher(Protocol):
+    """What :func:`run` drives: an ask/tell optimizer (:class:`PopulationOptimizer`, or a memetic island of
+    :mod:`island.memetic`)."""
+
+    @property
+    def history(self) -> list[float]: ...
+    @property
+    def done(self) -> bool: ...
+    @property
+    def iteration(self) -> int: ...
+    @property
+    def evaluations(self) -> int: ...
+    def ask(self) -> np.ndarray: ...
+    def tell(self, x: np.ndarray, f: np.ndarray) -> None: ...
+
+
+_S = TypeVar("_S", bound=Searcher)
 
 
 @dataclass
@@ -44,12 +63,12 @@ class HistoryRow:
 
 
 def run(
-    optimizer: PopulationOptimizer,
+    optimizer: _S,
     objective: Callable[[np.ndarray], np.ndarray],
     *,
     callback: Callable[[HistoryRow], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
-    migrate: Callable[[PopulationOptimizer], PopulationOptimizer | None] | None = None,
+    migrate: Callable[[_S], _S | None] | None = None,
     termination: Termination | None = None,
 ) -> list[HistoryRow]:
     """Ask, evaluate, tell until the optimizer is done, ``should_stop()`` or a ``termination`` rule;

@@ -170,13 +170,13 @@ def register(app: typer.Typer) -> None:
         path = database(db, target_dir, name, resuming=False)
         new_db = not path.exists()
         loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
-        sizes, termination, until_stopped, iterations = o.island_plan(
+        plan, termination, until_stopped, iterations = o.island_plan(
             loops, model, bounds, algo_list, population, initial, given_iterations, termination)
         try:
             with Progress("campaign", islands * (iterations or 0) or 100, enabled=not (quiet or as_json)) as bar:
                 result = campaign(
                     loops, model, islands=islands, name=name, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
-                    algos=algo_list, options=sizes, migration=migration,
+                    algos=algo_list, options=plan, migration=migration,
                     seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
                     polish=polish, progress=campaign_reporter(bar, islands, iterations, termination), until_stopped=until_stopped, share=share,
                 )

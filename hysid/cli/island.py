@@ -104,8 +104,9 @@ def register(app: typer.Typer) -> None:
         finally:
             session.close()
         failed = [h for h in hosted if h.error is not None]
-        if len(hosted) == 1 and failed:
-            raise failed[0].error  # one island: its error as it is
+        first = failed[0].error if failed else None
+        if len(hosted) == 1 and first is not None:
+            raise first  # one island: its error as it is
         for h in hosted:
             if h.error is not None or h.node is None:
                 continue
@@ -129,7 +130,7 @@ def register(app: typer.Typer) -> None:
         if failed:
             raise HysidInputError(
                 f"{len(failed)} of {len(hosted)} islands of this process failed: "
-                + "; ".join(f"{h.spec.id}: {describe(h.error)}" for h in failed[:3]) + ("; ..." if len(failed) > 3 else "")
+                + "; ".join(f"{h.spec.id}: {describe(h.error)}" for h in failed[:3] if h.error is not None) + ("; ..." if len(failed) > 3 else "")
             )
 
 

@@ -337,13 +337,14 @@ def island_sizes(population: int | None, initial: int | None, iterations: int | 
 def island_plan(
     loops: LoopSet, model: str, bounds: dict[str, tuple[float, float]] | None, algos: list[str],
     population: int | None, initial: int | None, iterations: int | None, termination: Termination,
-) -> tuple[dict[str, dict[str, Any]] | None, Termination | None, bool, int | None]:
+) -> tuple[dict[str, dict[str, Any]] | None, Termination, bool, int | None]:
     """The islands' ``(options, termination, until_stopped, iterations)`` from ``--population``, ``--initial``,
     ``--iterations`` and the stop rules: with none of the three given on a model with memory, the library's
     defaults (:func:`hysid.campaigns.island_settings`: memetic islands), so that the command line and Python
     search alike; else these sizes, each island running :func:`island_budget`'s iterations."""
     if population is None and initial is None and iterations is None and default_options(loops, model, bounds, algos) is not None:
-        return (*island_settings(loops, model, bounds, algos, None, termination, None), None)
+        options, chosen, until_stopped = island_settings(loops, model, bounds, algos, None, termination, None)
+        return options, chosen or termination, until_stopped, None  # chosen: never None when termination is given
     iterations, until_stopped = island_budget(iterations, termination)
     return island_sizes(population, initial, iterations), termination, until_stopped, iterations
 
