@@ -42,7 +42,9 @@ Every step is linear in the record length.
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import reduce
 from math import comb
+from typing import cast
 
 import numpy as np
 
@@ -187,7 +189,7 @@ def smooth_part(theta: np.ndarray, harmonics: int, gram: np.ndarray, projection:
     side = np.where(psi < hi, 1.0, -1.0)
     blocks = [slice(i, i + CHUNK) for i in range(0, theta.size, CHUNK)]
     rows = (lambda b: design[:, b]) if design is not None else (lambda b: harmonic_design(theta[b], harmonics))
-    cross = sum(rows(b) @ side[b] for b in blocks)
+    cross = reduce(np.add, (rows(b) @ side[b] for b in blocks))
     full = np.block([[gram, cross[:, None]], [cross[None, :], np.array([[float(side.size)]])]])
     coef = np.linalg.lstsq(full, np.append(projection, side @ force), rcond=None)[0]
     residual = force - coef[-1] * side
@@ -269,7 +271,7 @@ def _local_fits(ps: np.ndarray, ys: np.ndarray, centre: np.ndarray, h: float, lo
         coef = np.einsum("wij,wj->wi", inverse, rhs)
         resid = y - coef[win, 0] - coef[win, 1] * u - coef[win, 2] * u * u
         out.append((coef[:, 0], inverse[:, 0, 0], np.add.reduceat(resid * resid, starts), moments[0] - 3))
-    return tuple(np.concatenate(parts) for parts in zip(*out))
+    return cast(tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple(np.concatenate(parts) for parts in zip(*out)))
 
 
 def _shared_variance(ps: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:

@@ -156,8 +156,8 @@ def _load_dir(directory: Path, config: DatasetConfig, n_points: int | None) -> L
         return read_mat_dataset(mats, config, n)
     sources = directory_sources(directory, config)
     if sources:
-        suffixes = sorted({s.path.suffix.lower()[1:] for s in sources})
-        return extract_records(sources, config, n, "raw-" + "+".join(suffixes), estimate_manifest=True)
+        kinds = sorted({s.path.suffix.lower()[1:] for s in sources})
+        return extract_records(sources, config, n, "raw-" + "+".join(kinds), estimate_manifest=True)
     raise HysidInputError(
         f"{directory}: no dataset here (expected {MANIFEST_NAME} with raw records, {TIDY_NAME}, .mat loop files, or raw records: "
         f"{', '.join(RAW_SUFFIXES)})"

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
@@ -81,7 +82,7 @@ def device_model(model: Model) -> tuple[Model, np.ndarray]:
     return device, np.array([model.names.index(n) for n in device.names], dtype=int)
 
 
-def sine_loops(freq_hz: np.ndarray, x0: np.ndarray, points: int = POINTS) -> LoopSet:
+def sine_loops(freq_hz: ArrayLike, x0: ArrayLike, points: int = POINTS) -> LoopSet:
     """Empty loops under the ideal sine X0 sin(wt), both branches sampled evenly in phase (x ascending on each)."""
     freq_hz, x0 = np.asarray(freq_hz, dtype=float).reshape(-1), np.asarray(x0, dtype=float).reshape(-1)
     s = np.sin(np.linspace(-0.5 * np.pi, 0.5 * np.pi, points))

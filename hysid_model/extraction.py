@@ -54,6 +54,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any, cast
 import warnings
 
 import numpy as np
@@ -113,7 +114,7 @@ class ExtractedLoop:
     """The reversal values less their fits on half windows at 1, 2, 4, 8 times the points per branch, in standard
     errors (:func:`hysid_model.resolution.reversal_steps`); None where the force's harmonics gave the branches."""
 
-    def meta(self) -> dict[str, float]:
+    def meta(self) -> dict[str, Any]:
         """Per-loop facts kept in ``LoopSet.meta['per_loop']``."""
         return {
             "phase_deg": self.phase_deg,
@@ -207,11 +208,12 @@ def _spectral_frequency(t: np.ndarray, x: np.ndarray, source: str) -> float:
     if first >= mag.size - 1 or not np.any(mag[first:] > 0):
         raise HysidInputError(f"{source}: the displacement does not oscillate")
     k = first + int(np.argmax(mag[first:-1]))
+    peak = float(k)
     if k > first:
         a, b, c = np.log(mag[k - 1 : k + 2] + 1e-300)
         den = a - 2 * b + c
-        k = k + (0.5 * (a - c) / den if den < 0 else 0.0)
-    return float(k / (nfft * dt))
+        peak = k + (0.5 * (a - c) / den if den < 0 else 0.0)
+    return float(peak / (nfft * dt))
 
 
 def _long_spectrum(x: np.ndarray, nfft: int) -> np.ndarray:
@@ -438,7 +440,7 @@ def extract_loop(
         samples_per_point=float(np.mean(1.0 / var)),
         window_overlap=overlap,
         force_harmonics=force_harmonics,
-        drift=tuple(float(d) for d in plausibility.amplitude_drift(used)),
+        drift=cast(tuple[float, float], tuple(float(d) for d in plausibility.amplitude_drift(used))),  # (displacement, force)
         clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), plausibility.mean_cycle(theta / (2 * np.pi), fs),
                                        plausibility.saturation(fs), xh, freq),
         reversal_steps=None if force_harmonics is not None else reversal_steps(psi, centred, sample_phases, (lo, hi), guard, sigma_raw),

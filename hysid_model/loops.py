@@ -183,7 +183,7 @@ class LoopSet:
         keep = np.ones((self.n_loops, 2 * n), dtype=bool)
         resolved = (self.meta.get("per_loop") or {}).get("reversals_resolved")
         if resolved is not None:
-            keep[np.ix_(~np.asarray(resolved, dtype=bool), [0, n - 1, n, 2 * n - 1])] = False
+            keep[np.ix_(~np.asarray(resolved, dtype=bool), np.array([0, n - 1, n, 2 * n - 1]))] = False
         return keep
 
     def rows(self) -> list[dict[str, Any]]:

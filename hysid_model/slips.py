@@ -135,6 +135,7 @@ class Slip:
     def fix(self, given_mass: float | None = None) -> str:
         """Where it shows and what to declare."""
         if self.quantity == "mass":
+            assert given_mass is not None  # a mass in the wrong unit was given
             return f"meq_kg in g (meq_kg = {given_mass * self.factor:.4g})"
         return f"the {self.quantity} in {self.true_unit} {self.as_read} ({self.quantity}_unit = \"{self.true_unit}\")"
 

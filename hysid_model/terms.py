@@ -238,7 +238,7 @@ def linear_response(kin: Kinematics, stiffness: Stiffness) -> Coefficients:
     return out
 
 
-def complex_amplitude(coefs: Coefficients, order: int) -> np.ndarray:
+def complex_amplitude(coefs: Coefficients, order: int) -> np.ndarray | complex:
     """Harmonic ``order`` as one complex amplitude A: s sin(k wt) + c cos(k wt) = Re[A e^{j k wt}], A = c - j s."""
     zero = 0.0
     return coefs.get(f"c{order}", zero) - 1j * coefs.get(f"s{order}", zero)

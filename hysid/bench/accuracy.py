@@ -121,7 +121,7 @@ def run(seeds: int = DEFAULT_SEEDS, thesis_runs: int = THESIS_RUNS) -> dict[str,
     if thesis_runs < 4 or thesis_runs % 4:
         raise HysidInputError("must be a positive multiple of 4 (the thesis averages 4 runs)", param="thesis_runs", value=thesis_runs)
     start = time.perf_counter()
-    result = {
+    result: dict[str, Any] = {
         "bench": "accuracy",
         "clean": clean_target(),
         "cramer_rao": cramer_rao_target(seeds),

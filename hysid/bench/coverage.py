@@ -204,7 +204,7 @@ def run(seeds: int = SEEDS, names: tuple[str, ...] | None = None) -> dict[str, A
         raise HysidInputError(f"unknown specimen {unknown[0]!r}; choose from {', '.join(known)}", param="specimens", value=unknown[0])
     if seeds < 10:
         raise HysidInputError("need at least 10 noise seeds (a share of fewer says little)", param="seeds", value=seeds)
-    result = {"bench": "coverage", "target": {"within_stderr": WITHIN, "share": TARGET},
+    result: dict[str, Any] = {"bench": "coverage", "target": {"within_stderr": WITHIN, "share": TARGET},
               "specimens": {name: specimen_coverage(known[name], seeds) for name in names}}
     result["ok"] = all(s["ok"] for s in result["specimens"].values())
     return jsondoc.plain(result)

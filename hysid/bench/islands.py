@@ -51,6 +51,7 @@ from dataclasses import replace
 import tempfile
 import time
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -215,7 +216,7 @@ def mixed(seeds: int = MIXED_SEEDS, islands: int = 4, population: int = 20) -> d
                 spent[label].append(c.evaluations)
                 for m in c.sharing.moves:
                     moves[label][f"{m.src}->{m.dst}"] = moves[label].get(f"{m.src}->{m.dst}", 0) + 1
-    rates: dict[str, dict[str, dict[str, Any]]] = {}
+    rates: dict[str, dict[str, Any]] = {}
     for label in MIXES:
         rates[label] = {}
         for budget in MIXED_BUDGETS:
@@ -296,7 +297,7 @@ def versus_pygmo(seeds: int = 3, islands: int = 4, population: int = 20, budget:
             out["hysid"].append({"time_to_target_s": time_to(c, target), "final_fitness": f, "evaluations": evaluations,
                                  "parameter_error": parameter_error(x, names)})
             out["pygmo"].append(pygmo_archipelago(islands, population, 5, budget, target, seed))
-    summary = {}
+    summary: dict[str, dict[str, Any]] = {}
     for k, runs in out.items():
         times = [r["time_to_target_s"] for r in runs]
         summary[k] = {
@@ -317,7 +318,7 @@ def run(parts: list[str] | tuple[str, ...] = PARTS) -> dict[str, Any]:
     unknown = [p for p in parts if p not in PARTS]
     if unknown:
         raise HysidInputError(f"choose one of {', '.join(PARTS)} or all", param="part", value=unknown[0])
-    functions = {"speedup": speedup, "migration": migration, "mixed": mixed, "pygmo": versus_pygmo, "latency": latency}
+    functions: dict[str, Callable[[], dict[str, Any]]] = {"speedup": speedup, "migration": migration, "mixed": mixed, "pygmo": versus_pygmo, "latency": latency}
     out: dict[str, Any] = {}
     for part in parts:
         start = time.perf_counter()

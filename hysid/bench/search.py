@@ -92,7 +92,7 @@ FIT_TIME_MR_AMPLITUDES_M = np.linspace(2.5e-3, 20e-3, 8)
 """The 40 loops of the simulated MR damper (1 V) that :func:`fit_times` fits."""
 FIT_TIME_POINTS: int = inspect.signature(extract_loop).parameters["n_points"].default
 """Samples per branch of those loops: what extraction gives by default (:func:`hysid_model.extraction.extract_loop`)."""
-QUICK = {"seeds": 3, "problems": ("mr_damper_1v", "thesis_easy"), "budget": 3000, "speedup_budget": 20_000, "speedup_repeats": 1}
+QUICK: dict[str, Any] = {"seeds": 3, "problems": ("mr_damper_1v", "thesis_easy"), "budget": 3000, "speedup_budget": 20_000, "speedup_repeats": 1}
 """The quick mode (tests, a look): 3 seeds, two problems, small budgets; ``ok`` is not meaningful there."""
 
 
@@ -106,9 +106,9 @@ def run_method(problem: Problem, method: str, seed: int, budget: int) -> dict[st
         return {"fitness": result.fitness, "evaluations": result.evaluations, "wall_s": time.perf_counter() - began, "trace": trace}
     if method in CAMPAIGNS:
         islands, single = CAMPAIGNS[method]
-        result = hysid.campaign(problem.loops, problem.model, islands=islands, name=f"search-{seed}", bounds=problem.bounds, displacement=DISPLACEMENT,
-                                seed=1000 * seed, termination=Termination(budget=budget), single_node=single)
-        return {"fitness": result.fit.fitness, "evaluations": result.fit.evaluations, "wall_s": time.perf_counter() - began, "trace": []}
+        outcome = hysid.campaign(problem.loops, problem.model, islands=islands, name=f"search-{seed}", bounds=problem.bounds, displacement=DISPLACEMENT,
+                                 seed=1000 * seed, termination=Termination(budget=budget), single_node=single)
+        return {"fitness": outcome.fit.fitness, "evaluations": outcome.fit.evaluations, "wall_s": time.perf_counter() - began, "trace": []}
     objective = build_objective(problem.loops, problem.model, bounds=problem.bounds)
     return PEERS[method](objective, budget, seed)
 

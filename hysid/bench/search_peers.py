@@ -46,7 +46,8 @@ class Tracker:
     def __init__(self, objective: Any, budget: int) -> None:
         self.objective, self.budget = objective, budget
         self.evaluations = 0
-        self.best, self.best_x = np.inf, None
+        self.best = np.inf
+        self.best_x: np.ndarray | None = None
         self.trace: list[tuple[int, float, float]] = []
         """(evaluations, seconds, best fitness) at every improvement."""
         self.began = time.perf_counter()

@@ -195,7 +195,7 @@ softening hysteretic spring of 40 kN/m yielding at 0.4 mm (16 N)."""
 WIRE_ROPE_SENSOR = {2: 0.06, 3: 0.03}
 """Harmonics the displacement sensor adds (relative to the fundamental): the motion has none."""
 SYNTH_BOUC_WEN = {**TRUE_PARAMS, "meq": MEQ_KG, "bw_k": 400.0, "bw_zy": 0.3e-3, "bw_r": 0.5}
-SYNTH_DISTORTION = {2: 0.05, 3: 0.03}
+SYNTH_DISTORTION: dict[int, complex] = {2: 0.05, 3: 0.03}
 
 
 def synth_subset() -> tuple[np.ndarray, np.ndarray]:

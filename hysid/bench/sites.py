@@ -30,7 +30,7 @@ import time
 import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, TextIO, cast
 
 import numpy as np
 
@@ -130,7 +130,7 @@ def wait_for(what: str, condition: Any, timeout_s: float, processes: list[subpro
         if (value := condition()):
             return value
         if dead := [p for p in processes if p.poll() is not None]:
-            raise RuntimeError(f"waiting for {what}: {dead[0].args[-8:]} exited with {dead[0].returncode}")
+            raise RuntimeError(f"waiting for {what}: {cast(list[str], dead[0].args)[-8:]} exited with {dead[0].returncode}")
         time.sleep(0.1)
     raise RuntimeError(f"waiting for {what}: nothing after {timeout_s:g} s")
 
@@ -232,7 +232,9 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
                       "caught_up_s": wait_for(f"site {k} history caught up", caught_up, 60, [coordinator]) - up})
     for island in islands:
         if island.wait(timeout=time_limit_s + 120) != 0:
-            raise RuntimeError(f"island process {island.args[island.args.index('--id') + 1]} exited with {island.returncode}: {island.stderr.read().strip()[-300:]}")
+            args = cast(list[str], island.args)
+            assert island.stderr is not None  # started with stderr=PIPE
+            raise RuntimeError(f"island process {args[args.index('--id') + 1]} exited with {island.returncode}: {island.stderr.read().strip()[-300:]}")
     if coordinator.wait(timeout=60) != 0:
         log.flush()
         raise RuntimeError(f"coordinator exited with {coordinator.returncode}: {Path(log.name).read_text().strip()[-500:]}")

@@ -112,6 +112,11 @@ def _mr_truth(level: dict[str, float]) -> dict[str, float]:
     return {"xi0": level["c0"] / (2.0 * meq * w0), "w0": w0, "meq": meq, "bw_k": level["f_y"] / level["zy"], "bw_zy": level["zy"], "bw_r": 0.0, "bw_n": 2.0}
 
 
+def _mr_loops(name: str, level: dict[str, float]) -> Callable[[], LoopSet]:
+    """The loops of the MR damper at ``level``, made when asked."""
+    return lambda: sp.extracted(name, sp.mr_damper_records(level, rate_hz=RATE_HZ, cycles=CYCLES), None, POINTS)
+
+
 def cases() -> list[Case]:
     freq_f, amp_f = sp.grid(np.array([2.0, 4.0, 8.0]), np.array([2e-3, 4e-3, 6e-3]))
     freq_w, amp_w = sp.grid(np.array([10.0, 18.0, 30.0]), np.array([0.5e-3, 1.0e-3, 2.0e-3]))
@@ -123,7 +128,7 @@ def cases() -> list[Case]:
     ]
     for name, level in sp.MR_LEVELS.items():
         out.append(Case(name, "MR damper", f"Spencer-type MR damper, Bouc-Wen n = 2, yield force {level['f_y']:g} N",
-                        lambda level=level, name=name: sp.extracted(name, sp.mr_damper_records(level, rate_hz=RATE_HZ, cycles=CYCLES), None, POINTS),
+                        _mr_loops(name, level),
                         frozenset(BOUC_WEN), None, ("mr_damper", _mr_truth(level), "measured")))
     out += [
         Case("friction_damper", "friction damper", "Bouc-Wen hysteresis and Coulomb friction",

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -95,7 +96,7 @@ def convergence_figure(path: Path, panels: Sequence[tuple[str, Sequence[RunResul
                 ax.plot(end * 1.15 if many else end + 1, shown, marker="*", markersize=8, color=color, linestyle="none", clip_on=False)
                 if shown > r.fitness:
                     clipped.append(r.fitness)
-        if clipped:
+        if clipped and floor:  # clipped only below a floor
             low, high = f"{min(clipped):.2g}", f"{max(clipped):.2g}"
             ax.annotate(
                 f"polish: {low}" + (f" to {high}" if high != low else "") + "\n(below the axis)",
@@ -352,7 +353,7 @@ def scatter_figure(
         ax.set_xlabel("noise level")
         ax.set_title(title)
     axes[0].set_ylabel(f"{math_name(name)} ({unit})" if unit and unit != "1" else math_name(name))
-    handles = [Line2D([], [], color=series_color(s), marker="o", markersize=5) for s in range(len(panels[0][1]))]
+    handles: list[Artist] = [Line2D([], [], color=series_color(s), marker="o", markersize=5) for s in range(len(panels[0][1]))]
     labels = [label for label, _ in panels[0][1]]
     handles.append(Line2D([], [], color=TRUE, linestyle="--"))
     labels.append("true value")

@@ -87,8 +87,8 @@ def write_reproduction_report(rep: "Reproduction", out_dir: Path | str) -> Path:
         n_fig += 1
     parts.append("## Figs. 5.6-5.9: convergence (thesis-faithful runs)")
     for noise in tt.NOISE_LEVELS:
-        panels = [(f"({'ab'[k]}) {algo.upper()}", [r.runs[0] for r in rep.results[("thesis", algo, noise)]]) for k, algo in enumerate(tt.ALGOS)]
-        path = figures.convergence_figure(out_dir / f"fig5_{n_fig}_convergence_{noise}pct.png", panels, FITNESS_LABEL["thesis"], f"{noise} % noise")
+        runs = [(f"({'ab'[k]}) {algo.upper()}", [r.runs[0] for r in rep.results[("thesis", algo, noise)]]) for k, algo in enumerate(tt.ALGOS)]
+        path = figures.convergence_figure(out_dir / f"fig5_{n_fig}_convergence_{noise}pct.png", runs, FITNESS_LABEL["thesis"], f"{noise} % noise")
         parts.append(image(path, out_dir, f"Fig. 5.{n_fig}: convergence at {noise} % noise, all runs overlaid, matching scales"))
         n_fig += 1
     parts.append("## Figs. 5.10-5.13: measured vs model loops (thesis-faithful PSO, run 1)")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Callable, ParamSpec, TypeVar
+from typing import Any, Callable, ParamSpec, TypeVar
 
 import matplotlib as mpl
 import numpy as np
@@ -21,7 +21,7 @@ DPI = 200
 PAGE_WIDTH_IN = 7.0
 """Full text width of a two-column journal page."""
 
-RC = {
+RC: dict[str, Any] = {
     "font.family": "DejaVu Sans",
     "font.size": 8.5,
     "axes.titlesize": 8.5,
@@ -81,7 +81,7 @@ def styled(func: Callable[P, R]) -> Callable[P, R]:
 
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
-        with mpl.rc_context(RC):
+        with mpl.rc_context(RC):  # type: ignore[arg-type]  # matplotlib's stubs want literal rc keys; RC's are checked by matplotlib when set
             return func(*args, **kwargs)
 
     return wrapper

@@ -80,7 +80,7 @@ def hz_text(f_hz: float) -> str:
     return f"{f_hz:.4g} Hz"
 
 
-def band_text(freq_hz: Sequence[float]) -> str:
+def band_text(freq_hz: Sequence[float] | np.ndarray) -> str:
     """The frequency band of some loops: ``0.25-2 Hz``, or one frequency (``12 Hz``, not ``12-12 Hz``)."""
     low, high = f"{min(freq_hz):.4g}", f"{max(freq_hz):.4g}"
     return f"{low} Hz" if low == high else f"{low}-{high} Hz"
@@ -132,9 +132,10 @@ def fit_warnings(result: "FitResult") -> list[Notice]:
     if implausible:
         out.append(Notice("mass_implausible", f"warning: {implausible}"))
     misfit = result.misfit
-    missed = result.adequacy is not None and not result.adequacy.adequate
-    if missed:
-        out.append(Notice("misfit", f"warning: {result.adequacy.words()}; a diagnosis (hysid diagnose, or hysid.diagnose) tells what it is missing"))
+    adequacy = result.adequacy
+    missed = adequacy is not None and not adequacy.adequate
+    if adequacy is not None and missed:
+        out.append(Notice("misfit", f"warning: {adequacy.words()}; a diagnosis (hysid diagnose, or hysid.diagnose) tells what it is missing"))
     if misfit is not None and misfit > STDERR_TRUST and result.weights != "ml":  # ML weights' errors are scaled up by it
         out.append(Notice("stderr_understated",
             f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "

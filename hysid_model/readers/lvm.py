@@ -209,6 +209,7 @@ def _read_standard(path: Path, text: str, config: DatasetConfig) -> TimeSeries:
                 data = np.loadtxt(io.StringIO(block), delimiter=sep, usecols=need, ndmin=2)
         except ValueError:
             raise HysidInputError(f"{path}: data rows from line {seg.first_line} are not numbers in the channel columns") from None
+        t: np.ndarray
         if x_columns in ("One", "Multi"):
             t = data[:, 2]
         else:
