@@ -347,6 +347,7 @@ def fit(
     began = time.perf_counter()
     motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
     objective = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=motion.displacement)
+    assert isinstance(objective, Objective)  # the closed form (build_objective's default kind)
     first = starting_point(objective.loops, objective.model) if start else None
     widened: list[dict[str, Any]] = []
     memetic = needs_islands(objective.model) and options is None if islands is None else bool(islands)
@@ -383,7 +384,9 @@ def fit(
         return objective, results
 
     def under(reading: str) -> Objective:
-        return build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=reading)
+        built = build_objective(loops, model, weights=weights, bounds=bounds, fixed=fixed, displacement=reading)
+        assert isinstance(built, Objective)  # the closed form (build_objective's default kind)
+        return built
 
     objective, results = identify(objective, first)
     spent = sum(r.evaluations for r in results)

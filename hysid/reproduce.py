@@ -29,6 +29,7 @@ from hysid.fitting import FitResult, fit
 from hysid.report import reproduction
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
+from hysid_model.objective import Objective
 from hysid_model.problem import build_objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from hysid_model.uncertainty import cramer_rao_stderr
@@ -88,6 +89,7 @@ def cramer_rao_bounds(noise_levels: tuple[int, ...] = tt.NOISE_LEVELS) -> dict[i
             out[noise] = np.zeros(len(PARAMS))
             continue
         obj = build_objective(synth_loops(noise, seed=0), MODEL, weights="ml")
+        assert isinstance(obj, Objective)  # the closed form (build_objective's default kind)
         out[noise] = cramer_rao_stderr(obj, obj.model.from_dict(TRUE_PARAMS))
     return out
 

@@ -33,7 +33,6 @@ their islands, the diagnosis and the benches all come here):
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Literal, overload
 
 import numpy as np
 
@@ -129,30 +128,6 @@ def starting_point(loops: LoopSet, model: Model) -> np.ndarray:
     return np.clip(model.from_dict(values), model.bounds[:, 0], model.bounds[:, 1])
 
 
-@overload
-def build_objective(
-    loops: LoopSet,
-    model: str | Model = "thesis",
-    weights: str | None = None,
-    *,
-    bounds: Bounds | None = None,
-    fixed: Mapping[str, float] | None = None,
-    derived: Bounds | None = None,
-    kind: Literal["closed_form"] = "closed_form",
-    displacement: str = "measured",
-) -> Objective: ...
-@overload
-def build_objective(
-    loops: LoopSet,
-    model: str | Model = "thesis",
-    weights: str | None = None,
-    *,
-    bounds: Bounds | None = None,
-    fixed: Mapping[str, float] | None = None,
-    derived: Bounds | None = None,
-    kind: str,
-    displacement: str = "measured",
-) -> Objective | ThesisObjective: ...
 def build_objective(
     loops: LoopSet,
     model: str | Model = "thesis",

@@ -49,6 +49,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.modal import DERIVED, derived_quantities
 from hysid_model.model import Model, build_model
+from hysid_model.objective import Objective
 from hysid_model.problem import build_objective
 from hysid_model.synth import simulate_raw
 from hysid_model.user_laws import UserTerm
@@ -131,6 +132,7 @@ def polished(loops: LoopSet, model: Model | str, start: dict[str, float], seed: 
     began = time.perf_counter()
     motion = choose_motion(loops, model, "auto")
     objective = build_objective(loops, model, displacement=motion.displacement)
+    assert isinstance(objective, Objective)  # the closed form (build_objective's default kind)
     first = np.clip(objective.model.from_dict(start), objective.bounds[:, 0], objective.bounds[:, 1])
     best = polish(objective, first)
     run = RunResult(label="polish from a start", algo="polish", seed=seed, theta=best.theta, fitness=best.fitness,

@@ -165,6 +165,7 @@ def reference_nrmse(loops: LoopSet) -> float:
     starts within the bounds of ``mr_damper`` on ``loops``, the best kept (module docstring)."""
     from scipy.optimize import least_squares  # on first use: a fast CLI and island start
     objective = build_objective(loops, "mr_damper", displacement="measured")
+    assert isinstance(objective, Objective)  # the closed form (build_objective's default kind)
     lower, upper = objective.bounds[:, 0], objective.bounds[:, 1]
     rng = np.random.default_rng(0)
 
