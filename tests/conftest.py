@@ -5,10 +5,12 @@ import subprocess
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
+from hysid.bench.objective import distorted_synth
 from hysid_model.synth import MEQ_KG, synth_loops
 
 
@@ -17,6 +19,18 @@ def synth():
     """The thesis model and its objective on the noiseless Synth set."""
     model = build_model("thesis").fix(meq=MEQ_KG)
     return model, Objective(synth_loops(0), model)
+
+
+@pytest.fixture(scope="module")
+def ideal():
+    """Every seventh loop of the noiseless Synth set, 40 points per branch (the kernels' and Bouc-Wen's tests)."""
+    return synth_loops(0.0, 0, 40).subset(np.arange(0, 120, 7))
+
+
+@pytest.fixture(scope="module")
+def distorted():
+    """Every eleventh loop of the Synth set under a distorted displacement (the kernels' and Bouc-Wen's tests)."""
+    return distorted_synth().subset(np.arange(0, 120, 11))
 
 
 @pytest.fixture

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import subprocess
 import sys
+import textwrap
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -46,6 +50,28 @@ def cell_average(u, theta: np.ndarray, before: np.ndarray, after: np.ndarray, ju
             values = u(np.broadcast_to(mid, (theta.shape[0], mid.size)))[l]
             out[l, n] = np.dot(hat, values) / hat.sum()
     return out
+
+
+@contextmanager
+def importable(where: Path, name: str, source: str) -> Iterator[ModuleType]:
+    """A user's module ``name`` written from ``source`` into ``where``, imported, and importable (``where`` on
+    ``sys.path``) until the block ends."""
+    (where / f"{name}.py").write_text(textwrap.dedent(source))
+    sys.path.insert(0, str(where))
+    try:
+        yield importlib.import_module(name)
+    finally:
+        sys.path.remove(str(where))
+
+
+def ask_sizes(opt, objective) -> list[int]:
+    """Run ``opt`` to the end of its budget, ask by ask; the size of every batch it asked."""
+    sizes = []
+    while not opt.done:
+        x = opt.ask()
+        sizes.append(x.shape[0])
+        opt.tell(x, objective(x))
+    return sizes
 
 
 def drive(opt, objective):

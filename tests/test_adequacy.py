@@ -3,9 +3,6 @@ loops alike, and what extraction cannot resolve at the motion reversals is no pa
 
 from __future__ import annotations
 
-import importlib
-import sys
-import textwrap
 
 import numpy as np
 import pytest
@@ -15,6 +12,7 @@ from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.model import build_model
 from hysid_model.synth import simulate_raw
 from island.termination import Termination
+from support import importable
 
 MODULE = "hysid_test_fluid_damper"
 SOURCE = '''
@@ -38,17 +36,11 @@ SPEC = f"baseline+{MODULE}:fluid"
 @pytest.fixture(scope="module")
 def fluid_loops(tmp_path_factory):
     """Raw records of the fluid damper (5 N of force noise, 10 cycles at 2 kHz), loaded with the defaults."""
-    where = tmp_path_factory.mktemp("fluidterms")
-    (where / f"{MODULE}.py").write_text(textwrap.dedent(SOURCE))
-    sys.path.insert(0, str(where))
-    try:
-        importlib.import_module(MODULE)
+    with importable(tmp_path_factory.mktemp("fluidterms"), MODULE, SOURCE):
         model = build_model(SPEC)
         f, x0 = np.tile([1.0, 2.0, 4.0], 2), np.repeat([5e-3, 20e-3], 3)
         raw = simulate_raw(model, model.from_dict(TRUTH), f, x0, noise_n=5.0, seed=3, sample_rate_hz=2000.0, cycles=10)
         yield load_dataset(write_dataset(tmp_path_factory.mktemp("fluid") / "lab", raw, name="fluid"))
-    finally:
-        sys.path.remove(str(where))
 
 
 def test_a_cusp_at_the_reversals_leaves_out_the_four_reversal_samples_of_each_loop(fluid_loops):

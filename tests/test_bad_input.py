@@ -61,24 +61,16 @@ def test_missing_or_misspelled_column(tmp_path, capsys):
     assert "force_n" in cli_error(["loops", str(d)], capsys)
 
 
-def test_nan_and_inf_name_column_and_line(tmp_path):
+@pytest.mark.parametrize(("row", "line", "expected"), [
+    (2, "0.001,0.0,nan", "run.csv: line 4: force_n is nan"),
+    (2, "0.001,inf,1.0", "line 4: displacement_m is inf"),
+    (5, "0.0025,abc,1.0", "run.csv: line 7: displacement_m 'abc' is not a number"),
+    (5, "0.0025,1.0", "line 7: 2 values for the 3 columns"),
+])
+def test_nan_inf_text_and_ragged_rows_name_column_and_line(tmp_path, row, line, expected):
     body = rows()
-    body[2] = "0.001,0.0,nan"
-    assert "run.csv: line 4: force_n is nan" in error_of(dataset(tmp_path, body))
-    body[2] = "0.001,inf,1.0"
-    d2 = tmp_path / "two"
-    d2.mkdir()
-    assert "line 4: displacement_m is inf" in error_of(dataset(d2, body))
-
-
-def test_text_in_a_number_column_and_ragged_rows(tmp_path):
-    body = rows()
-    body[5] = "0.0025,abc,1.0"
-    assert "run.csv: line 7: displacement_m 'abc' is not a number" in error_of(dataset(tmp_path, body))
-    body[5] = "0.0025,1.0"
-    d2 = tmp_path / "two"
-    d2.mkdir()
-    assert "line 7: 2 values for the 3 columns" in error_of(dataset(d2, body))
+    body[row] = line
+    assert expected in error_of(dataset(tmp_path, body))
 
 
 def test_time_must_increase(tmp_path):

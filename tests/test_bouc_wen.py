@@ -28,16 +28,6 @@ SHAPES = ((1e-5, -0.9), (3e-4, 0.3), (2e-3, 3.0), (1e-2, -0.5), (1e-4, 10.0), (2
 """(bw_zy, bw_r): yield from 1/150 to 20 x the Synth amplitudes (0.5 to 1.5 mm), every shape of Fig. 2.6 (and r >> 1)."""
 
 
-@pytest.fixture(scope="module")
-def ideal():
-    return synth_loops(0.0, 0, 40).subset(np.arange(0, 120, 7))
-
-
-@pytest.fixture(scope="module")
-def distorted():
-    return distorted_synth().subset(np.arange(0, 120, 11))
-
-
 def free_exponent(spec: str) -> Model:
     return build_model(spec).fix(meq=MEQ_KG).vary("bw_n")
 

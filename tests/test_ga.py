@@ -11,7 +11,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
 from island.ga import GA, blx_crossover, gaussian_mutation, mutation_count, rank_probabilities, select_couples
 from island.polish import polish
-from support import GA_SMALL as SMALL, drive
+from support import GA_SMALL as SMALL, ask_sizes, drive
 
 
 def test_rank_probabilities_are_eq_3_5():
@@ -92,12 +92,7 @@ def test_gaussian_mutation_rejects_out_of_bounds_values():
 def test_ask_sizes_and_thesis_budget(synth):
     model, objective = synth
     ga = GA(model.bounds, 0)
-    sizes = []
-    while not ga.done:
-        x = ga.ask()
-        sizes.append(x.shape[0])
-        ga.tell(x, objective(x))
-    assert sizes == [6000] + [500 + 15] * 18
+    assert ask_sizes(ga, objective) == [6000] + [500 + 15] * 18
     assert ga.evaluations == 15270 and ga.iteration == 18 and len(ga.history) == 19
 
 

@@ -6,30 +6,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hysid.bench.objective import distorted_synth
 from hysid_model import kernels, waveform
 from hysid_model.effects.bouc_wen import loading_orbit
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
-from hysid_model.synth import MEQ_KG, TRUE_PARAMS, synth_loops
+from hysid_model.synth import MEQ_KG, TRUE_PARAMS
 from support import cell_average
 from timedomain_reference import periodic_steady_state
 
 BASE = {**TRUE_PARAMS}
 SHAPES = [(3e-4, 0.3), (1e-5, -0.8), (5e-3, 1.0), (2e-4, 2.5), (1e-4, 0.0), (2e-6, -0.5), (0.5, 2.0)]
 """(bw_zy, bw_r): sharp and soft yield, every shape of Fig. 2.6, r = 0 (a = 0) and r < 0."""
-
-
-@pytest.fixture(scope="module")
-def ideal():
-    return synth_loops(0.0, 0, 40).subset(np.arange(0, 120, 7))
-
-
-@pytest.fixture(scope="module")
-def distorted():
-    return distorted_synth().subset(np.arange(0, 120, 11))
 
 
 def population(model, rng, n: int = 12) -> np.ndarray:

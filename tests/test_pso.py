@@ -10,7 +10,7 @@ from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
 from island.polish import polish
 from island.pso import PSO, bounded_move, constriction
-from support import PSO_SMALL as SMALL, drive
+from support import PSO_SMALL as SMALL, ask_sizes, drive
 
 
 def initialised(model, objective, **options):
@@ -103,12 +103,7 @@ def test_social_attractor_is_global_best_or_ring_neighbourhood_best(synth, neigh
 def test_ask_sizes_and_thesis_budget(synth):
     model, objective = synth
     pso = PSO(model.bounds, 0)
-    sizes = []
-    while not pso.done:
-        x = pso.ask()
-        sizes.append(x.shape[0])
-        pso.tell(x, objective(x))
-    assert sizes == [6000] + ([1] * 500 + [15]) * 18
+    assert ask_sizes(pso, objective) == [6000] + ([1] * 500 + [15]) * 18
     assert pso.evaluations == 15270 and len(pso.history) == 19
 
 

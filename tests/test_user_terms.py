@@ -3,10 +3,7 @@ in one line, model strings ``module:attribute``, and a known law recovered throu
 
 from __future__ import annotations
 
-import importlib
 import json
-import sys
-import textwrap
 
 import numpy as np
 import pytest
@@ -23,7 +20,7 @@ from hysid_model.params import Parameter
 from hysid_model.synth import harmonics, simulate_raw, synth_loops
 from hysid_model.terms import ModalState, TermGroup
 from hysid_model.user_laws import Cycle, FunctionTerm, RateTerm
-from support import GA_SMALL, PSO_SMALL
+from support import GA_SMALL, PSO_SMALL, importable
 
 MODULE = "hysid_test_labterms"
 """The user's module of these tests, written to a temporary directory (what ``myterms.py`` is to a user)."""
@@ -66,13 +63,8 @@ SPEC = f"baseline+{MODULE}:drag"
 @pytest.fixture(scope="module")
 def labterms(tmp_path_factory):
     """The user's module, importable (its directory on ``sys.path``) for this module's tests."""
-    where = tmp_path_factory.mktemp("labterms")
-    (where / f"{MODULE}.py").write_text(textwrap.dedent(SOURCE))
-    sys.path.insert(0, str(where))
-    try:
-        yield importlib.import_module(MODULE)
-    finally:
-        sys.path.remove(str(where))
+    with importable(tmp_path_factory.mktemp("labterms"), MODULE, SOURCE) as module:
+        yield module
 
 
 @pytest.fixture(scope="module")
