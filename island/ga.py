@@ -122,11 +122,8 @@ def gaussian_mutation(
 
 
 class GA(PopulationOptimizer):
-    """Real-coded GA of the thesis; every setting an option with the thesis value as default (section 5.1).
-
-    ``redraw_limit`` (not in the thesis) caps the rounds of "Couldn't calculate" redraws per batch
-    (:mod:`island.population`).
-    """
+    """Real-coded GA of the thesis (section 3.1, Figs. 3.6-3.8); every setting an option with the thesis value as
+    default (section 5.1), ``redraw_limit`` as :class:`island.population.PopulationOptimizer` says."""
 
     name = "GA"
 
@@ -167,18 +164,7 @@ class GA(PopulationOptimizer):
         self.fit: np.ndarray | None = None
 
     def _settings(self) -> dict[str, Any]:
-        return {
-            "initial_population": self.initial_population,
-            "population": self.population,
-            "iterations": self.iterations,
-            "alpha_blx": self.alpha_blx,
-            "mutation_rate": self.mutation_rate,
-            "mutation_amount": self.mutation_amount,
-            "addpop_amount": self.addpop_amount,
-            "addpop_level": self.addpop_level,
-            "migrant_policy": self.migrant_policy,
-            "redraw_limit": self.redraw_limit,
-        }
+        return self._settings_with({"alpha_blx": self.alpha_blx, "mutation_rate": self.mutation_rate, "mutation_amount": self.mutation_amount})
 
     def _next_batch(self) -> tuple[str, np.ndarray]:
         if self.pop is None:

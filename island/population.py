@@ -101,7 +101,8 @@ class Batch:
 
 
 class PopulationOptimizer(AskTell):
-    """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring)."""
+    """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring). ``redraw_limit`` (not in
+    the thesis) caps the rounds of "Couldn't calculate" redraws per batch."""
 
     population: int
     """The population (GA) or swarm (PSO) size: set by the subclass."""
@@ -161,6 +162,19 @@ class PopulationOptimizer(AskTell):
     @abstractmethod
     def _settings(self) -> dict[str, Any]:
         """The constructor's keyword options."""
+
+    def _settings_with(self, own: dict[str, Any]) -> dict[str, Any]:
+        """The keyword options of :meth:`_settings`: the sizes, the algorithm's ``own``, then those every algorithm has."""
+        return {
+            "initial_population": self.initial_population,
+            "population": self.population,
+            "iterations": self.iterations,
+            **own,
+            "addpop_amount": self.addpop_amount,
+            "addpop_level": self.addpop_level,
+            "migrant_policy": self.migrant_policy,
+            "redraw_limit": self.redraw_limit,
+        }
 
     @abstractmethod
     def _state(self) -> dict[str, Any]:

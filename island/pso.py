@@ -61,11 +61,8 @@ def bounded_move(x: np.ndarray, v: np.ndarray, bounds: np.ndarray) -> tuple[np.n
 
 
 class PSO(PopulationOptimizer):
-    """Constricted PSO of the thesis; every setting an option with the thesis value as default (section 5.1).
-
-    ``redraw_limit`` (not in the thesis) caps the rounds of "Couldn't calculate" redraws per batch
-    (:mod:`island.population`).
-    """
+    """Constricted PSO of the thesis (section 3.2, Figs. 3.11/3.12, Eq. 3.9); every setting an option with the
+    thesis value as default (section 5.1), ``redraw_limit`` as :class:`island.population.PopulationOptimizer` says."""
 
     name = "PSO"
 
@@ -117,19 +114,9 @@ class PSO(PopulationOptimizer):
         """All particles moved in this iteration; the additional population is next."""
 
     def _settings(self) -> dict[str, Any]:
-        return {
-            "initial_population": self.initial_population,
-            "population": self.population,
-            "iterations": self.iterations,
-            "phi1": self.phi1,
-            "phi2": self.phi2,
-            "synchronous": self.synchronous,
-            "neighbourhood": self.neighbourhood,
-            "addpop_amount": self.addpop_amount,
-            "addpop_level": self.addpop_level,
-            "migrant_policy": self.migrant_policy,
-            "redraw_limit": self.redraw_limit,
-        }
+        return self._settings_with(
+            {"phi1": self.phi1, "phi2": self.phi2, "synchronous": self.synchronous, "neighbourhood": self.neighbourhood}
+        )
 
     # --- moves ---------------------------------------------------------------------
     def _movers(self) -> slice:
