@@ -10,8 +10,7 @@ from scipy.stats import truncnorm
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
 from island.ga import GA, blx_crossover, gaussian_mutation, mutation_count, rank_probabilities, select_couples
-from island.polish import polish
-from support import GA_SMALL as SMALL, ask_sizes, drive
+from support import GA_SMALL as SMALL, ask_sizes, drive, polished_to_truth
 
 
 def test_rank_probabilities_are_eq_3_5():
@@ -217,10 +216,4 @@ def test_reaches_the_noiseless_synth_optimum(synth):
     model, objective = synth
     truth = model.from_dict(TRUE_PARAMS)
     for seed in (0, 1):
-        ga = drive(GA(model.bounds, seed), objective)
-        x, f = ga.best()
-        assert f[0] < 1e-3 * ga.history[0]
-        assert abs(x[0, 2] / truth[2] - 1) < 2e-3
-        result = polish(objective, x[0])
-        assert result.success
-        assert np.all(np.abs(result.theta / truth - 1) < 1e-6)
+        polished_to_truth(drive(GA(model.bounds, seed), objective), objective, truth)

@@ -8,9 +8,8 @@ import pytest
 
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
-from island.polish import polish
 from island.pso import PSO, bounded_move, constriction
-from support import PSO_SMALL as SMALL, ask_sizes, drive
+from support import PSO_SMALL as SMALL, ask_sizes, drive, polished_to_truth
 
 
 def initialised(model, objective, **options):
@@ -211,10 +210,4 @@ def test_reaches_the_noiseless_synth_optimum(synth):
     (median over 20 seeds; worst 8e-4), S_w to ~4 %, xi0 to ~5 %, S_xi to ~45 %; the polish reaches the truth."""
     model, objective = synth
     truth = model.from_dict(TRUE_PARAMS)
-    pso = drive(PSO(model.bounds, 0), objective)
-    x, f = pso.best()
-    assert f[0] < 1e-3 * pso.history[0]
-    assert abs(x[0, 2] / truth[2] - 1) < 2e-3
-    result = polish(objective, x[0])
-    assert result.success
-    assert np.all(np.abs(result.theta / truth - 1) < 1e-6)
+    polished_to_truth(drive(PSO(model.bounds, 0), objective), objective, truth)
