@@ -31,6 +31,8 @@ GA_SMALL = dict(initial_population=200, population=40, iterations=5)
 """A GA that runs in well under a second on the Synth set."""
 PSO_SMALL = dict(initial_population=200, population=30, iterations=5)
 """A PSO that runs in well under a second on the Synth set."""
+PSO_ISLANDS = ("--algos", "pso", "--population", "20", "--initial", "40")
+"""Command-line options of small PSO islands (20 particles, 40 initial candidates): the campaign tests'."""
 
 
 def cell_average(u, theta: np.ndarray, before: np.ndarray, after: np.ndarray, jumps: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ from hysid_model.errors import HysidWarning
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from support import events, history_iterations, hysid, interruptible, query, rows_of, secret_file, wait_for
+from support import PSO_ISLANDS, events, history_iterations, hysid, interruptible, query, rows_of, secret_file, wait_for
 
 
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
@@ -57,7 +57,7 @@ def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations
 def test_campaign_of_island_processes_over_zenoh(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run(
-        hysid("campaign", "--islands", "2", "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "200",
+        hysid("campaign", "--islands", "2", *PSO_ISLANDS, "--iterations", "200",
               "--json", "--out", str(out)),
         capture_output=True, text=True, timeout=120,
     )
@@ -111,7 +111,7 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     db = tmp_path / "lj.sqlite"
     coordinator = subprocess.Popen(
         hysid("coordinator", "--listen", endpoint, "--campaign", "lj", "--db", str(db), "--out", str(tmp_path / "out"),
-              "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "10000000", "--interval", "1000000",
+              *PSO_ISLANDS, "--iterations", "10000000", "--interval", "1000000",
               "--time-limit", "120", "--json", "--quiet"),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
     )
@@ -156,7 +156,7 @@ def test_ctrl_c_mid_campaign_reports_it_interrupted_and_exits_130(tmp_path, caps
     user = threading.Thread(target=ctrl_c_once_searching)
     user.start()
     try:
-        code = main(["campaign", "--single-node", "--islands", "2", "--algos", "pso", "--population", "20", "--initial", "40",
+        code = main(["campaign", "--single-node", "--islands", "2", *PSO_ISLANDS,
                      "--time", "300", "--no-polish", "--json", "--quiet", "--out", str(out)])
     finally:
         user.join()
@@ -210,7 +210,7 @@ def test_a_stored_campaign_is_never_overwritten(tmp_path, capsys):
     [(["--target", "1e-6"], "target fitness 1e-06 reached"), (["--stall", "3000"], "no improvement in 3,000 evaluations")],
 )
 def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path, capsys):
-    argv = ["campaign", "--single-node", "--islands", "2", "--algos", "pso", "--population", "20", "--initial", "40",
+    argv = ["campaign", "--single-node", "--islands", "2", *PSO_ISLANDS,
             "--iterations", "10000000", *rule, "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
     assert main(argv) == 0
     doc = json.loads(capsys.readouterr().out)

@@ -30,11 +30,11 @@ from island.session import open_session, session_config
 from island.joining import fetch_config
 from island.transports import ZenohTransport
 from island.wire import MAX_BYTES, MessageRejected, pack_array
-from support import Peer, events, query, ready, rows_of, secret_file, secret_of, wait_for
+from support import PSO_ISLANDS, Peer, events, query, ready, rows_of, secret_file, secret_of, wait_for
 
 pytestmark = pytest.mark.slow  # processes, kills and restarts: the full suite runs these
 
-ENDLESS = ["--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "10000000", "--interval", "5", "--quiet"]
+ENDLESS = [*PSO_ISLANDS, "--iterations", "10000000", "--interval", "5", "--quiet"]
 BOUNDS = np.array([[0.0, 0.1], [-10.0, 10.0], [100.0, 500.0], [-1e4, 1e4]])  # Table 5.4 (the Synth set's bounds)
 TRUTH = np.array([TRUE_PARAMS[n] for n in ("xi0", "S_xi", "w0", "S_w")])
 
@@ -235,7 +235,7 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     the ring: the campaign still ends because its islands finished, with their own numbers only."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "st.sqlite"
     coord = spawn("coordinator", "--listen", endpoint, "--campaign", "steer", "--db", str(db), "--out", str(tmp_path / "out"), "--json",
-                  "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "6000", "--interval", "5",
+                  *PSO_ISLANDS, "--iterations", "6000", "--interval", "5",
                   "--min-islands", "2", "--budget", "100000000", "--quiet")  # islands run long enough to hear every attack
     ready(endpoint, "steer")
     islands = {name: island(spawn, endpoint, "steer", name, db) for name in ("a", "c")}
@@ -324,7 +324,7 @@ def test_rows_sent_while_the_coordinator_was_down_arrive_when_it_returns_and_the
     missed, confirms, and, nothing being left to do, ends with its report."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "down.sqlite"
     first = spawn("coordinator", "--listen", endpoint, "--campaign", "down", "--db", str(db), "--out", str(tmp_path / "out1"),
-                  "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "1200", "--interval", "0", "--quiet")
+                  *PSO_ISLANDS, "--iterations", "1200", "--interval", "0", "--quiet")
     ready(endpoint, "down")
     session = open_session(session_config("client", connect=[endpoint]), endpoint)
     secret = secret_of(db, "down")

@@ -23,7 +23,7 @@ from hysid.cli import main
 from hysid.diagnosis.naming import excess_words
 from hysid.report import diagnosis_figures, figures, style
 from hysid.report.style import RC
-from support import Lines, interruptible, wait_for
+from support import PSO_ISLANDS, Lines, interruptible, wait_for
 from hysid.report.text import band_text, hz_text, mass_text
 from hysid_model.synth import synth_loops
 from island.secret import CampaignSecret
@@ -197,7 +197,7 @@ def test_island_and_coordinator_count_iterations_alike_and_a_quiet_coordinator_s
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     coordinator = subprocess.Popen(
         hysid_argv("coordinator", "--listen", endpoint, "--campaign", "count", "--db", str(tmp_path / "c.sqlite"),
-                   "--out", str(tmp_path / "out"), "--algos", "pso", "--population", "20", "--initial", "40",
+                   "--out", str(tmp_path / "out"), *PSO_ISLANDS,
                    "--iterations", "7", "--json", "--quiet"),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
