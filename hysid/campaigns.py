@@ -216,7 +216,9 @@ def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: Motion
         return outcome
 
     def under(reading: str) -> Objective:
-        return replace(config, objective_kind="closed_form", displacement=reading).objective(coordinator.loops)
+        built = replace(config, objective_kind="closed_form", displacement=reading).objective(coordinator.loops)
+        assert isinstance(built, Objective)  # the closed form, as asked
+        return built
 
     def refit(objective: Objective, start: np.ndarray) -> tuple[Objective, RunResult, list[dict[str, Any]]]:
         label = f"refit under the {objective.loops.motion} reading"
