@@ -57,6 +57,23 @@ def test_the_compiled_reader_reads_the_numbers_numpy_reads(tmp_path):
     np.testing.assert_array_equal(got, expected)  # NaN where NaN, every other number bit for bit
 
 
+@pytest.mark.parametrize("rows", [5_000, 40_000])  # np.loadtxt's side of COMPILED_BYTES (past MAX_LINE), the compiled reader's
+@pytest.mark.parametrize("newline", ["\r\n", "\r"])
+def test_lines_ended_as_labs_end_them_read_as_lines_ended_in_a_newline(tmp_path, rows, newline):
+    """Windows' CRLF and the bare CR of old Mac software and some DAQ exports, after a free-text preamble in cp1252,
+    with decimal commas: the same numbers, bit for bit, as the same file with ``\\n`` line ends."""
+    numbers, _ = mixed_rows(rows, 3)
+    lines = ["Prüfstand: Hydropuls HP 25", "Probe: Drahtseil 3", "", "Zeit [s];Weg [mm];Kraft [kN]", *(r.replace(".", ",") for r in numbers)]
+    paths = {}
+    for name, end in (("lf", "\n"), ("lab", newline)):
+        paths[name] = tmp_path / f"{name}.csv"
+        paths[name].write_bytes((end.join(lines) + end).encode("cp1252"))
+    assert csv_series.MAX_LINE < paths["lab"].stat().st_size and (paths["lab"].stat().st_size > csv_series.COMPILED_BYTES) == (rows > 5_000)
+    read = {name: csv_series.read_columns(path, csv_series.sniff(path), [0, 1, 2]) for name, path in paths.items()}
+    assert read["lab"].shape == (3, rows)
+    np.testing.assert_array_equal(read["lab"], read["lf"])
+
+
 def test_a_bad_line_in_a_big_file_is_named(tmp_path):
     rows, _ = mixed_rows(60_000, 2)
     rows[45_000] = "1,5;zwei;3"

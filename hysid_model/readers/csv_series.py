@@ -235,13 +235,22 @@ def _missing(path: Path, dialect: Dialect, missing: list[str]) -> HysidInputErro
     )
 
 
+def line_end(path: Path) -> bytes:
+    """The byte that ends the lines of ``path``: ``\\n`` (also in ``\\r\\n`` endings, whose ``\\r`` the parsers
+    take for a space), or ``\\r`` where no ``\\n`` follows it (lines as old Mac software and some DAQ exports
+    end them), judged from the file's first lines."""
+    with path.open("rb") as handle:
+        head = handle.read(2 * MAX_LINE + 2)
+    return b"\r" if b"\r" in head and b"\n" not in head else b"\n"
+
+
 def first_long_line(path: Path) -> int | None:
     """The number of the first line longer than ``MAX_LINE`` bytes, else None: one pass over the bytes in
     chunks, because numpy's parser holds a whole line's fields at once (a 200 MB line would take GBs)."""
-    line, start, offset = 1, 0, 0
+    line, start, offset, end = 1, 0, 0, line_end(path)[0]
     with path.open("rb") as handle:
         while chunk := handle.read(CHUNK):
-            ends = np.flatnonzero(np.frombuffer(chunk, np.uint8) == 10) + offset
+            ends = np.flatnonzero(np.frombuffer(chunk, np.uint8) == end) + offset
             if ends.size:
                 lengths = ends - np.concatenate([[start], ends[:-1] + 1])
                 too_long = np.flatnonzero(lengths > MAX_LINE)
@@ -271,7 +280,7 @@ def read_columns(path: Path, dialect: Dialect, usecols: list[int]) -> np.ndarray
         from hysid_model.readers.numbers import read_numbers  # on first use: numba loads only when a big file is read
 
         return read_numbers(
-            path, dialect.header_line + 1, dialect.delimiter, usecols, dialect.encoding, MAX_LINE,
+            path, dialect.header_line + 1, dialect.delimiter, usecols, dialect.encoding, MAX_LINE, line_end(path),
             too_long=lambda line: HysidInputError(f"{path}: line {line} is longer than {MAX_LINE} characters; not a record of samples"),
             unreadable=lambda: _bad_line(path, dialect, used),
         )

@@ -5,8 +5,8 @@ lines (so each column's array is allocated once, at its final size), a second pa
 with :func:`_parse_lines` (numba) straight into those arrays. Memory is the columns asked for, 8 bytes a value,
 plus one chunk: never the file's text, nor numpy's row-by-row lists, nor a copy of the columns.
 
-The kernel reads what ``np.loadtxt`` reads (blank lines and ``#`` comments skipped, spaces around fields, a
-trailing ``\\r``, ``nan``/``inf``; with ``;`` or tab separators a decimal comma or point) and rounds exactly
+The kernel reads what ``np.loadtxt`` reads (blank lines and ``#`` comments skipped, spaces around fields, lines
+ending in ``\\n``, ``\\r\\n`` or a bare ``\\r``, ``nan``/``inf``; with ``;`` or tab separators a decimal comma or point) and rounds exactly
 as it does: a number of at most 19 significant digits whose digits fit in 2^53 and whose power of ten is
 within 10^+-22 is one correctly rounded product or quotient (Clinger's fast path), which covers what DAQ
 software writes (``%.6f``, ``%.12g``). A number it cannot round exactly (17-19 digits as Python's ``repr`` or
@@ -161,39 +161,56 @@ def _parse_lines(buf: np.ndarray, delimiter: int, comma: bool, target: np.ndarra
     return row, line, OK, n
 
 
-def count_lines(path: Path) -> int:
-    """Lines of a file (the last one counts without its newline), in chunks."""
-    lines, last = 0, b"\n"
+def count_lines(path: Path, newline: bytes = b"\n") -> int:
+    """Lines of a file whose lines end in ``newline`` (the last one counts without it), in chunks."""
+    lines, last = 0, newline
     with path.open("rb") as handle:
         while chunk := handle.read(CHUNK):
-            lines += chunk.count(b"\n")
+            lines += chunk.count(newline)
             last = chunk[-1:]
-    return lines + (last != b"\n")
+    return lines + (last != newline)
 
 
-def read_numbers(path: Path, skip_lines: int, delimiter: str, usecols: list[int], encoding: str, max_line: int,
+def _read_line(handle: io.BufferedReader, newline: bytes, limit: int) -> bytes:
+    """The next line of ``handle`` with the ``newline`` that ends it, at most ``limit`` bytes (``readline`` for
+    lines ending in a bare ``\\r``)."""
+    if newline == b"\n":
+        return handle.readline(limit)
+    line = b""
+    while len(line) < limit and (ahead := handle.peek(1)[: limit - len(line)]):
+        cut = ahead.find(newline)
+        line += handle.read(len(ahead) if cut < 0 else cut + 1)
+        if cut >= 0:
+            break
+    return line
+
+
+def read_numbers(path: Path, skip_lines: int, delimiter: str, usecols: list[int], encoding: str, max_line: int, newline: bytes,
                  too_long: Callable[[int], Exception], unreadable: Callable[[], Exception]) -> np.ndarray:
     """Columns ``usecols`` of the lines after the first ``skip_lines``, as ``(len(usecols), rows)`` float64 (each
-    column contiguous); decimal commas are read with ``;`` or tab separators. ``too_long(line)`` is raised for a
-    line longer than ``max_line`` bytes, ``unreadable()`` when ``np.loadtxt`` cannot read a chunk either."""
+    column contiguous); decimal commas are read with ``;`` or tab separators. Lines end in ``newline``: ``\\n``
+    (``\\r\\n`` too) or a bare ``\\r`` (each chunk's turned into ``\\n`` as it is read). ``too_long(line)`` is raised for
+    a line longer than ``max_line`` bytes, ``unreadable()`` when ``np.loadtxt`` cannot read a chunk either."""
     fields = max(usecols) + 1
     target = np.full(fields, -1, dtype=np.int64)
     for k, col in enumerate(usecols):
         target[col] = k
-    out = np.empty((len(usecols), max(count_lines(path) - skip_lines, 0)))
+    out = np.empty((len(usecols), max(count_lines(path, newline) - skip_lines, 0)))
     sep, comma = ord(delimiter), delimiter != ","
     row, line = 0, 1
     buf = bytearray(CHUNK + max_line + 1)  # a chunk after the start of a line that the last one cut
     view = memoryview(buf)
     with path.open("rb") as handle:
         for _ in range(skip_lines):
-            if len(handle.readline(max_line + 2)) > max_line + 1:
+            if len(_read_line(handle, newline, max_line + 2)) > max_line + 1:
                 raise too_long(line)
             line += 1
         filled = 0
         while True:
             got = handle.readinto(view[filled : filled + CHUNK])
             size = filled + got
+            if newline != b"\n":
+                buf[filled:size] = buf[filled:size].replace(newline, b"\n")
             end = buf.rfind(b"\n", 0, size) + 1 if got else size
             if end:
                 row, done, status, at = _parse_lines(np.frombuffer(buf, np.uint8, count=end), sep, comma, target, out, row, max_line)
