@@ -35,12 +35,12 @@ advance by 2 pi delta per second, a straight line through the cycles' phases.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import pairwise
-from typing import Any
 
 import numpy as np
+
+from hysid_model.steady_band import longest_band_run
 
 STEADY_TOLERANCE = 0.01
 """Half-width of the steady band, relative to the amplitude (or ``NOISE_SIGMAS`` stds of its scatter, if wider)."""
@@ -59,8 +59,6 @@ OUTLIERS = 0.05
 MAD_TO_STD = 1.4826
 PARTITION_KTH = 8
 """Distinct middle positions up to which the phase bins' medians are found by a partition rather than a sort."""
-SHAPES_KEPT = 64
-"""Window lengths whose line and parabola terms the band test keeps (:func:`_band_test`)."""
 PIECE = 1 << 18
 """Samples (whole cycles) taken at once by the passes over every sample of a record, so that their memory is that of
 a piece, not of the record (a 7.2 M-sample record's per-cycle fits took 14 copies of it at once)."""
@@ -273,83 +271,16 @@ def steady_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray | None =
     return start, length
 
 
-def _band_test(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> Callable[[int, int], bool]:
-    """Whether cycles i..j-1 are steady: within the band around their line, drifting at most ``DRIFT_LIMIT``,
-    and not curved (a settling transient is curved, a drift is straight).
-
-    The search calls it a few times per cycle of a record, so it spends as few numpy calls as it can (the cheap
-    drift test first); each test's arithmetic is that of its formula, operation for operation."""
-    floor = np.maximum(NOISE_SIGMAS * noise, sampling)[:, None]
-    spread = NOISE_SIGMAS * noise
-    index = np.arange(amp.shape[1], dtype=float)
-    add = np.add.reduce
-    shapes: dict[int, tuple[Any, ...]] = {}
-
-    def shape(n: int) -> tuple[Any, ...]:
-        """u, u @ u and, for a run long enough for the curvature test, q, q @ q, max |q| and the least bend it
-        allows (the noise's or the sampling's), of a window of n cycles: the search tries one length at many starts."""
-        if n not in shapes:
-            if len(shapes) >= SHAPES_KEPT:
-                shapes.clear()
-            u = index[:n] - 0.5 * (n - 1)
-            uu = u @ u
-            if n < WAVEFORM_MIN_CYCLES:
-                shapes[n] = (u, uu, None, None, None, None)
-            else:
-                q = u * u - uu / n  # orthogonal to 1 and u
-                qq, top = q @ q, np.abs(q).max()
-                shapes[n] = (u, uu, q, qq, top, np.maximum(spread * top / np.sqrt(qq), sampling))
-        return shapes[n]
-
-    def fits(i: int, j: int) -> bool:
-        a = amp[:, i:j]
-        n = j - i
-        u, uu, q, qq, top, least = shape(n)
-        level = add(a, axis=1) / n  # a.mean(axis=1)
-        beta = a @ u / uu if n > 1 else np.zeros(a.shape[0])
-        if (np.abs(beta) * (n - 1) > DRIFT_LIMIT * np.abs(level)).any():
-            return False
-        line = level[:, None] + beta[:, None] * u
-        resid = a - line
-        out = (np.abs(resid) > np.maximum(STEADY_TOLERANCE * np.abs(line), floor)).any(axis=0)
-        # an isolated cycle outside the band is scatter; a transient is a run of them, or the window's end
-        if out.any() and (out[0] or out[-1] or (out[1:] & out[:-1]).any() or np.count_nonzero(out) > max(1, OUTLIERS * n)):
-            return False
-        if n < WAVEFORM_MIN_CYCLES:
-            return True
-        bend = np.abs(resid @ q) / qq * top  # the largest departure of the best parabola from the line
-        return bool((bend <= np.maximum(CURVATURE * np.abs(level), least)).all())
-
-    return fits
-
-
 def _longest_band_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) -> tuple[int, int]:
-    """Longest window of cycles that passes :func:`_band_test`. A window that passes holds only windows that pass,
-    so a window that never shrinks, slid over the cycles and grown by galloping, finds it."""
-    n = amp.shape[1]
-    fits = _band_test(amp, noise, sampling)
-    if n <= 1 or fits(0, n):
-        return 0, n
-    best_start, best_length, i = 0, 1, 0
-    while i + best_length < n:
-        j = i + best_length + 1  # a window one cycle longer than the best so far
-        if not fits(i, j):
-            i += 1
-            continue
-        step = 1
-        while j + step <= n and fits(i, j + step):  # gallop, then bisect, to the longest window from i
-            j += step
-            step *= 2
-        bad = min(j + step, n + 1)
-        while bad - j > 1:
-            mid = (j + bad) // 2
-            if fits(i, mid):
-                j = mid
-            else:
-                bad = mid
-        best_start, best_length = i, j - i
-        i += 1
-    return best_start, best_length
+    """Longest window of cycles that is steady: within the band around its line, drifting at most ``DRIFT_LIMIT``,
+    and not curved (a settling transient is curved, a drift is straight); the compiled search of
+    :func:`hysid_model.steady_band.longest_band_run`."""
+    amp = np.ascontiguousarray(amp, dtype=float)
+    spread = NOISE_SIGMAS * np.asarray(noise, dtype=float)
+    sampling = np.asarray(sampling, dtype=float)
+    limits = np.array([STEADY_TOLERANCE, DRIFT_LIMIT, CURVATURE, OUTLIERS])
+    start, length = longest_band_run(amp, np.maximum(spread, sampling), spread, sampling, limits, WAVEFORM_MIN_CYCLES)
+    return int(start), int(length)
 
 
 def _bin_medians(phase: np.ndarray, y: np.ndarray, bins: int) -> tuple[np.ndarray, np.ndarray]:
