@@ -372,11 +372,14 @@ def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_ro
     """Whenever the islands' timed histories go out: an island's history goes out at every migration, and the
     hand-over is decided from it (not from a timed history, which under load came late: the budget ran out first)."""
     monkeypatch.setattr("coordinator.launch.MEMORY_HISTORY_EVERY_S", 1.0)  # a timed history at most every second: it decides nothing
-    _, outcome, db = mixed_campaign(tmp_path, "staged", budget=4_000)
+    coordinator, outcome, db = mixed_campaign(tmp_path, "staged", budget=4_000)
     moves = outcome.settings["moves"]
-    assert sorted((m["island"], m["src"], m["dst"]) for m in moves) == [("island-0", "ga", "pso"), ("island-2", "ga", "pso")]
-    assert all(m["evaluations"] < 2_000 for m in moves)  # one round: every island's first migration interval
-    assert {r["island"]: r["algo"] for r in outcome.islands} == dict.fromkeys(["island-0", "island-1", "island-2", "island-3"], "pso")
+    store = Store(db)
+    seen = (moves, [(r["island"], r["algorithms"], r["iterations"]) for r in outcome.islands], store.rejected_reasons(coordinator.name))  # shown if it fails
+    store.close()
+    assert sorted((m["island"], m["src"], m["dst"]) for m in moves) == [("island-0", "ga", "pso"), ("island-2", "ga", "pso")], seen
+    assert all(m["evaluations"] < 2_000 for m in moves), seen  # one round: every island's first migration interval
+    assert {r["island"]: r["algo"] for r in outcome.islands} == dict.fromkeys(["island-0", "island-1", "island-2", "island-3"], "pso"), seen
     assert {r["island"]: r["algorithms"] for r in outcome.islands} == {  # the name never contradicts the algorithm: it is beside it
         "island-0": ["ga", "pso"], "island-1": ["pso"], "island-2": ["ga", "pso"], "island-3": ["pso"]}
     summary = CampaignResult.from_database(db).summary()
