@@ -27,10 +27,11 @@ from hysid.cli import main
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig
-from island.host import Hosted, IslandSpec, Turns, host_specs, run_islands
+from island.host import Hosted, IslandSpec, host_specs, run_islands
 from island.migration import Migration
 from island.session import open_session, session_config
 from island.termination import Termination
+from island.turns import Turns
 from support import query, ready, rows_of, secret_file, wait_for
 
 LOOPS = synth_loops(n_points=30)
