@@ -7,7 +7,7 @@ history whose rows the coordinator did not keep, over capacity, and how many: :m
 ``islands`` (each island run's algorithm, evaluations and migration counters), ``migrations`` (every
 migrant message handled), ``superseded`` (per island, migrant messages a newer one replaced before they
 were handled), ``unfollowed`` (when, with how many islands alive, the coordinator stopped following
-migrant messages: :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`), ``rejected`` (every message that
+migrant messages: :data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO`), ``rejected`` (every message that
 failed validation, with the reason), ``best`` (the global best, as re-evaluated by the coordinator),
 ``runs`` (every run admitted, its public key and the member it joined for), ``moves`` (the share's moves) and ``commits`` (the
 coordinator's heartbeat: when it last committed, from which process on which host, and the campaign's
