@@ -27,7 +27,7 @@ import numpy as np
 from coordinator.histories import check_claim
 from coordinator.link import Link
 from coordinator.progress import IslandView
-from coordinator.queries import IslandRecord, StoredBest
+from coordinator.records import IslandRecord, StoredBest
 from island.protocol import History, HistoryQuery, Migrants, encode_history_query
 from island.sealing import check_replay
 from island.wire import MessageRejected

@@ -17,7 +17,8 @@ import numpy as np
 
 from coordinator.members import STATUS_AFTER
 from coordinator.progress import algorithm_paths
-from coordinator.queries import IslandRecord, Queries, StoredBest
+from coordinator.queries import Queries
+from coordinator.records import IslandRecord, StoredBest
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.model import MAX_WIDENINGS

@@ -13,7 +13,7 @@ one item at a time on its own thread, or rejected with the reason.
   handling (:class:`coordinator.intake.Intake`). Nothing a message holds raises out of it: what fails a check, or
   slips through the checks and fails later (:data:`SLIPPED_THROUGH`), is rejected and recorded with its reason,
   one by one up to :data:`REJECTED_PER_S` a second (a :class:`TokenBucket`), beyond it counted in summaries; only a
-  database that cannot be written (:class:`coordinator.store.StoreError`) stops the coordinator.
+  database that cannot be written (:class:`coordinator.writes.StoreError`) stops the coordinator.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from collections.abc import Callable
 from typing import Any
 
 from coordinator.link import Link
-from coordinator.store import StoreError
+from coordinator.writes import StoreError
 from island.protocol import Migrants, decode_history, decode_migrants
 from island.wire import MAX_BYTES, NAME_PATTERN, MessageRejected
 

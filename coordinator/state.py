@@ -93,11 +93,12 @@ from coordinator.keys import CampaignKeys, campaign_keys
 from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignEnd, CampaignOutcome, campaign_outcome
 from coordinator.progress import CampaignProgress, IslandView, island_views
-from coordinator.queries import StoredBest
+from coordinator.records import StoredBest
 from coordinator.receiving import REJECTED_BURST, REJECTED_PER_S, Receiving, TokenBucket
 from coordinator.sharing import Sharing
-from coordinator.store import RUN_LOCK_WAIT_S, Store, StoreError
+from coordinator.store import RUN_LOCK_WAIT_S, Store
 from coordinator.thinning import HistoryPolicy
+from coordinator.writes import StoreError
 from hysid_model.loops import LoopSet
 from island.config import CampaignConfig, decode_config, encode_config
 from island.joining import key_prefix
