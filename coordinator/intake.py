@@ -59,7 +59,7 @@ class Intake:
 
     def _heard(self, island: str, run: str, arrived: float) -> None:
         """A signed message of that run, arrived at ``arrived`` (``time.monotonic()``): its latest run is alive
-        (:meth:`Membership.heard`)."""
+        (:meth:`coordinator.members.Membership.heard`)."""
         if self.current.get(island) == run:
             self.membership.heard(island, run, arrived)
 
@@ -128,8 +128,9 @@ class Intake:
 
     def review_following(self, link: Link | None = None) -> None:
         """Stop following migrant messages once more than :data:`FOLLOWS_MIGRANTS_UP_TO` islands are alive: at the
-        join that makes them so (:meth:`admit`, before the island hears it joined: none of its migrants, nor of those
-        it makes start, is followed), and then at every commit, where ``link`` stops their delivery."""
+        join that makes them so (:meth:`coordinator.admission.Admission.admit`, before the island hears it joined:
+        none of its migrants, nor of those it makes start, is followed), and then at every commit, where ``link``
+        stops their delivery."""
         if self.follows_migrants:
             alive = sum(m.status == "alive" for m in self.members.values())
             if alive > FOLLOWS_MIGRANTS_UP_TO:

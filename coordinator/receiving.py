@@ -64,7 +64,7 @@ class Receiving:
         joined island's migrant message may replace its one still waiting (only its newest matters:
         :mod:`coordinator.inbox`), once it proved to be its run's, well formed: what could be rejected
         waits to be, with its reason. Migrant messages are let pass once the coordinator stopped following
-        them (:meth:`review_following`)."""
+        them (:meth:`coordinator.intake.Intake.review_following`)."""
         kind, sender = key.rsplit("/", 2)[-2:] if key.count("/") >= 2 else ("", key)
         if kind == "migrants" and not self.follows_migrants:
             return True  # on its way when the coordinator stopped following them: the islands count it

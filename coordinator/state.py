@@ -164,7 +164,7 @@ class Coordinator(Admission, Receiving, Intake):
             self.islands[(rec.island, rec.run)] = IslandView(rec.algo, rec.iterations, rec.best_fitness, rec.final)
         self.evaluations = int(sum(self.run_evaluations.values()))
         """Evaluations of every run together (each run's as its histories last said; those that count toward the
-        budget and the stall rule: :meth:`countable`)."""
+        budget and the stall rule: :meth:`coordinator.admission.Admission.countable`)."""
         self.solo_effort = self.evaluations  # before this process: as they came
         self.membership = Membership(store, self.name, config.min_islands, self._finished)
         if resume:
@@ -253,7 +253,7 @@ class Coordinator(Admission, Receiving, Intake):
     # --- the stop rules (checked by the run loop, coordinator.loop) ------------------------
     def rule_stop(self) -> str | None:
         """The stop rule (budget, target, stall, time) that holds now, if any (the budget and the stall rule count the
-        evaluations that count: :meth:`countable`)."""
+        evaluations that count: :meth:`coordinator.admission.Admission.countable`)."""
         best = self.best
         return self.termination.reason(
             evaluations=self.countable(),

@@ -1,4 +1,4 @@
-"""The campaign database (coordinator/store.py) on real SQLite files."""
+"""The campaign database (coordinator/store.py, schema.py, writes.py, queries.py) on real SQLite files."""
 
 from __future__ import annotations
 
