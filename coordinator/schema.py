@@ -1,4 +1,5 @@
-"""The campaign database's tables, and what a database of an earlier hysid gets when it is opened.
+"""The campaign database's tables, what a database of an earlier hysid gets when it is opened, and whether a file
+has a table or a column (:func:`has_table`, :func:`has_column`: one opened read-only is not upgraded).
 
 Tables: ``campaigns`` (configuration message with the loop set, status, stop reason, final result),
 ``members`` (join / leave / lost / back events), ``history`` (the islands' convergence rows, keyed by
