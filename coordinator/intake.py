@@ -21,6 +21,8 @@ keeps from both, re-evaluated (a claimed fitness is never trusted).
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +34,17 @@ from island.protocol import History, HistoryQuery, Migrants, encode_history_quer
 from island.sealing import check_replay
 from island.wire import MessageRejected
 
+if TYPE_CHECKING:
+    from coordinator.admission import RunInfo
+    from coordinator.histories import Gaps, HistoryChecks
+    from coordinator.members import Member, Membership
+    from coordinator.sharing import Sharing
+    from coordinator.store import Store
+    from coordinator.thinning import HistoryPolicy
+    from hysid_model.objective import Objective
+    from hysid_model.thesis_port import ThesisObjective
+    from island.sealing import ReplayGuard
+
 EVALUATED_CACHE = 4096
 """Candidates whose fitness the coordinator keeps (the most recently seen)."""
 FOLLOWS_MIGRANTS_UP_TO = 64
@@ -42,6 +55,44 @@ and :mod:`coordinator.state`'s)."""
 class Intake:
     """The intake part of :class:`coordinator.state.Coordinator` (see the module docstring; the state it uses, the
     store, the checks, the membership and the share among it, is the coordinator's)."""
+
+    if TYPE_CHECKING:  # what the coordinator holds and this part uses (set in Coordinator.__init__)
+        store: Store
+        name: str
+        signing: bytes
+        objective: Objective | ThesisObjective
+        runs: dict[tuple[str, str], RunInfo]
+        current: dict[str, str]
+        checks: HistoryChecks
+        sharing: Sharing
+        membership: Membership
+        gaps: Gaps
+        policy: HistoryPolicy
+        islands: dict[tuple[str, str], IslandView]
+        evaluations: int
+        migrations: int
+        rows_since_commit: int
+        changed: bool
+        stop_reason: str | None
+        query_seq: int
+        follows_migrants: bool
+        best: StoredBest | None
+        best_message: bytes | None
+        best_trace: list[tuple[float, float, int, np.ndarray]]
+        _replays: ReplayGuard
+        _evaluated: OrderedDict[bytes, float]
+        _candidates: dict[str, Migrants]
+
+        @property
+        def members(self) -> dict[str, Member]: ...
+
+        def count_effort(self, key: tuple[str, str], evaluations: int) -> None: ...
+
+        def countable(self) -> int: ...
+
+        def rule_stop(self) -> str | None: ...
+
+        def _best_message(self) -> bytes: ...
 
     # --- message numbers and history queries --------------------------------------------------
     def history_query(self, island: str, run: str, since: int) -> str:
@@ -97,10 +148,25 @@ class Intake:
             self.gaps.arrived(key, *span, link.request_history)
         iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
         evaluations = int(h.rows[:, 2].max()) if h.rows.size else 0
-        self.store.queue_island(self.name, IslandRecord(
-            h.island, h.run, h.algo, h.seed, iterations, evaluations, f, h.best_x,
-            h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final, h.stats["unlisted"],
-        ))
+        self.store.queue_island(
+            self.name,
+            IslandRecord(
+                h.island,
+                h.run,
+                h.algo,
+                h.seed,
+                iterations,
+                evaluations,
+                f,
+                h.best_x,
+                h.stats["sent"],
+                h.stats["received"],
+                h.stats["taken"],
+                h.stats["rejected"],
+                h.final,
+                h.stats["unlisted"],
+            ),
+        )
         self.count_effort(key, evaluations)
         self.sharing.credit(key, h.algo, h.gain)
         view = self.islands.setdefault(key, IslandView(h.algo))

@@ -20,12 +20,24 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from coordinator.link import Link
 from coordinator.writes import StoreError
 from island.protocol import Migrants, decode_history, decode_migrants
 from island.wire import MAX_BYTES, NAME_PATTERN, MessageRejected
+
+if TYPE_CHECKING:
+    from collections import Counter
+
+    from coordinator.admission import RunInfo
+    from coordinator.histories import Gaps
+    from coordinator.inbox import Inbox
+    from coordinator.members import Membership
+    from coordinator.store import Store
+    from hysid_model.objective import Objective
+    from hysid_model.thesis_port import ThesisObjective
+    from island.protocol import History
 
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
@@ -53,6 +65,27 @@ class TokenBucket:
 class Receiving:
     """The receiving part of :class:`coordinator.state.Coordinator` (see the module docstring; the state it uses,
     the inbox, the store and the membership among it, is the coordinator's)."""
+
+    if TYPE_CHECKING:  # what the coordinator holds and this part uses (set in Coordinator.__init__)
+        store: Store
+        name: str
+        prefix: str
+        objective: Objective | ThesisObjective
+        inbox: Inbox
+        runs: dict[tuple[str, str], RunInfo]
+        current: dict[str, str]
+        membership: Membership
+        gaps: Gaps
+        follows_migrants: bool
+        rejected: int
+        rejected_backlog: Counter[str]
+        _rejected_log: TokenBucket
+
+        def _join(self, link: Link, island: str, payload: bytes, reply: Callable[[bytes], None]) -> None: ...
+
+        def _history(self, link: Link, h: History, arrived: float) -> None: ...
+
+        def _migrants(self, link: Link, m: Migrants, arrived: float) -> None: ...
 
     # --- what other threads call: into the inbox ------------------------------------------------
     def _source(self, island: str) -> str:

@@ -93,8 +93,8 @@ from coordinator.keys import CampaignKeys, campaign_keys
 from coordinator.members import Member, Membership
 from coordinator.outcome import CampaignEnd, CampaignOutcome, campaign_outcome
 from coordinator.progress import CampaignProgress, IslandView, island_views
-from coordinator.records import StoredBest
 from coordinator.receiving import REJECTED_BURST, REJECTED_PER_S, Receiving, TokenBucket
+from coordinator.records import StoredBest
 from coordinator.sharing import Sharing
 from coordinator.store import RUN_LOCK_WAIT_S, Store
 from coordinator.thinning import HistoryPolicy

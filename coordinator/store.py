@@ -85,7 +85,7 @@ class Store(Writes):
                 os.fsync(f.fileno())
 
     @classmethod
-    def read_only(cls, path: Path | str) -> "Store":
+    def read_only(cls, path: Path | str) -> Store:
         """A campaign database opened for reading only (never written, never created), also while a
         coordinator writes it: WAL lets readers see every committed batch without blocking the writer. Without
         a -wal file no writer has it open, and it opens as immutable (a WAL reader would create -wal and -shm)."""
@@ -109,7 +109,7 @@ class Store(Writes):
         return store
 
     @classmethod
-    def snapshot(cls, path: Path | str) -> "Store":
+    def snapshot(cls, path: Path | str) -> Store:
         """An in-memory copy of a campaign database, read (only) from the file at one committed moment:
         a stored campaign can be taken up again in it without changing the file."""
         source = cls.read_only(path)

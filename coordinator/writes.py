@@ -116,8 +116,10 @@ class Writes(Queries):
         self.check_file()
         self.flush()
         if campaign is not None:
-            self.db.execute("INSERT OR REPLACE INTO commits (campaign, t, elapsed_s, pid, host) VALUES (?, ?, ?, ?, ?)",
-                            (campaign, time.time(), elapsed_s, os.getpid(), socket.gethostname()))
+            self.db.execute(
+                "INSERT OR REPLACE INTO commits (campaign, t, elapsed_s, pid, host) VALUES (?, ?, ?, ?, ?)",
+                (campaign, time.time(), elapsed_s, os.getpid(), socket.gethostname()),
+            )
         self.db.commit()
 
     def rollback(self) -> None:
@@ -181,8 +183,25 @@ class Writes(Queries):
     def queue_island(self, campaign: str, record: IslandRecord) -> None:
         """Upsert an island run's counters (iterations and evaluations only grow) and its latest algorithm, at the next flush."""
         r = record
-        self._records.append((campaign, r.island, r.run, r.algo, r.seed, r.iterations, r.evaluations, r.best_fitness,
-                              np.asarray(r.best_x, dtype="<f8").tobytes(), r.sent, r.received, r.taken, r.rejected, int(r.final), r.unlisted))
+        self._records.append(
+            (
+                campaign,
+                r.island,
+                r.run,
+                r.algo,
+                r.seed,
+                r.iterations,
+                r.evaluations,
+                r.best_fitness,
+                np.asarray(r.best_x, dtype="<f8").tobytes(),
+                r.sent,
+                r.received,
+                r.taken,
+                r.rejected,
+                int(r.final),
+                r.unlisted,
+            )
+        )
 
     def update_island(self, campaign: str, record: IslandRecord) -> None:
         """:meth:`queue_island`, written now."""
@@ -204,9 +223,7 @@ class Writes(Queries):
         self.db.execute("INSERT OR IGNORE INTO unfollowed VALUES (?, ?, ?, ?)", (campaign, islands, up_to, time.time()))
 
     @guarded_write
-    def add_migration(
-        self, campaign: str, island: str, run: str, iteration: int, n: int, best_claimed: float, sent_at: float, seq: int
-    ) -> bool:
+    def add_migration(self, campaign: str, island: str, run: str, iteration: int, n: int, best_claimed: float, sent_at: float, seq: int) -> bool:
         """Record a migrant message; False if this sender run's message ``seq`` is already stored (a replay)."""
         before = self.db.total_changes
         self.db.execute(
@@ -226,8 +243,10 @@ class Writes(Queries):
     @guarded_write
     def add_run(self, campaign: str, island: str, run: str, key: bytes, algo: str, seed: int, joined: float, member: str = "") -> None:
         """A run admitted, with the public key it signs with, when it joined (Unix time) and the member it joined for."""
-        self.db.execute("INSERT INTO runs (campaign, island, run, key, algo, seed, joined, member) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                        (campaign, island, run, key, algo, seed, joined, member))
+        self.db.execute(
+            "INSERT INTO runs (campaign, island, run, key, algo, seed, joined, member) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (campaign, island, run, key, algo, seed, joined, member),
+        )
 
     @guarded_write
     def add_move(self, campaign: str, move: Move) -> None:
