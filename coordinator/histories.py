@@ -24,7 +24,7 @@ from collections.abc import Callable, Collection, Sized
 
 import numpy as np
 
-from coordinator.queries import Span, merged
+from coordinator.records import Span, merged
 from coordinator.store import Store
 from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective

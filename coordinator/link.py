@@ -18,4 +18,4 @@ class Link(Protocol):
         """Ask an island for its rows after ``since``; the answer arrives in the inbox as a history message."""
 
     def unfollow_migrants(self) -> None:
-        """Stop the delivery of migrant messages (:data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`)."""
+        """Stop the delivery of migrant messages (:data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO`)."""

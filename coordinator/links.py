@@ -1,4 +1,4 @@
-"""How a coordinator reaches its islands (:class:`coordinator.state.Link`).
+"""How a coordinator reaches its islands (:class:`coordinator.link.Link`).
 
 :class:`ZenohLink` declares the coordinator's Zenoh entities; :class:`MemoryLink`
 stands in for them when every island is a thread of the coordinator's process
@@ -18,7 +18,7 @@ from island.joining import key_prefix
 class ZenohLink:
     """The coordinator's Zenoh entities under ``hysid/<campaign>/``: queryables ``config``,
     ``best`` and ``join/*``, subscribers to ``history/*`` and (while it follows them:
-    :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`) ``migrants/*``, the members'
+    :data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO`) ``migrants/*``, the members'
     liveliness tokens, publications on ``control`` and ``best``, history queries (everything it
     sends signed, :mod:`island.protocol`).
 

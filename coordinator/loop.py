@@ -45,7 +45,7 @@ from coordinator.members import LEAVE_GRACE_S, STATUS_AFTER, Member
 from coordinator.progress import CampaignProgress
 from coordinator.link import Link
 from coordinator.state import Coordinator
-from coordinator.store import StoreError
+from coordinator.writes import StoreError
 from coordinator.thinning import REVIEW_EVERY_S
 
 ORPHAN_S = 30.0

@@ -1,30 +1,54 @@
 """What a finished campaign leaves (Eq. 4.8-4.10's fit, from the islands' stored results).
 
-:func:`campaign_outcome` re-evaluates every island run's best here (a
-claimed fitness is never trusted), polishes the global best as ``hysid fit``
-does (widening bounds derived from the data when the best sits on one), and
-gathers the settings, the islands, the migrations and the membership events
-as stored; :class:`hysid.campaigns.CampaignResult` reports it.
+:func:`campaign_outcome` takes what the coordinator knows as the campaign ends (:class:`CampaignEnd`,
+which :meth:`coordinator.state.Coordinator.outcome` gives it) and its store, re-evaluates every
+island run's best there (a claimed fitness is never trusted), polishes the global best as ``hysid fit``
+does (widening bounds derived from the data when the best sits on one), and gathers the settings, the
+islands, the migrations and the membership events as stored; :class:`hysid.campaigns.CampaignResult`
+reports it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from coordinator.members import STATUS_AFTER
 from coordinator.progress import algorithm_paths
-from coordinator.queries import IslandRecord
+from coordinator.queries import Queries
+from coordinator.records import IslandRecord, StoredBest
 from hysid_model.errors import HysidInputError
+from hysid_model.loops import LoopSet
 from hysid_model.model import MAX_WIDENINGS
 from hysid_model.objective import Objective
+from island.config import CampaignConfig
 from island.memetic import BUDGET, WIDENED_SHARE, memetic_search, needs_islands
 from island.run import RunResult, polish_run
+from island.share import Move
+from island.termination import Termination
 
-if TYPE_CHECKING:
-    from coordinator.state import Coordinator
+
+@dataclass(frozen=True)
+class CampaignEnd:
+    """What the coordinator knows of a campaign as it ends, beyond its stored rows: the store it wrote, the
+    configuration and loop set, the stop rules, the global best, why it stopped, each island's membership status
+    as it holds it, every run that joined with the algorithm it joined with (in that order) and the share's moves."""
+
+    store: Queries
+    config: CampaignConfig
+    loops: LoopSet
+    termination: Termination
+    best: StoredBest | None
+    stop_reason: str | None
+    status: dict[str, str]
+    joined: list[tuple[tuple[str, str], str]]
+    moves: list[Move]
+
+    @property
+    def name(self) -> str:
+        return self.config.name
 
 
 @dataclass
@@ -41,7 +65,7 @@ class CampaignOutcome:
     stored: dict[str, Any]
 
 
-def campaign_outcome(c: Coordinator, *, polish_best: bool = True) -> CampaignOutcome:
+def campaign_outcome(c: CampaignEnd, *, polish_best: bool = True) -> CampaignOutcome:
     """Every island run with its best re-evaluated here, the global best polished (as ``hysid fit`` does)."""
     objective = replace(c.config, objective_kind="closed_form").objective(c.loops)
     records = c.store.islands(c.name)
@@ -124,13 +148,13 @@ def polished(objective: Objective, run: RunResult, seed: int = 0) -> tuple[Objec
     return objective, run, widened
 
 
-def island_summaries(c: Coordinator, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
+def island_summaries(c: CampaignEnd, records: list[IslandRecord], runs: list[RunResult]) -> list[dict[str, Any]]:
     """Each island run's record with its re-evaluated best, its membership status (as last recorded) and the
     ``algorithms`` it searched with, in order (``algo`` is the last)."""
     recorded = {island: STATUS_AFTER[event] for island, event, _ in c.store.members(c.name)}
-    status = recorded | {i: m.status for i, m in c.members.items()}
+    status = recorded | c.status
     thinned = c.store.thinned(c.name)
-    paths = algorithm_paths(((key, info.algo) for key, info in c.runs.items()), c.sharing.moves)
+    paths = algorithm_paths(c.joined, c.moves)
     return [
         {**rec.as_dict(), "algorithms": list(paths.get((rec.island, rec.run), (rec.algo,))), "best_fitness": run.search_fitness,
          "status": status.get(rec.island, "unknown"), "thinned": thinned.get((rec.island, rec.run), 0)}
@@ -138,15 +162,15 @@ def island_summaries(c: Coordinator, records: list[IslandRecord], runs: list[Run
     ]
 
 
-def stored_summary(c: Coordinator) -> dict[str, Any]:
+def stored_summary(c: CampaignEnd) -> dict[str, Any]:
     """History rows stored, those the coordinator did not keep over capacity (:mod:`coordinator.thinning`), and
     migrant messages superseded before it handled them."""
     return {"history_rows": c.store.count("history", c.name), "thinned_rows": sum(c.store.thinned(c.name).values()),
             "superseded_migrant_messages": c.store.superseded(c.name)}
 
-def migration_summary(c: Coordinator, records: list[IslandRecord]) -> dict[str, Any]:
+def migration_summary(c: CampaignEnd, records: list[IslandRecord]) -> dict[str, Any]:
     """The migration settings; migrant messages the coordinator handled (``messages``) and, if it stopped following
-    them (:data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`), with how many islands alive and how long after the
+    them (:data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO`), with how many islands alive and how long after the
     campaign's start (``unfollowed``); what the islands counted: messages ``sent``, migrants ``received``
     (re-evaluated) and ``taken`` in, and those that waited in vain for the roster to list their run (``unlisted``, apart
     from any rejected); messages the coordinator ``rejected`` and why."""

@@ -59,7 +59,7 @@ class CampaignProgress:
     """Migrant messages the coordinator handled."""
     rejected: int
     migrations_followed: bool = True
-    """False once the coordinator stopped following migrant messages (:data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`)."""
+    """False once the coordinator stopped following migrant messages (:data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO`)."""
     stopping: str | None = None
     """Why the campaign stops (``interrupted``: the user's Ctrl-C) once it does, while it waits for the islands'
     last rows and after; None while it runs."""

@@ -1,5 +1,10 @@
-"""What a campaign database holds, read: the read side of :class:`coordinator.store.Store` (also of a database
-opened read-only, or of an earlier hysid that lacks some of today's tables)."""
+"""What a campaign database holds, read: the read side of :class:`coordinator.store.Store`, which ``hysid watch``,
+``hysid report`` and the outcome read, and ``--resume`` takes a campaign up from (also of a database opened
+read-only, or of an earlier hysid that lacks some of today's tables: :func:`coordinator.schema.has_table`).
+
+Besides the campaigns, their runs, islands, history, migrations and rejected messages, it reads the coordinator's
+heartbeat: a campaign not stopped whose coordinator is gone (:meth:`Queries.gone_since`) reads ``interrupted``
+(:meth:`Queries.state`)."""
 
 from __future__ import annotations
 
@@ -8,16 +13,15 @@ import os
 import socket
 import sqlite3
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from coordinator.records import IslandRecord, Span, StoredBest, merged
+from coordinator.schema import has_column, has_table
 from hysid_model.errors import HysidInputError
 from island.share import Move
 
-Span = tuple[int, int]
-"""Iterations ``first..last`` of an island run (both included)."""
 COORDINATOR_LEASE_S = 10.0
 """A campaign not stopped whose coordinator committed nothing for this long has lost its coordinator: a running one
 commits at least every :data:`coordinator.loop.COMMIT_EVERY_S` (stamping its heartbeat in ``commits``) and waits at most
@@ -38,48 +42,6 @@ def process_runs(pid: int) -> bool:
             return f.read().rsplit(")", 1)[-1].split()[0] != "Z"
     except (OSError, IndexError):
         return True
-
-
-def merged(spans: list[Span]) -> list[Span]:
-    """Spans of iterations joined where they overlap or touch, in order."""
-    out: list[list[int]] = []
-    for first, last in sorted(spans):
-        if out and first <= out[-1][1] + 1:
-            out[-1][1] = max(out[-1][1], last)
-        else:
-            out.append([first, last])
-    return [(a, b) for a, b in out]
-
-
-@dataclass(frozen=True)
-class StoredBest:
-    island: str
-    x: np.ndarray
-    fitness: float
-    evaluations: int
-    """Total campaign evaluations when this best was found (for the stall rule)."""
-
-
-@dataclass(frozen=True)
-class IslandRecord:
-    island: str
-    run: str
-    algo: str
-    seed: int
-    iterations: int
-    evaluations: int
-    best_fitness: float
-    best_x: np.ndarray
-    sent: int
-    received: int
-    taken: int
-    rejected: int
-    final: bool
-    unlisted: int = 0
-    """Migrant messages it counted as having waited in vain for the roster to list their run (apart from ``rejected``)."""
-
-    def as_dict(self) -> dict[str, Any]:
-        return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "best_x"}
 
 
 class Queries:
@@ -119,7 +81,7 @@ class Queries:
 
     def _process_gone(self, campaign: str) -> bool:
         """Whether the coordinator process that last stamped the campaign's heartbeat ran on this host and runs no more."""
-        if not self._has_column("commits", "host"):
+        if not has_column(self.db, "commits", "host"):
             return False  # an earlier hysid's heartbeat: only its age tells
         row = self.db.execute("SELECT pid, host FROM commits WHERE campaign = ?", (campaign,)).fetchone()
         if row is None or row[0] is None or row[1] != socket.gethostname():
@@ -164,7 +126,7 @@ class Queries:
 
     def runs(self, campaign: str) -> list[tuple[str, str, bytes, str, int, float, str]]:
         """Every run that joined: ``(island, run, public key, algo, seed, joined, member)`` in the order they joined."""
-        member = "member" if self._has_column("runs", "member") else "''"
+        member = "member" if has_column(self.db, "runs", "member") else "''"
         rows = self.db.execute(f"SELECT island, run, key, algo, seed, joined, {member} FROM runs WHERE campaign = ? ORDER BY joined", (campaign,))
         return [(i, r, bytes(k), a, s, float(j), m) for i, r, k, a, s, j, m in rows]
 
@@ -175,7 +137,7 @@ class Queries:
         return StoredBest(row[0], np.frombuffer(row[1], dtype="<f8").copy(), float(row[2]), int(row[3]))
 
     def islands(self, campaign: str) -> list[IslandRecord]:
-        unlisted = "unlisted" if self._has_column("islands", "unlisted") else "0"
+        unlisted = "unlisted" if has_column(self.db, "islands", "unlisted") else "0"
         rows = self.db.execute(
             "SELECT island, run, algo, seed, iterations, evaluations, best_fitness, best_x, sent, received, taken, rejected, final, "
             f"{unlisted} FROM islands WHERE campaign = ? ORDER BY island, run", (campaign,),
@@ -197,34 +159,30 @@ class Queries:
         ends = self.db.execute(f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
             g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration + 1) ORDER BY iteration""", key)
         spans = list(zip((s for (s,) in starts.fetchall()), (e for (e,) in ends.fetchall())))
-        if self._has("thinned"):
+        if has_table(self.db, "thinned"):
             spans += self.db.execute(f"SELECT first, last FROM thinned WHERE {where}", key).fetchall()
         return merged(spans)
 
     def thinned(self, campaign: str) -> dict[tuple[str, str], int]:
         """History rows the coordinator did not keep, per island run."""
-        if not self._has("thinned"):
+        if not has_table(self.db, "thinned"):
             return {}
         rows = self.db.execute("SELECT island, run, sum(rows) FROM thinned WHERE campaign = ? GROUP BY island, run", (campaign,))
         return {(i, r): int(n) for i, r, n in rows}
 
     def superseded(self, campaign: str) -> int:
         """Migrant messages a newer one of the same island replaced before the coordinator handled them."""
-        if not self._has("superseded"):
+        if not has_table(self.db, "superseded"):
             return 0
         return int(self.db.execute("SELECT coalesce(sum(messages), 0) FROM superseded WHERE campaign = ?", (campaign,)).fetchone()[0])
 
     def unfollowed(self, campaign: str) -> dict[str, Any] | None:
         """When the coordinator stopped following migrant messages: ``islands`` alive then, the rule's ``up_to``
         and the Unix time ``t`` (None: it never did)."""
-        if not self._has("unfollowed"):
+        if not has_table(self.db, "unfollowed"):
             return None
         row = self.db.execute("SELECT islands, up_to, t FROM unfollowed WHERE campaign = ?", (campaign,)).fetchone()
         return None if row is None else {"islands": int(row[0]), "up_to": int(row[1]), "t": float(row[2])}
-
-    def _has(self, table: str) -> bool:
-        """Whether the file has ``table`` (a file of an earlier hysid opened read-only may lack it)."""
-        return self.db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,)).fetchone() is not None
 
     def history(self, campaign: str) -> list[tuple[str, str, int, float, int, float]]:
         """All rows ``(island, run, iteration, best_fitness, evaluations, wall_s)``."""
@@ -267,11 +225,7 @@ class Queries:
 
     def _counted_rejects(self) -> bool:
         """Whether ``rejected`` has its ``n`` column (a file of an earlier hysid opened read-only has not)."""
-        return self._has_column("rejected", "n")
-
-    def _has_column(self, table: str, column: str) -> bool:
-        """Whether ``table`` has ``column`` (a file of an earlier hysid opened read-only may lack it)."""
-        return column in {row[1] for row in self.db.execute(f"PRAGMA table_info({table})")}
+        return has_column(self.db, "rejected", "n")
 
     def rejected_reasons(self, campaign: str) -> dict[str, int]:
         n = "sum(n)" if self._counted_rejects() else "count(*)"

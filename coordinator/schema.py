@@ -1,4 +1,5 @@
-"""The campaign database's tables, and what a database of an earlier hysid gets when it is opened.
+"""The campaign database's tables, what a database of an earlier hysid gets when it is opened, and whether a file
+has a table or a column (:func:`has_table`, :func:`has_column`: one opened read-only is not upgraded).
 
 Tables: ``campaigns`` (configuration message with the loop set, status, stop reason, final result),
 ``members`` (join / leave / lost / back events), ``history`` (the islands' convergence rows, keyed by
@@ -7,7 +8,7 @@ history whose rows the coordinator did not keep, over capacity, and how many: :m
 ``islands`` (each island run's algorithm, evaluations and migration counters), ``migrations`` (every
 migrant message handled), ``superseded`` (per island, migrant messages a newer one replaced before they
 were handled), ``unfollowed`` (when, with how many islands alive, the coordinator stopped following
-migrant messages: :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO`), ``rejected`` (every message that
+migrant messages: :data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO`), ``rejected`` (every message that
 failed validation, with the reason), ``best`` (the global best, as re-evaluated by the coordinator),
 ``runs`` (every run admitted, its public key and the member it joined for), ``moves`` (the share's moves) and ``commits`` (the
 coordinator's heartbeat: when it last committed, from which process on which host, and the campaign's
@@ -80,35 +81,33 @@ CREATE INDEX IF NOT EXISTS thinned_runs ON thinned (campaign, island, run, first
 """A migrant message (sender run and number) is stored once, also when it is replayed after a restart; a run's
 thinned stretches are found in order."""
 
-UPSERT_ISLAND = """INSERT INTO islands (campaign, island, run, algo, seed, iterations, evaluations, best_fitness, best_x, sent, received, taken,
-    rejected, final, unlisted) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)
-    ON CONFLICT (campaign, island, run) DO UPDATE SET
-    algo = CASE WHEN excluded.iterations >= iterations THEN excluded.algo ELSE algo END,
-    iterations = max(iterations, excluded.iterations), evaluations = max(evaluations, excluded.evaluations),
-    best_x = CASE WHEN excluded.best_fitness < best_fitness THEN excluded.best_x ELSE best_x END,
-    best_fitness = min(best_fitness, excluded.best_fitness), sent = max(sent, excluded.sent),
-    received = max(received, excluded.received), taken = max(taken, excluded.taken),
-    rejected = max(rejected, excluded.rejected), final = max(final, excluded.final), unlisted = max(unlisted, excluded.unlisted)"""
-"""An island run's record: counters only grow, the best vector follows the best fitness (messages may come late)."""
+def has_table(db: sqlite3.Connection, table: str) -> bool:
+    """Whether the database has ``table`` (a file of an earlier hysid opened read-only may lack it)."""
+    return db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,)).fetchone() is not None
+
+
+def has_column(db: sqlite3.Connection, table: str, column: str) -> bool:
+    """Whether ``table`` has ``column`` (a file of an earlier hysid opened read-only may lack it)."""
+    return column in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}
 
 
 def prepare(db: sqlite3.Connection) -> None:
     """Create the tables, and add to a database of an earlier hysid the columns it lacks."""
     db.executescript(SCHEMA)
     for table, column, upgrade in UPGRADES:
-        if column not in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}:
+        if not has_column(db, table, column):
             db.execute(upgrade)
     db.executescript(INDEXES)
+
 
 def move_keys_out(db: sqlite3.Connection, path: str) -> int:
     """Move the keys a database of an earlier hysid kept in its ``secrets`` table (at ``path``) to owner-only key
     files beside it (:func:`coordinator.keys.key_path`), then drop the table and rebuild the file (``VACUUM``,
     the journal emptied), so that no byte of them stays in it; returns how many campaigns' keys moved."""
-    if db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'secrets'").fetchone() is None:
+    if not has_table(db, "secrets"):
         return 0
-    columns = {row[1] for row in db.execute("PRAGMA table_info(secrets)")}
     moved = 0
-    if {"admission", "signing"} <= columns:
+    if has_column(db, "secrets", "admission") and has_column(db, "secrets", "signing"):
         for campaign, admission, signing in db.execute("SELECT campaign, admission, signing FROM secrets").fetchall():
             if admission and signing:  # a campaign of protocol 3 held only a key no island speaks any more
                 CampaignKeys(campaign, bytes(admission), bytes(signing)).with_members_key().keep(key_path(path, campaign))

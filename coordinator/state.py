@@ -1,8 +1,8 @@
-"""The campaign coordinator's state and message handling: admits islands, records everything, keeps the best.
+"""The campaign coordinator's state: admits islands, records everything, keeps the best.
 
 All incoming traffic (join requests, island histories and migrants,
 membership changes) lands in one bounded, fair inbox (:mod:`coordinator.inbox`)
-and is handled (:meth:`Coordinator.handle`) by one thread, the run loop of
+and is handled (:meth:`coordinator.receiving.Receiving.handle`) by one thread, the run loop of
 :mod:`coordinator.loop`, which owns the SQLite store (:mod:`coordinator.store`).
 The coordinator
 
@@ -13,9 +13,9 @@ The coordinator
   everything it sends with that key;
 * admits islands (the join handshake, a challenge-response): only an island
   that proves it holds its member's admission secret, for a challenge this process
-  issued within the last :data:`CHALLENGE_S`, gets a run id; the run's public
+  issued within the last :data:`coordinator.admission.CHALLENGE_S`, gets a run id; the run's public
   key is stored before the island hears of it, and each island id gets at
-  most :data:`RUNS_PER_ISLAND` runs. Only an island that joined may speak:
+  most :data:`coordinator.admission.RUNS_PER_ISLAND` runs. Only an island that joined may speak:
   its history and migrants must carry its run's signature, a replayed message
   is dropped, and counters it could not have reached (more evaluations than its
   algorithm, its iterations and the migrants it may take allow) are rejected
@@ -32,9 +32,9 @@ The coordinator
   handled, the others counted as superseded: :mod:`coordinator.inbox`), and every rejected message
   with its reason (a flood as counted summaries);
 * follows the migrant messages (checks each one's signature, records it, takes
-  its best) only while at most :data:`FOLLOWS_MIGRANTS_UP_TO` islands are alive:
+  its best) only while at most :data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO` islands are alive:
   once more are, it stops for the rest of its run (stored, with how many were
-  alive: the report says so) and :meth:`Link.unfollow_migrants` stops their
+  alive: the report says so) and :meth:`coordinator.link.Link.unfollow_migrants` stops their
   delivery. Migration goes from island to island and needs no coordinator; each
   island still counts what it sent, received, took in and rejected in its
   history, which also carries its best. A thousand islands migrating every
@@ -59,6 +59,12 @@ The coordinator
   new ones are given, and asks every live island for the history rows it missed
   (:class:`coordinator.histories.Gaps`).
 
+The :class:`Coordinator` is made of parts, each in a module of its own: the joins, the runs and members' shares
+and the roster (:class:`coordinator.admission.Admission`); what arrives, into the inbox and handled or rejected
+(:class:`coordinator.receiving.Receiving`); the histories, migrants and global best taken in
+(:class:`coordinator.intake.Intake`). This module holds the state they share, made (or taken up again:
+:func:`resume`) from the store, the live progress, the stop rule that holds and the outcome.
+
 Committing, the ``control`` message and the stop rules are the run loop's
 (:func:`coordinator.loop.serve`). Once it stopped, :meth:`Coordinator.outcome`
 re-evaluates every island's best and polishes the global best (section 3.1's
@@ -75,71 +81,36 @@ from __future__ import annotations
 import secrets
 import time
 from collections import Counter, OrderedDict
-from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
 from coordinator.admission import Admission
-from coordinator.histories import Gaps, HistoryChecks, check_claim
+from coordinator.histories import Gaps, HistoryChecks
 from coordinator.inbox import Inbox
+from coordinator.intake import Intake
 from coordinator.keys import CampaignKeys, campaign_keys
-from coordinator.link import Link
 from coordinator.members import Member, Membership
-from coordinator.outcome import CampaignOutcome, campaign_outcome
+from coordinator.outcome import CampaignEnd, CampaignOutcome, campaign_outcome
 from coordinator.progress import CampaignProgress, IslandView, island_views
-from coordinator.queries import IslandRecord, StoredBest
+from coordinator.receiving import REJECTED_BURST, REJECTED_PER_S, Receiving, TokenBucket
+from coordinator.records import StoredBest
 from coordinator.sharing import Sharing
-from coordinator.store import RUN_LOCK_WAIT_S, Store, StoreError
+from coordinator.store import RUN_LOCK_WAIT_S, Store
 from coordinator.thinning import HistoryPolicy
+from coordinator.writes import StoreError
 from hysid_model.loops import LoopSet
 from island.config import CampaignConfig, decode_config, encode_config
-from island.protocol import (
-    Best,
-    History,
-    HistoryQuery,
-    Migrants,
-    decode_history,
-    decode_migrants,
-    encode_best,
-    encode_history_query,
-    encode_signed_config,
-)
-from island.sealing import ReplayGuard, check_replay
-from island.termination import Termination
 from island.joining import key_prefix
-from island.wire import MAX_BYTES, NAME_PATTERN, MessageRejected
-
-REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
-"""Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""
-EVALUATED_CACHE = 4096
-FOLLOWS_MIGRANTS_UP_TO = 64
-"""A coordinator follows every migrant message while at most this many islands are alive (see the module docstring)."""
+from island.protocol import Best, Migrants, encode_best, encode_signed_config
+from island.sealing import ReplayGuard
+from island.termination import Termination
 
 
-class TokenBucket:
-    def __init__(self, rate: float, burst: int) -> None:
-        self.rate, self.burst = rate, burst
-        self.level, self.at = float(burst), time.monotonic()
-
-    def take(self) -> bool:
-        now = time.monotonic()
-        self.level = min(self.burst, self.level + (now - self.at) * self.rate)
-        self.at = now
-        if self.level >= 1.0:
-            self.level -= 1.0
-            return True
-        return False
-
-
-SLIPPED_THROUGH = (ValueError, TypeError, OverflowError, ArithmeticError, IndexError, KeyError)
-"""What a message the checks let through may still raise when it is handled: it is rejected, never raised."""
-
-
-class Coordinator(Admission):
+class Coordinator(Admission, Receiving, Intake):
     """One campaign's coordinator state machine (see the module docstring; joins, members' shares and the roster:
-    :class:`coordinator.admission.Admission`)."""
+    :class:`coordinator.admission.Admission`; what arrives and how it is handled: :class:`coordinator.receiving.Receiving`;
+    the histories, migrants and global best: :class:`coordinator.intake.Intake`)."""
 
     def __init__(
         self, store: Store, config: CampaignConfig, loops: LoopSet, termination: Termination | None = None, *, dataset: str = "", resume: bool = False,
@@ -193,7 +164,7 @@ class Coordinator(Admission):
             self.islands[(rec.island, rec.run)] = IslandView(rec.algo, rec.iterations, rec.best_fitness, rec.final)
         self.evaluations = int(sum(self.run_evaluations.values()))
         """Evaluations of every run together (each run's as its histories last said; those that count toward the
-        budget and the stall rule: :meth:`countable`)."""
+        budget and the stall rule: :meth:`coordinator.admission.Admission.countable`)."""
         self.solo_effort = self.evaluations  # before this process: as they came
         self.membership = Membership(store, self.name, config.min_islands, self._finished)
         if resume:
@@ -213,13 +184,13 @@ class Coordinator(Admission):
         self.gaps = Gaps(store, self.name)
         self.policy = HistoryPolicy()
         self.follows_migrants = store.unfollowed(self.name) is None
-        """Whether migrant messages are followed (:data:`FOLLOWS_MIGRANTS_UP_TO`; a resumed campaign that stopped does not start again)."""
+        """Whether migrant messages are followed (:data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO`; a resumed campaign that stopped does not start again)."""
         self.superseded = store.superseded(self.name)
         """Migrant messages superseded in the inbox (a newer one of the island replaced them) before they were handled."""
         self._replays = ReplayGuard()
         self._evaluated: OrderedDict[bytes, float] = OrderedDict()
         self._candidates: dict[str, Migrants] = {}
-        """Each island's newest migrant message handled since the last commit, not evaluated yet (:meth:`consider_migrants`)."""
+        """Each island's newest migrant message handled since the last commit, not evaluated yet (:meth:`coordinator.intake.Intake.consider_migrants`)."""
         self._rejected_log = TokenBucket(REJECTED_PER_S, REJECTED_BURST)
         # what the run loop (:mod:`coordinator.loop`) reads and resets at each commit
         self.rejected_backlog: Counter[str] = Counter()
@@ -279,228 +250,10 @@ class Coordinator(Admission):
         assert self.best is not None
         return encode_best(Best(self.name, self.best.island, self.best.x, self.best.fitness), self.run_id, self.signing)
 
-    # --- what other threads call: into the inbox ------------------------------------------------
-    def _source(self, island: str) -> str:
-        """Inbox queue of a sender: its own once it joined, else the one all strangers share."""
-        return island if island in self.current else "?"
-
-    def receive(self, key: str, payload: bytes, wait_s: float | None = 1.0) -> bool:
-        """A publication (``hysid/<c>/<kind>/<sender>``) for the coordinator's thread; False if dropped. A
-        joined island's migrant message may replace its one still waiting (only its newest matters:
-        :mod:`coordinator.inbox`), once it proved to be its run's, well formed: what could be rejected
-        waits to be, with its reason. Migrant messages are let pass once the coordinator stopped following
-        them (:meth:`review_following`)."""
-        kind, sender = key.rsplit("/", 2)[-2:] if key.count("/") >= 2 else ("", key)
-        if kind == "migrants" and not self.follows_migrants:
-            return True  # on its way when the coordinator stopped following them: the islands count it
-        source = self._source(sender)
-        if len(payload) > MAX_BYTES.get(kind, 0) > 0:  # rejected as it is: its bytes need not wait (a flood of them would fill the inbox)
-            return self.inbox.put(source, ("oversized", key, len(payload), MAX_BYTES[kind]), 0, wait_s)
-        m = self._authentic(payload, sender) if kind == "migrants" and source != "?" and self.inbox.is_crowded() else None
-        if m is not None:
-            return self.inbox.put(source, ("migrants", key, m, time.monotonic()), len(payload), wait_s, replace=True)
-        return self.inbox.put(source, ("msg", key, payload, time.monotonic()), len(payload), wait_s)
-
-    def _authentic(self, payload: bytes, sender: str) -> Migrants | None:
-        """A migrant message, if it is signed by a run of ``sender`` and well formed (None: it is not;
-        replays are the coordinator's thread's to check; called from the thread a message arrives on)."""
-        try:
-            return decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender)
-        except (MessageRejected, *SLIPPED_THROUGH):
-            return None
-
-    def member(self, island: str, alive: bool, wait_s: float | None = 1.0) -> bool:
-        """A liveliness token of ``members/<island>`` appeared (``alive``) or went."""
-        return self.inbox.put("!" + self._source(island), ("member", island, alive), 0, wait_s, urgent=True)
-
-    def join_request(self, island: str, payload: bytes, reply: Callable[[bytes], None], wait_s: float | None = 1.0) -> bool:
-        """A step of the join handshake on ``join/<island>``; ``reply`` sends the answer (called by the coordinator's thread)."""
-        return self.inbox.put("!" + self._source(island), ("join", island, payload, reply), len(payload), wait_s, urgent=True)
-
-    # --- handling what arrives ----------------------------------------------------------
-    def handle(self, link: Link, item: tuple[Any, ...]) -> None:
-        """One inbox item: ``("msg", key, payload, arrived)``, ``("migrants", key, message, arrived)`` (checked
-        as it arrived but for replays; ``arrived``: its ``time.monotonic()`` then), ``("oversized", key, size, most)``
-        (a publication too large for its kind, its bytes dropped as it came), ``("member", island, alive)``
-        or ``("join", island, payload, reply)``.
-
-        Nothing a message holds can raise out of here: a rejected message is
-        recorded with its reason; only a database that cannot be written
-        (:class:`StoreError`) stops the coordinator.
-        """
-        key, size = f"{item[0]}/{item[1]}", 0
-        try:
-            if item[0] == "member":
-                key = f"members/{item[1]}"
-                self._member(link, item[1], item[2])
-            elif item[0] == "join":
-                key, size = f"join/{item[1]}", len(item[2])
-                self._join(link, item[1], item[2], item[3])
-            elif item[0] == "migrants":
-                key = item[1]
-                self._migrants(link, item[2], item[3])
-            elif item[0] == "oversized":
-                key, size = item[1], item[2]
-                raise MessageRejected("oversized", f"a message of {item[2]} bytes under {key[:100]} exceeds {item[3]}")
-            else:
-                _, key, payload, arrived = item
-                size = len(payload)
-                kind, _, sender = key[len(self.prefix) + 1 :].partition("/") if key.startswith(self.prefix + "/") else ("", "", "")
-                if kind == "history":
-                    self._history(link, decode_history(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender), arrived)
-                elif kind == "migrants":
-                    self._migrants(link, decode_migrants(payload, self.name, self.objective.bounds, key_for=self._key_for, sender=sender), arrived)
-                else:
-                    raise MessageRejected("schema", f"unexpected key {key[:100]}")
-        except MessageRejected as exc:
-            self.reject(key, exc.reason, str(exc), size)
-        except StoreError:
-            raise
-        except SLIPPED_THROUGH as exc:
-            self.reject(key, "schema", f"could not be handled ({type(exc).__name__}: {exc})", size)
-
-    def reject(self, key: str, reason: str, detail: str, size: int) -> None:
-        """Count a rejected message; record it, or (in a flood) count it in the next summary row."""
-        self.rejected += 1
-        if self._rejected_log.take():
-            self.store.add_rejected(self.name, key, reason, detail, size)
-        else:
-            self.rejected_backlog[reason] += 1
-
-    def _key_for(self, island: str, run: str) -> bytes | None:
-        info = self.runs.get((island, run))
-        return None if info is None else info.key
-
-    # --- membership --------------------------------------------------------------
-    def history_query(self, island: str, run: str, since: int) -> str:
-        """The signed selector parameters asking ``island`` for the rows of ``run`` after ``since``."""
-        self.query_seq = max(self.query_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts
-        return encode_history_query(HistoryQuery(self.name, island, run, since, self.query_seq), self.signing)
-
-    def _known(self, key: tuple[str, str]) -> tuple[int, float]:
-        """What is known of a run's message numbers before its first message here: it numbers from 0, since it joined."""
-        return -1, time.time() - self.runs[key].joined
-
-    def last_seq(self, island: str, run: str) -> int:
-        """The last message number of that run accepted here (-1: none; the roster says it)."""
-        return max(self._replays.high(("history", island, run)), self._replays.high(("migrants", island, run)))
-
-    def _heard(self, island: str, run: str, arrived: float) -> None:
-        """A signed message of that run, arrived at ``arrived`` (``time.monotonic()``): its latest run is alive
-        (:meth:`Membership.heard`)."""
-        if self.current.get(island) == run:
-            self.membership.heard(island, run, arrived)
-
-    def _member(self, link: Link, island: str, alive: bool) -> None:
-        if not NAME_PATTERN.match(island):
-            raise MessageRejected("sender", "liveliness token with an invalid island name")
-        run = self.current.get(island)
-        if run is None:
-            raise MessageRejected("unjoined", f"liveliness token of {island!r}, which never joined")
-        self.membership.token(island, run, alive)
-        if alive:
-            link.request_history(island, run, self.gaps.stored((island, run)))
-
-    # --- history and migrants --------------------------------------------------------------
-    def evaluate(self, x: np.ndarray) -> np.ndarray:
-        """The coordinator's own fitness of candidates ``x (k, D)`` (recently seen ones from a cache)."""
-        keys = [row.tobytes() for row in np.ascontiguousarray(x, dtype=float)]
-        todo = [i for i, k in enumerate(keys) if k not in self._evaluated]
-        if todo:
-            for i, f in zip(todo, self.objective(x[todo])):
-                self._evaluated[keys[i]] = float(f)
-        for k in keys:
-            self._evaluated.move_to_end(k)
-        while len(self._evaluated) > EVALUATED_CACHE:
-            self._evaluated.popitem(last=False)
-        return np.array([self._evaluated[k] for k in keys])
-
-    def _history(self, link: Link, h: History, arrived: float) -> None:
-        key = (h.island, h.run)
-        info = self.runs[key]
-        check_replay(self._replays, "history", h.island, h.run, h.seq, self._known(key))
-        self._heard(h.island, h.run, arrived)
-        self.checks.plausible(h, info.algo, info.seed, self.sharing.algos[key], self.islands.get(key, IslandView("")).iteration, time.time() - info.joined)
-        if not h.rows.size and not h.final:
-            return  # a heartbeat: alive, nothing new to store
-        f = float(self.evaluate(h.best_x[None, :])[0])
-        check_claim(h, f)
-        if h.rows.size:
-            kept = h.rows[self.policy.keep(key, h.rows)]
-            self.store.queue_history(self.name, h.island, h.run, kept)
-            span = (int(h.rows[0, 0]), int(h.rows[-1, 0]))
-            if kept.shape[0] < h.rows.shape[0]:
-                self.store.queue_thinned(self.name, h.island, h.run, span, h.rows.shape[0] - kept.shape[0])
-            self.rows_since_commit += kept.shape[0]
-            self.gaps.arrived(key, *span, link.request_history)
-        iterations = int(h.rows[:, 0].max()) if h.rows.size else 0
-        evaluations = int(h.rows[:, 2].max()) if h.rows.size else 0
-        self.store.queue_island(self.name, IslandRecord(
-            h.island, h.run, h.algo, h.seed, iterations, evaluations, f, h.best_x,
-            h.stats["sent"], h.stats["received"], h.stats["taken"], h.stats["rejected"], h.final, h.stats["unlisted"],
-        ))
-        self.count_effort(key, evaluations)
-        self.sharing.credit(key, h.algo, h.gain)
-        view = self.islands.setdefault(key, IslandView(h.algo))
-        view.algo = h.algo
-        view.iteration = max(view.iteration, iterations)
-        view.best = min(view.best, f)
-        view.final = view.final or h.final
-        self.changed = True
-        if h.final:
-            self.membership.final_history(h.island, h.run)
-            self.policy.forget(key)
-        self._consider(link, h.island, h.best_x, f)
-        if self.stop_reason is None and self.rule_stop() is None:  # the share's moves (none once a rule says stop): told with the next control message
-            self.sharing.review(self.evaluations, self.members, self.islands, key)
-
-    def _migrants(self, link: Link, m: Migrants, arrived: float) -> None:
-        if not self.follows_migrants:
-            return  # queued before the coordinator stopped following them: the islands count it
-        check_replay(self._replays, "migrants", m.island, m.run, m.seq, self._known((m.island, m.run)))
-        self._heard(m.island, m.run, arrived)
-        if not self.store.add_migration(self.name, m.island, m.run, m.iteration, m.x.shape[0], float(m.claimed.min()), m.sent_at, m.seq):
-            raise MessageRejected("replay", f"migrant message {m.seq} of {m.island!r} run {m.run!r} is stored already")
-        self.migrations += 1
-        self._candidates[m.island] = m  # of an island's messages only the newest matters: its best never gets worse
-
-    def review_following(self, link: Link | None = None) -> None:
-        """Stop following migrant messages once more than :data:`FOLLOWS_MIGRANTS_UP_TO` islands are alive: at the
-        join that makes them so (:meth:`admit`, before the island hears it joined: none of its migrants, nor of those
-        it makes start, is followed), and then at every commit, where ``link`` stops their delivery."""
-        if self.follows_migrants:
-            alive = sum(m.status == "alive" for m in self.members.values())
-            if alive > FOLLOWS_MIGRANTS_UP_TO:
-                self.follows_migrants = False
-                self.store.set_unfollowed(self.name, alive, FOLLOWS_MIGRANTS_UP_TO)
-        if not self.follows_migrants and link is not None:
-            link.unfollow_migrants()
-
-    def consider_migrants(self, link: Link) -> None:
-        """Evaluate the migrants of each island's newest message handled since the last call (the run loop calls
-        it at every commit: :func:`coordinator.loop.commit`), and take the best if it beats the global best."""
-        if not self._candidates:
-            return
-        waiting, self._candidates = list(self._candidates.values()), {}
-        for m in waiting:  # message by message: a candidate's fitness does not depend on what it was evaluated with
-            f = self.evaluate(m.x)
-            i = int(np.argmin(f))
-            self._consider(link, m.island, m.x[i], float(f[i]))
-
-    def _consider(self, link: Link, island: str, x: np.ndarray, f: float) -> None:
-        """A candidate with the coordinator's own fitness ``f``: if it beats the global best, it is the new one."""
-        if not np.isfinite(f) or (self.best is not None and not f < self.best.fitness):
-            return
-        self.best = StoredBest(island, np.array(x, dtype=float), f, self.countable())
-        self.best_trace.append((time.monotonic(), f, self.evaluations, self.best.x))
-        self.store.set_best(self.name, self.best)
-        self.best_message = self._best_message()
-        link.publish_best(self.best_message)
-
     # --- the stop rules (checked by the run loop, coordinator.loop) ------------------------
     def rule_stop(self) -> str | None:
         """The stop rule (budget, target, stall, time) that holds now, if any (the budget and the stall rule count the
-        evaluations that count: :meth:`countable`)."""
+        evaluations that count: :meth:`coordinator.admission.Admission.countable`)."""
         best = self.best
         return self.termination.reason(
             evaluations=self.countable(),
@@ -512,7 +265,11 @@ class Coordinator(Admission):
     # --- the outcome ----------------------------------------------------------------
     def outcome(self, *, polish_best: bool = True) -> CampaignOutcome:
         """What the campaign leaves (:func:`coordinator.outcome.campaign_outcome`)."""
-        return campaign_outcome(self, polish_best=polish_best)
+        end = CampaignEnd(
+            self.store, self.config, self.loops, self.termination, self.best, self.stop_reason, {i: m.status for i, m in self.members.items()},
+            [(key, info.algo) for key, info in self.runs.items()], list(self.sharing.moves),
+        )
+        return campaign_outcome(end, polish_best=polish_best)
 
 
 def resume(store: Store, name: str, termination: Termination | None = None) -> Coordinator:

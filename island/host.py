@@ -11,7 +11,7 @@ so a seed gives the same search in either.
 
 * The islands compute ``turns`` at a time (default: :func:`cores`, the cores the
   process may run on), taking turns iteration by iteration in order
-  (:class:`Turns`): they progress alike, and the threads that speak for all of
+  (:class:`island.turns.Turns`): they progress alike, and the threads that speak for all of
   them (control, heartbeats, migrants) never wait behind dozens of computing
   ones for Python's interpreter lock.
 * One island's failure (refused by the coordinator, an error in its search)
@@ -30,7 +30,6 @@ from __future__ import annotations
 import os
 import threading
 import zlib
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -42,6 +41,7 @@ from island.config import CampaignConfig
 from island.node import HISTORY_EVERY_S, IslandNode
 from island.secret import CampaignSecret
 from island.transports import ZenohHost, ZenohTransport
+from island.turns import Turns
 from island.wire import MAX_MEMBERS, check_name
 
 INTERRUPT_CONFIRM_S = 3.0
@@ -73,40 +73,6 @@ def host_specs(base: str, count: int, config: CampaignConfig, algo: str | None =
     ids = [base] if count == 1 else [check_name("island", f"{base}-{k}") for k in range(count)]
     seeds = [config.seed + zlib.crc32(i.encode()) % SEED_SPREAD if seed is None else seed + k for k, i in enumerate(ids)]
     return [IslandSpec(i, algo or config.algo_for(s), s) for i, s in zip(ids, seeds)]
-
-
-class Turns:
-    """At most ``n`` islands of a process compute at once; the others wait, in the order they asked (see
-    the module docstring). Thread-safe."""
-
-    def __init__(self, n: int) -> None:
-        if n < 1:
-            raise HysidInputError("must be at least 1", param="turns", value=n)
-        self._free = n
-        self._waiting: deque[threading.Event] = deque()
-        self._lock = threading.Lock()
-
-    def acquire(self) -> None:
-        with self._lock:
-            if self._free and not self._waiting:
-                self._free -= 1
-                return
-            turn = threading.Event()
-            self._waiting.append(turn)
-        turn.wait()
-
-    def release(self) -> None:
-        """Hand the turn to the island that has waited longest (or free it)."""
-        with self._lock:
-            if self._waiting:
-                self._waiting.popleft().set()
-            else:
-                self._free += 1
-
-    def next(self) -> None:
-        """Let the islands waiting go first, then compute again."""
-        self.release()
-        self.acquire()
 
 
 @dataclass

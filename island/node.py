@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -78,10 +78,8 @@ from island.protocol import (
 from island.run import HistoryRow, run
 from island.sealing import Counter, Credentials
 from island.space import SpaceObjective
+from island.turns import Turns
 from island.wire import MessageRejected, check_name
-
-if TYPE_CHECKING:
-    from island.host import Turns
 
 START_TIMEOUT_S = 60.0
 """Longest wait for ``min_islands`` members before an island starts anyway."""
@@ -164,7 +162,7 @@ class IslandNode:
         turns: Turns | None = None,
     ) -> None:
         """``turns``: shared with the other islands of a process, how many of them compute at once
-        (:class:`island.host.Turns`; None: this island computes whenever it can)."""
+        (:class:`island.turns.Turns`; None: this island computes whenever it can)."""
         self.island = check_name("island", island)
         self.space = SpaceObjective(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
         """The objective in the coordinates of :mod:`island.space` where the island is memetic (module docstring)."""

@@ -1,4 +1,4 @@
-"""The coordinator in one process (coordinator/state.py, loop.py, inbox.py) on a real SQLite file: who may speak,
+"""The coordinator in one process (coordinator/state.py, receiving.py, intake.py, loop.py, inbox.py) on a real SQLite file: who may speak,
 what it may claim, replays, re-evaluation, commits under load, stop rules with a backlog, resumed ends.
 
 Messages go in through the same entry points the Zenoh link uses (``receive``, ``member``,

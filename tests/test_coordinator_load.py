@@ -15,7 +15,7 @@ import time
 import numpy as np
 import pytest
 
-import coordinator.state
+import coordinator.intake
 from coordinator.inbox import URGENT_RUN, Inbox
 from coordinator.loop import COMMIT_EVERY_S, COMMIT_ROWS, pump, serve
 from island.protocol import Migrants, encode_migrants
@@ -58,7 +58,7 @@ def test_migrants_are_not_followed_from_the_join_that_makes_the_islands_too_many
     """Past FOLLOWS_MIGRANTS_UP_TO islands alive (2 here) the coordinator stops following migrant messages at the
     third join itself, before that island hears it joined, not at its next commit: nothing of theirs is stored, also
     a message that waited in the inbox from before (a busy coordinator once stored 99 of them)."""
-    monkeypatch.setattr(coordinator.state, "FOLLOWS_MIGRANTS_UP_TO", 2)
+    monkeypatch.setattr(coordinator.intake, "FOLLOWS_MIGRANTS_UP_TO", 2)
     c = make(tmp_path)
     first, second = c.join("pso-0", "pso", 0), c.join("pso-1", "pso", 1)
     flood(c, first, 1, k=2)  # queued while two are alive

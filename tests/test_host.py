@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-import coordinator.state
+import coordinator.intake
 from coordinator.launch import free_port
 from coordinator.links import ZenohLink
 from coordinator.loop import serve
@@ -27,10 +27,11 @@ from hysid.cli import main
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig
-from island.host import Hosted, IslandSpec, Turns, host_specs, run_islands
+from island.host import Hosted, IslandSpec, host_specs, run_islands
 from island.migration import Migration
 from island.session import open_session, session_config
 from island.termination import Termination
+from island.turns import Turns
 from support import query, ready, rows_of, secret_file, wait_for
 
 LOOPS = synth_loops(n_points=30)
@@ -149,11 +150,11 @@ def test_each_island_of_a_process_joins_as_its_own_run_with_its_own_key_and_repo
 def test_a_coordinator_of_more_islands_than_it_follows_leaves_migration_to_them_and_says_so(
     trio: Campaign, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Past :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO` islands alive (2 here) the coordinator stops
+    """Past :data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO` islands alive (2 here) the coordinator stops
     subscribing to migrant messages before the islands start; they still migrate to one another, report
     their counts, and the result says who counted what."""
     campaign = trio
-    monkeypatch.setattr(coordinator.state, "FOLLOWS_MIGRANTS_UP_TO", 2)
+    monkeypatch.setattr(coordinator.intake, "FOLLOWS_MIGRANTS_UP_TO", 2)
     hosted = campaign.islands(host_specs("h", 3, campaign.c.config, seed=20), turns=2)
     assert all(h.error is None and h.node is not None and h.node.confirmed for h in hosted)
     assert not campaign.link.follows_migrants and not campaign.c.follows_migrants

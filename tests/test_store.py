@@ -1,4 +1,4 @@
-"""The campaign database (coordinator/store.py) on real SQLite files."""
+"""The campaign database (coordinator/store.py, schema.py, writes.py, queries.py) on real SQLite files."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import signal
 import numpy as np
 import pytest
 
-from coordinator.queries import IslandRecord, StoredBest
+from coordinator.records import IslandRecord, StoredBest
+from coordinator.schema import has_table
 from coordinator.store import Store
 from hysid_model.errors import HysidInputError
 
@@ -182,7 +183,7 @@ def test_a_database_that_still_holds_keys_has_them_moved_out_when_opened_for_wri
         data = p.read_bytes()
         assert all(k not in data and k.hex().encode() not in data for k in (admission, signing)), p
     reader = Store.read_only(db)  # no warning any more
-    assert not reader._has("secrets") and reader.campaign_list()[0]["name"] == "old"
+    assert not has_table(reader.db, "secrets") and reader.campaign_list()[0]["name"] == "old"
     reader.close()
 
 

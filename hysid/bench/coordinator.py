@@ -15,7 +15,7 @@ loopback.
 * **ramp**: 32, 64, 128, ... islands, ``ramp_s`` each, until the coordinator lags (a row's p95 lag above 1 s,
   or a row sent neither stored nor counted as thinned): the most islands it held, what it stored and thinned
   (:mod:`coordinator.thinning`), migrant messages handled and superseded (none beyond
-  :data:`coordinator.state.FOLLOWS_MIGRANTS_UP_TO` islands: then it no longer follows them), and the coordinator's memory
+  :data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO` islands: then it no longer follows them), and the coordinator's memory
   (this process's resident memory over the islands: target 1 MB per island at most);
 * **backlog**: 32 islands with a backlog of 6400 messages queued at once and a budget spent after about a
   quarter of them: seconds from the start to the stop decision and how much was still queued (it must not

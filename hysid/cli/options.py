@@ -216,7 +216,7 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
 
 def running_campaign(db: Path) -> str | None:
     """The name of a campaign in ``db`` that did not stop and whose coordinator still commits (it did, within
-    :data:`coordinator.store.COORDINATOR_LEASE_S`), else None (also for a file that is no campaign database)."""
+    :data:`coordinator.queries.COORDINATOR_LEASE_S`), else None (also for a file that is no campaign database)."""
     try:
         store = Store.read_only(db)
     except HysidInputError:
