@@ -11,8 +11,8 @@ explains, not by how precisely one of its parameters is known there:
 4. degeneracy: a shape parameter the data push against a bound
    (:func:`binding`, :func:`degenerate`) means the effect turns into something
    else there; it is taken only if no other contender fits within
-   ``BIC_MARGIN`` of it (judged in :mod:`.selection`; then the bound is
-   reported with the result);
+   ``BIC_MARGIN`` of it (:func:`degenerate_gives_way`, applied in :mod:`.selection`;
+   then the bound is reported with the result);
 5. share: it removes at least ``MIN_SHARE`` of the chi^2 above the noise floor;
 6. visible error: the loop NRMSE and the energy dissipated per cycle get no
    worse beyond their noise (the whitened chi^2 weighs loops by their noise; a
@@ -25,6 +25,8 @@ explains, not by how precisely one of its parameters is known there:
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -121,6 +123,13 @@ def degenerate(after: Fit, effects: tuple[str, ...]) -> str | None:
             if p.name != term.strength and p.name in names and binding(after, names.index(p.name)):
                 return f"{p.name} is pushed against its bound ({after.theta[names.index(p.name)]:.4g}): the effect degenerates here"
     return None
+
+
+def degenerate_gives_way(bic: float, rivals: Sequence[float]) -> bool:
+    """Rule 4's tie: whether a contender of BIC ``bic`` that degenerates (:func:`degenerate`) gives way to the
+    ``rivals`` (the BICs of the contenders that pass every rule without degenerating): one of them fits within
+    ``BIC_MARGIN`` of it, or better, and explains as much without turning into another effect."""
+    return bool(rivals) and min(rivals) < bic + BIC_MARGIN
 
 
 def judge(before: Fit, after: Fit, effects: tuple[str, ...], harmonics: Harmonics) -> str | None:

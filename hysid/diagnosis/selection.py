@@ -47,7 +47,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from hysid.diagnosis.acceptance import degenerate, held_out, judge
+from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
 from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
@@ -255,7 +255,7 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
         verdicts = {effects: judge(fit, r, effects, harmonics) for effects, r in refits.items()}
         for effects, why in [(e, degenerate(refits[e], e)) for e, v in verdicts.items() if v is None]:
             rivals = [r.bic for e, r in refits.items() if e != effects and verdicts[e] is None and degenerate(r, e) is None]
-            if why is not None and rivals and min(rivals) < refits[effects].bic + BIC_MARGIN:  # another explains as much without degenerating
+            if why is not None and degenerate_gives_way(refits[effects].bic, rivals):  # another explains as much without degenerating
                 verdicts[effects] = why
         if pairs is not None:  # the pair of others counts only where it beats the greedy pair and every single by BIC_MARGIN
             others, (members, joint) = tuple(c.effect for c in pairs[0][0]), pairs[1]
