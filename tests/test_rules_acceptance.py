@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hysid.diagnosis.acceptance import degenerate_gives_way, judge
+from hysid.diagnosis.acceptance import created_order, degenerate_gives_way, judge
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE
 from hysid.diagnosis.fitting import Fit, make_model
 from hysid_model.harmonics import HarmonicObjective, Harmonics
@@ -62,3 +62,34 @@ def test_a_degenerate_contender_gives_way_to_one_within_the_bic_margin(rivals, g
     """A contender of BIC 1000 that degenerates is taken only where every rival that passes without degenerating
     fits worse by BIC_MARGIN or more: a rival within the margin (or better) explains as much without degenerating."""
     assert degenerate_gives_way(1000.0, rivals) is gives_way
+
+
+def test_each_rule_names_why_a_refit_is_not_taken(harmonics):
+    """From the start 1 % off in w0: a friction of 10^-6 N at the same w0 lowers the chi^2 by less than its added
+    parameter costs (rule 1: the BIC rises); 10^-3 N with w0 right adds the third harmonic a friction makes and the
+    loops lack (rule 2); a friction of 0 with w0 right gains from w0 alone (rule 3); a 1 ms delay with w0 right
+    distorts the energy per cycle far beyond its noise (rule 6)."""
+    poor = at(harmonics, (), {**TRUTH, "w0": 0.99 * TRUTH["w0"]})
+    same = at(harmonics, ("coulomb_friction",), {**TRUTH, "w0": 0.99 * TRUTH["w0"], "F_d": 1e-6})
+    assert judge(poor, same, ("coulomb_friction",), harmonics) == f"BIC changes by only {same.bic - poor.bic:+.1f}"
+    assert 0 < same.bic - poor.bic <= np.log(same.n)  # the added parameter costs ln N; the fit gains less than 1
+    odd = at(harmonics, ("coulomb_friction",), {**TRUTH, "F_d": 1e-3})
+    order, c0, c1 = created_order(poor, odd)
+    assert order == 3 and c1 > 3 * c0
+    assert judge(poor, odd, ("coulomb_friction",), harmonics) == f"adds order-3 content the loops do not have (chi^2 of order 3: {c0:.4g} -> {c1:.4g})"
+    off = at(harmonics, ("coulomb_friction",), {**TRUTH, "F_d": 0.0})
+    assert created_order(poor, off) is None and judge(poor, off, ("coulomb_friction",), harmonics) == "F_d has the unphysical sign"
+    delayed = at(harmonics, ("channel_delay",), {**TRUTH, "delay_s": 1e-3})
+    assert judge(poor, delayed, ("channel_delay",), harmonics).startswith("raises the energy error from ")
+
+
+def test_a_harmonic_order_fitted_at_the_noise_and_made_significantly_worse_is_created(harmonics):
+    """The truth fits every order at the noise: a start 1 % off in w0 makes the first order far worse (created); the
+    truth against itself, or against a refit that is worse only within the noise, creates nothing."""
+    truth = at(harmonics, (), TRUTH)
+    poor = at(harmonics, (), {**TRUTH, "w0": 0.99 * TRUTH["w0"]})
+    order, c0, c1 = created_order(truth, poor)
+    assert order == 1 and c0 < 2 * 15 * 2 and c1 > 1000 * c0
+    assert created_order(truth, truth) is None and created_order(poor, truth) is None
+    near = at(harmonics, (), {**TRUTH, "w0": (1 - 1e-6) * TRUTH["w0"]})
+    assert created_order(truth, near) is None

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from hysid_model.errors import HysidInputError
-from hysid_model.readers.channels import choose
+from hysid_model.errors import HysidInputError, HysidWarning
+from hysid_model.readers.channels import Channel, choose
 from hysid_model.readers.dataset_dir import DatasetConfig
 
 NAMES = ["Zeit [s]", "Weg [mm]", "Kraft [kN]"]
@@ -31,3 +31,39 @@ def test_a_channel_number_past_the_last_is_a_one_line_error_naming_the_key(numbe
         choose(NAMES, "force", numbered(force=number), "r.csv")
     message = str(info.value)
     assert message.startswith(f"r.csv: force_channel = {number} but there are 3 channels") and "\n" not in message
+
+
+def named(**channels: str) -> DatasetConfig:
+    return DatasetConfig(Path("."), "rig", **{f"{q}_channel": n for q, n in channels.items()})
+
+
+def test_a_channel_given_by_name_matches_in_any_case_or_without_its_group():
+    assert choose(["Time", "DISP", "Force_N"], "force", named(force="force_n"), "r.csv") == Channel(2, "Force_N", "N", 1.0)
+    with pytest.warns(HysidWarning, match="channel 'g/Weg' states no unit"):
+        assert choose(["g/Time", "g/Weg", "g/Kraft"], "displacement", named(displacement="weg"), "r.tdms").index == 1
+
+
+@pytest.mark.parametrize(("names", "what"), [(["a", "b"], "no channel"), (["kraft", "Kraft"], "2 channels")])
+def test_a_channel_name_that_matches_none_or_several_is_a_one_line_error(names, what):
+    listing = ", ".join(repr(n) for n in names)
+    with pytest.raises(HysidInputError, match=f"^r.csv: {what} named 'kraft' \\(force_channel in dataset.toml\\); channels: {listing}$"):
+        choose(names, "force", named(force="kraft"), "r.csv")
+
+
+def test_without_a_name_given_the_default_then_the_stated_unit_then_a_label_decide():
+    assert choose(["time_s", "x", "force_n"], "force", None, "r.csv") == Channel(2, "force_n", "N", 1.0)
+    assert choose(["time", "displacement", "force"], "force", None, "r.tdms", file_units=[None, "mm", "kN"]) == Channel(2, "force", "kN", 1e3)
+    assert choose(["time_s", "displacement_mm", "force_n"], "displacement", None, "r.csv") == Channel(1, "displacement_mm", "mm", 1e-3)
+    assert choose(["t [ms]", "Weg", "Load (kN)"], "force", None, "r.csv") == Channel(2, "Load (kN)", "kN", 1e3)
+    assert choose(["t [ms]", "Weg", "Load (kN)"], "time", None, "r.csv") == Channel(0, "t [ms]", "ms", 1e-3)
+
+
+def test_no_channel_or_several_of_a_quantity_is_a_one_line_error_unless_it_may_be_absent():
+    assert choose(["time_s", "x"], "force", None, "r.csv", required=False) is None
+    with pytest.raises(HysidInputError, match="^r.csv: 2 force channels \\('Load \\(kN\\)', 'F \\[N\\]'\\); name one with force_channel in dataset.toml$"):
+        choose(["time_s", "Load (kN)", "F [N]"], "force", None, "r.csv")
+    with pytest.raises(HysidInputError, match="^r.csv: no force channel: expected 'force_n' \\(any case\\), a name like 'force_<unit>' or "
+                                              "'Force \\[unit\\]', or force_channel in dataset.toml; channels: 'time_s', 'x'$"):
+        choose(["time_s", "x"], "force", None, "r.csv")
+    with pytest.raises(HysidInputError, match="channels: none$"):
+        choose([], "force", None, "r.csv")

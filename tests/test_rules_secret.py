@@ -1,5 +1,6 @@
-"""The owner-only rule of island/secret.py: a campaign secret's file that its group or anyone else may read, write
-or run is named in a warning (and still read); a file of mode 0600 is read without one."""
+"""The owner-only rules of island/secret.py: a campaign secret's file that its group or anyone else may read, write
+or run is named in a warning (and still read); a file of mode 0600 is read without one; such a file is written at
+mode 0600 from the start and replaced whole; one that cannot be read is a one-line error."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ import warnings
 
 import pytest
 
-from hysid_model.errors import HysidWarning
-from island.secret import CampaignSecret
+from hysid_model.errors import HysidInputError, HysidWarning
+from island.secret import CampaignSecret, read_owner_only, write_owner_only
 
 
 def read_with_warnings(path) -> tuple[CampaignSecret, list[str]]:
@@ -33,3 +34,30 @@ def test_an_owner_only_secret_file_is_read_without_a_warning(tmp_path, mode):
     path = secret.write(tmp_path / "c.secret")
     path.chmod(mode)
     assert read_with_warnings(path) == (secret, [])
+
+
+def test_an_owner_only_file_is_written_whole_at_mode_0600_and_read_up_to_1000_characters(tmp_path):
+    path = write_owner_only(tmp_path / "k", "a" * 1500)
+    assert oct(path.stat().st_mode & 0o777) == "0o600" and sorted(p.name for p in tmp_path.iterdir()) == ["k"]
+    write_owner_only(path, "short\n")  # replaced whole
+    assert read_owner_only(path, None, "the key") == "short\n" and oct(path.stat().st_mode & 0o777) == "0o600"
+    write_owner_only(path, "b" * 1500)
+    assert read_owner_only(path, None, "the key") == "b" * 1000
+
+
+def test_a_failed_write_leaves_no_partial_file(tmp_path):
+    (tmp_path / "taken").mkdir()
+    with pytest.raises(IsADirectoryError):
+        write_owner_only(tmp_path / "taken", "x")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]
+
+
+def test_an_unreadable_secret_is_a_one_line_error_naming_the_file_or_the_parameter(tmp_path):
+    missing = tmp_path / "nope"
+    with pytest.raises(HysidInputError) as named:
+        read_owner_only(missing, "secret_file", "the campaign secret")
+    assert str(named.value) == f"secret_file={missing}: no such file" and named.value.param == "secret_file"
+    with pytest.raises(HysidInputError, match=f"^{missing}: the key: no such file$"):
+        read_owner_only(missing, None, "the key")
+    with pytest.raises(HysidInputError, match=f"^{tmp_path}: the key: cannot be read \\(Is a directory\\)$"):
+        read_owner_only(tmp_path, None, "the key")
