@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hysid.identifiability import CORRELATION_LIMIT, assess, partners
+from hysid.identifiability import CORRELATION_LIMIT, assess, crossing, partners, unseen
 from hysid_model.objective import Objective
 from hysid_model.problem import build_objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
@@ -43,3 +43,36 @@ def test_a_parameter_names_what_it_trades_off_with_the_strongest_first():
     assert partners(jac, 0, names) == ["c", "b"]
     jac = np.column_stack([0.8 * b + 0.05 * c, b, c, d])
     assert partners(jac, 0, names) == ["b"]
+
+
+def test_a_profile_due_gives_the_half_width_where_the_objective_rises_one_unit(thesis):
+    """xi0 and w0 handed over correlated beyond the limit, with errors 10^5 times too small: their profiles (the
+    others refitted) rise by one unit (10^-6 of the noiseless objective's scale) at sqrt(unit [(J^T J)^-1]_ii), the
+    curvature of this locally quadratic problem, and replace the handed errors; S_xi and S_w keep theirs."""
+    objective, theta = thesis
+    jac = objective.jacobian(theta)
+    se = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac)))
+    correlation = np.eye(4)
+    correlation[0, 2] = correlation[2, 0] = 0.9995
+    found = assess(objective, theta, correlation * np.outer(se, se) * 1e-10, lambda model: Objective(objective.loops, model), 1e-6)
+    assert sorted(found.profiled) == ["w0", "xi0"] and found.not_identifiable == {} and found.unprofiled == []
+    np.testing.assert_allclose(np.sqrt(np.diag(found.full)), np.sqrt(1e-6) * se * [1, 1e-2, 1, 1e-2], rtol=1e-3)
+    np.testing.assert_allclose(found.correlation[0, 2], 0.9995, rtol=1e-9)  # its correlations kept
+
+
+def test_the_directions_the_jacobian_does_not_see_are_found_at_unit_column_scale():
+    """Columns b and c of very different scale that move the residuals alike: the one direction unseen is
+    (b - c) / sqrt(2) in column-scaled coordinates; a Jacobian of full rank has none."""
+    a, b = np.eye(5)[:2]
+    directions, scale = unseen(np.column_stack([a, 1e-6 * b, 1e6 * b]))
+    np.testing.assert_allclose(scale, [1.0, 1e-6, 1e6])
+    assert directions.shape == (3, 1)
+    np.testing.assert_allclose(np.abs(directions[:, 0]), [0.0, np.sqrt(0.5), np.sqrt(0.5)], atol=1e-9)
+    assert directions[1, 0] * directions[2, 0] < 0
+    assert unseen(np.column_stack([a, b + 1e-3 * a]))[0].shape == (2, 0)
+
+
+def test_the_crossing_of_a_quadratic_rise_is_exact():
+    """A rise (d / 0.3)^2 crosses one unit at 0.3, from any two points of it."""
+    for near, far in ((0.1, 0.5), (0.0, 2.0), (0.29, 0.31)):
+        assert crossing(near, (near / 0.3) ** 2, far, (far / 0.3) ** 2) == pytest.approx(0.3, rel=1e-12)

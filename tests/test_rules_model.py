@@ -17,3 +17,11 @@ def test_a_value_on_a_bound_is_named_on_the_side_it_sits_on():
     assert model.at_bounds(low) == ["w0"] and model.at_bounds(high) == ["w0"]
     top = model.from_dict({"xi0": 0.1, "w0": 200.0, "meq": 1.0})
     assert model.bound_kinds(top) == {"xi0": "default upper bound 0.1"} and model.at_bounds(top) == ["xi0"]
+
+
+def test_a_bound_from_the_data_is_named_data_derived_and_one_off_the_bounds_is_not_named():
+    model = build_model("baseline").with_bounds({"w0": (120.0, 250.0), "meq": (0.5, 2.0)}, soft=True)
+    theta = model.from_dict({"xi0": 0.05, "w0": 250.0, "meq": 0.5})
+    assert model.bound_kinds(theta) == {"w0": "data-derived upper bound 250", "meq": "data-derived lower bound 0.5"}
+    inside = model.from_dict({"xi0": 0.05, "w0": 250.0 * (1 - 1e-4), "meq": 0.5 * (1 + 1e-3)})
+    assert model.bound_kinds(inside) == {} and model.at_bounds(inside) == []

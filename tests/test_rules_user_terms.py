@@ -29,3 +29,14 @@ def test_strength_bounds_that_leave_zero_out_are_a_one_line_error(bounds):
     assert f"its bounds {bounds[0]:g}:{bounds[1]:g} must hold 0, where the term is off" in message and "strength" in message
     assert "\n" not in message
     assert spring(f"rule_none_{abs(hash(bounds))}", bounds, strength=None).strength == ""
+
+
+def test_a_strength_must_name_a_parameter_and_two_parameters_have_none_by_default():
+    with pytest.raises(HysidInputError) as info:
+        spring("rule_unknown", (0.0, 1.0), strength="k")
+    assert str(info.value) == "strength='k': is no parameter of term 'rule_unknown' (c)"
+    two = hysid.term(lambda x, v, c, d: c * x + d * x**3, name="rule_two", units={"c": "N/m", "d": "N/m^3"},
+                     bounds={"c": (0.0, 1.0), "d": (0.0, 1.0)})
+    assert two.strength == ""
+    assert hysid.term(lambda x, v, c, d: d * (x + c * x**3), name="rule_two_d", units={"c": "1/m^2", "d": "N/m"},
+                      bounds={"c": (1.0, 2.0), "d": (0.0, 1.0)}, strength="d").strength == "d"  # only the strength must hold 0
