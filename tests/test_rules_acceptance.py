@@ -14,6 +14,8 @@ from hysid.diagnosis.acceptance import created_order, degenerate_gives_way, judg
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE
 from hysid.diagnosis.fitting import Fit, make_model
 from hysid_model.harmonics import HarmonicObjective, Harmonics
+from hysid_model.model import build_model
+from hysid_model.objective import Objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 
 TRUTH = {"xi0": TRUE_PARAMS["xi0"], "w0": TRUE_PARAMS["w0"]}
@@ -53,6 +55,7 @@ def test_a_refit_that_removes_less_than_its_share_of_the_excess_is_not_taken(har
 @pytest.mark.parametrize(("rivals", "gives_way"), [
     ([], False),
     ([1000.0 + BIC_MARGIN + 1.0], False),
+    ([1000.0 + BIC_MARGIN], False),
     ([1000.0 + BIC_MARGIN - 1.0], True),
     ([1000.0 + 1.0], True),
     ([1000.0 - 50.0], True),
@@ -93,3 +96,55 @@ def test_a_harmonic_order_fitted_at_the_noise_and_made_significantly_worse_is_cr
     assert created_order(truth, truth) is None and created_order(poor, truth) is None
     near = at(harmonics, (), {**TRUTH, "w0": (1 - 1e-6) * TRUTH["w0"]})
     assert created_order(truth, near) is None
+    poorer = at(harmonics, (), {**TRUTH, "w0": 0.98 * TRUTH["w0"]})
+    assert created_order(poor, poorer) is None  # an order already beyond the noise is not the refit's doing
+
+
+def with_order(fit: Fit, order: int, chi2: float) -> Fit:
+    """``fit`` with the whitened residual of harmonic ``order`` scaled to the chi^2 ``chi2`` (every other order as it was)."""
+    k = np.tile(fit.objective.harmonics.orders(), fit.objective.harmonics.loops.n_loops) == order
+    residual = fit.residual.copy()
+    residual[k] *= np.sqrt(chi2 / np.sum(residual[k] ** 2))
+    return Fit(fit.effects, fit.start, fit.objective, fit.theta, residual, fit.jacobian)
+
+
+@pytest.mark.parametrize(("c0", "c1", "created"), [
+    (36.6, 60.0, False),  # above the level of one order (51.8 for its 30 coefficients), below the family-wise one (66.9)
+    (36.6, 100.0, True),  # beyond it, and by more than chance: 63.4 > 66.9 - 30
+    (60.0, 80.0, False),  # beyond it, but from just under it: a rise of 20 is chance
+    (70.0, 200.0, False),  # not fitted at the noise before
+])
+def test_an_order_is_created_beyond_the_family_wise_level_and_by_a_significant_rise(harmonics, c0, c1, created):
+    """The third harmonic's chi^2 (30 coefficients: 15 loops, a sine and a cosine) of two fits: created only where
+    the first fits it within the family-wise SIGNIFICANCE (Bonferroni over the 8 orders: chi^2_30 at 1.25e-4, 66.9),
+    the second does not, and the rise itself exceeds what chance gives (limit - n)."""
+    truth = at(harmonics, (), TRUTH)
+    found = created_order(with_order(truth, 3, c0), with_order(truth, 3, c1))
+    assert (found == (3, pytest.approx(c0), pytest.approx(c1))) if created else found is None
+
+
+def test_near_the_noise_floor_the_share_is_of_the_chi2_above_it(harmonics):
+    """A start 10^-4 off in w0 lies 93 above its noise floor (chi^2 - dof); the refit with w0 right removes 74 of it
+    (80 %, taken), which is only 14 % of the chi^2 plus the degrees of freedom."""
+    near = at(harmonics, (), {**TRUTH, "w0": 0.9999 * TRUTH["w0"]})
+    right = at(harmonics, ("coulomb_friction",), {**TRUTH, "F_d": 1e-6})
+    assert MIN_SHARE * (near.chi2 + near.dof) > near.chi2 - right.chi2 > MIN_SHARE * (near.chi2 - near.dof)
+    assert judge(near, right, ("coulomb_friction",), harmonics) is None
+
+
+def test_a_refit_that_passes_every_other_rule_with_an_impossible_value_is_not_taken():
+    """Loops whose force lags the displacement by 8 ms (beyond any measurement chain at 25-31 Hz): the refit with that
+    delay is the truth and passes rules 1-6, yet its delay is physically impossible (rule 7)."""
+    loops = synth_loops(0.0, n_points=20, params={**TRUE_PARAMS, "S_xi": 0.0, "S_w": 0.0})
+    loops = loops.subset(np.arange(0, loops.n_loops, 8))
+    model = build_model("baseline+channel_delay").fix(meq=loops.meq_kg)
+    force = Objective(loops, model).predict(model.from_dict({**TRUTH, "delay_s": 8e-3})[None, :])[0]
+    sigma = 0.01 * loops.peak_force
+    noise = np.random.default_rng(1).standard_normal(force.shape) * sigma[:, None]
+    n = loops.n_samples
+    loops.top, loops.bottom = loops.top.copy(), loops.bottom.copy()
+    loops.top[:, :, 1], loops.bottom[:, :, 1] = (force + noise)[:, :n], (force + noise)[:, n:]
+    loops.sigma = sigma
+    delayed = Harmonics.from_loops(loops)
+    why = judge(at(delayed, (), TRUTH), at(delayed, ("channel_delay",), {**TRUTH, "delay_s": 8e-3}), ("channel_delay",), delayed)
+    assert why.startswith("delay_s: a channel delay of 8 ms (") and "is beyond what a measurement chain adds" in why
