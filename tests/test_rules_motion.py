@@ -46,6 +46,9 @@ def test_the_reason_gives_the_orders_and_the_bic_difference():
     tie = decide({"measured": 500.0, "fundamental": 503.0}, "baseline", EVIDENCE)
     assert tie.reason == "the data cannot tell sensor distortion from motion (BIC differs by +3, less than 10); the measured waveform is kept"
     assert decide({"measured": 500.0, "fundamental": 500.0}, "baseline", []).as_dict()["delta_bic"] == 0.0
+    four = EVIDENCE + [{"order": k, "displacement_share": 0.01, "force_share": 0.001, "response": 0.1} for k in (7, 9)]
+    assert "order 7: x 1 %, F 0.1 %)" in decide({"measured": 530.0, "fundamental": 500.0}, "thesis", four).reason  # the first three orders
+    assert "order 9" not in decide({"measured": 530.0, "fundamental": 500.0}, "thesis", four).reason
 
 
 def test_a_displacement_with_a_harmonic_beyond_its_fundamental_is_distorted():

@@ -24,8 +24,9 @@ def warned(x0: list[float], force: list[float], thd: list[float] | None = None, 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         warn_loops([f"r{i}" for i in range(n)], measured, clips or [Clipping()] * n, "set")
-    return {w.message.code + ("_force" if "the force amplitude drifts" in str(w.message) else ""): str(w.message)
-            for w in caught if isinstance(w.message, HysidWarning)}
+    ours = [w for w in caught if isinstance(w.message, HysidWarning)]
+    assert all(w.filename == __file__ for w in ours)  # each warning points at the code that read the set, not at hysid's
+    return {w.message.code + ("_force" if "the force amplitude drifts" in str(w.message) else ""): str(w.message) for w in ours}
 
 
 def slips(x0: list[float], force: list[float]) -> dict[str, str]:
@@ -57,6 +58,17 @@ def test_a_force_per_displacement_more_than_the_unit_gap_away_is_a_force_slip():
                                   "(displacement_unit in dataset.toml would change every record)"}
 
 
+def test_a_real_displacement_slip_is_named_once_and_a_loop_below_the_others_too():
+    """Millimetres under a metre header in one loop: its X0 reads 1000x, its force not, so F1/X0 falls 1000x too; it
+    is one displacement slip, not also a force slip. A loop 20x below the others (metres under a mm header) and one
+    of two loops 20x apart are named as well."""
+    x0 = [1.0e-3, 1.2e-3, 1.1e-3, 1.05]
+    assert list(slips(x0, [10.0, 12.0, 11.0, 10.5])) == ["unit_slip_displacement"]
+    low = slips([1e-3 / 20, 1.0e-3, 1.2e-3, 1.1e-3], [10.0 / 20, 10.0, 12.0, 11.0])
+    assert "in r0 (X0 = 0.05 mm) against X0 = 1-1.2 mm" in low["unit_slip_displacement"]
+    assert list(slips([1e-3, 20e-3], [10.0, 200.0])) == ["unit_slip_displacement"]
+
+
 def test_loops_within_the_unit_gap_of_a_neighbour_are_no_slip():
     """An amplitude sweep 1-10 mm in steps (each within 15x of its neighbour, the whole span more than 15x is no
     slip either), and a single loop 12x from the others: no unit-slip warning."""
@@ -65,21 +77,26 @@ def test_loops_within_the_unit_gap_of_a_neighbour_are_no_slip():
     near = [1.0e-3, 1.1e-3, 12 * 1.1e-3]
     assert slips(near, [1e4 * x for x in near]) == {}
     assert slips([1.0e-3, 1.1e-3, 1.05e-3], [10.0, 11.0, 12 * 11.0]) == {}
+    assert slips([1.0, 1.0, 15.0], [1e4, 1e4, 1.5e5]) == {}  # exactly 15x is not more than 15x
 
 
 def test_a_distorted_displacement_is_named_loop_by_loop_then_counted():
-    few = warned([1e-3] * 3, [10.0] * 3, thd=[0.01, 0.08, 0.051])
-    assert list(few) == ["distortion"] and few["distortion"].startswith("set: displacement THD above 5 % in r1 (8 %), r2 (5.1 %): the shaker")
-    many = warned([1e-3] * 7, [10.0] * 7, thd=[0.06, 0.07, 0.08, 0.09, 0.1, 0.11, 0.01])
-    assert many["distortion"].startswith("set: displacement THD above 5 % in 6 of 7 records (6 % in r0 to 11 % in r5): ")
+    few = warned([1e-3] * 3, [10.0] * 3, thd=[0.01, 0.08, 20.0])
+    assert few == {"distortion": "set: displacement THD above 5 % in r1 (8 %), r2 (2e+03 %): the shaker does not impose a pure sine, "
+                                 "or the sensor distorts; the loops keep the measured waveform, and fit, campaign and diagnose decide "
+                                 "from the force whether it is the motion (displacement_model)"}
+    five = warned([1e-3] * 6, [10.0] * 6, thd=[0.06, 0.07, 0.08, 0.09, 0.1, 0.01])
+    assert "in r0 (6 %), r1 (7 %), r2 (8 %), r3 (9 %), r4 (10 %): " in five["distortion"]  # up to NAMED, one by one
+    many = warned([1e-3] * 7, [10.0] * 7, thd=[0.07, 0.06, 0.08, 0.09, 0.1, 0.11, 0.01])
+    assert many["distortion"].startswith("set: displacement THD above 5 % in 6 of 7 records (6 % in r1 to 11 % in r5): ")
     every = warned([1e-3] * 6, [10.0] * 6, thd=[0.06, 0.07, 0.08, 0.09, 0.1, 0.11])
     assert "in all 6 records (6 % in r0 to 11 % in r5)" in every["distortion"]
     assert warned([1e-3] * 3, [10.0] * 3, thd=[0.05, 0.04, 0.0]) == {}
 
 
 def test_a_drift_of_either_amplitude_above_five_percent_is_named():
-    found = warned([1e-3] * 3, [10.0] * 3, drift=[[0.0, 0.0], [0.06, 0.05], [0.0, 0.1]])
-    assert found == {"drift": "set: the displacement amplitude drifts over the steady window by r1 (6 %); each loop averages its cycles",
+    found = warned([1e-3] * 3, [10.0] * 3, drift=[[0.0, 0.0], [20.0, 0.05], [0.0, 0.1]])
+    assert found == {"drift": "set: the displacement amplitude drifts over the steady window by r1 (2e+03 %); each loop averages its cycles",
                      "drift_force": "set: the force amplitude drifts over the steady window by r2 (10 %); each loop averages its cycles"}
 
 
@@ -90,11 +107,20 @@ def test_clipped_loops_are_named_with_their_level_and_cause():
     many = warned([1e-3] * 7, [10.0] * 7, clips=[Clipping("velocity", 0.05 + 0.01 * i) for i in range(6)] + [Clipping("force", 3.0)])
     assert many == {"clipping": "set: clipped: force in r6 (flat at +3 N); velocity in 6 of 7 records (flattened at 0.05 m/s in r0 to "
                                 "flattened at 0.1 m/s in r5) (a load cell or its amplifier at the end of its range? a speed limit?)"}
+    five = warned([1e-3] * 5, [10.0] * 5, clips=[Clipping("force", 3.0 + i) for i in range(5)])
+    assert five["clipping"].startswith("set: clipped: r0: force flat at +3 N; r1: force flat at +4 N; ")
+    stroke = warned([1e-3] * 6, [10.0] * 6, clips=[Clipping("displacement", (0.9 + 0.01 * i) * 1e-3) for i in range(6)])
+    assert stroke == {"clipping": "set: clipped: displacement in all 6 records (flat at +0.9 mm in r0 to flat at +0.95 mm in r5) "
+                                  "(a stroke or sensor limit?)"}
 
 
 def test_the_drift_is_the_change_of_a_straight_line_through_the_cycles_over_their_mean():
-    """1.0, 1.1, 1.2 over three cycles: a change of 0.2 on a mean of 1.1; a constant amplitude, a zero one and a
-    single cycle do not drift."""
-    np.testing.assert_allclose(amplitude_drift(np.array([[1.0, 1.1, 1.2], [2.0, 2.0, 2.0], [0.0, 0.0, 0.0], [-1.2, -1.1, -1.0]])),
-                               [0.2 / 1.1, 0.0, 0.0, 0.2 / 1.1], rtol=1e-12)
+    """1.0, 1.1, 1.2 over three cycles (or mm: 1.0e-3, ...): a change of 0.2 on a mean of 1.1; a constant amplitude, a
+    zero one, one of zero mean and a single cycle do not drift."""
+    np.testing.assert_allclose(amplitude_drift(np.array([[1.0, 1.1, 1.2], [2.0, 2.0, 2.0], [0.0, 0.0, 0.0], [-1.2, -1.1, -1.0],
+                                                         [1.0e-3, 1.1e-3, 1.2e-3]])), [0.2 / 1.1, 0.0, 0.0, 0.2 / 1.1, 0.2 / 1.1], rtol=1e-12)
+    np.testing.assert_allclose(amplitude_drift(np.array([[1.0e-3, 1.2e-3]])), [0.2 / 1.1], rtol=1e-12)  # two cycles: their line
     np.testing.assert_array_equal(amplitude_drift(np.array([[1.0], [2.0]])), [0.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a row of mean zero has no relative drift, and no division by zero either
+        np.testing.assert_array_equal(amplitude_drift(np.array([[-1.0, 0.0, 1.0]])), [0.0])
