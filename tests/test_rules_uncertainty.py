@@ -4,12 +4,14 @@ the parameters fitted counted (its square unbiased at the optimum)."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 from hysid_model.problem import build_objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
-from hysid_model.uncertainty import noise_sigma, scaled_inverse
+from hysid_model.uncertainty import jacobian_covariance, noise_sigma, scaled_inverse
 from test_uncertainty import noisy
 
 
@@ -61,3 +63,27 @@ def test_an_unknown_noise_is_the_residual_rms_over_the_degrees_of_freedom_left()
     np.testing.assert_allclose(noise_sigma(build_objective(loops, "baseline"), truth) ** 2, expected, rtol=1e-9)
     stated = noise_sigma(build_objective(noisy(base, np.array([0.5, 2.0]), np.random.default_rng(0), known=True), "baseline"), truth)
     np.testing.assert_array_equal(stated, [0.5, 2.0])  # a stated sigma is kept
+
+
+def test_a_parameter_without_information_gets_none_in_the_inverse():
+    """A zero row and column (the data do not see the parameter at all): the pseudo-inverse is 0 there, the others
+    are inverted as if it were absent, and nothing is divided by zero."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_array_equal(scaled_inverse(np.diag([4.0, 0.0])), [[0.25, 0.0], [0.0, 0.0]])
+
+
+def test_the_covariance_of_a_jacobian_is_the_inverse_of_its_gram_matrix():
+    jac = np.array([[1.0, 2e-6], [0.5, 1e-6], [0.0, 3e-6]]) * [1e4, 1.0]
+    np.testing.assert_allclose(jacobian_covariance(jac), np.linalg.inv(jac.T @ jac), rtol=1e-9)
+
+
+def test_with_one_degree_of_freedom_left_the_noise_is_the_residual_rms_over_it():
+    """One loop of 2 points per branch (N = 4), the baseline's 3 parameters with the mass unknown: sigma^2 is the
+    residual's sum of squares over N - D = 1 (never over less than one)."""
+    loops = noisy(synth_loops(0.0, n_points=2).subset([0]), np.array([0.01]), np.random.default_rng(2), known=False)
+    loops.meq_kg = None
+    objective = build_objective(loops, "baseline")
+    theta = objective.model.from_dict({**TRUE_PARAMS, "meq": 1.0})
+    assert objective.keep.sum() == 4 and objective.dim == 3
+    np.testing.assert_allclose(noise_sigma(objective, theta) ** 2, objective.per_loop_sse(theta), rtol=1e-12)
