@@ -61,7 +61,8 @@ MODULES: dict[str, dict[str, object]] = {
     "identifiability": {
         "path": "hysid/identifiability.py",
         "functions": ["partners", "unseen", "assess", "side_width", "crossing"],
-        "tests": ["tests/test_rules_identifiability.py"],
+        "tests": ["tests/test_rules_identifiability.py",
+                  "tests/test_identifiability.py::test_the_profile_crossing_is_found_for_a_quadratic_a_wall_and_a_flat_profile"],
     },
     "channels": {
         "path": "hysid_model/readers/channels.py",
@@ -109,7 +110,7 @@ EQUIVALENT: dict[str, str] = {
                                                        "more than 10; with no excess, 'removes less than 0' never holds either way"),
     "hysid.diagnosis.acceptance.x_judge__mutmut_29": ("excess > 1: past rule 1 the chi^2 fell by more than 10, above MIN_SHARE times any excess up to 1, "
                                                        "so rule 5 cannot fire for an excess in (0, 1] either way"),
-    "hysid_model.plausibility.x__outliers__mutmut_9": "np.finfo(None) is float64's, as np.finfo(float)",
+    "hysid_model.plausibility.x__outliers__mutmut_9": "np.finfo(None) is float64's, as np.finfo(float), in numpy 2.4 (with a DeprecationWarning)",
     "hysid_model.plausibility.x__outliers__mutmut_22": "dtype of the empty result: no outlier is only counted and set-differenced, never used to index",
     "hysid_model.plausibility.x__outliers__mutmut_24": "dtype of the empty result: no outlier is only counted and set-differenced, never used to index",
     "hysid_model.plausibility.x_amplitude_drift__mutmut_41": "the divisor put in where the level is 0, whose quotient np.where then drops",

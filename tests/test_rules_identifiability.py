@@ -10,7 +10,7 @@ import pytest
 from hysid.identifiability import CORRELATION_LIMIT, assess, crossing, partners, unseen
 from hysid_model.objective import Objective
 from hysid_model.problem import build_objective
-from hysid_model.synth import TRUE_PARAMS, synth_loops
+from hysid_model.synth import MEQ_KG, TRUE_PARAMS, synth_loops
 
 
 @pytest.fixture(scope="module")
@@ -76,3 +76,17 @@ def test_the_crossing_of_a_quadratic_rise_is_exact():
     """A rise (d / 0.3)^2 crosses one unit at 0.3, from any two points of it."""
     for near, far in ((0.1, 0.5), (0.0, 2.0), (0.29, 0.31)):
         assert crossing(near, (near / 0.3) ** 2, far, (far / 0.3) ** 2) == pytest.approx(0.3, rel=1e-12)
+
+
+def test_a_parameter_whose_profile_is_flat_over_its_range_is_not_identifiable():
+    """Three amplitudes at one frequency (25 Hz) and the mass fitted: the loops fix the stiffness meq w0^2 and the
+    damping 2 meq xi0 w0 there, not the mass apart from w0; the mass's profile stays within a unit over its range,
+    so it is named not identifiable (with what it trades off with) and gets no error."""
+    loops = synth_loops(0.0, n_points=5, params={**TRUE_PARAMS, "S_xi": 0.0, "S_w": 0.0}).subset([0, 40, 80])
+    loops.meq_kg = None
+    objective = build_objective(loops, "baseline")
+    theta = objective.model.from_dict({**TRUE_PARAMS, "meq": MEQ_KG})
+    jac = objective.jacobian(theta)
+    found = assess(objective, theta, np.linalg.pinv(jac.T @ jac) * 1e-6, lambda model: Objective(loops, model), 1e-6)
+    assert found.not_identifiable == {"meq": "trades off with w0: its profile is flat over its range (the data determine only a combination)"}
+    assert np.isnan(found.stderr[2]) and np.isfinite(found.stderr[:2]).all() and found.flat.shape == (3, 1)
