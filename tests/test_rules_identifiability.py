@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hysid.identifiability import CORRELATION_LIMIT, assess, crossing, partners, unseen
+from hysid.identifiability import BISECTIONS, CORRELATION_LIMIT, GROWTH, MAX_STEPS, assess, crossing, partners, side_width, unseen
 from hysid_model.objective import Objective
 from hysid_model.problem import build_objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS, synth_loops
@@ -43,6 +43,12 @@ def test_a_parameter_names_what_it_trades_off_with_the_strongest_first():
     assert partners(jac, 0, names) == ["c", "b"]
     jac = np.column_stack([0.8 * b + 0.05 * c, b, c, d])
     assert partners(jac, 0, names) == ["b"]
+    jac = np.column_stack([0.8 * b + 0.5 * c, 1e-6 * b, 1e6 * c, np.zeros(6)])  # b below unit scale, d seen by nothing
+    assert partners(jac, 0, names) == ["b", "c"]
+    e = np.eye(6)[3]
+    jac = np.column_stack([0.5 * b + 0.5 * c + 0.5 * d + 0.1 * e, b, c, d, e])  # e: 0.2 of the largest, above PARTICIPATION
+    assert partners(jac, 0, names + ["e"])[-1] == "e"
+    assert partners(np.column_stack([b]), 0, ["a"]) == []  # nothing to trade off with
 
 
 def test_a_profile_due_gives_the_half_width_where_the_objective_rises_one_unit(thesis):
@@ -90,3 +96,56 @@ def test_a_parameter_whose_profile_is_flat_over_its_range_is_not_identifiable():
     found = assess(objective, theta, np.linalg.pinv(jac.T @ jac) * 1e-6, lambda model: Objective(loops, model), 1e-6)
     assert found.not_identifiable == {"meq": "trades off with w0: its profile is flat over its range (the data determine only a combination)"}
     assert np.isnan(found.stderr[2]) and np.isfinite(found.stderr[:2]).all() and found.flat.shape == (3, 1)
+
+
+def probed(rise, step: float, room: float) -> tuple[float | None, list[float]]:
+    """:func:`side_width` of ``rise`` and the distances it probed, in order."""
+    probes: list[float] = []
+
+    def recorded(d: float) -> float:
+        probes.append(float(d))
+        return rise(d)
+
+    return side_width(recorded, step, room), probes
+
+
+def test_a_profile_side_grows_by_growth_to_its_bound_then_probes_the_quadratic_crossing():
+    """A quadratic rise (d / 0.3)^2 from a step of 10^-3: steps x4 until the rise passes a unit (1.024), then the
+    quadratic's crossing, exact here (0.3). With the crossing at 5 the sixth growing step (the MAX_STEPS - 1-th
+    probe) goes to the bound (10) instead of x4; a rise that never reaches a unit stops there: None."""
+    width, probes = probed(lambda d: (d / 0.3) ** 2, 1e-3, 10.0)
+    assert width == pytest.approx(0.3, rel=1e-12) and probes == pytest.approx([1e-3 * GROWTH**k for k in range(6)] + [0.3], rel=1e-12)
+    width, probes = probed(lambda d: (d / 5.0) ** 2, 1e-3, 10.0)
+    assert width == pytest.approx(5.0, rel=1e-12) and probes == pytest.approx([1e-3 * GROWTH**k for k in range(6)] + [10.0, 5.0], rel=1e-12)
+    width, probes = probed(lambda d: 1e-3 * d, 0.01, 10.0)
+    assert width is None and probes == pytest.approx([0.01 * GROWTH**k for k in range(5)] + [10.0], rel=1e-12)
+    assert len(probes) == MAX_STEPS - 1 and MAX_STEPS == 7 and GROWTH == 4.0
+
+
+def test_a_profile_side_shrinks_from_a_step_too_long_until_below_a_unit():
+    """From a step of 50 where the rise is far above a unit: steps /4 until it is below (0.195), then the crossing."""
+    width, probes = probed(lambda d: (d / 0.3) ** 2, 50.0, 100.0)
+    assert width == pytest.approx(0.3, rel=1e-12) and probes == pytest.approx([50.0 / GROWTH**k for k in range(5)] + [0.3], rel=1e-12)
+    width, probes = probed(lambda d: (d / 0.3) ** 2, 0.3, 10.0)  # a unit exactly at the step: one below it, then the crossing
+    assert width == pytest.approx(0.3, rel=1e-12) and probes == pytest.approx([0.3, 0.075, 0.3], rel=1e-12)
+    width, probes = probed(lambda d: 0.5 + 1e-6 * d, 1e-3, 10.0)  # above a unit nowhere: up to the bound, None
+    assert width is None and probes[-1] == 10.0
+
+
+def test_a_wall_after_a_flat_profile_is_bracketed_by_halving_after_the_quadratic_guess():
+    """Flat up to 2, then a wall: the quadratic guess (the first probe of the bracket) falls short, so the bracket is
+    halved geometrically (each probe the geometric mean of the nearest points below and above a unit) until its ends
+    are within 2 %, or BISECTIONS probes; the crossing lies in the last bracket, at the wall."""
+    rise = lambda d: 0.0 if d < 2.0 else 1e4 * (d - 2.0) ** 2 + 1e-3  # noqa: E731
+    width, probes = probed(rise, 0.01, 10.0)
+    grown = [0.01 * GROWTH**k for k in range(5)]
+    assert probes[:5] == pytest.approx(grown, rel=1e-12)
+    assert probes[5] == pytest.approx(crossing(0.64, 0.0, 2.56, rise(2.56)), rel=1e-12)
+    for k in range(6, len(probes)):
+        below = max(p for p in probes[:k] if rise(p) < 1.0)
+        above = min(p for p in probes[:k] if rise(p) >= 1.0)
+        assert probes[k] == pytest.approx(np.sqrt(below * above), rel=1e-12)
+    assert len(probes) <= 5 + BISECTIONS
+    below = max(p for p in probes if rise(p) < 1.0)
+    above = min(p for p in probes if rise(p) >= 1.0)
+    assert below < width < above and 1.98 < width < 2.05 and (above / below < 1.02 or len(probes) == 5 + BISECTIONS)
