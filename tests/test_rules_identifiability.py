@@ -96,6 +96,20 @@ def test_a_parameter_whose_profile_is_flat_over_its_range_is_not_identifiable():
     found = assess(objective, theta, np.linalg.pinv(jac.T @ jac) * 1e-6, lambda model: Objective(loops, model), 1e-6)
     assert found.not_identifiable == {"meq": "trades off with w0: its profile is flat over its range (the data determine only a combination)"}
     assert np.isnan(found.stderr[2]) and np.isfinite(found.stderr[:2]).all() and found.flat.shape == (3, 1)
+    conditional = np.diag(np.diag(np.linalg.pinv(jac.T @ jac))) * 1e-6  # no correlation shown: the unseen direction decides
+    assert assess(objective, theta, conditional, lambda model: Objective(loops, model), 1e-6).not_identifiable.keys() == {"meq"}
+    assert assess(objective, theta[None, :], conditional, lambda model: Objective(loops, model), 1e-6,
+                  profiles=False).unprofiled == ["w0", "meq"]  # a theta of shape (1, D) is read as (D,)
+
+
+def test_a_parameter_handed_over_without_variance_is_not_taken_for_correlated(thesis):
+    """A covariance whose row and column of S_w are zero (its correlations 0/0): only the parameters correlated
+    beyond the limit are due a profile, S_w not."""
+    objective, theta = thesis
+    cov = np.diag([1e-8, 1e-2, 1.0, 0.0])
+    cov[0, 2] = cov[2, 0] = 0.9995 * np.sqrt(1e-8)
+    with np.errstate(all="raise"):
+        assert assess(objective, theta, cov, lambda model: Objective(objective.loops, model), 1.0, profiles=False).unprofiled == ["xi0", "w0"]
 
 
 def probed(rise, step: float, room: float) -> tuple[float | None, list[float]]:
