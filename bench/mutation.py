@@ -228,8 +228,8 @@ def run_module(key: str, spec: dict[str, object], max_children: int) -> dict[str
         run = subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(max_children), *globs],
                              cwd=where, env=env, capture_output=True, text=True)
         meta = where / "mutants" / (path + ".meta")
-        if not meta.exists():
-            raise SystemExit(f"bench/mutation.py: mutmut made no results for {path}:\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}")
+        if run.returncode != 0 or not meta.exists():
+            raise SystemExit(f"bench/mutation.py: mutmut failed on {path} (exit {run.returncode}):\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}")
         codes = json.loads(meta.read_text(encoding="utf-8"))["exit_code_by_key"]
         chosen = {name: code for name, code in codes.items() if function_of(name) in functions}
         order = sorted(chosen, key=lambda name: (name.partition("__mutmut_")[0], int(name.rpartition("_")[2])))
@@ -269,7 +269,16 @@ def main() -> None:
     parser.add_argument("--max-children", type=int, default=1, help="mutants tested at once (default 1: a shared machine)")
     parser.add_argument("--out", type=Path, default=None, help="result file (default bench/results/mutation-<date>-<host>.json)")
     parser.add_argument("--update", action="store_true", help="keep the other modules' results already in the result file")
+    parser.add_argument("--merge", type=Path, nargs="+", default=[], help="only combine these result files (runs of different "
+                        "modules, e.g. in parallel) into the result file; a module in several is taken from the last")
     args = parser.parse_args()
+    if args.merge:
+        merged = [json.loads(f.read_text(encoding="utf-8")) for f in args.merge]
+        result = {**merged[-1], "modules": {k: v for r in merged for k, v in r["modules"].items()}, "merged_from": [r["date"] for r in merged]}
+        out = args.out or ROOT / "bench" / "results" / f"mutation-{time.strftime('%Y-%m-%d')}-{environment()['machine']['hostname']}.json"
+        write(result, out)
+        print(f"mutation: score {result['score']} ({result['killed']} of {result['counted']}); {out}", file=sys.stderr)
+        return
     unknown = [m for m in args.modules if m not in MODULES]
     if unknown:
         parser.error(f"no module {unknown[0]!r}; choose of {', '.join(MODULES)}")
