@@ -253,6 +253,7 @@ def run_module(key: str, spec: dict[str, object], max_children: int) -> dict[str
         "tests": tests,
         "mutants": len(mutants),
         "killed": killed,
+        "counted": len(counted),
         "equivalent": sum("equivalent" in m for m in mutants),
         "score": round(killed / len(counted), 4) if counted else None,
         "score_equivalent_counted": round(killed / (len(counted) + sum("equivalent" in m for m in mutants)), 4) if mutants else None,
@@ -290,7 +291,7 @@ def main() -> None:
     for key in chosen:
         print(f"mutation: {key} ({MODULES[key]['path']}) ...", file=sys.stderr, flush=True)
         result["modules"][key] = found = run_module(key, MODULES[key], args.max_children)  # type: ignore[index]
-        print(f"mutation: {key}: {found['killed']} of {found['mutants'] - found['equivalent']} killed, score {found['score']}, "
+        print(f"mutation: {key}: {found['killed']} of {found['counted']} killed, score {found['score']}, "
               f"{len(found['survivors'])} listed, {found['seconds']} s", file=sys.stderr, flush=True)
         write(result, out)  # after every module: a long run stopped keeps what it found
     print(f"mutation: score {result['score']} ({result['killed']} of {result['counted']}); {out}", file=sys.stderr)
@@ -299,7 +300,7 @@ def main() -> None:
 def write(result: dict[str, object], out: Path) -> None:
     """``result`` with its overall score (killed over the mutants counted, every module together), to ``out``."""
     modules = result["modules"].values()  # type: ignore[union-attr]
-    counted = sum(m["mutants"] - m["equivalent"] - sum(s["status"] in ("skipped", "not checked") for s in m["survivors"]) for m in modules)
+    counted = sum(m["counted"] for m in modules)
     killed = sum(m["killed"] for m in modules)
     equivalent = sum(m["equivalent"] for m in modules)
     result.update(score=round(killed / counted, 4) if counted else None, killed=killed, counted=counted, equivalent=equivalent,
