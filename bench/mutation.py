@@ -300,7 +300,8 @@ def main() -> None:
 def write(result: dict[str, object], out: Path) -> None:
     """``result`` with its overall score (killed over the mutants counted, every module together), to ``out``."""
     modules = result["modules"].values()  # type: ignore[union-attr]
-    counted = sum(m["counted"] for m in modules)
+    counted = sum(m["counted"] if "counted" in m else m["mutants"] - m["equivalent"] - sum(  # a result file of before "counted"
+        s["status"] in ("skipped", "not checked") and "equivalent" not in s for s in m["survivors"]) for m in modules)
     killed = sum(m["killed"] for m in modules)
     equivalent = sum(m["equivalent"] for m in modules)
     result.update(score=round(killed / counted, 4) if counted else None, killed=killed, counted=counted, equivalent=equivalent,
