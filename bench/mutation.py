@@ -123,6 +123,8 @@ EQUIVALENT: dict[str, str] = {
     "hysid_model.uncertainty.x_scaled_inverse__mutmut_17": "hermitian=None: the pseudo-inverse by SVD instead of eigh, the same matrix to rounding",
     "hysid_model.uncertainty.x_scaled_inverse__mutmut_19": "hermitian left out: the pseudo-inverse by SVD instead of eigh, the same matrix to rounding",
     "hysid_model.uncertainty.x_scaled_inverse__mutmut_25": "hermitian=False: the pseudo-inverse by SVD instead of eigh, the same matrix to rounding",
+    "hysid_model.readers.channels.x_choose__mutmut_13": "rsplit('/') without a maximum: its last part is rsplit('/', 1)'s",
+    "hysid_model.readers.channels.x_choose__mutmut_16": "rsplit('/', 2): its last part is rsplit('/', 1)'s",
     "hysid.motion.x_linear_start__mutmut_11": ("a strict subset: every model holds xi0 and w0 besides the slopes, so {S_xi, S_w} <= its "
                                                "parameters exactly where {S_xi, S_w} < them"),
 }

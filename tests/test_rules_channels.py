@@ -67,3 +67,23 @@ def test_no_channel_or_several_of_a_quantity_is_a_one_line_error_unless_it_may_b
         choose(["time_s", "x"], "force", None, "r.csv")
     with pytest.raises(HysidInputError, match="channels: none$"):
         choose([], "force", None, "r.csv")
+
+
+def test_each_rule_wins_over_the_looser_ones_after_it():
+    """The default name over another name with a unit; a bare name whose unit the file states, or a name with the
+    quantity and its unit, over a bare synonym; a bare synonym is taken where nothing else is (its unit SI, warned)."""
+    assert choose(["force_n", "force_kn"], "force", None, "r.csv").index == 0
+    assert choose(["force", "load"], "force", None, "r.tdms", file_units=["kN", None]) == Channel(0, "force", "kN", 1e3)
+    assert choose(["displacement_mm", "x"], "displacement", None, "r.csv").index == 0
+    assert choose(["Messung/Gruppe/Weg [mm]", "Messung/Gruppe/Kraft"], "displacement", named(displacement="weg [mm]"), "r.tdms").index == 0
+    with pytest.warns(HysidWarning, match="channel 'f' states no unit: read as N"):
+        assert choose(["t", "x", "f"], "force", None, "r.csv") == Channel(2, "f", "N", 1.0)
+    with pytest.warns(HysidWarning, match="channel 'force' states no unit"):
+        assert choose(["time", "displacement", "force"], "force", None, "r.csv").index == 2
+
+
+def test_the_unit_declared_in_dataset_toml_comes_first_and_a_disagreeing_one_is_an_error():
+    config = DatasetConfig(Path("."), "rig", force_unit="kN")
+    assert choose(["time_s", "x", "force"], "force", config, "r.csv") == Channel(2, "force", "kN", 1e3)
+    with pytest.raises(HysidInputError, match="^r.tdms: channel 'force_kn' states the unit 'N' but its name says kN; set force_unit in dataset.toml$"):
+        choose(["time", "force_kn"], "force", None, "r.tdms", file_units=[None, "N"])
