@@ -125,6 +125,12 @@ EQUIVALENT: dict[str, str] = {
     "hysid_model.uncertainty.x_scaled_inverse__mutmut_25": "hermitian=False: the pseudo-inverse by SVD instead of eigh, the same matrix to rounding",
     "hysid_model.readers.channels.x_choose__mutmut_13": "rsplit('/') without a maximum: its last part is rsplit('/', 1)'s",
     "hysid_model.readers.channels.x_choose__mutmut_16": "rsplit('/', 2): its last part is rsplit('/', 1)'s",
+    "island.sealing.xǁReplayGuardǁcheck__mutmut_44": ("a shift of the window or more leaves nothing of the mask but the new number's bit: the "
+                                                      "shortcut 'else 1' gives the same"),
+    "island.sealing.xǁReplayGuardǁcheck__mutmut_51": ("a mask of window + 1 bits: the extra bit is an age of exactly the window, which "
+                                                      "'age >= window' refuses before reading it"),
+    "island.sealing.xǁReplayGuardǁcheck__mutmut_53": "shift <= window: at shift == window both branches leave only the new number's bit",
+    "island.sealing.xǁReplayGuardǁcheck__mutmut_75": "popitem(last=None): None is false, as last=False (the oldest run goes first)",
     "hysid.motion.x_linear_start__mutmut_11": ("a strict subset: every model holds xi0 and w0 besides the slopes, so {S_xi, S_w} <= its "
                                                "parameters exactly where {S_xi, S_w} < them"),
 }

@@ -77,3 +77,17 @@ def test_a_replay_or_a_number_too_far_ahead_is_rejected_by_name():
         check_replay(guard, "migrants", "isl", "r2", 20, known=(3, 0.0))
     assert ahead.value.reason == "ahead"
     check_replay(guard, "history", "isl", "r2", 3)  # another kind or run numbers on its own
+
+
+def test_the_number_a_jump_reaches_is_itself_seen_and_each_run_numbers_on_its_own():
+    guard = ReplayGuard(window=8, burst=64)
+    assert [guard.check(KEY, n, now=0.0) for n in (0, 3, 3)] == ["fresh", "fresh", "replay"]
+    other = ("history", "island-b", "run-1")
+    assert guard.fresh(KEY, 4) and guard.fresh(other, 4) and not guard.fresh(other, 4)
+
+
+def test_the_burst_refills_from_the_time_of_the_last_number_taken():
+    """At 100 s on the clock as at 0: burst 8, 100 a second; 8 ahead right after 8 ahead is refused, 0.1 s later taken."""
+    guard = ReplayGuard(window=64, rate=100.0, burst=8)
+    assert [guard.check(KEY, n, now=100.0) for n in (0, 8)] == ["fresh", "fresh"]
+    assert guard.check(KEY, 16, now=100.0) == "ahead" and guard.check(KEY, 16, now=100.1) == "fresh"
