@@ -61,3 +61,17 @@ def test_an_unreadable_secret_is_a_one_line_error_naming_the_file_or_the_paramet
         read_owner_only(missing, None, "the key")
     with pytest.raises(HysidInputError, match=f"^{tmp_path}: the key: cannot be read \\(Is a directory\\)$"):
         read_owner_only(tmp_path, None, "the key")
+
+
+def test_a_secret_file_is_ascii_and_bytes_that_are_not_read_as_replacement_characters(tmp_path):
+    """A secret is one ASCII line: a file holding other bytes is read (its parse then names what is wrong), never a
+    decoding traceback; text that is not ASCII is refused before anything is written."""
+    path = tmp_path / "odd"
+    path.write_bytes("hysid-secret é\xff".encode("utf-8") + b"\xff")
+    path.chmod(0o600)
+    assert read_owner_only(path, None, "the key") == "hysid-secret " + "\ufffd" * 5
+    with pytest.raises(HysidInputError, match="not a hysid campaign secret"):
+        CampaignSecret.read(path)
+    with pytest.raises(UnicodeEncodeError):
+        write_owner_only(tmp_path / "k", "clé")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["odd"]
