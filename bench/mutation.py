@@ -137,6 +137,9 @@ EQUIVALENT: dict[str, str] = {
     "island.secret.x_write_owner_only__mutmut_6": "token_hex(5): a longer random suffix of the partial file's name, as unique",
     "island.secret.x_write_owner_only__mutmut_33": "missing_ok=None: the partial file exists whenever a write fails after opening it",
     "island.secret.x_write_owner_only__mutmut_34": "missing_ok=False: the partial file exists whenever a write fails after opening it",
+    "coordinator.members.xǁMembershipǁsettle__mutmut_7": ("'> LEAVE_GRACE_S': differs only where a token has been gone exactly "
+                                                          "that long to the clock's last digit"),
+    "coordinator.members.xǁMembershipǁsettle__mutmut_18": "'> stale_s': differs only where a run has been silent exactly that long to the clock's last digit",
     "hysid.motion.x_linear_start__mutmut_11": ("a strict subset: every model holds xi0 and w0 besides the slopes, so {S_xi, S_w} <= its "
                                                "parameters exactly where {S_xi, S_w} < them"),
 }

@@ -111,3 +111,24 @@ def test_a_run_taken_up_after_a_restart_counts_as_joined_when_heard_again(store)
     assert not membership.members["a"].resumed and events(store) == [("a", "join"), ("a", "join")]
     membership.heard("a", "r1", time.monotonic())
     assert events(store) == [("a", "join"), ("a", "join")]
+
+
+def test_a_run_counts_as_heard_when_it_joins_is_taken_up_or_sends_a_signed_message(store):
+    """Its clock of silence starts then: a settle right after keeps it alive, one after STALE_S of silence does not,
+    and a message in between starts the clock again."""
+    store.member_event("c", "a", "join")
+    membership = Membership(store, "c", 1, lambda island, run: False)
+    before = time.monotonic()
+    membership.take_up({"a": "r1"})
+    membership.heard("b", "r2", time.monotonic())
+    membership.joined("c", "r3", b"n")
+    after = time.monotonic()
+    for island in "abc":
+        assert before <= membership.members[island].joined_at <= after and before <= membership.members[island].heard_at <= after
+    membership.settle()
+    assert membership.any_alive() and all(m.status == "alive" for m in membership.members.values())
+    for member in membership.members.values():
+        member.heard_at -= STALE_S
+    membership.heard("a", "r1", time.monotonic())
+    membership.settle()
+    assert {i: m.status for i, m in membership.members.items()} == {"a": "alive", "b": "lost", "c": "lost"}
