@@ -318,7 +318,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.merge:
         merged = [json.loads(f.read_text(encoding="utf-8")) for f in args.merge]
-        result = {**merged[-1], "modules": {k: v for r in merged for k, v in r["modules"].items()}, "merged_from": [r["date"] for r in merged]}
+        result = {**merged[-1], "modules": {k: rescored(v) for r in merged for k, v in r["modules"].items()},
+                  "merged_from": [r["date"] for r in merged]}
         out = args.out or ROOT / "bench" / "results" / f"mutation-{time.strftime('%Y-%m-%d')}-{environment()['machine']['hostname']}.json"
         write(result, out)
         print(f"mutation: score {result['score']} ({result['killed']} of {result['counted']}); {out}", file=sys.stderr)
@@ -338,6 +339,19 @@ def main() -> None:
               f"{len(found['survivors'])} listed, {found['seconds']} s", file=sys.stderr, flush=True)
         write(result, out)  # after every module: a long run stopped keeps what it found
     print(f"mutation: score {result['score']} ({result['killed']} of {result['counted']}); {out}", file=sys.stderr)
+
+
+def rescored(module: dict) -> dict:
+    """A module's result with its survivors marked by the ``EQUIVALENT`` table as it is now (one examined after
+    its run), and its counts and score again."""
+    for survivor in module["survivors"]:
+        if survivor["name"] in EQUIVALENT:
+            survivor["equivalent"] = EQUIVALENT[survivor["name"]]
+    equivalent = sum("equivalent" in s for s in module["survivors"])
+    unrun = sum(s["status"] in ("skipped", "not checked") and "equivalent" not in s for s in module["survivors"])
+    counted = module["mutants"] - equivalent - unrun
+    return {**module, "equivalent": equivalent, "counted": counted, "score": round(module["killed"] / counted, 4) if counted else None,
+            "score_equivalent_counted": round(module["killed"] / (counted + equivalent), 4) if counted + equivalent else None}
 
 
 def write(result: dict[str, object], out: Path) -> None:
