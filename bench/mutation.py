@@ -61,8 +61,10 @@ MODULES: dict[str, dict[str, object]] = {
     "identifiability": {
         "path": "hysid/identifiability.py",
         "functions": ["partners", "unseen", "assess", "side_width", "crossing"],
-        "tests": ["tests/test_rules_identifiability.py",
-                  "tests/test_identifiability.py::test_the_profile_crossing_is_found_for_a_quadratic_a_wall_and_a_flat_profile"],
+        "tests": [
+            "tests/test_rules_identifiability.py",
+            "tests/test_identifiability.py::test_the_profile_crossing_is_found_for_a_quadratic_a_wall_and_a_flat_profile",
+        ],
     },
     "channels": {
         "path": "hysid_model/readers/channels.py",
@@ -97,8 +99,10 @@ MODULES: dict[str, dict[str, object]] = {
 }
 """Per module: the file, its rule functions in scope (``Class.method`` for a method) and its fast targeted tests."""
 
-AT_EQUALITY = ("differs from the original only where a statistic of the data (a sum of squared whitened residuals, a BIC "
-               "difference) equals its threshold exactly, which no fit reaches: equivalent in practice")
+AT_EQUALITY = (
+    "differs from the original only where a statistic of the data (a sum of squared whitened residuals, a BIC "
+    "difference) equals its threshold exactly, which no fit reaches: equivalent in practice"
+)
 EQUIVALENT: dict[str, str] = {
     "hysid.diagnosis.acceptance.x_created_order__mutmut_9": "reshape(n_loops, -2): numpy 2 reads any negative size as the one unknown dimension, as -1",
     "hysid.diagnosis.acceptance.x_created_order__mutmut_36": AT_EQUALITY,
@@ -106,10 +110,14 @@ EQUIVALENT: dict[str, str] = {
     "hysid.diagnosis.acceptance.x_created_order__mutmut_39": AT_EQUALITY,
     "hysid.diagnosis.acceptance.x_judge__mutmut_3": AT_EQUALITY,
     "hysid.diagnosis.acceptance.x_judge__mutmut_31": AT_EQUALITY,
-    "hysid.diagnosis.acceptance.x_judge__mutmut_28": ("excess >= 0: rule 5 is reached only past rule 1, whose BIC fall of BIC_MARGIN lowered the chi^2 by "
-                                                       "more than 10; with no excess, 'removes less than 0' never holds either way"),
-    "hysid.diagnosis.acceptance.x_judge__mutmut_29": ("excess > 1: past rule 1 the chi^2 fell by more than 10, above MIN_SHARE times any excess up to 1, "
-                                                       "so rule 5 cannot fire for an excess in (0, 1] either way"),
+    "hysid.diagnosis.acceptance.x_judge__mutmut_28": (
+        "excess >= 0: rule 5 is reached only past rule 1, whose BIC fall of BIC_MARGIN lowered the chi^2 by "
+        "more than 10; with no excess, 'removes less than 0' never holds either way"
+    ),
+    "hysid.diagnosis.acceptance.x_judge__mutmut_29": (
+        "excess > 1: past rule 1 the chi^2 fell by more than 10, above MIN_SHARE times any excess up to 1, "
+        "so rule 5 cannot fire for an excess in (0, 1] either way"
+    ),
     "hysid_model.plausibility.x__outliers__mutmut_9": "np.finfo(None) is float64's, as np.finfo(float), in numpy 2.4 (with a DeprecationWarning)",
     "hysid_model.plausibility.x__outliers__mutmut_22": "dtype of the empty result: no outlier is only counted and set-differenced, never used to index",
     "hysid_model.plausibility.x__outliers__mutmut_24": "dtype of the empty result: no outlier is only counted and set-differenced, never used to index",
@@ -118,17 +126,21 @@ EQUIVALENT: dict[str, str] = {
     "hysid_model.plausibility.x_warn_loops__mutmut_134": "the slips' complement is never empty (the largest group is not a slip), so 'the others' is never used",
     "hysid_model.plausibility.x_warn_loops__mutmut_139": "the text of the branch that is never taken (see x_warn_loops__mutmut_134)",
     "hysid_model.plausibility.x_warn_loops__mutmut_140": "the text of the branch that is never taken (see x_warn_loops__mutmut_134)",
-    "hysid_model.uncertainty.x_scaled_inverse__mutmut_14": ("the scale put in for a zero diagonal: an information matrix's row and column there are "
-                                                           "zero, so any nonzero scale leaves zeros and the pseudo-inverse is 0 there"),
+    "hysid_model.uncertainty.x_scaled_inverse__mutmut_14": (
+        "the scale put in for a zero diagonal: an information matrix's row and column there are "
+        "zero, so any nonzero scale leaves zeros and the pseudo-inverse is 0 there"
+    ),
     "hysid_model.uncertainty.x_scaled_inverse__mutmut_17": "hermitian=None: the pseudo-inverse by SVD instead of eigh, the same matrix to rounding",
     "hysid_model.uncertainty.x_scaled_inverse__mutmut_19": "hermitian left out: the pseudo-inverse by SVD instead of eigh, the same matrix to rounding",
     "hysid_model.uncertainty.x_scaled_inverse__mutmut_25": "hermitian=False: the pseudo-inverse by SVD instead of eigh, the same matrix to rounding",
     "hysid_model.readers.channels.x_choose__mutmut_13": "rsplit('/') without a maximum: its last part is rsplit('/', 1)'s",
     "hysid_model.readers.channels.x_choose__mutmut_16": "rsplit('/', 2): its last part is rsplit('/', 1)'s",
-    "island.sealing.xǁReplayGuardǁcheck__mutmut_44": ("a shift of the window or more leaves nothing of the mask but the new number's bit: the "
-                                                      "shortcut 'else 1' gives the same"),
-    "island.sealing.xǁReplayGuardǁcheck__mutmut_51": ("a mask of window + 1 bits: the extra bit is an age of exactly the window, which "
-                                                      "'age >= window' refuses before reading it"),
+    "island.sealing.xǁReplayGuardǁcheck__mutmut_44": (
+        "a shift of the window or more leaves nothing of the mask but the new number's bit: the shortcut 'else 1' gives the same"
+    ),
+    "island.sealing.xǁReplayGuardǁcheck__mutmut_51": (
+        "a mask of window + 1 bits: the extra bit is an age of exactly the window, which 'age >= window' refuses before reading it"
+    ),
     "island.sealing.xǁReplayGuardǁcheck__mutmut_53": "shift <= window: at shift == window both branches leave only the new number's bit",
     "island.sealing.xǁReplayGuardǁcheck__mutmut_75": "popitem(last=None): None is false, as last=False (the oldest run goes first)",
     "island.secret.x_read_owner_only__mutmut_19": "encoding 'ASCII': the same codec as 'ascii'",
@@ -137,42 +149,59 @@ EQUIVALENT: dict[str, str] = {
     "island.secret.x_write_owner_only__mutmut_6": "token_hex(5): a longer random suffix of the partial file's name, as unique",
     "island.secret.x_write_owner_only__mutmut_33": "missing_ok=None: the partial file exists whenever a write fails after opening it",
     "island.secret.x_write_owner_only__mutmut_34": "missing_ok=False: the partial file exists whenever a write fails after opening it",
-    "coordinator.members.xǁMembershipǁsettle__mutmut_7": ("'> LEAVE_GRACE_S': differs only where a token has been gone exactly "
-                                                          "that long to the clock's last digit"),
+    "coordinator.members.xǁMembershipǁsettle__mutmut_7": (
+        "'> LEAVE_GRACE_S': differs only where a token has been gone exactly that long to the clock's last digit"
+    ),
     "coordinator.members.xǁMembershipǁsettle__mutmut_18": "'> stale_s': differs only where a run has been silent exactly that long to the clock's last digit",
-    "hysid.identifiability.x_partners__mutmut_20": 'the scale put in for a column of norm 0: that column is all zeros, and stays so divided by anything',
+    "hysid.identifiability.x_partners__mutmut_20": "the scale put in for a column of norm 0: that column is all zeros, and stays so divided by anything",
     "hysid.identifiability.x_partners__mutmut_26": "lstsq without rcond: numpy 2's default is rcond=None",
     "hysid.identifiability.x_partners__mutmut_32": AT_EQUALITY,
-    "hysid.identifiability.x_partners__mutmut_36": 'the flags of an empty coefficient vector (one parameter): nothing iterates over them',
-    "hysid.identifiability.x_partners__mutmut_38": 'the flags of an empty coefficient vector (one parameter): nothing iterates over them',
-    "hysid.identifiability.x_partners__mutmut_39": 'the flags of an empty coefficient vector (one parameter): nothing iterates over them',
+    "hysid.identifiability.x_partners__mutmut_36": "the flags of an empty coefficient vector (one parameter): nothing iterates over them",
+    "hysid.identifiability.x_partners__mutmut_38": "the flags of an empty coefficient vector (one parameter): nothing iterates over them",
+    "hysid.identifiability.x_partners__mutmut_39": "the flags of an empty coefficient vector (one parameter): nothing iterates over them",
     "hysid.identifiability.x_assess__mutmut_6": "theta's dtype left to numpy: every caller hands a fit's optimum, already floats",
     "hysid.identifiability.x_assess__mutmut_8": "theta's dtype left to numpy: every caller hands a fit's optimum, already floats",
-    "hysid.identifiability.x_assess__mutmut_10": 'reshape(-2): numpy 2 reads any negative size as the one unknown dimension, as -1',
+    "hysid.identifiability.x_assess__mutmut_10": "reshape(-2): numpy 2 reads any negative size as the one unknown dimension, as -1",
     "hysid.identifiability.x_assess__mutmut_25": "cov's dtype left to numpy: every caller hands a float covariance",
     "hysid.identifiability.x_assess__mutmut_27": "cov's dtype left to numpy: every caller hands a float covariance",
     "hysid.identifiability.x_assess__mutmut_43": AT_EQUALITY,
-    "hysid.identifiability.x_assess__mutmut_45": 'the flags where no direction is unseen: zeros of another dtype are as false',
-    "hysid.identifiability.x_assess__mutmut_47": 'the flags where no direction is unseen: zeros of another dtype are as false',
+    "hysid.identifiability.x_assess__mutmut_45": "the flags where no direction is unseen: zeros of another dtype are as false",
+    "hysid.identifiability.x_assess__mutmut_47": "the flags where no direction is unseen: zeros of another dtype are as false",
     "hysid.identifiability.x_assess__mutmut_49": "errstate without divide='ignore': a division by zero needs a covariance entry beside a zero variance, which a covariance (positive semidefinite) cannot have; 0/0 is 'invalid', still ignored",
     "hysid.identifiability.x_assess__mutmut_51": "errstate without divide='ignore': a division by zero needs a covariance entry beside a zero variance, which a covariance (positive semidefinite) cannot have; 0/0 is 'invalid', still ignored",
-    "hysid.identifiability.x_assess__mutmut_64": 'the diagonal filled with NaN instead of 0: the next line counts a non-finite correlation as 0',
-    "hysid.identifiability.x_assess__mutmut_70": 'max without initial: it only matters for a reduction over nothing, and a (D, D) matrix with D >= 1 has none',
-    "hysid.identifiability.x_assess__mutmut_72": 'max without initial: it only matters for a reduction over nothing, and a (D, D) matrix with D >= 1 has none',
+    "hysid.identifiability.x_assess__mutmut_64": "the diagonal filled with NaN instead of 0: the next line counts a non-finite correlation as 0",
+    "hysid.identifiability.x_assess__mutmut_70": "max without initial: it only matters for a reduction over nothing, and a (D, D) matrix with D >= 1 has none",
+    "hysid.identifiability.x_assess__mutmut_72": "max without initial: it only matters for a reduction over nothing, and a (D, D) matrix with D >= 1 has none",
     "hysid.identifiability.x_assess__mutmut_83": AT_EQUALITY,
-    "hysid.motion.x_linear_start__mutmut_11": ("a strict subset: every model holds xi0 and w0 besides the slopes, so {S_xi, S_w} <= its "
-                                               "parameters exactly where {S_xi, S_w} < them"),
+    "hysid.motion.x_linear_start__mutmut_11": (
+        "a strict subset: every model holds xi0 and w0 besides the slopes, so {S_xi, S_w} <= its parameters exactly where {S_xi, S_w} < them"
+    ),
 }
 UNTESTABLE = {
-    "stacklevel": ("a warning's stacklevel: mutmut's trampoline adds a frame between the caller and the function, so no "
-                   "test of where a warning points can pass under it (the original's stacklevel is right)"),
+    "stacklevel": (
+        "a warning's stacklevel: mutmut's trampoline adds a frame between the caller and the function, so no "
+        "test of where a warning points can pass under it (the original's stacklevel is right)"
+    ),
 }
 """Why a survivor that mutmut cannot have killed survives (counted as survivors all the same)."""
 """mutmut's mutant name -> why no test can tell it from the original (examined by hand; mutmut numbers a function's
 mutants in a fixed order, so a name stays right while its function is unchanged)."""
 
-STATUS = {1: "killed", 3: "killed", 0: "survived", 5: "no tests", 33: "no tests", 34: "skipped", 36: "timeout", 24: "timeout",
-          -24: "timeout", 152: "timeout", 255: "timeout", 37: "caught by type check", None: "not checked"}
+STATUS = {
+    1: "killed",
+    3: "killed",
+    0: "survived",
+    5: "no tests",
+    33: "no tests",
+    34: "skipped",
+    36: "timeout",
+    24: "timeout",
+    -24: "timeout",
+    152: "timeout",
+    255: "timeout",
+    37: "caught by type check",
+    None: "not checked",
+}
 """mutmut's exit codes of a mutant's test run (mutmut.stats.status_by_exit_code), those that occur here."""
 DIFFS = """import json, sys
 from pathlib import Path
@@ -199,9 +228,20 @@ def workspace(where: Path, path: str, tests: list[str]) -> None:
     shutil.copytree(ROOT / "tests", where / "tests", ignore=shutil.ignore_patterns("__pycache__"))
     text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
     (where / "pyproject.toml").write_text(re.sub(r"\n\[tool\.mutmut\][^\[]*", "\n", text), encoding="utf-8")
-    lines = ["[mutmut]", "source_paths =", *(f"    {p}" for p in PACKAGES), f"only_mutate = {path}",
-             "pytest_add_cli_args_test_selection =", *(f"    {t}" for t in tests),
-             "pytest_add_cli_args =", "    -p", "    no:cacheprovider", "    -m", "    not slow", ""]
+    lines = [
+        "[mutmut]",
+        "source_paths =",
+        *(f"    {p}" for p in PACKAGES),
+        f"only_mutate = {path}",
+        "pytest_add_cli_args_test_selection =",
+        *(f"    {t}" for t in tests),
+        "pytest_add_cli_args =",
+        "    -p",
+        "    no:cacheprovider",
+        "    -m",
+        "    not slow",
+        "",
+    ]
     (where / "setup.cfg").write_text("\n".join(lines), encoding="utf-8")
 
 
@@ -267,8 +307,9 @@ def run_module(key: str, spec: dict[str, object], max_children: int) -> dict[str
         workspace(where, path, tests)
         env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "MPLBACKEND": "Agg"}
         globs = [mutant_glob(dotted, f) for f in functions]
-        run = subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(max_children), *globs],
-                             cwd=where, env=env, capture_output=True, text=True)
+        run = subprocess.run(
+            [sys.executable, "-m", "mutmut", "run", "--max-children", str(max_children), *globs], cwd=where, env=env, capture_output=True, text=True
+        )
         meta = where / "mutants" / (path + ".meta")
         if run.returncode != 0 or not meta.exists():
             raise SystemExit(f"bench/mutation.py: mutmut failed on {path} (exit {run.returncode}):\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}")
@@ -276,8 +317,7 @@ def run_module(key: str, spec: dict[str, object], max_children: int) -> dict[str
         chosen = {name: code for name, code in codes.items() if function_of(name) in functions}
         order = sorted(chosen, key=lambda name: (name.partition("__mutmut_")[0], int(name.rpartition("_")[2])))
         listed = [name for name in order if STATUS.get(chosen[name]) != "killed" or name in EQUIVALENT]
-        diffs = json.loads(subprocess.run([sys.executable, "-c", DIFFS, path, *listed], cwd=where, env=env, capture_output=True,
-                                          text=True, check=True).stdout)
+        diffs = json.loads(subprocess.run([sys.executable, "-c", DIFFS, path, *listed], cwd=where, env=env, capture_output=True, text=True, check=True).stdout)
         mutants = []
         for name in order:
             status = STATUS.get(chosen[name], f"exit code {chosen[name]}")
@@ -286,8 +326,18 @@ def run_module(key: str, spec: dict[str, object], max_children: int) -> dict[str
                 continue
             line, original, mutated = located(diffs[name], spans[function_of(name)])
             note = {"note": UNTESTABLE["stacklevel"]} if status == "survived" and "stacklevel" in original + mutated else {}
-            mutants.append({"name": name, "status": status, "function": function_of(name), "line": line, "original": original,
-                            "mutated": mutated, **({"equivalent": EQUIVALENT[name]} if name in EQUIVALENT else {}), **note})
+            mutants.append(
+                {
+                    "name": name,
+                    "status": status,
+                    "function": function_of(name),
+                    "line": line,
+                    "original": original,
+                    "mutated": mutated,
+                    **({"equivalent": EQUIVALENT[name]} if name in EQUIVALENT else {}),
+                    **note,
+                }
+            )
     counted = [m for m in mutants if "equivalent" not in m and m["status"] not in ("skipped", "not checked")]
     killed = sum(m["status"] in ("killed", "timeout") for m in counted)
     return {
@@ -301,8 +351,11 @@ def run_module(key: str, spec: dict[str, object], max_children: int) -> dict[str
         "score": round(killed / len(counted), 4) if counted else None,
         "score_equivalent_counted": round(killed / (len(counted) + sum("equivalent" in m for m in mutants)), 4) if mutants else None,
         "seconds": round(time.monotonic() - started, 1),
-        "survivors": [{k: m[k] for k in ("name", "status", "function", "line", "original", "mutated", "equivalent", "note") if k in m}
-                      for m in mutants if m["status"] not in ("killed", "timeout") or "equivalent" in m],
+        "survivors": [
+            {k: m[k] for k in ("name", "status", "function", "line", "original", "mutated", "equivalent", "note") if k in m}
+            for m in mutants
+            if m["status"] not in ("killed", "timeout") or "equivalent" in m
+        ],
         "mutmut_exit": run.returncode,
     }
 
@@ -313,13 +366,17 @@ def main() -> None:
     parser.add_argument("--max-children", type=int, default=1, help="mutants tested at once (default 1: a shared machine)")
     parser.add_argument("--out", type=Path, default=None, help="result file (default bench/results/mutation-<date>-<host>.json)")
     parser.add_argument("--update", action="store_true", help="keep the other modules' results already in the result file")
-    parser.add_argument("--merge", type=Path, nargs="+", default=[], help="only combine these result files (runs of different "
-                        "modules, e.g. in parallel) into the result file; a module in several is taken from the last")
+    parser.add_argument(
+        "--merge",
+        type=Path,
+        nargs="+",
+        default=[],
+        help="only combine these result files (runs of different modules, e.g. in parallel) into the result file; a module in several is taken from the last",
+    )
     args = parser.parse_args()
     if args.merge:
         merged = [json.loads(f.read_text(encoding="utf-8")) for f in args.merge]
-        result = {**merged[-1], "modules": {k: rescored(v) for r in merged for k, v in r["modules"].items()},
-                  "merged_from": [r["date"] for r in merged]}
+        result = {**merged[-1], "modules": {k: rescored(v) for r in merged for k, v in r["modules"].items()}, "merged_from": [r["date"] for r in merged]}
         out = args.out or ROOT / "bench" / "results" / f"mutation-{time.strftime('%Y-%m-%d')}-{environment()['machine']['hostname']}.json"
         write(result, out)
         print(f"mutation: score {result['score']} ({result['killed']} of {result['counted']}); {out}", file=sys.stderr)
@@ -330,13 +387,21 @@ def main() -> None:
     chosen = args.modules or list(MODULES)
     out = args.out or ROOT / "bench" / "results" / f"mutation-{time.strftime('%Y-%m-%d')}-{environment()['machine']['hostname']}.json"
     before = json.loads(out.read_text(encoding="utf-8"))["modules"] if args.update and out.exists() else {}
-    result: dict[str, object] = {"bench": "mutation", "tool": "mutmut " + version("mutmut"), "target": TARGET, **environment(),
-                                 "modules": {k: v for k, v in before.items() if k in MODULES and k not in chosen}}
+    result: dict[str, object] = {
+        "bench": "mutation",
+        "tool": "mutmut " + version("mutmut"),
+        "target": TARGET,
+        **environment(),
+        "modules": {k: v for k, v in before.items() if k in MODULES and k not in chosen},
+    }
     for key in chosen:
         print(f"mutation: {key} ({MODULES[key]['path']}) ...", file=sys.stderr, flush=True)
         result["modules"][key] = found = run_module(key, MODULES[key], args.max_children)  # type: ignore[index]
-        print(f"mutation: {key}: {found['killed']} of {found['counted']} killed, score {found['score']}, "
-              f"{len(found['survivors'])} listed, {found['seconds']} s", file=sys.stderr, flush=True)
+        print(
+            f"mutation: {key}: {found['killed']} of {found['counted']} killed, score {found['score']}, {len(found['survivors'])} listed, {found['seconds']} s",
+            file=sys.stderr,
+            flush=True,
+        )
         write(result, out)  # after every module: a long run stopped keeps what it found
     print(f"mutation: score {result['score']} ({result['killed']} of {result['counted']}); {out}", file=sys.stderr)
 
@@ -350,19 +415,37 @@ def rescored(module: dict) -> dict:
     equivalent = sum("equivalent" in s for s in module["survivors"])
     unrun = sum(s["status"] in ("skipped", "not checked") and "equivalent" not in s for s in module["survivors"])
     counted = module["mutants"] - equivalent - unrun
-    return {**module, "equivalent": equivalent, "counted": counted, "score": round(module["killed"] / counted, 4) if counted else None,
-            "score_equivalent_counted": round(module["killed"] / (counted + equivalent), 4) if counted + equivalent else None}
+    return {
+        **module,
+        "equivalent": equivalent,
+        "counted": counted,
+        "score": round(module["killed"] / counted, 4) if counted else None,
+        "score_equivalent_counted": round(module["killed"] / (counted + equivalent), 4) if counted + equivalent else None,
+    }
 
 
 def write(result: dict[str, object], out: Path) -> None:
     """``result`` with its overall score (killed over the mutants counted, every module together), to ``out``."""
     modules = result["modules"].values()  # type: ignore[union-attr]
-    counted = sum(m["counted"] if "counted" in m else m["mutants"] - m["equivalent"] - sum(  # a result file of before "counted"
-        s["status"] in ("skipped", "not checked") and "equivalent" not in s for s in m["survivors"]) for m in modules)
+    counted = sum(
+        m["counted"]
+        if "counted" in m
+        else m["mutants"]
+        - m["equivalent"]
+        - sum(  # a result file of before "counted"
+            s["status"] in ("skipped", "not checked") and "equivalent" not in s for s in m["survivors"]
+        )
+        for m in modules
+    )
     killed = sum(m["killed"] for m in modules)
     equivalent = sum(m["equivalent"] for m in modules)
-    result.update(score=round(killed / counted, 4) if counted else None, killed=killed, counted=counted, equivalent=equivalent,
-                  score_equivalent_counted=round(killed / (counted + equivalent), 4) if counted + equivalent else None)
+    result.update(
+        score=round(killed / counted, 4) if counted else None,
+        killed=killed,
+        counted=counted,
+        equivalent=equivalent,
+        score_equivalent_counted=round(killed / (counted + equivalent), 4) if counted + equivalent else None,
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
 

@@ -52,15 +52,18 @@ def test_a_refit_that_removes_less_than_its_share_of_the_excess_is_not_taken(har
     assert judge(poor, more, ("coulomb_friction",), harmonics) is None
 
 
-@pytest.mark.parametrize(("rivals", "gives_way"), [
-    ([], False),
-    ([1000.0 + BIC_MARGIN + 1.0], False),
-    ([1000.0 + BIC_MARGIN], False),
-    ([1000.0 + BIC_MARGIN - 1.0], True),
-    ([1000.0 + 1.0], True),
-    ([1000.0 - 50.0], True),
-    ([1030.0, 1000.0 + BIC_MARGIN - 0.5], True),
-])
+@pytest.mark.parametrize(
+    ("rivals", "gives_way"),
+    [
+        ([], False),
+        ([1000.0 + BIC_MARGIN + 1.0], False),
+        ([1000.0 + BIC_MARGIN], False),
+        ([1000.0 + BIC_MARGIN - 1.0], True),
+        ([1000.0 + 1.0], True),
+        ([1000.0 - 50.0], True),
+        ([1030.0, 1000.0 + BIC_MARGIN - 0.5], True),
+    ],
+)
 def test_a_degenerate_contender_gives_way_to_one_within_the_bic_margin(rivals, gives_way):
     """A contender of BIC 1000 that degenerates is taken only where every rival that passes without degenerating
     fits worse by BIC_MARGIN or more: a rival within the margin (or better) explains as much without degenerating."""
@@ -108,12 +111,15 @@ def with_order(fit: Fit, order: int, chi2: float) -> Fit:
     return Fit(fit.effects, fit.start, fit.objective, fit.theta, residual, fit.jacobian)
 
 
-@pytest.mark.parametrize(("c0", "c1", "created"), [
-    (36.6, 60.0, False),  # above the level of one order (51.8 for its 30 coefficients), below the family-wise one (66.9)
-    (36.6, 100.0, True),  # beyond it, and by more than chance: 63.4 > 66.9 - 30
-    (60.0, 80.0, False),  # beyond it, but from just under it: a rise of 20 is chance
-    (70.0, 200.0, False),  # not fitted at the noise before
-])
+@pytest.mark.parametrize(
+    ("c0", "c1", "created"),
+    [
+        (36.6, 60.0, False),  # above the level of one order (51.8 for its 30 coefficients), below the family-wise one (66.9)
+        (36.6, 100.0, True),  # beyond it, and by more than chance: 63.4 > 66.9 - 30
+        (60.0, 80.0, False),  # beyond it, but from just under it: a rise of 20 is chance
+        (70.0, 200.0, False),  # not fitted at the noise before
+    ],
+)
 def test_an_order_is_created_beyond_the_family_wise_level_and_by_a_significant_rise(harmonics, c0, c1, created):
     """The third harmonic's chi^2 (30 coefficients: 15 loops, a sine and a cosine) of two fits: created only where
     the first fits it within the family-wise SIGNIFICANCE (Bonferroni over the 8 orders: chi^2_30 at 1.25e-4, 66.9),

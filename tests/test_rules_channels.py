@@ -39,7 +39,7 @@ def named(**channels: str) -> DatasetConfig:
 
 def test_a_channel_given_by_name_matches_in_any_case_or_without_its_group():
     assert choose(["Time", "DISP", "Force_N"], "force", named(force="force_n"), "r.csv") == Channel(2, "Force_N", "N", 1.0)
-    with pytest.warns(HysidWarning, match="channel 'g/Weg' states no unit"):
+    with pytest.warns(HysidWarning, match=r"channel 'g/Weg' states no unit"):
         assert choose(["g/Time", "g/Weg", "g/Kraft"], "displacement", named(displacement="weg"), "r.tdms").index == 1
 
 
@@ -60,12 +60,15 @@ def test_without_a_name_given_the_default_then_the_stated_unit_then_a_label_deci
 
 def test_no_channel_or_several_of_a_quantity_is_a_one_line_error_unless_it_may_be_absent():
     assert choose(["time_s", "x"], "force", None, "r.csv", required=False) is None
-    with pytest.raises(HysidInputError, match="^r.csv: 2 force channels \\('Load \\(kN\\)', 'F \\[N\\]'\\); name one with force_channel in dataset.toml$"):
+    with pytest.raises(HysidInputError, match=r"^r.csv: 2 force channels \('Load \(kN\)', 'F \[N\]'\); name one with force_channel in dataset.toml$"):
         choose(["time_s", "Load (kN)", "F [N]"], "force", None, "r.csv")
-    with pytest.raises(HysidInputError, match="^r.csv: no force channel: expected 'force_n' \\(any case\\), a name like 'force_<unit>' or "
-                                              "'Force \\[unit\\]', or force_channel in dataset.toml; channels: 'time_s', 'x'$"):
+    with pytest.raises(
+        HysidInputError,
+        match=r"^r.csv: no force channel: expected 'force_n' \(any case\), a name like 'force_<unit>' or "
+        r"'Force \[unit\]', or force_channel in dataset.toml; channels: 'time_s', 'x'$",
+    ):
         choose(["time_s", "x"], "force", None, "r.csv")
-    with pytest.raises(HysidInputError, match="channels: none$"):
+    with pytest.raises(HysidInputError, match=r"channels: none$"):
         choose([], "force", None, "r.csv")
 
 
@@ -76,14 +79,14 @@ def test_each_rule_wins_over_the_looser_ones_after_it():
     assert choose(["force", "load"], "force", None, "r.tdms", file_units=["kN", None]) == Channel(0, "force", "kN", 1e3)
     assert choose(["displacement_mm", "x"], "displacement", None, "r.csv").index == 0
     assert choose(["Messung/Gruppe/Weg [mm]", "Messung/Gruppe/Kraft"], "displacement", named(displacement="weg [mm]"), "r.tdms").index == 0
-    with pytest.warns(HysidWarning, match="channel 'f' states no unit: read as N"):
+    with pytest.warns(HysidWarning, match=r"channel 'f' states no unit: read as N"):
         assert choose(["t", "x", "f"], "force", None, "r.csv") == Channel(2, "f", "N", 1.0)
-    with pytest.warns(HysidWarning, match="channel 'force' states no unit"):
+    with pytest.warns(HysidWarning, match=r"channel 'force' states no unit"):
         assert choose(["time", "displacement", "force"], "force", None, "r.csv").index == 2
 
 
 def test_the_unit_declared_in_dataset_toml_comes_first_and_a_disagreeing_one_is_an_error():
     config = DatasetConfig(Path("."), "rig", force_unit="kN")
     assert choose(["time_s", "x", "force"], "force", config, "r.csv") == Channel(2, "force", "kN", 1e3)
-    with pytest.raises(HysidInputError, match="^r.tdms: channel 'force_kn' states the unit 'N' but its name says kN; set force_unit in dataset.toml$"):
+    with pytest.raises(HysidInputError, match=r"^r.tdms: channel 'force_kn' states the unit 'N' but its name says kN; set force_unit in dataset.toml$"):
         choose(["time", "force_kn"], "force", None, "r.tdms", file_units=[None, "N"])

@@ -29,7 +29,7 @@ def test_a_correlation_beyond_the_limit_sends_both_parameters_to_their_profile(t
     correlation = np.eye(4)
     correlation[0, 2] = correlation[2, 0] = r
     found = assess(objective, theta, correlation * np.outer(se, se), lambda model: Objective(objective.loops, model), 1.0, profiles=False)
-    assert found.unprofiled == (["xi0", "w0"] if profiled else []) and CORRELATION_LIMIT == pytest.approx(0.999)
+    assert found.unprofiled == (["xi0", "w0"] if profiled else []) and pytest.approx(0.999) == CORRELATION_LIMIT
 
 
 def test_a_parameter_names_what_it_trades_off_with_the_strongest_first():
@@ -98,8 +98,10 @@ def test_a_parameter_whose_profile_is_flat_over_its_range_is_not_identifiable():
     assert np.isnan(found.stderr[2]) and np.isfinite(found.stderr[:2]).all() and found.flat.shape == (3, 1)
     conditional = np.diag(np.diag(np.linalg.pinv(jac.T @ jac))) * 1e-6  # no correlation shown: the unseen direction decides
     assert assess(objective, theta, conditional, lambda model: Objective(loops, model), 1e-6).not_identifiable.keys() == {"meq"}
-    assert assess(objective, theta[None, :], conditional, lambda model: Objective(loops, model), 1e-6,
-                  profiles=False).unprofiled == ["w0", "meq"]  # a theta of shape (1, D) is read as (D,)
+    assert assess(objective, theta[None, :], conditional, lambda model: Objective(loops, model), 1e-6, profiles=False).unprofiled == [
+        "w0",
+        "meq",
+    ]  # a theta of shape (1, D) is read as (D,)
 
 
 def test_a_parameter_handed_over_without_variance_is_not_taken_for_correlated(thesis):
@@ -150,7 +152,7 @@ def test_a_wall_after_a_flat_profile_is_bracketed_by_halving_after_the_quadratic
     """Flat up to 2, then a wall: the quadratic guess (the first probe of the bracket) falls short, so the bracket is
     halved geometrically (each probe the geometric mean of the nearest points below and above a unit) until its ends
     are within 2 %, or BISECTIONS probes; the crossing lies in the last bracket, at the wall."""
-    rise = lambda d: 0.0 if d < 2.0 else 1e4 * (d - 2.0) ** 2 + 1e-3  # noqa: E731
+    rise = lambda d: 0.0 if d < 2.0 else 1e4 * (d - 2.0) ** 2 + 1e-3
     width, probes = probed(rise, 0.01, 10.0)
     grown = [0.01 * GROWTH**k for k in range(5)]
     assert probes[:5] == pytest.approx(grown, rel=1e-12)

@@ -15,19 +15,24 @@ from hysid.motion import decide, distorted, linear_start
 from hysid_model.model import build_model
 from hysid_model.synth import synth_loops
 
-EVIDENCE = [{"order": 3, "displacement_share": 0.05, "force_share": 0.0012, "response": 0.024},
-            {"order": 5, "displacement_share": 0.02, "force_share": 0.0004, "response": 0.02}]
+EVIDENCE = [
+    {"order": 3, "displacement_share": 0.05, "force_share": 0.0012, "response": 0.024},
+    {"order": 5, "displacement_share": 0.02, "force_share": 0.0004, "response": 0.02},
+]
 
 
-@pytest.mark.parametrize(("ahead", "reading"), [
-    (BIC_MARGIN + 1.0, "fundamental"),
-    (BIC_MARGIN, "fundamental"),
-    (BIC_MARGIN - 1.0, "measured"),
-    (0.5, "measured"),
-    (-(BIC_MARGIN - 1.0), "measured"),
-    (-BIC_MARGIN, "measured"),
-    (-(BIC_MARGIN + 1.0), "measured"),
-])
+@pytest.mark.parametrize(
+    ("ahead", "reading"),
+    [
+        (BIC_MARGIN + 1.0, "fundamental"),
+        (BIC_MARGIN, "fundamental"),
+        (BIC_MARGIN - 1.0, "measured"),
+        (0.5, "measured"),
+        (-(BIC_MARGIN - 1.0), "measured"),
+        (-BIC_MARGIN, "measured"),
+        (-(BIC_MARGIN + 1.0), "measured"),
+    ],
+)
 def test_the_sensor_reading_needs_a_bic_lower_by_the_margin(ahead, reading):
     """``ahead``: how much lower the fundamental (sensor) reading's BIC is than the measured one's."""
     choice = decide({"measured": 500.0, "fundamental": 500.0 - ahead}, "baseline", EVIDENCE)
@@ -38,11 +43,15 @@ def test_the_sensor_reading_needs_a_bic_lower_by_the_margin(ahead, reading):
 
 def test_the_reason_gives_the_orders_and_the_bic_difference():
     sensor = decide({"measured": 530.0, "fundamental": 500.0}, "thesis", EVIDENCE)
-    assert sensor.reason == ("the force does not respond to the displacement's harmonics (order 3: x 5 %, F 0.12 %, order 5: x 2 %, "
-                             "F 0.04 %): driven by the fundamental the thesis model fits better, BIC lower by 30")
+    assert sensor.reason == (
+        "the force does not respond to the displacement's harmonics (order 3: x 5 %, F 0.12 %, order 5: x 2 %, "
+        "F 0.04 %): driven by the fundamental the thesis model fits better, BIC lower by 30"
+    )
     motion = decide({"measured": 500.0, "fundamental": 530.0}, "thesis", EVIDENCE)
-    assert motion.reason == ("the force responds to the displacement's harmonics (order 3: x 5 %, F 0.12 %, order 5: x 2 %, "
-                             "F 0.04 %): driven by them the thesis model fits better, BIC lower by 30")
+    assert motion.reason == (
+        "the force responds to the displacement's harmonics (order 3: x 5 %, F 0.12 %, order 5: x 2 %, "
+        "F 0.04 %): driven by them the thesis model fits better, BIC lower by 30"
+    )
     tie = decide({"measured": 500.0, "fundamental": 503.0}, "baseline", EVIDENCE)
     assert tie.reason == "the data cannot tell sensor distortion from motion (BIC differs by +3, less than 10); the measured waveform is kept"
     assert decide({"measured": 500.0, "fundamental": 500.0}, "baseline", []).as_dict()["delta_bic"] == 0.0

@@ -70,10 +70,10 @@ def test_the_least_recently_heard_run_is_forgotten_first():
 def test_a_replay_or_a_number_too_far_ahead_is_rejected_by_name():
     guard = ReplayGuard(window=8, burst=8)
     check_replay(guard, "history", "isl", "r1", 3)
-    with pytest.raises(MessageRejected, match="^rejected message \\(replay\\): history message 3 of 'isl' run 'r1' was seen before$") as seen:
+    with pytest.raises(MessageRejected, match=r"^rejected message \(replay\): history message 3 of 'isl' run 'r1' was seen before$") as seen:
         check_replay(guard, "history", "isl", "r1", 3)
     assert seen.value.reason == "replay"
-    with pytest.raises(MessageRejected, match="^rejected message \\(ahead\\): migrants message 20 of 'isl' run 'r2' is further ahead") as ahead:
+    with pytest.raises(MessageRejected, match=r"^rejected message \(ahead\): migrants message 20 of 'isl' run 'r2' is further ahead") as ahead:
         check_replay(guard, "migrants", "isl", "r2", 20, known=(3, 0.0))
     assert ahead.value.reason == "ahead"
     check_replay(guard, "history", "isl", "r2", 3)  # another kind or run numbers on its own

@@ -67,7 +67,7 @@ def test_a_secret_file_is_ascii_and_bytes_that_are_not_read_as_replacement_chara
     """A secret is one ASCII line: a file holding other bytes is read (its parse then names what is wrong), never a
     decoding traceback; text that is not ASCII is refused before anything is written."""
     path = tmp_path / "odd"
-    path.write_bytes("hysid-secret é\xff".encode("utf-8") + b"\xff")
+    path.write_bytes("hysid-secret é\xff".encode() + b"\xff")
     path.chmod(0o600)
     assert read_owner_only(path, None, "the key") == "hysid-secret " + "\ufffd" * 5
     with pytest.raises(HysidInputError, match="not a hysid campaign secret"):

@@ -35,11 +35,13 @@ def test_a_strength_must_name_a_parameter_and_two_parameters_have_none_by_defaul
         spring("rule_unknown", (0.0, 1.0), strength="k")
     assert str(info.value) == "strength='k': is no parameter of term 'rule_unknown' (c)"
     with pytest.raises(HysidInputError) as two:
-        hysid.term(lambda x, v, c, d: c * x + d, name="rule_unknown_two", units={"c": "N/m", "d": "N"},
-                   bounds={"c": (0.0, 1.0), "d": (0.0, 1.0)}, strength="k")
+        hysid.term(lambda x, v, c, d: c * x + d, name="rule_unknown_two", units={"c": "N/m", "d": "N"}, bounds={"c": (0.0, 1.0), "d": (0.0, 1.0)}, strength="k")
     assert str(two.value) == "strength='k': is no parameter of term 'rule_unknown_two' (c, d)"
-    two = hysid.term(lambda x, v, c, d: c * x + d * x**3, name="rule_two", units={"c": "N/m", "d": "N/m^3"},
-                     bounds={"c": (0.0, 1.0), "d": (0.0, 1.0)})
+    two = hysid.term(lambda x, v, c, d: c * x + d * x**3, name="rule_two", units={"c": "N/m", "d": "N/m^3"}, bounds={"c": (0.0, 1.0), "d": (0.0, 1.0)})
     assert two.strength == ""
-    assert hysid.term(lambda x, v, c, d: d * (x + c * x**3), name="rule_two_d", units={"c": "1/m^2", "d": "N/m"},
-                      bounds={"c": (1.0, 2.0), "d": (0.0, 1.0)}, strength="d").strength == "d"  # only the strength must hold 0
+    assert (
+        hysid.term(
+            lambda x, v, c, d: d * (x + c * x**3), name="rule_two_d", units={"c": "1/m^2", "d": "N/m"}, bounds={"c": (1.0, 2.0), "d": (0.0, 1.0)}, strength="d"
+        ).strength
+        == "d"
+    )  # only the strength must hold 0
