@@ -173,6 +173,10 @@ EQUIVALENT: dict[str, str] = {
     "hysid.identifiability.x_assess__mutmut_70": "max without initial: it only matters for a reduction over nothing, and a (D, D) matrix with D >= 1 has none",
     "hysid.identifiability.x_assess__mutmut_72": "max without initial: it only matters for a reduction over nothing, and a (D, D) matrix with D >= 1 has none",
     "hysid.identifiability.x_assess__mutmut_83": AT_EQUALITY,
+    "hysid_model.model.xǁModelǁ_on_bounds__mutmut_4": "theta's dtype left to numpy: every caller hands floats",
+    "hysid_model.model.xǁModelǁ_on_bounds__mutmut_6": "theta's dtype left to numpy: every caller hands floats",
+    "hysid_model.model.xǁModelǁ_on_bounds__mutmut_8": "reshape(-2): numpy 2 reads any negative size as the one unknown dimension, as -1",
+    "hysid_model.model.xǁModelǁ_on_bounds__mutmut_23": "'<' for '<=': differs only for a value as far from both bounds, on a bound: a range of width 0",
     "hysid.motion.x_linear_start__mutmut_11": (
         "a strict subset: every model holds xi0 and w0 besides the slopes, so {S_xi, S_w} <= its parameters exactly where {S_xi, S_w} < them"
     ),

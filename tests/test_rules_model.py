@@ -25,3 +25,10 @@ def test_a_bound_from_the_data_is_named_data_derived_and_one_off_the_bounds_is_n
     assert model.bound_kinds(theta) == {"w0": "data-derived upper bound 250", "meq": "data-derived lower bound 0.5"}
     inside = model.from_dict({"xi0": 0.05, "w0": 250.0 * (1 - 1e-4), "meq": 0.5 * (1 + 1e-3)})
     assert model.bound_kinds(inside) == {} and model.at_bounds(inside) == []
+
+
+def test_a_default_lower_bound_is_named_default_and_a_theta_row_reads_as_the_vector():
+    model = build_model("baseline")
+    theta = model.from_dict({"xi0": 0.01, "w0": 100.0, "meq": 1.0})
+    assert model.bound_kinds(theta) == {"w0": "default lower bound 100"}
+    assert model.bound_kinds(theta[None, :]) == {"w0": "default lower bound 100"} and model.at_bounds(theta[None, :]) == ["w0"]
