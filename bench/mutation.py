@@ -377,10 +377,16 @@ def main() -> None:
         default=[],
         help="only combine these result files (runs of different modules, e.g. in parallel) into the result file; a module in several is taken from the last",
     )
+    parser.add_argument("--note", default="", help="a sentence stored with the result (what the runs were made on)")
     args = parser.parse_args()
     if args.merge:
         merged = [json.loads(f.read_text(encoding="utf-8")) for f in args.merge]
-        result = {**merged[-1], "modules": {k: rescored(v) for r in merged for k, v in r["modules"].items()}, "merged_from": [r["date"] for r in merged]}
+        result = {
+            **merged[-1],
+            "modules": {k: rescored(v) for r in merged for k, v in r["modules"].items()},
+            "merged_from": [r["date"] for r in merged],
+            **({"note": args.note} if args.note else {}),
+        }
         out = args.out or ROOT / "bench" / "results" / f"mutation-{time.strftime('%Y-%m-%d')}-{environment()['machine']['hostname']}.json"
         write(result, out)
         print(f"mutation: score {result['score']} ({result['killed']} of {result['counted']}); {out}", file=sys.stderr)
