@@ -420,6 +420,7 @@ def rescored(module: dict) -> dict:
     """A module's result with its survivors marked by the ``EQUIVALENT`` table as it is now (one examined after
     its run), and its counts and score again."""
     for survivor in module["survivors"]:
+        survivor.setdefault("file", module["file"])
         if survivor["name"] in EQUIVALENT:
             survivor["equivalent"] = EQUIVALENT[survivor["name"]]
     equivalent = sum("equivalent" in s for s in module["survivors"])
