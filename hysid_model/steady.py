@@ -40,7 +40,6 @@ from itertools import pairwise
 
 import numpy as np
 
-from hysid_model.steady_band import longest_band_run
 
 STEADY_TOLERANCE = 0.01
 """Half-width of the steady band, relative to the amplitude (or ``NOISE_SIGMAS`` stds of its scatter, if wider)."""
@@ -275,6 +274,8 @@ def _longest_band_run(amp: np.ndarray, noise: np.ndarray, sampling: np.ndarray) 
     """Longest window of cycles that is steady: within the band around its line, drifting at most ``DRIFT_LIMIT``,
     and not curved (a settling transient is curved, a drift is straight); the compiled search of
     :func:`hysid_model.steady_band.longest_band_run`."""
+    from hysid_model.steady_band import longest_band_run  # numba loads with the first record extracted (hysid --help and an island never do)
+
     amp = np.ascontiguousarray(amp, dtype=float)
     spread = NOISE_SIGMAS * np.asarray(noise, dtype=float)
     sampling = np.asarray(sampling, dtype=float)
