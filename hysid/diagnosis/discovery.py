@@ -1,0 +1,214 @@
+"""Discovery: where no library effect brings the residual to the noise, propose the missing force from the data.
+
+From a fitted model (the start model, and the best library model where the diagnosis named effects), every
+family of the candidate library (:mod:`hysid_model.discovery.features`) is evaluated on the loops' motion at
+every shape of its grid, less its cycle mean, and whitened as the data are (the harmonic coordinates of
+:mod:`hysid_model.harmonics`); what the model's own parameters absorb (its spring, dashpot and mass, the
+effects it has: the column space of its Jacobian J) is projected out, as for the score test of a library
+effect (:mod:`.scoring`). FROLS (:func:`hysid_model.discovery.frols.frols`) selects at most two families, each
+only where it removes more than its parameters cost by the information criterion (BIC_MARGIN + p ln N) and
+more than the score test's family-wise level over every column; at most :data:`MAX_PARAMETERS` parameters
+in all. Their shapes (exponents, thresholds, velocity scales) are refined by nonlinear least squares from the
+grid point (:func:`hysid_model.discovery.frols.refine`); the law becomes a term of the user's kind
+(:mod:`hysid_model.discovery.proposal`) and the whole model is refitted with it. The refit is taken by the
+rules that take a library effect (:mod:`.acceptance`): BIC, shape, share of the excess, the visible errors,
+plausible values, then the held-out frequencies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hysid.diagnosis.acceptance import held_out, judge
+from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
+from hysid.diagnosis.fitting import Fit, fit_objective, make_model
+from hysid.diagnosis.metrics import cross_validated_rms
+from hysid.diagnosis.tally import Tally
+from hysid_model.discovery.features import Family, columns, library, scales
+from hysid_model.discovery.frols import frols, refine
+from hysid_model.discovery.proposal import Law, expression, initial_values, make_term, names, number_of
+from hysid_model.effects.bouc_wen import mean_grid
+from hysid_model.harmonics import HarmonicObjective, Harmonics
+from hysid_model.user_terms import motion
+
+MAX_FAMILIES = 2
+"""Families a proposed law combines at most."""
+MAX_PARAMETERS = 4
+"""Parameters a proposed law has at most (its coefficients and shapes)."""
+
+
+@dataclass
+class Proposed:
+    """A force term proposed from the data (not a library effect), the fit it was added to, and its evidence."""
+
+    number: int
+    law: Law
+    base: Fit
+    """The model it was added to."""
+    fit: Fit
+    """The whole model refitted with it."""
+    err: list[float]
+    """The error-reduction ratio of each family when selected (share of the base's residual sum of squares)."""
+
+    @property
+    def name(self) -> str:
+        return f"term_{self.number}"
+
+    @property
+    def param_names(self) -> list[str]:
+        return [n for mapping in names(self.law, self.number) for n in mapping.values()]
+
+    def params(self) -> dict[str, float]:
+        values = self.fit.params()
+        return {n: values[n] for n in self.param_names}
+
+    def stderr(self) -> dict[str, float]:
+        errors = self.fit.errors()
+        return {n: float(errors[n]) for n in self.param_names}
+
+    @property
+    def formula(self) -> str:
+        """A numpy expression in ``x`` (m) and ``v`` (m/s) with the fitted values in place: the force in N."""
+        return expression(self.law, self.number, self.params())
+
+    @property
+    def notation(self) -> str:
+        """The law in plain notation with the fitted values (four digits)."""
+        return expression(self.law, self.number, self.params(), plain=True)
+
+    @property
+    def share(self) -> float:
+        """The share of the base's chi^2 above the noise floor the term removes."""
+        excess = self.base.chi2 - self.base.dof
+        return float((self.base.chi2 - self.fit.chi2) / excess) if excess > 0 else float("nan")
+
+    def units(self) -> dict[str, str]:
+        return {p.name: p.unit for p in self.fit.model.parameters if p.name in self.param_names}
+
+    def evidence(self) -> dict[str, Any]:
+        return {
+            "delta_bic": self.fit.bic - self.base.bic,
+            "bic_before": self.base.bic, "bic_after": self.fit.bic,
+            "whitened_rms_before": self.base.whitened_rms, "whitened_rms_after": self.fit.whitened_rms,
+            "held_out_before": self.base.held_out.get("rms"), "held_out_after": self.fit.held_out.get("rms"),
+            "share_of_excess_removed": self.share,
+            "error_reduction_ratio": self.err,
+        }
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name, "kind": "proposed from the data, not a library effect",
+            "formula": self.formula, "notation": self.notation,
+            "params": self.params(), "stderr": self.stderr(), "units": self.units(),
+            "families": [f.key for f in self.law.families],
+            "module": "proposed.py", "model": f"{self.base.start}+" + "".join(f"{e}+" for e in self.base.effects) + f"proposed:{self.name}",
+            "added_to": self.base.spec, "evidence": self.evidence(),
+        }
+
+
+def state(fit: Fit, harmonics: Harmonics) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Displacement and velocity at the loops' samples ``(L, 2n)`` and on the uniform phases of a cycle mean,
+    under the motion ``fit`` is driven by."""
+    kin = fit.objective.objective.kin
+    x, v = motion(kin, harmonics.loops.phases())
+    gx, gv = motion(kin, mean_grid(kin.x0.size))
+    return x[0], v[0], gx[0], gv[0]
+
+
+class Columns:
+    """The candidate forces of the library in whitened harmonic coordinates with what ``fit`` absorbs projected out."""
+
+    def __init__(self, fit: Fit, harmonics: Harmonics) -> None:
+        self.fit, self.harmonics = fit, harmonics
+        self.x, self.v, self.gx, self.gv = state(fit, harmonics)
+        kin = fit.objective.objective.kin
+        self.families = library(*scales(kin.x0, kin.omega))
+        self.basis = np.linalg.qr(fit.jacobian)[0]
+        self.index, forces = columns(self.families, self.x, self.v, self.gx, self.gv)
+        self.matrix = self.project(forces)
+
+    def project(self, forces: np.ndarray) -> np.ndarray:
+        """Forces ``(K, L, 2n)`` -> ``(N, K)`` whitened, less their part in the span of the fit's Jacobian."""
+        white = self.harmonics.whiten(forces).reshape(forces.shape[0], -1).T
+        return white - self.basis @ (self.basis.T @ white)
+
+    def of(self, families: list[Family], values: np.ndarray) -> np.ndarray:
+        """The columns of ``families`` at the shapes ``values`` (their shape parameters in order)."""
+        out, at = [], 0
+        for family in families:
+            shape = {s.symbol: float(values[at + j]) for j, s in enumerate(family.shapes)}
+            at += len(family.shapes)
+            out.append(family.evaluate(self.x, self.v, shape) - family.evaluate(self.gx, self.gv, shape).mean(axis=-1, keepdims=True))
+        return self.project(np.array(out))
+
+
+def selection_threshold(n_columns: int, n_data: int) -> float:
+    """The least a column must remove: the score test's chi^2_1 at the family-wise ``SIGNIFICANCE`` over every column."""
+    from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
+    return float(chi2_dist.isf(SIGNIFICANCE / max(n_columns, 1), 1))
+
+
+def select(cols: Columns, residual: np.ndarray) -> tuple[list[Family], list[dict[str, float]], list[float]]:
+    """The families FROLS selects (module docstring), their grid shapes and error-reduction ratios."""
+    level = selection_threshold(len(cols.index), residual.size)
+    cost = np.log(residual.size)
+
+    def threshold(chosen: list[int], k: int) -> float:
+        family = cols.index[k][0]
+        n = 1 + len(cols.families[family].shapes)
+        used = sum(1 + len(cols.families[cols.index[j][0]].shapes) for j in chosen)
+        if used + n > MAX_PARAMETERS or family in {cols.index[j][0] for j in chosen}:
+            return np.inf
+        return max(level, BIC_MARGIN + n * cost)
+
+    chosen = frols(cols.matrix, residual, threshold, MAX_FAMILIES)
+    return ([cols.families[cols.index[s.index][0]] for s in chosen], [cols.index[s.index][1] for s in chosen], [s.err for s in chosen])
+
+
+def refined_law(cols: Columns, families: list[Family], shapes: list[dict[str, float]], residual: np.ndarray) -> Law:
+    """The selected families with their shapes refined by least squares and their coefficients there."""
+    start = np.array([shape[s.symbol] for f, shape in zip(families, shapes) for s in f.shapes])
+    lower = np.array([s.bounds[0] for f in families for s in f.shapes])
+    upper = np.array([s.bounds[1] for f in families for s in f.shapes])
+    found = refine(lambda values: cols.of(families, values), residual, start, (lower, upper))
+    out, at = [], 0
+    for f in families:
+        out.append({s.symbol: float(found.shapes[at + j]) for j, s in enumerate(f.shapes)})
+        at += len(f.shapes)
+    peak = float(np.max(np.abs(cols.harmonics.loops.forces())))
+    return Law(families, out, [float(c) for c in found.coefficients], peak)
+
+
+def propose(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]], cross_validate: bool, tally: Tally) -> tuple[Proposed | None, str]:
+    """A term proposed from what ``fit`` leaves, refitted with the whole model and taken by the acceptance rules,
+    or None; and why (what was tried, or why nothing was taken). Counts its fits in ``tally`` (it expects
+    the selection, the refit and, with ``cross_validate``, the held-out check)."""
+    cols = Columns(fit, harmonics)
+    families, shapes, err = select(cols, fit.residual)
+    tally.done(f"discovery: {cols.matrix.shape[1]} candidate forces searched from {fit.spec}")
+    if not families:
+        tally.expect(-1 - int(cross_validate))
+        return None, f"no candidate force removes enough of what {fit.spec} leaves"
+    law = refined_law(cols, families, shapes, fit.residual)
+    number = number_of(law)
+    made = make_term(law, number)
+    effects = fit.effects + (made.id,)
+    model = make_model(harmonics, fit.start, effects, bounds, fit.freed)
+    row = model.from_dict({**fit.params(), **initial_values(law, number)})
+    after = fit_objective(HarmonicObjective(harmonics, model), fit.start, effects, [np.clip(row, model.bounds[:, 0], model.bounds[:, 1])])
+    tally.done(f"discovery: refitted {fit.spec} with {made.id}")
+    proposal = Proposed(number, law, fit, after, err)
+    why = judge(fit, after, (made.id,), harmonics)
+    if why is None and cross_validate:
+        why = held_out(fit, after, harmonics)
+        tally.done(f"discovery: {made.id} checked on held-out frequencies")
+    elif cross_validate:
+        tally.expect(-1)
+    if why is not None:
+        return None, f"{proposal.notation} added to {fit.spec}: {why}"
+    if cross_validate:
+        cross_validated_rms(fit, harmonics)  # the evidence: both held-out errors
+    return proposal, f"{proposal.notation} added to {fit.spec}"
