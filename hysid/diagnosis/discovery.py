@@ -17,6 +17,7 @@ plausible values, then the held-out frequencies.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,6 +79,15 @@ class Proposed:
     def notation(self) -> str:
         """The law in plain notation with the fitted values (four digits)."""
         return expression(self.law, self.number, self.params(), plain=True)
+
+    def forces(self, harmonics: Harmonics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The loops' displacement and velocity at their samples and the term's force there as it enters the
+        model (less its cycle mean), each ``(L, 2n)``: :attr:`formula` evaluated by numpy."""
+        x, v, gx, gv = state(self.fit, harmonics)
+        code = compile(self.formula, f"<{self.name}>", "eval")
+        with np.errstate(all="ignore"):
+            force = eval(code, {"np": np}, {"x": x, "v": v}) - np.mean(eval(code, {"np": np}, {"x": gx, "v": gv}), axis=-1, keepdims=True)  # noqa: S307
+        return x, v, np.broadcast_to(force, x.shape)
 
     @property
     def share(self) -> float:
@@ -145,41 +155,71 @@ class Columns:
         return self.project(np.array(out))
 
 
-def selection_threshold(n_columns: int, n_data: int) -> float:
+def selection_threshold(n_columns: int) -> float:
     """The least a column must remove: the score test's chi^2_1 at the family-wise ``SIGNIFICANCE`` over every column."""
     from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
     return float(chi2_dist.isf(SIGNIFICANCE / max(n_columns, 1), 1))
 
 
-def select(cols: Columns, residual: np.ndarray) -> tuple[list[Family], list[dict[str, float]], list[float]]:
-    """The families FROLS selects (module docstring), their grid shapes and error-reduction ratios."""
-    level = selection_threshold(len(cols.index), residual.size)
-    cost = np.log(residual.size)
+def threshold(cols: Columns, n_data: int, used: list[Family]) -> Callable[[list[int], int], float]:
+    """What column ``k`` must remove after the families ``used``: more than its parameters cost (BIC_MARGIN + p ln N)
+    and the score test's family-wise level over every column; never a family used, nor one past
+    :data:`MAX_PARAMETERS`."""
+    level = selection_threshold(len(cols.index))
+    spent = sum(1 + len(f.shapes) for f in used)
 
-    def threshold(chosen: list[int], k: int) -> float:
-        family = cols.index[k][0]
-        n = 1 + len(cols.families[family].shapes)
-        used = sum(1 + len(cols.families[cols.index[j][0]].shapes) for j in chosen)
-        if used + n > MAX_PARAMETERS or family in {cols.index[j][0] for j in chosen}:
+    def limit(chosen: list[int], k: int) -> float:
+        family = cols.families[cols.index[k][0]]
+        n = 1 + len(family.shapes)
+        if spent + n > MAX_PARAMETERS or family in used:
             return np.inf
-        return max(level, BIC_MARGIN + n * cost)
+        return max(level, BIC_MARGIN + n * np.log(n_data))
 
-    chosen = frols(cols.matrix, residual, threshold, MAX_FAMILIES)
-    return ([cols.families[cols.index[s.index][0]] for s in chosen], [cols.index[s.index][1] for s in chosen], [s.err for s in chosen])
+    return limit
+
+
+def select(cols: Columns, residual: np.ndarray) -> tuple[Law | None, list[float]]:
+    """The law of at most :data:`MAX_FAMILIES` families FROLS selects (module docstring), each family's shapes
+    refined with the ones before it before the next is sought (a grid shape's misfit must not pass for a second
+    family), and the error-reduction ratio of each; a family is kept only where the refined law with it removes
+    more than its cost (:func:`threshold`) beyond the refined law without it."""
+    families: list[Family] = []
+    shapes: list[dict[str, float]] = []
+    law, left, err = None, float(residual @ residual), []
+    for _ in range(MAX_FAMILIES):
+        limit = threshold(cols, residual.size, families)
+        target, matrix = residual, cols.matrix
+        if law is not None:
+            basis = np.linalg.qr(cols.of(families, shape_vector(families, shapes)))[0]
+            target, matrix = residual - basis @ (basis.T @ residual), cols.matrix - basis @ (basis.T @ cols.matrix)
+        chosen = frols(matrix, target, limit, 1)
+        if not chosen:
+            break
+        family, shape = cols.families[cols.index[chosen[0].index][0]], cols.index[chosen[0].index][1]
+        trial = refined_law(cols, families + [family], shapes + [shape], residual)
+        removed = left - trial.chi2
+        if removed <= limit([], chosen[0].index):
+            break
+        law, families, shapes, left = trial, trial.families, trial.shapes, trial.chi2
+        err.append(removed / max(float(residual @ residual), 1e-300))
+    return law, err
+
+
+def shape_vector(families: list[Family], shapes: list[dict[str, float]]) -> np.ndarray:
+    return np.array([shape[s.symbol] for f, shape in zip(families, shapes) for s in f.shapes])
 
 
 def refined_law(cols: Columns, families: list[Family], shapes: list[dict[str, float]], residual: np.ndarray) -> Law:
-    """The selected families with their shapes refined by least squares and their coefficients there."""
-    start = np.array([shape[s.symbol] for f, shape in zip(families, shapes) for s in f.shapes])
+    """The ``families`` with their shapes refined by least squares from ``shapes`` and their coefficients there."""
     lower = np.array([s.bounds[0] for f in families for s in f.shapes])
     upper = np.array([s.bounds[1] for f in families for s in f.shapes])
-    found = refine(lambda values: cols.of(families, values), residual, start, (lower, upper))
+    found = refine(lambda values: cols.of(families, values), residual, shape_vector(families, shapes), (lower, upper))
     out, at = [], 0
     for f in families:
         out.append({s.symbol: float(found.shapes[at + j]) for j, s in enumerate(f.shapes)})
         at += len(f.shapes)
     peak = float(np.max(np.abs(cols.harmonics.loops.forces())))
-    return Law(families, out, [float(c) for c in found.coefficients], peak)
+    return Law(families, out, [float(c) for c in found.coefficients], peak, chi2=found.chi2)
 
 
 def propose(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]], cross_validate: bool, tally: Tally) -> tuple[Proposed | None, str]:
@@ -187,12 +227,11 @@ def propose(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float
     or None; and why (what was tried, or why nothing was taken). Counts its fits in ``tally`` (it expects
     the selection, the refit and, with ``cross_validate``, the held-out check)."""
     cols = Columns(fit, harmonics)
-    families, shapes, err = select(cols, fit.residual)
+    law, err = select(cols, fit.residual)
     tally.done(f"discovery: {cols.matrix.shape[1]} candidate forces searched from {fit.spec}")
-    if not families:
+    if law is None:
         tally.expect(-1 - int(cross_validate))
         return None, f"no candidate force removes enough of what {fit.spec} leaves"
-    law = refined_law(cols, families, shapes, fit.residual)
     number = number_of(law)
     made = make_term(law, number)
     effects = fit.effects + (made.id,)

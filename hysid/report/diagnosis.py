@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
-from hysid.report import jsondoc
+from hysid.report import jsondoc, proposed
 from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows
 from hysid.report.bounds import widened_sentence
 from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_section, with_error
@@ -128,11 +128,14 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         lines += _effect_section(diagnosis, i)
     if not diagnosis.steps:
         lines += ["None.", ""]
+    drawn = [figures.proposed_force_figure(out / f"proposed_{p.name}.png", p, diagnosis) for p in diagnosis.proposed]
+    lines += proposed.section(diagnosis, out, drawn)
     lines += ["## What is left", ""]
     if diagnosis.status == "adequate":
         lines.append("The residual is consistent with the noise: its chi^2 and the chi^2 of every harmonic coefficient are within their noise range.")
     else:
-        lines.append(f"**Unexplained**: {diagnosis.unexplained['description']}. No effect of the library accounts for it; it is not named.")
+        lines.append(f"**Unexplained**: {diagnosis.unexplained['description']}. "
+                     + ("No effect of the library accounts for it; it is not named." if not diagnosis.proposed else "Nothing else accounts for it."))
         lines += ["", f"Against references that need no physical model, {reference_text(diagnosis.to_dict())}."]
     if diagnosis.rejected:
         lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in diagnosis.rejected.items()) + "."]

@@ -101,6 +101,7 @@ def library(x_ref: float, v_ref: float) -> list[Family]:
     v_gap = Shape("u", "m/s", (0.0, v_ref), tuple(v_ref * f for f in THRESHOLDS), "velocity threshold")
     v_scale = Shape("u", "m/s", (1e-4 * v_ref, 10.0 * v_ref), tuple(v_ref * f for f in VELOCITY_SCALES), "velocity scale")
     families = [
+        Family("velocity_sign", "np.sign(v)", "sgn(v)", ()),
         Family("velocity_power", f"np.abs(v / {V}) ** {{a}} * np.sign(v)", f"(|v| / {V} m/s)^{{a}} sgn(v)", (_exponent(),)),
         Family("velocity_power_even", f"np.abs(v / {V}) ** {{a}}", f"(|v| / {V} m/s)^{{a}}", (_exponent(),)),
         Family("displacement_power", f"np.abs(x / {X}) ** {{a}} * np.sign(x)", f"(|x| / {X} m)^{{a}} sgn(x)", (_exponent(),)),

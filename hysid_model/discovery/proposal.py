@@ -42,6 +42,8 @@ class Law:
     """The largest force of the loops (N): the strength's bounds are set from it."""
     bounds: list[dict[str, tuple[float, float]]] = field(default_factory=list)
     """Each family's shape bounds (default: the family's own)."""
+    chi2: float = float("nan")
+    """What the law leaves of the residual it was fitted to (its whitened sum of squares)."""
 
     def __post_init__(self) -> None:
         if not self.bounds:
