@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from hysid.bench import search_problems as sp
+from hysid.effects import coulomb_friction
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.synth import simulate_raw
@@ -24,6 +25,11 @@ RATE_HZ = 4096.7
 def fluid(x, v, hf_c, hf_alpha):
     """A fluid viscous damper, c |v|^alpha sgn v."""
     return hf_c * np.abs(v) ** hf_alpha * np.sign(v)
+
+
+def orifice(x, v, ho_c):
+    """Orifice damping, c v |v|."""
+    return ho_c * v * np.abs(v)
 
 
 def gap(x, v, hg_k, hg_g):
@@ -44,6 +50,7 @@ def quadratic_spring(x, v, hq_k):
 LAWS = {
     "fluid": (term(fluid, name="hidden_fluid", units={"hf_c": "N", "hf_alpha": "1"}, bounds={"hf_c": (0, 1e4), "hf_alpha": (0.05, 3)}, strength="hf_c"),
               {"hf_c": 100.0, "hf_alpha": 0.35}),
+    "orifice": (term(orifice, name="hidden_orifice", units={"ho_c": "N s^2/m^2"}, bounds={"ho_c": (0, 1e5)}), {"ho_c": 150.0}),
     "gap": (term(gap, name="hidden_gap", units={"hg_k": "N/m", "hg_g": "m"}, bounds={"hg_k": (0, 1e7), "hg_g": (0, 1e-2)}, strength="hg_k"),
             {"hg_k": 1.0e5, "hg_g": 1.5e-3}),
     "stribeck": (term(stribeck, name="hidden_stribeck", units={"hs_f": "N", "hs_s": "1", "hs_v": "m/s"},
@@ -51,12 +58,14 @@ LAWS = {
                  {"hs_f": 20.0, "hs_s": 1.0, "hs_v": 0.02}),
     "quadratic": (term(quadratic_spring, name="hidden_quadratic", units={"hq_k": "N/m^2"}, bounds={"hq_k": (-1e9, 1e9)}, strength="hq_k"),
                   {"hq_k": 3.0e7}),
+    "coulomb": (coulomb_friction, {"F_d": 30.0}),
     "none": (None, {}),
 }
 
 
 def specimen(law: str, seed: int = 0, noise_pct: float = 1.0, freqs: np.ndarray = FREQS, amps: np.ndarray = AMPS, points: int = 60) -> LoopSet:
-    """Loops of the specimen with the hidden ``law`` of :data:`LAWS` (``none``: the linear specimen alone)."""
+    """Loops of the specimen with the hidden ``law`` of :data:`LAWS` (``none``: the linear specimen alone; ``coulomb``:
+    a library effect only)."""
     hidden, values = LAWS[law]
     model = build_model("baseline") if hidden is None else build_model("baseline") + hidden
     theta = model.from_dict({**SPECIMEN, **values})
