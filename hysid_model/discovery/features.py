@@ -6,8 +6,8 @@ reference scales read off the loops (:func:`scales`: the largest amplitude X and
 V, rounded to two digits), so that every coefficient is a force and the formula reads as a law:
 ``c * np.abs(v / 0.13) ** a * np.sign(v)`` is c (|v| / V)^a sgn(v). The families cover what a missing force
 of a vibrating device is made of: powers of |x| and |v| with their signs (odd) or without (even, a
-loop that is not point-symmetric), products of x and v (x^2 v, x |v|, ...), one-sided and dead-zone springs
-and a velocity dead zone on a grid of thresholds scaled by the amplitude, and saturating or decaying
+loop that is not point-symmetric), products of x and v (x^2 v, x |v|, ...), one-sided, dead-zone and saturating
+springs and a velocity dead zone on a grid of thresholds scaled by the amplitude, and saturating or decaying
 velocity laws (tanh, 1 - exp, a Gaussian hump) on a grid of velocity scales. A shape parameter's grid is
 where the sparse selection looks (:mod:`.frols`); its bounds are where the refinement and the whole
 model's refit may take it.
@@ -23,11 +23,12 @@ import numpy as np
 
 EXPONENTS = (0.1, 0.2, 0.35, 0.5, 0.75, 1.5, 2.0, 2.5, 3.0)
 """Exponents the selection tries (1 is a spring's or a dashpot's, which the model has)."""
-EXPONENT_BOUNDS = (0.02, 5.0)
+EXPONENT_BOUNDS = (0.02, 8.0)
 THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 """Thresholds the selection tries, as fractions of the reference amplitude X (of V for a velocity's)."""
 VELOCITY_SCALES = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
-"""Velocity scales of the saturating and decaying laws the selection tries, as fractions of V."""
+"""Velocity scales of the saturating and decaying laws the selection tries, as fractions of V (from 0.02 on,
+the displacement scales of a saturating spring, as fractions of X)."""
 
 
 @dataclass(frozen=True)
@@ -99,6 +100,7 @@ def library(x_ref: float, v_ref: float) -> list[Family]:
     offset = Shape("g", "m", (-x_ref, x_ref), tuple(x_ref * f for f in (-0.8, -0.6, -0.4, -0.2, 0.0, 0.2, 0.4, 0.6, 0.8)), "offset")
     gap = Shape("g", "m", (0.0, x_ref), tuple(x_ref * f for f in THRESHOLDS), "threshold")
     v_gap = Shape("u", "m/s", (0.0, v_ref), tuple(v_ref * f for f in THRESHOLDS), "velocity threshold")
+    x_scale = Shape("g", "m", (1e-3 * x_ref, 10.0 * x_ref), tuple(x_ref * f for f in VELOCITY_SCALES[2:]), "displacement scale")
     v_scale = Shape("u", "m/s", (1e-4 * v_ref, 10.0 * v_ref), tuple(v_ref * f for f in VELOCITY_SCALES), "velocity scale")
     families = [
         Family("velocity_sign", "np.sign(v)", "sgn(v)", ()),
@@ -113,6 +115,7 @@ def library(x_ref: float, v_ref: float) -> list[Family]:
         Family("x_v2", f"(x / {X}) * (v / {V}) ** 2", f"(x / {X} m) (v / {V} m/s)^2", ()),
         Family("dead_zone", f"np.maximum(np.abs(x) - {{g}}, 0.0) * np.sign(x) / {X}", f"(|x| - {{g}} m)+ sgn(x) / {X} m", (gap,)),
         Family("one_sided", f"np.maximum(x - {{g}}, 0.0) / {X}", f"(x - {{g}} m)+ / {X} m", (offset,)),
+        Family("tanh_displacement", "np.tanh(x / {g})", "tanh(x / {g} m)", (x_scale,)),
         Family("velocity_dead_zone", f"np.maximum(np.abs(v) - {{u}}, 0.0) * np.sign(v) / {V}", f"(|v| - {{u}} m/s)+ sgn(v) / {V} m/s", (v_gap,)),
         Family("tanh_velocity", "np.tanh(v / {u})", "tanh(v / {u} m/s)", (v_scale,)),
         Family("exp_saturation", "-np.expm1(-np.abs(v) / {u}) * np.sign(v)", "(1 - exp(-|v| / {u} m/s)) sgn(v)", (v_scale,)),
