@@ -32,6 +32,7 @@ from hysid_model.discovery.features import Family, columns, library, scales
 from hysid_model.discovery.frols import frols, refine
 from hysid_model.discovery.proposal import Law, expression, initial_values, make_term, names, number_of
 from hysid_model.effects.bouc_wen import mean_grid
+from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.user_terms import motion
 
@@ -233,7 +234,11 @@ def propose(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float
         tally.expect(-1 - int(cross_validate))
         return None, f"no candidate force removes enough of what {fit.spec} leaves"
     number = number_of(law)
-    made = make_term(law, number)
+    try:
+        made = make_term(law, number)
+    except HysidInputError as exc:  # a law whose force the probe motion cannot evaluate: nothing to propose
+        tally.expect(-1 - int(cross_validate))
+        return None, f"{expression(law, number, plain=True)} cannot be made a term ({exc})"
     effects = fit.effects + (made.id,)
     model = make_model(harmonics, fit.start, effects, bounds, fit.freed)
     row = model.from_dict({**fit.params(), **initial_values(law, number)})
