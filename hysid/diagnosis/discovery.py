@@ -140,6 +140,8 @@ class Columns:
         self.basis = np.linalg.qr(fit.jacobian)[0]
         self.index, forces = columns(self.families, self.x, self.v, self.gx, self.gv)
         self.matrix = self.project(forces)
+        self.cost = np.array([(1 + len(self.families[i].shapes)) * np.log(self.matrix.shape[0]) for i, _ in self.index])
+        """Each column's parameters' cost in the information criterion, (1 + shapes) ln N."""
 
     def project(self, forces: np.ndarray) -> np.ndarray:
         """Forces ``(K, L, 2n)`` -> ``(N, K)`` whitened, less their part in the span of the fit's Jacobian."""
@@ -193,7 +195,7 @@ def select(cols: Columns, residual: np.ndarray) -> tuple[Law | None, list[float]
         if law is not None:
             basis = np.linalg.qr(cols.of(families, shape_vector(families, shapes)))[0]
             target, matrix = residual - basis @ (basis.T @ residual), cols.matrix - basis @ (basis.T @ cols.matrix)
-        chosen = frols(matrix, target, limit, 1)
+        chosen = frols(matrix, target, limit, 1, cols.cost)
         if not chosen:
             break
         family, shape = cols.families[cols.index[chosen[0].index][0]], cols.index[chosen[0].index][1]
@@ -203,7 +205,27 @@ def select(cols: Columns, residual: np.ndarray) -> tuple[Law | None, list[float]
             break
         law, families, shapes, left = trial, trial.families, trial.shapes, trial.chi2
         err.append(removed / max(float(residual @ residual), 1e-300))
+        law, dropped = backward(cols, law, residual)
+        if dropped is not None:
+            families, shapes, left = law.families, law.shapes, law.chi2
+            err = [e for i, e in enumerate(err) if i != dropped]
     return law, err
+
+
+def backward(cols: Columns, law: Law, residual: np.ndarray) -> tuple[Law, int | None]:
+    """``law`` without a family that the others, refined without it, make redundant (what it removes beyond them
+    is below its cost, :func:`threshold`), and its index; or ``law`` as it is and None. A family selected at a
+    grid point stands in for one that only its refined shape describes (a dead zone for |x|^5 with a grid up
+    to 3), until that one comes."""
+    if len(law.families) < 2:
+        return law, None
+    for i, family in enumerate(law.families):
+        rest = [j for j in range(len(law.families)) if j != i]
+        smaller = refined_law(cols, [law.families[j] for j in rest], [law.shapes[j] for j in rest], residual)
+        cost = max(selection_threshold(len(cols.index)), BIC_MARGIN + (1 + len(family.shapes)) * np.log(residual.size))
+        if smaller.chi2 - law.chi2 <= cost:
+            return smaller, i
+    return law, None
 
 
 def shape_vector(families: list[Family], shapes: list[dict[str, float]]) -> np.ndarray:

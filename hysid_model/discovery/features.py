@@ -21,7 +21,7 @@ from types import CodeType
 
 import numpy as np
 
-EXPONENTS = (0.1, 0.2, 0.35, 0.5, 0.75, 1.5, 2.0, 2.5, 3.0)
+EXPONENTS = (0.1, 0.2, 0.35, 0.5, 0.75, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
 """Exponents the selection tries (1 is a spring's or a dashpot's, which the model has)."""
 EXPONENT_BOUNDS = (0.02, 8.0)
 THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)

@@ -39,10 +39,12 @@ class Selected:
     """Its error-reduction ratio: ``removed`` over the target's sum of squares."""
 
 
-def frols(columns: np.ndarray, target: np.ndarray, threshold: Callable[[list[int], int], float], max_terms: int) -> list[Selected]:
+def frols(columns: np.ndarray, target: np.ndarray, threshold: Callable[[list[int], int], float], max_terms: int,
+          cost: np.ndarray | None = None) -> list[Selected]:
     """Columns of ``columns`` ``(N, K)`` selected to explain ``target`` ``(N,)``, in order; after the columns
     ``chosen`` (their indices), column ``k`` is selected only if it removes more than ``threshold(chosen, k)``
-    (infinite: never); at most ``max_terms``."""
+    (infinite: never); at most ``max_terms``. Of those that may be selected, the one that removes the most less
+    its ``cost`` (``(K,)``, e.g. its parameters' ln N: the information criterion's choice; default none)."""
     w = np.array(columns, dtype=float, copy=True)
     r = np.array(target, dtype=float, copy=True)
     own = np.maximum(np.sum(w**2, axis=0), 1e-300)
@@ -55,7 +57,8 @@ def frols(columns: np.ndarray, target: np.ndarray, threshold: Callable[[list[int
         taken = [s.index for s in chosen]
         removed[taken] = -1.0
         limits = np.array([threshold(taken, k) for k in range(removed.size)])
-        k = int(np.argmax(np.where(removed > limits, removed, -1.0)))
+        net = removed - (0.0 if cost is None else cost)
+        k = int(np.argmax(np.where(removed > limits, net, -np.inf)))
         if removed[k] <= limits[k]:
             break
         chosen.append(Selected(k, float(removed[k]), float(removed[k] / max(total, 1e-300))))
