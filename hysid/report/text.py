@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hysid.diagnosis.criteria import LINEAR_LOOPS
 from hysid.diagnosis.plausible import mass_note
 from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
 from hysid.report.bounds import bounds_sentence, widened_sentence
@@ -312,9 +313,6 @@ def reference_text(doc: dict[str, Any]) -> str:
                 "damping or mass change from loop to loop (with amplitude or frequency)")
     return out
 
-
-LINEAR_LOOPS = 1.25
-"""A linear fit per loop this close to the noise floor (whitened RMS): the loops themselves are linear."""
 
 
 def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | None" = None) -> str:
