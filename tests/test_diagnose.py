@@ -209,8 +209,8 @@ def test_effect_outside_the_library_is_not_named_and_discovery_proposes_it(branc
             result = diagnose(loops, "baseline")
             assert result.steps == [] and len(result.proposed) == 1, named(result)
             (law,) = result.proposed
-            exponent = law.params()[f"t{law.number}_a"]
-            found.append([f.key for f in law.law.families] == ["displacement_power_even"] and abs(exponent - 2.0) < 0.1
+            exponent, error = law.params()[f"t{law.number}_a"], law.stderr()[f"t{law.number}_a"]  # a weak law: +-0.2-0.3
+            found.append([f.key for f in law.law.families] == ["displacement_power_even"] and abs(exponent - 2.0) < 3.0 * error
                          and result.status == "adequate")
     assert sum(outcomes) >= REQUIRED, outcomes
     assert all(found), found

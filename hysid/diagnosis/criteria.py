@@ -10,5 +10,4 @@ MIN_SHARE = 0.2
 """Fraction of the excess chi^2 (chi^2 - dof) an accepted effect must remove."""
 LINEAR_LOOPS = 1.25
 """A linear fit per loop this close to the noise floor (whitened RMS): the loops themselves are linear, so what a
-model misses is how its linear stiffness, damping or mass change from loop to loop, never a force law of x and v
-(discovery proposes none there)."""
+model misses is how its linear stiffness, damping or mass change from loop to loop (the report says so)."""

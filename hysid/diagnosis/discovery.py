@@ -5,11 +5,13 @@ family of the candidate library (:mod:`hysid_model.discovery.features`) is evalu
 every shape of its grid, less its cycle mean, and whitened as the data are (the harmonic coordinates of
 :mod:`hysid_model.harmonics`); what the model's own parameters absorb (its spring, dashpot and mass, the
 effects it has: the column space of its Jacobian J) is projected out, as for the score test of a library
-effect (:mod:`.scoring`). FROLS (:func:`hysid_model.discovery.frols.frols`) selects at most two families, each
-only where it removes more than its parameters cost by the information criterion (BIC_MARGIN + p ln N) and
-more than the score test's family-wise level over every column; at most :data:`MAX_PARAMETERS` parameters
-in all. Their shapes (exponents, thresholds, velocity scales) are refined by nonlinear least squares from the
-grid point (:func:`hysid_model.discovery.frols.refine`); the law becomes a term of the user's kind
+effect (:mod:`.scoring`). FROLS (:func:`hysid_model.discovery.frols.frols`) selects at most two families, one at
+a time: of the columns that remove more than their parameters cost by the information criterion (BIC_MARGIN +
+p ln N) and more than the score test's family-wise level over every column, the one that removes the most less
+its p ln N; at most :data:`MAX_PARAMETERS` parameters in all. Each family's shapes (exponents, thresholds,
+velocity scales) are refined by nonlinear least squares from its grid point
+(:func:`hysid_model.discovery.frols.refine`) before the next is sought, and a family the next makes redundant
+is dropped (:func:`backward`). The law becomes a term of the user's kind
 (:mod:`hysid_model.discovery.proposal`) and the whole model is refitted with it. The refit is taken by the
 rules that take a library effect (:mod:`.acceptance`): BIC, shape, share of the excess, the visible errors,
 plausible values, then the held-out frequencies.

@@ -48,11 +48,11 @@ from dataclasses import replace
 import numpy as np
 
 from hysid.diagnosis.acceptance import degenerate, held_out, judge
-from hysid.diagnosis.criteria import BIC_MARGIN, LINEAR_LOOPS, SIGNIFICANCE
+from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.discovery import propose
 from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
-from hysid.diagnosis.naming import adequacy, residual_signature
+from hysid.diagnosis.naming import adequacy, loops_linear, residual_signature
 from hysid.diagnosis.plausible import implausible_effect
 from hysid.diagnosis.pruning import prune
 from hysid.diagnosis.refits import joint_contender, refit
@@ -220,13 +220,14 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
     is within ``BIC_MARGIN`` of it and of the final library model: the library effects named on the way are
     then set aside, since one proposed law explains the loops as well as they do together (no library
     effect is kept as a substitute for a law the library lacks). The gap table gains the model with the
-    proposed term. Where every loop on its own is linear within the noise (``LINEAR_LOOPS``), no force of x and v
-    is sought: the loops show none."""
+    proposed term. Where every loop on its own is linear within the noise (:func:`hysid.diagnosis.naming.loops_linear`),
+    no force of x and v is sought: the loops show none."""
     harmonics = result.harmonics
-    if result.references.linear_per_loop <= LINEAR_LOOPS:
+    if loops_linear(harmonics):
         return replace(result, discovery={result.final.spec: (
-            f"each loop on its own is linear within the noise (linear per loop {result.references.linear_per_loop:.4g}): what the "
-            "model misses is how its stiffness, damping or mass change from loop to loop, not a force of x and v; nothing proposed")})
+            f"each loop on its own is linear within the noise (linear per loop {result.references.linear_per_loop:.4g}, and coefficient "
+            "by coefficient): what the model misses is how its stiffness, damping or mass change from loop to loop, not a force "
+            "of x and v; nothing proposed")})
     bases = [result.start] + ([result.final] if result.final is not result.start else [])
     tally.expect(len(bases) * (2 + int(cross_validate)) + 1)
     tried, found = {}, []
