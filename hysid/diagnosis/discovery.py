@@ -36,7 +36,7 @@ from hysid_model.discovery.proposal import Law, expression, initial_values, make
 from hysid_model.effects.bouc_wen import mean_grid
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
-from hysid_model.user_terms import motion
+from hysid_model.user_laws import motion
 
 MAX_FAMILIES = 2
 """Families a proposed law combines at most."""

@@ -54,6 +54,10 @@ def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
 def _summary(diagnosis: "Diagnosis") -> str:
     effects = [s.effect + (f" (confusable with {', '.join(s.confusable_with)})" if s.confusable_with else "") for s in diagnosis.steps]
     found = "The start model misses: " + ", ".join(effects) + "." if effects else "No library effect is missing from the start model."
+    if diagnosis.proposed:
+        found = (("The start model misses: " + ", ".join(effects) + ", and a force" if effects else "No library effect is named; the start "
+                  "model misses a force") + " proposed from the data, not a library effect: "
+                 + "; ".join(f"{p.name}, F = {p.notation}" for p in diagnosis.proposed) + ".")
     if diagnosis.status == "adequate":
         return f"{found} The final model {named(diagnosis.final.model)} leaves only noise (whitened RMS {num(diagnosis.final.whitened_rms, 3)})."
     return (
@@ -182,7 +186,11 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         f"pushed against a bound (a score test of {MIN_Z:g} standard errors), it removes at least {100 * MIN_SHARE:.0f}% of "
         "the chi^2 above the noise floor, neither the loop NRMSE nor the energy error rises, its values are physically "
         "possible, and it predicts held-out frequencies better (leave one frequency out); of those, the lowest BIC. "
-        "Effects fitting within the BIC margin of the one taken are named as confusable.",
+        "Effects fitting within the BIC margin of the one taken are named as confusable. Where the diagnosis ends unexplained "
+        "and the loops are not each linear, a force of x and v is sought from the data (FROLS over a library of powers, "
+        "products, one-sided, dead-zone and saturating laws, shapes refined by least squares, at most four parameters), from the "
+        "start model and from the final one, and taken by the same rules; where it alone explains the loops as well as the "
+        "library's effects together, those are set aside.",
         "",
         "## Reproduce",
         "",

@@ -136,11 +136,12 @@ def proposed_force_figure(path: Path, proposed: "Proposed", diagnosis: "Diagnosi
     kept = h.loops.kept()
     fig = new_figure(2.8)
     axes = fig.subplots(1, 2, sharey=True)
-    order = np.argsort(x, axis=1), np.argsort(v, axis=1)
-    for ax, state, sort, label in ((axes[0], x * 1e3, order[0], "x (mm)"), (axes[1], v, order[1], "v (m/s)")):
+    n = h.loops.n_samples
+    for ax, state, label in ((axes[0], x * 1e3, "x (mm)"), (axes[1], v, "v (m/s)")):
         for j in range(h.loops.n_loops):
             ax.plot(state[j][kept[j]], left_over[j][kept[j]], ".", ms=1.5, color=TRIAL, alpha=0.5)
-            ax.plot(state[j][sort[j]], force[j][sort[j]], "-", color=MODEL, lw=0.9)
+            for branch in (slice(0, n), slice(n, 2 * n)):  # each branch in its own order: no line across the loop
+                ax.plot(state[j][branch], force[j][branch], "-", color=MODEL, lw=0.9)
         ax.set_xlabel(label)
     axes[0].set_ylabel("F (N)")
     fig.suptitle(f"{proposed.name}: {proposed.notation}", fontsize=8)

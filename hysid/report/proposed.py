@@ -38,8 +38,9 @@ def section(diagnosis: "Diagnosis", out: Path, figures: list[Path]) -> list[str]
             image(figure, out, f"The proposed force {p.name} against displacement and velocity (lines) and what the final "
                   "model leaves without it (points)"), "",
         ]
-    lines += [f"**{effect} set aside**: {why}." for effect, why in diagnosis.set_aside.items()]
-    return lines + ([""] if diagnosis.set_aside else [])
+    for effect, why in diagnosis.set_aside.items():
+        lines += [f"**{effect} set aside**: {why}.", ""]
+    return lines
 
 
 def write_module(diagnosis: "Diagnosis", out: Path) -> Path:

@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hysid_model.discovery.features import Family
-from hysid_model.user_terms import UserTerm, term
+from hysid_model.user_laws import UserTerm
+from hysid_model.user_terms import term
 
 MODULE = "proposed"
 """The module a diagnosis writes its proposed terms to (``proposed.py`` in its output folder)."""
