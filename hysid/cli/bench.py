@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 import typer
 
-from hysid.bench import accuracy, coordinator, coverage, environment, ingest, interrupt, islands, objective, search, sites, validation
+from hysid.bench import accuracy, coordinator, coverage, discovery, environment, ingest, interrupt, islands, objective, search, sites, validation, write_section
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -84,7 +84,7 @@ def search_command(
 @bench_app.command("validation", help=(validation.run.__doc__ or "").strip().splitlines()[0])
 def validation_command(
     cases: str = typer.Option("", "--cases", help="Comma-separated cases to run (default: all)."),
-    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the table as Markdown to this file (docs/VALIDATION.md)."),
+    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the table as the validation section of this Markdown file (docs/VALIDATION.md; other sections kept)."),
     as_json: bool = BENCH_JSON,
 ) -> None:
     names = [c for c in cases.split(",") if c] or None
@@ -94,8 +94,23 @@ def validation_command(
         raise HysidInputError(f"--cases: unknown case {unknown[0]!r}; choose from {', '.join(known)}")
     result = validation.run(names)
     if markdown is not None:
-        markdown.write_text(validation.to_markdown(result, environment()))
+        write_section(markdown, "validation", validation.to_markdown(result, environment()))
     emit(result, validation.to_text, as_json)
+
+
+@bench_app.command("discovery", help=(discovery.run.__doc__ or "").strip().splitlines()[0])
+def discovery_command(
+    quick: bool = typer.Option(False, "--quick", help=f"4 loops a specimen and {discovery.QUICK_SEEDS} control draws: the machinery, not a verdict."),
+    seeds: Optional[int] = typer.Option(None, "--seeds", help=f"Noise draws per control (default {discovery.CONTROL_SEEDS}; --quick {discovery.QUICK_SEEDS})."),
+    laws: str = typer.Option(",".join(discovery.dc.LAWS), "--laws", help="Comma-separated hidden laws to run (none: '')."),
+    controls: str = typer.Option(",".join(discovery.dc.CONTROLS), "--controls", help="Comma-separated controls to run (none: '')."),
+    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the discovery section of this Markdown file (docs/VALIDATION.md)."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    result = discovery.run(quick, seeds, tuple(n for n in laws.split(",") if n), tuple(n for n in controls.split(",") if n))
+    if markdown is not None:
+        write_section(markdown, "discovery", discovery.to_markdown(result, environment()))
+    emit(result, discovery.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
