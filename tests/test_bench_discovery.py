@@ -76,7 +76,7 @@ def test_one_hidden_law_end_to_end(tmp_path, capsys):
     from hysid.cli import main
 
     doc = tmp_path / "VALIDATION.md"
-    assert main(["bench", "discovery", "--quick", "--laws", "orifice", "--controls", "no_effect", "--seeds", "1", "--markdown", str(doc), "--json"]) == 0
+    assert main(["bench", "discovery", "--quick", "--laws", "orifice", "--controls", "no_effect", "--seeds", "1", "--no-real", "--markdown", str(doc), "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     rows = result["laws"]
     assert [(r["law"], r["noise_pct"]) for r in rows] == [("orifice", 1.0), ("orifice", 3.0)]

@@ -104,10 +104,11 @@ def discovery_command(
     seeds: Optional[int] = typer.Option(None, "--seeds", help=f"Noise draws per control (default {discovery.CONTROL_SEEDS}; --quick {discovery.QUICK_SEEDS})."),
     laws: str = typer.Option(",".join(discovery.dc.LAWS), "--laws", help="Comma-separated hidden laws to run (none: '')."),
     controls: str = typer.Option(",".join(discovery.dc.CONTROLS), "--controls", help="Comma-separated controls to run (none: '')."),
+    real: bool = typer.Option(True, "--real/--no-real", help="Also diagnose the real friction damper (data/arts-friction-damper) with and without discovery."),
     markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the discovery section of this Markdown file (docs/VALIDATION.md)."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    result = discovery.run(quick, seeds, tuple(n for n in laws.split(",") if n), tuple(n for n in controls.split(",") if n))
+    result = discovery.run(quick, seeds, tuple(n for n in laws.split(",") if n), tuple(n for n in controls.split(",") if n), real=real)
     if markdown is not None:
         write_section(markdown, "discovery", discovery.to_markdown(result, environment()))
     emit(result, discovery.to_text, as_json)
