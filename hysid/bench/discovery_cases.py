@@ -10,7 +10,7 @@ added to the specimen as a term of the user's kind (:func:`hysid.term`, made on 
 simulate the records; the diagnosis never sees it. Laws:
 
 * the five of the issue: a fluid viscous damper ``c |v|^0.35 sgn v``, an orifice ``c v |v|``, a gap
-  (dead zone) ``k (|x| - g)+ sgn x``, Stribeck friction ``sgn v (F_c + (F_s - F_c) exp(-(v/v_s)^2))``,
+  (dead zone) ``k (|x| - g)+ sgn x``, Stribeck friction ``F_c sgn v (1 + s exp(-(v/v_s)^2))`` (25 N sliding, 60 N static),
   an asymmetric spring ``k x^2``;
 * four unlike them, not what discovery was built on: a saturating damper ``F_0 tanh(v / v_0)``, a
   one-sided stop (bilinear spring on one side) ``k (x - g)+``, a wedge friction proportional to the
@@ -84,8 +84,8 @@ def gap(x, v, hgp_k, hgp_g):
     return hgp_k * np.maximum(np.abs(x) - hgp_g, 0.0) * np.sign(x)
 
 
-def stribeck(x, v, hst_fc, hst_fs, hst_vs):
-    return np.sign(v) * (hst_fc + (hst_fs - hst_fc) * np.exp(-((v / hst_vs) ** 2)))
+def stribeck(x, v, hst_fc, hst_s, hst_vs):
+    return hst_fc * np.sign(v) * (1.0 + hst_s * np.exp(-((v / hst_vs) ** 2)))
 
 
 def asymmetric(x, v, has_k):
@@ -114,8 +114,8 @@ LAWS = {law.name: law for law in (
     Law("orifice", "c v |v|", orifice, {"hor_c": 800.0}, {"hor_c": "N s^2/m^2"}, {"hor_c": (0.0, 1e5)}),
     Law("gap", "k (|x| - g)+ sgn x", gap, {"hgp_k": 8e4, "hgp_g": 1.2e-3}, {"hgp_k": "N/m", "hgp_g": "m"},
         {"hgp_k": (0.0, 1e7), "hgp_g": (0.0, 1e-2)}),
-    Law("stribeck", "sgn v (F_c + (F_s - F_c) exp(-(v/v_s)^2))", stribeck, {"hst_fc": 25.0, "hst_fs": 60.0, "hst_vs": 0.04},
-        {"hst_fc": "N", "hst_fs": "N", "hst_vs": "m/s"}, {"hst_fc": (0.0, 1e3), "hst_fs": (0.0, 1e3), "hst_vs": (1e-4, 1.0)}),
+    Law("stribeck", "F_c sgn v (1 + s exp(-(v/v_s)^2)), static F_c (1 + s)", stribeck, {"hst_fc": 25.0, "hst_s": 1.4, "hst_vs": 0.04},
+        {"hst_fc": "N", "hst_s": "1", "hst_vs": "m/s"}, {"hst_fc": (0.0, 1e3), "hst_s": (0.0, 10.0), "hst_vs": (1e-4, 1.0)}),
     Law("asymmetric", "k x^2", asymmetric, {"has_k": 1.5e7}, {"has_k": "N/m^2"}, {"has_k": (-1e9, 1e9)}),
     Law("saturating", "F_0 tanh(v / v_0)", saturating, {"hsa_f": 50.0, "hsa_v": 0.08}, {"hsa_f": "N", "hsa_v": "m/s"},
         {"hsa_f": (0.0, 1e4), "hsa_v": (1e-4, 10.0)}, issue=False),
