@@ -157,9 +157,27 @@ def run(quick: bool = False, seeds: int | None = None, laws: tuple[str, ...] = t
     diagnosed(dc.loops_of("no_effect", CONTROL_NOISE_PCT, 0, True), True)  # warm-up: imports and compiled kernels out of the first timing
     rows = [run_law(name, level, quick) for name in laws for level in noise]
     checks = [run_control(name, seeds, quick) for name in controls]
-    return {"bench": "discovery", "quick": quick, "targets": TARGETS, "points_per_branch": dc.POINTS,
-            "laws": rows, "controls": checks, "real": run_real() if real else None, "meet_all": sum(r["meets_all"] for r in rows), "of": len(rows),
-            "controls_meet": all(c["meets"] for c in checks), "bench_s": time.perf_counter() - began}
+    return tallied({"bench": "discovery", "quick": quick, "targets": TARGETS, "points_per_branch": dc.POINTS,
+                    "laws": rows, "controls": checks, "real": run_real() if real else None, "bench_s": time.perf_counter() - began})
+
+
+def tallied(result: dict[str, Any]) -> dict[str, Any]:
+    """``result`` with its counts: law cases meeting every target, and whether every control does."""
+    return {**result, "meet_all": sum(r["meets_all"] for r in result["laws"]), "of": len(result["laws"]),
+            "controls_meet": all(c["meets"] for c in result["controls"])}
+
+
+def combined(parts: list[dict[str, Any]]) -> dict[str, Any]:
+    """The results of runs of disjoint parts (laws, noise levels, controls, the real device: run side by side in
+    several processes) as one; ``bench_s`` is the longest part's, ``parts`` their number."""
+    if not parts or len({p.get("quick") for p in parts}) != 1 or len({p.get("points_per_branch") for p in parts}) != 1:
+        raise HysidInputError("give the JSON of discovery runs of the same kind (all --quick or none, the same points per branch)", param="merge")
+    keys = [(r["law"], r["noise_pct"]) for p in parts for r in p["laws"]] + [(c["control"], None) for p in parts for c in p["controls"]]
+    if len(keys) != len(set(keys)) or sum(p["real"] is not None for p in parts) > 1:
+        raise HysidInputError("the runs to merge overlap (a law at one noise level, a control or the real device in two of them)", param="merge")
+    return tallied({**parts[0], "laws": [r for p in parts for r in p["laws"]], "controls": [c for p in parts for c in p["controls"]],
+                    "real": next((p["real"] for p in parts if p["real"] is not None), None), "bench_s": max(p["bench_s"] for p in parts),
+                    "parts": len(parts)})
 
 
 def proposed_text(row: dict[str, Any]) -> str:
@@ -220,12 +238,13 @@ def to_markdown(result: dict[str, Any], environment: dict[str, Any]) -> str:
                 f"{c['seeds']}** noise draws ({'met' if c['meets'] else 'missed'}: at most 1 in 20)" for c in result["controls"]]
     machine = environment.get("machine", {})
     doc = (__doc__ or "").split("\n\n", 1)[1].strip()
+    parts = f", the longest of {result['parts']} parts run side by side and merged by --merge" if result.get("parts", 1) > 1 else ""
     return "\n".join([
         "## Discovery: force laws the library lacks",
         "",
         f"Generated {environment.get('date', '')} on {machine.get('hostname', '')} ({machine.get('cpu_model', '')}, load "
         f"{machine.get('load_avg_1m', '')}) by `hysid bench discovery{' --quick' if result['quick'] else ''} --markdown docs/VALIDATION.md` "
-        f"({result['bench_s']:.0f} s). **{result['meet_all']} of {result['of']} law cases meet every target.**",
+        f"({result['bench_s']:.0f} s{parts}). **{result['meet_all']} of {result['of']} law cases meet every target.**",
         "",
         *table,
         "",

@@ -10,6 +10,7 @@ stores that JSON under ``bench/results/``.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Optional
@@ -104,11 +105,17 @@ def discovery_command(
     seeds: Optional[int] = typer.Option(None, "--seeds", help=f"Noise draws per control (default {discovery.CONTROL_SEEDS}; --quick {discovery.QUICK_SEEDS})."),
     laws: str = typer.Option(",".join(discovery.dc.LAWS), "--laws", help="Comma-separated hidden laws to run (none: '')."),
     controls: str = typer.Option(",".join(discovery.dc.CONTROLS), "--controls", help="Comma-separated controls to run (none: '')."),
+    noise: str = typer.Option(",".join(f"{n:g}" for n in discovery.dc.NOISE_PCT), "--noise", help="Comma-separated force noise levels of the laws, per cent of each record's peak."),
     real: bool = typer.Option(True, "--real/--no-real", help="Also diagnose the real friction damper (data/arts-friction-damper) with and without discovery."),
+    merge: Optional[list[Path]] = typer.Option(None, "--merge", help="Run nothing: merge the --json output of runs of disjoint parts (repeat the option)."),
     markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the discovery section of this Markdown file (docs/VALIDATION.md)."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    result = discovery.run(quick, seeds, tuple(n for n in laws.split(",") if n), tuple(n for n in controls.split(",") if n), real=real)
+    if merge:
+        result = discovery.combined([json_file(path, "--merge") for path in merge])
+    else:
+        result = discovery.run(quick, seeds, tuple(n for n in laws.split(",") if n), tuple(n for n in controls.split(",") if n),
+                               tuple(number_list(noise, "--noise")), real=real)
     if markdown is not None:
         write_section(markdown, "discovery", discovery.to_markdown(result, environment()))
     emit(result, discovery.to_text, as_json)
@@ -167,6 +174,20 @@ def interrupt_command(
         typer.echo(f"hysid: error: the interrupt bench stopped: {exc}", err=True)
         raise typer.Exit(1) from None
     emit(result, interrupt.to_text, as_json)
+
+
+def json_file(path: Path, option: str) -> dict[str, Any]:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise HysidInputError(f"{option} {path}: not a readable JSON file ({exc})") from None
+
+
+def number_list(text: str, option: str) -> list[float]:
+    try:
+        return [float(n) for n in text.split(",") if n.strip()]
+    except ValueError:
+        raise HysidInputError(f"{option}: give comma-separated numbers, not {text!r}") from None
 
 
 def bench_names() -> list[str]:
