@@ -84,8 +84,10 @@ def proposals(diagnosis: Diagnosis) -> list[dict[str, Any]]:
 
 
 def outcome(diagnosis: Diagnosis, cpu: float, wall: float) -> dict[str, Any]:
-    return {"named": sorted({s.effect for s in diagnosis.steps}), "final_model": diagnosis.final.spec, "status": diagnosis.status,
-            "nrmse_pct": diagnosis.gap[-1].nrmse_pct, "cpu_s": cpu, "wall_s": wall}
+    """What a diagnosis ended with: the effects named on the way (and those set aside for a proposal), the final model,
+    its status and loop NRMSE, what discovery tried from each model and what came of it, and the seconds."""
+    return {"named": sorted({s.effect for s in diagnosis.steps}), "set_aside": sorted(diagnosis.set_aside), "final_model": diagnosis.final.spec,
+            "status": diagnosis.status, "nrmse_pct": diagnosis.gap[-1].nrmse_pct, "discovery": diagnosis.discovery, "cpu_s": cpu, "wall_s": wall}
 
 
 def run_law(name: str, noise_pct: float, quick: bool) -> dict[str, Any]:
