@@ -211,7 +211,8 @@ def real_text(real: dict[str, Any]) -> str:
     text = (f"{real['loops']} loops; without discovery `{b['final_model']}`, {b['status']}, loop NRMSE {b['nrmse_pct']:.3g} %; "
             f"with discovery `{d['final_model']}`, {d['status']}, {d['nrmse_pct']:.3g} % ({real['time_ratio']:.2f}x the time). ")
     if not real["proposed"]:
-        return text + "Nothing proposed."
+        tried = "; ".join(f"from `{start}`: {what}" for start, what in (d.get("discovery") or {}).items())
+        return text + "Nothing proposed" + (f" (discovery tried {tried})." if tried else ".")
     parts = []
     for p, ok in zip(real["proposed"], real["held_out_supports"]):
         e = p.get("evidence") or {}
