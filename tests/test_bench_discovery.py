@@ -69,17 +69,17 @@ def test_an_unknown_law_or_control_is_one_clear_error_before_anything_runs():
         run(laws=(), controls=("coulomb",))
 
 
-@pytest.mark.slow  # two diagnoses of 4 loops and one of a control
+@pytest.mark.slow  # two diagnoses of 4 loops, one of a control
 def test_one_hidden_law_end_to_end(tmp_path, capsys):
     """``hysid bench discovery --quick`` on the orifice law: both diagnoses, the floor near the noise, every proposal's
     formula a force at the loops' motion, and the Markdown section with its row."""
     from hysid.cli import main
 
     doc = tmp_path / "VALIDATION.md"
-    assert main(["bench", "discovery", "--quick", "--laws", "orifice", "--controls", "no_effect", "--seeds", "1", "--no-real", "--markdown", str(doc), "--json"]) == 0
+    assert main(["bench", "discovery", "--quick", "--laws", "orifice", "--noise", "1", "--controls", "no_effect", "--seeds", "1", "--no-real", "--markdown", str(doc), "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     rows = result["laws"]
-    assert [(r["law"], r["noise_pct"]) for r in rows] == [("orifice", 1.0), ("orifice", 3.0)]
+    assert [(r["law"], r["noise_pct"]) for r in rows] == [("orifice", 1.0)]
     for r in rows:
         assert r["loops"] == 4 and r["baseline"]["cpu_s"] > 0 and r["discovery"]["cpu_s"] > 0
         assert 0.05 * r["noise_pct"] < r["floor_nrmse_pct"] < r["noise_pct"]
