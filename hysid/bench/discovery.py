@@ -226,7 +226,7 @@ def real_text(real: dict[str, Any]) -> str:
 def to_markdown(result: dict[str, Any], environment: dict[str, Any]) -> str:
     """The discovery section of docs/VALIDATION.md: the table of the laws, the controls' counts, how it was made."""
     head = ["hidden law", "noise", "proposed", "shape error (nothing proposed)", "parameters (law)", "loop NRMSE vs floor",
-            "time with / without discovery", "targets"]
+            "CPU time with / without discovery", "targets"]
     rows = []
     for r in result["laws"]:
         missed = [k for k, ok in r["meets"].items() if not ok]
