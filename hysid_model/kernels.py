@@ -373,10 +373,12 @@ def velocity_sign_chain(
             t1 = theta_hi[l] - theta_lo[l]
             t2 = TWO_PI - t1
             rh, f = rho[p, l], amplitude[p, l]
+            if -math.expm1(-rh * TWO_PI) <= 0.0:  # a cut-off so low that no decay over the cycle is representable: none
+                rh = 0.0
             up = down = 1.0
             if rh > 0.0:
-                e1, e2 = math.exp(-rh * t1), math.exp(-rh * t2)
-                up, down = 2.0 * (1.0 - e2) / (1.0 - e1 * e2), 2.0 * (1.0 - e1) / (1.0 - e1 * e2)
+                whole = -math.expm1(-rh * TWO_PI)  # 1 - E1 E2, exact where rho is tiny
+                up, down = 2.0 * -math.expm1(-rh * t2) / whole, 2.0 * -math.expm1(-rh * t1) / whole
             for n in range(waves.shape[2]):
                 _, v = _motion(waves, l, n, xs)
                 tie = abs(v) < 1e-9 * x0[l]

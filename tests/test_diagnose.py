@@ -193,18 +193,27 @@ def test_two_hidden_effects_are_both_named(branch_sigma):
 
 
 @pytest.mark.slow  # over 3 s
-def test_effect_outside_the_library_is_unexplained_and_not_named(branch_sigma):
+def test_effect_outside_the_library_is_not_named_and_discovery_proposes_it(branch_sigma):
     model = Model([Oscillator(), QuadraticStiffness()], spec="baseline+quadratic_stiffness").fix(meq=MEQ)
     k2 = 1e5
     for _ in range(3):
         k2 *= np.sqrt(ENERGY / residual_energy(model, model.from_dict({**BASE, "k2": k2}), branch_sigma))
     theta = model.from_dict({**BASE, "k2": k2})
-    outcomes = []
+    outcomes, found = [], []
     for seed in SEEDS:
-        result = diagnose(hidden(model, theta, seed), "baseline")
+        loops = hidden(model, theta, seed)
+        result = diagnose(loops, "baseline", discover=False)
         assert result.steps == [], named(result)
         outcomes.append(result.status == "unexplained" and result.unexplained["description"].startswith("even harmonics"))
+        if seed < 3:  # and discovery proposes the law from the data (k2 x^2 = k2 X^2 (|x| / X)^2), naming no library effect
+            result = diagnose(loops, "baseline")
+            assert result.steps == [] and len(result.proposed) == 1, named(result)
+            (law,) = result.proposed
+            exponent, error = law.params()[f"t{law.number}_a"], law.stderr()[f"t{law.number}_a"]  # a weak law: +-0.2-0.3
+            found.append([f.key for f in law.law.families] == ["displacement_power_even"] and abs(exponent - 2.0) < 3.0 * error
+                         and result.status == "adequate")
     assert sum(outcomes) >= REQUIRED, outcomes
+    assert all(found), found
 
 
 @pytest.mark.slow

@@ -107,6 +107,19 @@ def test_velocity_sign_through_the_high_pass_is_the_exact_exponential_step_respo
     np.testing.assert_allclose(reference, exact, atol=5e-3 * (2 * np.pi * f_c / w).max())
 
 
+def test_velocity_sign_through_a_high_pass_of_vanishing_cut_off_is_the_plain_square_wave(ideal):
+    """A cut-off so low (f_c = 1e-18 Hz) that exp(-rho 2 pi) rounds to 1: the step response is the square wave itself
+    (up -> 2 T2 / 2 pi, down -> 2 T1 / 2 pi, a sign of amplitude F_d), not a division by zero (a polish of a
+    diagnosis' refit stepped f_c there and stopped the whole diagnosis with ZeroDivisionError)."""
+    model = build_model("baseline+coulomb_friction+charge_amplifier_highpass").fix(meq=MEQ_KG)
+    values = {"xi0": 0.0, "w0": 100.0, "F_d": 1.0}
+    objective = Objective(ideal, model)
+    jump = {f_c: objective.predict(model.from_dict(values | {"f_c": f_c}))[0] - objective.predict(model.from_dict(values | {"F_d": 0.0, "f_c": f_c}))[0]
+            for f_c in (0.0, 1e-18)}
+    assert np.all(np.isfinite(jump[1e-18]))
+    np.testing.assert_allclose(jump[1e-18], jump[0.0], rtol=0, atol=1e-12)
+
+
 @pytest.mark.slow
 def test_velocity_sign_through_delay_and_high_pass_on_a_measured_waveform_is_the_time_domain_filter(distorted):
     """The high-pass state integrated in time (tau dl/dt + l = u, y = u - l) over the distorted waveform's own

@@ -17,6 +17,7 @@ import resource
 import socket
 import subprocess
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -76,3 +77,18 @@ def run_on_one_core(function: str, timeout_s: float = 600.0) -> Any:
         tail = done.stderr.strip().splitlines()[-1:] or ["(no output)"]
         raise RuntimeError(f"one-core measurement {function} failed (exit {done.returncode}): {tail[0]}")
     return json.loads(done.stdout)
+
+
+def write_section(path: Path, name: str, text: str) -> None:
+    """Put ``text`` into the Markdown file ``path`` between ``<!-- bench NAME -->`` and ``<!-- /bench NAME -->``, in place
+    of what was there (appended where the file has no such section, the file made where there is none), so
+    that benches sharing a document (docs/VALIDATION.md) each rewrite their own part only."""
+    start, end = f"<!-- bench {name} -->", f"<!-- /bench {name} -->"
+    block = f"{start}\n{text.strip()}\n{end}"
+    old = path.read_text(encoding="utf-8") if path.exists() else ""
+    if start in old and end in old.split(start, 1)[1]:
+        before, rest = old.split(start, 1)
+        new = before + block + rest.split(end, 1)[1]
+    else:
+        new = old.rstrip("\n") + ("\n\n" if old.strip() else "") + block + "\n"
+    path.write_text(new, encoding="utf-8")

@@ -10,13 +10,14 @@ stores that JSON under ``bench/results/``.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Optional
 
 import typer
 
-from hysid.bench import accuracy, coordinator, coverage, environment, ingest, interrupt, islands, objective, search, sites, validation
+from hysid.bench import accuracy, coordinator, coverage, discovery, environment, ingest, interrupt, islands, objective, search, sites, validation, write_section
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -84,7 +85,7 @@ def search_command(
 @bench_app.command("validation", help=(validation.run.__doc__ or "").strip().splitlines()[0])
 def validation_command(
     cases: str = typer.Option("", "--cases", help="Comma-separated cases to run (default: all)."),
-    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the table as Markdown to this file (docs/VALIDATION.md)."),
+    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the table as the validation section of this Markdown file (docs/VALIDATION.md; other sections kept)."),
     as_json: bool = BENCH_JSON,
 ) -> None:
     names = [c for c in cases.split(",") if c] or None
@@ -94,8 +95,30 @@ def validation_command(
         raise HysidInputError(f"--cases: unknown case {unknown[0]!r}; choose from {', '.join(known)}")
     result = validation.run(names)
     if markdown is not None:
-        markdown.write_text(validation.to_markdown(result, environment()))
+        write_section(markdown, "validation", validation.to_markdown(result, environment()))
     emit(result, validation.to_text, as_json)
+
+
+@bench_app.command("discovery", help=(discovery.run.__doc__ or "").strip().splitlines()[0])
+def discovery_command(
+    quick: bool = typer.Option(False, "--quick", help=f"4 loops a specimen and {discovery.QUICK_SEEDS} control draws: the machinery, not a verdict."),
+    seeds: Optional[int] = typer.Option(None, "--seeds", help=f"Noise draws per control (default {discovery.CONTROL_SEEDS}; --quick {discovery.QUICK_SEEDS})."),
+    laws: str = typer.Option(",".join(discovery.dc.LAWS), "--laws", help="Comma-separated hidden laws to run (none: '')."),
+    controls: str = typer.Option(",".join(discovery.dc.CONTROLS), "--controls", help="Comma-separated controls to run (none: '')."),
+    noise: str = typer.Option(",".join(f"{n:g}" for n in discovery.dc.NOISE_PCT), "--noise", help="Comma-separated force noise levels of the laws, per cent of each record's peak."),
+    real: bool = typer.Option(True, "--real/--no-real", help="Also diagnose the real friction damper (data/arts-friction-damper) with and without discovery."),
+    merge: Optional[list[Path]] = typer.Option(None, "--merge", help="Run nothing: merge the --json output of runs of disjoint parts (repeat the option)."),
+    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the discovery section of this Markdown file (docs/VALIDATION.md)."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    if merge:
+        result = discovery.combined([json_file(path, "--merge") for path in merge])
+    else:
+        result = discovery.run(quick, seeds, tuple(n for n in laws.split(",") if n), tuple(n for n in controls.split(",") if n),
+                               tuple(number_list(noise, "--noise")), real=real)
+    if markdown is not None:
+        write_section(markdown, "discovery", discovery.to_markdown(result, environment()))
+    emit(result, discovery.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
@@ -151,6 +174,20 @@ def interrupt_command(
         typer.echo(f"hysid: error: the interrupt bench stopped: {exc}", err=True)
         raise typer.Exit(1) from None
     emit(result, interrupt.to_text, as_json)
+
+
+def json_file(path: Path, option: str) -> dict[str, Any]:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise HysidInputError(f"{option} {path}: not a readable JSON file ({exc})") from None
+
+
+def number_list(text: str, option: str) -> list[float]:
+    try:
+        return [float(n) for n in text.split(",") if n.strip()]
+    except ValueError:
+        raise HysidInputError(f"{option}: give comma-separated numbers, not {text!r}") from None
 
 
 def bench_names() -> list[str]:

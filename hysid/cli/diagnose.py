@@ -36,6 +36,7 @@ def register(app: typer.Typer) -> None:
         bound: Optional[list[str]] = o.BOUND,
         displacement: str = o.DISPLACEMENT,
         candidates: Optional[str] = o.CANDIDATES,
+        no_discover: bool = o.NO_DISCOVER,
     ) -> None:
         """Find which effects of the library (and --candidates of your own) the model misses, step by step, and write a report."""
         bounds, effects = o.parse_bounds(bound), candidate_effects(o.parse_list(candidates))
@@ -43,7 +44,7 @@ def register(app: typer.Typer) -> None:
         loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
         with Progress("diagnosing", 1, enabled=not (quiet or as_json)) as progress:  # in fits (hysid.diagnosis.tally)
             result = diagnose(
-                loops, model, bounds=bounds, candidates=effects, displacement=displacement,
+                loops, model, bounds=bounds, candidates=effects, displacement=displacement, discover=not no_discover,
                 progress=lambda done, total, what: progress.update(done, what, total + REPORT_WORK),
             )
             progress.update(progress.done, "writing the report and its figures")

@@ -102,6 +102,10 @@ CANDIDATES = typer.Option(
     None, "--candidates", metavar="MODULE:ATTRIBUTE,...",
     help="Terms of your own (made by hysid.term, imported from modules on the Python path) scored beside the library's effects.",
 )
+NO_DISCOVER = typer.Option(
+    False, "--no-discover",
+    help="Do not propose a force of your own from the data where no library effect explains the loops (proposed.py).",
+)
 START_MODEL = typer.Option("baseline", "--model", help=f"Start model: {' or '.join(PRESETS)}.")
 WEIGHTS = typer.Option(None, "--weights", help="thesis or ml (1/sigma^2); default: ml when every loop's noise sigma is known.")
 NOISE = typer.Option(0.0, "--noise", help="Gaussian force noise, % of each loop's peak force (as the thesis' Synth tests).")

@@ -119,13 +119,21 @@ def references(harmonics: Harmonics) -> References:
 
 
 def linear_per_loop(harmonics: Harmonics, white: np.ndarray) -> float:
-    """Whitened RMS of each loop fitted on its own by an offset and a linear spring, dashpot and mass,
-    F = a0 + k x + c dx/dt + m d^2x/dt^2 on its measured displacement (on the ideal sine k and m are one
-    stiffness k - m w^2). In whitened coordinates a coefficient vector a maps to R a / sigma (Phi = Q R,
-    :class:`hysid_model.harmonics.Harmonics`), so the residual is ``white`` less its projection there."""
+    """Whitened RMS of each loop fitted on its own by an offset and a linear spring, dashpot and mass
+    (:func:`linear_per_loop_residual`)."""
+    residual, used = linear_per_loop_residual(harmonics, white)
+    return float(np.sqrt(np.sum(residual**2) / max(residual.size - used, 1)))
+
+
+def linear_per_loop_residual(harmonics: Harmonics, white: np.ndarray) -> tuple[np.ndarray, int]:
+    """What each loop fitted on its own by an offset and a linear spring, dashpot and mass leaves, ``(L, M)``, and
+    the parameters that fit used (their rank, summed over the loops): F = a0 + k x + c dx/dt + m d^2x/dt^2 on its
+    measured displacement (on the ideal sine k and m are one stiffness k - m w^2). In whitened coordinates a
+    coefficient vector a maps to R a / sigma (Phi = Q R, :class:`hysid_model.harmonics.Harmonics`), so the
+    residual is ``white`` less its projection there."""
     names, loops = harmonics.names, harmonics.loops
     xh = loops.displacement_harmonics()
-    chi2, dof = 0.0, 0
+    out, used = np.empty_like(white), 0
     for j in range(loops.n_loops):
         order = np.arange(1, xh.shape[1] + 1)
         columns = []
@@ -139,9 +147,9 @@ def linear_per_loop(harmonics: Harmonics, white: np.ndarray) -> float:
         dc[names.index("dc")] = 1.0
         basis = harmonics.r[j] @ np.column_stack([dc, *columns]) / harmonics.sigma[j]
         coef, _, rank, _ = np.linalg.lstsq(basis, white[j], rcond=None)
-        chi2 += float(np.sum((white[j] - basis @ coef) ** 2))
-        dof += len(names) - int(rank)
-    return float(np.sqrt(chi2 / max(dof, 1)))
+        out[j] = white[j] - basis @ coef
+        used += int(rank)
+    return out, used
 
 
 def frequency_groups(harmonics: Harmonics) -> list[np.ndarray]:

@@ -10,6 +10,7 @@ import numpy as np
 
 from hysid.adequacy import Adequacy, groups, judge
 from hysid.diagnosis.fitting import Fit
+from hysid.diagnosis.metrics import linear_per_loop_residual
 from hysid_model.harmonics import Harmonics
 
 TREND = 0.5
@@ -19,6 +20,14 @@ TREND = 0.5
 def adequacy(fit: Fit, harmonics: Harmonics) -> Adequacy:
     """The verdict of :func:`hysid.adequacy.judge` on a diagnosis' fit (at its optimum on the harmonics already)."""
     return judge(fit.residual, fit.model.dim, harmonics)
+
+
+def loops_linear(harmonics: Harmonics) -> bool:
+    """Whether every loop on its own is linear within the noise: what a linear fit of each loop on its own (an
+    offset, a spring, a dashpot and a mass, :func:`hysid.diagnosis.metrics.linear_per_loop_residual`) leaves
+    passes the adequacy rule, in total and coefficient by coefficient."""
+    residual, used = linear_per_loop_residual(harmonics, harmonics.whiten(harmonics.loops.forces()))
+    return judge(residual.ravel(), used, harmonics).adequate
 
 
 def _coefficient_words(name: str) -> str:

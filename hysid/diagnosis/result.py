@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from hysid.diagnosis.discovery import Proposed
 from hysid.diagnosis.fitting import Fit, make_model
 from hysid.diagnosis.metrics import GapMetrics, References
 from hysid.diagnosis.plausible import mass_note
@@ -91,6 +92,12 @@ class Diagnosis:
     """The report written last (:meth:`write_report`)."""
     raised: list[dict[str, str]] = field(default_factory=list)
     """The warnings raised while diagnosing (:func:`hysid_model.notices.keeps_warnings`)."""
+    proposed: list[Proposed] = field(default_factory=list)
+    """Force terms proposed from the data, not library effects (:mod:`hysid.diagnosis.discovery`), in the final model."""
+    set_aside: dict[str, str] = field(default_factory=dict)
+    """Library effects named on the way and set aside for a proposed term that explains the loops as well alone, and why."""
+    discovery: dict[str, str] = field(default_factory=dict)
+    """What discovery tried from each model it started from (its spec), and what came of it."""
 
     def effects_not_identifiable(self) -> dict[str, str]:
         """Why each effect of ``not_identifiable`` cannot be identified from these loops."""
@@ -105,8 +112,9 @@ class Diagnosis:
 
     def fits(self) -> list[tuple[str, Fit]]:
         """(label, fit) for the start and after every step."""
-        pruned = [("- " + ", ".join(self.pruned) + " (consistent with zero)", self.final)] if self.pruned else []
-        return [("start: " + self.start.spec, self.start)] + [("+ " + s.effect, s.after) for s in self.steps] + pruned
+        pruned = [("- " + ", ".join(self.pruned) + " (consistent with zero)", self.proposed[0].base if self.proposed else self.final)] if self.pruned else []
+        proposed = [(f"+ proposed {p.name} (from the data)", p.fit) for p in self.proposed]
+        return [("start: " + self.start.spec, self.start)] + [("+ " + s.effect, s.after) for s in self.steps] + pruned + proposed
 
     @property
     def params(self) -> dict[str, float]:
@@ -245,4 +253,7 @@ class Diagnosis:
             "noise_sigma": "known" if np.all(self.harmonics.sigma_known) else "estimated from the data",
             "samples_left_out": None if self.harmonics.loops.kept().all() else self.harmonics.loops.meta.get("reversals"),
             "gap": [g.as_dict() for g in self.gap],
+            "proposed": [p.as_dict() for p in self.proposed],
+            "set_aside": self.set_aside,
+            "discovery": self.discovery,
         }

@@ -49,9 +49,10 @@ import numpy as np
 
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
 from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
+from hysid.diagnosis.discovery import propose
 from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
-from hysid.diagnosis.naming import adequacy, residual_signature
+from hysid.diagnosis.naming import adequacy, loops_linear, residual_signature
 from hysid.diagnosis.plausible import implausible_effect
 from hysid.diagnosis.pruning import prune
 from hysid.diagnosis.refits import joint_contender, refit
@@ -168,6 +169,7 @@ def diagnose(
     displacement: str = "auto",
     max_steps: int = MAX_STEPS,
     cross_validate: bool = True,
+    discover: bool = True,
     progress: Report | None = None,
 ) -> Diagnosis:
     """Find which library effects the start ``model`` (a preset) misses on ``loops`` (see the module docstring).
@@ -178,7 +180,8 @@ def diagnose(
     ``displacement``: ``auto`` (the data decide whether the displacement's harmonics are the motion or the
     sensor's, :mod:`hysid.motion`), ``measured``, ``fundamental`` or ``sine``, as :func:`hysid.fit`;
     ``cross_validate`` adds the leave-one-frequency-out gap of every step and judges every effect by it
-    (a refit per frequency). ``progress(done, total, what)`` is called after every fit: ``done`` of ``total``
+    (a refit per frequency). ``discover``: where the diagnosis ends unexplained, propose the missing force from
+    the data (:mod:`hysid.diagnosis.discovery`, :func:`with_discovery`). ``progress(done, total, what)`` is called after every fit: ``done`` of ``total``
     fits, an estimate from the start revised as the diagnosis learns how many effects it names, whose share
     done never falls and is 1 only at the end (:mod:`hysid.diagnosis.tally`). It does not change the result.
     """
@@ -203,8 +206,57 @@ def diagnose(
         else:
             motion.reason += f"; read the other way the diagnosis ends {other.final.bic - result.final.bic:.4g} higher in BIC"
     result.motion = motion
+    if discover and result.status != "adequate":
+        result = with_discovery(result, cross_validate, tally)
     tally.finish(f"diagnosis done: {result.final.spec}, {result.status}")
     return result
+
+
+def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Diagnosis:
+    """``result`` (unexplained) with a force proposed from the data where one is taken (:func:`hysid.diagnosis.discovery.propose`).
+
+    Proposals are sought from the start model and from the final library model. Of those taken by the
+    acceptance rules, the one with the lowest BIC is kept, but the one added to the start model wherever it
+    is within ``BIC_MARGIN`` of it and of the final library model: the library effects named on the way are
+    then set aside, since one proposed law explains the loops as well as they do together (no library
+    effect is kept as a substitute for a law the library lacks). The gap table gains the model with the
+    proposed term. Where every loop on its own is linear within the noise (:func:`hysid.diagnosis.naming.loops_linear`),
+    no force of x and v is sought: the loops show none."""
+    harmonics = result.harmonics
+    if loops_linear(harmonics):
+        return replace(result, discovery={result.final.spec: (
+            f"each loop on its own is linear within the noise (linear per loop {result.references.linear_per_loop:.4g}, and coefficient "
+            "by coefficient): what the model misses is how its stiffness, damping or mass change from loop to loop, not a force "
+            "of x and v; nothing proposed")})
+    bases = [result.start] + ([result.final] if result.final is not result.start else [])
+    tally.expect(len(bases) * (2 + int(cross_validate)) + 1)
+    tried, found = {}, []
+    for base in bases:
+        proposal, why = propose(base, harmonics, soft_bounds(base.model), cross_validate, tally)
+        tried[base.spec] = why
+        if proposal is not None:
+            found.append(proposal)
+    best = min(found, key=lambda p: p.fit.bic, default=None)
+    alone = next((p for p in found if p.base is result.start), None)
+    if alone is not None and best is not None and alone.fit.bic < min(best.fit.bic, result.final.bic) + BIC_MARGIN:
+        best = alone
+    elif best is alone:
+        best = None  # added to the start model, it explains less than the library's effects
+    if best is None:
+        tally.expect(-1)
+        return replace(result, discovery=tried)
+    steps, pruned, gaps, set_aside = result.steps, result.pruned, list(result.gap), {}
+    if best is alone and result.steps:
+        set_aside = {s.effect: f"the proposed {best.name} alone explains the loops as well (BIC {best.fit.bic - result.final.bic:+.1f} "
+                               f"against {result.final.spec})" for s in result.steps}
+        steps, pruned, gaps = [], {}, gaps[:1]
+    fit = best.fit
+    check = adequacy(fit, harmonics)
+    gaps.append(gap_metrics(fit, harmonics, cross_validate))
+    tally.done(f"gap after the proposed {best.name}")
+    return replace(result, steps=steps, pruned=pruned, final=fit, status="adequate" if check.adequate else "unexplained",
+                   unexplained=None if check.adequate else residual_signature(fit, harmonics), gap=gaps,
+                   identifiability=final_identifiability(fit, harmonics), proposed=[best], set_aside=set_aside, discovery=tried)
 
 
 def other_reading(motion: MotionChoice) -> MotionChoice | None:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
-from hysid.report import jsondoc
+from hysid.report import jsondoc, proposed
 from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows
 from hysid.report.bounds import widened_sentence
 from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_section, with_error
@@ -54,6 +54,10 @@ def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
 def _summary(diagnosis: "Diagnosis") -> str:
     effects = [s.effect + (f" (confusable with {', '.join(s.confusable_with)})" if s.confusable_with else "") for s in diagnosis.steps]
     found = "The start model misses: " + ", ".join(effects) + "." if effects else "No library effect is missing from the start model."
+    if diagnosis.proposed:
+        found = (("The start model misses: " + ", ".join(effects) + ", and a force" if effects else "No library effect is named; the start "
+                  "model misses a force") + " proposed from the data, not a library effect: "
+                 + "; ".join(f"{p.name}, F = {p.notation}" for p in diagnosis.proposed) + ".")
     if diagnosis.status == "adequate":
         return f"{found} The final model {named(diagnosis.final.model)} leaves only noise (whitened RMS {num(diagnosis.final.whitened_rms, 3)})."
     return (
@@ -128,11 +132,14 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         lines += _effect_section(diagnosis, i)
     if not diagnosis.steps:
         lines += ["None.", ""]
+    drawn = [figures.proposed_force_figure(out / f"proposed_{p.name}.png", p, diagnosis) for p in diagnosis.proposed]
+    lines += proposed.section(diagnosis, out, drawn)
     lines += ["## What is left", ""]
     if diagnosis.status == "adequate":
         lines.append("The residual is consistent with the noise: its chi^2 and the chi^2 of every harmonic coefficient are within their noise range.")
     else:
-        lines.append(f"**Unexplained**: {diagnosis.unexplained['description']}. No effect of the library accounts for it; it is not named.")
+        lines.append(f"**Unexplained**: {diagnosis.unexplained['description']}. "
+                     + ("No effect of the library accounts for it; it is not named." if not diagnosis.proposed else "Nothing else accounts for it."))
         lines += ["", f"Against references that need no physical model, {reference_text(diagnosis.to_dict())}."]
     if diagnosis.rejected:
         lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in diagnosis.rejected.items()) + "."]
@@ -179,7 +186,11 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         f"pushed against a bound (a score test of {MIN_Z:g} standard errors), it removes at least {100 * MIN_SHARE:.0f}% of "
         "the chi^2 above the noise floor, neither the loop NRMSE nor the energy error rises, its values are physically "
         "possible, and it predicts held-out frequencies better (leave one frequency out); of those, the lowest BIC. "
-        "Effects fitting within the BIC margin of the one taken are named as confusable.",
+        "Effects fitting within the BIC margin of the one taken are named as confusable. Where the diagnosis ends unexplained "
+        "and the loops are not each linear, a force of x and v is sought from the data (FROLS over a library of powers, "
+        "products, one-sided, dead-zone and saturating laws, shapes refined by least squares, at most four parameters), from the "
+        "start model and from the final one, and taken by the same rules; where it alone explains the loops as well as the "
+        "library's effects together, those are set aside.",
         "",
         "## Reproduce",
         "",

@@ -16,6 +16,7 @@ from hysid.report.text import hz_text
 from hysid_model.frf import amplitude_levels
 
 if TYPE_CHECKING:
+    from hysid.diagnosis.discovery import Proposed
     from hysid.diagnosis.result import Diagnosis
 
 START = "#999999"
@@ -122,3 +123,26 @@ def draw_loops(diagnosis: "Diagnosis") -> Figure:
     handles = [Line2D([], [], ls="none", marker=".", ms=5, color=TRIAL), Line2D([], [], ls="--", color=START), Line2D([], [], color=MODEL)]
     fig.legend(handles, ["measured", "start model", "final model"], loc="outside lower center", ncol=3)
     return fig
+
+
+@styled
+def proposed_force_figure(path: Path, proposed: "Proposed", diagnosis: "Diagnosis") -> Path:
+    """The proposed force against displacement (left) and velocity (right), each loop a line, with what the
+    final model leaves of the measured force without it as points."""
+    h = diagnosis.harmonics
+    x, v, force = proposed.forces(h)
+    fit = proposed.fit
+    left_over = fit.objective.objective.y - (fit.objective.objective.predict(fit.theta)[0] - force)
+    kept = h.loops.kept()
+    fig = new_figure(2.8)
+    axes = fig.subplots(1, 2, sharey=True)
+    n = h.loops.n_samples
+    for ax, state, label in ((axes[0], x * 1e3, "x (mm)"), (axes[1], v, "v (m/s)")):
+        for j in range(h.loops.n_loops):
+            ax.plot(state[j][kept[j]], left_over[j][kept[j]], ".", ms=1.5, color=TRIAL, alpha=0.5)
+            for branch in (slice(0, n), slice(n, 2 * n)):  # each branch in its own order: no line across the loop
+                ax.plot(state[j][branch], force[j][branch], "-", color=MODEL, lw=0.9)
+        ax.set_xlabel(label)
+    axes[0].set_ylabel("F (N)")
+    fig.suptitle(f"{proposed.name}: {proposed.notation}", fontsize=8)
+    return save(fig, path)

@@ -8,10 +8,12 @@ here, so a notebook and a terminal read the same words.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import PurePath
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hysid.diagnosis.criteria import LINEAR_LOOPS
 from hysid.diagnosis.plausible import mass_note
 from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
 from hysid.report.bounds import bounds_sentence, widened_sentence
@@ -233,7 +235,10 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     for label, step, after in zip(labels, doc["steps"], gap[1:]):
         lines.append(f"  + {label:<{width}} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
     if pruned:
-        lines.append(f"  - {pruned:<{width}} whitened RMS {gap[-1]['whitened_rms']:10.4g}")
+        lines.append(f"  - {pruned:<{width}} whitened RMS {gap[len(doc['steps']) + 1]['whitened_rms']:10.4g}")
+    for entry, after in zip(doc["proposed"], gap[-len(doc["proposed"]):] if doc["proposed"] else []):
+        lines.append(f"  + {'proposed ' + entry['name'] + ' (from the data)':<{width}} whitened RMS {after['whitened_rms']:10.4g}")
+    lines += proposed_lines(doc, diagnosis.report)
     if doc["status"] == "adequate":
         lines.append(f"status: adequate, the final model {doc['final_model_name']} leaves only noise")
     else:
@@ -254,6 +259,37 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     if diagnosis.report:
         lines.append(f"report: {diagnosis.report}")
     return "\n".join(lines)
+
+
+KIND = "proposed from the data, not a library effect"
+
+
+def fitted_text(entry: dict[str, Any]) -> str:
+    """``name = value +- stderr unit`` of every parameter of a proposed term (its JSON entry)."""
+    return "; ".join(f"{n} = {v:.4g} +- {entry['stderr'][n]:.2g} {entry['units'][n]}" for n, v in entry["params"].items())
+
+
+def evidence_text(entry: dict[str, Any]) -> str:
+    e = entry["evidence"]
+    held = (f", held-out whitened RMS {e['held_out_before']:.4g} -> {e['held_out_after']:.4g}"
+            if e["held_out_before"] is not None and e["held_out_after"] is not None else "")
+    return (f"BIC {e['delta_bic']:.5g} against {entry['added_to']}, whitened RMS {e['whitened_rms_before']:.4g} -> "
+            f"{e['whitened_rms_after']:.4g}{held}, removes {100 * e['share_of_excess_removed']:.0f} % of the residual above the noise")
+
+
+def proposed_lines(doc: dict[str, Any], report: str | None) -> list[str]:
+    """The summary's lines on the proposed terms, the library effects set aside for them, and what discovery tried."""
+    lines = []
+    folder = str(PurePath(report).parent) if report else "<report folder>"
+    for entry in doc["proposed"]:
+        lines += [f"{KIND}: {entry['name']}, F = {entry['notation']}",
+                  f"  {fitted_text(entry)}",
+                  f"  evidence: {evidence_text(entry)}",
+                  f"  reuse: PYTHONPATH={folder} hysid fit DATA --model {entry['model']} (the term is {folder}/{entry['module']})"]
+    lines += [f"set aside: {effect} ({why})" for effect, why in doc["set_aside"].items()]
+    if not doc["proposed"]:
+        lines += [f"discovery from {base}: {what}" for base, what in doc["discovery"].items()]
+    return lines
 
 
 REACHES = {
@@ -277,9 +313,6 @@ def reference_text(doc: dict[str, Any]) -> str:
                 "damping or mass change from loop to loop (with amplitude or frequency)")
     return out
 
-
-LINEAR_LOOPS = 1.25
-"""A linear fit per loop this close to the noise floor (whitened RMS): the loops themselves are linear."""
 
 
 def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | None" = None) -> str:

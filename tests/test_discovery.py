@@ -1,0 +1,128 @@
+"""Discovery of a force law the library lacks (issue 33): the selection, a proposal on specimens unlike the
+thesis' beams with hidden laws, its formula and module, and nothing proposed where nothing is missing."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from discovery_support import LAWS, SPECIMEN, specimen
+from hysid.diagnosis.discovery import Proposed, propose
+from hysid.diagnosis.fitting import Fit, initial_fit, make_model, fit_objective, soft_bounds
+from hysid.diagnosis.selection import diagnose
+from hysid.diagnosis.tally import Tally
+from hysid_model.discovery.features import library
+from hysid_model.discovery.frols import frols
+from hysid_model.harmonics import HarmonicObjective, Harmonics
+from hysid_model.model import effect_term
+from hysid_model.readers.tidy import write_loops
+from hysid_model.terms import ModalState
+
+SMALL = {"freqs": np.array([4.0, 10.0, 17.0]), "amps": np.array([1e-3, 4e-3]), "points": 40}
+"""Six loops at 40 points per branch: a test problem of a few seconds."""
+
+
+def proposal(law: str, seed: int = 0, start: str = "baseline", effects: tuple[str, ...] = ()) -> tuple[Proposed | None, str, Fit]:
+    """What discovery proposes on the specimen with ``law`` from the ``start`` model plus ``effects`` fitted."""
+    harmonics = Harmonics.from_loops(specimen(law, seed=seed, **SMALL))
+    fit = initial_fit(harmonics, start)
+    if effects:
+        model = make_model(harmonics, start, effects, soft_bounds(fit.model))
+        truth = {**SPECIMEN, **LAWS[law][1]}
+        fit = fit_objective(HarmonicObjective(harmonics, model), start, effects, [model.from_dict({**fit.params(), **truth})])
+    found, why = propose(fit, harmonics, soft_bounds(fit.model), False, Tally())
+    return found, why, fit
+
+
+def test_frols_selects_the_columns_of_the_target_and_stops_at_the_noise() -> None:
+    rng = np.random.default_rng(3)
+    columns = rng.standard_normal((400, 30))
+    target = 4.0 * columns[:, 7] - 2.0 * columns[:, 21] + rng.standard_normal(400)
+    chosen = frols(columns, target, lambda taken, k: 30.0, 5)
+    assert [c.index for c in chosen] == [7, 21]
+    assert chosen[0].err > chosen[1].err > 0.1
+    assert frols(columns, rng.standard_normal(400), lambda taken, k: 30.0, 5) == []
+
+
+def test_every_family_renders_as_it_evaluates() -> None:
+    x, v = np.linspace(-4e-3, 4e-3, 41), np.linspace(0.4, -0.4, 41)
+    for family in library(0.004, 0.43):
+        shape = family.grid()[len(family.grid()) // 2]
+        text = family.render({k: repr(val) for k, val in shape.items()})
+        assert np.allclose(eval(text, {"np": np}, {"x": x, "v": v}), family.evaluate(x, v, shape)), family.key
+
+
+def test_a_fluid_damper_is_proposed_with_its_exponent_and_its_formula_is_the_fitted_force() -> None:
+    found, why, _ = proposal("fluid")
+    assert found is not None, why
+    assert [f.key for f in found.law.families] == ["velocity_power"]
+    params, errors = found.params(), found.stderr()
+    assert abs(params["t%d_a" % found.number] - 0.35) < max(0.03, 4 * errors["t%d_a" % found.number])
+    truth_at_v_ref = 100.0 * 0.43**0.35  # c |v|^0.35 at the formula's reference velocity
+    assert params["t%d_c" % found.number] == pytest.approx(truth_at_v_ref, rel=0.05)
+    assert found.fit.whitened_rms < 1.3 and found.share > 0.99
+    # the formula, evaluated by numpy, is the force of the term that was fitted, as the model computes it
+    term = effect_term(found.name)
+    loops = found.fit.objective.harmonics.loops
+    kin, phase = loops.kinematics(), loops.phases()
+    values = {n: np.array([[v]]) for n, v in params.items()}
+    model_force = term.time_force(values, ModalState(xi=np.zeros(1), wn=np.zeros(1), m=np.zeros(1)), kin, phase)[0]
+    x, v, formula_force = found.forces(found.fit.objective.harmonics)
+    assert np.allclose(formula_force, model_force, rtol=1e-7, atol=1e-9 * np.abs(model_force).max())
+    assert json.loads(json.dumps(found.as_dict()))["formula"] == found.formula
+
+
+@pytest.mark.parametrize(("law", "start", "effects"), [("none", "baseline", ()), ("coulomb", "baseline", ("coulomb_friction",))])
+def test_nothing_is_proposed_where_nothing_is_missing(law: str, start: str, effects: tuple[str, ...]) -> None:
+    found, why, fit = proposal(law, seed=1, start=start, effects=effects)
+    assert found is None, f"{law}: proposed {found.notation} ({found.evidence()})"
+    assert fit.spec in why
+
+
+@pytest.mark.slow
+def test_false_discoveries_are_rare_over_twenty_noise_seeds() -> None:
+    proposed = []
+    for law, effects in (("none", ()), ("coulomb", ("coulomb_friction",))):
+        for seed in range(20):
+            found, _, _ = proposal(law, seed=100 + seed, effects=effects)
+            if found is not None:
+                proposed.append((law, seed, found.notation))
+    assert len([p for p in proposed if p[0] == "none"]) <= 1, proposed
+    assert len([p for p in proposed if p[0] == "coulomb"]) <= 1, proposed
+
+
+@pytest.mark.slow
+def test_diagnose_proposes_the_missing_law_instead_of_wrong_names_and_the_module_is_reusable(tmp_path: Path) -> None:
+    loops = specimen("gap", **SMALL)
+    result = diagnose(loops)
+    assert result.status == "adequate" and not result.steps, result
+    (found,) = result.proposed
+    assert [f.key for f in found.law.families] == ["dead_zone"]
+    params = found.params()
+    assert params[f"t{found.number}_g"] == pytest.approx(1.5e-3, rel=0.03)
+    doc = result.to_dict()
+    assert doc["proposed"][0]["model"] == f"baseline+proposed:{found.name}"
+    assert doc["gap"][-1]["loop_nrmse_pct"] < 0.2 * doc["gap"][0]["loop_nrmse_pct"]
+    assert doc["steps"] == [] and all(f"proposed {found.name} alone" in why for why in doc["set_aside"].values())
+    assert "proposed from the data, not a library effect" in result.summary()
+    out = tmp_path / "report"
+    result.write_report(out)
+    assert (out / "proposed.py").is_file() and (out / f"proposed_{found.name}.png").is_file()
+    assert "Proposed from the data" in (out / "diagnosis.md").read_text()
+    data = tmp_path / "data"
+    data.mkdir()
+    write_loops(loops, data / "loops.csv")
+    env = {**os.environ, "PYTHONPATH": str(out)}
+    fitted = subprocess.run([sys.executable, "-m", "hysid", "diagnose", str(data), "--json", "--quiet", "--no-discover", "--candidates",
+                             f"proposed:{found.name}", "--out", str(tmp_path / "again")], env=env, capture_output=True, text=True, timeout=600)
+    assert fitted.returncode == 0, fitted.stderr
+    again = json.loads(fitted.stdout)
+    assert [s["effect"] for s in again["steps"]] == [f"proposed:{found.name}"] and again["status"] == "adequate"
+    assert again["final_params"][f"t{found.number}_g"] == pytest.approx(params[f"t{found.number}_g"], rel=0.01)
+    assert again["proposed"] == []
