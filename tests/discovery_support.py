@@ -39,7 +39,7 @@ def gap(x, v, hg_k, hg_g):
 
 def stribeck(x, v, hs_f, hs_s, hs_v):
     """Stribeck friction: F_c (1 + s exp(-(v / v_s)^2)) sgn v, the static force F_c (1 + s)."""
-    return hs_f * (1.0 + hs_s * np.exp(-(v / hs_v) ** 2)) * np.sign(v)
+    return hs_f * (1.0 + hs_s * np.exp(-((v / hs_v) ** 2))) * np.sign(v)
 
 
 def quadratic_spring(x, v, hq_k):
@@ -48,16 +48,26 @@ def quadratic_spring(x, v, hq_k):
 
 
 LAWS = {
-    "fluid": (term(fluid, name="hidden_fluid", units={"hf_c": "N", "hf_alpha": "1"}, bounds={"hf_c": (0, 1e4), "hf_alpha": (0.05, 3)}, strength="hf_c"),
-              {"hf_c": 100.0, "hf_alpha": 0.35}),
+    "fluid": (
+        term(fluid, name="hidden_fluid", units={"hf_c": "N", "hf_alpha": "1"}, bounds={"hf_c": (0, 1e4), "hf_alpha": (0.05, 3)}, strength="hf_c"),
+        {"hf_c": 100.0, "hf_alpha": 0.35},
+    ),
     "orifice": (term(orifice, name="hidden_orifice", units={"ho_c": "N s^2/m^2"}, bounds={"ho_c": (0, 1e5)}), {"ho_c": 150.0}),
-    "gap": (term(gap, name="hidden_gap", units={"hg_k": "N/m", "hg_g": "m"}, bounds={"hg_k": (0, 1e7), "hg_g": (0, 1e-2)}, strength="hg_k"),
-            {"hg_k": 1.0e5, "hg_g": 1.5e-3}),
-    "stribeck": (term(stribeck, name="hidden_stribeck", units={"hs_f": "N", "hs_s": "1", "hs_v": "m/s"},
-                      bounds={"hs_f": (0, 1e3), "hs_s": (0, 10), "hs_v": (1e-4, 1.0)}, strength="hs_f"),
-                 {"hs_f": 20.0, "hs_s": 1.0, "hs_v": 0.02}),
-    "quadratic": (term(quadratic_spring, name="hidden_quadratic", units={"hq_k": "N/m^2"}, bounds={"hq_k": (-1e9, 1e9)}, strength="hq_k"),
-                  {"hq_k": 3.0e7}),
+    "gap": (
+        term(gap, name="hidden_gap", units={"hg_k": "N/m", "hg_g": "m"}, bounds={"hg_k": (0, 1e7), "hg_g": (0, 1e-2)}, strength="hg_k"),
+        {"hg_k": 1.0e5, "hg_g": 1.5e-3},
+    ),
+    "stribeck": (
+        term(
+            stribeck,
+            name="hidden_stribeck",
+            units={"hs_f": "N", "hs_s": "1", "hs_v": "m/s"},
+            bounds={"hs_f": (0, 1e3), "hs_s": (0, 10), "hs_v": (1e-4, 1.0)},
+            strength="hs_f",
+        ),
+        {"hs_f": 20.0, "hs_s": 1.0, "hs_v": 0.02},
+    ),
+    "quadratic": (term(quadratic_spring, name="hidden_quadratic", units={"hq_k": "N/m^2"}, bounds={"hq_k": (-1e9, 1e9)}, strength="hq_k"), {"hq_k": 3.0e7}),
     "coulomb": (coulomb_friction, {"F_d": 30.0}),
     "none": (None, {}),
 }

@@ -14,7 +14,7 @@ import pytest
 
 from discovery_support import LAWS, SPECIMEN, specimen
 from hysid.diagnosis.discovery import Proposed, propose
-from hysid.diagnosis.fitting import Fit, initial_fit, make_model, fit_objective, soft_bounds
+from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
 from hysid.diagnosis.selection import diagnose
 from hysid.diagnosis.tally import Tally
 from hysid_model.discovery.features import library
@@ -63,9 +63,9 @@ def test_a_fluid_damper_is_proposed_with_its_exponent_and_its_formula_is_the_fit
     assert found is not None, why
     assert [f.key for f in found.law.families] == ["velocity_power"]
     params, errors = found.params(), found.stderr()
-    assert abs(params["t%d_a" % found.number] - 0.35) < max(0.03, 4 * errors["t%d_a" % found.number])
+    assert abs(params[f"t{found.number}_a"] - 0.35) < max(0.03, 4 * errors[f"t{found.number}_a"])
     truth_at_v_ref = 100.0 * 0.43**0.35  # c |v|^0.35 at the formula's reference velocity
-    assert params["t%d_c" % found.number] == pytest.approx(truth_at_v_ref, rel=0.05)
+    assert params[f"t{found.number}_c"] == pytest.approx(truth_at_v_ref, rel=0.05)
     assert found.fit.whitened_rms < 1.3 and found.share > 0.99
     # the formula, evaluated by numpy, is the force of the term that was fitted, as the model computes it
     term = effect_term(found.name)
@@ -73,7 +73,7 @@ def test_a_fluid_damper_is_proposed_with_its_exponent_and_its_formula_is_the_fit
     kin, phase = loops.kinematics(), loops.phases()
     values = {n: np.array([[v]]) for n, v in params.items()}
     model_force = term.time_force(values, ModalState(xi=np.zeros(1), wn=np.zeros(1), m=np.zeros(1)), kin, phase)[0]
-    x, v, formula_force = found.forces(found.fit.objective.harmonics)
+    _, _, formula_force = found.forces(found.fit.objective.harmonics)
     assert np.allclose(formula_force, model_force, rtol=1e-7, atol=1e-9 * np.abs(model_force).max())
     assert json.loads(json.dumps(found.as_dict()))["formula"] == found.formula
 
@@ -119,8 +119,26 @@ def test_diagnose_proposes_the_missing_law_instead_of_wrong_names_and_the_module
     data.mkdir()
     write_loops(loops, data / "loops.csv")
     env = {**os.environ, "PYTHONPATH": str(out)}
-    fitted = subprocess.run([sys.executable, "-m", "hysid", "diagnose", str(data), "--json", "--quiet", "--no-discover", "--candidates",
-                             f"proposed:{found.name}", "--out", str(tmp_path / "again")], env=env, capture_output=True, text=True, timeout=600)
+    fitted = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hysid",
+            "diagnose",
+            str(data),
+            "--json",
+            "--quiet",
+            "--no-discover",
+            "--candidates",
+            f"proposed:{found.name}",
+            "--out",
+            str(tmp_path / "again"),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert fitted.returncode == 0, fitted.stderr
     again = json.loads(fitted.stdout)
     assert [s["effect"] for s in again["steps"]] == [f"proposed:{found.name}"] and again["status"] == "adequate"

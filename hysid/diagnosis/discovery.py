@@ -89,7 +89,7 @@ class Proposed:
         x, v, gx, gv = state(self.fit, harmonics)
         code = compile(self.formula, f"<{self.name}>", "eval")
         with np.errstate(all="ignore"):
-            force = eval(code, {"np": np}, {"x": x, "v": v}) - np.mean(eval(code, {"np": np}, {"x": gx, "v": gv}), axis=-1, keepdims=True)  # noqa: S307
+            force = eval(code, {"np": np}, {"x": x, "v": v}) - np.mean(eval(code, {"np": np}, {"x": gx, "v": gv}), axis=-1, keepdims=True)
         return x, v, np.broadcast_to(force, x.shape)
 
     @property
@@ -104,21 +104,30 @@ class Proposed:
     def evidence(self) -> dict[str, Any]:
         return {
             "delta_bic": self.fit.bic - self.base.bic,
-            "bic_before": self.base.bic, "bic_after": self.fit.bic,
-            "whitened_rms_before": self.base.whitened_rms, "whitened_rms_after": self.fit.whitened_rms,
-            "held_out_before": self.base.held_out.get("rms"), "held_out_after": self.fit.held_out.get("rms"),
+            "bic_before": self.base.bic,
+            "bic_after": self.fit.bic,
+            "whitened_rms_before": self.base.whitened_rms,
+            "whitened_rms_after": self.fit.whitened_rms,
+            "held_out_before": self.base.held_out.get("rms"),
+            "held_out_after": self.fit.held_out.get("rms"),
             "share_of_excess_removed": self.share,
             "error_reduction_ratio": self.err,
         }
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            "name": self.name, "kind": "proposed from the data, not a library effect",
-            "formula": self.formula, "notation": self.notation,
-            "params": self.params(), "stderr": self.stderr(), "units": self.units(),
+            "name": self.name,
+            "kind": "proposed from the data, not a library effect",
+            "formula": self.formula,
+            "notation": self.notation,
+            "params": self.params(),
+            "stderr": self.stderr(),
+            "units": self.units(),
             "families": [f.key for f in self.law.families],
-            "module": "proposed.py", "model": f"{self.base.start}+" + "".join(f"{e}+" for e in self.base.effects) + f"proposed:{self.name}",
-            "added_to": self.base.spec, "evidence": self.evidence(),
+            "module": "proposed.py",
+            "model": f"{self.base.start}+" + "".join(f"{e}+" for e in self.base.effects) + f"proposed:{self.name}",
+            "added_to": self.base.spec,
+            "evidence": self.evidence(),
         }
 
 
@@ -163,6 +172,7 @@ class Columns:
 def selection_threshold(n_columns: int) -> float:
     """The least a column must remove: the score test's chi^2_1 at the family-wise ``SIGNIFICANCE`` over every column."""
     from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
+
     return float(chi2_dist.isf(SIGNIFICANCE / max(n_columns, 1), 1))
 
 

@@ -126,7 +126,7 @@ def draw_loops(diagnosis: "Diagnosis") -> Figure:
 
 
 @styled
-def proposed_force_figure(path: Path, proposed: "Proposed", diagnosis: "Diagnosis") -> Path:
+def proposed_force_figure(path: Path, proposed: Proposed, diagnosis: Diagnosis) -> Path:
     """The proposed force against displacement (left) and velocity (right), each loop a line, with what the
     final model leaves of the measured force without it as points."""
     h = diagnosis.harmonics

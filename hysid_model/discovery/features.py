@@ -70,7 +70,7 @@ class Family:
         """phi at ``x``, ``v`` (any broadcastable shapes) for one ``shape``."""
         code = compiled(self.render({s.symbol: s.symbol for s in self.shapes}))
         with np.errstate(all="ignore"):
-            return np.asarray(eval(code, {"np": np}, {"x": x, "v": v, **shape}), dtype=float)  # noqa: S307 - our own templates
+            return np.asarray(eval(code, {"np": np}, {"x": x, "v": v, **shape}), dtype=float)
 
 
 @lru_cache(maxsize=256)
@@ -124,7 +124,9 @@ def library(x_ref: float, v_ref: float) -> list[Family]:
     return families
 
 
-def columns(families: list[Family], x: np.ndarray, v: np.ndarray, grid_x: np.ndarray, grid_v: np.ndarray) -> tuple[list[tuple[int, dict[str, float]]], np.ndarray]:
+def columns(
+    families: list[Family], x: np.ndarray, v: np.ndarray, grid_x: np.ndarray, grid_v: np.ndarray
+) -> tuple[list[tuple[int, dict[str, float]]], np.ndarray]:
     """Every family at every shape of its grid, as a force at the samples ``x``, ``v`` ``(L, N)`` less its cycle
     mean over the uniform phases ``grid_x``, ``grid_v`` (as a term's force enters a model): the index of
     ``(family, shape)`` of each column, and the columns ``(K, L, N)``."""

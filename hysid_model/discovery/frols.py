@@ -39,8 +39,9 @@ class Selected:
     """Its error-reduction ratio: ``removed`` over the target's sum of squares."""
 
 
-def frols(columns: np.ndarray, target: np.ndarray, threshold: Callable[[list[int], int], float], max_terms: int,
-          cost: np.ndarray | None = None) -> list[Selected]:
+def frols(
+    columns: np.ndarray, target: np.ndarray, threshold: Callable[[list[int], int], float], max_terms: int, cost: np.ndarray | None = None
+) -> list[Selected]:
     """Columns of ``columns`` ``(N, K)`` selected to explain ``target`` ``(N,)``, in order; after the columns
     ``chosen`` (their indices), column ``k`` is selected only if it removes more than ``threshold(chosen, k)``
     (infinite: never); at most ``max_terms``. Of those that may be selected, the one that removes the most less

@@ -119,15 +119,16 @@ def function_source(law: Law, number: int) -> str:
     """The force law's ``def`` (what the module defines and the diagnosing process executes)."""
     params = [n for mapping in names(law, number) for n in mapping.values()]
     plain = expression(law, number, plain=True).replace('"', "'")
-    return (f"def term_{number}_force(x, v, {', '.join(params)}):\n"
-            f"    \"\"\"F = {plain}: proposed from the data, not a library effect.\"\"\"\n"
-            f"    return {expression(law, number)}\n")
+    return (
+        f"def term_{number}_force(x, v, {', '.join(params)}):\n"
+        f'    """F = {plain}: proposed from the data, not a library effect."""\n'
+        f"    return {expression(law, number)}\n"
+    )
 
 
 def term_call(law: Law, number: int) -> str:
     """The ``hysid.term(...)`` arguments after the law, as source."""
-    return (f"name={f'term_{number}'!r}, units={units(law, number)!r}, bounds={term_bounds(law, number)!r}, "
-            f"strength={names(law, number)[0]['c']!r}")
+    return f"name={f'term_{number}'!r}, units={units(law, number)!r}, bounds={term_bounds(law, number)!r}, strength={names(law, number)[0]['c']!r}"
 
 
 _NUMBERS: dict[str, int] = {}
@@ -144,9 +145,15 @@ def number_of(law: Law) -> int:
 def make_term(law: Law, number: int) -> UserTerm:
     """The law as a term of this process, ``term_<number>``, its force defined by :func:`function_source`."""
     namespace: dict = {"np": np, "__name__": MODULE}
-    exec(compile(function_source(law, number), f"<{MODULE}.term_{number}>", "exec"), namespace)  # noqa: S102 - our own source
-    return term(namespace[f"term_{number}_force"], name=f"term_{number}", units=units(law, number), bounds=term_bounds(law, number),
-                strength=names(law, number)[0]["c"], explanation=f"proposed from the data, not a library effect: {expression(law, number, plain=True)}")
+    exec(compile(function_source(law, number), f"<{MODULE}.term_{number}>", "exec"), namespace)
+    return term(
+        namespace[f"term_{number}_force"],
+        name=f"term_{number}",
+        units=units(law, number),
+        bounds=term_bounds(law, number),
+        strength=names(law, number)[0]["c"],
+        explanation=f"proposed from the data, not a library effect: {expression(law, number, plain=True)}",
+    )
 
 
 def module_source(entries: list[tuple[Law, int, str]], dataset: str) -> str:
