@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from discovery_support import LAWS, SPECIMEN, specimen
-from hysid.diagnosis.discovery import Proposed, propose
+from hysid.diagnosis.discovery import Proposed, propose, simple_value
 from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
 from hysid.diagnosis.selection import diagnose
 from hysid.diagnosis.tally import Tally
@@ -64,6 +64,7 @@ def test_a_fluid_damper_is_proposed_with_its_exponent_and_its_formula_is_the_fit
     assert [f.key for f in found.law.families] == ["velocity_power"]
     params, errors = found.params(), found.stderr()
     assert abs(params[f"t{found.number}_a"] - 0.35) < max(0.03, 4 * errors[f"t{found.number}_a"])
+    assert found.law.n_params == 2 and found.law.fixed == [{}]  # 0.35 is no simple exponent: it stays free
     truth_at_v_ref = 100.0 * 0.43**0.35  # c |v|^0.35 at the formula's reference velocity
     assert params[f"t{found.number}_c"] == pytest.approx(truth_at_v_ref, rel=0.05)
     assert found.fit.whitened_rms < 1.3 and found.share > 0.99
@@ -76,6 +77,23 @@ def test_a_fluid_damper_is_proposed_with_its_exponent_and_its_formula_is_the_fit
     _, _, formula_force = found.forces(found.fit.objective.harmonics)
     assert np.allclose(formula_force, model_force, rtol=1e-7, atol=1e-9 * np.abs(model_force).max())
     assert json.loads(json.dumps(found.as_dict()))["formula"] == found.formula
+
+
+def test_simple_exponents_are_those_within_two_standard_errors_of_a_half() -> None:
+    assert simple_value(1.917, 0.05) == 2.0 and simple_value(1.917, 0.03) is None
+    assert simple_value(0.35, 0.01) is None and simple_value(0.48, 0.02) == 0.5 and simple_value(5.1, 0.06) == 5.0
+    assert simple_value(2.0, float("nan")) is None
+
+
+def test_orifice_damping_is_proposed_with_one_parameter_and_exponent_two() -> None:
+    found, why, _ = proposal("orifice")
+    assert found is not None, why
+    assert [f.key for f in found.law.families] == ["velocity_power"]
+    assert found.law.fixed == [{"a": 2.0}] and found.law.n_params == 1
+    assert list(found.params()) == [f"t{found.number}_c"]
+    assert "** 2 *" in found.formula and "^2 sgn(v)" in found.notation
+    v_ref = float(found.notation.split("|v| / ")[1].split(" m/s")[0])
+    assert found.params()[f"t{found.number}_c"] == pytest.approx(150.0 * v_ref**2, rel=0.05)
 
 
 @pytest.mark.parametrize(("law", "start", "effects"), [("none", "baseline", ()), ("coulomb", "baseline", ("coulomb_friction",))])

@@ -42,6 +42,8 @@ MAX_FAMILIES = 2
 """Families a proposed law combines at most."""
 MAX_PARAMETERS = 4
 """Parameters a proposed law has at most (its coefficients and shapes)."""
+SIMPLE_WITHIN = 2.0
+"""Standard errors within which a fitted exponent is taken at a simple value (:func:`parsimonious`)."""
 
 
 @dataclass
@@ -257,6 +259,52 @@ def refined_law(cols: Columns, families: list[Family], shapes: list[dict[str, fl
     return Law(families, out, [float(c) for c in found.coefficients], peak, chi2=found.chi2)
 
 
+def refit(fit: Fit, law: Law, harmonics: Harmonics, bounds: dict[str, tuple[float, float]]) -> tuple[int, Fit]:
+    """The number of ``law``'s term and the whole model of ``fit`` refitted with it (from ``fit``'s values and the law's)."""
+    number = number_of(law)
+    made = make_term(law, number)
+    effects = fit.effects + (made.id,)
+    model = make_model(harmonics, fit.start, effects, bounds, fit.freed)
+    row = model.from_dict({**fit.params(), **initial_values(law, number)})
+    return number, fit_objective(HarmonicObjective(harmonics, model), fit.start, effects, [np.clip(row, model.bounds[:, 0], model.bounds[:, 1])])
+
+
+def simple_value(value: float, error: float) -> float | None:
+    """The simple exponent (a multiple of 1/2, at least 1/2) within ``SIMPLE_WITHIN`` standard errors of ``value``, or None."""
+    simple = max(round(2.0 * value) / 2.0, 0.5)
+    return simple if np.isfinite(error) and abs(value - simple) <= SIMPLE_WITHIN * error else None
+
+
+def parsimonious(proposal: Proposed, harmonics: Harmonics, bounds: dict[str, tuple[float, float]], tally: Tally) -> Proposed:
+    """``proposal`` with every exponent that lies within ``SIMPLE_WITHIN`` standard errors of a simple value
+    (:func:`simple_value`) fixed there, its term refitted with those parameters fewer, where its BIC gets
+    worse by no more than ``BIC_MARGIN``; otherwise ``proposal`` (no more parameters than the law needs)."""
+    law, values, errors = proposal.law, proposal.params(), proposal.stderr()
+    fixed: list[dict[str, float]] = []
+    shapes: list[dict[str, float]] = []
+    for family, mapping in zip(law.families, names(law, proposal.number)):
+        fitted = {s.symbol: values[mapping[s.symbol]] for s in family.shapes}
+        simple = {s.symbol: simple_value(fitted[s.symbol], errors[mapping[s.symbol]]) for s in family.shapes if s.words == "exponent"}
+        fixed.append({k: v for k, v in simple.items() if v is not None})
+        shapes.append({**fitted, **fixed[-1]})
+    if not any(fixed):
+        return proposal
+    mappings = names(law, proposal.number)
+    c = values[mappings[0]["c"]]
+    weights = [c] + [c * values[mappings[i][f"r{i + 1}"]] for i in range(1, len(law.families))]
+    simpler = Law(law.families, shapes, weights, law.peak_force, law.bounds, law.chi2, fixed)
+    tally.expect(1)
+    try:
+        number, after = refit(proposal.base, simpler, harmonics, bounds)
+    except HysidInputError:
+        tally.done("discovery: a simpler exponent cannot be made a term")
+        return proposal
+    tally.done(f"discovery: refitted {proposal.base.spec} with term_{number}, its exponents fixed at simple values")
+    if after.bic > proposal.fit.bic + BIC_MARGIN:
+        return proposal
+    return Proposed(number, simpler, proposal.base, after, proposal.err)
+
+
 def propose(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]], cross_validate: bool, tally: Tally) -> tuple[Proposed | None, str]:
     """A term proposed from what ``fit`` leaves, refitted with the whole model and taken by the acceptance rules,
     or None; and why (what was tried, or why nothing was taken). Counts its fits in ``tally`` (it expects
@@ -267,22 +315,18 @@ def propose(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float
     if law is None:
         tally.expect(-1 - int(cross_validate))
         return None, f"no candidate force removes enough of what {fit.spec} leaves"
-    number = number_of(law)
     try:
-        made = make_term(law, number)
+        number, after = refit(fit, law, harmonics, bounds)
     except HysidInputError as exc:  # a law whose force the probe motion cannot evaluate: nothing to propose
         tally.expect(-1 - int(cross_validate))
-        return None, f"{expression(law, number, plain=True)} cannot be made a term ({exc})"
-    effects = fit.effects + (made.id,)
-    model = make_model(harmonics, fit.start, effects, bounds, fit.freed)
-    row = model.from_dict({**fit.params(), **initial_values(law, number)})
-    after = fit_objective(HarmonicObjective(harmonics, model), fit.start, effects, [np.clip(row, model.bounds[:, 0], model.bounds[:, 1])])
-    tally.done(f"discovery: refitted {fit.spec} with {made.id}")
-    proposal = Proposed(number, law, fit, after, err)
-    why = judge(fit, after, (made.id,), harmonics)
+        return None, f"{expression(law, number_of(law), plain=True)} cannot be made a term ({exc})"
+    tally.done(f"discovery: refitted {fit.spec} with term_{number}")
+    proposal = parsimonious(Proposed(number, law, fit, after, err), harmonics, bounds, tally)
+    made, after = proposal.fit.effects[-1], proposal.fit
+    why = judge(fit, after, (made,), harmonics)
     if why is None and cross_validate:
         why = held_out(fit, after, harmonics)
-        tally.done(f"discovery: {made.id} checked on held-out frequencies")
+        tally.done(f"discovery: {made} checked on held-out frequencies")
     elif cross_validate:
         tally.expect(-1)
     if why is not None:

@@ -45,14 +45,18 @@ class Law:
     """Each family's shape bounds (default: the family's own)."""
     chi2: float = float("nan")
     """What the law leaves of the residual it was fitted to (its whitened sum of squares)."""
+    fixed: list[dict[str, float]] = field(default_factory=list)
+    """Each family's shapes fixed at a simple value (``{symbol: value}``): written as numbers, not parameters."""
 
     def __post_init__(self) -> None:
         if not self.bounds:
             self.bounds = [{s.symbol: s.bounds for s in f.shapes} for f in self.families]
+        if not self.fixed:
+            self.fixed = [{} for _ in self.families]
 
     @property
     def n_params(self) -> int:
-        return len(self.families) + sum(len(f.shapes) for f in self.families)
+        return len(self.families) + sum(len(f.shapes) - len(fixed) for f, fixed in zip(self.families, self.fixed))
 
 
 def names(law: Law, number: int) -> list[dict[str, str]]:
@@ -61,7 +65,8 @@ def names(law: Law, number: int) -> list[dict[str, str]]:
     for i, family in enumerate(law.families):
         tail = "" if i == 0 else str(i + 1)
         weight = "c" if i == 0 else f"r{tail}"
-        out.append({weight: f"t{number}_{weight}", **{s.symbol: f"t{number}_{s.symbol}{tail}" for s in family.shapes}})
+        free = [s.symbol for s in family.shapes if s.symbol not in law.fixed[i]]
+        out.append({weight: f"t{number}_{weight}", **{s: f"t{number}_{s}{tail}" for s in free}})
     return out
 
 
@@ -72,7 +77,7 @@ def initial_values(law: Law, number: int) -> dict[str, float]:
     for i, (mapping, shape) in enumerate(zip(names(law, number), law.shapes)):
         weight = "c" if i == 0 else f"r{i + 1}"
         out[mapping[weight]] = c if i == 0 else law.weights[i] / c if c != 0 else 0.0
-        out.update({mapping[s]: v for s, v in shape.items()})
+        out.update({mapping[s]: v for s, v in shape.items() if s in mapping})
     return out
 
 
@@ -88,6 +93,7 @@ def expression(law: Law, number: int, values: dict[str, float] | None = None, pl
     parts, strength = [], ""
     for i, (family, mapping) in enumerate(zip(law.families, names(law, number))):
         shown = {s: (mapping[s] if values is None else _number(values[mapping[s]], fmt)) for s in mapping}
+        shown.update({s: _number(value, fmt) for s, value in law.fixed[i].items()})
         phi = family.render(shown, plain)
         if i == 0:
             strength = shown["c"] + (" N" if plain and values is not None else "")
@@ -102,7 +108,7 @@ def units(law: Law, number: int) -> dict[str, str]:
     out = {}
     for i, (family, mapping) in enumerate(zip(law.families, names(law, number))):
         out[mapping["c" if i == 0 else f"r{i + 1}"]] = "N" if i == 0 else "1"
-        out.update({mapping[s.symbol]: s.unit for s in family.shapes})
+        out.update({mapping[s.symbol]: s.unit for s in family.shapes if s.symbol in mapping})
     return out
 
 
@@ -111,7 +117,7 @@ def term_bounds(law: Law, number: int) -> dict[str, tuple[float, float]]:
     for i, (bounds, mapping) in enumerate(zip(law.bounds, names(law, number))):
         limit = STRENGTH_BOUND * law.peak_force if i == 0 else WEIGHT_BOUND
         out[mapping["c" if i == 0 else f"r{i + 1}"]] = (-float(limit), float(limit))
-        out.update({mapping[s]: (float(lo), float(hi)) for s, (lo, hi) in bounds.items()})
+        out.update({mapping[s]: (float(lo), float(hi)) for s, (lo, hi) in bounds.items() if s in mapping})
     return out
 
 
