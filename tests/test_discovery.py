@@ -15,7 +15,7 @@ import pytest
 from discovery_support import LAWS, SPECIMEN, specimen
 from hysid.diagnosis.discovery import Proposed, propose, simple_value
 from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
-from hysid.diagnosis.selection import diagnose
+from hysid.diagnosis.selection import choose, diagnose
 from hysid.diagnosis.tally import Tally
 from hysid_model.discovery.features import library
 from hysid_model.discovery.frols import frols
@@ -94,6 +94,21 @@ def test_orifice_damping_is_proposed_with_one_parameter_and_exponent_two() -> No
     assert "** 2 *" in found.formula and "^2 sgn(v)" in found.notation
     v_ref = float(found.notation.split("|v| / ")[1].split(" m/s")[0])
     assert found.params()[f"t{found.number}_c"] == pytest.approx(150.0 * v_ref**2, rel=0.05)
+
+
+def test_a_proposal_that_passes_but_loses_says_it_was_not_kept_and_why() -> None:
+    harmonics = Harmonics.from_loops(specimen("fluid", **SMALL))
+    start = initial_fit(harmonics, "baseline")
+    model = make_model(harmonics, "baseline", ("coulomb_friction",), soft_bounds(start.model))
+    library = fit_objective(HarmonicObjective(harmonics, model), "baseline", ("coulomb_friction",), [model.from_dict({**start.params(), "F_d": 5.0})])
+    found = [propose(base, harmonics, soft_bounds(base.model), False, Tally())[0] for base in (start, library)]
+    assert all(p is not None for p in found), found
+    best, verdicts = choose([p for p in found if p is not None], start, library)
+    assert best is found[0]
+    assert verdicts[start.spec].endswith(": kept")
+    lost = verdicts[library.spec]
+    assert "not kept" in lost and f"{best.name} added to baseline" in lost and "fewer effects" in lost, lost
+    assert not lost.endswith(f"added to {library.spec}")
 
 
 @pytest.mark.parametrize(("law", "start", "effects"), [("none", "baseline", ()), ("coulomb", "baseline", ("coulomb_friction",))])

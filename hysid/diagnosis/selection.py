@@ -42,14 +42,14 @@ final model with the lower BIC is kept. The result is ``adequate`` when the fina
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from itertools import combinations
 from dataclasses import replace
+from itertools import combinations
 
 import numpy as np
 
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
 from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
-from hysid.diagnosis.discovery import propose
+from hysid.diagnosis.discovery import Proposed, propose
 from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
 from hysid.diagnosis.naming import adequacy, loops_linear, residual_signature
@@ -67,8 +67,8 @@ from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model, effect_term
 from hysid_model.presets import PRESETS
-from hysid_model.terms import Term, TermGroup
 from hysid_model.problem import dataset_bounds, displaced
+from hysid_model.terms import Term, TermGroup
 from hysid_model.uncertainty import jacobian_covariance
 
 TRIALS = 4
@@ -236,17 +236,13 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
         tried[base.spec] = why
         if proposal is not None:
             found.append(proposal)
-    best = min(found, key=lambda p: p.fit.bic, default=None)
-    alone = next((p for p in found if p.base is result.start), None)
-    if alone is not None and best is not None and alone.fit.bic < min(best.fit.bic, result.final.bic) + BIC_MARGIN:
-        best = alone
-    elif best is alone:
-        best = None  # added to the start model, it explains less than the library's effects
+    best, verdicts = choose(found, result.start, result.final)
+    tried.update(verdicts)
     if best is None:
         tally.expect(-1)
         return replace(result, discovery=tried)
     steps, pruned, gaps, set_aside = result.steps, result.pruned, list(result.gap), {}
-    if best is alone and result.steps:
+    if best.base is result.start and result.steps:
         set_aside = {s.effect: f"the proposed {best.name} alone explains the loops as well (BIC {best.fit.bic - result.final.bic:+.1f} "
                                f"against {result.final.spec})" for s in result.steps}
         steps, pruned, gaps = [], {}, gaps[:1]
@@ -257,6 +253,29 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
     return replace(result, steps=steps, pruned=pruned, final=fit, status="adequate" if check.adequate else "unexplained",
                    unexplained=None if check.adequate else residual_signature(fit, harmonics), gap=gaps,
                    identifiability=final_identifiability(fit, harmonics), proposed=[best], set_aside=set_aside, discovery=tried)
+
+
+def choose(found: list[Proposed], start: Fit, final: Fit) -> tuple[Proposed | None, dict[str, str]]:
+    """Of the proposals ``found`` (each taken by the acceptance rules), the one kept (:func:`with_discovery`: the lowest
+    BIC, but the one added to ``start`` wherever it is within ``BIC_MARGIN`` of it and of the library's ``final``),
+    and what came of each, by the spec of the model it was added to: kept, or not kept and why."""
+    best = min(found, key=lambda p: p.fit.bic, default=None)
+    alone = next((p for p in found if p.base is start), None)
+    if alone is not None and best is not None and alone.fit.bic < min(best.fit.bic, final.bic) + BIC_MARGIN:
+        best = alone
+    elif best is alone:
+        best = None  # added to the start model, it explains less than the library's effects
+    verdicts = {}
+    for p in found:
+        said = f"{p.notation} added to {p.base.spec} passes the acceptance rules"
+        if p is best:
+            verdicts[p.base.spec] = f"{said}: kept"
+        elif best is None:
+            verdicts[p.base.spec] = f"{said} but is not kept: {final.spec} explains the loops better (BIC {final.bic - p.fit.bic:+.1f})"
+        else:
+            verdicts[p.base.spec] = (f"{said} but is not kept: {best.name} added to {best.base.spec} explains the loops as well or "
+                                     f"better (BIC {best.fit.bic - p.fit.bic:+.1f})" + (" with fewer effects" if best is alone else ""))
+    return best, verdicts
 
 
 def other_reading(motion: MotionChoice) -> MotionChoice | None:
