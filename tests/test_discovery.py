@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from discovery_support import LAWS, SPECIMEN, specimen
+from hysid.bench.discovery_cases import LAWS, loops_of, truth_model
 from hysid.diagnosis.discovery import Proposed, propose, simple_value
 from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
 from hysid.diagnosis.selection import choose, diagnose
@@ -24,17 +24,17 @@ from hysid_model.model import effect_term
 from hysid_model.readers.tidy import write_loops
 from hysid_model.terms import ModalState
 
-SMALL = {"freqs": np.array([4.0, 10.0, 17.0]), "amps": np.array([1e-3, 4e-3]), "points": 40}
-"""Six loops at 40 points per branch: a test problem of a few seconds."""
+NOISE_PCT = 1.0
+"""The specimens of ``hysid bench discovery`` (:mod:`hysid.bench.discovery_cases`: six loops) at 1 % force noise."""
 
 
 def proposal(law: str, seed: int = 0, start: str = "baseline", effects: tuple[str, ...] = ()) -> tuple[Proposed | None, str, Fit]:
     """What discovery proposes on the specimen with ``law`` from the ``start`` model plus ``effects`` fitted."""
-    harmonics = Harmonics.from_loops(specimen(law, seed=seed, **SMALL))
+    harmonics = Harmonics.from_loops(loops_of(law, NOISE_PCT, seed))
     fit = initial_fit(harmonics, start)
     if effects:
         model = make_model(harmonics, start, effects, soft_bounds(fit.model))
-        truth = {**SPECIMEN, **LAWS[law][1]}
+        truth = truth_model(law)[1]
         fit = fit_objective(HarmonicObjective(harmonics, model), start, effects, [model.from_dict({**fit.params(), **truth})])
     found, why = propose(fit, harmonics, soft_bounds(fit.model), False, Tally())
     return found, why, fit
@@ -59,13 +59,13 @@ def test_every_family_renders_as_it_evaluates() -> None:
 
 
 def test_a_fluid_damper_is_proposed_with_its_exponent_and_its_formula_is_the_fitted_force() -> None:
-    found, why, _ = proposal("fluid")
+    found, why, _ = proposal("fluid_viscous")
     assert found is not None, why
     assert [f.key for f in found.law.families] == ["velocity_power"]
     params, errors = found.params(), found.stderr()
     assert abs(params[f"t{found.number}_a"] - 0.35) < max(0.03, 4 * errors[f"t{found.number}_a"])
     assert found.law.n_params == 2 and found.law.fixed == [{}]  # 0.35 is no simple exponent: it stays free
-    truth_at_v_ref = 100.0 * 0.43**0.35  # c |v|^0.35 at the formula's reference velocity
+    truth_at_v_ref = LAWS["fluid_viscous"].truth["hfv_c"] * 0.43**0.35  # c |v|^0.35 at the formula's reference velocity
     assert params[f"t{found.number}_c"] == pytest.approx(truth_at_v_ref, rel=0.05)
     assert found.fit.whitened_rms < 1.3 and found.share > 0.99
     # the formula, evaluated by numpy, is the force of the term that was fitted, as the model computes it
@@ -93,11 +93,11 @@ def test_orifice_damping_is_proposed_with_one_parameter_and_exponent_two() -> No
     assert list(found.params()) == [f"t{found.number}_c"]
     assert "** 2 *" in found.formula and "^2 sgn(v)" in found.notation
     v_ref = float(found.notation.split("|v| / ")[1].split(" m/s")[0])
-    assert found.params()[f"t{found.number}_c"] == pytest.approx(150.0 * v_ref**2, rel=0.05)
+    assert found.params()[f"t{found.number}_c"] == pytest.approx(LAWS["orifice"].truth["hor_c"] * v_ref**2, rel=0.05)
 
 
 def test_a_proposal_that_passes_but_loses_says_it_was_not_kept_and_why() -> None:
-    harmonics = Harmonics.from_loops(specimen("fluid", **SMALL))
+    harmonics = Harmonics.from_loops(loops_of("fluid_viscous", NOISE_PCT, 0))
     start = initial_fit(harmonics, "baseline")
     model = make_model(harmonics, "baseline", ("coulomb_friction",), soft_bounds(start.model))
     library = fit_objective(HarmonicObjective(harmonics, model), "baseline", ("coulomb_friction",), [model.from_dict({**start.params(), "F_d": 5.0})])
@@ -111,7 +111,7 @@ def test_a_proposal_that_passes_but_loses_says_it_was_not_kept_and_why() -> None
     assert not lost.endswith(f"added to {library.spec}")
 
 
-@pytest.mark.parametrize(("law", "start", "effects"), [("none", "baseline", ()), ("coulomb", "baseline", ("coulomb_friction",))])
+@pytest.mark.parametrize(("law", "start", "effects"), [("no_effect", "baseline", ()), ("coulomb_friction", "baseline", ("coulomb_friction",))])
 def test_nothing_is_proposed_where_nothing_is_missing(law: str, start: str, effects: tuple[str, ...]) -> None:
     found, why, fit = proposal(law, seed=1, start=start, effects=effects)
     assert found is None, f"{law}: proposed {found.notation} ({found.evidence()})"
@@ -121,24 +121,24 @@ def test_nothing_is_proposed_where_nothing_is_missing(law: str, start: str, effe
 @pytest.mark.slow
 def test_false_discoveries_are_rare_over_twenty_noise_seeds() -> None:
     proposed = []
-    for law, effects in (("none", ()), ("coulomb", ("coulomb_friction",))):
+    for law, effects in (("no_effect", ()), ("coulomb_friction", ("coulomb_friction",))):
         for seed in range(20):
             found, _, _ = proposal(law, seed=100 + seed, effects=effects)
             if found is not None:
                 proposed.append((law, seed, found.notation))
-    assert len([p for p in proposed if p[0] == "none"]) <= 1, proposed
-    assert len([p for p in proposed if p[0] == "coulomb"]) <= 1, proposed
+    assert len([p for p in proposed if p[0] == "no_effect"]) <= 1, proposed
+    assert len([p for p in proposed if p[0] == "coulomb_friction"]) <= 1, proposed
 
 
 @pytest.mark.slow
 def test_diagnose_proposes_the_missing_law_instead_of_wrong_names_and_the_module_is_reusable(tmp_path: Path) -> None:
-    loops = specimen("gap", **SMALL)
+    loops = loops_of("gap", NOISE_PCT, 0)
     result = diagnose(loops)
     assert result.status == "adequate" and not result.steps, result
     (found,) = result.proposed
     assert [f.key for f in found.law.families] == ["dead_zone"]
     params = found.params()
-    assert params[f"t{found.number}_g"] == pytest.approx(1.5e-3, rel=0.03)
+    assert params[f"t{found.number}_g"] == pytest.approx(LAWS["gap"].truth["hgp_g"], rel=0.03)
     doc = result.to_dict()
     assert doc["proposed"][0]["model"] == f"baseline+proposed:{found.name}"
     assert doc["gap"][-1]["loop_nrmse_pct"] < 0.2 * doc["gap"][0]["loop_nrmse_pct"]
