@@ -218,7 +218,7 @@ def register(app: typer.Typer) -> None:
             o.island_sizes(search.population, search.initial, search.iterations)  # checked before the loops are read
             migration = search.migration()
             loops = reading.load(dataset or "synth")
-            sizes, termination, until_stopped, iterations = o.island_plan(
+            sizes, termination, until_stopped, _ = o.island_plan(
                 loops, model, bounds, search.algo_list(), search.population, search.initial, search.iterations, termination)
             motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
             config = CampaignConfig.create(

@@ -18,6 +18,10 @@ REPORT_WORK = 4.0
 """The report's work in the bar, in fits: its figures took 3.6-4.2 s where a memoryless refit takes about 1 s."""
 
 
+READING = laid_out("points", "skip_rows", "noise", "noise_seed")
+"""The loops' reading options in the order ``diagnose --help`` has always listed them."""
+
+
 def register(app: typer.Typer) -> None:
     """Add ``hysid diagnose`` to the hysid app."""
 
@@ -28,7 +32,7 @@ def register(app: typer.Typer) -> None:
         model: str = o.START_MODEL,
         out: Optional[Path] = o.OUT,
         as_json: bool = o.JSON,
-        reading: Reading = laid_out("points", "skip_rows", "noise", "noise_seed"),
+        reading: Reading = READING,
         csv: bool = o.CSV,
         quiet: bool = o.QUIET,
         bound: Optional[list[str]] = o.BOUND,
