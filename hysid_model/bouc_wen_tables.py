@@ -187,16 +187,27 @@ def _tabulated_state(t: float, tn: float, climb: np.ndarray, n_climb: int, relax
 @njit(cache=True, nogil=True)
 def _candidate(
     n: float, r: float, zy: float, span: np.ndarray, climb: np.ndarray, relax: np.ndarray, um: np.ndarray, tn: np.ndarray,
+    which: np.ndarray, mean_nodes: np.ndarray, split: np.ndarray, mean: np.ndarray,
 ) -> tuple[int, int]:
-    """The orbit of every half span of one candidate and the tables up to its largest peak state:
-    returns the table sizes."""
+    """The orbit of every half span of one candidate and the tables up to its largest peak state, and where
+    there are ``mean_nodes`` (M > 0) its cycle means into ``mean`` (:func:`_mean`): returns the table sizes."""
     a = 1.0 / n
     psi = digamma(a)
     top = 0.0
     for i in range(span.shape[0]):
         um[i], tn[i] = orbit(span[i] / zy, n, r, a, psi)
         top = max(top, um[i])
-    return build_table(-r, n, a, psi, False, top, climb), build_table(1.0, n, a, psi, True, top, relax)
+    n_climb, n_relax = build_table(-r, n, a, psi, False, top, climb), build_table(1.0, n, a, psi, True, top, relax)
+    if mean_nodes.shape[1] > 0:
+        _mean(which, tn, zy, mean_nodes, split, climb, n_climb, relax, n_relax, n, mean)
+    return n_climb, n_relax
+
+
+@njit(cache=True, nogil=True)
+def _scratch(span: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Work space of :func:`_candidate`, used again for every candidate: the two tables, the peak states and
+    travel times of the half spans, the loops' cycle means."""
+    return np.empty((MAX_NODES, 7)), np.empty((MAX_NODES, 7)), np.empty(span.shape[0]), np.empty(span.shape[0]), np.zeros(which.shape[0])
 
 
 @njit(cache=True, nogil=True)
@@ -263,20 +274,18 @@ def _run(
 
 @njit(cache=True, nogil=True)
 def bouc_wen_samples(
-    exponent: np.ndarray, r: np.ndarray, zy: np.ndarray, k: np.ndarray, span: np.ndarray, which: np.ndarray,
+    candidates: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], span: np.ndarray, which: np.ndarray,
     travel_: np.ndarray, runs: np.ndarray, loop_runs: np.ndarray, step: np.ndarray, spread: np.ndarray, deviation: np.ndarray,
     mean_nodes: np.ndarray, split: np.ndarray, out: np.ndarray,
 ) -> None:
-    """out[p, l, j] += k_p (z - mean) at fixed samples, any exponent: the runs as in
-    :func:`hysid_model.kernels.bouc_wen_samples`; the cycle mean over ``mean_nodes`` ``(L, M)`` (M = 0: none)."""
-    climb, relax = np.empty((MAX_NODES, 7)), np.empty((MAX_NODES, 7))
-    um, tn = np.empty(span.shape[0]), np.empty(span.shape[0])
-    mean = np.zeros(which.shape[0])
+    """out[p, l, j] += k_p (z - mean) at fixed samples, any exponent: ``candidates`` the columns (exponent, r,
+    zy, k) ``(P,)``; the runs as in :func:`hysid_model.kernels.bouc_wen_samples`; the cycle mean over
+    ``mean_nodes`` ``(L, M)`` (M = 0: none)."""
+    exponent, r, zy, k = candidates
+    climb, relax, um, tn, mean = _scratch(span, which)
     for p in range(exponent.shape[0]):
         n, zp = exponent[p], zy[p]
-        n_climb, n_relax = _candidate(n, r[p], zp, span, climb, relax, um, tn)
-        if mean_nodes.shape[1] > 0:
-            _mean(which, tn, zp, mean_nodes, split, climb, n_climb, relax, n_relax, n, mean)
+        n_climb, n_relax = _candidate(n, r[p], zp, span, climb, relax, um, tn, which, mean_nodes, split, mean)
         for l in range(travel_.shape[0]):
             row, km = out[p, l], k[p] * mean[l]
             for q in range(loop_runs[l], loop_runs[l + 1]):
@@ -288,21 +297,20 @@ def bouc_wen_samples(
 
 @njit(cache=True, nogil=True)
 def bouc_wen_shifted(
-    exponent: np.ndarray, r: np.ndarray, zy: np.ndarray, k: np.ndarray, span: np.ndarray, which: np.ndarray,
-    mean_nodes: np.ndarray, split: np.ndarray, shift: np.ndarray, xh: np.ndarray, waves: np.ndarray,
-    x_min: np.ndarray, x_max: np.ndarray, out: np.ndarray,
+    candidates: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], span: np.ndarray, which: np.ndarray,
+    mean_nodes: np.ndarray, split: np.ndarray, shift: np.ndarray, motion: tuple[np.ndarray, np.ndarray], bounds: tuple[np.ndarray, np.ndarray],
+    out: np.ndarray,
 ) -> None:
     """out[p, l, j] += k_p (z(theta_j - shift[p, l]) - mean): the orbit at phases shifted per candidate, any
-    exponent (as :func:`hysid_model.kernels.bouc_wen_shifted`)."""
-    climb, relax = np.empty((MAX_NODES, 7)), np.empty((MAX_NODES, 7))
-    um, tn = np.empty(span.shape[0]), np.empty(span.shape[0])
-    mean = np.zeros(which.shape[0])
+    exponent (as :func:`hysid_model.kernels.bouc_wen_shifted`, whose ``xh, waves`` are ``motion`` here and
+    ``x_min, x_max`` ``bounds``)."""
+    exponent, r, zy, k = candidates
+    (xh, waves), (x_min, x_max) = motion, bounds
+    climb, relax, um, tn, mean = _scratch(span, which)
     xs = np.empty((2, xh.shape[2]))
     for p in range(exponent.shape[0]):
         n, zp = exponent[p], zy[p]
-        n_climb, n_relax = _candidate(n, r[p], zp, span, climb, relax, um, tn)
-        if mean_nodes.shape[1] > 0:
-            _mean(which, tn, zp, mean_nodes, split, climb, n_climb, relax, n_relax, n, mean)
+        n_climb, n_relax = _candidate(n, r[p], zp, span, climb, relax, um, tn, which, mean_nodes, split, mean)
         for l in range(waves.shape[1]):
             _rotate(xh, l, shift[p, l], xs)
             kp, km, t0 = k[p] * zp, k[p] * mean[l], tn[which[l]]

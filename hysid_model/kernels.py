@@ -31,6 +31,10 @@ RECURRENCE_DEVIATION = 1e-4
 """Largest |c d| for which a sample off its group's uniform travel grid by d is corrected to second
 order from the grid's exp(-c t) (error (c d)^3 / 6); beyond it the sample gets its own exponential."""
 
+Orbit = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""The Bouc-Wen orbits of a population as the kernels take them: (z_max, run, which, a, b, k, mean) of
+:meth:`hysid_model.effects.bouc_wen.BoucWenSampler._orbit` and the loops' ``which``."""
+
 
 @njit(cache=True, nogil=True)
 def bouc_wen_orbit(span: np.ndarray, a: np.ndarray, b: np.ndarray, z_max: np.ndarray, run: np.ndarray) -> None:
@@ -181,14 +185,13 @@ def _bouc_wen_loop(
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
 def bouc_wen_samples(
-    z_max: np.ndarray, run: np.ndarray, which: np.ndarray, a: np.ndarray, b: np.ndarray, k: np.ndarray, mean: np.ndarray,
-    travel: np.ndarray, runs: np.ndarray, loop_runs: np.ndarray, step: np.ndarray, spread: np.ndarray, deviation: np.ndarray,
+    orbit: Orbit, travel: np.ndarray, runs: np.ndarray, loop_runs: np.ndarray, step: np.ndarray, spread: np.ndarray, deviation: np.ndarray,
     out: np.ndarray,
 ) -> None:
     """out[p, l, n] += k_p (sign z(travel) - mean[p, l]) at fixed samples.
 
-    The orbit of loop l is column ``which[l]`` of ``z_max`` and ``run``; ``a``, ``b``, ``k`` are
-    ``(P,)``; ``travel`` ``(L, N)`` is each sample's travel since the last reversal. The samples
+    ``orbit`` is (z_max, run, which, a, b, k, mean) (:data:`Orbit`): the orbit of loop l is column
+    ``which[l]`` of ``z_max`` and ``run``; ``a``, ``b``, ``k`` are ``(P,)``; ``travel`` ``(L, N)`` is each sample's travel since the last reversal. The samples
     come in ``runs`` ``(R, 5)``: (loop, first sample, stride, count, sign +1 loading / -1
     unloading), travel increasing along a run, those of loop l at ``loop_runs[l]:loop_runs[l + 1]``.
     Where a run lies on a uniform travel grid (``step[r]``, NaN if not; ``deviation`` ``(L, N)`` each
@@ -197,6 +200,7 @@ def bouc_wen_samples(
     On the climbing piece (t < run) z = -z_max - (z_max + 1/a) expm1(-a t) (t - z_max for a = 0),
     on the relaxing piece z = -expm1(-b (t - run)) / b; each piece starts from its own exponential.
     """
+    z_max, run, which, a, b, k, mean = orbit
     for p in range(a.shape[0]):
         for l in range(travel.shape[0]):
             _bouc_wen_loop(
@@ -307,12 +311,12 @@ def _motion(waves: np.ndarray, l: int, n: int, xs: np.ndarray) -> tuple[float, f
 
 @njit(cache=True, nogil=True)
 def bouc_wen_shifted(
-    z_max: np.ndarray, run: np.ndarray, which: np.ndarray, a: np.ndarray, b: np.ndarray, k: np.ndarray, mean: np.ndarray,
-    shift: np.ndarray, xh: np.ndarray, waves: np.ndarray, x_min: np.ndarray, x_max: np.ndarray, out: np.ndarray,
+    orbit: Orbit, shift: np.ndarray, xh: np.ndarray, waves: np.ndarray, x_min: np.ndarray, x_max: np.ndarray, out: np.ndarray,
 ) -> None:
     """out[p, l, n] += k_p (z(theta_n - shift[p, l]) - mean[p, l]): the orbit at phases shifted per candidate
     (a channel delay). The displacement ``xh`` (Re, Im) ``(2, L, K)`` is evaluated at the shifted phase from
     ``waves`` (:func:`_motion`); its velocity's sign there is the branch."""
+    z_max, run, which, a, b, k, mean = orbit
     xs = np.empty((2, xh.shape[2]))
     for p in range(a.shape[0]):
         for l in range(waves.shape[1]):

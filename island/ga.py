@@ -28,13 +28,13 @@ program's loops (the random stream differs from MATLAB's).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 
 from hysid_model.errors import HysidInputError
 from island.addpop import additional_population
-from island.population import MAX_POPULATION, PopulationOptimizer, array_or_none, check_float, check_int, load_array
+from island.population import MAX_POPULATION, PopulationOptimizer, SharedOptions, array_or_none, check_float, check_int, load_array
 from island.rng import uniform_population
 
 __all__ = ["GA", "rank_probabilities", "select_couples", "blx_crossover", "gaussian_mutation", "mutation_count"]
@@ -132,36 +132,25 @@ class GA(PopulationOptimizer):
         bounds: np.ndarray,
         seed: int,
         *,
-        initial_population: int = 6000,
-        population: int = 500,
-        iterations: int = 18,
         alpha_blx: float = 0.3,
         mutation_rate: float = 0.05,
         mutation_amount: float = 0.3,
-        addpop_amount: float = 0.2,
-        addpop_level: int = 4,
-        migrant_policy: str = "replace_worst",
-        redraw_limit: int = 100,
+        **shared: Unpack[SharedOptions],
     ) -> None:
-        super().__init__(
-            bounds,
-            seed,
-            iterations=iterations,
-            addpop_amount=addpop_amount,
-            addpop_level=addpop_level,
-            migrant_policy=migrant_policy,
-            redraw_limit=redraw_limit,
-        )
-        self.population = check_int(self.name, "population", population, 2, MAX_POPULATION)
-        if self.population % 2:
-            raise HysidInputError("GA population must be even (mu/2 couples)", param="population", value=population)
-        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population, MAX_POPULATION)
+        super().__init__(bounds, seed, **shared)
         self.alpha_blx = check_float(self.name, "alpha_blx", alpha_blx, 0.0)
         self.mutation_rate = check_float(self.name, "mutation_rate", mutation_rate, 0.0, 1.0)
         self.mutation_amount = check_float(self.name, "mutation_amount", mutation_amount, 0.0)
         self.pop: np.ndarray | None = None
         """Parents ranked best first, ``(mu, D)``; None before the initial population is evaluated."""
         self.fit: np.ndarray | None = None
+
+    def check_population(self, population: int) -> int:
+        """At least 2 and even: the GA mates mu/2 couples."""
+        population = check_int(self.name, "population", population, 2, MAX_POPULATION)
+        if population % 2:
+            raise HysidInputError("GA population must be even (mu/2 couples)", param="population", value=population)
+        return population
 
     def _settings(self) -> dict[str, Any]:
         return self._settings_with({"alpha_blx": self.alpha_blx, "mutation_rate": self.mutation_rate, "mutation_amount": self.mutation_amount})

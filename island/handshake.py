@@ -50,10 +50,15 @@ def _request(msg: dict[str, Any], campaign: str, sender: str | None) -> JoinRequ
                        member)
 
 
+def _request_fields(r: JoinRequest, kind: str) -> dict[str, Any]:
+    """The request's fields as both steps of the handshake send them (``kind``: join or prove), in wire order."""
+    return {"v": PROTOCOL_VERSION, "type": kind, "campaign": r.campaign, "island": r.island, "member": r.member, "algo": r.algo,
+            "seed": int(r.seed), "nonce": r.nonce, "key": r.key}
+
+
 def encode_join(r: JoinRequest) -> bytes:
     """The first step of the handshake (``join/<id>``): who asks, for which member, with which key; answered by a challenge."""
-    return _dumps({"v": PROTOCOL_VERSION, "type": "join", "campaign": r.campaign, "island": r.island, "member": r.member, "algo": r.algo,
-                   "seed": int(r.seed), "nonce": r.nonce, "key": r.key})
+    return _dumps(_request_fields(r, "join"))
 
 
 def decode_join(data: bytes, campaign: str, sender: str | None = None) -> JoinRequest:
@@ -89,9 +94,7 @@ class Proof:
 def encode_prove(r: JoinRequest, challenge: bytes, admission: bytes, key: bytes) -> bytes:
     """Proof of the admission secret of the request's member (:func:`island.sealing.prove`) and of the run's private ``key``."""
     transcript = r.transcript(challenge)
-    return _dumps({"v": PROTOCOL_VERSION, "type": "prove", "campaign": r.campaign, "island": r.island, "member": r.member, "algo": r.algo,
-                   "seed": int(r.seed), "nonce": r.nonce, "key": r.key, "challenge": challenge, "proof": prove(admission, transcript),
-                   "sig": sign(key, transcript)})
+    return _dumps({**_request_fields(r, "prove"), "challenge": challenge, "proof": prove(admission, transcript), "sig": sign(key, transcript)})
 
 
 def decode_join_step(data: bytes, campaign: str, sender: str | None = None) -> JoinRequest | Proof:

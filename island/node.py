@@ -402,12 +402,19 @@ class IslandNode:
     def history_messages(self, since: int = -1, final: bool = False) -> list[bytes]:
         """This island's rows after iteration ``since`` (in chunks of :data:`HISTORY_CHUNK`), each
         with its best so far and its counters; ``final`` marks the last one as its goodbye."""
-        _, credentials = self._attached()
         rows = np.array([r for r in list(self.rows) if r[0] > since], dtype=float).reshape(-1, 4)
+        return self._messages([rows[i : i + HISTORY_CHUNK] for i in range(0, rows.shape[0], HISTORY_CHUNK)] or [rows], final)
+
+    def heartbeat(self) -> bytes:
+        """A history message without rows (from any thread): the island is alive while it has no new row."""
+        return self._messages([np.zeros((0, 4))], final=False)[0]
+
+    def _messages(self, chunks: list[np.ndarray], final: bool) -> list[bytes]:
+        """A history message for each chunk of rows, with the best so far and the counters; ``final``: the last is the goodbye."""
+        _, credentials = self._attached()
         x, f = self._snapshot
         with self._lock:
             stats = dict(self.stats)
-        chunks = [rows[i : i + HISTORY_CHUNK] for i in range(0, rows.shape[0], HISTORY_CHUNK)] or [rows]
         return [
             encode_history(History(
                 self.config.name, self.island, self.run_id, self.algo, self.seed, chunk, x, f, stats,
@@ -415,16 +422,6 @@ class IslandNode:
             ), credentials)
             for i, chunk in enumerate(chunks)
         ]
-
-    def heartbeat(self) -> bytes:
-        """A history message without rows (from any thread): the island is alive while it has no new row."""
-        _, credentials = self._attached()
-        x, f = self._snapshot
-        with self._lock:
-            stats = dict(self.stats)
-        return encode_history(History(
-            self.config.name, self.island, self.run_id, self.algo, self.seed, np.zeros((0, 4)), x, f, stats, False, self._seq(), self.optimizer.gain,
-        ), credentials)
 
     def _flush(self, final: bool = False) -> None:
         transport, _ = self._attached()

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from abc import abstractmethod
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict, Unpack
 
 import numpy as np
 
@@ -100,33 +100,49 @@ class Batch:
         )
 
 
+class SharedOptions(TypedDict, total=False):
+    """The options every population algorithm takes, their defaults in :data:`SHARED_DEFAULTS` and their checks in
+    :class:`PopulationOptimizer`: :class:`island.ga.GA` and :class:`island.pso.PSO` pass them on as they are."""
+
+    initial_population: int
+    population: int
+    iterations: int
+    addpop_amount: float
+    addpop_level: int
+    migrant_policy: str
+    redraw_limit: int
+
+
+SHARED_DEFAULTS: SharedOptions = {
+    "initial_population": 6000, "population": 500, "iterations": 18, "addpop_amount": 0.2, "addpop_level": 4, "migrant_policy": "replace_worst",
+    "redraw_limit": 100,
+}
+"""The thesis' values of the shared options (section 5.1)."""
+
+
 class PopulationOptimizer(AskTell):
     """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring). ``redraw_limit`` (not in
     the thesis) caps the rounds of "Couldn't calculate" redraws per batch."""
 
     population: int
-    """The population (GA) or swarm (PSO) size: set by the subclass."""
+    """The population (GA) or swarm (PSO) size (:meth:`check_population`)."""
     initial_population: int
-    """Candidates of iteration 0: set by the subclass."""
+    """Candidates of iteration 0: at least the population."""
 
-    def __init__(
-        self,
-        bounds: np.ndarray,
-        seed: int,
-        *,
-        iterations: int,
-        addpop_amount: float,
-        addpop_level: int,
-        migrant_policy: str,
-        redraw_limit: int,
-    ) -> None:
+    def __init__(self, bounds: np.ndarray, seed: int, **shared: Unpack[SharedOptions]) -> None:
+        unknown = next((name for name in shared if name not in SHARED_DEFAULTS), None)
+        if unknown is not None:
+            raise TypeError(f"{type(self).__name__}() got an unexpected keyword argument {unknown!r}")
+        given: SharedOptions = {**SHARED_DEFAULTS, **shared}
         self.bounds = check_bounds(bounds)
         self.seed = check_int(self.name, "seed", seed, 0)
-        self.iterations = check_int(self.name, "iterations", iterations, 0, MAX_ITERATIONS)
-        self.addpop_amount = check_float(self.name, "addpop_amount", addpop_amount, 0.0)
-        self.addpop_level = check_int(self.name, "addpop_level", addpop_level, 0, 1000)
-        self.migrant_policy = check_choice(self.name, "migrant_policy", migrant_policy, MIGRANT_POLICIES)
-        self.redraw_limit = check_int(self.name, "redraw_limit", redraw_limit, 0, 10_000)
+        self.iterations = check_int(self.name, "iterations", given["iterations"], 0, MAX_ITERATIONS)
+        self.addpop_amount = check_float(self.name, "addpop_amount", given["addpop_amount"], 0.0)
+        self.addpop_level = check_int(self.name, "addpop_level", given["addpop_level"], 0, 1000)
+        self.migrant_policy = check_choice(self.name, "migrant_policy", given["migrant_policy"], MIGRANT_POLICIES)
+        self.redraw_limit = check_int(self.name, "redraw_limit", given["redraw_limit"], 0, 10_000)
+        self.population = self.check_population(given["population"])
+        self.initial_population = check_int(self.name, "initial_population", given["initial_population"], self.population, MAX_POPULATION)
         self.rng = new_rng(self.seed)
         self.history: list[float] = []
         """Best fitness after each iteration; index 0 = after the initial population (the thesis' ``fhv``)."""
@@ -162,6 +178,10 @@ class PopulationOptimizer(AskTell):
     @abstractmethod
     def _settings(self) -> dict[str, Any]:
         """The constructor's keyword options."""
+
+    def check_population(self, population: int) -> int:
+        """The population size, checked (at least 1; a subclass may ask more)."""
+        return check_int(self.name, "population", population, 1, MAX_POPULATION)
 
     def _settings_with(self, own: dict[str, Any]) -> dict[str, Any]:
         """The keyword options of :meth:`_settings`: the sizes, the algorithm's ``own``, then those every algorithm has."""

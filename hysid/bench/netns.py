@@ -25,6 +25,8 @@ import subprocess
 import sys
 from dataclasses import dataclass, field
 
+from hysid.bench.relay import when_ready
+
 SUBNET = "169.254.147"
 """Link-local /24 used only inside the namespaces."""
 PREFIX = "hysidt"
@@ -153,11 +155,7 @@ class Lab:
                          self.hub_address, str(upstream_port), f"{delay_ms:g}"),
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         )
-        assert relay.stdout is not None
-        if relay.stdout.readline().strip() != "ready":
-            relay.kill()
-            raise RuntimeError(f"delay relay in {self.host(k)} did not start: {relay.communicate()[1].strip()}")
-        return relay
+        return when_ready(relay, lambda p: f"delay relay in {self.host(k)} did not start: {p.communicate()[1].strip()}")
 
     def link(self, k: int, up: bool) -> None:
         """Cut (``up=False``) or restore host k's link."""

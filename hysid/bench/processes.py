@@ -36,6 +36,7 @@ from coordinator.links import ZenohLink
 from coordinator.loop import COMMIT_EVERY_S, serve
 from coordinator.state import Coordinator
 from coordinator.store import Store
+from hysid.bench.relay import when_ready
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config
 from island.migration import Migration
@@ -166,11 +167,7 @@ def start_flooder(endpoint: str, secret: Path, per_s: float, varied: bool) -> su
         [sys.executable, "-c", f"from hysid.bench.processes import flooder; flooder({endpoint!r}, {str(secret)!r}, {per_s!r}, {varied!r})"],
         stdout=subprocess.PIPE, text=True,
     )
-    assert flooding.stdout is not None
-    if flooding.stdout.readline().strip() != "ready":
-        flooding.kill()
-        raise RuntimeError(f"the flooder did not start ({flooding.wait()})")
-    return flooding
+    return when_ready(flooding, lambda p: f"the flooder did not start ({p.wait()})")
 
 
 def wait_for_secret(path: Path, timeout_s: float) -> CampaignSecret:

@@ -11,8 +11,20 @@ retries, as over a dead link); a connection closed on either side closes the oth
 from __future__ import annotations
 
 import asyncio
+import subprocess
 import sys
 import time
+from collections.abc import Callable
+
+
+def when_ready(process: subprocess.Popen, failure: Callable[[subprocess.Popen], str]) -> subprocess.Popen:
+    """``process`` once its first line on stdout is ``ready`` (as the relay and :func:`hysid.bench.processes.flooder`
+    print it); else it is killed and a RuntimeError says ``failure(process)``."""
+    assert process.stdout is not None
+    if process.stdout.readline().strip() != "ready":
+        process.kill()
+        raise RuntimeError(failure(process))
+    return process
 
 
 async def _pipe(reader: asyncio.StreamReader, writer: asyncio.StreamWriter, delay_s: float) -> None:

@@ -28,16 +28,14 @@ from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult, campaign, finish
 from hysid.cli import options as o
+from hysid.cli.groups import LAID_OUT, Constraints, Reading, Search, Stop, grouped
 from hysid.cli.progress import Progress, announcing_stop, campaign_reporter
 from hysid.motion import choose_motion
 from hysid.report.campaign_text import campaign_progress_line
-from hysid_model.datasets import load_dataset
 from hysid_model.errors import HysidInputError
 from island.config import CampaignConfig
-from island.migration import Migration
 from island.secret import CampaignSecret, member_path, secret_path
 from island.session import DEFAULT_ENDPOINT, open_session, session_config
-from island.termination import Termination
 from island.wire import check_name
 
 
@@ -118,30 +116,16 @@ def register(app: typer.Typer) -> None:
     """Add ``campaign``, ``coordinator`` and ``island`` to the hysid app."""
 
     @app.command("campaign")
+    @grouped
     def campaign_command(
         dataset: Optional[str] = o.DATASET_OR_SYNTH,
         islands: int = typer.Option(4, "--islands", help="Number of islands."),
         name: str = typer.Option("campaign", "--campaign", help="Campaign name (in the database and the key space hysid/<name>/**)."),
-        algos: str = o.ALGOS,
-        share: str = o.SHARE,
-        topology: str = o.TOPOLOGY,
-        interval: int = o.INTERVAL,
-        migrants: int = o.MIGRANTS,
-        random_k: int = o.RANDOM_K,
-        population: Optional[int] = o.POPULATION,
-        initial: Optional[int] = o.INITIAL,
-        iterations: Optional[int] = o.ITERATIONS,
-        seed: int = o.SEED,
+        search: Search = LAID_OUT,
         model: str = o.MODEL,
         weights: Optional[str] = o.WEIGHTS,
-        noise: float = o.NOISE,
-        noise_seed: int = o.NOISE_SEED,
-        points: Optional[int] = o.POINTS,
-        skip_rows: Optional[int] = o.SKIP_ROWS,
-        budget: Optional[int] = o.BUDGET,
-        target: Optional[float] = o.TARGET,
-        stall: Optional[int] = o.STALL,
-        time_limit: Optional[float] = o.TIME_LIMIT,
+        reading: Reading = LAID_OUT,
+        stop: Stop = LAID_OUT,
         single_node: bool = typer.Option(False, "--single-node", help="All islands in this process, migrating in memory (no network)."),
         out: Optional[Path] = o.OUT,
         db: Optional[Path] = o.DB,
@@ -149,29 +133,25 @@ def register(app: typer.Typer) -> None:
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
         csv: bool = o.CSV,
-        bound: Optional[list[str]] = o.BOUND,
-        fix: Optional[list[str]] = o.FIX,
-        displacement: str = o.DISPLACEMENT,
+        limits: Constraints = LAID_OUT,
     ) -> Optional[int]:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
-        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
-        algo_list = o.parse_algos(algos)
-        termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
-        given_iterations = iterations
-        iterations, until_stopped = o.island_budget(iterations, termination)
-        sizes = o.island_sizes(population, initial, iterations)
-        migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
+        bounds, fixed, displacement = limits.bounds(), limits.fixed(), limits.displacement
+        algo_list = search.algo_list()
+        termination = stop.termination()
+        iterations, until_stopped = o.island_budget(search.iterations, termination)
+        sizes = o.island_sizes(search.population, search.initial, iterations)
+        migration = search.migration()
         check_name("campaign", name)
+        seed, share = search.seed, search.share
         island_specs(islands, algo_list, seed)  # every setting is checked before the report directory is made
-        CampaignConfig(
-            name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands, until_stopped=until_stopped, share=share,
-        )
+        CampaignConfig(name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands, until_stopped=until_stopped, share=share)
         target_dir = o.report_dir(out, "campaign")
         path = database(db, target_dir, name, resuming=False)
         new_db = not path.exists()
-        loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
+        loops = reading.load(dataset or "synth")
         plan, termination, until_stopped, iterations = o.island_plan(
-            loops, model, bounds, algo_list, population, initial, given_iterations, termination)
+            loops, model, bounds, algo_list, search.population, search.initial, search.iterations, termination)
         try:
             with Progress("campaign", islands * (iterations or 0) or 100, enabled=not (quiet or as_json)) as bar:
                 result = campaign(
@@ -188,6 +168,7 @@ def register(app: typer.Typer) -> None:
         return exit_status(result)
 
     @app.command("coordinator")
+    @grouped
     def coordinator_command(
         dataset: Optional[str] = o.DATASET_OR_SYNTH,
         listen: list[str] = typer.Option([], "--listen", help="Endpoint to listen on, repeatable (default tcp/127.0.0.1:7447)."),
@@ -209,40 +190,23 @@ def register(app: typer.Typer) -> None:
                  "host or process its own.",
         ),
         min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
-        algos: str = o.ALGOS,
-        share: str = o.SHARE,
-        topology: str = o.TOPOLOGY,
-        interval: int = o.INTERVAL,
-        migrants: int = o.MIGRANTS,
-        random_k: int = o.RANDOM_K,
-        population: Optional[int] = o.POPULATION,
-        initial: Optional[int] = o.INITIAL,
-        iterations: Optional[int] = o.ITERATIONS,
-        seed: int = o.SEED,
+        search: Search = LAID_OUT,
         model: str = o.MODEL,
         weights: Optional[str] = o.WEIGHTS,
-        noise: float = o.NOISE,
-        noise_seed: int = o.NOISE_SEED,
-        points: Optional[int] = o.POINTS,
-        skip_rows: Optional[int] = o.SKIP_ROWS,
-        budget: Optional[int] = o.BUDGET,
-        target: Optional[float] = o.TARGET,
-        stall: Optional[int] = o.STALL,
-        time_limit: Optional[float] = o.TIME_LIMIT,
+        reading: Reading = LAID_OUT,
+        stop: Stop = LAID_OUT,
         out: Optional[Path] = o.OUT,
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
-        bound: Optional[list[str]] = o.BOUND,
-        fix: Optional[list[str]] = o.FIX,
-        displacement: str = o.DISPLACEMENT,
+        limits: Constraints = LAID_OUT,
     ) -> Optional[int]:
         """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
         check_name("campaign", name)
         for member in members:
             check_name("member", member)
-        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
-        termination = Termination(budget=budget, target=target, stall=stall, time_limit_s=time_limit)
+        bounds, fixed, displacement = limits.bounds(), limits.fixed(), limits.displacement
+        termination = stop.termination()
         if resume_db and dataset is not None:
             raise HysidInputError(f"--resume takes the loop set from {db}; drop DATASET {dataset!r}")
         if resume_db and (bounds or fixed):
@@ -251,17 +215,16 @@ def register(app: typer.Typer) -> None:
         path = database(db, target_dir, name, resuming=resume_db)
         motion = None
         if not resume_db:  # every argument is checked before the database is written or a session opened
-            o.island_sizes(population, initial, iterations)  # checked before the loops are read
-            migration = Migration(interval=interval, k=migrants, topology=topology, random_k=random_k)
-            loops = load_dataset(dataset or "synth", noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
-            sizes, termination, until_stopped, iterations = o.island_plan(
-                loops, model, bounds, o.parse_algos(algos), population, initial, iterations, termination)
+            o.island_sizes(search.population, search.initial, search.iterations)  # checked before the loops are read
+            migration = search.migration()
+            loops = reading.load(dataset or "synth")
+            sizes, termination, until_stopped, _ = o.island_plan(
+                loops, model, bounds, search.algo_list(), search.population, search.initial, search.iterations, termination)
             motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
             config = CampaignConfig.create(
-                loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed,
-                displacement=motion.displacement, displacement_by=motion.decided_by,
-                algos=o.parse_algos(algos), options=sizes, migration=migration, seed=seed, min_islands=min_islands,
-                until_stopped=until_stopped, share=share,
+                loops, name=name, algos=search.algo_list(), model=model, seed=search.seed, weights=weights, share=search.share, bounds=bounds,
+                displacement=motion.displacement, fixed=fixed, displacement_by=motion.decided_by, options=sizes, migration=migration,
+                min_islands=min_islands, until_stopped=until_stopped,
             )
         store = Store(path)
         try:

@@ -8,9 +8,10 @@ from typing import Any, Optional
 import typer
 
 from hysid.cli import options as o
+from hysid.cli.groups import LAID_OUT, Reading, grouped
 from hysid.report import jsondoc
 from hysid.report.text import loops_table
-from hysid_model.datasets import load_dataset, write_dataset
+from hysid_model.datasets import write_dataset
 from hysid_model.loops import LoopSet
 from hysid_model.notices import stored
 from hysid_model.plausibility import Clipping
@@ -41,13 +42,11 @@ def register(app: typer.Typer) -> None:
             print(f"wrote {loops.n_loops} loops to {out_dir / 'loops.csv'}")
 
     @app.command("loops")
+    @grouped
     def loops_command(
         dataset: str = o.DATASET,
         as_json: bool = typer.Option(False, "--json", help="Print a JSON list of objects (one per loop) instead of a table."),
-        noise: float = o.NOISE,
-        noise_seed: int = o.NOISE_SEED,
-        points: int | None = o.POINTS,
-        skip_rows: Optional[int] = o.SKIP_ROWS,
+        reading: Reading = LAID_OUT,
         out: Optional[Path] = typer.Option(
             None, "--out", help="Also write the loops (loops.csv: fit, diagnose and campaign read this directory without extracting again), survey.png and loops.json to this new (or empty) directory."
         ),
@@ -56,7 +55,7 @@ def register(app: typer.Typer) -> None:
         dynamic stiffness, equivalent damping, loss factor, energy per cycle, and fn, xi where the mass is known or estimated;
         displacement distortion and clipping, and, without a manifest, the manifest.csv of the frequencies estimated."""
         target = None if out is None else o.report_dir(out, "loops")
-        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
+        loops = reading.load(dataset)
         found = survey(loops)
         rows = [{**row, **extra} for row, extra in zip(loops.rows(), found.rows())]
         if target is not None:

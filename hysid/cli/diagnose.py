@@ -8,29 +8,31 @@ from typing import Optional
 import typer
 
 from hysid.cli import options as o
+from hysid.cli.groups import Reading, grouped, laid_out
 from hysid.diagnosis.scoring import candidate_effects
 from hysid.diagnosis.selection import diagnose
 from hysid.cli.progress import Progress
-from hysid_model.datasets import load_dataset
 
 
 REPORT_WORK = 4.0
 """The report's work in the bar, in fits: its figures took 3.6-4.2 s where a memoryless refit takes about 1 s."""
 
 
+READING = laid_out("points", "skip_rows", "noise", "noise_seed")
+"""The loops' reading options in the order ``diagnose --help`` has always listed them."""
+
+
 def register(app: typer.Typer) -> None:
     """Add ``hysid diagnose`` to the hysid app."""
 
     @app.command("diagnose")
+    @grouped
     def diagnose_command(
         dataset: str = o.DATASET,
         model: str = o.START_MODEL,
         out: Optional[Path] = o.OUT,
         as_json: bool = o.JSON,
-        points: Optional[int] = o.POINTS,
-        skip_rows: Optional[int] = o.SKIP_ROWS,
-        noise: float = o.NOISE,
-        noise_seed: int = o.NOISE_SEED,
+        reading: Reading = READING,
         csv: bool = o.CSV,
         quiet: bool = o.QUIET,
         bound: Optional[list[str]] = o.BOUND,
@@ -41,7 +43,7 @@ def register(app: typer.Typer) -> None:
         """Find which effects of the library (and --candidates of your own) the model misses, step by step, and write a report."""
         bounds, effects = o.parse_bounds(bound), candidate_effects(o.parse_list(candidates))
         target = o.report_dir(out, "diagnose")
-        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
+        loops = reading.load(dataset)
         with Progress("diagnosing", 1, enabled=not (quiet or as_json)) as progress:  # in fits (hysid.diagnosis.tally)
             result = diagnose(
                 loops, model, bounds=bounds, candidates=effects, displacement=displacement, discover=not no_discover,

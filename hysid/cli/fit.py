@@ -9,11 +9,11 @@ import typer
 
 from hysid import thesis_tables as tt
 from hysid.cli import options as o
+from hysid.cli.groups import LAID_OUT, Constraints, Reading, grouped
 from hysid.cli.progress import Progress
 from hysid.fitting import fit
 from hysid.report import jsondoc
 from hysid.reproduce import SETTINGS, parse_seeds, reproduce_thesis
-from hysid_model.datasets import load_dataset
 from island.run import HistoryRow
 
 ROWS_PER_RUN = 18 + 1
@@ -24,6 +24,7 @@ def register(app: typer.Typer) -> None:
     """Add ``fit`` and ``reproduce thesis`` to the hysid app."""
 
     @app.command("fit")
+    @grouped
     def fit_command(
         dataset: str = o.DATASET,
         algo: str = o.ALGO,
@@ -34,20 +35,15 @@ def register(app: typer.Typer) -> None:
         out: Optional[Path] = o.OUT,
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
-        noise: float = o.NOISE,
-        noise_seed: int = o.NOISE_SEED,
-        points: Optional[int] = o.POINTS,
-        skip_rows: Optional[int] = o.SKIP_ROWS,
+        reading: Reading = LAID_OUT,
         csv: bool = o.CSV,
         quiet: bool = o.QUIET,
-        bound: Optional[list[str]] = o.BOUND,
-        fix: Optional[list[str]] = o.FIX,
-        displacement: str = o.DISPLACEMENT,
+        limits: Constraints = LAID_OUT,
     ) -> None:
         """Identify the model's parameters from DATASET in this process (no network)."""
-        bounds, fixed = o.parse_bounds(bound), o.parse_fixed(fix)
+        bounds, fixed, displacement = limits.bounds(), limits.fixed(), limits.displacement
         target = o.report_dir(out, "fit")
-        loops = load_dataset(dataset, noise_pct=noise, noise_seed=noise_seed, n_points=points, skip_rows=skip_rows)
+        loops = reading.load(dataset)
         with Progress("fitting", max(runs, 1) * ROWS_PER_RUN, enabled=not (quiet or as_json)) as progress:
 
             def show(i: int, row: HistoryRow) -> None:

@@ -352,23 +352,23 @@ class BoucWenSampler:
     def _add_one(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
         z_max, run, a, b, k, mean = self._orbit(v)
         if shift is None:
-            self.kernels.bouc_wen_samples(z_max, run, self.which, a, b, k, mean, *self._samples(), out)
+            self.kernels.bouc_wen_samples((z_max, run, self.which, a, b, k, mean), *self._samples(), out)
             return
         self.kernels.bouc_wen_shifted(
-            z_max, run, self.which, a, b, k, mean, np.ascontiguousarray(shift, dtype=float), *self._motion_tables(), self.x_min, self.x_max, out
+            (z_max, run, self.which, a, b, k, mean), np.ascontiguousarray(shift, dtype=float), *self._motion_tables(), self.x_min, self.x_max, out
         )
 
     def _add_any(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
         from hysid_model import bouc_wen_tables
 
-        columns = [np.ascontiguousarray(v[name][:, 0], dtype=float) for name in ("bw_n", "bw_r", "bw_zy", "bw_k")]
+        columns = tuple(np.ascontiguousarray(v[name][:, 0], dtype=float) for name in ("bw_n", "bw_r", "bw_zy", "bw_k"))
         if self.mean_nodes is None:
             mean = (np.zeros((self.which.size, 0)), np.zeros(self.which.size, dtype=np.int64))
         else:
             mean = self.mean_nodes
         if shift is None:
-            bouc_wen_tables.bouc_wen_samples(*columns, self.spans, self.which, *self._samples(), *mean, out)
+            bouc_wen_tables.bouc_wen_samples(columns, self.spans, self.which, *self._samples(), *mean, out)
             return
         bouc_wen_tables.bouc_wen_shifted(
-            *columns, self.spans, self.which, *mean, np.ascontiguousarray(shift, dtype=float), *self._motion_tables(), self.x_min, self.x_max, out
+            columns, self.spans, self.which, *mean, np.ascontiguousarray(shift, dtype=float), self._motion_tables(), (self.x_min, self.x_max), out
         )
