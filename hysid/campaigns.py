@@ -143,7 +143,7 @@ class CampaignResult:
 
     def summary(self) -> str:
         """The fit summary, why the campaign stopped, its migrations and every island."""
-        return campaign_text.campaign_summary(self)
+        return campaign_text.campaign_summary(self.fit.record(), self.migrations, self.stored, self.islands)
 
     @property
     def interrupted(self) -> bool:
@@ -155,11 +155,14 @@ class CampaignResult:
         leaves the figures out (a campaign stopped by Ctrl-C reports in seconds; ``hysid report DB`` draws them)."""
         db = self.fit.settings.get("db")
         left_out = None if figures else "the campaign was interrupted" + (f" (`hysid report {db}` draws them)" if db and db != ":memory:" else "")
-        return markdown.write_fit_report(self.fit, out_dir, title=f"hysid campaign{' (interrupted)' if self.interrupted else ''}", document=self.to_dict(),
-                                         sections=markdown.campaign_sections(self), figures_left_out=left_out)
+        document, out_dir = self.to_dict(), Path(out_dir)
+        self.fit.report = str(out_dir / markdown.REPORT)
+        return markdown.write_fit_report(self.fit.record(), out_dir, {**document, "report": self.fit.report}, None if left_out else self.fit.curves(),
+                                         title=f"hysid campaign{' (interrupted)' if self.interrupted else ''}",
+                                         sections=markdown.campaign_sections(self.migrations, self.fit.settings, self.islands), figures_left_out=left_out)
 
     def _repr_markdown_(self) -> str:
-        return markdown.fit_overview(self.fit)
+        return markdown.fit_overview(self.fit.record())
 
     def __repr__(self) -> str:
         return (f"<CampaignResult {self.fit.settings.get('campaign')!r}, {self.fit.model.spec} on {self.fit.loops.name}: "

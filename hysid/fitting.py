@@ -32,7 +32,7 @@ from hysid.adequacy import Adequacy, model_adequacy
 from hysid.identifiability import Identifiability, assess, one_amplitude
 from hysid.motion import MotionChoice, choose_motion, refit_under_other_reading
 from hysid.report import markdown, tables, text
-from hysid.report.records import Estimates
+from hysid.report.records import Estimates, FitCurves, FitRecord
 from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
@@ -183,8 +183,16 @@ class FitResult:
     def warnings(self) -> list[dict[str, str]]:
         """Every warning about this result, each ``{"code", "message"}`` (:data:`hysid_model.notices.CODES`): those
         of loading the data (the loop set carries them), those raised while fitting, then the fit's own judgments
-        (:func:`hysid.report.text.fit_warnings`)."""
-        return notices.merged(notices.stored(self.loops.meta), self.raised, text.fit_warnings(self))
+        (:meth:`judgments`)."""
+        return self.warned(self.judgments())
+
+    def judgments(self) -> list[notices.Notice]:
+        """The fit's own warnings: a model that misses the data, parameters on bounds (:func:`hysid.report.text.fit_warnings`)."""
+        return text.fit_warnings(self.loops, self.model, self.theta, self.weights, self.settings, self.adequacy, self.misfit)
+
+    def warned(self, judgments: list[notices.Notice]) -> list[dict[str, str]]:
+        """The warnings of the data, those raised while fitting, then ``judgments``, each ``{"code", "message"}``."""
+        return notices.merged(notices.stored(self.loops.meta), self.raised, judgments)
 
     @property
     def at_bounds(self) -> list[str]:
@@ -200,6 +208,18 @@ class FitResult:
     def estimates(self) -> Estimates:
         """What this fit estimated, as the writers of :mod:`hysid.report` take it."""
         return Estimates(self.model, self.params, self.stderr, self.combinations, self.effective, self.at_bounds, self.amplitudes, self.half_power)
+
+    def record(self) -> FitRecord:
+        """What this fit's writers read (summary, report, notebook view)."""
+        judged = self.judgments()
+        return FitRecord(self.loops, self.estimates(), self.theta, self.weights, self.runs, self.best, self.evaluations, self.settings,
+                         self.quality, self.adequacy, self.displacement_model, self.not_identifiable, self.stderr_method,
+                         self.identifiability.correlation, judged, self.warned(judged), self.raised, self.report)
+
+    def curves(self) -> FitCurves:
+        """What this fit's figures draw: the model's force at every sample and the force it fits."""
+        objective = self.objective()
+        return FitCurves(objective.predict(self.theta)[0], objective.y)
 
     def objective(self) -> Objective:
         """A fresh objective of this fit (same loops, model and weights)."""
@@ -261,14 +281,16 @@ class FitResult:
 
     def summary(self) -> str:
         """What a user reads after a fit (like lmfit's ``fit_report()``): data, model, parameters, amplitudes."""
-        return text.fit_summary(self)
+        return text.fit_summary(self.record())
 
     def write_report(self, out_dir: str | Path) -> Path:
         """``report.md``, ``result.json`` and the PNG figures in ``out_dir``; returns the report's path."""
-        return markdown.write_fit_report(self, out_dir)
+        out_dir = Path(out_dir)
+        self.report = str(out_dir / markdown.REPORT)
+        return markdown.write_fit_report(self.record(), out_dir, self.to_dict(), self.curves())
 
     def _repr_markdown_(self) -> str:
-        return markdown.fit_overview(self)
+        return markdown.fit_overview(self.record())
 
     def __repr__(self) -> str:
         shown = [f"{name} {value:.4g}" for name, value in self.params.items()]

@@ -9,11 +9,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hysid.report.records import FitRecord
 from hysid.report.text import fit_summary, text_table
 
 if TYPE_CHECKING:
     from coordinator.progress import CampaignProgress
-    from hysid.campaigns import CampaignResult
     from hysid.watch import CampaignSnapshot
 
 
@@ -41,18 +41,17 @@ def island_label(name: str, algos: Sequence[str]) -> str:
     return f"{name} ({' -> '.join(algos)})" if algos else name
 
 
-def campaign_summary(result: "CampaignResult") -> str:
-    """The fit summary of a campaign, then why it stopped, its migrations and every island."""
-    fit = result.fit
-    m = result.migrations
+def campaign_summary(fit: FitRecord, m: dict[str, Any], stored: dict[str, Any], islands: list[dict[str, Any]]) -> str:
+    """The fit summary of a campaign (its ``fit``), then why it stopped, its migrations ``m``, what its database
+    ``stored`` and every island."""
     lines = [
         fit_summary(fit, "hysid campaign"),
         f"campaign {fit.settings['campaign']!r}: stopped because {fit.settings['stop_reason']}",
         f"migrations: {migrations_text(m)}",
-        stored_line(result.stored),
+        stored_line(stored),
     ]
-    lines += share_lines(fit.settings, result.islands)
-    for isl in result.islands:
+    lines += share_lines(fit.settings, islands)
+    for isl in islands:
         lines.append(
             f"  {isl['island']:<12} {algorithms_text(isl):<10} seed {isl['seed']:<4} {isl['status']:<7} best {isl['best_fitness']:.4g} "
             f"after {isl['iterations']} iterations, {isl['evaluations']:,} evaluations" + (f", {isl['thinned']:,} rows thinned" if isl["thinned"] else "")

@@ -10,23 +10,22 @@ from __future__ import annotations
 import datetime as dt
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from hysid.report import jsondoc
 from hysid.report.amplitudes import combination_rows, effective_rows
 from hysid.report.campaign_text import algorithms_text, migrations_text, share_lines
+from hysid.report.records import FitCurves, FitRecord
 from hysid.report.text import fixed_text, loops_description, quality_text
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
 from hysid_model.survey import survey
 from hysid_model.model_names import named
 
-if TYPE_CHECKING:
-    from hysid.campaigns import CampaignResult
-    from hysid.fitting import FitResult
-
+REPORT = "report.md"
+"""The name of a fit's (and a campaign's) report in its directory."""
 MODEL_CURVE_POINTS = 1500
 MARKDOWN_POINTS = 60
 """Amplitude-frequency points a report lists one by one (beyond, each amplitude's range)."""
@@ -64,41 +63,40 @@ def image(path: Path, out_dir: Path, caption: str) -> str:
     return f"![{caption}]({path.relative_to(out_dir).as_posix()})\n\n*{caption}*"
 
 
-def model_curves(result: "FitResult") -> list[tuple[np.ndarray, np.ndarray]]:
+def model_curves(result: FitRecord) -> list[tuple[np.ndarray, np.ndarray]]:
     """The fitted model's compliance at each amplitude level over the measured band."""
     loops = result.loops
     levels, _ = amplitude_levels(loops.x0)
     f = np.linspace(loops.freq_hz.min(), loops.freq_hz.max(), MODEL_CURVE_POINTS)
-    return [(f, model_compliance(result.model, result.theta, level, f)) for level in levels]
+    return [(f, model_compliance(result.estimates.model, result.theta, level, f)) for level in levels]
 
 
-def write_figures(result: "FitResult", out_dir: Path) -> dict[str, Path]:
+def write_figures(result: FitRecord, curves: FitCurves, out_dir: Path) -> dict[str, Path]:
     from hysid.report import figures  # matplotlib loads only when a report is drawn (fast CLI start for islands)
 
     loops = result.loops
-    obj = result.objective()
-    predicted = obj.predict(result.theta)[0]
+    predicted = curves.predicted
     algos = sorted({r.algo for r in result.runs})
     panels = [(a.upper() if len(algos) > 1 else "", [r for r in result.runs if r.algo == a]) for a in algos]
     from hysid.report.effective_figure import effective_figure
 
     return {
-        "effective": effective_figure(out_dir / "effective.png", loops, survey(loops, result.model.fixed.get("meq")), result.effective),
+        "effective": effective_figure(out_dir / "effective.png", loops, survey(loops, result.estimates.model.fixed.get("meq")), result.estimates.effective),
         "convergence": figures.convergence_figure(out_dir / "convergence.png", panels, FITNESS_LABEL[result.weights]),
         "loops": figures.loops_figure(out_dir / "loops.png", loops, predicted),
-        "residuals": figures.residuals_figure(out_dir / "residuals.png", loops, predicted - obj.y, np.abs(first_harmonic(loops))),
+        "residuals": figures.residuals_figure(out_dir / "residuals.png", loops, predicted - curves.measured, np.abs(first_harmonic(loops))),
         "half_power": figures.half_power_figure(
             out_dir / "half_power.png",
             loops,
             compliance(loops),
-            result.half_power,
-            [a.values["xi"] for a in result.amplitudes],
+            result.estimates.half_power,
+            [a.values["xi"] for a in result.estimates.levels],
             model_curves(result),
         ),
     }
 
 
-def summary_lines(result: "FitResult") -> list[str]:
+def summary_lines(result: FitRecord) -> list[str]:
     s = result.settings
     runs = result.runs
     best = runs[result.best]
@@ -106,7 +104,7 @@ def summary_lines(result: "FitResult") -> list[str]:
     polish = "then a least-squares polish" if s.get("polish") else "no polish"
     lines = [
         f"- **Data**: `{result.loops.name}`: {loops_description(result)}.",
-        f"- **Model**: {named(result.model)}, parameters {', '.join(result.model.names)}{fixed_text(result.model.fixed)}.",
+        f"- **Model**: {named(result.estimates.model)}, parameters {', '.join(result.estimates.model.names)}{fixed_text(result.estimates.model.fixed)}.",
         f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; "
         f"{result.weights} loop weights.",
         f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
@@ -122,17 +120,17 @@ def summary_lines(result: "FitResult") -> list[str]:
     return lines
 
 
-def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+def parameter_rows(result: FitRecord) -> tuple[list[str], list[list[str]]]:
     true = result.loops.meta.get("true_params") or {}
     headers = ["parameter", "value", "std. error", "unit", "bounds"]
     if true:
         headers += ["true", "error / std. error"]
     rows = []
-    se = result.stderr
-    defaults = {q.name: (q.lower, q.upper) for t in result.model.terms for q in t.params}
+    se = result.estimates.stderr
+    defaults = {q.name: (q.lower, q.upper) for t in result.estimates.model.terms for q in t.params}
     widened = {w["param"] for w in result.settings.get("bounds_widened", [])}
-    for p in result.model.parameters:
-        value = result.params[p.name]
+    for p in result.estimates.model.parameters:
+        value = result.estimates.params[p.name]
         error = "not identifiable" if p.name in result.not_identifiable else num(se[p.name], 3)
         where = ("widened" if p.name in widened else "default" if (p.lower, p.upper) == defaults[p.name] else "from the data") if p.soft else "given"
         row = [f"`{p.name}`", num(value, 7), error, p.unit, f"[{p.lower:g}, {p.upper:g}] ({where})"]
@@ -141,30 +139,30 @@ def parameter_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
             ratio = abs(value - t) / se[p.name] if t is not None and se[p.name] > 0 else float("nan")
             row += [num(t, 7), num(ratio, 3)]
         rows.append(row)
-    return headers, rows + combination_rows(result.combinations, len(headers))
+    return headers, rows + combination_rows(result.estimates.combinations, len(headers))
 
 
-def correlation_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+def correlation_rows(result: FitRecord) -> tuple[list[str], list[list[str]]]:
     """The parameter correlation matrix (as lmfit's fit report); blank for parameters not identifiable."""
-    names = result.model.names
-    matrix = result.identifiability.correlation
+    names = result.estimates.model.names
+    matrix = result.correlation
     rows = [[f"`{a}`"] + ["" if not np.isfinite(matrix[i, j]) else f"{matrix[i, j]:+.3f}" for j in range(len(names))] for i, a in enumerate(names)]
     return [""] + [f"`{n}`" for n in names], rows
 
 
-def amplitude_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+def amplitude_rows(result: FitRecord) -> tuple[list[str], list[list[str]]]:
     columns = ("fn_hz", "xi", "k", "c", "m")
     headers = ["X0 (mm)"] + [q if DERIVED_UNITS[q] == "1" else f"{q.split('_')[0]} ({DERIVED_UNITS[q]})" for q in columns]
     rows = []
-    for a in result.amplitudes:
+    for a in result.estimates.levels:
         rows.append([num(a.x0 * 1e3, 4)] + [with_error(a.values[q], a.stderr[q]) for q in columns])
     return headers, rows
 
 
-def half_power_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
+def half_power_rows(result: FitRecord) -> tuple[list[str], list[list[str]]]:
     headers = ["X0 (mm)", "loops", "peak (Hz)", "f1 (Hz)", "f2 (Hz)", "xi half-power", "resolution", "xi fit", "difference"]
     rows = []
-    for hp, a in zip(result.half_power, result.amplitudes):
+    for hp, a in zip(result.estimates.half_power, result.estimates.levels):
         xi_fit = a.values["xi"]
         if hp.ok:
             rows.append([
@@ -176,8 +174,8 @@ def half_power_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
     return headers, rows
 
 
-def run_rows(result: "FitResult") -> tuple[list[str], list[list[str]]]:
-    headers = ["run", "algorithm", "seed", "search fitness", "final fitness", "evaluations", "wall (s)"] + [f"`{n}`" for n in result.model.names]
+def run_rows(result: FitRecord) -> tuple[list[str], list[list[str]]]:
+    headers = ["run", "algorithm", "seed", "search fitness", "final fitness", "evaluations", "wall (s)"] + [f"`{n}`" for n in result.estimates.model.names]
     rows = []
     for i, r in enumerate(result.runs):
         label = f"**{r.label}** (best)" if i == result.best else r.label
@@ -195,12 +193,12 @@ def warnings_section(found: Sequence[dict[str, str]]) -> list[str]:
     return ["## Warnings", "\n".join(f"- **`{w['code']}`**: {w['message']}" for w in found)]
 
 
-def fit_overview(result: "FitResult") -> str:
+def fit_overview(result: FitRecord) -> str:
     """The summary, the warnings and the parameter and amplitude tables, as Markdown (a notebook's view of a result)."""
     p_head, p_rows = parameter_rows(result)
     a_head, a_rows = amplitude_rows(result)
     parts = ["\n".join(summary_lines(result)), *warnings_section(result.warnings), table(p_head, p_rows)]
-    return "\n\n".join(parts + [table(a_head, a_rows), table(*effective_rows(result.effective))])
+    return "\n\n".join(parts + [table(a_head, a_rows), table(*effective_rows(result.estimates.effective))])
 
 
 def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
@@ -213,35 +211,31 @@ def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list
     return headers, rows
 
 
-def campaign_sections(result: "CampaignResult") -> list[str]:
-    """The campaign's own part of its report (why it stopped is in the summary above): its migrations, the
-    reasons of the messages rejected, the share's moves and every island."""
-    m = result.migrations
+def campaign_sections(m: dict[str, Any], settings: dict[str, Any], islands: list[dict[str, Any]]) -> list[str]:
+    """The campaign's own part of its report (why it stopped is in the summary above): its migrations ``m``, the
+    reasons of the messages rejected, the share's moves (its fit's ``settings``) and every island."""
     reasons = ", ".join(f"{k}: {v:,}" for k, v in sorted((m.get("rejected_reasons") or {}).items()))
-    moves = [line.strip() for line in share_lines(result.fit.settings, result.islands)]
-    i_head, i_rows = island_rows(result.islands)
+    moves = [line.strip() for line in share_lines(settings, islands)]
+    i_head, i_rows = island_rows(islands)
     return (["## Islands and migrations", f"Migrations: {migrations_text(m)}" + (f" ({reasons})" if reasons else "") + "."]
             + (["\n".join(f"- {line}" for line in moves)] if moves else []) + [table(i_head, i_rows)])
 
 
-def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "hysid fit", document: dict[str, Any] | None = None,
+def write_fit_report(result: FitRecord, out_dir: Path, document: dict[str, Any], curves: FitCurves | None, *, title: str = "hysid fit",
                      sections: Sequence[str] = (), figures_left_out: str | None = None) -> Path:
-    """Write ``report.md``, ``result.json`` and the PNG figures into ``out_dir``; returns the report path.
+    """Write ``report.md`` (``out_dir / REPORT``, which ``result.report`` names), ``result.json`` (``document``: the
+    fit's, or a campaign's, which holds it) and the PNG figures (of ``curves``) into ``out_dir``; returns the report path.
 
-    Sets ``result.report`` so that the JSON names the report; ``document`` is
-    the JSON to write instead of the fit's own (a campaign's, which holds it),
-    ``sections`` Markdown parts after the runs (a campaign's islands and migrations);
+    ``sections`` are Markdown parts after the runs (a campaign's islands and migrations);
     ``figures_left_out``: why the figures are not drawn (said where each would be), None to draw them.
     """
-    out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    figs = write_figures(result, out_dir) if figures_left_out is None else {}
+    figs = write_figures(result, curves, out_dir) if figures_left_out is None and curves is not None else {}
 
     def picture(name: str, caption: str) -> str:
         return image(figs[name], out_dir, caption) if figs else f"*{caption}: not drawn, {figures_left_out}.*"
-    report = out_dir / "report.md"
-    result.report = str(report)
-    jsondoc.write(out_dir / "result.json", result.to_dict() if document is None else {**document, "report": str(report)})
+    report = out_dir / REPORT
+    jsondoc.write(out_dir / "result.json", document)
 
     p_head, p_rows = parameter_rows(result)
     a_head, a_rows = amplitude_rows(result)
@@ -278,7 +272,7 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         "k_eff = (F+ - F-) / (2 X0) from the forces at the peak displacements, and xi_eq = E_d / (4 pi E_s) with E_d "
         "the energy dissipated per cycle and E_s = k_eff X0^2 / 2 (none where the inertia makes k_eff negative). "
         "Uncertainties are one standard error (delta method through the full covariance); every row is in `amplitudes.csv`.",
-        table(*effective_rows(result.effective, MARKDOWN_POINTS)),
+        table(*effective_rows(result.estimates.effective, MARKDOWN_POINTS)),
         picture("effective", "Effective stiffness and equivalent damping per amplitude against frequency: "
                 "fitted model (one standard error) and each loop's own (the forces at its branches' ends, its area)"),
         "## Half-power cross-check of the damping (Eq. 2.7)",
@@ -288,7 +282,7 @@ def write_fit_report(result: "FitResult", out_dir: Path | str, *, title: str = "
         "guarantees; the estimate interpolates between frequencies and is much closer for a 1-DOF response.",
         table(h_head, h_rows),
         picture("half_power", "Compliance per amplitude: loops (dots) and fitted model (lines)"
-                + ("; (b) the resonance with its peak and -3 dB points" if any(hp.ok for hp in result.half_power) else "")),
+                + ("; (b) the resonance with its peak and -3 dB points" if any(hp.ok for hp in result.estimates.half_power) else "")),
         "## Runs",
         table(r_head, r_rows),
         picture("convergence", "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "

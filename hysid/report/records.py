@@ -9,11 +9,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
+import numpy as np
+
+from hysid.adequacy import Adequacy
 from hysid_model.effective import OperatingPoint
 from hysid_model.frf import HalfPower
 from hysid_model.modal import AmplitudeResult
+from hysid_model.loops import LoopSet
 from hysid_model.model import Model
+from hysid_model.notices import Notice
+from island.run import RunResult
 
 
 @dataclass(frozen=True)
@@ -35,3 +42,42 @@ class Estimates:
     """The oscillator's xi, fn, k, c, m at each amplitude level (Table 5.3; a fit's)."""
     half_power: Sequence[HalfPower] = ()
     """The half-power damping at each amplitude level (Eq. 2.7; a fit's)."""
+
+
+@dataclass(frozen=True)
+class FitRecord:
+    """What a fit's writers read (its summary, Markdown report and notebook view): built by
+    :meth:`hysid.fitting.FitResult.record`, a campaign's by its fit's."""
+
+    loops: LoopSet
+    estimates: Estimates
+    theta: np.ndarray
+    """The best run's parameter vector."""
+    weights: str
+    runs: Sequence[RunResult]
+    best: int
+    """The index of the best run."""
+    evaluations: int
+    settings: dict[str, Any]
+    quality: dict[str, float | None]
+    adequacy: Adequacy | None
+    displacement_model: dict[str, Any] | None
+    not_identifiable: dict[str, str]
+    stderr_method: str
+    correlation: np.ndarray
+    judgments: Sequence[Notice]
+    """The fit's own warnings (:func:`hysid.report.text.fit_warnings`)."""
+    warnings: list[dict[str, str]]
+    """Every warning: those of the data, those raised while fitting, then the judgments."""
+    raised: list[dict[str, str]]
+    """The warnings raised while fitting."""
+    report: str | None
+
+
+@dataclass(frozen=True)
+class FitCurves:
+    """What a fit's figures draw beyond its record: the model's force at every sample of every loop, and the force the
+    objective fits (both ``(loops, 2 x samples)``)."""
+
+    predicted: np.ndarray
+    measured: np.ndarray

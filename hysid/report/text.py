@@ -17,6 +17,7 @@ from hysid.diagnosis.criteria import LINEAR_LOOPS
 from hysid.diagnosis.plausible import mass_note
 from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
 from hysid.report.bounds import bounds_sentence, widened_sentence
+from hysid.report.records import FitRecord
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
@@ -29,8 +30,8 @@ from hysid_model.survey import survey
 from hysid_model.user_terms import made_terms
 
 if TYPE_CHECKING:
-    from hysid.diagnosis.result import Diagnosis
-    from hysid.fitting import FitResult
+    from hysid.adequacy import Adequacy
+    from hysid_model.model import Model
     from hysid_model.survey import Survey
     from hysid_model.terms import Term
 
@@ -88,14 +89,14 @@ def band_text(freq_hz: Sequence[float] | np.ndarray) -> str:
     return f"{low} Hz" if low == high else f"{low}-{high} Hz"
 
 
-def loops_description(result: "FitResult") -> str:
+def loops_description(result: FitRecord) -> str:
     loops = result.loops
     levels, _ = amplitude_levels(loops.x0)
     amps = ", ".join(f"{a * 1e3:.3g}" for a in levels)
     return (
         f"{loops.n_loops} loops at {levels.size} amplitude(s) X0 = {amps} mm, "
         f"{band_text(loops.freq_hz)}, {loops.n_samples} samples per branch; "
-        f"{mass_text(result.model.fixed.get('meq'))}"
+        f"{mass_text(result.estimates.model.fixed.get('meq'))}"
     )
 
 
@@ -109,7 +110,7 @@ STDERR_TRUST = 1.3
 """A residual beyond this many times the noise makes the standard errors too small (a note says by how much)."""
 
 
-def quality_text(result: "FitResult") -> str:
+def quality_text(result: FitRecord) -> str:
     """RMS residual against the force amplitude, next to the known noise level if there is one."""
     q = result.quality
     out = f"RMS residual {q['rms_residual_pct']:.3g} % of each loop's force amplitude |F1|"
@@ -119,45 +120,46 @@ def quality_text(result: "FitResult") -> str:
     return out + ("" if result.loops.kept().all() else "; the four reversal samples of each loop are left out: extraction did not resolve the force there")
 
 
-def fit_warnings(result: "FitResult") -> list[Notice]:
-    """What a reader must know before trusting the numbers: a model that misses the data, parameters on bounds
-    (each with its code, :data:`hysid_model.notices.CODES`; it reads as its message)."""
+def fit_warnings(loops: LoopSet, model: "Model", theta: np.ndarray, weights: str, settings: dict[str, Any],
+                 adequacy: "Adequacy | None", misfit: float | None) -> list[Notice]:
+    """What a reader must know before trusting a fit's numbers (``theta`` of ``model`` on ``loops``): a model that
+    misses the data, parameters on bounds (each with its code, :data:`hysid_model.notices.CODES`; it reads as its
+    message)."""
     out = []
-    if "meq" in result.model.names:
-        found = survey(result.loops)
+    if "meq" in model.names:
+        found = survey(loops)
         if found.meq_kg is None:
             out.append(Notice("mass_unknown",
                 f"note: the equivalent mass is fitted, but the survey cannot estimate it ({found.mass_source.removeprefix('unknown: ')}): "
                 "meq, w0 and xi0 stand for each amplitude's stiffness k and damping c (given below) more than for a resonance"
             ))
-    implausible = mass_note(result.model, result.theta, result.loops)
+    implausible = mass_note(model, theta, loops)
     if implausible:
         out.append(Notice("mass_implausible", f"warning: {implausible}"))
-    misfit = result.misfit
-    adequacy = result.adequacy
     missed = adequacy is not None and not adequacy.adequate
     if adequacy is not None and missed:
         out.append(Notice("misfit", f"warning: {adequacy.words()}; a diagnosis (hysid diagnose, or hysid.diagnose) tells what it is missing"))
-    if misfit is not None and misfit > STDERR_TRUST and result.weights != "ml":  # ML weights' errors are scaled up by it
+    if misfit is not None and misfit > STDERR_TRUST and weights != "ml":  # ML weights' errors are scaled up by it
         out.append(Notice("stderr_understated",
             f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
             f"understate the uncertainty, by a factor of about {misfit:.2g}"
         ))
-    soft = {p.name for p in result.model.parameters if p.soft}
-    searched = result.model.at_bounds(result.theta)
+    soft = {p.name for p in model.parameters if p.soft}
+    searched = model.at_bounds(theta)
     given = [n for n in searched if n not in soft]
     derived = [n for n in searched if n in soft]
-    if result.bound_kinds:
-        out.append(Notice("on_bound", bounds_sentence(result.bound_kinds)))
-    if result.settings.get("bounds_widened"):
-        out.append(Notice("bounds_widened", f"note: {widened_sentence(result.settings['bounds_widened'])}"))
+    kinds = model.bound_kinds(theta)
+    if kinds:
+        out.append(Notice("on_bound", bounds_sentence(kinds)))
+    if settings.get("bounds_widened"):
+        out.append(Notice("bounds_widened", f"note: {widened_sentence(settings['bounds_widened'])}"))
     if given:
         out.append(Notice("on_given_bound",
             f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
             "beyond it and its standard error means little; widen that bound ([bounds] in dataset.toml, bounds=...) if the physics allows"
         ))
     if derived:
-        widened = [w["param"] for w in result.settings.get("bounds_widened", [])]
+        widened = [w["param"] for w in settings.get("bounds_widened", [])]
         times = max(widened.count(n) for n in derived)
         out.append(Notice("on_data_bound",
             f"warning: {', '.join(derived)} ended on a search bound (from the data or its term's default) even after {times} widening(s): "
@@ -176,7 +178,7 @@ def displacement_text(model: dict[str, Any]) -> str:
     return f"displacement model: {model['meaning']} ({model['reason']})"
 
 
-def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
+def fit_summary(result: FitRecord, command: str = "hysid fit") -> str:
     """What a user reads after ``hysid fit`` (or ``command``): what was fitted, how well, and where the report is."""
     s = result.settings
     best = result.runs[result.best]
@@ -186,7 +188,7 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
     wall = s.get("wall_s", sum(r.wall_s for r in result.runs))  # a campaign's islands search side by side
     lines = [
         f"{command} {result.loops.name}: {loops_description(result)}",
-        f"model {named(result.model)} ({', '.join(result.model.names)}{fixed_text(result.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
+        f"model {named(result.estimates.model)} ({', '.join(result.estimates.model.names)}{fixed_text(result.estimates.model.fixed)}); {algo} x {len(result.runs)} {'island' if command == 'hysid campaign' else 'run'}(s){polish}; {result.weights} weights",
         f"best: {best.label} (seed {best.seed}), fitness {best.fitness:.6g} after {result.evaluations:,} evaluations in {wall:.1f} s",
         f"fit quality: {quality_text(result)}",
     ]
@@ -196,20 +198,20 @@ def fit_summary(result: "FitResult", command: str = "hysid fit") -> str:
         lines.append(displacement_text(result.displacement_model))
     lines += told_line(notices.merged(notices.stored(result.loops.meta), result.raised), "result.json")
     lines.append("")
-    se = result.stderr
+    se = result.estimates.stderr
     headers = ["parameter", "value", "std. error", "unit"] + (["true"] if true else [])
     rows = []
-    for p in result.model.parameters:
+    for p in result.estimates.model.parameters:
         error = "not identifiable" if p.name in result.not_identifiable else f"{se[p.name]:.2g}"
-        row = [p.name, f"{result.params[p.name]:.7g}", error, p.unit]
+        row = [p.name, f"{result.estimates.params[p.name]:.7g}", error, p.unit]
         if true:
             row.append(f"{true[p.name]:.7g}" if p.name in true else "")
         rows.append(row)
-    lines += [text_table(headers, rows + combination_rows(result.combinations, len(headers))), f"  (standard errors: {result.stderr_method})"]
+    lines += [text_table(headers, rows + combination_rows(result.estimates.combinations, len(headers))), f"  (standard errors: {result.stderr_method})"]
     lines += [f"  not identifiable: {name} {why}" for name, why in result.not_identifiable.items()]
-    lines += [f"  {warning}" for warning in fit_warnings(result)]
+    lines += [f"  {warning}" for warning in result.judgments]
     lines.append("")
-    lines += [text_table(*modal_rows(result.amplitudes, result.half_power)), "", f"  {EFFECTIVE_TITLE}:", text_table(*effective_rows(result.effective)), ""]
+    lines += [text_table(*modal_rows(result.estimates.levels, result.estimates.half_power)), "", f"  {EFFECTIVE_TITLE}:", text_table(*effective_rows(result.estimates.effective)), ""]
     if result.report:
         lines.append(f"report: {result.report} (figures and result.json alongside)")
     return "\n".join(lines)
