@@ -172,7 +172,7 @@ def test_the_diagnosis_loop_figure_says_which_loops_and_keeps_its_legend_off_the
     loops = hysid.load("synth", noise_pct=5.0, noise_seed=2)
     diagnosis = hysid.diagnose(loops.subset(np.arange(0, loops.n_loops, 4)), "baseline", cross_validate=False)
     with mpl.rc_context(RC):
-        fig = diagnosis_figures.draw_loops(diagnosis)
+        fig = diagnosis_figures.draw_loops(diagnosis.harmonics.loops, diagnosis.curves())
         renderer = drawn(fig)
         shown = [ax for ax in fig.axes if ax.get_visible()]
         assert len(shown) == 6 == len(fig.axes)  # 3 amplitudes x (worst, median frequency): no empty slot

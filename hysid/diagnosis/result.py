@@ -12,7 +12,7 @@ import numpy as np
 
 from hysid.diagnosis.discovery import Proposed
 from hysid.diagnosis.fitting import Fit, make_model
-from hysid.diagnosis.metrics import GapMetrics, References
+from hysid.diagnosis.metrics import GapMetrics, References, loop_whitened_rms
 from hysid.diagnosis.plausible import mass_note
 from hysid.diagnosis.pruning import zero_like
 from hysid.diagnosis.scoring import Candidate
@@ -21,7 +21,7 @@ from hysid.motion import MotionChoice
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid.report.bounds import widenings
-from hysid.report.records import Estimates
+from hysid.report.records import DiagnosisCurves, DiagnosisRecord, Estimates, ProposedForce
 from hysid_model import notices
 from hysid_model.effective import OperatingPoint, effective_table, operating_points
 from hysid_model.frf import amplitude_levels
@@ -178,6 +178,20 @@ class Diagnosis:
         """What the final model estimated, as the writers of :mod:`hysid.report` take it."""
         return Estimates(self.final.model, self.final.params(), self.stderr, self.combinations, self.effective)
 
+    def record(self) -> DiagnosisRecord:
+        """What this diagnosis' writers read beyond its document (:meth:`to_dict`)."""
+        fits = self.fits()
+        h = self.harmonics
+        return DiagnosisRecord(self.estimates(), h.loops, [label for label, _ in fits], [fit.bic for _, fit in fits], self.start.start,
+                               int(h.orders().max()), h.coef.shape[1], self.raised, self.report, [(p.law, p.number) for p in self.proposed])
+
+    def curves(self) -> DiagnosisCurves:
+        """What this diagnosis' figures draw: each loop's whitened RMS and the model's force, of the start and the final model."""
+        h = self.harmonics
+        return DiagnosisCurves(loop_whitened_rms(self.start, h), loop_whitened_rms(self.final, h),
+                               self.start.objective.objective.predict(self.start.theta)[0], self.final.objective.objective.predict(self.final.theta)[0],
+                               [proposed_force(p, h) for p in self.proposed])
+
     def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
         """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""
         return tables.write_tables(self.tables(), out_dir)
@@ -188,17 +202,19 @@ class Diagnosis:
 
     def summary(self) -> str:
         """The gap after each step, the status and what cannot be identified, as text."""
-        return text.diagnosis_summary(self)
+        return text.diagnosis_summary(self.to_dict(), self.record())
 
     def write_report(self, out_dir: str | Path, dataset: str | None = None) -> Path:
         """``diagnosis.md`` with its figures and ``diagnosis.json`` in ``out_dir``; returns the Markdown path.
 
         ``dataset`` is how the reader reloads the data (default: the loop set's name).
         """
-        return diagnosis_report.write_diagnosis_report(self, out_dir, dataset or self.harmonics.loops.name)
+        out_dir = Path(out_dir)
+        self.report = str(out_dir / diagnosis_report.DIAGNOSIS_MD)
+        return diagnosis_report.write_diagnosis_report(self.to_dict(), self.record(), self.curves(), out_dir, dataset or self.harmonics.loops.name)
 
     def _repr_markdown_(self) -> str:
-        return diagnosis_report.overview(self)
+        return diagnosis_report.overview(self.to_dict(), self.record())
 
     def __repr__(self) -> str:
         return f"<Diagnosis of {self.harmonics.loops.name}: {self.start.spec} -> {self.final.spec} in {len(self.steps)} step(s), {self.status}>"
@@ -257,3 +273,12 @@ class Diagnosis:
             "set_aside": self.set_aside,
             "discovery": self.discovery,
         }
+
+
+def proposed_force(proposed: Proposed, harmonics: Harmonics) -> ProposedForce:
+    """A proposed term's force at the loops' samples and what the final model leaves of the measured force without it,
+    as its figure draws them."""
+    x, v, force = proposed.forces(harmonics)
+    fit = proposed.fit
+    left_over = fit.objective.objective.y - (fit.objective.objective.predict(fit.theta)[0] - force)
+    return ProposedForce(proposed.name, proposed.notation, x, v, force, left_over)

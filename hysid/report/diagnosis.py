@@ -8,116 +8,116 @@ residual over frequency x amplitude before and after, and loops.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-import numpy as np
+from typing import Any
 
 from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc, proposed
 from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows
 from hysid.report.bounds import widened_sentence
 from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_section, with_error
+from hysid.report.records import DiagnosisCurves, DiagnosisRecord
 from hysid.report.text import band_text, mass_text, reference_text
 from hysid_model.frf import amplitude_levels
 from hysid_model.survey import survey
 from hysid_model.model import effect_term
-from hysid_model.model_names import named
-
-if TYPE_CHECKING:
-    from hysid.diagnosis.result import Diagnosis
 
 
-def _effect_section(diagnosis: "Diagnosis", i: int) -> list[str]:
-    step = diagnosis.steps[i]
-    term = effect_term(step.effect)
+def _effect_section(step: dict[str, Any], i: int) -> list[str]:
+    """Step ``i`` (its entry of the document's ``steps``): the effect, its parameters and what it changed."""
+    term = effect_term(step["effect"])
     units = {p.name: p.unit for p in term.params}
-    rows = [[name, with_error(value, step.errors[name]), units[name]] for name, value in step.params.items()]
-    freed = [n for n in step.after.freed if n in units]
-    heading = f"### Step {i + 1}: {step.effect}" + (f" ({', '.join(freed)} free)" if freed else "")
+    rows = [[name, with_error(value, step["stderr"][name]), units[name]] for name, value in step["params"].items()]
+    freed = step["freed"]
+    heading = f"### Step {i + 1}: {step['effect']}" + (f" ({', '.join(freed)} free)" if freed else "")
     lines = [heading, "", term.explanation, "", table(["parameter", "value +- std. error", "unit"], rows), ""]
     lines.append(
-        f"Score {num(step.score, 4)} (chi^2 the effect removes to first order); after refitting, the BIC changes by "
-        f"{num(step.after.bic - step.before.bic, 5)} and the whitened RMS falls from {num(step.before.whitened_rms, 4)} "
-        f"to {num(step.after.whitened_rms, 4)}."
+        f"Score {num(step['score'], 4)} (chi^2 the effect removes to first order); after refitting, the BIC changes by "
+        f"{num(step['delta_bic'], 5)} and the whitened RMS falls from {num(step['whitened_rms_before'], 4)} "
+        f"to {num(step['whitened_rms_after'], 4)}."
     )
-    if step.joint_with:
-        lines += ["", f"**Named together with {step.joint_with}**: the two, refitted together, fit better than any single "
+    if step["joint_with"]:
+        lines += ["", f"**Named together with {step['joint_with']}**: the two, refitted together, fit better than any single "
                   "effect refitted alone, so they are taken as a pair."]
-    if step.confusable_with:
-        lines += ["", f"**Confusable with** {', '.join(step.confusable_with)}: on this data set they fit within "
+    if step["confusable_with"]:
+        lines += ["", f"**Confusable with** {', '.join(step['confusable_with'])}: on this data set they fit within "
                   f"{BIC_MARGIN:g} BIC of it, so the data cannot tell them apart (e.g. too narrow a band of frequencies or amplitudes)."]
-    if step.rejected:
-        lines += ["", "Other contenders this step: " + "; ".join(f"{e} ({why})" for e, why in step.rejected.items()) + "."]
+    if step["rejected"]:
+        lines += ["", "Other contenders this step: " + "; ".join(f"{e} ({why})" for e, why in step["rejected"].items()) + "."]
     return lines + [""]
 
 
-def _summary(diagnosis: "Diagnosis") -> str:
-    effects = [s.effect + (f" (confusable with {', '.join(s.confusable_with)})" if s.confusable_with else "") for s in diagnosis.steps]
+def _summary(doc: dict[str, Any]) -> str:
+    effects = [s["effect"] + (f" (confusable with {', '.join(s['confusable_with'])})" if s["confusable_with"] else "") for s in doc["steps"]]
     found = "The start model misses: " + ", ".join(effects) + "." if effects else "No library effect is missing from the start model."
-    if diagnosis.proposed:
+    if doc["proposed"]:
         found = (("The start model misses: " + ", ".join(effects) + ", and a force" if effects else "No library effect is named; the start "
                   "model misses a force") + " proposed from the data, not a library effect: "
-                 + "; ".join(f"{p.name}, F = {p.notation}" for p in diagnosis.proposed) + ".")
-    if diagnosis.status == "adequate":
-        return f"{found} The final model {named(diagnosis.final.model)} leaves only noise (whitened RMS {num(diagnosis.final.whitened_rms, 3)})."
+                 + "; ".join(f"{p['name']}, F = {p['notation']}" for p in doc["proposed"]) + ".")
+    if doc["status"] == "adequate":
+        return f"{found} The final model {doc['final_model_name']} leaves only noise (whitened RMS {num(doc['whitened_rms'], 3)})."
     return (
-        f"{found} What the final model {named(diagnosis.final.model)} leaves is still not noise (whitened RMS "
-        f"{num(diagnosis.final.whitened_rms, 3)}), and no effect of the library explains it: "
-        f"{diagnosis.unexplained['description']}."
+        f"{found} What the final model {doc['final_model_name']} leaves is still not noise (whitened RMS "
+        f"{num(doc['whitened_rms'], 3)}), and no effect of the library explains it: "
+        f"{doc['unexplained_signature']['description']}."
     )
 
 
-def gap_rows(diagnosis: "Diagnosis") -> list[list[str]]:
-    fits = diagnosis.fits()
+def gap_rows(doc: dict[str, Any], record: DiagnosisRecord) -> list[list[str]]:
+    """One row per fit (the start, each step): the document's gap entries, and the BIC change from the fit before."""
+    bic = record.bic
     return [
-        [label, num(m.whitened_rms, 4), num(m.nrmse_pct, 3), num(m.energy_error_pct, 3), num(m.cv_whitened_rms, 4),
-         "" if i == 0 else num(fits[i][1].bic - fits[i - 1][1].bic, 5)]
-        for i, ((label, _), m) in enumerate(zip(fits, diagnosis.gap))
+        [label, num(m["whitened_rms"], 4), num(m["loop_nrmse_pct"], 3), num(m["energy_error_pct"], 3), num(m["cv_whitened_rms"], 4),
+         "" if i == 0 else num(bic[i] - bic[i - 1], 5)]
+        for i, (label, m) in enumerate(zip(record.labels, doc["gap"]))
     ]
 
 
 GAP_HEADERS = ["model", "whitened RMS", "loop NRMSE %", "energy/cycle error %", "LOFO-CV RMS", "delta BIC"]
 
 
-def overview(diagnosis: "Diagnosis") -> str:
+def overview(doc: dict[str, Any], record: DiagnosisRecord) -> str:
     """The status, the warnings and the gap table, as Markdown (a notebook's view of a diagnosis)."""
-    return "\n\n".join([f"**Status: {diagnosis.status}.** {_summary(diagnosis)}", *warnings_section(diagnosis.warnings),
-                        table(GAP_HEADERS, gap_rows(diagnosis))])
+    return "\n\n".join([f"**Status: {doc['status']}.** {_summary(doc)}", *warnings_section(doc["warnings"]),
+                        table(GAP_HEADERS, gap_rows(doc, record))])
 
 
-def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset: str) -> Path:
-    """Write ``diagnosis.md``, its figures and ``diagnosis.json`` into ``out_dir``; returns the Markdown path."""
+DIAGNOSIS_MD = "diagnosis.md"
+"""The name of a diagnosis' report in its directory."""
+
+
+def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves: DiagnosisCurves, out_dir: Path, dataset: str) -> Path:
+    """Write ``diagnosis.md`` (``out_dir / DIAGNOSIS_MD``, which ``record.report`` names), its figures (of ``curves``)
+    and ``diagnosis.json`` (``doc``) into ``out_dir``; returns the Markdown path."""
     from hysid.report import diagnosis_figures as figures  # matplotlib loads only when a report is drawn
     from hysid.report.effective_figure import effective_figure
 
-    out = Path(out_dir)
+    out = out_dir
     out.mkdir(parents=True, exist_ok=True)
-    path = out / "diagnosis.md"
-    diagnosis.report = str(path)
-    fits = diagnosis.fits()
-    gap = figures.gap_figure(out / "gap.png", [label for label, _ in fits], diagnosis.gap)
-    maps = figures.residual_map_figure(out / "residual_map.png", diagnosis)
-    loops = figures.loops_figure(out / "loops.png", diagnosis)
-    h = diagnosis.harmonics
-    levels, _ = amplitude_levels(h.loops.x0)
-    mass = mass_text(diagnosis.final.model.fixed.get("meq"))
-    sigma = "known per loop" if np.all(h.sigma_known) else "estimated from the data (second differences along each branch)"
+    path = out / DIAGNOSIS_MD
+    gap = figures.gap_figure(out / "gap.png", record.labels, doc["gap"])
+    maps = figures.residual_map_figure(out / "residual_map.png", record.loops, curves, doc["start_model"], doc["final_model"])
+    loops = figures.loops_figure(out / "loops.png", record.loops, curves)
+    measured = record.loops
+    levels, _ = amplitude_levels(measured.x0)
+    mass = mass_text(doc["final_fixed"].get("meq"))
+    sigma = "known per loop" if doc["noise_sigma"] == "known" else "estimated from the data (second differences along each branch)"
+    motion = doc["displacement_model"]
     lines = [
-        f"# hysid diagnose: {h.loops.name}",
+        f"# hysid diagnose: {measured.name}",
         "",
-        f"{h.loops.n_loops} loops at {levels.size} amplitude(s) ({', '.join(f'{a * 1e3:.3g}' for a in levels)} mm), "
-        f"{band_text(h.loops.freq_hz)}, {h.loops.n_samples} samples per branch; {mass}; "
-        f"force noise {sigma}. Each loop is reduced to its harmonics of orders 0-{int(h.orders().max())} "
-        f"({h.coef.shape[1]} coefficients, in phase and in quadrature with the measured displacement).",
+        f"{measured.n_loops} loops at {levels.size} amplitude(s) ({', '.join(f'{a * 1e3:.3g}' for a in levels)} mm), "
+        f"{band_text(measured.freq_hz)}, {measured.n_samples} samples per branch; {mass}; "
+        f"force noise {sigma}. Each loop is reduced to its harmonics of orders 0-{record.orders} "
+        f"({record.coefficients} coefficients, in phase and in quadrature with the measured displacement).",
         "",
-        *([f"**Displacement model**: {diagnosis.motion.as_dict()['meaning']} ({diagnosis.motion.reason}).", ""]
-          if diagnosis.motion is not None and diagnosis.motion.decided_by != "none" else []),
-        f"**Status: {diagnosis.status}.** {_summary(diagnosis)}",
+        *([f"**Displacement model**: {motion['meaning']} ({motion['reason']}).", ""]
+          if motion is not None and motion["decided_by"] != "none" else []),
+        f"**Status: {doc['status']}.** {_summary(doc)}",
         "",
-        *[part + "\n" for part in warnings_section(diagnosis.warnings)],
+        *[part + "\n" for part in warnings_section(doc["warnings"])],
         "## The gap, step by step",
         "",
-        table(GAP_HEADERS, gap_rows(diagnosis)),
+        table(GAP_HEADERS, gap_rows(doc, record)),
         "",
         "Whitened RMS: sqrt(chi^2/dof) on the harmonic coefficients, 1 = noise floor. Loop NRMSE: RMS force error over "
         "peak-to-peak force, mean over loops. Energy: relative RMS error of the loop area pi X0 c1. LOFO-CV: whitened "
@@ -128,42 +128,42 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         "## Effects named",
         "",
     ]
-    for i in range(len(diagnosis.steps)):
-        lines += _effect_section(diagnosis, i)
-    if not diagnosis.steps:
+    for i, step in enumerate(doc["steps"]):
+        lines += _effect_section(step, i)
+    if not doc["steps"]:
         lines += ["None.", ""]
-    drawn = [figures.proposed_force_figure(out / f"proposed_{p.name}.png", p, diagnosis) for p in diagnosis.proposed]
-    lines += proposed.section(diagnosis, out, drawn)
+    drawn = [figures.proposed_force_figure(out / f"proposed_{p.name}.png", record.loops, p) for p in curves.proposed]
+    lines += proposed.section(doc, record, out, drawn)
     lines += ["## What is left", ""]
-    if diagnosis.status == "adequate":
+    if doc["status"] == "adequate":
         lines.append("The residual is consistent with the noise: its chi^2 and the chi^2 of every harmonic coefficient are within their noise range.")
     else:
-        lines.append(f"**Unexplained**: {diagnosis.unexplained['description']}. "
-                     + ("No effect of the library accounts for it; it is not named." if not diagnosis.proposed else "Nothing else accounts for it."))
-        lines += ["", f"Against references that need no physical model, {reference_text(diagnosis.to_dict())}."]
-    if diagnosis.rejected:
-        lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in diagnosis.rejected.items()) + "."]
-    for effect, why in diagnosis.impossible.items():
+        lines.append(f"**Unexplained**: {doc['unexplained_signature']['description']}. "
+                     + ("No effect of the library accounts for it; it is not named." if not doc["proposed"] else "Nothing else accounts for it."))
+        lines += ["", f"Against references that need no physical model, {reference_text(doc)}."]
+    if doc["rejected"]:
+        lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in doc["rejected"].items()) + "."]
+    for effect, why in doc["impossible"].items():
         lines += ["", f"**{effect} is impossible here**: {why}."]
-    for term, why in diagnosis.pruned.items():
+    for term, why in doc["pruned"].items():
         lines += ["", f"**{term} dropped from the final model**: {why}."]
-    if diagnosis.at_bounds:
-        lines += ["", "**On a bound**: " + "; ".join(f"`{n}` on its {kind}" for n, kind in diagnosis.at_bounds.items()) + "."]
-    for note in diagnosis.notes + ([widened_sentence(diagnosis.bounds_widened)] if diagnosis.bounds_widened else []):
+    if doc["at_bounds_kind"]:
+        lines += ["", "**On a bound**: " + "; ".join(f"`{n}` on its {kind}" for n, kind in doc["at_bounds_kind"].items()) + "."]
+    for note in doc["notes"] + ([widened_sentence(doc["bounds_widened"])] if doc["bounds_widened"] else []):
         lines += ["", f"**Note**: {note}."]
-    for effect, why in diagnosis.effects_not_identifiable().items():
-        lines += ["", f"**{effect} cannot be identified with this setup**: {why}."]
-    for name, why in diagnosis.identifiability.not_identifiable.items():
-        lines += ["", f"**`{name}` of the final model is not identifiable** (no standard error): it {why}."]
-    names = diagnosis.final.model.names
-    corr = diagnosis.identifiability.correlation
+    reasons = doc["not_identifiable_reasons"]  # the effects the data cannot identify, then the final model's parameters
+    for effect in (name for name in reasons if name not in doc["final_params"]):
+        lines += ["", f"**{effect} cannot be identified with this setup**: {reasons[effect]}."]
+    for name in (name for name in reasons if name in doc["final_params"]):
+        lines += ["", f"**`{name}` of the final model is not identifiable** (no standard error): it {reasons[name]}."]
+    corr = doc["correlation"]
     lines += ["", "Correlation between the final model's parameters:", "",
-              table([""] + [f"`{n}`" for n in names],
-                    [[f"`{a}`"] + ["" if not np.isfinite(corr[i, j]) else f"{corr[i, j]:+.3f}" for j in range(len(names))] for i, a in enumerate(names)])]
-    effective = effective_figure(out / "effective.png", h.loops, survey(h.loops, diagnosis.final.model.fixed.get("meq")), diagnosis.effective)
+              table([""] + [f"`{n}`" for n in corr],
+                    [[f"`{a}`"] + ["" if r is None else f"{r:+.3f}" for r in row.values()] for a, row in corr.items()])]
+    effective = effective_figure(out / "effective.png", measured, survey(measured, doc["final_fixed"].get("meq")), record.estimates.effective)
     lines += ["", "## Effective stiffness and equivalent damping", "",
               f"The final model's {EFFECTIVE_TITLE}; one standard error (delta method through the full covariance); "
-              "every row in `amplitudes.csv`.", "", table(*effective_rows(diagnosis.effective, MARKDOWN_POINTS)), "",
+              "every row in `amplitudes.csv`.", "", table(*effective_rows(record.estimates.effective, MARKDOWN_POINTS)), "",
               image(effective, out, "Effective stiffness and equivalent damping per amplitude against frequency: final model "
                     "(one standard error) and each loop's own (the forces at its branches' ends, its area)")]
     lines += [
@@ -194,9 +194,9 @@ def write_diagnosis_report(diagnosis: "Diagnosis", out_dir: Path | str, dataset:
         "",
         "## Reproduce",
         "",
-        f"    hysid diagnose {dataset} --model {diagnosis.start.start} --out {out}",
+        f"    hysid diagnose {dataset} --model {record.start} --out {out}",
         "",
     ]
     path.write_text("\n".join(lines))
-    jsondoc.write(out / "diagnosis.json", diagnosis.to_dict())
+    jsondoc.write(out / "diagnosis.json", doc)
     return path

@@ -5,35 +5,33 @@ the figure :mod:`hysid.report.diagnosis_figures`')."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any
 
 from hysid.report.markdown import image, table, with_error
+from hysid.report.records import DiagnosisRecord
 from hysid.report.text import KIND, evidence_text, fitted_text
 from hysid_model.discovery.proposal import MODULE, module_source
 
-if TYPE_CHECKING:
-    from hysid.diagnosis.result import Diagnosis
 
-
-def section(diagnosis: Diagnosis, out: Path, figures: list[Path]) -> list[str]:
-    """The report's section on the proposed terms (with their ``figures``, one each, and their module), or on what
-    discovery tried."""
-    if not diagnosis.proposed:
-        if not diagnosis.discovery:
+def section(doc: dict[str, Any], record: DiagnosisRecord, out: Path, figures: list[Path]) -> list[str]:
+    """The report's section on the proposed terms of a diagnosis (its document and record; with their ``figures``, one
+    each, and their module), or on what discovery tried."""
+    if not doc["proposed"]:
+        if not doc["discovery"]:
             return []
         return [
             "## Discovery",
             "",
-            "No force was proposed from the data: " + "; ".join(f"from {base}, {what}" for base, what in diagnosis.discovery.items()) + ".",
+            "No force was proposed from the data: " + "; ".join(f"from {base}, {what}" for base, what in doc["discovery"].items()) + ".",
             "",
         ]
-    module = write_module(diagnosis, out)
+    module = write_module(doc, record, out)
     lines = ["## Proposed from the data", ""]
-    for p, figure in zip(diagnosis.proposed, figures):
-        entry = p.as_dict()
+    for entry, figure in zip(doc["proposed"], figures):
+        name = entry["name"]
         rows = [[f"`{n}`", with_error(v, entry["stderr"][n]), entry["units"][n]] for n, v in entry["params"].items()]
         lines += [
-            f"### {p.name}: {KIND}",
+            f"### {name}: {KIND}",
             "",
             f"F = {entry['notation']}",
             "",
@@ -44,19 +42,19 @@ def section(diagnosis: Diagnosis, out: Path, figures: list[Path]) -> list[str]:
             f"Evidence: {evidence_text(entry)}.",
             "",
             f"Defined in `{module.name}` with `hysid.term`: `PYTHONPATH={out} hysid fit DATA --model {entry['model']}`, "
-            f"or `--candidates {MODULE}:{p.name}` to a diagnosis.",
+            f"or `--candidates {MODULE}:{name}` to a diagnosis.",
             "",
-            image(figure, out, f"The proposed force {p.name} against displacement and velocity (lines) and what the final model leaves without it (points)"),
+            image(figure, out, f"The proposed force {name} against displacement and velocity (lines) and what the final model leaves without it (points)"),
             "",
         ]
-    for effect, why in diagnosis.set_aside.items():
+    for effect, why in doc["set_aside"].items():
         lines += [f"**{effect} set aside**: {why}.", ""]
     return lines
 
 
-def write_module(diagnosis: Diagnosis, out: Path) -> Path:
-    """``proposed.py`` in ``out``: every proposed term of ``diagnosis`` defined with ``hysid.term``."""
-    entries = [(p.law, p.number, fitted_text(p.as_dict())) for p in diagnosis.proposed]
+def write_module(doc: dict[str, Any], record: DiagnosisRecord, out: Path) -> Path:
+    """``proposed.py`` in ``out``: every proposed term of a diagnosis defined with ``hysid.term``."""
+    entries = [(law, number, fitted_text(entry)) for (law, number), entry in zip(record.laws, doc["proposed"])]
     path = out / f"{MODULE}.py"
-    path.write_text(module_source(entries, diagnosis.harmonics.loops.name))
+    path.write_text(module_source(entries, record.loops.name))
     return path

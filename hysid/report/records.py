@@ -8,12 +8,13 @@ result, as pymoo's and lmfit's results hand their reports what they print.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from hysid.adequacy import Adequacy
+from hysid_model.discovery.proposal import Law
 from hysid_model.effective import OperatingPoint
 from hysid_model.frf import HalfPower
 from hysid_model.modal import AmplitudeResult
@@ -81,3 +82,55 @@ class FitCurves:
 
     predicted: np.ndarray
     measured: np.ndarray
+
+
+@dataclass(frozen=True)
+class DiagnosisRecord:
+    """What a diagnosis' writers read beyond its JSON document: built by
+    :meth:`hysid.diagnosis.result.Diagnosis.record`."""
+
+    estimates: Estimates
+    """The final model's."""
+    loops: LoopSet
+    labels: list[str]
+    """What was fitted at the start and after each step (the document's ``gap`` entries, in order)."""
+    bic: list[float]
+    """The BIC of each of those fits."""
+    start: str
+    """The model the diagnosis started from, as the user named it."""
+    orders: int
+    """The highest harmonic order the loops are reduced to."""
+    coefficients: int
+    """The harmonic coefficients per loop."""
+    raised: list[dict[str, str]]
+    """The warnings raised while diagnosing."""
+    report: str | None
+    laws: list[tuple[Law, int]] = field(default_factory=list)
+    """The law and number of each force term proposed from the data (the document's ``proposed`` entries, in order)."""
+
+
+@dataclass(frozen=True)
+class DiagnosisCurves:
+    """What a diagnosis' figures draw beyond its record: each loop's whitened RMS (1 = noise) and the model's force
+    at every sample (``(loops, 2 x samples)``), of the start model and of the final one."""
+
+    start_rms: np.ndarray
+    final_rms: np.ndarray
+    start_force: np.ndarray
+    final_force: np.ndarray
+    proposed: list[ProposedForce] = field(default_factory=list)
+    """Each force term proposed from the data, as its figure draws it."""
+
+
+@dataclass(frozen=True)
+class ProposedForce:
+    """A force term proposed from the data, as its figure draws it: the loops' displacement and velocity at their
+    samples, the term's force there and what the final model leaves of the measured force without it (each
+    ``(loops, 2 x samples)``)."""
+
+    name: str
+    notation: str
+    x: np.ndarray
+    v: np.ndarray
+    force: np.ndarray
+    left_over: np.ndarray

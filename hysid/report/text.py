@@ -17,7 +17,7 @@ from hysid.diagnosis.criteria import LINEAR_LOOPS
 from hysid.diagnosis.plausible import mass_note
 from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
 from hysid.report.bounds import bounds_sentence, widened_sentence
-from hysid.report.records import FitRecord
+from hysid.report.records import DiagnosisRecord, FitRecord
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
@@ -217,14 +217,13 @@ def fit_summary(result: FitRecord, command: str = "hysid fit") -> str:
     return "\n".join(lines)
 
 
-def diagnosis_summary(diagnosis: "Diagnosis") -> str:
-    """The gap after each step, the status, and what cannot be identified."""
-    doc = diagnosis.to_dict()
+def diagnosis_summary(doc: dict[str, Any], record: DiagnosisRecord) -> str:
+    """The gap after each step, the status, and what cannot be identified (a diagnosis' document and record)."""
     lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"
              + (f"; {doc['samples_left_out']}" if doc["samples_left_out"] else "")]
     if doc["displacement_model"] and doc["displacement_model"]["decided_by"] != "none":
         lines.append(displacement_text(doc["displacement_model"]))
-    lines += told_line(notices.merged(notices.stored(diagnosis.harmonics.loops.meta), diagnosis.raised), "diagnosis.json")
+    lines += told_line(notices.merged(notices.stored(record.loops.meta), record.raised), "diagnosis.json")
     gap = doc["gap"]
     labels = []
     for step in doc["steps"]:
@@ -240,7 +239,7 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
         lines.append(f"  - {pruned:<{width}} whitened RMS {gap[len(doc['steps']) + 1]['whitened_rms']:10.4g}")
     for entry, after in zip(doc["proposed"], gap[-len(doc["proposed"]):] if doc["proposed"] else []):
         lines.append(f"  + {'proposed ' + entry['name'] + ' (from the data)':<{width}} whitened RMS {after['whitened_rms']:10.4g}")
-    lines += proposed_lines(doc, diagnosis.report)
+    lines += proposed_lines(doc, record.report)
     if doc["status"] == "adequate":
         lines.append(f"status: adequate, the final model {doc['final_model_name']} leaves only noise")
     else:
@@ -257,9 +256,9 @@ def diagnosis_summary(diagnosis: "Diagnosis") -> str:
     if doc["bounds_widened"]:
         lines.append(f"note: {widened_sentence(doc['bounds_widened'])}")
     lines += [f"note: {note}" for note in doc["notes"]]
-    lines += [f"final model's {EFFECTIVE_TITLE}:", text_table(*effective_rows(diagnosis.effective))]
-    if diagnosis.report:
-        lines.append(f"report: {diagnosis.report}")
+    lines += [f"final model's {EFFECTIVE_TITLE}:", text_table(*effective_rows(record.estimates.effective))]
+    if record.report:
+        lines.append(f"report: {record.report}")
     return "\n".join(lines)
 
 
