@@ -27,6 +27,7 @@ import numpy as np
 from hysid import thesis_tables as tt
 from hysid.fitting import FitResult, fit
 from hysid.report import reproduction
+from hysid.report.records import ReproductionCurves
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.objective import Objective
@@ -152,11 +153,24 @@ class Reproduction:
 
     def summary(self) -> str:
         """Table 5.13 side by side (published, thesis-faithful, hysid defaults), as text."""
-        return reproduction.reproduction_summary(self)
+        return reproduction.reproduction_summary(self.to_dict(), self.labels())
+
+    def labels(self) -> dict[str, str]:
+        """Each setting's words by its key, as the writers show them."""
+        return {s.key: s.label for s in self.settings}
+
+    def curves(self) -> ReproductionCurves:
+        """What the report's figures draw: the thesis-faithful runs of each (algorithm, noise %), and the loops of the
+        first thesis-faithful PSO run at each noise % with its model's force."""
+        runs = {(algo, noise): [r.runs[0] for r in results] for (setting, algo, noise), results in self.results.items() if setting == "thesis"}
+        first = {noise: results[0] for (setting, algo, noise), results in self.results.items() if (setting, algo) == ("thesis", "pso")}
+        return ReproductionCurves(runs, {noise: (r.loops, r.objective().predict(r.theta)[0]) for noise, r in first.items()})
 
     def write_report(self, out_dir: str | Path) -> Path:
         """``report.md``, ``reproduction.json`` and Figs. 5.2-5.13 in ``out_dir``; returns the report's path."""
-        return reproduction.write_reproduction_report(self, out_dir)
+        out_dir = Path(out_dir)
+        self.report = str(out_dir / reproduction.REPORT)
+        return reproduction.write_reproduction_report(self.to_dict(), self.labels(), self.curves(), out_dir)
 
 
 

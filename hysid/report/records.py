@@ -134,3 +134,12 @@ class ProposedForce:
     v: np.ndarray
     force: np.ndarray
     left_over: np.ndarray
+
+
+@dataclass(frozen=True)
+class ReproductionCurves:
+    """What the thesis reproduction's figures draw beyond its document: the thesis-faithful runs of each (algorithm,
+    noise %), and at each noise % the loops of the first thesis-faithful PSO run with its model's force."""
+
+    runs: dict[tuple[str, int], list[RunResult]]
+    loops: dict[int, tuple[LoopSet, np.ndarray]]
