@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from hysid.adequacy import Adequacy, model_adequacy
+from hysid.diagnosis.plausible import mass_note
 from hysid.identifiability import Identifiability, assess, one_amplitude
 from hysid.motion import MotionChoice, choose_motion, refit_under_other_reading
 from hysid.report import markdown, tables, text
@@ -188,7 +189,8 @@ class FitResult:
 
     def judgments(self) -> list[notices.Notice]:
         """The fit's own warnings: a model that misses the data, parameters on bounds (:func:`hysid.report.text.fit_warnings`)."""
-        return text.fit_warnings(self.loops, self.model, self.theta, self.weights, self.settings, self.adequacy, self.misfit)
+        return text.fit_warnings(self.loops, self.model, self.theta, self.weights, self.settings, self.adequacy, self.misfit,
+                                 mass_note(self.model, self.theta, self.loops))
 
     def warned(self, judgments: list[notices.Notice]) -> list[dict[str, str]]:
         """The warnings of the data, those raised while fitting, then ``judgments``, each ``{"code", "message"}``."""

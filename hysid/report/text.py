@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hysid.diagnosis.criteria import LINEAR_LOOPS
-from hysid.diagnosis.plausible import mass_note
 from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
 from hysid.report.bounds import bounds_sentence, widened_sentence
 from hysid.report.records import DiagnosisRecord, FitRecord
@@ -121,10 +120,10 @@ def quality_text(result: FitRecord) -> str:
 
 
 def fit_warnings(loops: LoopSet, model: "Model", theta: np.ndarray, weights: str, settings: dict[str, Any],
-                 adequacy: "Adequacy | None", misfit: float | None) -> list[Notice]:
+                 adequacy: "Adequacy | None", misfit: float | None, implausible: str | None) -> list[Notice]:
     """What a reader must know before trusting a fit's numbers (``theta`` of ``model`` on ``loops``): a model that
-    misses the data, parameters on bounds (each with its code, :data:`hysid_model.notices.CODES`; it reads as its
-    message)."""
+    misses the data, a mass the loops' inertia does not support (``implausible``, :func:`hysid.diagnosis.plausible.mass_note`),
+    parameters on bounds (each with its code, :data:`hysid_model.notices.CODES`; it reads as its message)."""
     out = []
     if "meq" in model.names:
         found = survey(loops)
@@ -133,7 +132,6 @@ def fit_warnings(loops: LoopSet, model: "Model", theta: np.ndarray, weights: str
                 f"note: the equivalent mass is fitted, but the survey cannot estimate it ({found.mass_source.removeprefix('unknown: ')}): "
                 "meq, w0 and xi0 stand for each amplitude's stiffness k and damping c (given below) more than for a resonance"
             ))
-    implausible = mass_note(model, theta, loops)
     if implausible:
         out.append(Notice("mass_implausible", f"warning: {implausible}"))
     missed = adequacy is not None and not adequacy.adequate
