@@ -39,7 +39,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from hysid.diagnosis.criteria import BIC_MARGIN
+from hysid.criteria import BIC_MARGIN
 from hysid.diagnosis.fitting import fit_objective
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hysid.criteria import BIC_MARGIN, MIN_SHARE
 from hysid.diagnosis.acceptance import created_order, degenerate_gives_way, judge
-from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE
 from hysid.diagnosis.fitting import Fit, make_model
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import build_model

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hysid.diagnosis.criteria import BIC_MARGIN
+from hysid.criteria import BIC_MARGIN
 from hysid.motion import decide, distorted, linear_start
 from hysid_model.model import build_model
 from hysid_model.synth import synth_loops

@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.diagnosis.fitting import Fit
 from hysid.diagnosis.metrics import cross_validated_rms, energy_error_pct, nrmse_pct
 from hysid.diagnosis.plausible import implausible_values

@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from hysid.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.acceptance import held_out, judge
-from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.fitting import Fit, fit_objective, make_model
 from hysid.diagnosis.metrics import cross_validated_rms
 from hysid.diagnosis.tally import Tally

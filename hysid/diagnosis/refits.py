@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hysid.diagnosis.criteria import BIC_MARGIN
+from hysid.criteria import BIC_MARGIN
 from hysid.diagnosis.fitting import Fit, fit_objective, make_model
 from hysid.diagnosis.scoring import Candidate
 from hysid_model.harmonics import HarmonicObjective, Harmonics

@@ -47,8 +47,8 @@ from itertools import combinations
 
 import numpy as np
 
+from hysid.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
-from hysid.diagnosis.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.discovery import Proposed, propose
 from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references

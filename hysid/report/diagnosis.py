@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from hysid.diagnosis.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
+from hysid.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc, proposed
 from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows
 from hysid.report.bounds import widened_sentence
@@ -18,8 +18,8 @@ from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_s
 from hysid.report.records import DiagnosisCurves, DiagnosisRecord
 from hysid.report.text import band_text, mass_text, reference_text
 from hysid_model.frf import amplitude_levels
-from hysid_model.survey import survey
 from hysid_model.model import effect_term
+from hysid_model.survey import survey
 
 
 def _effect_section(step: dict[str, Any], i: int) -> list[str]:

@@ -13,18 +13,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hysid.diagnosis.criteria import LINEAR_LOOPS
+from hysid.criteria import LINEAR_LOOPS
 from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
 from hysid.report.bounds import bounds_sentence, widened_sentence
 from hysid.report.records import DiagnosisRecord, FitRecord
+from hysid_model import notices
 from hysid_model.effects import EFFECTS
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
-from hysid_model.presets import PRESET_EXPLANATIONS, PRESETS
-from hysid_model import notices
 from hysid_model.model_names import named
 from hysid_model.notices import Notice
+from hysid_model.presets import PRESET_EXPLANATIONS, PRESETS
 from hysid_model.survey import survey
 from hysid_model.user_terms import made_terms
 

@@ -1,4 +1,5 @@
-"""The thresholds by which a diagnosis accepts an effect (judgment calls, stated in every report)."""
+"""The thresholds by which a diagnosis accepts an effect (judgment calls, stated in every report; the choice of the
+displacement reading, :mod:`hysid.motion`, takes the same BIC margin)."""
 
 SIGNIFICANCE = 1e-3
 """Family-wise level of the score tests in one round."""
