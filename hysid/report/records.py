@@ -17,8 +17,8 @@ from hysid.adequacy import Adequacy
 from hysid_model.discovery.proposal import Law
 from hysid_model.effective import OperatingPoint
 from hysid_model.frf import HalfPower
-from hysid_model.modal import AmplitudeResult
 from hysid_model.loops import LoopSet
+from hysid_model.modal import AmplitudeResult
 from hysid_model.model import Model
 from hysid_model.notices import Notice
 from island.run import RunResult

@@ -28,7 +28,7 @@ def _run_table(doc: dict[str, Any], labels: dict[str, str], algo: str, noise: in
     n_cols = max(len(doc["noise_seeds"]), 4)
     headers = ["parameter", "source", "actual"] + [f"run {i + 1}" for i in range(n_cols)] + ["mean", "sigma", "sigma/mean", "Cramer-Rao"]
     rows = []
-    for i, p in enumerate(PARAMS):
+    for p in PARAMS:
         pub = tt.RUNS[(algo, noise)][p]
         mean, std, rel = tt.SUMMARY[(algo, noise)][p]
         cr = num(doc["cramer_rao"][str(noise)][p], 3) if noise > 0 else "0"
