@@ -13,8 +13,8 @@ import warnings
 import numpy as np
 import pytest
 
-from hysid.diagnosis.acceptance import binding, held_out, judge, visible_error
 from hysid.criteria import BIC_MARGIN
+from hysid.diagnosis.acceptance import binding, held_out, judge, visible_error
 from hysid.diagnosis.fitting import Fit, initial_fit, make_model, profile_errors, soft_bounds
 from hysid.diagnosis.plausible import MAX_DELAY_S, implausible_effect, implausible_values, mass_note
 from hysid.diagnosis.refits import refit
