@@ -132,25 +132,24 @@ class GA(PopulationOptimizer):
         bounds: np.ndarray,
         seed: int,
         *,
+        initial_population: int = 6000,
+        population: int = 500,
         alpha_blx: float = 0.3,
         mutation_rate: float = 0.05,
         mutation_amount: float = 0.3,
         **shared: Unpack[SharedOptions],
     ) -> None:
         super().__init__(bounds, seed, **shared)
+        self.population = check_int(self.name, "population", population, 2, MAX_POPULATION)
+        if self.population % 2:
+            raise HysidInputError("GA population must be even (mu/2 couples)", param="population", value=population)
+        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population, MAX_POPULATION)
         self.alpha_blx = check_float(self.name, "alpha_blx", alpha_blx, 0.0)
         self.mutation_rate = check_float(self.name, "mutation_rate", mutation_rate, 0.0, 1.0)
         self.mutation_amount = check_float(self.name, "mutation_amount", mutation_amount, 0.0)
         self.pop: np.ndarray | None = None
         """Parents ranked best first, ``(mu, D)``; None before the initial population is evaluated."""
         self.fit: np.ndarray | None = None
-
-    def check_population(self, population: int) -> int:
-        """At least 2 and even: the GA mates mu/2 couples."""
-        population = check_int(self.name, "population", population, 2, MAX_POPULATION)
-        if population % 2:
-            raise HysidInputError("GA population must be even (mu/2 couples)", param="population", value=population)
-        return population
 
     def _settings(self) -> dict[str, Any]:
         return self._settings_with({"alpha_blx": self.alpha_blx, "mutation_rate": self.mutation_rate, "mutation_amount": self.mutation_amount})

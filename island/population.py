@@ -104,8 +104,6 @@ class SharedOptions(TypedDict, total=False):
     """The options every population algorithm takes, their defaults in :data:`SHARED_DEFAULTS` and their checks in
     :class:`PopulationOptimizer`: :class:`island.ga.GA` and :class:`island.pso.PSO` pass them on as they are."""
 
-    initial_population: int
-    population: int
     iterations: int
     addpop_amount: float
     addpop_level: int
@@ -113,10 +111,7 @@ class SharedOptions(TypedDict, total=False):
     redraw_limit: int
 
 
-SHARED_DEFAULTS: SharedOptions = {
-    "initial_population": 6000, "population": 500, "iterations": 18, "addpop_amount": 0.2, "addpop_level": 4, "migrant_policy": "replace_worst",
-    "redraw_limit": 100,
-}
+SHARED_DEFAULTS: SharedOptions = {"iterations": 18, "addpop_amount": 0.2, "addpop_level": 4, "migrant_policy": "replace_worst", "redraw_limit": 100}
 """The thesis' values of the shared options (section 5.1)."""
 
 
@@ -125,9 +120,9 @@ class PopulationOptimizer(AskTell):
     the thesis) caps the rounds of "Couldn't calculate" redraws per batch."""
 
     population: int
-    """The population (GA) or swarm (PSO) size (:meth:`check_population`)."""
+    """The population (GA) or swarm (PSO) size: set by the subclass."""
     initial_population: int
-    """Candidates of iteration 0: at least the population."""
+    """Candidates of iteration 0: set by the subclass."""
 
     def __init__(self, bounds: np.ndarray, seed: int, **shared: Unpack[SharedOptions]) -> None:
         unknown = next((name for name in shared if name not in SHARED_DEFAULTS), None)
@@ -141,8 +136,6 @@ class PopulationOptimizer(AskTell):
         self.addpop_level = check_int(self.name, "addpop_level", given["addpop_level"], 0, 1000)
         self.migrant_policy = check_choice(self.name, "migrant_policy", given["migrant_policy"], MIGRANT_POLICIES)
         self.redraw_limit = check_int(self.name, "redraw_limit", given["redraw_limit"], 0, 10_000)
-        self.population = self.check_population(given["population"])
-        self.initial_population = check_int(self.name, "initial_population", given["initial_population"], self.population, MAX_POPULATION)
         self.rng = new_rng(self.seed)
         self.history: list[float] = []
         """Best fitness after each iteration; index 0 = after the initial population (the thesis' ``fhv``)."""
@@ -178,10 +171,6 @@ class PopulationOptimizer(AskTell):
     @abstractmethod
     def _settings(self) -> dict[str, Any]:
         """The constructor's keyword options."""
-
-    def check_population(self, population: int) -> int:
-        """The population size, checked (at least 1; a subclass may ask more)."""
-        return check_int(self.name, "population", population, 1, MAX_POPULATION)
 
     def _settings_with(self, own: dict[str, Any]) -> dict[str, Any]:
         """The keyword options of :meth:`_settings`: the sizes, the algorithm's ``own``, then those every algorithm has."""

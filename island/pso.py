@@ -38,7 +38,7 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 from island.addpop import additional_population
-from island.population import PopulationOptimizer, SharedOptions, array_or_none, check_choice, check_float, load_array
+from island.population import MAX_POPULATION, PopulationOptimizer, SharedOptions, array_or_none, check_choice, check_float, check_int, load_array
 from island.rng import uniform_population
 
 NEIGHBOURHOODS = ("global", "ring")
@@ -71,6 +71,8 @@ class PSO(PopulationOptimizer):
         bounds: np.ndarray,
         seed: int,
         *,
+        initial_population: int = 6000,
+        population: int = 500,
         phi1: float = 2.05,
         phi2: float = 2.05,
         synchronous: bool = False,
@@ -78,6 +80,8 @@ class PSO(PopulationOptimizer):
         **shared: Unpack[SharedOptions],
     ) -> None:
         super().__init__(bounds, seed, **shared)
+        self.population = check_int(self.name, "population", population, 1, MAX_POPULATION)
+        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population, MAX_POPULATION)
         self.phi1 = check_float(self.name, "phi1", phi1, 0.0)
         self.phi2 = check_float(self.name, "phi2", phi2, 0.0)
         self.K = constriction(self.phi1, self.phi2)
