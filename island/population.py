@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from abc import abstractmethod
 from dataclasses import dataclass
-from typing import Any, TypedDict, Unpack
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -101,7 +101,7 @@ class Batch:
 
 
 class SharedOptions(TypedDict, total=False):
-    """The options every population algorithm takes, their defaults in :data:`SHARED_DEFAULTS` and their checks in
+    """The options every population algorithm takes, defaults (the thesis', section 5.1) and checks in
     :class:`PopulationOptimizer`: :class:`island.ga.GA` and :class:`island.pso.PSO` pass them on as they are."""
 
     iterations: int
@@ -109,10 +109,6 @@ class SharedOptions(TypedDict, total=False):
     addpop_level: int
     migrant_policy: str
     redraw_limit: int
-
-
-SHARED_DEFAULTS: SharedOptions = {"iterations": 18, "addpop_amount": 0.2, "addpop_level": 4, "migrant_policy": "replace_worst", "redraw_limit": 100}
-"""The thesis' values of the shared options (section 5.1)."""
 
 
 class PopulationOptimizer(AskTell):
@@ -124,18 +120,24 @@ class PopulationOptimizer(AskTell):
     initial_population: int
     """Candidates of iteration 0: set by the subclass."""
 
-    def __init__(self, bounds: np.ndarray, seed: int, **shared: Unpack[SharedOptions]) -> None:
-        unknown = next((name for name in shared if name not in SHARED_DEFAULTS), None)
-        if unknown is not None:
-            raise TypeError(f"{type(self).__name__}() got an unexpected keyword argument {unknown!r}")
-        given: SharedOptions = {**SHARED_DEFAULTS, **shared}
+    def __init__(
+        self,
+        bounds: np.ndarray,
+        seed: int,
+        *,
+        iterations: int = 18,
+        addpop_amount: float = 0.2,
+        addpop_level: int = 4,
+        migrant_policy: str = "replace_worst",
+        redraw_limit: int = 100,
+    ) -> None:
         self.bounds = check_bounds(bounds)
         self.seed = check_int(self.name, "seed", seed, 0)
-        self.iterations = check_int(self.name, "iterations", given["iterations"], 0, MAX_ITERATIONS)
-        self.addpop_amount = check_float(self.name, "addpop_amount", given["addpop_amount"], 0.0)
-        self.addpop_level = check_int(self.name, "addpop_level", given["addpop_level"], 0, 1000)
-        self.migrant_policy = check_choice(self.name, "migrant_policy", given["migrant_policy"], MIGRANT_POLICIES)
-        self.redraw_limit = check_int(self.name, "redraw_limit", given["redraw_limit"], 0, 10_000)
+        self.iterations = check_int(self.name, "iterations", iterations, 0, MAX_ITERATIONS)
+        self.addpop_amount = check_float(self.name, "addpop_amount", addpop_amount, 0.0)
+        self.addpop_level = check_int(self.name, "addpop_level", addpop_level, 0, 1000)
+        self.migrant_policy = check_choice(self.name, "migrant_policy", migrant_policy, MIGRANT_POLICIES)
+        self.redraw_limit = check_int(self.name, "redraw_limit", redraw_limit, 0, 10_000)
         self.rng = new_rng(self.seed)
         self.history: list[float] = []
         """Best fitness after each iteration; index 0 = after the initial population (the thesis' ``fhv``)."""
