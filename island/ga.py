@@ -28,13 +28,13 @@ program's loops (the random stream differs from MATLAB's).
 
 from __future__ import annotations
 
-from typing import Any, Unpack
+from typing import Any
 
 import numpy as np
 
 from hysid_model.errors import HysidInputError
 from island.addpop import additional_population
-from island.population import MAX_POPULATION, PopulationOptimizer, SharedOptions, array_or_none, check_float, check_int, load_array
+from island.population import MAX_POPULATION, PopulationOptimizer, array_or_none, check_float, check_int, load_array
 from island.rng import uniform_population
 
 __all__ = ["GA", "rank_probabilities", "select_couples", "blx_crossover", "gaussian_mutation", "mutation_count"]
@@ -134,12 +134,24 @@ class GA(PopulationOptimizer):
         *,
         initial_population: int = 6000,
         population: int = 500,
+        iterations: int = 18,
         alpha_blx: float = 0.3,
         mutation_rate: float = 0.05,
         mutation_amount: float = 0.3,
-        **shared: Unpack[SharedOptions],
+        addpop_amount: float = 0.2,
+        addpop_level: int = 4,
+        migrant_policy: str = "replace_worst",
+        redraw_limit: int = 100,
     ) -> None:
-        super().__init__(bounds, seed, **shared)
+        super().__init__(
+            bounds,
+            seed,
+            iterations=iterations,
+            addpop_amount=addpop_amount,
+            addpop_level=addpop_level,
+            migrant_policy=migrant_policy,
+            redraw_limit=redraw_limit,
+        )
         self.population = check_int(self.name, "population", population, 2, MAX_POPULATION)
         if self.population % 2:
             raise HysidInputError("GA population must be even (mu/2 couples)", param="population", value=population)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from abc import abstractmethod
 from dataclasses import dataclass
-from typing import Any, TypedDict
+from typing import Any
 
 import numpy as np
 
@@ -100,17 +100,6 @@ class Batch:
         )
 
 
-class SharedOptions(TypedDict, total=False):
-    """The options every population algorithm takes, defaults (the thesis', section 5.1) and checks in
-    :class:`PopulationOptimizer`: :class:`island.ga.GA` and :class:`island.pso.PSO` pass them on as they are."""
-
-    iterations: int
-    addpop_amount: float
-    addpop_level: int
-    migrant_policy: str
-    redraw_limit: int
-
-
 class PopulationOptimizer(AskTell):
     """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring). ``redraw_limit`` (not in
     the thesis) caps the rounds of "Couldn't calculate" redraws per batch."""
@@ -125,11 +114,11 @@ class PopulationOptimizer(AskTell):
         bounds: np.ndarray,
         seed: int,
         *,
-        iterations: int = 18,
-        addpop_amount: float = 0.2,
-        addpop_level: int = 4,
-        migrant_policy: str = "replace_worst",
-        redraw_limit: int = 100,
+        iterations: int,
+        addpop_amount: float,
+        addpop_level: int,
+        migrant_policy: str,
+        redraw_limit: int,
     ) -> None:
         self.bounds = check_bounds(bounds)
         self.seed = check_int(self.name, "seed", seed, 0)

@@ -32,13 +32,13 @@ with ``rand1``, ``rand2`` drawn per dimension (its visible end uses ``.*``).
 
 from __future__ import annotations
 
-from typing import Any, Unpack
+from typing import Any
 
 import numpy as np
 
 from hysid_model.errors import HysidInputError
 from island.addpop import additional_population
-from island.population import MAX_POPULATION, PopulationOptimizer, SharedOptions, array_or_none, check_choice, check_float, check_int, load_array
+from island.population import MAX_POPULATION, PopulationOptimizer, array_or_none, check_choice, check_float, check_int, load_array
 from island.rng import uniform_population
 
 NEIGHBOURHOODS = ("global", "ring")
@@ -73,13 +73,25 @@ class PSO(PopulationOptimizer):
         *,
         initial_population: int = 6000,
         population: int = 500,
+        iterations: int = 18,
         phi1: float = 2.05,
         phi2: float = 2.05,
         synchronous: bool = False,
         neighbourhood: str = "global",
-        **shared: Unpack[SharedOptions],
+        addpop_amount: float = 0.2,
+        addpop_level: int = 4,
+        migrant_policy: str = "replace_worst",
+        redraw_limit: int = 100,
     ) -> None:
-        super().__init__(bounds, seed, **shared)
+        super().__init__(
+            bounds,
+            seed,
+            iterations=iterations,
+            addpop_amount=addpop_amount,
+            addpop_level=addpop_level,
+            migrant_policy=migrant_policy,
+            redraw_limit=redraw_limit,
+        )
         self.population = check_int(self.name, "population", population, 1, MAX_POPULATION)
         self.initial_population = check_int(self.name, "initial_population", initial_population, self.population, MAX_POPULATION)
         self.phi1 = check_float(self.name, "phi1", phi1, 0.0)
