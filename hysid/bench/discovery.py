@@ -28,16 +28,18 @@ from __future__ import annotations
 
 import time
 import warnings
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import hysid
 from hysid.bench import discovery_cases as dc
 from hysid.bench.validation import DAMPER, truth_nrmse
-from hysid.diagnosis.result import Diagnosis
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
+
+if TYPE_CHECKING:  # the result's type only: hysid --help loads no diagnosis (scipy.optimize) through the bench
+    from hysid.diagnosis.result import Diagnosis
 
 SHAPE_SAMPLES = 256
 """Uniform phases per loop at which the shape error compares the forces."""

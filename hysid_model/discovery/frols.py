@@ -21,7 +21,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 COLLINEAR = 1e-3
 """A column whose norm, orthogonalised against those selected (and the model), falls below this fraction of
@@ -89,6 +88,8 @@ def refine(make: Callable[[np.ndarray], np.ndarray], target: np.ndarray, start: 
     """The shape parameters (``start`` within ``bounds``) that minimise what ``make(shapes)`` ``(N, k)`` leaves of
     ``target`` with its coefficients at their least squares (variable projection), by scipy's bounded
     ``least_squares`` from the selection's grid point; without shape parameters, the least squares alone."""
+    from scipy.optimize import least_squares  # on first use: a fast CLI and island start
+
     start = np.clip(np.asarray(start, dtype=float), bounds[0], bounds[1])
     if start.size:
         span = bounds[1] - bounds[0]
