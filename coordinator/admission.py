@@ -35,8 +35,8 @@ from hysid_model.errors import HysidInputError
 from island.algorithms import ALGORITHMS
 from island.handshake import JoinRequest, decode_join_step, encode_challenge, encode_joined, proof_holds
 from island.protocol import Control, MemberState, encode_control
-from island.secret import of_member
 from island.sealing import Credentials, new_key, public_key
+from island.secret import of_member
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
 
 if TYPE_CHECKING:
@@ -200,8 +200,15 @@ class Admission:
         """The signed roster (every run that joined, in that order, alive or not, how far its rows are
         committed, its algorithm, public key and last message number accepted) and the stop order."""
         members = tuple(
-            MemberState(island, run, self.membership.alive(island, run), self.gaps.stored((island, run)), self.sharing.assigned[(island, run)],
-                        info.key, self.last_seq(island, run))
+            MemberState(
+                island,
+                run,
+                self.membership.alive(island, run),
+                self.gaps.stored((island, run)),
+                self.sharing.assigned[(island, run)],
+                info.key,
+                self.last_seq(island, run),
+            )
             for (island, run), info in self.runs.items()
         )
         self.control_seq = max(self.control_seq + 1, time.time_ns() // 1000)  # rises across coordinator restarts

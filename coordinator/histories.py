@@ -62,8 +62,9 @@ class HistoryChecks:
     with which the rate of each algorithm is measured here.
     """
 
-    def __init__(self, config: CampaignConfig, objective: Objective | ThesisObjective, runs: Sized,
-                 fresh: Callable[[], Objective | ThesisObjective] | None = None) -> None:
+    def __init__(
+        self, config: CampaignConfig, objective: Objective | ThesisObjective, runs: Sized, fresh: Callable[[], Objective | ThesisObjective] | None = None
+    ) -> None:
         """``fresh()``: another instance of ``objective`` (a measurement runs beside the run loop, and an objective
         keeps caches of its own); default: ``objective`` itself."""
         self.config = config
@@ -173,8 +174,11 @@ class HistoryChecks:
             most_evaluations, most_iterations = self.effort_bound(algos, seconds)
             if h.rows[-1, 2] > most_evaluations or h.rows[-1, 0] > most_iterations:
                 self._remeasured(algos)
-                raise MessageRejected("implausible", f"{h.rows[-1, 2]:.0f} evaluations in {h.rows[-1, 0]:.0f} iterations {seconds:.0f} s after it "
-                                                     f"joined; at most {most_evaluations:.0f} in {most_iterations:.0f} possible")
+                raise MessageRejected(
+                    "implausible",
+                    f"{h.rows[-1, 2]:.0f} evaluations in {h.rows[-1, 0]:.0f} iterations {seconds:.0f} s after it "
+                    f"joined; at most {most_evaluations:.0f} in {most_iterations:.0f} possible",
+                )
             iterations = h.rows[:, 0]
             budget = max(self.optimizer(a).iterations for a in algos)
             if iterations[-1] > budget:

@@ -54,9 +54,7 @@ CROWDED = 256
 class Inbox:
     """See the module docstring; thread-safe."""
 
-    def __init__(
-        self, per_source: int = PER_SOURCE, max_sources: int = MAX_SOURCES, max_bytes: int = MAX_BYTES, crowded: int = CROWDED
-    ) -> None:
+    def __init__(self, per_source: int = PER_SOURCE, max_sources: int = MAX_SOURCES, max_bytes: int = MAX_BYTES, crowded: int = CROWDED) -> None:
         self.per_source = per_source
         self.max_sources = max_sources
         self.max_bytes = max_bytes

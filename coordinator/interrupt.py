@@ -19,7 +19,6 @@ from collections.abc import Callable
 from types import FrameType, TracebackType
 from typing import Any
 
-
 INTERRUPTED = "interrupted"
 """The stop reason of a campaign the user stopped (Ctrl-C), or that a database fault ended."""
 
@@ -35,7 +34,7 @@ class CtrlC:
         self.on_first = on_first
         self._previous: Any = None
 
-    def __enter__(self) -> "CtrlC":
+    def __enter__(self) -> CtrlC:
         if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             self._previous = signal.signal(signal.SIGINT, self._pressed)
         return self

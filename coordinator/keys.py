@@ -29,8 +29,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from hysid_model.errors import HysidInputError, HysidWarning
-from island.secret import KEY_BYTES, CampaignSecret, read_owner_only, write_owner_only
 from island.sealing import new_key, public_key
+from island.secret import KEY_BYTES, CampaignSecret, read_owner_only, write_owner_only
 from island.wire import NAME_PATTERN, check_name
 
 MAGIC = "hysid-keys"
@@ -50,11 +50,11 @@ class CampaignKeys:
     members: bytes = field(default=b"", repr=False)
 
     @classmethod
-    def create(cls, campaign: str) -> "CampaignKeys":
+    def create(cls, campaign: str) -> CampaignKeys:
         """Fresh keys for ``campaign``."""
         return cls(check_name("campaign", campaign), secrets.token_bytes(KEY_BYTES), new_key(), secrets.token_bytes(KEY_BYTES))
 
-    def with_members_key(self) -> "CampaignKeys":
+    def with_members_key(self) -> CampaignKeys:
         """These keys with a members' key (a fresh one if they had none)."""
         return self if self.members else replace(self, members=secrets.token_bytes(KEY_BYTES))
 
@@ -81,7 +81,7 @@ class CampaignKeys:
         return f"{MAGIC} {FORMAT} {self.campaign} {self.admission.hex()} {self.signing.hex()} {self.members.hex()}"
 
     @classmethod
-    def parse(cls, text: str, source: str) -> "CampaignKeys":
+    def parse(cls, text: str, source: str) -> CampaignKeys:
         """The keys in ``text`` (format 1, of an earlier hysid: without members' key); anything else is a one-line
         :class:`HysidInputError` naming ``source``."""
         parts = text.split()
@@ -97,7 +97,7 @@ class CampaignKeys:
         return cls(parts[2], *keys)
 
     @classmethod
-    def read(cls, path: Path | str, campaign: str) -> "CampaignKeys":
+    def read(cls, path: Path | str, campaign: str) -> CampaignKeys:
         """The keys of ``campaign`` kept in ``path``."""
         keys = cls.parse(read_owner_only(path, None, "the campaign's key file"), str(path))
         if keys.campaign != campaign:
@@ -135,15 +135,23 @@ def campaign_keys(db: str, campaign: str, resume: bool) -> CampaignKeys:
         if keys.members:
             return keys
         keys = keys.with_members_key()
-        warnings.warn(HysidWarning(
-            f"{path}: a key file of an earlier hysid, without a members' key; one was added (islands with the campaign's shared "
-            "secret join as before; member secrets written before no longer admit: write them again with --member NAME)"), stacklevel=3)
+        warnings.warn(
+            HysidWarning(
+                f"{path}: a key file of an earlier hysid, without a members' key; one was added (islands with the campaign's shared "
+                "secret join as before; member secrets written before no longer admit: write them again with --member NAME)"
+            ),
+            stacklevel=3,
+        )
     else:
         keys = CampaignKeys.create(campaign)
         if resume and path is not None:
-            warnings.warn(HysidWarning(
-                f"{path}: no key file of campaign {campaign!r}; it carries on with new keys (its islands of before check the "
-                "coordinator's signature, so they cannot be taken up: start them again with the new secret)"), stacklevel=3)
+            warnings.warn(
+                HysidWarning(
+                    f"{path}: no key file of campaign {campaign!r}; it carries on with new keys (its islands of before check the "
+                    "coordinator's signature, so they cannot be taken up: start them again with the new secret)"
+                ),
+                stacklevel=3,
+            )
     if path is not None:
         try:
             keys.write(path)

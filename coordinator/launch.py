@@ -26,8 +26,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TextIO
 
-from coordinator.links import MemoryLink, ZenohLink
 from coordinator.interrupt import INTERRUPTED
+from coordinator.links import MemoryLink, ZenohLink
 from coordinator.loop import serve
 from coordinator.outcome import CampaignOutcome
 from coordinator.progress import CampaignProgress
@@ -36,10 +36,10 @@ from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.model import Model
 from hysid_model.user_terms import module_roots
 from island.host import IslandSpec
+from island.memory import MemoryBus, MemoryTransport
 from island.node import IslandNode
 from island.secret import SECRET_ENV, SECRET_FILE_ENV, CampaignSecret
 from island.session import open_session, session_config
-from island.memory import MemoryBus, MemoryTransport
 from island.wire import MAX_MEMBERS
 
 ISLAND_EXIT_WAIT_S = 15.0
@@ -75,7 +75,10 @@ def run_single_node(coordinator: Coordinator, specs: list[IslandSpec], on_progre
     """Every island as a thread of this process, admitted by the coordinator; returns the stop reason."""
     stop = threading.Event()
     bus = MemoryBus(
-        coordinator.name, [s.id for s in specs], lambda key, data: coordinator.receive(key, data, wait_s=MEMORY_WAIT_S), stop,
+        coordinator.name,
+        [s.id for s in specs],
+        lambda key, data: coordinator.receive(key, data, wait_s=MEMORY_WAIT_S),
+        stop,
         admit=lambda island, algo, seed, key: coordinator.admit(island, algo, seed, key, member=island),  # each a member, as processes
         assigned=lambda island: coordinator.sharing.assigned.get((island, coordinator.current.get(island, ""))),
         coordinator=coordinator.secret.coordinator,
@@ -119,8 +122,22 @@ def island_command(endpoint: str, campaign: str, spec: IslandSpec) -> list[str]:
     ``sys.path``, so that a folder named ``hysid`` there (e.g. a clone's parent) cannot shadow the package.
     Its member secret goes in the environment (:func:`island_environment`), never on the command line."""
     return [
-        sys.executable, "-P", "-m", "hysid", "island", "--connect", endpoint, "--campaign", campaign,
-        "--algo", spec.algo, "--seed", str(spec.seed), "--id", spec.id, "--quiet",
+        sys.executable,
+        "-P",
+        "-m",
+        "hysid",
+        "island",
+        "--connect",
+        endpoint,
+        "--campaign",
+        campaign,
+        "--algo",
+        spec.algo,
+        "--seed",
+        str(spec.seed),
+        "--id",
+        spec.id,
+        "--quiet",
     ]
 
 

@@ -75,8 +75,13 @@ class ZenohLink:
             if reply.ok is not None:
                 coordinator.receive(str(reply.ok.key_expr), reply.ok.payload.to_bytes())
 
-        self.session.get(f"{self.prefix}/history/{island}?{coordinator.history_query(island, run, since)}", on_reply, timeout=5.0,
-                         target=zenoh.QueryTarget.ALL, consolidation=zenoh.ConsolidationMode.NONE)  # a stranger's queryable cannot take it
+        self.session.get(
+            f"{self.prefix}/history/{island}?{coordinator.history_query(island, run, since)}",
+            on_reply,
+            timeout=5.0,
+            target=zenoh.QueryTarget.ALL,
+            consolidation=zenoh.ConsolidationMode.NONE,
+        )  # a stranger's queryable cannot take it
 
     @property
     def follows_migrants(self) -> bool:

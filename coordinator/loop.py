@@ -41,12 +41,12 @@ import time
 from collections.abc import Callable
 
 from coordinator.interrupt import INTERRUPTED, CtrlC
+from coordinator.link import Link
 from coordinator.members import LEAVE_GRACE_S, STATUS_AFTER, Member
 from coordinator.progress import CampaignProgress
-from coordinator.link import Link
 from coordinator.state import Coordinator
-from coordinator.writes import StoreError
 from coordinator.thinning import REVIEW_EVERY_S
+from coordinator.writes import StoreError
 
 ORPHAN_S = 30.0
 """Once islands have joined, a campaign with none alive for this long ends."""
@@ -83,9 +83,11 @@ def check_stop(c: Coordinator) -> str | None:
     enough = len({island for island, _ in c.islands} | set(c.members)) >= c.config.min_islands
     if finished and (enough or c.resumed):
         return "every island finished"
-    if not alive and enough and any(v.final for v in c.islands.values()) and all(
-        v.final or c.members.get(island, Member("lost")).status == "lost" or c.current.get(island) != run
-        for (island, run), v in c.islands.items()
+    if (
+        not alive
+        and enough
+        and any(v.final for v in c.islands.values())
+        and all(v.final or c.members.get(island, Member("lost")).status == "lost" or c.current.get(island) != run for (island, run), v in c.islands.items())
     ):
         return "every island finished or was lost"
     idle_since = c.membership.idle_since
@@ -192,8 +194,12 @@ def serve(
 
 
 def _serve(
-    c: Coordinator, link: Link, on_progress: Callable[[CampaignProgress], None] | None, extra_stop: Callable[[], str | None] | None,
-    progress_every_s: float, ctrl_c: CtrlC,
+    c: Coordinator,
+    link: Link,
+    on_progress: Callable[[CampaignProgress], None] | None,
+    extra_stop: Callable[[], str | None] | None,
+    progress_every_s: float,
+    ctrl_c: CtrlC,
 ) -> str:
     last, shown_events = 0.0, -1
     fault: StoreError | None = None
@@ -201,8 +207,7 @@ def _serve(
         while c.stop_reason is None:
             pump(c, link, PASS_S)
             c.stop_reason = INTERRUPTED if ctrl_c.asked else check_stop(c) or (extra_stop() if extra_stop is not None else None)
-            if c.stop_reason is None and on_progress is not None and (
-                    time.monotonic() - last >= progress_every_s or c.membership.events != shown_events):
+            if c.stop_reason is None and on_progress is not None and (time.monotonic() - last >= progress_every_s or c.membership.events != shown_events):
                 on_progress(c.progress())
                 last, shown_events = time.monotonic(), c.membership.events
     except KeyboardInterrupt:  # Ctrl-C where CtrlC could not take SIGINT over stops the campaign as one it took

@@ -77,19 +77,37 @@ def campaign_outcome(c: CampaignEnd, *, polish_best: bool = True) -> CampaignOut
     for rec in records:
         f = float(objective(rec.best_x[None, :])[0])
         rows = history.get((rec.island, rec.run), [])
-        runs.append(RunResult(
-            label=f"{rec.island}/{rec.run}" if rec.island in several else rec.island, algo=rec.algo, seed=rec.seed,
-            theta=rec.best_x, fitness=f, evaluations=rec.evaluations, history=rows, search_theta=rec.best_x,
-            search_fitness=f, wall_s=rows[-1]["wall_s"] if rows else 0.0,
-        ))
+        runs.append(
+            RunResult(
+                label=f"{rec.island}/{rec.run}" if rec.island in several else rec.island,
+                algo=rec.algo,
+                seed=rec.seed,
+                theta=rec.best_x,
+                fitness=f,
+                evaluations=rec.evaluations,
+                history=rows,
+                search_theta=rec.best_x,
+                search_fitness=f,
+                wall_s=rows[-1]["wall_s"] if rows else 0.0,
+            )
+        )
     best_stored = c.best
     global_best = None if best_stored is None else float(objective(best_stored.x[None, :])[0])
     if best_stored is not None and global_best is not None and (not runs or global_best < min(r.fitness for r in runs)):
-        runs.append(RunResult(
-            label=f"global best (from {best_stored.island})", algo=runs[0].algo if runs else c.config.algos[0], seed=c.config.seed,
-            theta=best_stored.x, fitness=global_best, evaluations=0, history=[], search_theta=best_stored.x,
-            search_fitness=global_best, wall_s=0.0,
-        ))
+        runs.append(
+            RunResult(
+                label=f"global best (from {best_stored.island})",
+                algo=runs[0].algo if runs else c.config.algos[0],
+                seed=c.config.seed,
+                theta=best_stored.x,
+                fitness=global_best,
+                evaluations=0,
+                history=[],
+                search_theta=best_stored.x,
+                search_fitness=global_best,
+                wall_s=0.0,
+            )
+        )
     if not runs:
         raise HysidInputError(f"campaign {c.name!r}: no island reported any result ({c.stop_reason or 'not run'})")
     best = int(np.argmin([r.fitness for r in runs]))
@@ -124,6 +142,7 @@ def campaign_outcome(c: CampaignEnd, *, polish_best: bool = True) -> CampaignOut
         stored=stored_summary(c),
     )
 
+
 def polished(objective: Objective, run: RunResult, seed: int = 0) -> tuple[Objective, RunResult, list[dict[str, Any]]]:
     """``run`` polished on ``objective`` (as ``hysid fit`` polishes its best); a best on a search bound that is not
     physical (from the data, or a term's default) widens it and is searched again, up to ``MAX_WIDENINGS`` times,
@@ -156,8 +175,13 @@ def island_summaries(c: CampaignEnd, records: list[IslandRecord], runs: list[Run
     thinned = c.store.thinned(c.name)
     paths = algorithm_paths(c.joined, c.moves)
     return [
-        {**rec.as_dict(), "algorithms": list(paths.get((rec.island, rec.run), (rec.algo,))), "best_fitness": run.search_fitness,
-         "status": status.get(rec.island, "unknown"), "thinned": thinned.get((rec.island, rec.run), 0)}
+        {
+            **rec.as_dict(),
+            "algorithms": list(paths.get((rec.island, rec.run), (rec.algo,))),
+            "best_fitness": run.search_fitness,
+            "status": status.get(rec.island, "unknown"),
+            "thinned": thinned.get((rec.island, rec.run), 0),
+        }
         for rec, run in zip(records, runs)
     ]
 
@@ -165,8 +189,12 @@ def island_summaries(c: CampaignEnd, records: list[IslandRecord], runs: list[Run
 def stored_summary(c: CampaignEnd) -> dict[str, Any]:
     """History rows stored, those the coordinator did not keep over capacity (:mod:`coordinator.thinning`), and
     migrant messages superseded before it handled them."""
-    return {"history_rows": c.store.count("history", c.name), "thinned_rows": sum(c.store.thinned(c.name).values()),
-            "superseded_migrant_messages": c.store.superseded(c.name)}
+    return {
+        "history_rows": c.store.count("history", c.name),
+        "thinned_rows": sum(c.store.thinned(c.name).values()),
+        "superseded_migrant_messages": c.store.superseded(c.name),
+    }
+
 
 def migration_summary(c: CampaignEnd, records: list[IslandRecord]) -> dict[str, Any]:
     """The migration settings; migrant messages the coordinator handled (``messages``) and, if it stopped following
@@ -179,8 +207,9 @@ def migration_summary(c: CampaignEnd, records: list[IslandRecord]) -> dict[str, 
     return {
         **c.config.migration.as_dict(),
         "messages": c.store.count("migrations", c.name),
-        "unfollowed": None if unfollowed is None else {
-            "islands": unfollowed["islands"], "follows_up_to": unfollowed["up_to"], "after_s": unfollowed["t"] - (created or unfollowed["t"])},
+        "unfollowed": None
+        if unfollowed is None
+        else {"islands": unfollowed["islands"], "follows_up_to": unfollowed["up_to"], "after_s": unfollowed["t"] - (created or unfollowed["t"])},
         "sent": sum(r.sent for r in records),
         "received": sum(r.received for r in records),
         "taken": sum(r.taken for r in records),

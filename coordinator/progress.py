@@ -28,8 +28,7 @@ class IslandView:
     (:func:`algorithm_paths`; empty: only ``algo`` is known)."""
 
 
-def island_views(islands: dict[tuple[str, str], IslandView], joined: Iterable[tuple[tuple[str, str], str]],
-                 moves: Iterable["Move"]) -> dict[str, IslandView]:
+def island_views(islands: dict[tuple[str, str], IslandView], joined: Iterable[tuple[tuple[str, str], str]], moves: Iterable[Move]) -> dict[str, IslandView]:
     """The ``islands`` runs' views by name (an island with several runs shows each as ``island/run``), each with
     its algorithms (:func:`algorithm_paths` of the runs ``joined`` and the share's ``moves``)."""
     runs = Counter(i for i, _ in islands)
@@ -37,7 +36,7 @@ def island_views(islands: dict[tuple[str, str], IslandView], joined: Iterable[tu
     return {f"{i}" if runs[i] == 1 else f"{i}/{r}": replace(v, algos=paths.get((i, r), ())) for (i, r), v in islands.items()}
 
 
-def algorithm_paths(joined: Iterable[tuple[tuple[str, str], str]], moves: Iterable["Move"]) -> dict[tuple[str, str], tuple[str, ...]]:
+def algorithm_paths(joined: Iterable[tuple[tuple[str, str], str]], moves: Iterable[Move]) -> dict[tuple[str, str], tuple[str, ...]]:
     """Per island run ``(island, run)``: the algorithm it ``joined`` with, then each one its share's ``moves``
     moved it to, in order (``("ga", "pso")``: the staged share moved a GA island to the PSO)."""
     paths = {key: [algo] for key, algo in joined}

@@ -98,7 +98,8 @@ class Queries:
             return status, reason
         when = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(gone))
         return "interrupted", f"interrupted: its coordinator is gone (last heartbeat {when}) and left the campaign {status}" + (
-            f" ({reason})" if reason else "")
+            f" ({reason})" if reason else ""
+        )
 
     def has_campaign(self, name: str) -> bool:
         return self.db.execute("SELECT 1 FROM campaigns WHERE name = ?", (name,)).fetchone() is not None
@@ -140,7 +141,8 @@ class Queries:
         unlisted = "unlisted" if has_column(self.db, "islands", "unlisted") else "0"
         rows = self.db.execute(
             "SELECT island, run, algo, seed, iterations, evaluations, best_fitness, best_x, sent, received, taken, rejected, final, "
-            f"{unlisted} FROM islands WHERE campaign = ? ORDER BY island, run", (campaign,),
+            f"{unlisted} FROM islands WHERE campaign = ? ORDER BY island, run",
+            (campaign,),
         )
         return [
             IslandRecord(r[0], r[1], r[2], r[3], r[4], r[5], r[6], np.frombuffer(r[7], dtype="<f8").copy(), r[8], r[9], r[10], r[11], bool(r[12]), int(r[13]))
@@ -154,10 +156,16 @@ class Queries:
         """The iterations of an island run the coordinator handled, stored or thinned, as disjoint sorted spans."""
         where = "campaign = ? AND island = ? AND run = ?"
         key = (campaign, island, run)
-        starts = self.db.execute(f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
-            g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration - 1) ORDER BY iteration""", key)
-        ends = self.db.execute(f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
-            g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration + 1) ORDER BY iteration""", key)
+        starts = self.db.execute(
+            f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
+            g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration - 1) ORDER BY iteration""",
+            key,
+        )
+        ends = self.db.execute(
+            f"""SELECT iteration FROM history h WHERE {where} AND NOT EXISTS (SELECT 1 FROM history g WHERE
+            g.campaign = h.campaign AND g.island = h.island AND g.run = h.run AND g.iteration = h.iteration + 1) ORDER BY iteration""",
+            key,
+        )
         spans = list(zip((s for (s,) in starts.fetchall()), (e for (e,) in ends.fetchall())))
         if has_table(self.db, "thinned"):
             spans += self.db.execute(f"SELECT first, last FROM thinned WHERE {where}", key).fetchall()

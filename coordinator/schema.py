@@ -81,6 +81,7 @@ CREATE INDEX IF NOT EXISTS thinned_runs ON thinned (campaign, island, run, first
 """A migrant message (sender run and number) is stored once, also when it is replayed after a restart; a run's
 thinned stretches are found in order."""
 
+
 def has_table(db: sqlite3.Connection, table: str) -> bool:
     """Whether the database has ``table`` (a file of an earlier hysid opened read-only may lack it)."""
     return db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,)).fetchone() is not None

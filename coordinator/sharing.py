@@ -20,6 +20,7 @@ from island.config import CampaignConfig
 from island.population import PopulationOptimizer
 from island.share import Move, Share, Staged
 
+
 class RunView(Protocol):
     """What the coordinator knows of an island run from its histories."""
 
@@ -37,9 +38,7 @@ class Sharing:
     with; ``optimizer(algo)`` is an (unused) optimizer with an island's settings (its batch sizes
     make a round's evaluations)."""
 
-    def __init__(
-        self, store: Store, config: CampaignConfig, joined: dict[tuple[str, str], str], optimizer: Callable[[str], PopulationOptimizer]
-    ) -> None:
+    def __init__(self, store: Store, config: CampaignConfig, joined: dict[tuple[str, str], str], optimizer: Callable[[str], PopulationOptimizer]) -> None:
         self.store = store
         self.name = config.name
         self._round_iterations = config.migration.interval or SHARE_ROUND_ITERATIONS

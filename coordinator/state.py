@@ -113,7 +113,14 @@ class Coordinator(Admission, Receiving, Intake):
     the histories, migrants and global best: :class:`coordinator.intake.Intake`)."""
 
     def __init__(
-        self, store: Store, config: CampaignConfig, loops: LoopSet, termination: Termination | None = None, *, dataset: str = "", resume: bool = False,
+        self,
+        store: Store,
+        config: CampaignConfig,
+        loops: LoopSet,
+        termination: Termination | None = None,
+        *,
+        dataset: str = "",
+        resume: bool = False,
         keys: CampaignKeys | None = None,
     ) -> None:
         """``keys``: the campaign's keys (default: its key file's, :func:`coordinator.keys.campaign_keys`; fresh ones,
@@ -266,8 +273,15 @@ class Coordinator(Admission, Receiving, Intake):
     def outcome(self, *, polish_best: bool = True) -> CampaignOutcome:
         """What the campaign leaves (:func:`coordinator.outcome.campaign_outcome`)."""
         end = CampaignEnd(
-            self.store, self.config, self.loops, self.termination, self.best, self.stop_reason, {i: m.status for i, m in self.members.items()},
-            [(key, info.algo) for key, info in self.runs.items()], list(self.sharing.moves),
+            self.store,
+            self.config,
+            self.loops,
+            self.termination,
+            self.best,
+            self.stop_reason,
+            {i: m.status for i, m in self.members.items()},
+            [(key, info.algo) for key, info in self.runs.items()],
+            list(self.sharing.moves),
         )
         return campaign_outcome(end, polish_best=polish_best)
 

@@ -102,10 +102,14 @@ class Store(Writes):
         store.path, store.db, store.reserve, store.identity = str(path), db, None, None
         store._pending()
         if has_table(db, "secrets"):
-            warnings.warn(HysidWarning(
-                f"{path} still holds campaign keys (an earlier hysid kept them there): anyone who can read it can join its campaigns "
-                "and sign as their coordinator; open it once with this hysid for writing (hysid coordinator --resume) to move them "
-                "to owner-only key files"), stacklevel=2)
+            warnings.warn(
+                HysidWarning(
+                    f"{path} still holds campaign keys (an earlier hysid kept them there): anyone who can read it can join its campaigns "
+                    "and sign as their coordinator; open it once with this hysid for writing (hysid coordinator --resume) to move them "
+                    "to owner-only key files"
+                ),
+                stacklevel=2,
+            )
         return store
 
     @classmethod

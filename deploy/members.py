@@ -17,8 +17,8 @@ import sys
 from pathlib import Path
 
 from hysid_model.errors import HysidInputError
-from island.session import open_session, session_config
 from island.joining import key_prefix
+from island.session import open_session, session_config
 
 
 def live_members(connect: list[str], config_file: Path | None, campaign: str, timeout_s: float) -> list[str]:

@@ -58,8 +58,22 @@ def access_control(campaign: str, hosts: dict[str, list[str]]) -> dict:
     shared = [
         rule("listen", ["declare_subscriber"], [f"{p}/migrants/*", f"{p}/control", f"{p}/best"]),
         rule("ask", ["query"], [f"{p}/config", f"{p}/best"]),
-        rule("deliver", ["put", "delete", "declare_subscriber", "declare_queryable", "query", "reply",
-                         "liveliness_token", "declare_liveliness_subscriber", "liveliness_query"], [f"{p}/**"], "egress"),
+        rule(
+            "deliver",
+            [
+                "put",
+                "delete",
+                "declare_subscriber",
+                "declare_queryable",
+                "query",
+                "reply",
+                "liveliness_token",
+                "declare_liveliness_subscriber",
+                "liveliness_query",
+            ],
+            [f"{p}/**"],
+            "egress",
+        ),
         rule("see-members", ["declare_liveliness_subscriber", "liveliness_query"], [f"{p}/members/*"]),
     ]
     rules, subjects, policies = list(shared), [], []
@@ -104,8 +118,12 @@ def coordinator_config(campaign: str, listen: str, certs: str, credentials: str,
 def island_config(island: str, connect: str, certs: str, password: str) -> dict:
     return {
         "mode": "client",
-        "connect": {"endpoints": [connect], "timeout_ms": 60000, "exit_on_failure": True,
-                    "retry": {"period_init_ms": 250, "period_max_ms": 2000, "period_increase_factor": 2}},
+        "connect": {
+            "endpoints": [connect],
+            "timeout_ms": 60000,
+            "exit_on_failure": True,
+            "retry": {"period_init_ms": 250, "period_max_ms": 2000, "period_increase_factor": 2},
+        },
         "scouting": {"multicast": {"enabled": False}},
         "transport": {
             "link": {
@@ -145,18 +163,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--certs", required=True, help="the make-certs.sh directory, as the machines see it")
     parser.add_argument("--credentials", help="where the coordinator reads credentials.txt (default: OUTDIR/credentials.txt)")
     parser.add_argument("-o", "--outdir", required=True, type=Path)
-    parser.add_argument("islands", nargs="+", help="island ids (each needs a certificate with CN=<id>), or ID:COUNT for a process of "
-                        "COUNT islands ID-0 .. ID-<COUNT-1> (hysid island --id ID --count COUNT; the certificate CN=ID)")
+    parser.add_argument(
+        "islands",
+        nargs="+",
+        help="island ids (each needs a certificate with CN=<id>), or ID:COUNT for a process of "
+        "COUNT islands ID-0 .. ID-<COUNT-1> (hysid island --id ID --count COUNT; the certificate CN=ID)",
+    )
     args = parser.parse_args(argv)
     problems = [f"--campaign {args.campaign!r}" for _ in [0] if not NAME.match(args.campaign)]
     given = [(host, count) for host, _, count in (i.partition(":") for i in args.islands)]
-    problems += [f"island id {h + (':' if c else '') + c!r}" + (f" (ID:COUNT, COUNT from 1 to {MAX_COUNT})" if c else "")
-                 for h, c in given if not NAME.match(h) or (c and not (c.isdigit() and 1 <= int(c) <= MAX_COUNT))]
+    problems += [
+        f"island id {h + (':' if c else '') + c!r}" + (f" (ID:COUNT, COUNT from 1 to {MAX_COUNT})" if c else "")
+        for h, c in given
+        if not NAME.match(h) or (c and not (c.isdigit() and 1 <= int(c) <= MAX_COUNT))
+    ]
     hosts = {h: hosted_islands(h, int(c or 1)) for h, c in given if not problems}
     every = [i for islands in hosts.values() for i in islands]
     problems += [f"island id {i!r}" for i in every if not NAME.match(i)]
-    problems += [f"{flag} {value!r} (use tls/HOST:PORT)" for flag, value in (("--listen", args.listen), ("--connect", args.connect)) if not ENDPOINT.match(value)]
-    if len(hosts) != len(given) and hosts or len(set(every)) != len(every):
+    problems += [
+        f"{flag} {value!r} (use tls/HOST:PORT)" for flag, value in (("--listen", args.listen), ("--connect", args.connect)) if not ENDPOINT.match(value)
+    ]
+    if (len(hosts) != len(given) and hosts) or len(set(every)) != len(every):
         problems.append("island ids repeat")
     if problems:
         print(f"secure-campaign.py: error: invalid {'; '.join(problems)}", file=sys.stderr)
@@ -172,8 +199,10 @@ def main(argv: list[str] | None = None) -> int:
     for island, password in passwords.items():
         text = HEADER.format(campaign=args.campaign, what=f"island {island}") + json.dumps(island_config(island, args.connect, args.certs, password), indent=2)
         write_private(out / "islands" / f"{island}.json5", text + "\n")
-    print(f"wrote {out}/coordinator.json5, credentials.txt and islands/<id>.json5 for {len(every)} islands of campaign {args.campaign!r}"
-          + (f" in {len(hosts)} processes" if len(hosts) != len(every) else ""))
+    print(
+        f"wrote {out}/coordinator.json5, credentials.txt and islands/<id>.json5 for {len(every)} islands of campaign {args.campaign!r}"
+        + (f" in {len(hosts)} processes" if len(hosts) != len(every) else "")
+    )
     return 0
 
 

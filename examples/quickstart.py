@@ -38,7 +38,6 @@ print(diagnosis.summary())
 # 5. A small campaign: GA and PSO islands sharing their best (threads of this process here;
 #    without single_node=True they are processes talking over Zenoh).
 sizes = {"population": 30, "initial_population": 100, "iterations": 20}
-campaign = hysid.campaign(loops, model, islands=2, single_node=True, options={"ga": sizes, "pso": sizes},
-                          migration=hysid.Migration(interval=5, k=2))
+campaign = hysid.campaign(loops, model, islands=2, single_node=True, options={"ga": sizes, "pso": sizes}, migration=hysid.Migration(interval=5, k=2))
 print(campaign.summary())
 print("report:", campaign.write_report(out / "campaign"))

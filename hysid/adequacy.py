@@ -63,13 +63,19 @@ class Adequacy:
         if self.adequate:
             return f"the model leaves only noise (chi^2/dof {self.chi2_per_dof:.3g} on the loops' harmonics 0-7)"
         name, p = self.worst
-        return (f"the model does not describe these loops: what it leaves is not noise (chi^2/dof {self.chi2_per_dof:.3g} on the "
-                f"loops' harmonics 0-7, p = {self.p_global:.2g}; least like noise: {name}, p = {p:.2g})")
+        return (
+            f"the model does not describe these loops: what it leaves is not noise (chi^2/dof {self.chi2_per_dof:.3g} on the "
+            f"loops' harmonics 0-7, p = {self.p_global:.2g}; least like noise: {name}, p = {p:.2g})"
+        )
 
     def to_dict(self) -> dict[str, Any]:
-        return {"adequate": self.adequate, "chi2_per_dof": self.chi2_per_dof, "p_global": self.p_global,
-                "p_groups": dict(self.p_groups), "rule": "harmonics 0-7, whitened; global and per-group chi^2, "
-                f"family-wise level {ADEQUATE_ALPHA:g}"}
+        return {
+            "adequate": self.adequate,
+            "chi2_per_dof": self.chi2_per_dof,
+            "p_global": self.p_global,
+            "p_groups": dict(self.p_groups),
+            "rule": f"harmonics 0-7, whitened; global and per-group chi^2, family-wise level {ADEQUATE_ALPHA:g}",
+        }
 
 
 def groups(residual: np.ndarray, dof: int, harmonics: Harmonics) -> tuple[np.ndarray, np.ndarray]:

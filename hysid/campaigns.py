@@ -30,13 +30,13 @@ from hysid.fitting import FitResult
 from hysid.motion import MotionChoice, choose_motion, confirm_motion, order_evidence, refit_under_other_reading
 from hysid.report import campaign_text, jsondoc, markdown, tables
 from hysid_model import notices
+from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, build_model
 from hysid_model.objective import Objective
-from hysid_model.user_terms import check_importable
-from hysid_model.errors import HysidInputError
 from hysid_model.problem import prepare_model
+from hysid_model.user_terms import check_importable
 from island.config import CampaignConfig, decode_config
 from island.memetic import BUDGET, ISLAND_OPTIONS, memetic_search, needs_islands, search_limits
 from island.migration import Migration
@@ -59,7 +59,7 @@ class CampaignResult:
     migrant messages a newer one superseded before it handled them."""
 
     @classmethod
-    def from_outcome(cls, outcome: CampaignOutcome, *, profiles: bool = True) -> "CampaignResult":
+    def from_outcome(cls, outcome: CampaignOutcome, *, profiles: bool = True) -> CampaignResult:
         """The result of a campaign's outcome (``profiles``: as :meth:`FitResult.from_runs`)."""
         return cls(
             FitResult.from_runs(outcome.objective, outcome.runs, outcome.settings, profiles=profiles),
@@ -70,7 +70,7 @@ class CampaignResult:
         )
 
     @classmethod
-    def from_database(cls, db: str | Path, name: str | None = None) -> "CampaignResult":
+    def from_database(cls, db: str | Path, name: str | None = None) -> CampaignResult:
         """The result of a stored campaign, finished or interrupted, rebuilt from its database alone.
 
         The database (``db``) is only read: its campaign ``name`` (default: the
@@ -91,8 +91,11 @@ class CampaignResult:
             termination = Termination(**settings["stop_rules"]) if "stop_rules" in settings else None
             # nothing is signed or sent: keys of its own, the campaign's stay in their file (the database holds none)
             coordinator = Coordinator(store, config, loops, termination, dataset=dataset, resume=True, keys=CampaignKeys.create(name))
-            coordinator.stop_reason = reason if status in ("stopped", "interrupted") and reason else (
-                f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else ""))
+            coordinator.stop_reason = (
+                reason
+                if status in ("stopped", "interrupted") and reason
+                else (f"not finished: the database was left while the campaign was {status}" + (f" ({reason})" if reason else ""))
+            )
             result = cls.from_outcome(confirmed(coordinator, coordinator.outcome(polish_best=bool(settings.get("polish", True)))))
         finally:
             store.close()
@@ -157,16 +160,24 @@ class CampaignResult:
         left_out = None if figures else "the campaign was interrupted" + (f" (`hysid report {db}` draws them)" if db and db != ":memory:" else "")
         document, out_dir = self.to_dict(), Path(out_dir)
         self.fit.report = str(out_dir / markdown.REPORT)
-        return markdown.write_fit_report(self.fit.record(), out_dir, {**document, "report": self.fit.report}, None if left_out else self.fit.curves(),
-                                         title=f"hysid campaign{' (interrupted)' if self.interrupted else ''}",
-                                         sections=markdown.campaign_sections(self.migrations, self.fit.settings, self.islands), figures_left_out=left_out)
+        return markdown.write_fit_report(
+            self.fit.record(),
+            out_dir,
+            {**document, "report": self.fit.report},
+            None if left_out else self.fit.curves(),
+            title=f"hysid campaign{' (interrupted)' if self.interrupted else ''}",
+            sections=markdown.campaign_sections(self.migrations, self.fit.settings, self.islands),
+            figures_left_out=left_out,
+        )
 
     def _repr_markdown_(self) -> str:
         return markdown.fit_overview(self.fit.record())
 
     def __repr__(self) -> str:
-        return (f"<CampaignResult {self.fit.settings.get('campaign')!r}, {self.fit.model.spec} on {self.fit.loops.name}: "
-                f"{len(self.islands)} island run(s), fitness {self.fit.fitness:.6g}, {self.fit.settings.get('stop_reason')}>")
+        return (
+            f"<CampaignResult {self.fit.settings.get('campaign')!r}, {self.fit.model.spec} on {self.fit.loops.name}: "
+            f"{len(self.islands)} island run(s), fitness {self.fit.fitness:.6g}, {self.fit.settings.get('stop_reason')}>"
+        )
 
 
 def finish(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionChoice | None = None) -> CampaignResult:
@@ -179,8 +190,11 @@ def finish(coordinator: Coordinator, outcome: CampaignOutcome, motion: MotionCho
     return result
 
 
-MOTION_REASONS = {"data": "chosen by the data when the campaign started", "user": "as the campaign was configured",
-                  "none": "the displacement has no harmonics beyond its fundamental"}
+MOTION_REASONS = {
+    "data": "chosen by the data when the campaign started",
+    "user": "as the campaign was configured",
+    "none": "the displacement has no harmonics beyond its fundamental",
+}
 """The reason a displacement choice rebuilt from a stored configuration gives, by who made it."""
 
 
@@ -206,7 +220,9 @@ def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: Motion
     Without ``search`` the reading stays, its reason saying that the model prefers the other one."""
     config = coordinator.config
     if motion is None:
-        motion = MotionChoice(config.displacement, config.displacement_by, MOTION_REASONS[config.displacement_by], orders=stored_evidence(coordinator.loops, config))
+        motion = MotionChoice(
+            config.displacement, config.displacement_by, MOTION_REASONS[config.displacement_by], orders=stored_evidence(coordinator.loops, config)
+        )
     outcome.settings["displacement_model"] = motion.as_dict()
     if not outcome.settings.get("polish") or motion.decided_by != "data":
         return outcome
@@ -239,8 +255,12 @@ def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: Motion
     flipped, (objective, found, widened) = again
     runs = [replace(r, fitness=float(objective(r.theta[None, :])[0])) for r in outcome.runs]
     flipped.reason += f"; the islands searched under the {motion.displacement} reading, the result is searched again under this one from their best"
-    settings = {**outcome.settings, "displacement": flipped.displacement, "displacement_model": flipped.as_dict(),
-                "bounds_widened": list(outcome.settings.get("bounds_widened", [])) + widened}
+    settings = {
+        **outcome.settings,
+        "displacement": flipped.displacement,
+        "displacement_model": flipped.as_dict(),
+        "bounds_widened": list(outcome.settings.get("bounds_widened", [])) + widened,
+    }
     return replace(outcome, objective=objective, runs=runs + [found], settings=settings)
 
 
@@ -251,8 +271,9 @@ def islands_until_stopped(termination: Termination | None, options: Mapping[str,
     return termination is not None and termination.bounded and not given
 
 
-def default_options(loops: LoopSet, model: str | Model, bounds: Mapping[str, tuple[float, float]] | None = None,
-                    algos: list[str] | tuple[str, ...] = ("ga", "pso")) -> dict[str, dict[str, Any]] | None:
+def default_options(
+    loops: LoopSet, model: str | Model, bounds: Mapping[str, tuple[float, float]] | None = None, algos: list[str] | tuple[str, ...] = ("ga", "pso")
+) -> dict[str, dict[str, Any]] | None:
     """The islands' settings when none are given: on a model with memory (whose islands refine their best,
     :mod:`island.node`) the small swarms of memetic islands (:data:`island.memetic.ISLAND_OPTIONS`, the PSO
     moving as one swarm), else None (the thesis' settings; a campaign on a memoryless model, Coulomb
@@ -263,8 +284,13 @@ def default_options(loops: LoopSet, model: str | Model, bounds: Mapping[str, tup
 
 
 def island_settings(
-    loops: LoopSet, model: str | Model, bounds: Mapping[str, tuple[float, float]] | None, algos: list[str] | tuple[str, ...],
-    options: dict[str, dict[str, Any]] | None, termination: Termination | None, until_stopped: bool | None,
+    loops: LoopSet,
+    model: str | Model,
+    bounds: Mapping[str, tuple[float, float]] | None,
+    algos: list[str] | tuple[str, ...],
+    options: dict[str, dict[str, Any]] | None,
+    termination: Termination | None,
+    until_stopped: bool | None,
 ) -> tuple[dict[str, dict[str, Any]] | None, Termination | None, bool]:
     """The islands' settings, stop rules and ``until_stopped`` of a campaign, one rule for Python and the
     command line: what is given, else the defaults. With no ``options`` on a model with memory, memetic
@@ -326,16 +352,32 @@ def campaign(
     ``result.fit.settings["moves"]``), ``fixed`` keeps every island's algorithm.
     """
     if isinstance(model, int) and not isinstance(model, bool):  # the island count where the model goes (its place before)
-        raise HysidInputError("a model is a string such as 'thesis+coulomb_friction' or a hysid Model; "
-                              f"the number of islands is a keyword: campaign(loops, model, islands={model})", param="model", value=model)
+        raise HysidInputError(
+            "a model is a string such as 'thesis+coulomb_friction' or a hysid Model; "
+            f"the number of islands is a keyword: campaign(loops, model, islands={model})",
+            param="model",
+            value=model,
+        )
     check_name("name", name)
     specs = island_specs(islands, list(algos), seed)
     motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
     options, termination, until_stopped = island_settings(loops, model, bounds, algos, options, termination, until_stopped)
     config = CampaignConfig.create(
-        loops, name=name, model=model, weights=weights, bounds=bounds, fixed=fixed, algos=list(algos),
-        options=options, migration=migration, seed=seed, min_islands=islands, displacement=motion.displacement,
-        displacement_by=motion.decided_by, until_stopped=until_stopped, share=share,
+        loops,
+        name=name,
+        model=model,
+        weights=weights,
+        bounds=bounds,
+        fixed=fixed,
+        algos=list(algos),
+        options=options,
+        migration=migration,
+        seed=seed,
+        min_islands=islands,
+        displacement=motion.displacement,
+        displacement_by=motion.decided_by,
+        until_stopped=until_stopped,
+        share=share,
     )
     if not single_node:
         check_importable(build_model(config.model).terms)

@@ -35,10 +35,10 @@ from hysid.motion import MotionChoice, choose_motion, refit_under_other_reading
 from hysid.report import markdown, tables, text
 from hysid.report.records import Estimates, FitCurves, FitRecord
 from hysid_model import notices
+from hysid_model.effective import OperatingPoint, effective_table, operating_points
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import HalfPower, amplitude_levels, first_harmonic, half_power_by_amplitude
 from hysid_model.loops import LoopSet
-from hysid_model.effective import OperatingPoint, effective_table, operating_points
 from hysid_model.modal import AmplitudeResult, combinations, derived_table
 from hysid_model.model import MAX_WIDENINGS, Model
 from hysid_model.model_names import model_name
@@ -88,7 +88,7 @@ class FitResult:
     """The warnings raised while fitting (:func:`hysid_model.notices.keeps_warnings`)."""
 
     @classmethod
-    def from_runs(cls, objective: Objective, runs: list[RunResult], settings: dict[str, Any], *, profiles: bool = True) -> "FitResult":
+    def from_runs(cls, objective: Objective, runs: list[RunResult], settings: dict[str, Any], *, profiles: bool = True) -> FitResult:
         """Pick the best run, and derive standard errors, per-amplitude quantities and the half-power check.
         ``profiles=False``: the errors that need the objective's profile (:func:`hysid.identifiability.assess`) are
         the curvature's, and ``stderr_method`` says so (a campaign stopped by Ctrl-C reports in seconds)."""
@@ -105,13 +105,21 @@ class FitResult:
             method = f"sandwich covariance of the thesis-weighted least squares, noise sigma {source}"
         if scale > 1.0:
             method += f", scaled up by sqrt(chi^2/dof) = {np.sqrt(scale):.3g} (the model misses the noise floor)"
-        ident = assess(objective, theta, scale * parameter_covariance(objective, theta),
-                       lambda m: Objective(objective.loops, m, weights=objective.weights), scale * noise_unit(objective, theta), profiles=profiles)
+        ident = assess(
+            objective,
+            theta,
+            scale * parameter_covariance(objective, theta),
+            lambda m: Objective(objective.loops, m, weights=objective.weights),
+            scale * noise_unit(objective, theta),
+            profiles=profiles,
+        )
         if ident.profiled:
             method += "; from the profile of the objective for " + ", ".join(ident.profiled)
         if ident.unprofiled:
-            method += (f"; from the curvature alone for {', '.join(ident.unprofiled)}, whose profile was left out (the campaign was "
-                       "interrupted; hysid report computes it)")
+            method += (
+                f"; from the curvature alone for {', '.join(ident.unprofiled)}, whose profile was left out (the campaign was "
+                "interrupted; hysid report computes it)"
+            )
         ident.not_identifiable.update(one_amplitude(loops, model))
         levels, _ = amplitude_levels(loops.x0)
         force_amplitude = np.abs(first_harmonic(loops))
@@ -189,8 +197,9 @@ class FitResult:
 
     def judgments(self) -> list[notices.Notice]:
         """The fit's own warnings: a model that misses the data, parameters on bounds (:func:`hysid.report.text.fit_warnings`)."""
-        return text.fit_warnings(self.loops, self.model, self.theta, self.weights, self.settings, self.adequacy, self.misfit,
-                                 mass_note(self.model, self.theta, self.loops))
+        return text.fit_warnings(
+            self.loops, self.model, self.theta, self.weights, self.settings, self.adequacy, self.misfit, mass_note(self.model, self.theta, self.loops)
+        )
 
     def warned(self, judgments: list[notices.Notice]) -> list[dict[str, str]]:
         """The warnings of the data, those raised while fitting, then ``judgments``, each ``{"code", "message"}``."""
@@ -214,9 +223,26 @@ class FitResult:
     def record(self) -> FitRecord:
         """What this fit's writers read (summary, report, notebook view)."""
         judged = self.judgments()
-        return FitRecord(self.loops, self.estimates(), self.theta, self.weights, self.runs, self.best, self.evaluations, self.settings,
-                         self.quality, self.adequacy, self.displacement_model, self.not_identifiable, self.stderr_method,
-                         self.identifiability.correlation, judged, self.warned(judged), self.raised, self.report)
+        return FitRecord(
+            self.loops,
+            self.estimates(),
+            self.theta,
+            self.weights,
+            self.runs,
+            self.best,
+            self.evaluations,
+            self.settings,
+            self.quality,
+            self.adequacy,
+            self.displacement_model,
+            self.not_identifiable,
+            self.stderr_method,
+            self.identifiability.correlation,
+            judged,
+            self.warned(judged),
+            self.raised,
+            self.report,
+        )
 
     def curves(self) -> FitCurves:
         """What this fit's figures draw: the model's force at every sample and the force it fits."""
@@ -248,9 +274,7 @@ class FitResult:
             "combinations": {name: {"value": v, "stderr": se} for name, (v, se) in self.combinations.items()},
             "derived": [a.as_dict() for a in self.amplitudes],
             "effective": [p.as_dict() for p in self.effective],
-            "half_power": [
-                {**hp.as_dict(), "xi_fit": a.values["xi"]} for hp, a in zip(self.half_power, self.amplitudes)
-            ],
+            "half_power": [{**hp.as_dict(), "xi_fit": a.values["xi"]} for hp, a in zip(self.half_power, self.amplitudes)],
             "dataset": {
                 "name": self.loops.name,
                 "loops": self.loops.n_loops,
@@ -385,11 +409,23 @@ def fit(
             callback = None if progress is None else (lambda row, i=i: progress(i, row))
             if memetic:
                 left = None if deadline is None else max((deadline - time.monotonic()) / (runs - i), MIN_SEARCH_S)
-                out.append(memetic_search(objective, [] if first is None else [first], seed + i, budget=None if budget is None else max(int(share * budget), 1),
-                                          time_limit_s=left, label=f"run {i + 1}", callback=callback))
+                out.append(
+                    memetic_search(
+                        objective,
+                        [] if first is None else [first],
+                        seed + i,
+                        budget=None if budget is None else max(int(share * budget), 1),
+                        time_limit_s=left,
+                        label=f"run {i + 1}",
+                        callback=callback,
+                    )
+                )
             else:
-                out.append(optimize(objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options,
-                                    termination=termination, callback=callback, start=first))
+                out.append(
+                    optimize(
+                        objective, algo, seed + i, polish=polish, label=f"run {i + 1}", options=options, termination=termination, callback=callback, start=first
+                    )
+                )
         return out
 
     def identify(objective: Objective, first: np.ndarray | None) -> tuple[Objective, list[RunResult]]:

@@ -32,8 +32,9 @@ before the fit, :func:`one_amplitude` says why).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -126,8 +127,12 @@ class Identifiability:
         return {a: {b: (float(r[i, j]) if np.isfinite(r[i, j]) else None) for j, b in enumerate(self.names)} for i, a in enumerate(self.names)}
 
     def to_dict(self) -> dict[str, Any]:
-        return {"not_identifiable": list(self.not_identifiable), "not_identifiable_reasons": dict(self.not_identifiable),
-                "profiled": dict(self.profiled), "correlation": self.correlation_dict()}
+        return {
+            "not_identifiable": list(self.not_identifiable),
+            "not_identifiable_reasons": dict(self.not_identifiable),
+            "profiled": dict(self.profiled),
+            "correlation": self.correlation_dict(),
+        }
 
 
 def one_amplitude(loops: LoopSet, model: Model) -> dict[str, str]:
@@ -138,8 +143,11 @@ def one_amplitude(loops: LoopSet, model: Model) -> dict[str, str]:
         return {}
     return {
         p.name: f"cannot be told from {t.slope_of} with one amplitude level (X0 = {levels[0] * 1e3:.4g} mm): fixed at 0, "
-                f"so {t.slope_of} is the value at that amplitude"
-        for t in model.terms if t.slope_of for p in t.params if model.fixed.get(p.name) == 0.0
+        f"so {t.slope_of} is the value at that amplitude"
+        for t in model.terms
+        if t.slope_of
+        for p in t.params
+        if model.fixed.get(p.name) == 0.0
     }
 
 
@@ -280,14 +288,18 @@ def assess(objective: Any, theta: np.ndarray, cov: np.ndarray, rebuild: Rebuild,
         found = profile(objective, theta, i, cov, rebuild, unit, step)
         if found.flat:
             with_what = partners(jac, i, names)
-            named[name] = (f"trades off with {', '.join(with_what)}: " if with_what else "") + \
-                "its profile is flat over its range (the data determine only a combination)"
+            named[name] = (
+                f"trades off with {', '.join(with_what)}: " if with_what else ""
+            ) + "its profile is flat over its range (the data determine only a combination)"
         else:
             curvature = float(se[i]) if np.isfinite(se[i]) and not in_unseen[i] and name not in PROFILED else 0.0
             widths[name] = max(found.width, curvature)
     full = corrected(cov, directions, scale, {names.index(n): w for n, w in widths.items()})
-    flat_dirs = directions[:, [k for k in range(directions.shape[1])
-                               if any(abs(directions[names.index(n), k]) > PARTICIPATION for n in named)]] if named else np.zeros((len(names), 0))
+    flat_dirs = (
+        directions[:, [k for k in range(directions.shape[1]) if any(abs(directions[names.index(n), k]) > PARTICIPATION for n in named)]]
+        if named
+        else np.zeros((len(names), 0))
+    )
     return Identifiability(names=names, not_identifiable=named, full=full, profiled=widths, flat=flat_dirs, scale=scale, unprofiled=unprofiled)
 
 

@@ -80,8 +80,16 @@ class MotionChoice:
         return float(self.chi2["fundamental"] - self.chi2["measured"])
 
     def as_dict(self) -> dict[str, Any]:
-        return {"displacement": self.displacement, "meaning": WORDS[self.displacement], "decided_by": self.decided_by, "reason": self.reason,
-                "model": self.model or None, "chi2": dict(self.chi2), "delta_bic": self.delta_bic, "orders": self.orders}
+        return {
+            "displacement": self.displacement,
+            "meaning": WORDS[self.displacement],
+            "decided_by": self.decided_by,
+            "reason": self.reason,
+            "model": self.model or None,
+            "chi2": dict(self.chi2),
+            "delta_bic": self.delta_bic,
+            "orders": self.orders,
+        }
 
 
 WORDS = {
@@ -123,16 +131,22 @@ def linear_start(model: Model) -> str:
     return "thesis" if {"S_xi", "S_w"} <= {p.name for p in model.all_parameters} else "baseline"
 
 
-def _reading_fit(harmonics: Harmonics, start: str, loops: LoopSet, bounds: Mapping[str, tuple[float, float]] | None, fixed: Mapping[str, float] | None) -> float:
-    model = prepare_model(harmonics.loops, start, bounds={k: v for k, v in (bounds or {}).items() if k in ("xi0", "w0", "meq", "S_xi", "S_w")},
-                          fixed={k: v for k, v in (fixed or {}).items() if k in ("xi0", "w0", "meq", "S_xi", "S_w")})
+def _reading_fit(
+    harmonics: Harmonics, start: str, loops: LoopSet, bounds: Mapping[str, tuple[float, float]] | None, fixed: Mapping[str, float] | None
+) -> float:
+    model = prepare_model(
+        harmonics.loops,
+        start,
+        bounds={k: v for k, v in (bounds or {}).items() if k in ("xi0", "w0", "meq", "S_xi", "S_w")},
+        fixed={k: v for k, v in (fixed or {}).items() if k in ("xi0", "w0", "meq", "S_xi", "S_w")},
+    )
     fit = fit_objective(HarmonicObjective(harmonics, model), start, (), [starting_point(harmonics.loops, model)])
     return fit.chi2
 
 
 def choose_motion(
     loops: LoopSet,
-    model: "str | Model" = "baseline",
+    model: str | Model = "baseline",
     displacement: str = "auto",
     *,
     bounds: Mapping[str, tuple[float, float]] | None = None,
@@ -162,8 +176,10 @@ def decide(chi2: dict[str, float], model: str, evidence: list[dict[str, float]])
     delta = chi2["fundamental"] - chi2["measured"]
     shares = ", ".join(f"order {e['order']}: x {100 * e['displacement_share']:.3g} %, F {100 * e['force_share']:.3g} %" for e in evidence[:3])
     if delta <= -BIC_MARGIN:
-        reason = (f"the force does not respond to the displacement's harmonics ({shares}): driven by the fundamental "
-                  f"the {model} model fits better, BIC lower by {-delta:.4g}")
+        reason = (
+            f"the force does not respond to the displacement's harmonics ({shares}): driven by the fundamental "
+            f"the {model} model fits better, BIC lower by {-delta:.4g}"
+        )
         return MotionChoice("fundamental", "data", reason, dict(chi2), model, evidence)
     if delta >= BIC_MARGIN:
         reason = f"the force responds to the displacement's harmonics ({shares}): driven by them the {model} model fits better, BIC lower by {delta:.4g}"
@@ -193,8 +209,12 @@ Refit = TypeVar("Refit")
 
 
 def refit_under_other_reading(
-    loops: LoopSet, model: Model, theta: np.ndarray, choice: MotionChoice,
-    under: Callable[[str], Objective], search: Callable[[Objective, np.ndarray], Refit],
+    loops: LoopSet,
+    model: Model,
+    theta: np.ndarray,
+    choice: MotionChoice,
+    under: Callable[[str], Objective],
+    search: Callable[[Objective, np.ndarray], Refit],
 ) -> tuple[MotionChoice, Refit] | None:
     """The refit under the other displacement reading, one rule for ``hysid fit`` and a campaign's result: where
     ``model``, fitted under ``choice`` to its best ``theta``, reads the loops the other way (:func:`confirm_motion`),
@@ -206,4 +226,3 @@ def refit_under_other_reading(
         return None
     objective = under(flipped.displacement)
     return flipped, search(objective, np.clip(theta, objective.bounds[:, 0], objective.bounds[:, 1]))
-

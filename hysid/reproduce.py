@@ -18,9 +18,10 @@ every noise level.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -128,19 +129,21 @@ class Reproduction:
         cells = []
         for (setting, algo, noise), results in self.results.items():
             st = self.stats((setting, algo, noise))
-            cells.append({
-                "setting": setting,
-                "algo": algo,
-                "noise_pct": noise,
-                "weights": results[0].weights,
-                "polish": bool(results[0].settings["polish"]),
-                "runs": {p: self.values((setting, algo, noise))[:, i] for i, p in enumerate(PARAMS)},
-                "mean": dict(zip(PARAMS, st["mean"])),
-                "std": dict(zip(PARAMS, st["std"])),
-                "rel_std": dict(zip(PARAMS, st["rel_std"])),
-                "abs_error_of_mean": dict(zip(PARAMS, st["error"])),
-                "evaluations": [r.evaluations for r in results],
-            })
+            cells.append(
+                {
+                    "setting": setting,
+                    "algo": algo,
+                    "noise_pct": noise,
+                    "weights": results[0].weights,
+                    "polish": bool(results[0].settings["polish"]),
+                    "runs": {p: self.values((setting, algo, noise))[:, i] for i, p in enumerate(PARAMS)},
+                    "mean": dict(zip(PARAMS, st["mean"])),
+                    "std": dict(zip(PARAMS, st["std"])),
+                    "rel_std": dict(zip(PARAMS, st["rel_std"])),
+                    "abs_error_of_mean": dict(zip(PARAMS, st["error"])),
+                    "evaluations": [r.evaluations for r in results],
+                }
+            )
         return {
             "noise_seeds": self.noise_seeds,
             "seed": self.seed,
@@ -171,7 +174,6 @@ class Reproduction:
         out_dir = Path(out_dir)
         self.report = str(out_dir / reproduction.REPORT)
         return reproduction.write_reproduction_report(self.to_dict(), self.labels(), self.curves(), out_dir)
-
 
 
 def reproduce_thesis(

@@ -80,8 +80,13 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
     several = {r.island for r in records if sum(q.island == r.island for q in records) > 1}
     paths = algorithm_paths((((run[0], run[1]), run[3]) for run in store.runs(name)), store.moves(name))  # (island, run), algo
     islands = [
-        {**r.as_dict(), "algorithms": list(paths.get((r.island, r.run), (r.algo,))), "status": members.get(r.island, "unknown"),
-         "messages": sent.get(r.island, 0), "trend": trend(by_run.get((r.island, r.run), []))}
+        {
+            **r.as_dict(),
+            "algorithms": list(paths.get((r.island, r.run), (r.algo,))),
+            "status": members.get(r.island, "unknown"),
+            "messages": sent.get(r.island, 0),
+            "trend": trend(by_run.get((r.island, r.run), [])),
+        }
         for r in records
     ]
     ended = meta["ended"] if meta["status"] == "stopped" and meta["ended"] else gone or time.time()
@@ -90,11 +95,14 @@ def snapshot(store: Store, name: str | None = None) -> CampaignSnapshot:
         evaluations=store.total_evaluations(name),
         best=np.inf if best is None else best.fitness,
         members=members,
-        islands={f"{r.island}/{r.run}" if r.island in several else r.island:
-                 IslandView(r.algo, r.iterations, r.best_fitness, r.final, paths.get((r.island, r.run), ())) for r in records},
+        islands={
+            f"{r.island}/{r.run}" if r.island in several else r.island: IslandView(
+                r.algo, r.iterations, r.best_fitness, r.final, paths.get((r.island, r.run), ())
+            )
+            for r in records
+        },
         migrations=store.count("migrations", name),
         migrations_followed=store.unfollowed(name) is None,
         rejected=store.count("rejected", name),
     )
-    return CampaignSnapshot(name, meta["dataset"], status, reason, progress,
-                            None if best is None else best.island, islands, events[-5:], gone)
+    return CampaignSnapshot(name, meta["dataset"], status, reason, progress, None if best is None else best.island, islands, events[-5:], gone)

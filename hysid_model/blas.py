@@ -11,8 +11,9 @@ it once (16 us per use).
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from contextlib import AbstractContextManager
-from typing import Any, Callable, TypeVar
+from typing import Any, TypeVar
 
 from threadpoolctl import ThreadpoolController
 

@@ -233,8 +233,14 @@ def exact_state(t: float, um: float, tn: float, n: float, r: float, a: float, ps
 
 @njit(cache=True, nogil=True)
 def bouc_wen_exact(
-    exponent: np.ndarray, r: np.ndarray, zy: np.ndarray, span: np.ndarray, which: np.ndarray,
-    travel_: np.ndarray, sign: np.ndarray, out: np.ndarray,
+    exponent: np.ndarray,
+    r: np.ndarray,
+    zy: np.ndarray,
+    span: np.ndarray,
+    which: np.ndarray,
+    travel_: np.ndarray,
+    sign: np.ndarray,
+    out: np.ndarray,
 ) -> None:
     """out[p, l, j] = z (m) at travel ``travel_[p, l, j]`` (m) since the last reversal, on the loading
     (``sign`` +1) or unloading (-1) branch, exactly (:func:`exact_state`), for candidates of exponent n,

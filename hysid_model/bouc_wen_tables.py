@@ -186,8 +186,18 @@ def _tabulated_state(t: float, tn: float, climb: np.ndarray, n_climb: int, relax
 
 @njit(cache=True, nogil=True)
 def _candidate(
-    n: float, r: float, zy: float, span: np.ndarray, climb: np.ndarray, relax: np.ndarray, um: np.ndarray, tn: np.ndarray,
-    which: np.ndarray, mean_nodes: np.ndarray, split: np.ndarray, mean: np.ndarray,
+    n: float,
+    r: float,
+    zy: float,
+    span: np.ndarray,
+    climb: np.ndarray,
+    relax: np.ndarray,
+    um: np.ndarray,
+    tn: np.ndarray,
+    which: np.ndarray,
+    mean_nodes: np.ndarray,
+    split: np.ndarray,
+    mean: np.ndarray,
 ) -> tuple[int, int]:
     """The orbit of every half span of one candidate and the tables up to its largest peak state, and where
     there are ``mean_nodes`` (M > 0) its cycle means into ``mean`` (:func:`_mean`): returns the table sizes."""
@@ -212,8 +222,17 @@ def _scratch(span: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 @njit(cache=True, nogil=True)
 def _mean(
-    which: np.ndarray, tn: np.ndarray, zy: float, nodes: np.ndarray, split: np.ndarray, climb: np.ndarray, n_climb: int,
-    relax: np.ndarray, n_relax: int, n: float, out: np.ndarray,
+    which: np.ndarray,
+    tn: np.ndarray,
+    zy: float,
+    nodes: np.ndarray,
+    split: np.ndarray,
+    climb: np.ndarray,
+    n_climb: int,
+    relax: np.ndarray,
+    n_relax: int,
+    n: float,
+    out: np.ndarray,
 ) -> None:
     """out[l] = the cycle mean of z (m) over loop l's mean nodes (loading travels first, ``split[l]`` of them)."""
     for l in range(nodes.shape[0]):
@@ -226,8 +245,23 @@ def _mean(
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
 def _run(
-    out: np.ndarray, start: int, stride: int, count: int, travel_: np.ndarray, deviation: np.ndarray, dx: float, spread: float,
-    tn: float, zy: float, n: float, ks: float, km: float, climb: np.ndarray, n_climb: int, relax: np.ndarray, n_relax: int,
+    out: np.ndarray,
+    start: int,
+    stride: int,
+    count: int,
+    travel_: np.ndarray,
+    deviation: np.ndarray,
+    dx: float,
+    spread: float,
+    tn: float,
+    zy: float,
+    n: float,
+    ks: float,
+    km: float,
+    climb: np.ndarray,
+    n_climb: int,
+    relax: np.ndarray,
+    n_relax: int,
 ) -> None:
     """out[start + j stride] += ks u(travel) - km along one run (travel increasing): the climbing piece,
     u = -w(tn - travel / z_y), walks its table down, the relaxing piece, u = w(travel / z_y - tn), up, and the
@@ -274,9 +308,18 @@ def _run(
 
 @njit(cache=True, nogil=True)
 def bouc_wen_samples(
-    candidates: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], span: np.ndarray, which: np.ndarray,
-    travel_: np.ndarray, runs: np.ndarray, loop_runs: np.ndarray, step: np.ndarray, spread: np.ndarray, deviation: np.ndarray,
-    mean_nodes: np.ndarray, split: np.ndarray, out: np.ndarray,
+    candidates: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    span: np.ndarray,
+    which: np.ndarray,
+    travel_: np.ndarray,
+    runs: np.ndarray,
+    loop_runs: np.ndarray,
+    step: np.ndarray,
+    spread: np.ndarray,
+    deviation: np.ndarray,
+    mean_nodes: np.ndarray,
+    split: np.ndarray,
+    out: np.ndarray,
 ) -> None:
     """out[p, l, j] += k_p (z - mean) at fixed samples, any exponent: ``candidates`` the columns (exponent, r,
     zy, k) ``(P,)``; the runs as in :func:`hysid_model.kernels.bouc_wen_samples`; the cycle mean over
@@ -290,15 +333,36 @@ def bouc_wen_samples(
             row, km = out[p, l], k[p] * mean[l]
             for q in range(loop_runs[l], loop_runs[l + 1]):
                 _run(
-                    row, runs[q, 1], runs[q, 2], runs[q, 3], travel_[l], deviation[l], step[q], spread[q], tn[which[l]], zp, n,
-                    k[p] * zp * runs[q, 4], km, climb, n_climb, relax, n_relax,
+                    row,
+                    runs[q, 1],
+                    runs[q, 2],
+                    runs[q, 3],
+                    travel_[l],
+                    deviation[l],
+                    step[q],
+                    spread[q],
+                    tn[which[l]],
+                    zp,
+                    n,
+                    k[p] * zp * runs[q, 4],
+                    km,
+                    climb,
+                    n_climb,
+                    relax,
+                    n_relax,
                 )
 
 
 @njit(cache=True, nogil=True)
 def bouc_wen_shifted(
-    candidates: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], span: np.ndarray, which: np.ndarray,
-    mean_nodes: np.ndarray, split: np.ndarray, shift: np.ndarray, motion: tuple[np.ndarray, np.ndarray], bounds: tuple[np.ndarray, np.ndarray],
+    candidates: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    span: np.ndarray,
+    which: np.ndarray,
+    mean_nodes: np.ndarray,
+    split: np.ndarray,
+    shift: np.ndarray,
+    motion: tuple[np.ndarray, np.ndarray],
+    bounds: tuple[np.ndarray, np.ndarray],
     out: np.ndarray,
 ) -> None:
     """out[p, l, j] += k_p (z(theta_j - shift[p, l]) - mean): the orbit at phases shifted per candidate, any

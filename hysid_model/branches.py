@@ -171,8 +171,17 @@ def reversal_guard(xh: np.ndarray, reversal: tuple[float, float], x_sigma: float
     return float(GUARD_SIGMAS * slope_sd / max(float(curvature.min()), 1e-300))
 
 
-def smooth_part(theta: np.ndarray, harmonics: int, gram: np.ndarray, projection: np.ndarray, psi: np.ndarray, hi: float,
-                force: np.ndarray, at_branches: np.ndarray, design: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def smooth_part(
+    theta: np.ndarray,
+    harmonics: int,
+    gram: np.ndarray,
+    projection: np.ndarray,
+    psi: np.ndarray,
+    hi: float,
+    force: np.ndarray,
+    at_branches: np.ndarray,
+    design: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """(the force less its smooth part, the smooth part at the 2n branch samples).
 
     The smooth part is the least-squares fit of the force's harmonics 0..K (``harmonics``; the samples at phases
@@ -200,8 +209,13 @@ def smooth_part(theta: np.ndarray, harmonics: int, gram: np.ndarray, projection:
 
 
 def branch_values(
-    psi: np.ndarray, force: np.ndarray, sample_phases: np.ndarray, reversal: tuple[float, float], samples_per_cycle: float,
-    guard: float, smooth: Callable[[], tuple[np.ndarray, np.ndarray]],
+    psi: np.ndarray,
+    force: np.ndarray,
+    sample_phases: np.ndarray,
+    reversal: tuple[float, float],
+    samples_per_cycle: float,
+    guard: float,
+    smooth: Callable[[], tuple[np.ndarray, np.ndarray]],
 ) -> tuple[np.ndarray, np.ndarray, float, float, int | None]:
     """Branch values at the 2n ``sample_phases`` (top, then bottom) of the force samples at half-cycle phases ``psi``
     (:func:`half_cycle_phases`); ``reversal`` = (lo, hi) phases, samples within ``guard`` of them left out
@@ -254,8 +268,9 @@ def branch_values(
     return value + at_branches, v * shared, sigma_raw, overlap, None
 
 
-def _local_fits(ps: np.ndarray, ys: np.ndarray, centre: np.ndarray, h: float, lo: np.ndarray, hi: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _local_fits(
+    ps: np.ndarray, ys: np.ndarray, centre: np.ndarray, h: float, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(value at the centre, variance factor v, residual sum of squares, degrees of freedom) of the local-quadratic
     fit in each window [lo, hi), windows taken in groups that hold about as many samples as the record (widened
     windows overlap, and their samples would otherwise be copied many times over)."""
@@ -320,14 +335,16 @@ def _harmonic_branches(
     return coef @ at, var * overlap, sigma_raw, overlap, k
 
 
-def _window_bounds(centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray, half_hi: np.ndarray,
-                   rh: float) -> tuple[np.ndarray, np.ndarray]:
+def _window_bounds(
+    centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray, half_hi: np.ndarray, rh: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Phase windows at width ``rh`` clipped to their half cycles (see :func:`phase_windows`)."""
     return np.maximum(centre + start * rh, half_lo), np.minimum(centre + (start + width) * rh, half_hi)
 
 
-def _window_fits(ps: np.ndarray, centre: np.ndarray, h: float, lo: np.ndarray, hi: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray], np.ndarray]:
+def _window_fits(
+    ps: np.ndarray, centre: np.ndarray, h: float, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray], np.ndarray]:
     """(window of each used sample, its position in ``ps``, its u = (phase - centre) / h, moments of u^0..u^4,
     inverse Gram matrices ``(W, 3, 3)``) of local-quadratic fits in the windows [lo, hi)."""
     win, pos = _concatenated_ranges(np.searchsorted(ps, lo), np.searchsorted(ps, hi))
@@ -382,8 +399,7 @@ class _PhaseSums:
         s = [c[end] - c[begin] for c in self.cum]
         e = (self.ref[block] - centre[owner]) / self.h
         powers = [e**m for m in range(5)]
-        return [np.bincount(owner, sum(comb(p, k) * s[k] * powers[p - k] for k in range(p + 1)), minlength=centre.size)
-                for p in range(5)]
+        return [np.bincount(owner, sum(comb(p, k) * s[k] * powers[p - k] for k in range(p + 1)), minlength=centre.size) for p in range(5)]
 
     def variance(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """[(U^T U)^-1]_00 of the windows [lo, hi) about ``centre`` (inf where the samples do not determine a quadratic)."""
@@ -409,8 +425,18 @@ def _inverse_00(m: list[np.ndarray]) -> np.ndarray:
     return np.where(np.isfinite(v) & (det > 0) & (v > 0), v, np.inf)
 
 
-def _even_out_variance(sums: _PhaseSums, centre: np.ndarray, start: np.ndarray, width: np.ndarray, half_lo: np.ndarray,
-                       half_hi: np.ndarray, lo: np.ndarray, hi: np.ndarray, chosen_r: np.ndarray, widest: np.ndarray) -> None:
+def _even_out_variance(
+    sums: _PhaseSums,
+    centre: np.ndarray,
+    start: np.ndarray,
+    width: np.ndarray,
+    half_lo: np.ndarray,
+    half_hi: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    chosen_r: np.ndarray,
+    widest: np.ndarray,
+) -> None:
     """Widen (in place) windows whose branch value's variance exceeds ``VARIANCE_SPREAD`` times the median one's.
 
     On a rate locked to the excitation the samples at a reversal's own phase

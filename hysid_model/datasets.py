@@ -35,23 +35,37 @@ from hysid_model.errors import HysidInputError, HysidWarning
 from hysid_model.extraction import extract_loop
 from hysid_model.loops import LoopSet
 from hysid_model.readers.csv_series import write_series
-from hysid_model.resolution import reversals_resolved
 from hysid_model.readers.dataset_dir import (
-    MANIFEST_NAME, DatasetConfig, check_skip_rows, confined, frequency_in_name, inside, listed_file, read_config, read_manifest,
+    MANIFEST_NAME,
+    DatasetConfig,
+    check_skip_rows,
+    confined,
+    frequency_in_name,
+    inside,
+    listed_file,
+    read_config,
+    read_manifest,
 )
 from hysid_model.readers.matfile import read_mat_dataset
 from hysid_model.readers.records import (
-    RAW_SUFFIXES, RawSource, check_records, directory_sources, load_compiled_reader, manifest_sources, manifest_text, sources_of_file,
+    RAW_SUFFIXES,
+    RawSource,
+    check_records,
+    directory_sources,
+    load_compiled_reader,
+    manifest_sources,
+    manifest_text,
+    sources_of_file,
 )
 from hysid_model.readers.tidy import is_tidy_file, read_loops, write_loops
+from hysid_model.resolution import reversals_resolved
 from hysid_model.synth import RawRecord, check_noise, synth_loops
 
 TIDY_NAME = "loops.csv"
 DEFAULT_POINTS = 100
 
 
-def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 0, n_points: int | None = None,
-                 skip_rows: int | None = None) -> LoopSet:
+def load_dataset(spec: str | Path, *, noise_pct: float = 0.0, noise_seed: int = 0, n_points: int | None = None, skip_rows: int | None = None) -> LoopSet:
     """Load the loops of ``spec`` (see the module docstring), with optional added noise.
 
     ``n_points`` samples per branch (default 100, the thesis' ``interppts``);
@@ -123,8 +137,10 @@ def _load_file(path: Path, config: DatasetConfig, n_points: int | None) -> LoopS
     if suffix in RAW_SUFFIXES:
         return extract_records(sources_of_file(path, config, frequency_in_name(path.stem)), config, n_points or DEFAULT_POINTS, f"raw-{suffix[1:]}")
     if suffix == ".json":
-        raise HysidInputError(f"{path}: a JSON document is not a dataset (the loops.json of `hysid loops --out` is a survey of the loops; "
-                              f"the loops themselves are the {TIDY_NAME} beside it, or the raw records)")
+        raise HysidInputError(
+            f"{path}: a JSON document is not a dataset (the loops.json of `hysid loops --out` is a survey of the loops; "
+            f"the loops themselves are the {TIDY_NAME} beside it, or the raw records)"
+        )
     raise HysidInputError(f"{path}: unknown dataset file type (expected a hysid loops file, .mat, or a raw record: {', '.join(RAW_SUFFIXES)})")
 
 
@@ -143,7 +159,9 @@ def _load_dir(directory: Path, config: DatasetConfig, n_points: int | None) -> L
         if suffixes == {".mat"}:
             return read_mat_dataset(files, config, n, manifest=rows)
         if not suffixes <= set(RAW_SUFFIXES):
-            raise HysidInputError(f"{manifest}: lists {', '.join(sorted(suffixes))} files; records must be all raw records ({', '.join(RAW_SUFFIXES)}) or all .mat")
+            raise HysidInputError(
+                f"{manifest}: lists {', '.join(sorted(suffixes))} files; records must be all raw records ({', '.join(RAW_SUFFIXES)}) or all .mat"
+            )
         unlisted = sorted(set(config.steady) - {row.file for row in rows})
         if unlisted:
             raise HysidInputError(f"{directory / 'dataset.toml'}: [[tests]] file {unlisted[0]!r} is not listed in {MANIFEST_NAME}")
@@ -159,8 +177,7 @@ def _load_dir(directory: Path, config: DatasetConfig, n_points: int | None) -> L
         kinds = sorted({s.path.suffix.lower()[1:] for s in sources})
         return extract_records(sources, config, n, "raw-" + "+".join(kinds), estimate_manifest=True)
     raise HysidInputError(
-        f"{directory}: no dataset here (expected {MANIFEST_NAME} with raw records, {TIDY_NAME}, .mat loop files, or raw records: "
-        f"{', '.join(RAW_SUFFIXES)})"
+        f"{directory}: no dataset here (expected {MANIFEST_NAME} with raw records, {TIDY_NAME}, .mat loop files, or raw records: {', '.join(RAW_SUFFIXES)})"
     )
 
 
@@ -179,20 +196,32 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
         for source in sources:
             series = source.read()
             read.append((series.channels[1:], series.units))
-            extracted.append(extract_loop(
-                series.t, series.x, series.force, source=series.source, n_points=n_points,
-                nominal_freq_hz=source.nominal_hz, steady_window=config.window(source.window_key),
-            ))
+            extracted.append(
+                extract_loop(
+                    series.t,
+                    series.x,
+                    series.force,
+                    source=series.source,
+                    n_points=n_points,
+                    nominal_freq_hz=source.nominal_hz,
+                    steady_window=config.window(source.window_key),
+                )
+            )
             del series
     once_each(caught, len(sources))
     labels = [s.label for s in sources]
     per_loop: dict[str, list[Any]] = {
-        "file": [s.file for s in sources], "nominal_frequency_hz": [math.nan if s.nominal_hz is None else s.nominal_hz for s in sources],
+        "file": [s.file for s in sources],
+        "nominal_frequency_hz": [math.nan if s.nominal_hz is None else s.nominal_hz for s in sources],
     }
     for key in extracted[0].meta():
         per_loop[key] = [e.meta()[key] for e in extracted]
-    facts = plausibility.Measured(*(np.array([getattr(e, name) for e in extracted]) for name in (
-        "freq_hz", "x0", "force_amplitude", "phase_deg", "x_distortion", "force_distortion", "drift")))
+    facts = plausibility.Measured(
+        *(
+            np.array([getattr(e, name) for e in extracted])
+            for name in ("freq_hz", "x0", "force_amplitude", "phase_deg", "x_distortion", "force_distortion", "drift")
+        )
+    )
     plausibility.warn_loops(labels, facts, [e.clipping for e in extracted], str(config.directory))
     resolved, meta_reversals = reversals_resolved([e.reversal_steps for e in extracted if e.reversal_steps is not None])
     per_loop["reversals_resolved"] = [resolved] * len(extracted)
@@ -201,15 +230,20 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
     estimated = [k for k, s in enumerate(sources) if s.nominal_hz is None]
     if estimate_manifest and estimated:
         files = [k for k, s in enumerate(sources) if s.whole_file]
-        meta["estimated_manifest"] = manifest_text(
-            [sources[k] for k in files], [sources[k].nominal_hz or extracted[k].freq_hz for k in files]
-        )
+        meta["estimated_manifest"] = manifest_text([sources[k] for k in files], [sources[k].nominal_hz or extracted[k].freq_hz for k in files])
         found = ", ".join(f"{labels[k]} {extracted[k].freq_hz:.6g} Hz" for k in estimated)
-        warnings.warn(HysidWarning(
-            f"{config.directory}: no {MANIFEST_NAME}; frequencies estimated from the data: {found}"
-            + (f" (`hysid loops {config.directory}` prints the {MANIFEST_NAME} that fixes them; in Python it is "
-               "loops.meta['estimated_manifest'])" if files else ""), "estimated_frequencies",
-        ), stacklevel=3)
+        warnings.warn(
+            HysidWarning(
+                f"{config.directory}: no {MANIFEST_NAME}; frequencies estimated from the data: {found}"
+                + (
+                    f" (`hysid loops {config.directory}` prints the {MANIFEST_NAME} that fixes them; in Python it is loops.meta['estimated_manifest'])"
+                    if files
+                    else ""
+                ),
+                "estimated_frequencies",
+            ),
+            stacklevel=3,
+        )
     loops = LoopSet(
         name=config.name,
         freq_hz=np.array([e.freq_hz for e in extracted]),
@@ -315,8 +349,12 @@ def write_dataset(
     dt = np.diff(data[0].t)
     _write_toml(
         out / "dataset.toml",
-        {"name": name or out.resolve().name, "meq_kg": 0.0 if meq_kg is None else float(meq_kg),
-         "sample_rate_hz": float(1.0 / dt.mean()), "description": description},
+        {
+            "name": name or out.resolve().name,
+            "meq_kg": 0.0 if meq_kg is None else float(meq_kg),
+            "sample_rate_hz": float(1.0 / dt.mean()),
+            "description": description,
+        },
         {"bounds": {k: list(v) for k, v in (bounds or {}).items()}, "true_params": dict(true_params or {})},
     )
     return out

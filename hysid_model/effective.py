@@ -113,8 +113,9 @@ def loop_effective(loops: LoopSet, energy: np.ndarray) -> tuple[np.ndarray, np.n
     return k_eff, xi_eq
 
 
-def effective_table(model: Model, theta: np.ndarray, propagate: Callable[[np.ndarray], np.ndarray], freq_hz: np.ndarray,
-                    x0: np.ndarray) -> list[OperatingPoint]:
+def effective_table(
+    model: Model, theta: np.ndarray, propagate: Callable[[np.ndarray], np.ndarray], freq_hz: np.ndarray, x0: np.ndarray
+) -> list[OperatingPoint]:
     """:func:`effective_values` at each pair of ``freq_hz`` and ``x0`` with standard errors: ``propagate(grads)``
     turns gradients ``(Q, D)`` in ``model``'s parameters into standard errors (the fit's covariance)."""
     device, index = device_model(model)
@@ -133,7 +134,11 @@ def effective_table(model: Model, theta: np.ndarray, propagate: Callable[[np.nda
         grads[..., index] = ((values[1 : 1 + device.dim] - values[1 + device.dim :]) / (up - down)[:, None, None]).transpose(1, 2, 0)
     se = propagate(grads.reshape(-1, model.dim)).reshape(len(EFFECTIVE), loops.n_loops)
     return [
-        OperatingPoint(float(loops.x0[j]), float(loops.freq_hz[j]), {q: float(values[0, i, j]) for i, q in enumerate(EFFECTIVE)},
-                       {q: float(se[i, j]) for i, q in enumerate(EFFECTIVE)})
+        OperatingPoint(
+            float(loops.x0[j]),
+            float(loops.freq_hz[j]),
+            {q: float(values[0, i, j]) for i, q in enumerate(EFFECTIVE)},
+            {q: float(se[i, j]) for i, q in enumerate(EFFECTIVE)},
+        )
         for j in range(loops.n_loops)
     ]

@@ -52,10 +52,10 @@ Every step is linear in the record length (no sliding windows over cycles).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, cast
-import warnings
 
 import numpy as np
 
@@ -182,7 +182,6 @@ def loop_from_branches(top: np.ndarray, bottom: np.ndarray, n_points: int, sourc
     if np.mean(f_top - f_bot) < 0:
         f_top, f_bot = f_bot, f_top
     return x0, np.column_stack([grid, f_top]), np.column_stack([grid, f_bot])
-
 
 
 @lru_cache(maxsize=8)
@@ -336,10 +335,14 @@ def _displacement_harmonics(cx: np.ndarray, phi: float, x0: float, stderr: float
     if reverses == 2:
         return xh, thd
     kept = next(n for n in range(xh.shape[1] - 1, 0, -1) if n == 1 or waveform.reversal_count(xh[:, :n])[0] == 2)
-    warnings.warn(HysidWarning(
-        f"{source}: the displacement reverses {reverses} times per cycle (sub-loops, or a clipped top); "
-        + ("the loop is placed on the ideal sine X0 sin(wt)" if kept == 1 else f"the loop keeps its first {kept} harmonics, which reverse twice"), "sub_loops",
-    ), stacklevel=3)
+    warnings.warn(
+        HysidWarning(
+            f"{source}: the displacement reverses {reverses} times per cycle (sub-loops, or a clipped top); "
+            + ("the loop is placed on the ideal sine X0 sin(wt)" if kept == 1 else f"the loop keeps its first {kept} harmonics, which reverse twice"),
+            "sub_loops",
+        ),
+        stacklevel=3,
+    )
     return xh[:, :kept].copy(), thd
 
 
@@ -381,7 +384,9 @@ def extract_loop(
             f"by {100 * abs(freq / nominal_freq_hz - 1):.1f} % (more than {100 * FREQ_TOLERANCE:g} %)"
         )
     cycles = int(np.floor((t_b - t_a) * freq + CYCLE_SLACK))
-    while cycles >= 2 and t_a + cycles / freq > t[-1] + (1 + 1e-6) * (t[-1] - t[0]) / (t.size - 1):  # the last sample of a whole cycle is one interval before its end
+    while cycles >= 2 and t_a + cycles / freq > t[-1] + (1 + 1e-6) * (t[-1] - t[0]) / (
+        t.size - 1
+    ):  # the last sample of a whole cycle is one interval before its end
         cycles -= 1
     if cycles < 2:
         raise HysidInputError(f"{source}: fewer than 2 steady whole cycles at {freq:.6g} Hz in [{t_a:g}, {t_b:g}] s")
@@ -414,9 +419,15 @@ def extract_loop(
     centred = fs - force_mean
     guard = reversal_guard(xh, (lo, hi), x_sigma, xs.size)
     values, var, sigma_raw, overlap, force_harmonics = branch_values(
-        psi, centred, sample_phases, (lo, hi), ts.size / sampled.size, guard,
-        lambda: smooth_part(theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred,
-                            harmonic_design(sample_phases - phi, harmonics), kept),
+        psi,
+        centred,
+        sample_phases,
+        (lo, hi),
+        ts.size / sampled.size,
+        guard,
+        lambda: smooth_part(
+            theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred, harmonic_design(sample_phases - phi, harmonics), kept
+        ),
     )
     first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
     used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]
@@ -441,7 +452,8 @@ def extract_loop(
         window_overlap=overlap,
         force_harmonics=force_harmonics,
         drift=cast(tuple[float, float], tuple(float(d) for d in plausibility.amplitude_drift(used))),  # (displacement, force)
-        clipping=plausibility.clipping(plausibility.mean_cycle(theta / (2 * np.pi), xs), plausibility.mean_cycle(theta / (2 * np.pi), fs),
-                                       plausibility.saturation(fs), xh, freq),
+        clipping=plausibility.clipping(
+            plausibility.mean_cycle(theta / (2 * np.pi), xs), plausibility.mean_cycle(theta / (2 * np.pi), fs), plausibility.saturation(fs), xh, freq
+        ),
         reversal_steps=None if force_harmonics is not None else reversal_steps(psi, centred, sample_phases, (lo, hi), guard, sigma_raw),
     )

@@ -60,7 +60,7 @@ class Harmonics:
     r: np.ndarray
 
     @classmethod
-    def from_loops(cls, loops: LoopSet, max_order: int = MAX_ORDER) -> "Harmonics":
+    def from_loops(cls, loops: LoopSet, max_order: int = MAX_ORDER) -> Harmonics:
         """Reduce ``loops``; sigma is the loop set's where known, else :func:`estimate_sigma`."""
         names = harmonic_names(max_order)
         if loops.n_samples * 2 <= len(names):
@@ -106,11 +106,16 @@ class Harmonics:
         """Energy dissipated per cycle, the loop area pi X0 c1 (J), from coefficients ``(..., L, M)``."""
         return np.pi * self.loops.x0 * coef[..., self.names.index("c1")]
 
-    def subset(self, index: np.ndarray) -> "Harmonics":
+    def subset(self, index: np.ndarray) -> Harmonics:
         idx = np.asarray(index, dtype=int)
         return Harmonics(
-            loops=self.loops.subset(idx), names=self.names, coef=self.coef[idx], sigma=self.sigma[idx],
-            sigma_known=self.sigma_known[idx], q=self.q[idx], r=self.r[idx],
+            loops=self.loops.subset(idx),
+            names=self.names,
+            coef=self.coef[idx],
+            sigma=self.sigma[idx],
+            sigma_known=self.sigma_known[idx],
+            q=self.q[idx],
+            r=self.r[idx],
         )
 
 

@@ -95,8 +95,19 @@ def _state(t: float, z_max: float, run: float, a: float, b: float) -> float:
 
 @njit(cache=True, nogil=True, inline="always")
 def _piece(
-    out: np.ndarray, start: int, stride: int, first: int, last: int, travel: np.ndarray, deviation: np.ndarray,
-    dx: float, spread: float, origin: float, c: float, base: float, scale: float,
+    out: np.ndarray,
+    start: int,
+    stride: int,
+    first: int,
+    last: int,
+    travel: np.ndarray,
+    deviation: np.ndarray,
+    dx: float,
+    spread: float,
+    origin: float,
+    c: float,
+    base: float,
+    scale: float,
 ) -> None:
     """out[n] += base + scale expm1(-c (travel[n] - origin)) for n = start + j stride, first <= j < last (one loop's samples).
 
@@ -161,8 +172,20 @@ def _piece(
 
 @njit(cache=True, nogil=True, inline="always")
 def _bouc_wen_loop(
-    out: np.ndarray, first_run: int, last_run: int, runs: np.ndarray, step: np.ndarray, spread: np.ndarray,
-    travel: np.ndarray, deviation: np.ndarray, zm: float, rn: float, ap: float, bp: float, kp: float, km: float,
+    out: np.ndarray,
+    first_run: int,
+    last_run: int,
+    runs: np.ndarray,
+    step: np.ndarray,
+    spread: np.ndarray,
+    travel: np.ndarray,
+    deviation: np.ndarray,
+    zm: float,
+    rn: float,
+    ap: float,
+    bp: float,
+    kp: float,
+    km: float,
 ) -> None:
     """out[n] += k (sign z(travel[n])) - km over the runs ``first_run:last_run`` of one loop (see :func:`bouc_wen_samples`)."""
     for r in range(first_run, last_run):
@@ -185,7 +208,13 @@ def _bouc_wen_loop(
 
 @njit(cache=True, nogil=True, fastmath={"contract"})
 def bouc_wen_samples(
-    orbit: Orbit, travel: np.ndarray, runs: np.ndarray, loop_runs: np.ndarray, step: np.ndarray, spread: np.ndarray, deviation: np.ndarray,
+    orbit: Orbit,
+    travel: np.ndarray,
+    runs: np.ndarray,
+    loop_runs: np.ndarray,
+    step: np.ndarray,
+    spread: np.ndarray,
+    deviation: np.ndarray,
     out: np.ndarray,
 ) -> None:
     """out[p, l, n] += k_p (sign z(travel) - mean[p, l]) at fixed samples.
@@ -204,8 +233,20 @@ def bouc_wen_samples(
     for p in range(a.shape[0]):
         for l in range(travel.shape[0]):
             _bouc_wen_loop(
-                out[p, l], loop_runs[l], loop_runs[l + 1], runs, step, spread, travel[l], deviation[l],
-                z_max[p, which[l]], run[p, which[l]], a[p], b[p], k[p], k[p] * mean[p, l],
+                out[p, l],
+                loop_runs[l],
+                loop_runs[l + 1],
+                runs,
+                step,
+                spread,
+                travel[l],
+                deviation[l],
+                z_max[p, which[l]],
+                run[p, which[l]],
+                a[p],
+                b[p],
+                k[p],
+                k[p] * mean[p, l],
             )
 
 
@@ -244,7 +285,13 @@ def _exp_sum(travel: np.ndarray, l: int, first: int, last: int, origin: float, c
 
 @njit(cache=True, nogil=True)
 def bouc_wen_mean(
-    z_max: np.ndarray, run: np.ndarray, which: np.ndarray, a: np.ndarray, b: np.ndarray, travel: np.ndarray, split: np.ndarray,
+    z_max: np.ndarray,
+    run: np.ndarray,
+    which: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    travel: np.ndarray,
+    split: np.ndarray,
     out: np.ndarray,
 ) -> None:
     """out[p, l] = mean of z over the nodes of loop l (a uniform phase grid: the cycle mean).
@@ -311,7 +358,13 @@ def _motion(waves: np.ndarray, l: int, n: int, xs: np.ndarray) -> tuple[float, f
 
 @njit(cache=True, nogil=True)
 def bouc_wen_shifted(
-    orbit: Orbit, shift: np.ndarray, xh: np.ndarray, waves: np.ndarray, x_min: np.ndarray, x_max: np.ndarray, out: np.ndarray,
+    orbit: Orbit,
+    shift: np.ndarray,
+    xh: np.ndarray,
+    waves: np.ndarray,
+    x_min: np.ndarray,
+    x_max: np.ndarray,
+    out: np.ndarray,
 ) -> None:
     """out[p, l, n] += k_p (z(theta_n - shift[p, l]) - mean[p, l]): the orbit at phases shifted per candidate
     (a channel delay). The displacement ``xh`` (Re, Im) ``(2, L, K)`` is evaluated at the shifted phase from
@@ -353,8 +406,19 @@ def _jump_in_cell(reversal: float, shift: float, theta: float, before: float, af
 
 @njit(cache=True, nogil=True)
 def velocity_sign_chain(
-    amplitude: np.ndarray, shift: np.ndarray, rho: np.ndarray, xh: np.ndarray, waves: np.ndarray, phase: np.ndarray,
-    x0: np.ndarray, theta_lo: np.ndarray, theta_hi: np.ndarray, n_top: int, before: np.ndarray, after: np.ndarray, out: np.ndarray,
+    amplitude: np.ndarray,
+    shift: np.ndarray,
+    rho: np.ndarray,
+    xh: np.ndarray,
+    waves: np.ndarray,
+    phase: np.ndarray,
+    x0: np.ndarray,
+    theta_lo: np.ndarray,
+    theta_hi: np.ndarray,
+    n_top: int,
+    before: np.ndarray,
+    after: np.ndarray,
+    out: np.ndarray,
 ) -> None:
     """out[p, l, n] += amplitude[p, l] y(theta_n - shift[p, l]): sgn(x') delayed by ``shift`` and, where
     ``rho[p, l]`` = w_c / w > 0, through the single-pole high-pass G = s / (s + w_c) (Eq. 4.1-4.2).

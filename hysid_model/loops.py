@@ -18,7 +18,6 @@ from hysid_model import waveform
 from hysid_model.errors import HysidInputError
 from hysid_model.kinematics import Kinematics
 
-
 MOTIONS = ("measured", "fundamental")
 """What a loop set's displacement harmonics are: the specimen's motion, or the sensor's distortion of a motion
 that is the fundamental alone (:attr:`LoopSet.motion`)."""
@@ -214,10 +213,12 @@ class LoopSet:
 
     def __repr__(self) -> str:
         mass = "unknown" if self.meq_kg is None else f"{self.meq_kg:.4g} kg"
-        return (f"<LoopSet {self.name}: {self.n_loops} loops at {self.freq_hz.min():.4g}-{self.freq_hz.max():.4g} Hz, "
-                f"X0 {1e3 * self.x0.min():.4g}-{1e3 * self.x0.max():.4g} mm, {self.n_samples} samples per branch, meq {mass}>")
+        return (
+            f"<LoopSet {self.name}: {self.n_loops} loops at {self.freq_hz.min():.4g}-{self.freq_hz.max():.4g} Hz, "
+            f"X0 {1e3 * self.x0.min():.4g}-{1e3 * self.x0.max():.4g} mm, {self.n_samples} samples per branch, meq {mass}>"
+        )
 
-    def subset(self, index: np.ndarray | list[int]) -> "LoopSet":
+    def subset(self, index: np.ndarray | list[int]) -> LoopSet:
         idx = np.asarray(index, dtype=int)
         return LoopSet(
             name=self.name,
@@ -241,20 +242,20 @@ class LoopSet:
             meta["per_loop"] = {key: [values[i] for i in idx] for key, values in meta["per_loop"].items()}
         return meta
 
-    def as_ideal_sine(self) -> "LoopSet":
+    def as_ideal_sine(self) -> LoopSet:
         """These loops with the displacement taken as the ideal sine X0 sin(wt) (the thesis' Eq. 4.5)."""
         out = self.subset(np.arange(self.n_loops))
         out.x_harmonics, out.motion = None, "measured"
         return out
 
-    def with_motion(self, motion: str) -> "LoopSet":
+    def with_motion(self, motion: str) -> LoopSet:
         """These loops with their displacement harmonics read as ``motion`` (:data:`MOTIONS`)."""
         out = self.subset(np.arange(self.n_loops))
         out.motion = motion
         out.__post_init__()
         return out
 
-    def with_meq(self, meq_kg: float | None) -> "LoopSet":
+    def with_meq(self, meq_kg: float | None) -> LoopSet:
         out = self.subset(np.arange(self.n_loops))
         out.meq_kg = meq_kg
         out.__post_init__()

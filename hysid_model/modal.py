@@ -51,8 +51,7 @@ def gradients(quantities: Callable[[np.ndarray], np.ndarray], model: Model, thet
     """d quantities / d theta by central differences, ``(*shape, D)``."""
     span = model.bounds[:, 1] - model.bounds[:, 0]
     h = 1e-6 * np.maximum(span, 1e-300)
-    return np.stack([(quantities(theta + h[i] * e) - quantities(theta - h[i] * e)) / (2.0 * h[i])
-                     for i, e in enumerate(np.eye(theta.size))], axis=-1)
+    return np.stack([(quantities(theta + h[i] * e) - quantities(theta - h[i] * e)) / (2.0 * h[i]) for i, e in enumerate(np.eye(theta.size))], axis=-1)
 
 
 def derived_table(model: Model, theta: np.ndarray, propagate: Propagate, x0: np.ndarray) -> list[AmplitudeResult]:

@@ -128,7 +128,7 @@ class Model:
         """True when the measurement chain filters the sign-of-velocity feature sample by sample."""
         return self._filters_sgn
 
-    def _changed(self, changes: Mapping[str, Parameter]) -> "Model":
+    def _changed(self, changes: Mapping[str, Parameter]) -> Model:
         return Model(self.terms, self.spec, {**self._overrides, **changes})
 
     def _parameter(self, name: str, what: str) -> Parameter:
@@ -137,7 +137,7 @@ class Model:
                 return p
         raise HysidInputError(f"{what} given for unknown parameter {name!r}; model {self.spec} has {', '.join(p.name for p in self._all)}")
 
-    def with_bounds(self, bounds: Mapping[str, tuple[float, float]], soft: bool = False) -> "Model":
+    def with_bounds(self, bounds: Mapping[str, tuple[float, float]], soft: bool = False) -> Model:
         """This model with other search bounds, ``{name: (lower, upper)}``; ``soft`` marks bounds derived
         from the data, which a fit may widen (:meth:`widen_at`)."""
         changes = {}
@@ -150,7 +150,7 @@ class Model:
             changes[name] = p.with_bounds(lower, upper, soft)
         return self._changed(changes)
 
-    def widen_at(self, theta: np.ndarray) -> tuple["Model", dict[str, tuple[float, float]]]:
+    def widen_at(self, theta: np.ndarray) -> tuple[Model, dict[str, tuple[float, float]]]:
         """This model with every soft bound that ``theta`` sits on widened (:meth:`Parameter.widened`),
         and the new bounds of the parameters widened (none: nothing to widen)."""
         bounds = self.bounds
@@ -167,7 +167,7 @@ class Model:
         widened = {name: (p.lower, p.upper) for name, p in changes.items()}
         return (self._changed(changes), widened) if changes else (self, {})
 
-    def fix(self, values: Mapping[str, float] | None = None, **kwargs: float) -> "Model":
+    def fix(self, values: Mapping[str, float] | None = None, **kwargs: float) -> Model:
         """This model with parameters fixed at known values (``model.fix(meq=0.04)``)."""
         changes = {}
         for name, value in {**(values or {}), **kwargs}.items():
@@ -179,7 +179,7 @@ class Model:
             changes[name] = p.fixed_at(number)
         return self._changed(changes)
 
-    def vary(self, *names: str) -> "Model":
+    def vary(self, *names: str) -> Model:
         """This model with fixed parameters searched again (within their bounds)."""
         return self._changed({name: self._parameter(name, "vary").varied() for name in names})
 
@@ -209,7 +209,7 @@ class Model:
                 out.append((p.name, kind, "lower" if low else "upper", side))
         return out
 
-    def __add__(self, other: "Term | TermGroup | Model") -> "Model":
+    def __add__(self, other: Term | TermGroup | Model) -> Model:
         """This model plus an effect term, a group of terms (``coulomb_friction + bouc_wen``) or another model's
         terms: ``thesis + coulomb_friction``; an oscillator among them is this model's own."""
         if isinstance(other, Model):
@@ -228,7 +228,7 @@ class Model:
         spec = "+".join([self.spec] + [t.spec for t in added])
         return Model(self.terms + added, spec, {**self._overrides, **overrides})
 
-    def __radd__(self, other: "Term | TermGroup") -> "Model":
+    def __radd__(self, other: Term | TermGroup) -> Model:
         """A term (or a group) plus a model is the model plus it: a model string starts with its preset."""
         return self.__add__(other) if isinstance(other, (Term, TermGroup)) else NotImplemented
 
@@ -425,7 +425,7 @@ def build_model(spec: str = "thesis") -> Model:
     return Model(terms + added, "+".join([parts[0]] + [t.spec for t in added])).vary(*PRESET_FREES.get(parts[0], ()))
 
 
-def as_model(model: "str | Model") -> Model:
+def as_model(model: str | Model) -> Model:
     """A :class:`Model` from a model string or a model."""
     return model if isinstance(model, Model) else build_model(model)
 

@@ -69,13 +69,14 @@ def loop_weights(loops: LoopSet, scheme: str) -> np.ndarray:
             raise HysidInputError(
                 f"{loops.name}: maximum-likelihood weights need each loop's noise sigma; "
                 f"{len(bad)} loop(s) have none (first: {bad[0]}); use the thesis weights",
-                param="weights", value="ml",
+                param="weights",
+                value="ml",
             )
         return 1.0 / loops.sigma**2
     raise HysidInputError(f"unknown weights; choose one of {', '.join(WEIGHTS)}", param="weights", value=scheme)
 
 
-def sampled_memory(model: Model, kin: Kinematics, phase: np.ndarray, n_top: int) -> "SampledMemory | None":
+def sampled_memory(model: Model, kin: Kinematics, phase: np.ndarray, n_top: int) -> SampledMemory | None:
     """:meth:`Model.memory_force` at the fixed ``phase`` of a loop set for any population, compiled
     (:class:`hysid_model.sampled.SampledMemory`); None for a model without per-sample force. Imported here, not
     with this module: numba loads with the first objective that needs it (``hysid --help`` never does)."""
@@ -173,8 +174,7 @@ class Objective(ModelSpace):
         """
         if self.sampled is not None:
             modal = self.model.modal_state(pop, self.kin)
-            return self.sampled.sum_of_squares(modal, self._coefficient_array(pop, modal), self._features, self._y,
-                                               self.keep if self._masked else None)
+            return self.sampled.sum_of_squares(modal, self._coefficient_array(pop, modal), self._features, self._y, self.keep if self._masked else None)
         if self.model.has_memory:
             return np.sum(((self.predict(pop) - self.y) * self.keep) ** 2, axis=2)
         d = [c - self.a_star[:, m] for m, c in enumerate(self._coefficients(pop))]

@@ -50,17 +50,20 @@ class Parameter:
             raise HysidInputError("a fixed parameter needs a finite value", param=self.name, value=self.value)
         lo, hi = self.physical
         if not self.vary and not lo <= self.value <= hi:  # type: ignore[operator]
-            raise HysidInputError(f"{self.value:g}{'' if self.unit == '1' else ' ' + self.unit} is outside the physical range {_range(self.physical)} of {self.description or self.name}", param=self.name)
+            raise HysidInputError(
+                f"{self.value:g}{'' if self.unit == '1' else ' ' + self.unit} is outside the physical range {_range(self.physical)} of {self.description or self.name}",
+                param=self.name,
+            )
         if self.lower < lo or self.upper > hi:
             raise HysidInputError(
                 f"bounds {self.lower:g}:{self.upper:g} reach outside the physical range {_range(self.physical)} of {self.description or self.name}",
                 param=f"bounds[{self.name!r}]",
             )
 
-    def with_bounds(self, lower: float, upper: float, soft: bool = False) -> "Parameter":
+    def with_bounds(self, lower: float, upper: float, soft: bool = False) -> Parameter:
         return replace(self, lower=float(lower), upper=float(upper), soft=soft)
 
-    def widened(self, lower: bool, upper: bool) -> "Parameter":
+    def widened(self, lower: bool, upper: bool) -> Parameter:
         """These soft bounds widened on the given sides, within the physical range: by a decade away from 0 (a
         stiffness, a frequency, an upper shape bound of 3 to 30), else by one more range width."""
         lo, hi = self.lower, self.upper
@@ -71,10 +74,10 @@ class Parameter:
             hi = hi * 10.0 if hi > 0 else hi + span
         return replace(self, lower=max(lo, self.physical[0]), upper=min(hi, self.physical[1]))
 
-    def fixed_at(self, value: float) -> "Parameter":
+    def fixed_at(self, value: float) -> Parameter:
         return replace(self, vary=False, value=float(value))
 
-    def varied(self) -> "Parameter":
+    def varied(self) -> Parameter:
         return replace(self, vary=True, value=None)
 
 

@@ -71,8 +71,7 @@ class Clipping:
         return ""
 
 
-CLIP_CAUSES = {"displacement": "a stroke or sensor limit?", "force": "a load cell or its amplifier at the end of its range?",
-               "velocity": "a speed limit?"}
+CLIP_CAUSES = {"displacement": "a stroke or sensor limit?", "force": "a load cell or its amplifier at the end of its range?", "velocity": "a speed limit?"}
 CLIP_LEVELS = {"displacement": ("flat at {:+.3g} mm", 1e3), "force": ("flat at {:+.4g} N", 1.0), "velocity": ("flattened at {:.3g} m/s", 1.0)}
 """How a set's summary gives each kind's level: format and factor from the stored level (m, N, m/s)."""
 
@@ -175,8 +174,7 @@ def names(labels: list[str], idx: np.ndarray, values: np.ndarray, fmt: str) -> s
         return ", ".join(f"{labels[i]} ({fmt.format(values[i])})" for i in idx)
     low, high = int(idx[np.argmin(values[idx])]), int(idx[np.argmax(values[idx])])
     every = "all" if idx.size == len(labels) else f"{idx.size} of"
-    return (f"{every} {len(labels)} records ({fmt.format(values[low])} in {labels[low]} to "
-            f"{fmt.format(values[high])} in {labels[high]})")
+    return f"{every} {len(labels)} records ({fmt.format(values[low])} in {labels[low]} to {fmt.format(values[high])} in {labels[high]})"
 
 
 @dataclass
@@ -198,11 +196,15 @@ def warn_loops(labels: list[str], m: Measured, clips: list[Clipping], where: str
     x0, force_amplitude = m.x0, m.force_amplitude
     high = np.flatnonzero(m.x_distortion > THD_WARN)
     if high.size:
-        warnings.warn(HysidWarning(
-            f"{where}: displacement THD above {100 * THD_WARN:g} % in {names(labels, high, 100 * m.x_distortion, '{:.3g} %')}: "
-            "the shaker does not impose a pure sine, or the sensor distorts; the loops keep the measured waveform, and fit, "
-            "campaign and diagnose decide from the force whether it is the motion (displacement_model)", "distortion",
-        ), stacklevel=3)
+        warnings.warn(
+            HysidWarning(
+                f"{where}: displacement THD above {100 * THD_WARN:g} % in {names(labels, high, 100 * m.x_distortion, '{:.3g} %')}: "
+                "the shaker does not impose a pure sine, or the sensor distorts; the loops keep the measured waveform, and fit, "
+                "campaign and diagnose decide from the force whether it is the motion (displacement_model)",
+                "distortion",
+            ),
+            stacklevel=3,
+        )
     clipped = [i for i, c in enumerate(clips) if c.kind]
     if clipped:
         kinds = [kind for kind in CLIP_CAUSES if any(clips[i].kind == kind for i in clipped)]
@@ -218,20 +220,30 @@ def warn_loops(labels: list[str], m: Measured, clips: list[Clipping], where: str
     for k, what in enumerate(("displacement", "force")):
         drifting = np.flatnonzero(m.drift[:, k] > DRIFT_WARN)
         if drifting.size:
-            warnings.warn(HysidWarning(
-                f"{where}: the {what} amplitude drifts over the steady window by "
-                f"{names(labels, drifting, 100 * m.drift[:, k], '{:.3g} %')}; each loop averages its cycles", "drift",
-            ), stacklevel=3)
+            warnings.warn(
+                HysidWarning(
+                    f"{where}: the {what} amplitude drifts over the steady window by "
+                    f"{names(labels, drifting, 100 * m.drift[:, k], '{:.3g} %')}; each loop averages its cycles",
+                    "drift",
+                ),
+                stacklevel=3,
+            )
     if x0.size > 1:
         moved = _outliers(x0)  # a displacement slip moves X0 and F1/X0 apart, a force slip only F1/X0
-        for what, slipped, unit in (("displacement", moved, "mm under a _m header, or m under _mm"),
-                                    ("force", np.setdiff1d(_outliers(force_amplitude / x0), moved), "kN under a _n header, or N under _kn")):
+        for what, slipped, unit in (
+            ("displacement", moved, "mm under a _m header, or m under _mm"),
+            ("force", np.setdiff1d(_outliers(force_amplitude / x0), moved), "kN under a _n header, or N under _kn"),
+        ):
             if slipped.size:
                 others = np.setdiff1d(np.arange(x0.size), slipped)
                 span = f"{x0[others].min() * 1e3:.4g}-{x0[others].max() * 1e3:.4g} mm" if others.size else "the others"
                 key = "amplitude" if what == "displacement" else "force per displacement"
-                warnings.warn(HysidWarning(
-                    f"{where}: {key} far (more than {UNIT_GAP:g}x) from the other loops' in "
-                    f"{names(labels, slipped, x0 * 1e3, 'X0 = {:.4g} mm')} against X0 = {span}: a unit slip of the {what} ({unit})? "
-                    f"correct those records ({what}_unit in dataset.toml would change every record)", f"unit_slip_{what}",
-                ), stacklevel=3)
+                warnings.warn(
+                    HysidWarning(
+                        f"{where}: {key} far (more than {UNIT_GAP:g}x) from the other loops' in "
+                        f"{names(labels, slipped, x0 * 1e3, 'X0 = {:.4g} mm')} against X0 = {span}: a unit slip of the {what} ({unit})? "
+                        f"correct those records ({what}_unit in dataset.toml would change every record)",
+                        f"unit_slip_{what}",
+                    ),
+                    stacklevel=3,
+                )

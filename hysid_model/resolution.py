@@ -61,8 +61,7 @@ def _one_sided(ps: np.ndarray, ys: np.ndarray, centre: float, lo: float, hi: flo
     return float((inverse @ (design.T @ ys[a:b]))[0]), factor
 
 
-def reversal_steps(psi: np.ndarray, force: np.ndarray, sample_phases: np.ndarray, reversal: tuple[float, float], guard: float,
-                   sigma_raw: float) -> np.ndarray:
+def reversal_steps(psi: np.ndarray, force: np.ndarray, sample_phases: np.ndarray, reversal: tuple[float, float], guard: float, sigma_raw: float) -> np.ndarray:
     """``(4,)``: each of the four reversal values (loading at the minimum and at the maximum, unloading at the
     minimum and at the maximum) less its fit on the half window, in standard errors of that difference; NaN
     where the samples do not determine the narrower fit. ``psi``: the samples' half-cycle phases and ``force``
@@ -98,6 +97,8 @@ def reversals_resolved(steps: list[np.ndarray]) -> tuple[bool, str]:
     chi2 = float(np.sum(z * z))
     if chi2_dist.sf(chi2, z.size) > ALPHA or chi2 <= GROSS * z.size:
         return True, f"the force at the motion reversals is resolved (fits on half windows agree within a mild bias: chi^2/dof {chi2 / z.size:.3g})"
-    return False, (f"the force at the motion reversals is not resolved (fits on half windows differ: chi^2/dof {chi2 / z.size:.3g}; "
-                   "a cusp such as a fluid damper's |v|^alpha, or a jump a delay moves past the reversal): the four reversal "
-                   "samples of each loop are left out of the fits")
+    return False, (
+        f"the force at the motion reversals is not resolved (fits on half windows differ: chi^2/dof {chi2 / z.size:.3g}; "
+        "a cusp such as a fluid damper's |v|^alpha, or a jump a delay moves past the reversal): the four reversal "
+        "samples of each loop are left out of the fits"
+    )

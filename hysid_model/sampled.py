@@ -64,8 +64,9 @@ class SampledMemory:
             self.cells = tuple(np.ascontiguousarray(c) for c in waveform.sample_cells(self.phase, self.n_top, lo, hi))
             self.x0 = np.ascontiguousarray(kin.x0, dtype=float)
 
-    def sum_of_squares(self, modal: tuple[Values, ModalState], coef: np.ndarray, features: np.ndarray, y: np.ndarray,
-                       keep: np.ndarray | None = None) -> np.ndarray:
+    def sum_of_squares(
+        self, modal: tuple[Values, ModalState], coef: np.ndarray, features: np.ndarray, y: np.ndarray, keep: np.ndarray | None = None
+    ) -> np.ndarray:
         """``(P, L)``: sum over samples of (coef . features + this force - y)^2 for the candidates of ``modal``
         (:meth:`~hysid_model.model.Model.modal_state`), with the linear coefficients ``coef`` ``(P, L, M)``
         of ``features`` ``(L, M, N)`` and the data ``y`` ``(L, N)``; ``keep`` ``(L, N)``: the samples that

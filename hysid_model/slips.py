@@ -100,7 +100,7 @@ class Reading:
     """False where the format says nothing of its units (they are taken as SI)."""
 
     @classmethod
-    def common(cls, found: list[tuple[tuple[str, str], tuple[str, str] | None]]) -> "Reading | None":
+    def common(cls, found: list[tuple[tuple[str, str], tuple[str, str] | None]]) -> Reading | None:
         """The reading the records share ((channels, units) per record), else None (units read differently, or a
         format that does not say)."""
         units, channels = {u for _, u in found}, {c for c, _ in found}
@@ -137,7 +137,7 @@ class Slip:
         if self.quantity == "mass":
             assert given_mass is not None  # a mass in the wrong unit was given
             return f"meq_kg in g (meq_kg = {given_mass * self.factor:.4g})"
-        return f"the {self.quantity} in {self.true_unit} {self.as_read} ({self.quantity}_unit = \"{self.true_unit}\")"
+        return f'the {self.quantity} in {self.true_unit} {self.as_read} ({self.quantity}_unit = "{self.true_unit}")'
 
 
 def slips(quantity: str, reading: Reading) -> list[Slip]:
@@ -174,11 +174,15 @@ def swap_fix(reading: Reading | None) -> str:
     unit its own header states."""
     if reading is None or reading.channels is None:
         units = "" if reading is None else f' (displacement_unit = "{reading.units[0]}", force_unit = "{reading.units[1]}")'
-        return (f"name the columns with displacement_channel and force_channel in dataset.toml{units or ' (and their units with displacement_unit and force_unit)'}, "
-                "or put the columns in their order")
+        return (
+            f"name the columns with displacement_channel and force_channel in dataset.toml{units or ' (and their units with displacement_unit and force_unit)'}, "
+            "or put the columns in their order"
+        )
     (x_name, f_name), (x_unit, f_unit) = reading.channels, reading.units
-    return (f"set displacement_channel = {json.dumps(f_name)}, displacement_unit = \"{x_unit}\", force_channel = "
-            f"{json.dumps(x_name)} and force_unit = \"{f_unit}\" in dataset.toml (or put the columns in their order)")
+    return (
+        f'set displacement_channel = {json.dumps(f_name)}, displacement_unit = "{x_unit}", force_channel = '
+        f'{json.dumps(x_name)} and force_unit = "{f_unit}" in dataset.toml (or put the columns in their order)'
+    )
 
 
 def physics(loops: LoopSet, m: Measured, where: str, reading: Reading | None = None) -> list[HysidWarning]:
@@ -191,8 +195,12 @@ def physics(loops: LoopSet, m: Measured, where: str, reading: Reading | None = N
     if energy is not None and energy.code == "swapped_columns":
         return [energy]
     found = inertia(loops, dynamic_stiffness(loops).real)
-    checks = (lambda: _fast(labels, m, where, r), lambda: _given_mass(loops, m, found, where, r), lambda: _soft(m, where, r),
-              lambda: _mass_range(found, where, r) if loops.meq_kg is None else None)
+    checks = (
+        lambda: _fast(labels, m, where, r),
+        lambda: _given_mass(loops, m, found, where, r),
+        lambda: _soft(m, where, r),
+        lambda: _mass_range(found, where, r) if loops.meq_kg is None else None,
+    )
     unit = next((w for check in checks if (w := check()) is not None), None)
     return [w for w in (energy, unit) if w is not None]
 
@@ -214,10 +222,13 @@ def _energy(labels: list[str], m: Measured, where: str, reading: Reading | None)
     back = implausible and not swapped_fast.any() and swapped_stiffness >= SOFTEST
     carried = _most(active) and _most(m.x_distortion > 2 * m.force_distortion + DISTORTED)  # a delay's lag is small
     if back or carried:
-        why = (f"swapped back, the motion (at most {sv.max():.3g} m/s and {sa.max() / G:.3g} g) and the stiffness "
-               f"({swapped_stiffness:.3g} N/m) are plausible, as they are not now" if back else
-               f"the 'displacement' carries the force's harmonics (THD {100 * np.median(m.x_distortion):.3g} % against "
-               f"{100 * np.median(m.force_distortion):.3g} % in the 'force')")
+        why = (
+            f"swapped back, the motion (at most {sv.max():.3g} m/s and {sa.max() / G:.3g} g) and the stiffness "
+            f"({swapped_stiffness:.3g} N/m) are plausible, as they are not now"
+            if back
+            else f"the 'displacement' carries the force's harmonics (THD {100 * np.median(m.x_distortion):.3g} % against "
+            f"{100 * np.median(m.force_distortion):.3g} % in the 'force')"
+        )
         return HysidWarning(
             f"{where}: displacement and force look swapped in {names(labels, np.arange(m.x0.size), m.x0, 'X0 = {:.4g} m')}, "
             f"force amplitude {_values(m.force_amplitude, '{:.3g} N')}: the loops generate energy (the force lags "
@@ -227,8 +238,11 @@ def _energy(labels: list[str], m: Measured, where: str, reading: Reading | None)
     if not _most(active):
         return None
     cause, code = _lag_cause(m.freq_hz[active], phase[active], reading)
-    return HysidWarning(f"{where}: the loops generate energy in {names(labels, np.flatnonzero(active), -phase, 'a lag of {:.3g} deg')}: "
-                        f"a passive specimen's force leads its displacement; {cause}", code)
+    return HysidWarning(
+        f"{where}: the loops generate energy in {names(labels, np.flatnonzero(active), -phase, 'a lag of {:.3g} deg')}: "
+        f"a passive specimen's force leads its displacement; {cause}",
+        code,
+    )
 
 
 def _lag_cause(freq_hz: np.ndarray, phase: np.ndarray, reading: Reading | None) -> tuple[str, str]:
@@ -237,11 +251,13 @@ def _lag_cause(freq_hz: np.ndarray, phase: np.ndarray, reading: Reading | None) 
     if freq_hz.size >= 3 and np.ptp(phase) > 10.0 and np.ptp(freq_hz) > 0:
         slope = np.polyfit(np.log(freq_hz), phase, 1)[0]
         if slope < 0:
-            return ("the lag grows with frequency, a passive specimen's mirrored: force and displacement look swapped; "
-                    f"{swap_fix(reading)}", "swapped_columns")
-        return ("the phase rises with frequency from -180 degrees, a passive specimen's turned over: the force's (or the "
-                "displacement's) sign looks reversed (a load cell mounted the other way round, or a channel's negative "
-                "scale): reverse it in the files", "sign_reversed")
+            return (f"the lag grows with frequency, a passive specimen's mirrored: force and displacement look swapped; {swap_fix(reading)}", "swapped_columns")
+        return (
+            "the phase rises with frequency from -180 degrees, a passive specimen's turned over: the force's (or the "
+            "displacement's) sign looks reversed (a load cell mounted the other way round, or a channel's negative "
+            "scale): reverse it in the files",
+            "sign_reversed",
+        )
     return (f"are force and displacement swapped ({swap_fix(reading)}), or is one channel's sign reversed?", "energy_generated")
 
 
@@ -252,9 +268,12 @@ def _fast(labels: list[str], m: Measured, where: str, r: Reading) -> HysidWarnin
         return None
     idx = np.flatnonzero(fast)
     slip = next((s for s in slips("displacement", r) if _prefix(s) and s.factor < 1 and not motion(m.freq_hz, m.x0 * s.factor)[2].any()), None)
-    fix = ("no unit slip makes it plausible: check the displacement channel" if slip is None else
-           f"x {slip.factor:.3g} ({slip.true_unit}) makes it at most {(v * slip.factor).max():.3g} m/s and "
-           f"{(a * slip.factor).max() / G:.3g} g (declare displacement_unit = \"{slip.true_unit}\" in dataset.toml)")
+    fix = (
+        "no unit slip makes it plausible: check the displacement channel"
+        if slip is None
+        else f"x {slip.factor:.3g} ({slip.true_unit}) makes it at most {(v * slip.factor).max():.3g} m/s and "
+        f'{(a * slip.factor).max() / G:.3g} g (declare displacement_unit = "{slip.true_unit}" in dataset.toml)'
+    )
     return HysidWarning(
         f"{where}: the displacement moves as no rig does in {names(labels, idx, v, 'peak velocity {:.3g} m/s')}, "
         f"peak acceleration up to {a[idx].max() / G:.3g} g and X0 up to {m.x0[idx].max():.4g} m; shakers reach about "
@@ -272,12 +291,26 @@ def _soft(m: Measured, where: str, r: Reading) -> HysidWarning | None:
     if stiffness >= SOFTEST:
         return None
     force = next((s for s in slips("force", r) if _prefix(s) and s.factor > 1 and stiffness * s.factor >= SOFTEST), None)
-    shorter = next((s for s in slips("displacement", r) if _prefix(s) and s.factor < 1 and stiffness / s.factor >= SOFTEST
-                    and m.x0.min() * s.factor >= MIN_X0_M and not motion(m.freq_hz, m.x0 * s.factor)[2].any()), None)
+    shorter = next(
+        (
+            s
+            for s in slips("displacement", r)
+            if _prefix(s)
+            and s.factor < 1
+            and stiffness / s.factor >= SOFTEST
+            and m.x0.min() * s.factor >= MIN_X0_M
+            and not motion(m.freq_hz, m.x0 * s.factor)[2].any()
+        ),
+        None,
+    )
     candidates = [s for s in (force, shorter) if s is not None]
-    return _named(f"{where}: the force is too small for the motion: a dynamic stiffness |F1|/X0 of {stiffness:.3g} N/m over "
-                  "the loops (median), softer than any specimen a rig holds", candidates, None,
-                  f", making it {stiffness * _mass_factor(candidates[0]):.3g} N/m" if candidates else "")
+    return _named(
+        f"{where}: the force is too small for the motion: a dynamic stiffness |F1|/X0 of {stiffness:.3g} N/m over "
+        "the loops (median), softer than any specimen a rig holds",
+        candidates,
+        None,
+        f", making it {stiffness * _mass_factor(candidates[0]):.3g} N/m" if candidates else "",
+    )
 
 
 def _given_mass(loops: LoopSet, m: Measured, found: tuple[float, float, np.ndarray] | None, where: str, r: Reading) -> HysidWarning | None:
@@ -293,13 +326,18 @@ def _given_mass(loops: LoopSet, m: Measured, found: tuple[float, float, np.ndarr
     ratio = mass / given
     if abs(mass - given) <= MASS_SIGNIFICANCE * se or 1 / MASS_GAP <= ratio <= MASS_GAP:
         return None
-    candidates = [s for s in slips("displacement", r) + slips("force", r) + [Slip("mass", "kg", "g", 1e-3)]
-                  if significant and abs(math.log(ratio * _mass_factor(s))) < math.log(FACTOR_MATCH)]
+    candidates = [
+        s
+        for s in slips("displacement", r) + slips("force", r) + [Slip("mass", "kg", "g", 1e-3)]
+        if significant and abs(math.log(ratio * _mass_factor(s))) < math.log(FACTOR_MATCH)
+    ]
     times = "" if not significant else (f" is {ratio:.4g} times" if ratio > 1 else f" is 1/{1 / ratio:.4g} of")
     head = f"{where}: {_shown(mass, se)}{times or ' contradicts'} the given mass meq_kg = {given:g} kg"
     if not candidates:
-        return HysidWarning(f"{head}: no unit slip of the displacement or the force explains it; is meq_kg right (the moving "
-                            "mass whose inertia the measured force holds)?", "mass_contradicted")
+        return HysidWarning(
+            f"{head}: no unit slip of the displacement or the force explains it; is meq_kg right (the moving mass whose inertia the measured force holds)?",
+            "mass_contradicted",
+        )
     return _named(head, candidates, given)
 
 
@@ -312,14 +350,16 @@ def _mass_range(found: tuple[float, float, np.ndarray] | None, where: str, r: Re
     if not (mass > MASS_SIGNIFICANCE * se and np.all(per_level > 0)) or low <= mass <= high:
         return None
     candidates = [s for q in UNITS for s in [next((s for s in slips(q, r) if _prefix(s) and low <= mass * _mass_factor(s) <= high), None)] if s]
-    return _named(f"{where}: {_shown(mass, se)} is {'more' if mass > high else 'less'} than a rig's measured force holds "
-                  f"({1e6 * low:g} mg to {high / 1e3:g} t)", candidates, None,
-                  f", making the inertia {mass * _mass_factor(candidates[0]):.3g} kg" if candidates else "")
+    return _named(
+        f"{where}: {_shown(mass, se)} is {'more' if mass > high else 'less'} than a rig's measured force holds ({1e6 * low:g} mg to {high / 1e3:g} t)",
+        candidates,
+        None,
+        f", making the inertia {mass * _mass_factor(candidates[0]):.3g} kg" if candidates else "",
+    )
 
 
 def _shown(mass: float, se: float) -> str:
-    return (f"the loops' inertia, {mass:.3g} +- {se:.2g} kg (the fall of their dynamic stiffness Re(F1/X1) = k - m w^2 "
-            "with frequency, Eq. 4.6),")
+    return f"the loops' inertia, {mass:.3g} +- {se:.2g} kg (the fall of their dynamic stiffness Re(F1/X1) = k - m w^2 with frequency, Eq. 4.6),"
 
 
 def _resonant(m: Measured, given: float, where: str, r: Reading) -> HysidWarning | None:
@@ -327,10 +367,17 @@ def _resonant(m: Measured, given: float, where: str, r: Reading) -> HysidWarning
     share = m.force_amplitude / (given * (2 * np.pi * m.freq_hz) ** 2 * m.x0)
     if not share.max() < RESONANT:
         return None
-    candidates = [s for s in slips("force", r) if s.factor > 1 and _prefix(s)][:1] + \
-                 [s for s in slips("displacement", r) if s.factor < 1 and _prefix(s)][:1] + [Slip("mass", "kg", "g", 1e-3)]
-    return _named(f"{where}: the force is at most {share.max():.2g} of the inertia force m w^2 X0 of the given mass meq_kg = "
-                  f"{given:g} kg in every loop, as if each were at a resonance damped below {RESONANT / 2:g}", candidates, given)
+    candidates = (
+        [s for s in slips("force", r) if s.factor > 1 and _prefix(s)][:1]
+        + [s for s in slips("displacement", r) if s.factor < 1 and _prefix(s)][:1]
+        + [Slip("mass", "kg", "g", 1e-3)]
+    )
+    return _named(
+        f"{where}: the force is at most {share.max():.2g} of the inertia force m w^2 X0 of the given mass meq_kg = "
+        f"{given:g} kg in every loop, as if each were at a resonance damped below {RESONANT / 2:g}",
+        candidates,
+        given,
+    )
 
 
 def _prefix(s: Slip) -> bool:
@@ -354,5 +401,4 @@ def _named(head: str, candidates: list[Slip], given: float | None, after: str = 
         return HysidWarning(f"{head}: no unit slip explains it; check the displacement and force channels and meq_kg", code)
     fixes = [s.fix(given) for s in candidates]
     listed = fixes[0] if len(fixes) == 1 else ", ".join(fixes[:-1]) + f" or {fixes[-1]}"
-    return HysidWarning(f"{head}: a unit slip? {listed}, in dataset.toml{after}"
-                        + ("; the loops cannot tell which" if len(quantities) > 1 else ""), code)
+    return HysidWarning(f"{head}: a unit slip? {listed}, in dataset.toml{after}" + ("; the loops cannot tell which" if len(quantities) > 1 else ""), code)

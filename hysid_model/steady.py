@@ -40,7 +40,6 @@ from itertools import pairwise
 
 import numpy as np
 
-
 STEADY_TOLERANCE = 0.01
 """Half-width of the steady band, relative to the amplitude (or ``NOISE_SIGMAS`` stds of its scatter, if wider)."""
 NOISE_SIGMAS = 4.0
@@ -129,8 +128,7 @@ def _fit_rows(t: np.ndarray, signals: list[np.ndarray], index: np.ndarray | slic
     return rows
 
 
-def _exact_ends(t: np.ndarray, signals: list[np.ndarray], bounds: np.ndarray, t_a: float, freq: float,
-                sums: np.ndarray) -> np.ndarray:
+def _exact_ends(t: np.ndarray, signals: list[np.ndarray], bounds: np.ndarray, t_a: float, freq: float, sums: np.ndarray) -> np.ndarray:
     """Turn the per-cycle sums of the samples in [T_k, T_k+1) into trapezoid sums over exactly that period (in place;
     returns each cycle's weight in samples).
 
@@ -336,8 +334,9 @@ def samples_of(bounds: np.ndarray, cycles: np.ndarray) -> np.ndarray | slice:
     return np.repeat(first - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
 
 
-def _normalized(t: np.ndarray, y: np.ndarray, bounds: np.ndarray, cycles: np.ndarray, t_a: float, freq: float,
-                offset: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _normalized(
+    t: np.ndarray, y: np.ndarray, bounds: np.ndarray, cycles: np.ndarray, t_a: float, freq: float, offset: np.ndarray, scale: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(phase in [0, 1), ``y`` less its offset trend, times its amplitude's ``scale``) of the samples of ``cycles``."""
     index = samples_of(bounds, cycles)
     cycle = np.repeat(cycles, bounds[cycles + 1] - bounds[cycles])

@@ -15,9 +15,7 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def band_fits(
-    amp: np.ndarray, floor: np.ndarray, spread: np.ndarray, sampling: np.ndarray, i: int, j: int, limits: np.ndarray, min_cycles: int
-) -> bool:
+def band_fits(amp: np.ndarray, floor: np.ndarray, spread: np.ndarray, sampling: np.ndarray, i: int, j: int, limits: np.ndarray, min_cycles: int) -> bool:
     """Whether cycles ``i..j-1`` of the amplitudes ``amp`` ``(S, n)`` are steady (:func:`hysid_model.steady.steady_run`):
     each series within its band around its least-squares line (``limits[0]`` of the line or its ``floor``, but for
     isolated cycles: at most ``limits[3]`` of the window, never its first or last), its line changing by at most
@@ -75,9 +73,7 @@ def band_fits(
 
 
 @njit(cache=True, nogil=True)
-def longest_band_run(
-    amp: np.ndarray, floor: np.ndarray, spread: np.ndarray, sampling: np.ndarray, limits: np.ndarray, min_cycles: int
-) -> tuple[int, int]:
+def longest_band_run(amp: np.ndarray, floor: np.ndarray, spread: np.ndarray, sampling: np.ndarray, limits: np.ndarray, min_cycles: int) -> tuple[int, int]:
     """(start, length) of the longest window of cycles that passes :func:`band_fits`. A window that passes holds only
     windows that pass, so a window that never shrinks, slid over the cycles and grown by galloping, finds it."""
     n = amp.shape[1]

@@ -29,6 +29,7 @@ xi, wn and their slopes with amplitude (Eq. 4.8, 4.9).
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 
 from hysid_model.frf import amplitude_levels, force_harmonics
@@ -188,6 +189,15 @@ def survey(loops: LoopSet, meq_kg: float | None = None) -> Survey:
     with np.errstate(invalid="ignore", divide="ignore"):
         loss = c_eq * w / k_storage
     return Survey(
-        loops=loops, k_dyn=k_dyn, c_eq=c_eq, loss_factor=loss, energy_per_cycle=energy, k_secant=secant_stiffness(loops),
-        k_storage=k_storage, fn_hz=fn, xi=xi, meq_kg=mass, mass_source=source,
+        loops=loops,
+        k_dyn=k_dyn,
+        c_eq=c_eq,
+        loss_factor=loss,
+        energy_per_cycle=energy,
+        k_secant=secant_stiffness(loops),
+        k_storage=k_storage,
+        fn_hz=fn,
+        xi=xi,
+        meq_kg=mass,
+        mass_source=source,
     )

@@ -34,11 +34,10 @@ libraries do) and the thesis' own terms (Eq. 4.4-4.10).
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterator
-from dataclasses import dataclass
-from typing import Callable, ClassVar, Protocol
-
 import math
+from collections.abc import Callable, Collection, Iterator
+from dataclasses import dataclass
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -153,7 +152,7 @@ class Term:
         """Force of a memory term at phases ``(L, N)`` or ``(P, L, N)``, shape ``(P, L, N)`` (the numpy reference)."""
         raise TypeError(f"term {self.id} has no memory")
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> "Sampler | None":
+    def sampler(self, kin: Kinematics, phase: np.ndarray) -> Sampler | None:
         """A compiled evaluator of :meth:`time_force` at the fixed phases ``(L, N)`` of a loop set, or None
         (then :mod:`hysid_model.sampled` uses :meth:`time_force`)."""
         return None
@@ -164,7 +163,7 @@ class Term:
         ``module:attribute`` (:mod:`hysid_model.user_terms`)."""
         return self.id
 
-    def __add__(self, other: object) -> "TermGroup":
+    def __add__(self, other: object) -> TermGroup:
         """This term and another (or a group of terms) as a group, as PySINDy concatenates its libraries:
         ``coulomb_friction + bouc_wen``; a term plus a model is the model plus the term."""
         if isinstance(other, (Term, TermGroup)):
@@ -189,7 +188,7 @@ class TermGroup:
             raise HysidInputError(f"effect {twice[0]!r} is twice in the group {' + '.join(ids)}")
         self.terms = tuple(terms)
 
-    def __add__(self, other: object) -> "TermGroup":
+    def __add__(self, other: object) -> TermGroup:
         if isinstance(other, Term):
             return TermGroup(self.terms + (other,))
         if isinstance(other, TermGroup):
@@ -381,4 +380,3 @@ class AmplitudeDependentFrequency(Term):
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.wn = state.wn + v["S_w"] * kin.x0
-

@@ -234,10 +234,7 @@ class ThesisObjective(ModelSpace):
         """Kept samples and model force of every loop, each ``(L, 2n)`` ordered like ``LoopSet.forces()``."""
         p = np.asarray(theta, dtype=float).reshape(-1)
         lp = self.loops
-        out = [
-            erreval_points(lp.top[j], lp.bottom[j], p, lp.freq_hz[j], self.xpk[j], self.meq_kg, self.tspan, self.dt)
-            for j in range(lp.n_loops)
-        ]
+        out = [erreval_points(lp.top[j], lp.bottom[j], p, lp.freq_hz[j], self.xpk[j], self.meq_kg, self.tspan, self.dt) for j in range(lp.n_loops)]
         return np.stack([k for k, _ in out]), np.stack([y for _, y in out])
 
     def fitness(self, theta: np.ndarray) -> float:

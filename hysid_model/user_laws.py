@@ -49,7 +49,7 @@ def motion(kin: Kinematics, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return kin.displacement(phase), kin.omega[:, None] * kin.displacement(phase, 1)
 
 
-def shaped(made: "UserTerm", value: Any, shape: tuple[int, ...]) -> np.ndarray:
+def shaped(made: UserTerm, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """The user's function's result as float ``shape`` (a one-line error where it does not broadcast to it)."""
     out = np.asarray(value, dtype=float)
     try:
@@ -57,6 +57,7 @@ def shaped(made: "UserTerm", value: Any, shape: tuple[int, ...]) -> np.ndarray:
     except ValueError:
         what = "rate" if isinstance(made, RateTerm) else "fn"
         raise HysidInputError(f"term {made.id!r}: {what} returns shape {out.shape}, which is not {shape} (or broadcastable to it)", param=what) from None
+
 
 class UserTerm(Term):
     """A term made from a user's function (:func:`term`); see the module docstring."""
@@ -132,7 +133,7 @@ class FunctionTerm(UserTerm):
     def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
         return self.centred(v, motion(kin, phase), motion(kin, mean_grid(kin.x0.size)))
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> "FunctionSampler":
+    def sampler(self, kin: Kinematics, phase: np.ndarray) -> FunctionSampler:
         return FunctionSampler(self, kin, phase)
 
 
@@ -249,7 +250,7 @@ class RateTerm(UserTerm):
     def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
         return self.centred(self.orbit(v, Cycle(kin)), phase)
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> "RateSampler":
+    def sampler(self, kin: Kinematics, phase: np.ndarray) -> RateSampler:
         return RateSampler(self, kin, phase)
 
 

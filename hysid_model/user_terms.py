@@ -129,9 +129,13 @@ def law_parameters(law: Callable[..., Any], what: str, leading: tuple[str, ...])
     variadic = [("*" if a.kind == a.VAR_POSITIONAL else "**") + a.name for a in args if a.kind in (a.VAR_POSITIONAL, a.VAR_KEYWORD)]
     if variadic:
         raise HysidInputError(f"name every parameter as an argument, not {variadic[0]}", param=what)
-    if len(args) <= len(leading) or any(a.kind == a.KEYWORD_ONLY for a in args[: len(leading)]) or any(a.kind == a.POSITIONAL_ONLY for a in args[len(leading):]):
+    if (
+        len(args) <= len(leading)
+        or any(a.kind == a.KEYWORD_ONLY for a in args[: len(leading)])
+        or any(a.kind == a.POSITIONAL_ONLY for a in args[len(leading) :])
+    ):
         raise HysidInputError(f"takes ({', '.join(leading)}, then its parameters by name), e.g. def {what}({', '.join(leading)}, c2)", param=what)
-    return [a.name for a in args[len(leading):]]
+    return [a.name for a in args[len(leading) :]]
 
 
 def parameters(name: str, what: str, names: list[str], units: Mapping[str, str], bounds: Mapping[str, tuple[float, float]]) -> tuple[Parameter, ...]:
@@ -147,7 +151,7 @@ def parameters(name: str, what: str, names: list[str], units: Mapping[str, str],
         if n in LIBRARY_PARAMETERS:
             raise HysidInputError(f"parameter {n!r} of term {name!r} is a parameter of {LIBRARY_PARAMETERS[n]} already; call it otherwise", param=what)
         if n not in units or not isinstance(units[n], str) or not units[n].strip():
-            raise HysidInputError(f"give the SI unit of parameter {n!r} (\"1\" for none)", param="units")
+            raise HysidInputError(f'give the SI unit of parameter {n!r} ("1" for none)', param="units")
         if n not in bounds:
             raise HysidInputError(f"give the search bounds (lower, upper) of parameter {n!r}", param="bounds")
         pair = bounds[n]
@@ -215,7 +219,11 @@ def probe(made: UserTerm) -> None:
         scale = max(np.abs(both).max(), 1e-300)
         off = force([{**mid, made.strength: 0.0}])
         if np.abs(off).max() > 1e-9 * scale:
-            raise HysidInputError(f"term {made.id!r}: at {made.strength} = 0 its force is not zero, so {made.strength} cannot be its strength", param="strength", value=made.strength)
+            raise HysidInputError(
+                f"term {made.id!r}: at {made.strength} = 0 its force is not zero, so {made.strength} cannot be its strength",
+                param="strength",
+                value=made.strength,
+            )
 
 
 def register(made: UserTerm) -> None:
@@ -223,8 +231,13 @@ def register(made: UserTerm) -> None:
     different law under that name is warned about)."""
     before = _MADE.get(made.id)
     if before is not None and before is not made and getattr(before.law, "__qualname__", None) != getattr(made.law, "__qualname__", None):
-        warnings.warn(HysidWarning(f"term {made.id!r} now means the one made from {getattr(made.law, '__qualname__', 'a new law')}, "
-                                   f"not the earlier one from {getattr(before.law, '__qualname__', 'another law')}"), stacklevel=3)
+        warnings.warn(
+            HysidWarning(
+                f"term {made.id!r} now means the one made from {getattr(made.law, '__qualname__', 'a new law')}, "
+                f"not the earlier one from {getattr(before.law, '__qualname__', 'another law')}"
+            ),
+            stacklevel=3,
+        )
     _MADE[made.id] = made
 
 
@@ -303,7 +316,7 @@ def module_roots(terms: Iterable[Term]) -> list[str]:
     return list(dict.fromkeys(roots))
 
 
-def specs_of(items: "Term | TermGroup | str | Collection[Term | TermGroup | str]", param: str) -> tuple[str, ...]:
+def specs_of(items: Term | TermGroup | str | Collection[Term | TermGroup | str], param: str) -> tuple[str, ...]:
     """The model-string names of terms given as terms, groups of terms or model strings (``myterms:drag``)."""
     if isinstance(items, (Term, TermGroup, str)):
         items = [items]
@@ -311,11 +324,10 @@ def specs_of(items: "Term | TermGroup | str | Collection[Term | TermGroup | str]
     for item in items:
         if isinstance(item, TermGroup):
             out += [t.spec for t in item]
-        elif isinstance(item, UserTerm) or isinstance(item, Term) and item.id in EFFECTS:
+        elif isinstance(item, UserTerm) or (isinstance(item, Term) and item.id in EFFECTS):
             out.append(item.spec)
         elif isinstance(item, str):
             out.append(item if item in EFFECTS else resolve(item).spec)
         else:
             raise HysidInputError(f"give terms (hysid.term, hysid.effects) or their names (module:attribute), not {type(item).__name__}", param=param)
     return tuple(dict.fromkeys(out))
-

@@ -34,9 +34,7 @@ def addpop_masks(dim: int, level: int) -> np.ndarray:
     return masks
 
 
-def additional_population(
-    best: np.ndarray, bounds: np.ndarray, rng: np.random.Generator, *, amount: float = 0.2, level: int = 4
-) -> np.ndarray:
+def additional_population(best: np.ndarray, bounds: np.ndarray, rng: np.random.Generator, *, amount: float = 0.2, level: int = 4) -> np.ndarray:
     """Gaussian-mutated versions of ``best`` for every gene combination up to ``level`` (Table 5.1).
 
     Same draws as the program's loops: one ``randn`` per mutated gene in row

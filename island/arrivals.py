@@ -52,8 +52,14 @@ class Arrivals:
     (:data:`island.sealing.Known`; None: nothing). Thread-safe."""
 
     def __init__(
-        self, campaign: str, bounds: np.ndarray, key_for: KeyLookup, members: Callable[[], list[str]], on_reject: Callable[[], None],
-        on_unlisted: Callable[[], None], known: Callable[[str, str], Known | None] | None = None,
+        self,
+        campaign: str,
+        bounds: np.ndarray,
+        key_for: KeyLookup,
+        members: Callable[[], list[str]],
+        on_reject: Callable[[], None],
+        on_unlisted: Callable[[], None],
+        known: Callable[[str, str], Known | None] | None = None,
     ) -> None:
         self.campaign = campaign
         self.bounds = bounds

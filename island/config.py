@@ -9,11 +9,10 @@ mass), so coordinator and islands search the same space.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
-
-import math
 
 import numpy as np
 
@@ -26,12 +25,11 @@ from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import ALGORITHMS, check_algorithm, make_optimizer
 from island.migration import Migration
 from island.population import MAX_ITERATIONS
+from island.protocol import decode_config as unpack_config
+from island.protocol import encode_config as pack_config
 from island.share import check_share
 from island.termination import Termination
 from island.wire import INT64_MAX, MAX_MEMBERS, MessageRejected, check_name
-from island.protocol import decode_config as unpack_config
-from island.protocol import encode_config as pack_config
-
 
 MAX_SEED = 2**62
 """Largest campaign seed (island seeds add up to 2**20 to it and are stored as SQLite integers)."""
@@ -44,7 +42,7 @@ def _plain_number(value: Any) -> bool:
 
 
 def _option_value(value: Any) -> bool:
-    return isinstance(value, (str, bool)) and len(str(value)) <= 200 or _plain_number(value)
+    return (isinstance(value, (str, bool)) and len(str(value)) <= 200) or _plain_number(value)
 
 
 @dataclass
@@ -123,8 +121,9 @@ class CampaignConfig:
             raise HysidInputError("bounds must be finite numbers", param="bounds", value=self.bounds)
         if not isinstance(self.soft, list) or not all(isinstance(n, str) and n in self.bounds for n in self.soft):
             raise HysidInputError("soft must list parameters that have bounds", param="soft", value=self.soft)
-        if self.start is not None and (not isinstance(self.start, list) or len(self.start) != len(self.bounds)
-                                       or not all(_plain_number(v) and np.isfinite(v) for v in self.start)):
+        if self.start is not None and (
+            not isinstance(self.start, list) or len(self.start) != len(self.bounds) or not all(_plain_number(v) and np.isfinite(v) for v in self.start)
+        ):
             raise HysidInputError("start must hold one finite number per parameter", param="start", value=self.start)
         if not all(_plain_number(v) for v in self.fixed.values()):
             raise HysidInputError("fixed values must be finite numbers", param="fixed", value=self.fixed)
@@ -162,7 +161,7 @@ class CampaignConfig:
         displacement_by: str = "user",
         until_stopped: bool = False,
         share: str = "staged",
-    ) -> "CampaignConfig":
+    ) -> CampaignConfig:
         """The configuration of a campaign on ``loops``: the bounds and fixed values ``hysid fit`` would use."""
         m = prepare_model(displaced(loops, displacement), model, bounds=bounds, fixed=fixed)
         return cls(
@@ -190,7 +189,13 @@ class CampaignConfig:
         hard = {n: b for n, b in self.bounds.items() if n not in self.soft}
         soft = {n: b for n, b in self.bounds.items() if n in self.soft}
         return build_objective(
-            loops, self.model, weights=self.weights, bounds=hard, derived=soft, fixed=self.fixed, kind=self.objective_kind,
+            loops,
+            self.model,
+            weights=self.weights,
+            bounds=hard,
+            derived=soft,
+            fixed=self.fixed,
+            kind=self.objective_kind,
             displacement=self.displacement,
         )
 
@@ -229,16 +234,28 @@ class CampaignConfig:
         }
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "CampaignConfig":
+    def from_dict(cls, d: dict[str, Any]) -> CampaignConfig:
         try:
             bounds = {k: (v[0], v[1]) for k, v in d["bounds"].items()}
             return cls(
-                name=d["name"], model=d["model"], weights=d["weights"], bounds=bounds, soft=list(d["soft"]), fixed=dict(d["fixed"]),
+                name=d["name"],
+                model=d["model"],
+                weights=d["weights"],
+                bounds=bounds,
+                soft=list(d["soft"]),
+                fixed=dict(d["fixed"]),
                 start=None if d["start"] is None else list(d["start"]),
-                algos=list(d["algos"]), options=d["options"], migration=Migration(**d["migration"]), seed=d["seed"],
-                objective_kind=d["objective"], displacement=d["displacement"], min_islands=d["min_islands"],
-                until_stopped=d.get("until_stopped", False), stop_rules=d.get("stop_rules", {}),  # absent in campaigns stored before them
-                share=d.get("share", "fixed"), displacement_by=d.get("displacement_by", "user"),
+                algos=list(d["algos"]),
+                options=d["options"],
+                migration=Migration(**d["migration"]),
+                seed=d["seed"],
+                objective_kind=d["objective"],
+                displacement=d["displacement"],
+                min_islands=d["min_islands"],
+                until_stopped=d.get("until_stopped", False),
+                stop_rules=d.get("stop_rules", {}),  # absent in campaigns stored before them
+                share=d.get("share", "fixed"),
+                displacement_by=d.get("displacement_by", "user"),
             )
         except HysidInputError:
             raise

@@ -37,7 +37,7 @@ from island.addpop import additional_population
 from island.population import MAX_POPULATION, PopulationOptimizer, array_or_none, check_float, check_int, load_array
 from island.rng import uniform_population
 
-__all__ = ["GA", "rank_probabilities", "select_couples", "blx_crossover", "gaussian_mutation", "mutation_count"]
+__all__ = ["GA", "blx_crossover", "gaussian_mutation", "mutation_count", "rank_probabilities", "select_couples"]
 
 
 def rank_probabilities(m: int) -> np.ndarray:
@@ -63,9 +63,7 @@ def select_couples(rng: np.random.Generator, m: int, couples: int) -> np.ndarray
     return mates
 
 
-def blx_crossover(
-    rng: np.random.Generator, p1: np.ndarray, p2: np.ndarray, bounds: np.ndarray, alpha: float
-) -> tuple[np.ndarray, np.ndarray]:
+def blx_crossover(rng: np.random.Generator, p1: np.ndarray, p2: np.ndarray, bounds: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
     """Single-point crossover over a gene with BLX-alpha blending (Figs. 3.6b, 3.8; Eq. 3.6).
 
     Per couple, crosspnt = ceil(D rand): genes before it are copied, genes
@@ -95,9 +93,7 @@ def mutation_count(mu: int, dim: int, rate: float) -> int:
     return int(np.floor(mu * dim * rate + 0.5))
 
 
-def gaussian_mutation(
-    rng: np.random.Generator, offspring: np.ndarray, bounds: np.ndarray, rate: float, amount: float
-) -> np.ndarray:
+def gaussian_mutation(rng: np.random.Generator, offspring: np.ndarray, bounds: np.ndarray, rate: float, amount: float) -> np.ndarray:
     """Mutate ``mutation_count`` random genes (drawn with replacement) of the offspring.
 
     new = old + randn amount (ub - lb), kept only if lb < new < ub. A gene

@@ -35,8 +35,7 @@ class JoinRequest:
 
     def transcript(self, challenge: bytes) -> bytes:
         """What the island's proof and signature cover: the request and the coordinator's challenge."""
-        return _dumps([PROTOCOL_VERSION, "prove", self.campaign, self.island, self.member, self.algo, int(self.seed), self.nonce, self.key,
-                       challenge])
+        return _dumps([PROTOCOL_VERSION, "prove", self.campaign, self.island, self.member, self.algo, int(self.seed), self.nonce, self.key, challenge])
 
 
 def _request(msg: dict[str, Any], campaign: str, sender: str | None) -> JoinRequest:
@@ -46,14 +45,22 @@ def _request(msg: dict[str, Any], campaign: str, sender: str | None) -> JoinRequ
     member = _get(msg, "member", str)
     if member and not NAME_PATTERN.match(member):
         raise MessageRejected("schema", "join request names no valid member")
-    return JoinRequest(campaign, island, _algo(msg, "algo"), _int(msg, "seed"), _bytes(msg, "nonce", NONCE_BYTES), _bytes(msg, "key", KEY_BYTES),
-                       member)
+    return JoinRequest(campaign, island, _algo(msg, "algo"), _int(msg, "seed"), _bytes(msg, "nonce", NONCE_BYTES), _bytes(msg, "key", KEY_BYTES), member)
 
 
 def _request_fields(r: JoinRequest, kind: str) -> dict[str, Any]:
     """The request's fields as both steps of the handshake send them (``kind``: join or prove), in wire order."""
-    return {"v": PROTOCOL_VERSION, "type": kind, "campaign": r.campaign, "island": r.island, "member": r.member, "algo": r.algo,
-            "seed": int(r.seed), "nonce": r.nonce, "key": r.key}
+    return {
+        "v": PROTOCOL_VERSION,
+        "type": kind,
+        "campaign": r.campaign,
+        "island": r.island,
+        "member": r.member,
+        "algo": r.algo,
+        "seed": int(r.seed),
+        "nonce": r.nonce,
+        "key": r.key,
+    }
 
 
 def encode_join(r: JoinRequest) -> bytes:

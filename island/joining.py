@@ -15,8 +15,8 @@ import zenoh
 from hysid_model.errors import HysidInputError
 from island.handshake import JoinRequest, decode_challenge, decode_joined, encode_join, encode_prove
 from island.protocol import decode_signed_config
-from island.secret import CampaignSecret
 from island.sealing import Credentials, new_key, public_key
+from island.secret import CampaignSecret
 from island.wire import MessageRejected, check_name
 
 QUERY_TIMEOUT_S = 5.0
@@ -38,8 +38,15 @@ def replies(session: zenoh.Session, selector: str, timeout: float, payload: byte
 
 
 def join(
-    session: zenoh.Session, campaign: str, island: str, algo: str, seed: int, secret: CampaignSecret, wait_s: float,
-    on_reject: Callable[[], None] | None = None, key: bytes | None = None,
+    session: zenoh.Session,
+    campaign: str,
+    island: str,
+    algo: str,
+    seed: int,
+    secret: CampaignSecret,
+    wait_s: float,
+    on_reject: Callable[[], None] | None = None,
+    key: bytes | None = None,
 ) -> Credentials:
     """The join handshake on ``join/<id>`` (until the coordinator admits the island or ``wait_s`` passes): ask
     with the public half of the run's signing ``key`` (a fresh one by default), take the challenge signed

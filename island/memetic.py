@@ -136,8 +136,16 @@ class Island:
     one search, to what refining them gave: no point is refined twice.
     """
 
-    def __init__(self, objective: SpaceObjective, algo: str, seed: int, options: Mapping[str, Any] | None = None, *,
-                 starts: np.ndarray | None = None, polished: dict[bytes, float] | None = None) -> None:
+    def __init__(
+        self,
+        objective: SpaceObjective,
+        algo: str,
+        seed: int,
+        options: Mapping[str, Any] | None = None,
+        *,
+        starts: np.ndarray | None = None,
+        polished: dict[bytes, float] | None = None,
+    ) -> None:
         self.objective = objective
         self.algo, self.seed, self.options = algo, seed, dict(options or {})
         self.starts = None if starts is None or not len(starts) else np.asarray(starts, dtype=float).reshape(-1, objective.dim)
@@ -222,7 +230,7 @@ class Island:
         """The current search's ``k`` best and their fitness, best first."""
         return self.optimizer.best(k)
 
-    def switch(self, algo: str, options: Mapping[str, Any]) -> "Island":
+    def switch(self, algo: str, options: Mapping[str, Any]) -> Island:
         """The current search carried on by ``algo`` (a mixed campaign's share, :func:`island.algorithms.switch_algorithm`),
         and every restart after it."""
         self.optimizer = switch_algorithm(self.optimizer, algo, dict(options))
@@ -302,9 +310,7 @@ def memetic_search(
     best_u, best_f = None, np.inf
 
     def spent() -> bool:
-        return (budget is not None and space.evaluations >= budget) or (
-            time_limit_s is not None and time.perf_counter() - began >= time_limit_s
-        )
+        return (budget is not None and space.evaluations >= budget) or (time_limit_s is not None and time.perf_counter() - began >= time_limit_s)
 
     round_ = 0
     while not spent():
@@ -336,9 +342,22 @@ def memetic_search(
     theta = space.space.to_theta(final.theta if final.fitness <= best_f else best_u)
     fitness = float(objective(theta[None, :])[0])
     return RunResult(
-        label=label or f"memetic islands seed {seed}", algo="memetic", seed=seed, theta=theta, fitness=fitness,
-        evaluations=space.evaluations + 1, history=[r.as_dict() for r in rows], search_theta=search_theta,
-        search_fitness=float(search_f), wall_s=time.perf_counter() - began,
-        polish={"fitness": float(final.fitness), "evaluations": int(final.evaluations), "success": bool(final.success),
-                "message": str(final.message), "islands": islands, "restarts": sum(i.restarts for i in pool)},
+        label=label or f"memetic islands seed {seed}",
+        algo="memetic",
+        seed=seed,
+        theta=theta,
+        fitness=fitness,
+        evaluations=space.evaluations + 1,
+        history=[r.as_dict() for r in rows],
+        search_theta=search_theta,
+        search_fitness=float(search_f),
+        wall_s=time.perf_counter() - began,
+        polish={
+            "fitness": float(final.fitness),
+            "evaluations": int(final.evaluations),
+            "success": bool(final.success),
+            "message": str(final.message),
+            "islands": islands,
+            "restarts": sum(i.restarts for i in pool),
+        },
     )

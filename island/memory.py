@@ -9,8 +9,8 @@ import threading
 from collections.abc import Callable
 
 from hysid_model.errors import HysidInputError
-from island.sealing import Credentials, new_key, public_key
 from island.joining import key_prefix
+from island.sealing import Credentials, new_key, public_key
 from island.wire import MAX_MEMBERS
 
 Admit = Callable[[str, str, int, bytes], str]
@@ -30,8 +30,14 @@ class MemoryBus:
     """
 
     def __init__(
-        self, campaign: str, islands: list[str], deliver: Callable[[str, bytes], object], stop: threading.Event, admit: Admit | None = None,
-        assigned: Callable[[str], str | None] | None = None, coordinator: bytes = b"",
+        self,
+        campaign: str,
+        islands: list[str],
+        deliver: Callable[[str, bytes], object],
+        stop: threading.Event,
+        admit: Admit | None = None,
+        assigned: Callable[[str], str | None] | None = None,
+        coordinator: bytes = b"",
     ) -> None:
         self.prefix = key_prefix(campaign)
         self.islands = sorted(islands)
@@ -49,7 +55,7 @@ class MemoryBus:
         self._posts: dict[int, dict[str, bytes]] = {}
         self._cond = threading.Condition()
 
-    def transport(self, island: str, algo: str = "", seed: int = 0) -> "MemoryTransport":
+    def transport(self, island: str, algo: str = "", seed: int = 0) -> MemoryTransport:
         key = new_key()
         run = self.admit(island, algo, seed, public_key(key))
         with self._cond:

@@ -109,10 +109,12 @@ class Transport(Protocol):
 
     credentials: Credentials
     """The island run's identity: issued when it joined."""
+
     @property
     def arrivals(self) -> Arrivals | None:
         """The migrant messages this island takes from, if the transport shares them between the islands of a
         process (None: the island keeps its own)."""
+
     silent_s: float | None
     """A ring member that sent no migrants for this long is skipped (None: every member sends at every epoch)."""
 
@@ -166,8 +168,11 @@ class IslandNode:
         self.island = check_name("island", island)
         self.space = SpaceObjective(objective) if isinstance(objective, Objective) and objective.model.has_memory else None
         """The objective in the coordinates of :mod:`island.space` where the island is memetic (module docstring)."""
-        self.optimizer: PopulationOptimizer | Island = make_optimizer(algo, objective.bounds, seed, config.island_options(algo)) if self.space is None else Island(
-            self.space, algo, seed, config.island_options(algo), starts=self._u(starting_points(objective, config.start)))
+        self.optimizer: PopulationOptimizer | Island = (
+            make_optimizer(algo, objective.bounds, seed, config.island_options(algo))
+            if self.space is None
+            else Island(self.space, algo, seed, config.island_options(algo), starts=self._u(starting_points(objective, config.start)))
+        )
         self.algo = algo
         self.seed = seed
         self.config = config
@@ -416,10 +421,23 @@ class IslandNode:
         with self._lock:
             stats = dict(self.stats)
         return [
-            encode_history(History(
-                self.config.name, self.island, self.run_id, self.algo, self.seed, chunk, x, f, stats,
-                final and i == len(chunks) - 1, self._seq(), self.optimizer.gain,
-            ), credentials)
+            encode_history(
+                History(
+                    self.config.name,
+                    self.island,
+                    self.run_id,
+                    self.algo,
+                    self.seed,
+                    chunk,
+                    x,
+                    f,
+                    stats,
+                    final and i == len(chunks) - 1,
+                    self._seq(),
+                    self.optimizer.gain,
+                ),
+                credentials,
+            )
             for i, chunk in enumerate(chunks)
         ]
 

@@ -59,5 +59,5 @@ class AskTell(ABC):
 
     @classmethod
     @abstractmethod
-    def from_state(cls, state: dict[str, Any]) -> "AskTell":
+    def from_state(cls, state: dict[str, Any]) -> AskTell:
         """Restore an optimizer from ``state_dict()`` output."""

@@ -90,7 +90,7 @@ class Batch:
         return {"kind": self.kind, "x": self.x.tolist(), "f": self.f.tolist(), "todo": self.todo.tolist(), "rounds": self.rounds}
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any], dim: int) -> "Batch":
+    def from_dict(cls, d: dict[str, Any], dim: int) -> Batch:
         return cls(
             kind=d["kind"],
             x=np.array(d["x"], dtype=float).reshape(-1, dim),
@@ -251,7 +251,7 @@ class PopulationOptimizer(AskTell):
         self._iteration += 1
         self.history.append(float(best_fitness))
 
-    def carry_on(self, other: "PopulationOptimizer") -> None:
+    def carry_on(self, other: PopulationOptimizer) -> None:
         """Go on with ``other``'s search between two of its iterations: its iteration and evaluation
         counts, history and random stream, and its known candidates (best first, cycled where this
         population is larger) as the population. A mixed campaign moves an island to another
@@ -276,14 +276,8 @@ class PopulationOptimizer(AskTell):
         if x.ndim == 1:
             x = x.reshape(1, -1)
         if x.ndim != 2 or x.shape[1] != self.dim or x.shape[0] != f.size:
-            raise HysidInputError(
-                f"migrants must be a (k, {self.dim}) array with k fitness values, got shape {x.shape} and {f.size} values"
-            )
-        valid = (
-            np.all(np.isfinite(x), axis=1)
-            & np.isfinite(f)
-            & np.all((x >= self.bounds[:, 0]) & (x <= self.bounds[:, 1]), axis=1)
-        )
+            raise HysidInputError(f"migrants must be a (k, {self.dim}) array with k fitness values, got shape {x.shape} and {f.size} values")
+        valid = np.all(np.isfinite(x), axis=1) & np.isfinite(f) & np.all((x >= self.bounds[:, 0]) & (x <= self.bounds[:, 1]), axis=1)
         if not self.history:
             return 0
         return sum(self._take(xi.copy(), float(fi)) for xi, fi in zip(x[valid], f[valid]))
@@ -313,7 +307,7 @@ class PopulationOptimizer(AskTell):
         }
 
     @classmethod
-    def from_state(cls, state: dict[str, Any]) -> "PopulationOptimizer":
+    def from_state(cls, state: dict[str, Any]) -> PopulationOptimizer:
         if not isinstance(state, dict) or state.get("algorithm") != cls.name:
             found = state.get("algorithm") if isinstance(state, dict) else type(state).__name__
             raise HysidInputError(f"checkpoint holds a {found!r} state, not {cls.name}")

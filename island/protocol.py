@@ -217,8 +217,7 @@ def encode_migrants(m: Migrants, credentials: Credentials) -> bytes:
     return seal("migrants", m.campaign, m.island, m.run, m.seq, fields, credentials.key)
 
 
-def decode_migrants(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: KeyLookup, sender: str | None = None,
-                    now: float | None = None) -> Migrants:
+def decode_migrants(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: KeyLookup, sender: str | None = None, now: float | None = None) -> Migrants:
     """Validate a migrant message against the campaign's ``(D, 2)`` bounds.
 
     ``sender`` is the island named by the Zenoh key the message came on; the
@@ -281,9 +280,14 @@ class History:
 def encode_history(h: History, credentials: Credentials) -> bytes:
     """Signed with the island run's key (a counter ``h.stats`` lacks is sent as 0)."""
     fields = {
-        "algo": h.algo, "seed": int(h.seed), "rows": pack_array(np.asarray(h.rows, dtype=float).reshape(-1, 4)),
-        "best_x": pack_array(h.best_x), "best_f": float(h.best_f), "stats": {k: int(h.stats.get(k, 0)) for k in STAT_NAMES},
-        "final": bool(h.final), "gain": float(h.gain),
+        "algo": h.algo,
+        "seed": int(h.seed),
+        "rows": pack_array(np.asarray(h.rows, dtype=float).reshape(-1, 4)),
+        "best_x": pack_array(h.best_x),
+        "best_f": float(h.best_f),
+        "stats": {k: int(h.stats.get(k, 0)) for k in STAT_NAMES},
+        "final": bool(h.final),
+        "gain": float(h.gain),
     }
     return seal("history", h.campaign, h.island, h.run, h.seq, fields, credentials.key)
 
@@ -306,7 +310,9 @@ def decode_history(data: bytes, campaign: str, bounds: np.ndarray, *, key_for: K
     if np.any(rows[:, 1] > MAX_FITNESS):
         raise MessageRejected("out_of_range", f"history best fitness above {MAX_FITNESS:g} (or infinite)")
     if np.any(np.diff(rows[:, 0]) <= 0) or np.any(np.diff(rows[:, 2]) < 0) or np.any(np.diff(rows[:, 1]) > 0) or np.any(np.diff(rows[:, 3]) < 0):
-        raise MessageRejected("implausible", "history rows must have rising iterations, evaluations and wall times that never fall and a best that never worsens")
+        raise MessageRejected(
+            "implausible", "history rows must have rising iterations, evaluations and wall times that never fall and a best that never worsens"
+        )
     best_x = _array(msg, "best_x", (bounds.shape[0],), MAX_DIM)
     _in_bounds(best_x[None, :], bounds)
     best_f = _number(msg, "best_f", allow_inf=True)
@@ -367,10 +373,17 @@ def decode_control(data: bytes, campaign: str, coordinator: bytes) -> Control:
         if not (isinstance(e, list) and len(e) == 7):
             raise MessageRejected("schema", "roster entry is not [island, run, alive, stored, algo, key, seq]")
         entry = dict(zip(("island", "run", "alive", "stored", "algo", "key", "seq"), e))
-        members.append(MemberState(
-            _name(entry, "island"), _name(entry, "run"), _get(entry, "alive", bool), _int(entry, "stored", -1, MAX_COUNT), _algo(entry, "algo"),
-            _bytes(entry, "key", KEY_BYTES), _int(entry, "seq", -1, INT64_MAX),
-        ))
+        members.append(
+            MemberState(
+                _name(entry, "island"),
+                _name(entry, "run"),
+                _get(entry, "alive", bool),
+                _int(entry, "stored", -1, MAX_COUNT),
+                _algo(entry, "algo"),
+                _bytes(entry, "key", KEY_BYTES),
+                _int(entry, "seq", -1, INT64_MAX),
+            )
+        )
     return Control(campaign, tuple(members), _text(s.fields, "stop"), s.seq)
 
 
@@ -426,6 +439,7 @@ def encode_history_query(q: HistoryQuery, key: bytes) -> str:
 def decode_history_query(params: Any, campaign: str, island: str, coordinator: bytes) -> HistoryQuery:
     """The query in selector parameters ``params`` (a mapping with ``get``) addressed to ``island``, if the
     coordinator of public key ``coordinator`` signed it; whether ``seq`` is new is the island's check."""
+
     def number(name: str, low: int) -> int:
         text = params.get(name)
         if not isinstance(text, str) or not QUERY_NUMBER.match(text) or not low <= int(text) <= MAX_COUNT:

@@ -114,9 +114,7 @@ class PSO(PopulationOptimizer):
         """All particles moved in this iteration; the additional population is next."""
 
     def _settings(self) -> dict[str, Any]:
-        return self._settings_with(
-            {"phi1": self.phi1, "phi2": self.phi2, "synchronous": self.synchronous, "neighbourhood": self.neighbourhood}
-        )
+        return self._settings_with({"phi1": self.phi1, "phi2": self.phi2, "synchronous": self.synchronous, "neighbourhood": self.neighbourhood})
 
     # --- moves ---------------------------------------------------------------------
     def _movers(self) -> slice:
@@ -206,7 +204,7 @@ class PSO(PopulationOptimizer):
 
     def _known(self) -> tuple[np.ndarray, np.ndarray]:
         assert self.P is not None and self.Pf is not None and self.Pg is not None  # set by the initial swarm
-        others = ~np.all(self.P == self.Pg, axis=1)
+        others = ~np.all(self.Pg == self.P, axis=1)
         return np.vstack([self.Pg, self.P[others]]), np.concatenate([[self.Pgf], self.Pf[others]])
 
     def _state(self) -> dict[str, Any]:

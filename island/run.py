@@ -83,8 +83,10 @@ def run(
     while not optimizer.done:
         if should_stop is not None and should_stop():
             break
-        if termination is not None and rows and termination.reason(
-            evaluations=optimizer.evaluations, best=best, best_at=best_at, elapsed_s=time.perf_counter() - start
+        if (
+            termination is not None
+            and rows
+            and termination.reason(evaluations=optimizer.evaluations, best=best, best_at=best_at, elapsed_s=time.perf_counter() - start)
         ):
             break
         x = optimizer.ask()

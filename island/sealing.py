@@ -27,8 +27,9 @@ import secrets
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
@@ -107,7 +108,7 @@ class Credentials:
         return public_key(self.key)
 
     @classmethod
-    def issue(cls, island: str, coordinator: bytes) -> "Credentials":
+    def issue(cls, island: str, coordinator: bytes) -> Credentials:
         """Credentials of a new run of ``island`` with a fresh run id and key (in-process campaigns, tests)."""
         return cls(check_name("island", island), secrets.token_hex(6), new_key(), coordinator)
 
@@ -130,8 +131,7 @@ def seal(msg_type: str, campaign: str, sender: str, run: str, seq: int, fields: 
     """A sealed message: ``fields`` as the body, signed with the private ``key`` of ``sender``'s run ``run``."""
     body = _dumps(fields)
     signature = sign(key, _signed(msg_type, campaign, sender, run, seq, body))
-    return _dumps({"v": PROTOCOL_VERSION, "type": msg_type, "campaign": campaign, "sender": sender, "run": run, "seq": seq,
-                   "body": body, "sig": signature})
+    return _dumps({"v": PROTOCOL_VERSION, "type": msg_type, "campaign": campaign, "sender": sender, "run": run, "seq": seq, "body": body, "sig": signature})
 
 
 KeyLookup = Callable[[str, str], "bytes | None"]

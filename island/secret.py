@@ -74,7 +74,7 @@ class CampaignSecret:
     """The member this secret admits for ("": the campaign's shared secret, which admits as the shared member)."""
 
     @classmethod
-    def create(cls, campaign: str, coordinator: bytes) -> "CampaignSecret":
+    def create(cls, campaign: str, coordinator: bytes) -> CampaignSecret:
         """A fresh admission secret for ``campaign`` whose coordinator signs with the key of public half ``coordinator``."""
         return cls(check_name("campaign", campaign), secrets.token_bytes(KEY_BYTES), coordinator)
 
@@ -84,12 +84,14 @@ class CampaignSecret:
         return f"{MAGIC} {FORMAT} {self.campaign} {self.admission.hex()} {self.coordinator.hex()}"
 
     @classmethod
-    def parse(cls, text: str, source: str) -> "CampaignSecret":
+    def parse(cls, text: str, source: str) -> CampaignSecret:
         """The secret in ``text``; anything else is a one-line :class:`HysidInputError` naming ``source``."""
         parts = text.split()
         if len(parts) not in (5, 6) or parts[0] != MAGIC:
-            raise HysidInputError(f"{source}: not a hysid campaign secret (one line '{MAGIC} {FORMAT} <campaign> <hex> <hex>', "
-                                  f"or a member's '{MAGIC} {MEMBER_FORMAT} <campaign> <member> <hex> <hex>')")
+            raise HysidInputError(
+                f"{source}: not a hysid campaign secret (one line '{MAGIC} {FORMAT} <campaign> <hex> <hex>', "
+                f"or a member's '{MAGIC} {MEMBER_FORMAT} <campaign> <member> <hex> <hex>')"
+            )
         if (parts[1], len(parts)) not in ((FORMAT, 5), (MEMBER_FORMAT, 6)):
             raise HysidInputError(f"{source}: campaign secret of format {parts[1][:10]!r}; this hysid reads formats {FORMAT} and {MEMBER_FORMAT}")
         member = parts[3] if parts[1] == MEMBER_FORMAT else ""
@@ -104,7 +106,7 @@ class CampaignSecret:
         return cls(parts[2], admission, coordinator, member)
 
     @classmethod
-    def read(cls, path: Path | str) -> "CampaignSecret":
+    def read(cls, path: Path | str) -> CampaignSecret:
         """The secret kept in file ``path``; a :class:`HysidWarning` if others than its owner may read it."""
         return cls.parse(read_owner_only(path, "secret_file", "the campaign secret"), str(path))
 
@@ -112,7 +114,7 @@ class CampaignSecret:
         """Keep the secret in ``path`` (mode 0600, replaced whole: never a half-written file)."""
         return write_owner_only(path, self.text() + "\n")
 
-    def check_campaign(self, campaign: str, source: str) -> "CampaignSecret":
+    def check_campaign(self, campaign: str, source: str) -> CampaignSecret:
         if self.campaign != campaign:
             raise HysidInputError(f"{source}: the campaign secret is campaign {self.campaign!r}'s, not {campaign!r}'s")
         return self

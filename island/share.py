@@ -127,9 +127,7 @@ class Share(Policy):
         self.moved_at: dict[tuple[str, str], int] = {}
         """The round after which each island run last moved."""
 
-    def review(
-        self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str], iterations: dict[tuple[str, str], int]
-    ) -> list[Move]:
+    def review(self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str], iterations: dict[tuple[str, str], int]) -> list[Move]:
         """After ``evaluations`` in all: if a round (``round_evaluations``) is over, close it and return
         the moves (of each algorithm above its share, its first island by name that may move, to the
         leader). ``islands``: the algorithm of each alive island run ``(island, run)``; ``iterations``
@@ -171,9 +169,7 @@ class Staged(Policy):
         self.converger = next(a for a in self.algos if ROLES[a] == "converge")
         """The campaign's converging algorithm (a mixed campaign of :data:`~island.algorithms.ALGORITHMS` has one)."""
 
-    def review(
-        self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str], iterations: dict[tuple[str, str], int]
-    ) -> list[Move]:
+    def review(self, evaluations: int, round_evaluations: int, islands: dict[tuple[str, str], str], iterations: dict[tuple[str, str], int]) -> list[Move]:
         """The moves after ``evaluations`` in all: every run of ``islands`` (the algorithm of each alive
         island run) whose algorithm explores and whose ``iterations`` (each run's, as its histories
         said) reached :attr:`survey`. Reviewed at every history (``round_evaluations`` is not needed)."""

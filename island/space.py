@@ -54,7 +54,7 @@ class SearchSpace:
         """Bounds of ``u``."""
 
     @classmethod
-    def of(cls, model: Any) -> "SearchSpace":
+    def of(cls, model: Any) -> SearchSpace:
         """The space of a :class:`hysid_model.model.Model`'s free parameters (their bounds and physical ranges)."""
         return cls(model.bounds, np.array([p.physical[0] for p in model.parameters]))
 

@@ -109,9 +109,11 @@ class ZenohHost:
         self._migrants = session.declare_subscriber(f"{self.prefix}/migrants/*", zenoh.handlers.FifoChannel(MIGRANT_QUEUE))
         self._control = session.declare_subscriber(f"{self.prefix}/control", zenoh.handlers.FifoChannel(CONTROL_QUEUE))
         self._closing = threading.Event()
-        self._threads = [threading.Thread(target=self._beat, name="heartbeat", daemon=True),
-                         threading.Thread(target=self._take_migrants, name="migrants", daemon=True),
-                         threading.Thread(target=self._take_control, name="control", daemon=True)]
+        self._threads = [
+            threading.Thread(target=self._beat, name="heartbeat", daemon=True),
+            threading.Thread(target=self._take_migrants, name="migrants", daemon=True),
+            threading.Thread(target=self._take_control, name="control", daemon=True),
+        ]
         for t in self._threads:
             t.start()
 
@@ -134,13 +136,13 @@ class ZenohHost:
         for t in islands:
             t.node.count_unlisted()
 
-    def add(self, transport: "ZenohTransport") -> None:
+    def add(self, transport: ZenohTransport) -> None:
         """An island of this host joined: the coordinator answered it."""
         with self._cond:
             self._islands[transport.node.island] = transport
             self._heard_at = time.monotonic()
 
-    def remove(self, transport: "ZenohTransport") -> None:
+    def remove(self, transport: ZenohTransport) -> None:
         with self._cond:
             self._islands.pop(transport.node.island, None)
 
@@ -274,7 +276,12 @@ class ZenohTransport:
     silent_s: float | None = SILENT_MEMBER_S
 
     def __init__(
-        self, session: zenoh.Session, node: IslandNode, secret: CampaignSecret, wait_s: float = 30.0, notify: Callable[[str], None] | None = None,
+        self,
+        session: zenoh.Session,
+        node: IslandNode,
+        secret: CampaignSecret,
+        wait_s: float = 30.0,
+        notify: Callable[[str], None] | None = None,
         host: ZenohHost | None = None,
     ) -> None:
         self.session = session
@@ -316,8 +323,10 @@ class ZenohTransport:
         """This run's entry of a new roster (the host holds its lock): the algorithm it is to run."""
         algo = self._algo if entry is None else entry.algo
         if algo is not None and algo != self._algo and algo != self.node.algo:
-            self.notify(f"island {self.node.island}: campaign {self.node.config.name!r} moves this island from "
-                        f"{self.node.algo.upper()} to {algo.upper()} (the share of a mixed campaign); its search carries on")
+            self.notify(
+                f"island {self.node.island}: campaign {self.node.config.name!r} moves this island from "
+                f"{self.node.algo.upper()} to {algo.upper()} (the share of a mixed campaign); its search carries on"
+            )
         self._algo = algo
 
     def _take_queries(self) -> None:

@@ -67,8 +67,22 @@ EPOCH_2020 = 1577836800.0
 MAX_COUNT = 2**53
 """Largest count (iterations, evaluations) carried exactly in a float64 array."""
 REASONS = (
-    "oversized", "undecodable", "schema", "version", "campaign", "sender", "unjoined", "forged", "replay",
-    "shape", "not_finite", "out_of_bounds", "out_of_range", "implausible", "overflow", "ahead",
+    "oversized",
+    "undecodable",
+    "schema",
+    "version",
+    "campaign",
+    "sender",
+    "unjoined",
+    "forged",
+    "replay",
+    "shape",
+    "not_finite",
+    "out_of_bounds",
+    "out_of_range",
+    "implausible",
+    "overflow",
+    "ahead",
 )
 """Why a message is rejected. ``sender``: the key it came on names another island; ``unjoined``: its
 sender or run never joined (or did not prove it holds the campaign secret); ``forged``: its signature

@@ -126,7 +126,7 @@ def figure(edges: dict[str, set[str]]) -> str:
             a, b = room(source, rooms), room(target, rooms)
             if a != b:
                 counts[a, b] += 1
-    node = lambda r: r.replace(".", "_")  # noqa: E731
+    node = lambda r: r.replace(".", "_")
     lines = ["```mermaid", "flowchart TD"]
     for package in PACKAGES:
         lines.append(f"  subgraph {package}_pkg [{package}/]")
@@ -143,14 +143,16 @@ def figure(edges: dict[str, set[str]]) -> str:
 def block(edges: dict[str, set[str]]) -> str:
     loops = circles(edges)
     said = "no import circle between modules" if not loops else f"{len(loops)} import circles: " + "; ".join(" <-> ".join(c) for c in loops)
-    return "\n".join([
-        BEGIN,
-        "Drawn from the imports by `python scripts/imports.py --write` (a room: a package's top modules or a sub-package, with its",
-        f"number of modules; an arrow: imports from one room into another, with their number); {said}.",
-        "",
-        figure(edges),
-        END,
-    ])
+    return "\n".join(
+        [
+            BEGIN,
+            "Drawn from the imports by `python scripts/imports.py --write` (a room: a package's top modules or a sub-package, with its",
+            f"number of modules; an arrow: imports from one room into another, with their number); {said}.",
+            "",
+            figure(edges),
+            END,
+        ]
+    )
 
 
 def main() -> int:

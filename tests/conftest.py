@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hysid.bench.objective import distorted_synth
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
-from hysid.bench.objective import distorted_synth
 from hysid_model.synth import MEQ_KG, synth_loops
 
 

@@ -12,10 +12,9 @@ by a joined but broken island, so that the body checks are reached too.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-
-import time
 
 import msgpack
 import numpy as np
@@ -79,14 +78,24 @@ class Hostile:
         elif field == "x":
             spoiled = self._x(2)
             spoiled[int(self.rng.integers(2)), int(self.rng.integers(spoiled.shape[1]))] = self._pick(HOSTILE_FLOATS)
-            good["x"] = self._pick([
-                {"shape": self._pick(HOSTILE_SHAPES), "data": b""},
-                {"shape": [2, self.bounds.shape[0]], "data": b"\x00" * 7},
-                pack_array(spoiled), pack_array(self.bounds[:, 1] + 1.0), self._pick(HOSTILE_VALUES),
-            ])
+            good["x"] = self._pick(
+                [
+                    {"shape": self._pick(HOSTILE_SHAPES), "data": b""},
+                    {"shape": [2, self.bounds.shape[0]], "data": b"\x00" * 7},
+                    pack_array(spoiled),
+                    pack_array(self.bounds[:, 1] + 1.0),
+                    self._pick(HOSTILE_VALUES),
+                ]
+            )
         elif field == "claimed":
-            good["claimed"] = self._pick([pack_array(np.array([self._pick(HOSTILE_FLOATS[:3]), -1.0])), pack_array(np.zeros(3)),
-                                          pack_array(np.array([1e300, 0.0])), self._pick(HOSTILE_VALUES)])
+            good["claimed"] = self._pick(
+                [
+                    pack_array(np.array([self._pick(HOSTILE_FLOATS[:3]), -1.0])),
+                    pack_array(np.zeros(3)),
+                    pack_array(np.array([1e300, 0.0])),
+                    self._pick(HOSTILE_VALUES),
+                ]
+            )
         elif field == "iteration":
             good[field] = self._pick([*HOSTILE_INTS, *HOSTILE_FLOATS, None, "x", [1]])
         else:  # a send time no clock shows, or no number
@@ -94,24 +103,42 @@ class Hostile:
         return good
 
     def history_body(self, algo: str, seed: int, implausible: float) -> dict:
-        good = {"algo": algo, "seed": seed, "rows": pack_array(np.array([[0, 5.0, 20, 0.1], [1, 4.0, 45, 0.2]])),
-                "best_x": pack_array(self._x(1)[0]), "best_f": 1e9, "stats": {"sent": 0, "received": 0, "taken": 0, "rejected": 0, "unlisted": 0},
-                "final": False, "gain": 0.5}
+        good = {
+            "algo": algo,
+            "seed": seed,
+            "rows": pack_array(np.array([[0, 5.0, 20, 0.1], [1, 4.0, 45, 0.2]])),
+            "best_x": pack_array(self._x(1)[0]),
+            "best_f": 1e9,
+            "stats": {"sent": 0, "received": 0, "taken": 0, "rejected": 0, "unlisted": 0},
+            "final": False,
+            "gain": 0.5,
+        }
         field = self._pick(["rows", "best_x", "best_f", "stats", "seed", "algo", "final", "gain", "missing", "implausible"])
         if field == "missing":
             del good[self._pick(list(good))]
         elif field == "implausible":
             good["rows"] = pack_array(np.array([[1, 5.0, self._pick([implausible, 2.0**52, 2.0**53]), 0.1]]))
         elif field == "rows":
-            col, bad_value = self._pick([
-                *((c, v) for c in (0, 2) for v in (1e300, float("nan"), -1.0, 0.5, 2.0**62, float("inf"))),
-                (1, float("nan")), (1, -1.0), (1, 1e300), (1, float("inf")), (3, float("nan")), (3, -1.0), (3, float("inf")), (3, 1e300),
-            ])
+            col, bad_value = self._pick(
+                [
+                    *((c, v) for c in (0, 2) for v in (1e300, float("nan"), -1.0, 0.5, 2.0**62, float("inf"))),
+                    (1, float("nan")),
+                    (1, -1.0),
+                    (1, 1e300),
+                    (1, float("inf")),
+                    (3, float("nan")),
+                    (3, -1.0),
+                    (3, float("inf")),
+                    (3, 1e300),
+                ]
+            )
             rows = np.array([[0, 5.0, 20, 0.1], [1, 4.0, 45, 0.2]])
             rows[1, col] = bad_value
             good["rows"] = self._pick([pack_array(rows), {"shape": self._pick(HOSTILE_SHAPES), "data": b""}, pack_array(rows[::-1].copy())])
         elif field == "best_x":
-            good["best_x"] = self._pick([pack_array(self.bounds[:, 0] - 1.0), {"shape": [2**62], "data": b""}, pack_array(np.full(self.bounds.shape[0], np.nan))])
+            good["best_x"] = self._pick(
+                [pack_array(self.bounds[:, 0] - 1.0), {"shape": [2**62], "data": b""}, pack_array(np.full(self.bounds.shape[0], np.nan))]
+            )
         elif field == "best_f":
             good["best_f"] = self._pick([float("nan"), -1.0, "1", None])
         elif field == "stats":
@@ -174,19 +201,33 @@ class Hostile:
         campaign secret or without a challenge the coordinator issued (a well-formed request would be
         answered with a challenge: anyone may ask)."""
         key = new_key()
-        good = {"v": PROTOCOL_VERSION, "type": "join", "campaign": self.campaign, "island": island, "algo": "pso", "seed": 1, "nonce": b"n" * 16,
-                "key": public_key(key)}
+        good = {
+            "v": PROTOCOL_VERSION,
+            "type": "join",
+            "campaign": self.campaign,
+            "island": island,
+            "algo": "pso",
+            "seed": 1,
+            "nonce": b"n" * 16,
+            "key": public_key(key),
+        }
         field = self._pick(["island", "algo", "seed", "nonce", "key", "v", "campaign", "garbage", "proof"])
         if field == "garbage":
             return self.rng.bytes(int(self.rng.integers(0, 100)))
         if field == "proof":  # a guessed secret, or the right form with a challenge nobody issued
             request = JoinRequest(self.campaign, island, "pso", 1, self.rng.bytes(16), public_key(key))
             return encode_prove(request, self.rng.bytes(16), self.rng.bytes(32), key)
-        good[field] = self._pick({
-            "island": ["someone-else", "", "x" * 65, 7], "algo": ["GA", 3, "x" * 20], "seed": [2**63, -1, 2**64 - 1, "1"],
-            "nonce": [b"short", "n" * 16, None], "key": [b"short", None, "k" * 32], "v": [PROTOCOL_VERSION - 1, PROTOCOL_VERSION + 1, str(PROTOCOL_VERSION)],
-            "campaign": ["other", 2],
-        }[field])
+        good[field] = self._pick(
+            {
+                "island": ["someone-else", "", "x" * 65, 7],
+                "algo": ["GA", 3, "x" * 20],
+                "seed": [2**63, -1, 2**64 - 1, "1"],
+                "nonce": [b"short", "n" * 16, None],
+                "key": [b"short", None, "k" * 32],
+                "v": [PROTOCOL_VERSION - 1, PROTOCOL_VERSION + 1, str(PROTOCOL_VERSION)],
+                "campaign": ["other", 2],
+            }[field]
+        )
         return msgpack.packb(good, use_bin_type=True)
 
     def control(self) -> bytes:
@@ -199,18 +240,38 @@ class Hostile:
             return self.rng.bytes(int(self.rng.integers(0, 200)))
         fields = {"members": members, "stop": ""}
         if defect == "members":
-            fields["members"] = self._pick([
-                [["a", "r1", True, 2**63, "pso", b"k" * 32]], [["a/b", "r1", True, 1, "pso", b"k" * 32]], [[1, 2, 3]], "x",
-                [["a", "r1", "yes", 1, "pso", b"k" * 32]], [["a", "r1", True, 1, "PSO!", b"k" * 32]], [["a", "r1", True, 1, "pso"]], [members[0]] * 5000,
-            ])
+            fields["members"] = self._pick(
+                [
+                    [["a", "r1", True, 2**63, "pso", b"k" * 32]],
+                    [["a/b", "r1", True, 1, "pso", b"k" * 32]],
+                    [[1, 2, 3]],
+                    "x",
+                    [["a", "r1", "yes", 1, "pso", b"k" * 32]],
+                    [["a", "r1", True, 1, "PSO!", b"k" * 32]],
+                    [["a", "r1", True, 1, "pso"]],
+                    [members[0]] * 5000,
+                ]
+            )
         else:
             fields["stop"] = "s" * 1000
         return seal("control", self.campaign, "coordinator", "c0", self.seq(), fields, new_key())
 
     def history_query(self) -> str:
         """Selector parameters of a history query that an island must refuse (none is signed by the coordinator)."""
-        return self._pick(["since=abc", "since=" + "9" * 40, "since=-7", "since=1e300", "since=nan", "run=x;since=" + "1" * 17, "since=2.5",
-                           "run=x;since=-1", "run=x;since=-1;seq=1;sig=" + "00" * 64, f"run=x;since=-1;seq=1;sig={self.rng.bytes(64).hex()}"])
+        return self._pick(
+            [
+                "since=abc",
+                "since=" + "9" * 40,
+                "since=-7",
+                "since=1e300",
+                "since=nan",
+                "run=x;since=" + "1" * 17,
+                "since=2.5",
+                "run=x;since=-1",
+                "run=x;since=-1;seq=1;sig=" + "00" * 64,
+                f"run=x;since=-1;seq=1;sig={self.rng.bytes(64).hex()}",
+            ]
+        )
 
 
 def stream(h: Hostile, n: int, algo: str, seed: int, implausible: float, islands: list[str]) -> Iterator[tuple[str, str, bytes]]:

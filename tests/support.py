@@ -15,10 +15,10 @@ from types import ModuleType
 
 import numpy as np
 
+from hysid.bench.sites import query
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.synth import RawRecord
-from hysid.bench.sites import query  # noqa: F401  (read a campaign database while a coordinator writes it)
 from island.polish import polish
 from island.run import run
 
@@ -147,8 +147,8 @@ def ready(endpoint: str, campaign: str, timeout: float = 90.0, process: subproce
     (the coordinator's), also done once it has ended: a short campaign can run to its end before
     the first look, and the caller reads how it ended. The session retries its connection every
     0.05-0.2 s, not Zenoh's 1-4 s, so that a coordinator listening only briefly is still seen."""
-    from island.session import open_session, session_config
     from island.joining import replies
+    from island.session import open_session, session_config
 
     deadline = time.monotonic() + timeout
     config = session_config("client", connect=[endpoint], connect_timeout_s=1.0)
@@ -218,9 +218,9 @@ class Peer:
     then it sends whatever a test wants under any key of the campaign."""
 
     def __init__(self, endpoint: str, campaign: str, island: str, *, secret=None, algo: str = "pso", seed: int = 0) -> None:
+        from island.joining import join
         from island.sealing import Counter
         from island.session import open_session, session_config
-        from island.joining import join
 
         self.campaign, self.island = campaign, island
         self.session = open_session(session_config("client", connect=[endpoint], connect_timeout_s=60.0), endpoint)

@@ -8,9 +8,20 @@ import pytest
 from island.addpop import additional_population, addpop_masks, addpop_size
 
 TABLE_5_1 = [  # mutated parameters p1..p4 for L = 3, in the thesis' order
-    "X...", ".X..", "..X.", "...X",
-    "XX..", "X.X.", "X..X", ".XX.", ".X.X", "..XX",
-    "XXX.", "XX.X", "X.XX", ".XXX",
+    "X...",
+    ".X..",
+    "..X.",
+    "...X",
+    "XX..",
+    "X.X.",
+    "X..X",
+    ".XX.",
+    ".X.X",
+    "..XX",
+    "XXX.",
+    "XX.X",
+    "X.XX",
+    ".XXX",
 ]
 
 

@@ -3,7 +3,6 @@ loops alike, and what extraction cannot resolve at the motion reversals is no pa
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -53,8 +52,7 @@ def test_a_cusp_at_the_reversals_leaves_out_the_four_reversal_samples_of_each_lo
 def test_a_smooth_force_keeps_every_sample(tmp_path):
     model = build_model("baseline+bouc_wen")
     truth = {"xi0": 0.05, "w0": 2 * np.pi * 15.0, "meq": 0.5, "bw_k": 2e4, "bw_zy": 2e-4, "bw_r": 0.5}
-    raw = simulate_raw(model, model.from_dict(truth), np.array([8.0, 15.0, 25.0]), np.full(3, 1e-3), noise_n=0.05, seed=1,
-                       sample_rate_hz=4000.0, cycles=10)
+    raw = simulate_raw(model, model.from_dict(truth), np.array([8.0, 15.0, 25.0]), np.full(3, 1e-3), noise_n=0.05, seed=1, sample_rate_hz=4000.0, cycles=10)
     loops = load_dataset(write_dataset(tmp_path / "bw", raw, name="bw"))
     assert "the force at the motion reversals is resolved" in loops.meta["reversals"] and loops.kept().all()
 

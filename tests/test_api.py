@@ -60,8 +60,7 @@ def test_results_and_their_parts_print_as_one_line_naming_what_they_are(loops):
     assert repr(harmonics) == "<Harmonics of synth-5pct-seed2: 15 loops x 15 coefficients (dc .. c7)>"
     assert re.fullmatch(r"<Fit baseline: whitened RMS \S+, BIC \S+, 2 parameters>", repr(start))
     step = Step("coulomb_friction", ["viscous_damping"], 12.5, start, start, {})
-    assert re.fullmatch(r"\[<Step \+ coulomb_friction: score 12.5, whitened RMS (\S+) -> \1, BIC \+0.0; confusable with viscous_damping>\]",
-                        repr([step]))
+    assert re.fullmatch(r"\[<Step \+ coulomb_friction: score 12.5, whitened RMS (\S+) -> \1, BIC \+0.0; confusable with viscous_damping>\]", repr([step]))
     many = hysid.fit(few, "thesis+coulomb_friction+zener_thermoelastic", algo="ga", options=SMALL, polish=False)
     assert repr(many).endswith(", ... (7 in all)>") and "\n" not in repr(many)
 
@@ -117,8 +116,11 @@ def test_fit_diagnose_and_campaign_take_loops_then_model_and_the_rest_as_keyword
         (lambda lp: hysid.fit(lp, bounds={"omega": (1.0, 2.0)}), "unknown parameter 'omega'"),
         (lambda lp: hysid.diagnose(lp, "quadratic"), "model='quadratic': "),
         (lambda lp: hysid.campaign(lp, islands=0), "islands=0: "),
-        (lambda lp: hysid.campaign(lp, 4), "model=4: a model is a string such as 'thesis+coulomb_friction' or a hysid Model; "
-                                           "the number of islands is a keyword: campaign(loops, model, islands=4)"),
+        (
+            lambda lp: hysid.campaign(lp, 4),
+            "model=4: a model is a string such as 'thesis+coulomb_friction' or a hysid Model; "
+            "the number of islands is a keyword: campaign(loops, model, islands=4)",
+        ),
         (lambda lp: hysid.campaign(lp, options={"ga": {"population": 0}}), "population"),
         (lambda lp: hysid.load("synth", n_points=1), "n_points=1: "),
         (lambda lp: hysid.load("synth", noise_pct=-5), "noise_pct=-5: "),
@@ -134,8 +136,7 @@ def test_library_errors_name_python_parameters_not_flags(loops, call, words):
 
 @pytest.mark.slow  # over 3 s
 def test_the_example_script_runs(tmp_path):
-    done = subprocess.run([sys.executable, str(ROOT / "examples" / "quickstart.py"), "synth", str(tmp_path)],
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run([sys.executable, str(ROOT / "examples" / "quickstart.py"), "synth", str(tmp_path)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert "status: adequate" in done.stdout and "stopped because every island finished" in done.stdout
     assert (tmp_path / "fit" / "report.md").is_file() and (tmp_path / "campaign" / "report.md").is_file()
@@ -224,8 +225,11 @@ def test_the_command_line_takes_pythons_defaults_except_where_the_api_table_says
     campaign = {p.name: p for p in commands["campaign"].params}
     ga = inspect.signature(GA).parameters
     text = (Path(__file__).parents[1] / "docs" / "API.md").read_text()
-    table = {row.split("|")[1].strip(): [c.strip() for c in row.split("|")[2:4]] for row in text.split("### The command line and Python")[1].splitlines()
-             if row.startswith("| `--") or row.startswith("| DATASET")}
+    table = {
+        row.split("|")[1].strip(): [c.strip() for c in row.split("|")[2:4]]
+        for row in text.split("### The command line and Python")[1].splitlines()
+        if row.startswith("| `--") or row.startswith("| DATASET")
+    }
     assert table == {
         "`--interval`": [str(campaign["interval"].default), f"`Migration().interval` = {hysid.Migration().interval}"],
         "`--population` (memoryless model)": [str(o.ISLAND_POPULATION), f"`GA`/`PSO` `population` = {ga['population'].default}"],

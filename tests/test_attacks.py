@@ -21,8 +21,8 @@ import zenoh
 
 from coordinator.launch import free_port
 from coordinator.store import Store
-from hysid.cli.campaign import resumed_from
 from hostile import RogueCoordinator, join_flood
+from hysid.cli.campaign import resumed_from
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config, encode_config
 from island.protocol import History, Migrants, encode_history, encode_migrants
@@ -101,9 +101,26 @@ def test_a_token_held_by_a_stranger_neither_keeps_a_campaign_open_nor_hides_a_lo
     """Tokens under both islands' names, declared before they start: the killed island is lost once it
     is silent, the other leaves with its final history, and the campaign ends as if nobody held them."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "t.sqlite"
-    coord = spawn("coordinator", "--listen", endpoint, "--campaign", "held", "--db", str(db), "--out", str(tmp_path / "out"), "--json",
-                  *PSO_ISLANDS, "--iterations", "2500", "--interval", "5", "--min-islands", "2",
-                  "--quiet")
+    coord = spawn(
+        "coordinator",
+        "--listen",
+        endpoint,
+        "--campaign",
+        "held",
+        "--db",
+        str(db),
+        "--out",
+        str(tmp_path / "out"),
+        "--json",
+        *PSO_ISLANDS,
+        "--iterations",
+        "2500",
+        "--interval",
+        "5",
+        "--min-islands",
+        "2",
+        "--quiet",
+    )
     ready(endpoint, "held")
     session = stranger(endpoint)
     tokens = [session.liveliness().declare_token(f"hysid/held/members/{name}") for name in ("a", "b")]
@@ -190,8 +207,11 @@ def test_a_silent_member_cannot_starve_its_successor_in_the_ring(spawn, tmp_path
         publisher = silent.publisher("history")
         x = BOUNDS.mean(axis=1)
         while not stop.wait(0.5):
-            publisher.put(encode_history(History("ring", silent.island, silent.credentials.run, "pso", 0, np.zeros((0, 4)), x, np.inf, STATS,
-                                                 seq=silent.seq()), silent.credentials))
+            publisher.put(
+                encode_history(
+                    History("ring", silent.island, silent.credentials.run, "pso", 0, np.zeros((0, 4)), x, np.inf, STATS, seq=silent.seq()), silent.credentials
+                )
+            )
 
     beating = threading.Thread(target=heartbeats)
     beating.start()
@@ -225,11 +245,14 @@ def test_a_members_impossible_claims_are_refused_with_their_reasons_and_spend_no
         wait_for(lambda: rows_of(db, "a") > 10, 60, "the island's history")
         lies = [np.array([[175_000, f, 434e6, 1.0]]), np.array([[0, f, 40, 1e300]]), np.array([[0, np.inf, 40, 0.5]])]
         for rows in lies:
-            liar.put("history", encode_history(History("effort", "liar", liar.credentials.run, "pso", 0, rows, TRUTH, f, STATS, seq=liar.seq()),
-                                               liar.credentials))
+            liar.put(
+                "history", encode_history(History("effort", "liar", liar.credentials.run, "pso", 0, rows, TRUTH, f, STATS, seq=liar.seq()), liar.credentials)
+            )
         for sent_at in (1e308, -1e308, 0.0, -1.0):
-            liar.put("migrants", encode_migrants(Migrants("effort", "liar", liar.credentials.run, 5, TRUTH[None, :], np.zeros(1), sent_at, liar.seq()),
-                                                 liar.credentials))
+            liar.put(
+                "migrants",
+                encode_migrants(Migrants("effort", "liar", liar.credentials.run, 5, TRUTH[None, :], np.zeros(1), sent_at, liar.seq()), liar.credentials),
+            )
         wait_for(lambda: reasons(db).get("out_of_range", 0) >= 5 and reasons(db).get("implausible", 0) >= 1, 30, "every lie to be refused")
         rows = rows_of(db, "a")
         wait_for(lambda: rows_of(db, "a") > rows + 20, 30, "the campaign to go on")
@@ -249,7 +272,7 @@ def test_a_resumed_campaign_carries_its_time_on_instead_of_starting_it_again(spa
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "t.sqlite"
     first = coordinator(spawn, endpoint, "timed", db, "--time-limit", "14")
     a = spawn("island", "--connect", endpoint, "--campaign", "timed", "--id", "a", "--quiet", "--wait", "60", "--secret-file", secret_file(db, "timed"))
-    elapsed = lambda: (query(db, "SELECT elapsed_s FROM commits") or [(0.0,)])[0][0]  # noqa: E731
+    elapsed = lambda: (query(db, "SELECT elapsed_s FROM commits") or [(0.0,)])[0][0]
     wait_for(lambda: elapsed() >= 7.0, 60, "7 s of campaign time")
     first.send_signal(signal.SIGKILL)
     first.communicate(timeout=30)
@@ -258,7 +281,7 @@ def test_a_resumed_campaign_carries_its_time_on_instead_of_starting_it_again(spa
     seen: list[tuple[str, float]] = []  # (status, campaign time of the last commit), as another process reads them
 
     def stopping() -> bool:
-        (status,), = query(db, "SELECT status FROM campaigns")
+        ((status,),) = query(db, "SELECT status FROM campaigns")
         seen.append((status, elapsed()))
         return status != "running"
 
@@ -275,9 +298,17 @@ def test_a_database_locked_by_another_process_ends_the_campaign_within_seconds(s
     coord = coordinator(spawn, endpoint, "locked", db, "--time-limit", "180")
     a = island(spawn, endpoint, "locked", "a", db, "--wait", "3")  # it waits that long for a confirmation no coordinator will send
     wait_for(lambda: rows_of(db, "a") > 10, 60, "the island's history")
-    holder = subprocess.Popen([sys.executable, "-c", f"import sqlite3, sys; c = sqlite3.connect({str(db)!r}, isolation_level=None); "
-                               "c.execute('BEGIN IMMEDIATE'); print('held', flush=True); sys.stdin.read()"],
-                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            f"import sqlite3, sys; c = sqlite3.connect({str(db)!r}, isolation_level=None); "
+            "c.execute('BEGIN IMMEDIATE'); print('held', flush=True); sys.stdin.read()",
+        ],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert holder.stdout.readline().strip() == "held"
         locked_at = time.monotonic()
@@ -296,8 +327,9 @@ def test_a_database_locked_by_another_process_ends_the_campaign_within_seconds(s
     gone = "interrupted (its coordinator is gone (last heartbeat "  # its process ended: no lease to wait for
     watched = subprocess.run([sys.executable, "-m", "hysid", "watch", "--once", str(db)], capture_output=True, text=True, timeout=60)
     assert watched.returncode == 0 and f"campaign 'locked' on synth: {gone}" in watched.stdout, watched.stdout
-    reported = subprocess.run([sys.executable, "-m", "hysid", "report", str(db), "--out", str(tmp_path / "report")], capture_output=True, text=True,
-                              timeout=120)
+    reported = subprocess.run(
+        [sys.executable, "-m", "hysid", "report", str(db), "--out", str(tmp_path / "report")], capture_output=True, text=True, timeout=120
+    )
     assert reported.returncode == 0 and "stopped because interrupted: its coordinator is gone (last heartbeat " in reported.stdout, reported.stderr
     store = Store(db)
     try:
@@ -324,8 +356,24 @@ def test_a_junk_flood_around_the_end_does_not_keep_the_coordinator_alive(spawn, 
     """A stranger floods every key with junk, blocking, from before the islands finish until well after:
     the coordinator reports and exits while the flood goes on."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "f.sqlite"
-    coord = spawn("coordinator", "--listen", endpoint, "--campaign", "junk", "--db", str(db), "--out", str(tmp_path / "out"), "--json",
-                  *PSO_ISLANDS, "--iterations", "600", "--interval", "5", "--quiet")
+    coord = spawn(
+        "coordinator",
+        "--listen",
+        endpoint,
+        "--campaign",
+        "junk",
+        "--db",
+        str(db),
+        "--out",
+        str(tmp_path / "out"),
+        "--json",
+        *PSO_ISLANDS,
+        "--iterations",
+        "600",
+        "--interval",
+        "5",
+        "--quiet",
+    )
     ready(endpoint, "junk")
     a = island(spawn, endpoint, "junk", "a", db)
     session = stranger(endpoint)
@@ -333,8 +381,11 @@ def test_a_junk_flood_around_the_end_does_not_keep_the_coordinator_alive(spawn, 
     sent = [0]
 
     def flood() -> None:
-        publishers = [session.declare_publisher(f"hysid/junk/{kind}/ghost-{k}", congestion_control=zenoh.CongestionControl.BLOCK)
-                      for kind in ("migrants", "history") for k in range(4)]
+        publishers = [
+            session.declare_publisher(f"hysid/junk/{kind}/ghost-{k}", congestion_control=zenoh.CongestionControl.BLOCK)
+            for kind in ("migrants", "history")
+            for k in range(4)
+        ]
         junk = np.random.default_rng(1).bytes(60_000)
         deadline = time.monotonic() + 120.0  # bounded whatever happens
         while not stop.is_set() and time.monotonic() < deadline:

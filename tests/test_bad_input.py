@@ -61,12 +61,15 @@ def test_missing_or_misspelled_column(tmp_path, capsys):
     assert "force_n" in cli_error(["loops", str(d)], capsys)
 
 
-@pytest.mark.parametrize(("row", "line", "expected"), [
-    (2, "0.001,0.0,nan", "run.csv: line 4: force_n is nan"),
-    (2, "0.001,inf,1.0", "line 4: displacement_m is inf"),
-    (5, "0.0025,abc,1.0", "run.csv: line 7: displacement_m 'abc' is not a number"),
-    (5, "0.0025,1.0", "line 7: 2 values for the 3 columns"),
-])
+@pytest.mark.parametrize(
+    ("row", "line", "expected"),
+    [
+        (2, "0.001,0.0,nan", "run.csv: line 4: force_n is nan"),
+        (2, "0.001,inf,1.0", "line 4: displacement_m is inf"),
+        (5, "0.0025,abc,1.0", "run.csv: line 7: displacement_m 'abc' is not a number"),
+        (5, "0.0025,1.0", "line 7: 2 values for the 3 columns"),
+    ],
+)
 def test_nan_inf_text_and_ragged_rows_name_column_and_line(tmp_path, row, line, expected):
     body = rows()
     body[row] = line
@@ -202,8 +205,7 @@ def test_synth_never_overwrites(tmp_path, capsys):
 PROBE_FS = 2000.0
 
 
-def sweep_records(directory: Path, freqs: list[float], force_of=None, *, damping: float = 20.0, clip: float | None = None,
-                  swap: bool = False) -> Path:
+def sweep_records(directory: Path, freqs: list[float], force_of=None, *, damping: float = 20.0, clip: float | None = None, swap: bool = False) -> Path:
     """Records of a 0.5 kg, 2e4 N/m specimen (resonance 31.8 Hz) at 1 mm, written as CSV files with a manifest;
     ``force_of(k, force)`` spoils record k's force; ``clip`` clips every force at that share of the set's largest
     (noise after the clip, as a converter after a saturated amplifier adds it); ``swap`` swaps the columns."""

@@ -45,7 +45,9 @@ def test_proposing_nothing_scores_the_law_s_own_figure():
 
 def test_a_formula_is_a_numpy_expression_in_x_and_v_and_nothing_else():
     x, v = motion()
-    np.testing.assert_allclose(formula_force("120.0 * (np.abs(v) ** 0.35 * np.sign(v))", x, v), LAWS["fluid_viscous"].force(x, v, **LAWS["fluid_viscous"].truth))
+    np.testing.assert_allclose(
+        formula_force("120.0 * (np.abs(v) ** 0.35 * np.sign(v))", x, v), LAWS["fluid_viscous"].force(x, v, **LAWS["fluid_viscous"].truth)
+    )
     assert formula_force("2.5", x, v).shape == x.shape
     with pytest.raises(NameError):
         formula_force("__import__('os').getcwd()", x, v)
@@ -76,7 +78,28 @@ def test_one_hidden_law_end_to_end(tmp_path, capsys):
     from hysid.cli import main
 
     doc = tmp_path / "VALIDATION.md"
-    assert main(["bench", "discovery", "--quick", "--laws", "orifice", "--noise", "1", "--controls", "no_effect", "--seeds", "1", "--no-real", "--markdown", str(doc), "--json"]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "discovery",
+                "--quick",
+                "--laws",
+                "orifice",
+                "--noise",
+                "1",
+                "--controls",
+                "no_effect",
+                "--seeds",
+                "1",
+                "--no-real",
+                "--markdown",
+                str(doc),
+                "--json",
+            ]
+        )
+        == 0
+    )
     result = json.loads(capsys.readouterr().out)
     rows = result["laws"]
     assert [(r["law"], r["noise_pct"]) for r in rows] == [("orifice", 1.0)]

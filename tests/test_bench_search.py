@@ -124,8 +124,9 @@ def test_an_island_s_counts_and_best_so_far_run_on_across_a_restart_and_its_fres
     space = SpaceObjective(objective)
     rows = starting_points(objective, starting_point(objective.loops, objective.model))
     assert rows.shape[0] == 3 and np.all(rows >= objective.bounds[:, 0]) and np.all(rows <= objective.bounds[:, 1])  # the linear estimate, 2 Bouc-Wen reads
-    island = Island(space, "pso", 5, {"population": 6, "initial_population": 12, "synchronous": True, "addpop_level": 1, "iterations": 10**6},
-                    starts=space.space.to_u(rows))
+    island = Island(
+        space, "pso", 5, {"population": 6, "initial_population": 12, "synchronous": True, "addpop_level": 1, "iterations": 10**6}, starts=space.space.to_u(rows)
+    )
     island.step()
     assert island.fitness <= float(objective(rows).min()) and island.evaluations == 12 + 3  # the starts joined the first population
     for _ in range(REFINE_EVERY * STALL):

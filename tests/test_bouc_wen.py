@@ -11,7 +11,7 @@ import pytest
 from hysid.bench.objective import distorted_synth
 from hysid.cli import main
 from hysid_model import bouc_wen_orbit
-from hysid_model.effects.bouc_wen import BoucWen, _closed_form, _any_exponent
+from hysid_model.effects.bouc_wen import BoucWen, _any_exponent, _closed_form
 from hysid_model.errors import HysidInputError
 from hysid_model.kinematics import Kinematics
 from hysid_model.model import Model, build_model, spec_of

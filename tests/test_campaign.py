@@ -23,7 +23,6 @@ from island.config import CampaignConfig
 from island.migration import Migration
 from support import PSO_ISLANDS, events, history_iterations, hysid, interruptible, query, rows_of, secret_file, wait_for
 
-
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
 FIT_KEYS = {"params", "stderr", "fitness", "evaluations", "history"}
 
@@ -47,7 +46,7 @@ def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations
     assert json.loads((out / "result.json").read_text())["islands"] == doc["islands"]
     assert (out / "report.md").is_file() and (out / "convergence.png").is_file()
     report = (out / "report.md").read_text()  # why it stopped (the summary), then its own section: migrations, moves, islands
-    section = report[report.index("## Islands and migrations"):report.index("## Model vs measured loops")]
+    section = report[report.index("## Islands and migrations") : report.index("## Model vs measured loops")]
     assert "- **Stopped**: every island finished." in report and f"Migrations: {doc['migrations']['messages']} messages (ring, every 5" in section
     assert "- share: staged" in section and all(f"| `{i['island']}` | {' -> '.join(i['algorithms']).upper()} |" in section for i in doc["islands"])
     assert [i["algorithms"][0] for i in doc["islands"]] == ["ga", "pso", "ga"] and all(i["algorithms"][-1] == i["algo"] for i in doc["islands"])
@@ -57,9 +56,10 @@ def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations
 def test_campaign_of_island_processes_over_zenoh(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run(
-        hysid("campaign", "--islands", "2", *PSO_ISLANDS, "--iterations", "200",
-              "--json", "--out", str(out)),
-        capture_output=True, text=True, timeout=120,
+        hysid("campaign", "--islands", "2", *PSO_ISLANDS, "--iterations", "200", "--json", "--out", str(out)),
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
@@ -79,8 +79,7 @@ def test_an_honest_campaign_of_two_island_processes_counts_no_message_rejected_o
     rejected, nor one that waited for the roster in vain (the roster goes out at every join, before the joiner hears
     it joined), the coordinator rejects none, and every move of the share is followed."""
     out = tmp_path / "out"
-    proc = subprocess.run(hysid("campaign", "--islands", "2", "--iterations", "400", "--json", "--out", str(out)),
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(hysid("campaign", "--islands", "2", "--iterations", "400", "--json", "--out", str(out)), capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert [(i["island"], i["rejected"], i["unlisted"]) for i in doc["islands"]] == [("island-0", 0, 0), ("island-1", 0, 0)]
@@ -110,18 +109,39 @@ def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     db = tmp_path / "lj.sqlite"
     coordinator = subprocess.Popen(
-        hysid("coordinator", "--listen", endpoint, "--campaign", "lj", "--db", str(db), "--out", str(tmp_path / "out"),
-              *PSO_ISLANDS, "--iterations", "10000000", "--interval", "1000000",
-              "--time-limit", "120", "--json", "--quiet"),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
+        hysid(
+            "coordinator",
+            "--listen",
+            endpoint,
+            "--campaign",
+            "lj",
+            "--db",
+            str(db),
+            "--out",
+            str(tmp_path / "out"),
+            *PSO_ISLANDS,
+            "--iterations",
+            "10000000",
+            "--interval",
+            "1000000",
+            "--time-limit",
+            "120",
+            "--json",
+            "--quiet",
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=interruptible,
     )
     secret = ["--secret-file", secret_file(db, "lj")]
     early = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet", *secret), stderr=subprocess.PIPE, text=True)
     late = None
     try:
         wait_for(lambda: rows_of(db, "early") > 50, 60, "the first island's history")
-        late = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "late", "--seed", "99", *secret),
-                                stderr=subprocess.PIPE, text=True)
+        late = subprocess.Popen(
+            hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "late", "--seed", "99", *secret), stderr=subprocess.PIPE, text=True
+        )
         wait_for(lambda: rows_of(db, "late") > 50, 60, "the late island's history")
         coordinator.send_signal(signal.SIGINT)  # Ctrl-C: stop the campaign and report
         out, err = coordinator.communicate(timeout=60)
@@ -156,8 +176,7 @@ def test_ctrl_c_mid_campaign_reports_it_interrupted_and_exits_130(tmp_path, caps
     user = threading.Thread(target=ctrl_c_once_searching)
     user.start()
     try:
-        code = main(["campaign", "--single-node", "--islands", "2", *PSO_ISLANDS,
-                     "--time", "300", "--no-polish", "--json", "--quiet", "--out", str(out)])
+        code = main(["campaign", "--single-node", "--islands", "2", *PSO_ISLANDS, "--time", "300", "--no-polish", "--json", "--quiet", "--out", str(out)])
     finally:
         user.join()
         signal.signal(signal.SIGINT, previous)
@@ -210,8 +229,21 @@ def test_a_stored_campaign_is_never_overwritten(tmp_path, capsys):
     [(["--target", "1e-6"], "target fitness 1e-06 reached"), (["--stall", "3000"], "no improvement in 3,000 evaluations")],
 )
 def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path, capsys):
-    argv = ["campaign", "--single-node", "--islands", "2", *PSO_ISLANDS,
-            "--iterations", "10000000", *rule, "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    argv = [
+        "campaign",
+        "--single-node",
+        "--islands",
+        "2",
+        *PSO_ISLANDS,
+        "--iterations",
+        "10000000",
+        *rule,
+        "--no-polish",
+        "--json",
+        "--quiet",
+        "--out",
+        str(tmp_path / "o"),
+    ]
     assert main(argv) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["settings"]["stop_reason"] == reason
@@ -225,8 +257,20 @@ def test_resuming_a_finished_campaign_reports_it_again_from_the_database(tmp_pat
     db = tmp_path / "c.sqlite"
     assert main(["campaign", "--single-node", "--islands", "2", *SMALL, "--db", str(db), "--json", "--quiet", "--out", str(tmp_path / "a")]) == 0
     first = json.loads(capsys.readouterr().out)
-    argv = ["coordinator", "--resume", "--db", str(db), "--campaign", "campaign", "--listen", f"tcp/127.0.0.1:{free_port()}",
-            "--json", "--quiet", "--out", str(tmp_path / "b")]
+    argv = [
+        "coordinator",
+        "--resume",
+        "--db",
+        str(db),
+        "--campaign",
+        "campaign",
+        "--listen",
+        f"tcp/127.0.0.1:{free_port()}",
+        "--json",
+        "--quiet",
+        "--out",
+        str(tmp_path / "b"),
+    ]
     assert main(argv) == 0
     again = json.loads(capsys.readouterr().out)
     assert again["settings"]["stop_reason"] == "every island finished"
@@ -285,8 +329,29 @@ def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, caps
 
 @pytest.mark.slow  # over 3 s
 def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_the_stop(tmp_path, capsys):
-    argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--share", "fixed", "--population", "20", "--initial", "40",
-            "--interval", "5", "--evaluations", "6000", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
+    argv = [
+        "campaign",
+        "--single-node",
+        "--islands",
+        "2",
+        "--algos",
+        "ga,pso",
+        "--share",
+        "fixed",
+        "--population",
+        "20",
+        "--initial",
+        "40",
+        "--interval",
+        "5",
+        "--evaluations",
+        "6000",
+        "--no-polish",
+        "--json",
+        "--quiet",
+        "--out",
+        str(tmp_path / "o"),
+    ]
     assert main(argv) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["settings"]["stop_reason"] == "budget of 6,000 evaluations spent" and doc["settings"]["until_stopped"] is True

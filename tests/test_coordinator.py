@@ -20,8 +20,8 @@ from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
-from island.migration import Migration
 from island.handshake import JoinRequest, decode_challenge, decode_joined, encode_join, encode_prove
+from island.migration import Migration
 from island.protocol import History, Migrants, decode_control, encode_history, encode_migrants
 from island.sealing import Credentials, new_key, public_key
 from island.termination import Termination
@@ -46,10 +46,10 @@ def truth(c: Coordinator) -> np.ndarray:
     return c.objective.model.from_dict(TRUE_PARAMS)
 
 
-def history(c: Credentials, rows, best_x: np.ndarray, best_f: float, *, seq: int = 0, final: bool = False,
-            algo: str = "pso", seed: int = 1, stats: dict | None = None) -> bytes:
-    return encode_history(History("c1", c.island, c.run, algo, seed, np.array(rows, dtype=float).reshape(-1, 4), best_x, best_f,
-                                  stats or STATS, final, seq), c)
+def history(
+    c: Credentials, rows, best_x: np.ndarray, best_f: float, *, seq: int = 0, final: bool = False, algo: str = "pso", seed: int = 1, stats: dict | None = None
+) -> bytes:
+    return encode_history(History("c1", c.island, c.run, algo, seed, np.array(rows, dtype=float).reshape(-1, 4), best_x, best_f, stats or STATS, final, seq), c)
 
 
 def honest_rows(c: Coordinator, n: int) -> list[list[float]]:
@@ -237,7 +237,9 @@ def test_migrants_under_another_islands_id_are_rejected(tmp_path, link):
     as_a_with_b_keys = Credentials("a", a.run, b.key, b.coordinator)
     deliver(c, link, "migrants", "a", encode_migrants(Migrants("c1", "a", a.run, 5, x, np.zeros(1), time.time()), as_a_with_b_keys))
     deliver(c, link, "migrants", "b", encode_migrants(Migrants("c1", "a", a.run, 5, x, np.zeros(1), time.time()), as_a_with_b_keys))
-    deliver(c, link, "migrants", "b", encode_migrants(Migrants("c1", "b", a.run, 5, x, np.zeros(1), time.time()), Credentials("b", a.run, b.key, b.coordinator)))
+    deliver(
+        c, link, "migrants", "b", encode_migrants(Migrants("c1", "b", a.run, 5, x, np.zeros(1), time.time()), Credentials("b", a.run, b.key, b.coordinator))
+    )
     assert reasons(c) == {"forged": 1, "sender": 1, "unjoined": 1}
     assert c.migrations == 0 and c.best is None
 
@@ -379,8 +381,11 @@ def test_a_database_deleted_mid_run_stops_the_campaign_with_one_line(tmp_path, l
     deliver(c, link, "history", "pso-1", history(island, honest_rows(c, 3), x, float(c.objective(x[None, :])[0])))
     for suffix in ("", "-wal", "-shm"):
         (tmp_path / f"c.sqlite{suffix}").unlink(missing_ok=True)
-    with pytest.raises(Exception, match=r"^campaign 'c1' stopped: cannot write the campaign database .*c.sqlite: the file was deleted; "
-                                        r"what it recorded went with the file \(nothing to resume\)$"):
+    with pytest.raises(
+        Exception,
+        match=r"^campaign 'c1' stopped: cannot write the campaign database .*c.sqlite: the file was deleted; "
+        r"what it recorded went with the file \(nothing to resume\)$",
+    ):
         serve(c, link)
     assert link.stop.is_set()
     assert not c.inbox.put("late", "anything", wait_s=None)  # closed: nothing arriving can block a producer any more

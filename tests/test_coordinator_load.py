@@ -66,8 +66,9 @@ def test_migrants_are_not_followed_from_the_join_that_makes_the_islands_too_many
     third = c.join("pso-2", "pso", 2)
     assert not c.follows_migrants and c.store.unfollowed("c1")["islands"] == 3
     for cred in (first, second, third):
-        c.receive(f"hysid/c1/migrants/{cred.island}", encode_migrants(Migrants("c1", cred.island, cred.run, 5, truth(c)[None, :], np.zeros(1),
-                                                                               time.time(), 9), cred))
+        c.receive(
+            f"hysid/c1/migrants/{cred.island}", encode_migrants(Migrants("c1", cred.island, cred.run, 5, truth(c)[None, :], np.zeros(1), time.time(), 9), cred)
+        )
     pump(c, link, 5.0)
     assert c.store.count("migrations", "c1") == 0 and c.migrations == 0 and c.rejected == 0
 

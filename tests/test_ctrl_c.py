@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 
 import hysid
-
 from coordinator.interrupt import CtrlC
 from coordinator.loop import LEFT_AT_ONCE
 from hysid.campaigns import CampaignResult
@@ -27,8 +26,10 @@ from support import hysid as hysid_argv
 
 SEARCH = ["--islands", "2", "--algos", "pso", "--population", "20", "--initial", "40", "--time-limit", "600", "--no-polish"]
 """Two island processes that search until stopped (the time limit only bounds a test gone wrong)."""
-STOPPING = re.compile(r"hysid: stopping: (?:waiting for [12] island(?:'s|s') last rows|every island's last rows are in; writing the report) "
-                      r"\(Ctrl-C again to leave now\)\n")
+STOPPING = re.compile(
+    r"hysid: stopping: (?:waiting for [12] island(?:'s|s') last rows|every island's last rows are in; writing the report) "
+    r"\(Ctrl-C again to leave now\)\n"
+)
 """The islands got the key too: their last rows may all be in before the coordinator's loop looks (within 0.2 s)."""
 
 
@@ -55,16 +56,23 @@ def test_a_result_wanted_in_seconds_leaves_the_profiles_out_and_says_so():
     fitted = hysid.fit(loops, "thesis+channel_delay", algo="ga", options=GA_SMALL, polish=False)
     quick = FitResult.from_runs(fitted.objective(), fitted.runs, fitted.settings, profiles=False)
     assert "delay_s" in fitted.identifiability.profiled and quick.identifiability.unprofiled == ["delay_s"] and not quick.identifiability.profiled
-    assert quick.stderr_method.endswith("from the curvature alone for delay_s, whose profile was left out (the campaign was interrupted; "
-                                        "hysid report computes it)")
+    assert quick.stderr_method.endswith(
+        "from the curvature alone for delay_s, whose profile was left out (the campaign was interrupted; hysid report computes it)"
+    )
     assert quick.params == fitted.params and np.isfinite(quick.stderr["delay_s"])
 
 
 def campaign_process(out: Path) -> tuple[subprocess.Popen, Lines]:
     """``hysid campaign`` in a process group of its own (as a terminal's job: its Ctrl-C reaches the coordinator
     and every island process), its stderr read as it comes."""
-    p = subprocess.Popen(hysid_argv("campaign", *SEARCH, "--out", str(out)), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True, preexec_fn=interruptible)
+    p = subprocess.Popen(
+        hysid_argv("campaign", *SEARCH, "--out", str(out)),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=interruptible,
+    )
     return p, Lines(p.stderr)
 
 

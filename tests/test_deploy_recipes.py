@@ -105,7 +105,9 @@ def test_short_lease_notices_a_frozen_island_before_zenoh_default_lease() -> Non
 def members_cli(port: int) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, str(MEMBERS), "--connect", f"tcp/127.0.0.1:{port}", "--config", str(pair("")[1]), "--campaign", "demo", "--timeout", "2"],
-        capture_output=True, text=True, timeout=30,
+        capture_output=True,
+        text=True,
+        timeout=30,
     )
 
 
@@ -161,9 +163,34 @@ def test_local_recipe_runs_a_campaign_of_separate_processes(tmp_path: Path) -> N
         pytest.skip(f"no hysid console script next to {sys.executable}")
     out = tmp_path / "run"
     done = subprocess.run(
-        ["bash", str(DEPLOY / "local" / "run-campaign.sh"), "-n", "2", "-p", str(free_port()), "-c", "rehearsal", "-o", str(out), "synth",
-         "--", "--time-limit", "4", "--iterations", "100000", "--population", "30", "--initial", "60", "--no-polish", "--quiet"],
-        capture_output=True, text=True, timeout=55, env={**os.environ, "HYSID": str(hysid)},
+        [
+            "bash",
+            str(DEPLOY / "local" / "run-campaign.sh"),
+            "-n",
+            "2",
+            "-p",
+            str(free_port()),
+            "-c",
+            "rehearsal",
+            "-o",
+            str(out),
+            "synth",
+            "--",
+            "--time-limit",
+            "4",
+            "--iterations",
+            "100000",
+            "--population",
+            "30",
+            "--initial",
+            "60",
+            "--no-polish",
+            "--quiet",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=55,
+        env={**os.environ, "HYSID": str(hysid)},
     )
     assert done.returncode == 0, done.stderr + (out / "coordinator.log").read_text()
     result = json.loads((out / "report" / "result.json").read_text())

@@ -178,12 +178,18 @@ def test_make_certs_reuses_the_ca_to_add_an_island_later(certs: Path, tmp_path: 
     assert hashlib.sha256((outdir / "ca.pem").read_bytes()).hexdigest() == ca_before
     text = subprocess.run(
         ["openssl", "x509", "-in", str(outdir / "islands/island-3/cert.pem"), "-noout", "-subject", "-ext", "extendedKeyUsage"],
-        capture_output=True, text=True, check=True, timeout=30,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=30,
     ).stdout
     assert "CN = island-3" in text and "TLS Web Client Authentication" in text
     coordinator_text = subprocess.run(
         ["openssl", "x509", "-in", str(outdir / "coordinator/cert.pem"), "-noout", "-ext", "subjectAltName"],
-        capture_output=True, text=True, check=True, timeout=30,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=30,
     ).stdout
     assert "IP Address:127.0.0.1" in coordinator_text and "DNS:localhost" in coordinator_text
 
@@ -204,9 +210,24 @@ NEGATIVE_WAIT = 0.8
 
 def secure_campaign(outdir: Path, campaign: str, port: int, certs: Path, *islands: str) -> Path:
     done = subprocess.run(
-        [sys.executable, str(SECURE_CAMPAIGN), "--campaign", campaign, "--listen", f"tls/127.0.0.1:{port}", "--connect", f"tls/127.0.0.1:{port}",
-         "--certs", str(certs), "-o", str(outdir), *islands],
-        capture_output=True, text=True, timeout=30,
+        [
+            sys.executable,
+            str(SECURE_CAMPAIGN),
+            "--campaign",
+            campaign,
+            "--listen",
+            f"tls/127.0.0.1:{port}",
+            "--connect",
+            f"tls/127.0.0.1:{port}",
+            "--certs",
+            str(certs),
+            "-o",
+            str(outdir),
+            *islands,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=30,
     )
     assert done.returncode == 0, done.stderr
     assert "change-me" not in done.stdout and all(line.split(":")[1] not in done.stdout for line in (outdir / "credentials.txt").read_text().splitlines())
@@ -267,7 +288,9 @@ def test_the_secure_recipe_binds_each_island_to_its_own_keys(certs: Path, tmp_pa
         with session(island_as(out, "island-1", user_of="island-2")) as mixed:  # island-1's certificate, island-2's password
             assert not put_until_received(mixed, f"{CAMPAIGN}/migrants/island-2", b"mixed", seen, timeout=NEGATIVE_WAIT)
             assert not put_until_received(mixed, f"{CAMPAIGN}/migrants/island-1", b"mixed", seen, timeout=NEGATIVE_WAIT)
-            assert replies(mixed, f"{CAMPAIGN}/join/island-1", timeout=NEGATIVE_WAIT) == replies(mixed, f"{CAMPAIGN}/join/island-2", timeout=NEGATIVE_WAIT) == []
+            assert (
+                replies(mixed, f"{CAMPAIGN}/join/island-1", timeout=NEGATIVE_WAIT) == replies(mixed, f"{CAMPAIGN}/join/island-2", timeout=NEGATIVE_WAIT) == []
+            )
         for entity in keep:
             entity.undeclare()
 
@@ -359,13 +382,43 @@ def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_anothe
         return started[-1]
 
     def island(name: str, *id_option: str) -> subprocess.Popen:
-        return start("island", "--config", str(out / "islands" / f"{name}.json5"), "--campaign", "demo", *id_option, "--wait", "10", "--quiet",
-                     "--secret-file", str(tmp_path / "report" / "campaign.sqlite-demo.secret"))
+        return start(
+            "island",
+            "--config",
+            str(out / "islands" / f"{name}.json5"),
+            "--campaign",
+            "demo",
+            *id_option,
+            "--wait",
+            "10",
+            "--quiet",
+            "--secret-file",
+            str(tmp_path / "report" / "campaign.sqlite-demo.secret"),
+        )
 
     try:
-        coordinator = start("coordinator", "--config", str(out / "coordinator.json5"), "--campaign", "demo", "--out", str(tmp_path / "report"),
-                            "--min-islands", "3", "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", "300",
-                            "--no-polish", "--quiet", "--json")
+        coordinator = start(
+            "coordinator",
+            "--config",
+            str(out / "coordinator.json5"),
+            "--campaign",
+            "demo",
+            "--out",
+            str(tmp_path / "report"),
+            "--min-islands",
+            "3",
+            "--algos",
+            "pso",
+            "--population",
+            "20",
+            "--initial",
+            "40",
+            "--iterations",
+            "300",
+            "--no-polish",
+            "--quiet",
+            "--json",
+        )
         _, impostor_err = island("island-1", "--id", "island-2").communicate(timeout=40)  # island-1's identity, island-2's id
         islands = [island("island-1", "--id", "island-1"), island("island-2", "--id", "island-2"), island("island-3")]  # no --id: its name
         for p in islands:
@@ -385,7 +438,7 @@ def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_anothe
 def test_the_threat_model_cites_tests_that_exist() -> None:
     """Every `file.py::test` (or `::test` after it) of the guide's threat model names a test of that file."""
     guide = (DEPLOY / "GUIDE.md").read_text()
-    model = guide[guide.index("## Threat model"):guide.index("## Troubleshooting")]
+    model = guide[guide.index("## Threat model") : guide.index("## Troubleshooting")]
     tests_dir = Path(__file__).resolve().parent
     cited, current = [], None
     for file, name in re.findall(r"`(?:(test_\w+\.py))?(?:::(test_\w+))?`", model):
@@ -420,8 +473,29 @@ def test_another_user_finds_no_key_in_any_file_a_campaign_leaves(tmp_path: Path)
     try:
         base.chmod(0o755)
         out = base / "out"
-        done = subprocess.run([sys.executable, "-m", "hysid", "campaign", "--islands", "2", "--iterations", "30", "--population", "10",
-                               "--initial", "20", "--out", str(out), "--quiet", "--json"], capture_output=True, text=True, timeout=150)
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "hysid",
+                "campaign",
+                "--islands",
+                "2",
+                "--iterations",
+                "30",
+                "--population",
+                "10",
+                "--initial",
+                "20",
+                "--out",
+                str(out),
+                "--quiet",
+                "--json",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=150,
+        )
         assert done.returncode == 0, done.stderr
         db = out / "campaign.sqlite"
         keys = CampaignKeys.read(key_path(db, "campaign"), "campaign")

@@ -41,9 +41,16 @@ NOISE_PCT = 2.0
 POINTS = 48
 SHAPES = {"bouc_wen": {"bw_zy": 0.3e-3, "bw_r": 0.5}, "zener_thermoelastic": {"zener_tau": 1 / (2 * np.pi * 30.0)}}
 FIRST_GUESS = {
-    "amplitude_dependent_frequency": -1000.0, "amplitude_dependent_damping": -2.0, "charge_amplifier_highpass": 1.0,
-    "transducer_mass": 2e-3, "coulomb_friction": 5e-3, "hysteretic_damping": 5e-3, "cubic_stiffness": 1e8,
-    "bouc_wen": 100.0, "zener_thermoelastic": 1e-2, "channel_delay": 1e-4,
+    "amplitude_dependent_frequency": -1000.0,
+    "amplitude_dependent_damping": -2.0,
+    "charge_amplifier_highpass": 1.0,
+    "transducer_mass": 2e-3,
+    "coulomb_friction": 5e-3,
+    "hysteretic_damping": 5e-3,
+    "cubic_stiffness": 1e8,
+    "bouc_wen": 100.0,
+    "zener_thermoelastic": 1e-2,
+    "channel_delay": 1e-4,
 }
 
 
@@ -77,9 +84,14 @@ def extracted(records, meq_kg: float | None = MEQ) -> LoopSet:
     """Loops from raw records by the same extraction real data go through."""
     loops = [extract_loop(r.t, r.x, r.force, source=r.label, n_points=POINTS, nominal_freq_hz=r.freq_hz, steady_window=(0.0, r.t[-1])) for r in records]
     return LoopSet(
-        name="hidden", freq_hz=np.array([e.freq_hz for e in loops]), x0=np.array([e.x0 for e in loops]),
-        top=np.stack([e.top for e in loops]), bottom=np.stack([e.bottom for e in loops]),
-        sigma=np.array([e.sigma for e in loops]), meq_kg=meq_kg, labels=[r.label for r in records],
+        name="hidden",
+        freq_hz=np.array([e.freq_hz for e in loops]),
+        x0=np.array([e.x0 for e in loops]),
+        top=np.stack([e.top for e in loops]),
+        bottom=np.stack([e.bottom for e in loops]),
+        sigma=np.array([e.sigma for e in loops]),
+        meq_kg=meq_kg,
+        labels=[r.label for r in records],
     )
 
 
@@ -139,8 +151,9 @@ def test_thesis_story_amplitude_dependent_frequency_and_damping_from_the_baselin
     for seed in SEEDS:
         result = diagnose(synth_loops(1.0, seed, POINTS).subset(picks), "baseline")
         effects = {s.effect for s in result.steps}
-        outcomes.append(effects == {"amplitude_dependent_frequency", "amplitude_dependent_damping"}
-                        and result.status == "adequate" and result.final.whitened_rms < 1.15)
+        outcomes.append(
+            effects == {"amplitude_dependent_frequency", "amplitude_dependent_damping"} and result.status == "adequate" and result.final.whitened_rms < 1.15
+        )
         if effects == {"amplitude_dependent_frequency", "amplitude_dependent_damping"}:
             assert result.final.params()["S_w"] == pytest.approx(-1256.64, rel=0.05)
             assert result.final.params()["S_xi"] == pytest.approx(-0.4, rel=0.15)
@@ -210,8 +223,7 @@ def test_effect_outside_the_library_is_not_named_and_discovery_proposes_it(branc
             assert result.steps == [] and len(result.proposed) == 1, named(result)
             (law,) = result.proposed
             exponent, error = law.params()[f"t{law.number}_a"], law.stderr()[f"t{law.number}_a"]  # a weak law: +-0.2-0.3
-            found.append([f.key for f in law.law.families] == ["displacement_power_even"] and abs(exponent - 2.0) < 3.0 * error
-                         and result.status == "adequate")
+            found.append([f.key for f in law.law.families] == ["displacement_power_even"] and abs(exponent - 2.0) < 3.0 * error and result.status == "adequate")
     assert sum(outcomes) >= REQUIRED, outcomes
     assert all(found), found
 
@@ -228,14 +240,18 @@ def test_too_narrow_a_band_names_both_confusable_effects(branch_sigma):
     for seed in SEEDS:
         result = diagnose(hidden(model, theta, seed, narrow), "baseline")
         names = [(s.effect, *s.confusable_with) for s in result.steps]
-        outcomes.append(len(names) == 1 and {"hysteretic_damping", "charge_amplifier_highpass"} <= set(names[0]) <= {
-            "hysteretic_damping", "charge_amplifier_highpass", "zener_thermoelastic"})
+        outcomes.append(
+            len(names) == 1
+            and {"hysteretic_damping", "charge_amplifier_highpass"}
+            <= set(names[0])
+            <= {"hysteretic_damping", "charge_amplifier_highpass", "zener_thermoelastic"}
+        )
     assert sum(outcomes) >= REQUIRED, outcomes
 
 
 def write_raw_dataset(tmp_path, effects: dict[str, float]):
     model, theta = with_effects(effects)
-    records = raw_records(model, theta, 7)[:: 2]
+    records = raw_records(model, theta, 7)[::2]
     return write_dataset(tmp_path / "data", records, name="hidden-coulomb", meq_kg=MEQ)
 
 

@@ -19,7 +19,7 @@ from hysid_model.model_names import model_name, named
 from hysid_model.survey import survey
 from support import DAMPER
 
-NO_ERROR = lambda grads: np.zeros(len(grads))  # noqa: E731  (values only)
+NO_ERROR = lambda grads: np.zeros(len(grads))
 
 
 def test_a_linear_oscillator_has_k_eff_k_minus_m_w2_and_xi_eq_c_w_over_2_k_eff():
@@ -67,8 +67,7 @@ def test_a_bearing_fitted_with_mr_damper_is_named_by_its_terms_and_gets_its_effe
     text = result.summary()
     assert "baseline + bouc_wen (bw_n free) [model string mr_damper]" in text and "magnetorheological" not in text.lower()
     device = specimen.model()
-    truth = effective_table(device, device.from_dict(specimen.truth), NO_ERROR, [p.freq_hz for p in result.effective],
-                            [p.x0 for p in result.effective])
+    truth = effective_table(device, device.from_dict(specimen.truth), NO_ERROR, [p.freq_hz for p in result.effective], [p.x0 for p in result.effective])
     k_eff, xi_eq = ([p.values[q] for p in result.effective] for q in ("k_eff", "xi_eq"))
     assert k_eff[0] > 2.0 * k_eff[-1] and xi_eq[-1] > 5 * xi_eq[0]  # softening and more damping with amplitude (3.2e6 ->
     assert result.amplitudes[0].values["k"] == result.amplitudes[-1].values["k"]  # 1.4e6 N/m, 0.02 -> 0.2) where the spring is flat

@@ -13,13 +13,21 @@ from hysid_model.harmonics import HarmonicObjective, Harmonics, estimate_sigma
 from hysid_model.model import build_model
 from hysid_model.objective import Objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS, model_force, simulate_raw, synth_loops, thesis_force
+from island.polish import polish
 from support import cell_average
 from timedomain_reference import periodic_steady_state
-from island.polish import polish
 
 LIBRARY = {
-    "amplitude_dependent_frequency", "amplitude_dependent_damping", "charge_amplifier_highpass", "transducer_mass",
-    "coulomb_friction", "hysteretic_damping", "cubic_stiffness", "bouc_wen", "zener_thermoelastic", "channel_delay",
+    "amplitude_dependent_frequency",
+    "amplitude_dependent_damping",
+    "charge_amplifier_highpass",
+    "transducer_mass",
+    "coulomb_friction",
+    "hysteretic_damping",
+    "cubic_stiffness",
+    "bouc_wen",
+    "zener_thermoelastic",
+    "channel_delay",
 }
 BASE = {"xi0": 0.01, "w0": 2 * np.pi * 30.0}
 
@@ -208,7 +216,9 @@ def test_zener_loss_factor_is_eq_2_6_and_peaks_at_w_tau_1():
     np.testing.assert_allclose(extra[:, h.names.index("s1")] / (k * data.x0), delta * wt**2 / (1 + wt**2), rtol=1e-8)
 
 
-@pytest.mark.parametrize("zy, r", [(3e-4, 0.3), (1e-5, -0.8), pytest.param(5e-3, 1.0, marks=pytest.mark.slow), (2e-4, 2.5), (1e-4, 0.0)])  # the large zy: over 3 s
+@pytest.mark.parametrize(
+    "zy, r", [(3e-4, 0.3), (1e-5, -0.8), pytest.param(5e-3, 1.0, marks=pytest.mark.slow), (2e-4, 2.5), (1e-4, 0.0)]
+)  # the large zy: over 3 s
 def test_bouc_wen_orbit_is_the_periodic_steady_state_of_eq_2_1(zy, r):
     data = loops(every=50)
     force = predict("baseline+bouc_wen", {**BASE, "bw_k": 1.0, "bw_zy": zy, "bw_r": r}, data) - predict("baseline", BASE, data)
@@ -226,7 +236,9 @@ def test_bouc_wen_orbit_is_the_periodic_steady_state_of_eq_2_1(zy, r):
 def test_bouc_wen_through_the_charge_amplifier_matches_spectral_filtering():
     data = loops(every=50)
     values = {**BASE, "bw_k": 50.0, "bw_zy": 2e-4, "bw_r": 0.5, "f_c": 5.0}
-    filtered = predict("baseline+bouc_wen+charge_amplifier_highpass", values, data) - predict("baseline+charge_amplifier_highpass", values | {"bw_k": 0.0}, data)
+    filtered = predict("baseline+bouc_wen+charge_amplifier_highpass", values, data) - predict(
+        "baseline+charge_amplifier_highpass", values | {"bw_k": 0.0}, data
+    )
     model = build_model("baseline+bouc_wen").fix(meq=MEQ_KG)
     theta = model.from_dict({k: v for k, v in values.items() if k != "f_c"})
     theta_off = model.from_dict({k: v for k, v in values.items() if k != "f_c"} | {"bw_k": 0.0})

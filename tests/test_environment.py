@@ -107,13 +107,36 @@ def test_a_database_disk_that_fills_up_mid_run_stops_the_campaign_cleanly(mount,
     place = mount("db", size="3m")
     db, endpoint = place / "c.sqlite", f"tcp/127.0.0.1:{free_port()}"
     coordinator = subprocess.Popen(
-        hysid("coordinator", "--listen", endpoint, "--campaign", "full", "--db", str(db), "--out", str(tmp_path / "out"), "--quiet",
-              *PSO_ISLANDS, "--iterations", "10000000", "--time-limit", "120"),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        hysid(
+            "coordinator",
+            "--listen",
+            endpoint,
+            "--campaign",
+            "full",
+            "--db",
+            str(db),
+            "--out",
+            str(tmp_path / "out"),
+            "--quiet",
+            *PSO_ISLANDS,
+            "--iterations",
+            "10000000",
+            "--time-limit",
+            "120",
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
-    islands = [subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "full", "--id", name, "--quiet", "--wait", "10",
-                                      "--secret-file", f"{db}-full.secret"),
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True) for name in ("a", "b")]
+    islands = [
+        subprocess.Popen(
+            hysid("island", "--connect", endpoint, "--campaign", "full", "--id", name, "--quiet", "--wait", "10", "--secret-file", f"{db}-full.secret"),
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for name in ("a", "b")
+    ]
     try:
         _, err = coordinator.communicate(timeout=150)
         island_errs = [p.communicate(timeout=60)[1] for p in islands]

@@ -158,5 +158,3 @@ def test_raw_branches_are_centred_resampled_and_oriented():
     centred_top, centred_bottom = centre_branches(top, bottom)
     both = np.concatenate([centred_top, centred_bottom])
     np.testing.assert_allclose(both.max(axis=0), -both.min(axis=0), atol=1e-12)
-
-

@@ -25,14 +25,12 @@ NOT_LOCKED = np.sqrt(1.013)
 """A rate this factor away from a DAQ rate is not a ratio of small integers times the frequency."""
 
 
-def record(spec: str, fs: float, freq: float, distortion: dict[int, float] | None, *, cycles: int = 40, seed: int = 0,
-           noise: float = 0.01):
+def record(spec: str, fs: float, freq: float, distortion: dict[int, float] | None, *, cycles: int = 40, seed: int = 0, noise: float = 0.01):
     """One simulated record of ``spec`` with force noise ``noise`` times the peak force; (model, parameters, record)."""
     model = build_model(spec).fix(meq=MEQ)
     theta = model.from_dict(PARAMS[spec])
     peak = float(np.abs(model_force(model, theta, freq, X0, np.linspace(0, 2 * np.pi, 256))).max())
-    rec = simulate_raw(model, theta, [freq], [X0], noise_n=noise * peak, seed=seed, sample_rate_hz=fs, cycles=cycles,
-                       distortion=distortion or None)[0]
+    rec = simulate_raw(model, theta, [freq], [X0], noise_n=noise * peak, seed=seed, sample_rate_hz=fs, cycles=cycles, distortion=distortion or None)[0]
     return model, theta, rec
 
 
@@ -146,7 +144,6 @@ def test_a_linear_specimen_sampled_at_5120_hz_is_diagnosed_as_linear(tmp_path):
     theta = model.from_dict(PARAMS["baseline"])
     freqs, amps = np.tile([20.0, 25.0, 30.0, 32.0, 35.0], 2), np.repeat([0.5e-3, 1e-3], 5)
     peak = np.array([np.abs(model_force(model, theta, f, a, np.linspace(0, 2 * np.pi, 256))).max() for f, a in zip(freqs, amps)])
-    records = simulate_raw(model, theta, freqs, amps, noise_n=0.01 * peak, seed=0, sample_rate_hz=5120.0, cycles=40,
-                           distortion={3: 0.05})
+    records = simulate_raw(model, theta, freqs, amps, noise_n=0.01 * peak, seed=0, sample_rate_hz=5120.0, cycles=40, distortion={3: 0.05})
     diagnosis = hysid.diagnose(load_dataset(write_dataset(tmp_path / "d", records, meq_kg=MEQ)), "baseline", cross_validate=False)
     assert diagnosis.status == "adequate" and diagnosis.final.spec == "baseline", diagnosis.summary()

@@ -23,11 +23,11 @@ from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config
+from island.joining import fetch_config
 from island.node import IslandNode
 from island.protocol import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials, envelope, seal
 from island.session import open_session, session_config
-from island.joining import fetch_config
 from island.transports import ZenohTransport
 from island.wire import MAX_BYTES, MessageRejected, pack_array
 from support import PSO_ISLANDS, Peer, events, query, ready, rows_of, secret_file, secret_of, wait_for
@@ -57,8 +57,9 @@ def interrupted(p: subprocess.Popen, timeout: float = 90) -> dict:
 
 def coordinator(spawn, endpoint: str, campaign: str, db: Path, *extra: str) -> subprocess.Popen:
     """A coordinator process, returned once it answers on ``endpoint``."""
-    p = spawn("coordinator", "--listen", endpoint, "--campaign", campaign, "--db", str(db), "--out", str(db.parent / f"out-{campaign}"),
-              "--json", *ENDLESS, *extra)
+    p = spawn(
+        "coordinator", "--listen", endpoint, "--campaign", campaign, "--db", str(db), "--out", str(db.parent / f"out-{campaign}"), "--json", *ENDLESS, *extra
+    )
     ready(endpoint, campaign)
     return p
 
@@ -174,7 +175,7 @@ def test_a_forged_migrant_claiming_fitness_zero_becomes_the_best_only_if_it_earn
             publisher.put(forged(forger, bad, 0.0))
         wait_for(lambda: query(db, "SELECT count(*) FROM migrations WHERE island = 'forger'")[0][0] == 40, 20, "all forgeries seen")
         wait_for(lambda: query(db, "SELECT max(received) FROM islands WHERE island = 'target'")[0][0] > 0, 20, "the island to re-evaluate some")
-        (best_x, best_f), = query(db, "SELECT x, fitness FROM best")
+        ((best_x, best_f),) = query(db, "SELECT x, fitness FROM best")
         x = np.frombuffer(best_x, dtype="<f8")
         assert best_f > 0 and not np.allclose(x, bad)
         assert best_f == pytest.approx(objective(x[None, :])[0], rel=1e-12)  # the coordinator's own evaluation
@@ -234,9 +235,28 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     migrants under another island's id, replays of real messages and a decoy flood that would rewire
     the ring: the campaign still ends because its islands finished, with their own numbers only."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "st.sqlite"
-    coord = spawn("coordinator", "--listen", endpoint, "--campaign", "steer", "--db", str(db), "--out", str(tmp_path / "out"), "--json",
-                  *PSO_ISLANDS, "--iterations", "6000", "--interval", "5",
-                  "--min-islands", "2", "--budget", "100000000", "--quiet")  # islands run long enough to hear every attack
+    coord = spawn(
+        "coordinator",
+        "--listen",
+        endpoint,
+        "--campaign",
+        "steer",
+        "--db",
+        str(db),
+        "--out",
+        str(tmp_path / "out"),
+        "--json",
+        *PSO_ISLANDS,
+        "--iterations",
+        "6000",
+        "--interval",
+        "5",
+        "--min-islands",
+        "2",
+        "--budget",
+        "100000000",
+        "--quiet",
+    )  # islands run long enough to hear every attack
     ready(endpoint, "steer")
     islands = {name: island(spawn, endpoint, "steer", name, db) for name in ("a", "c")}
     outsider = Peer(endpoint, "steer", "ghost")  # without the secret: a stranger
@@ -247,16 +267,37 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
         # both islands search before the attacks (mallory's join makes two members: island a may start before c has joined)
         wait_for(lambda: rows_of(db, "a") > 10 and rows_of(db, "c") > 10 and len(captured) >= 3, 120, "both islands' history and a's migrants")
         ghost = Credentials.issue("ghost", b"k" * 32)  # a key nobody registered
-        outsider.put("history", encode_history(History("steer", "ghost", ghost.run, "pso", 0, np.array([[0, 0.0, 2.0**52, 1.0]]), TRUTH, 0.0,
-                                                       dict.fromkeys(("sent", "received", "taken", "rejected"), 0)), ghost))
+        outsider.put(
+            "history",
+            encode_history(
+                History(
+                    "steer",
+                    "ghost",
+                    ghost.run,
+                    "pso",
+                    0,
+                    np.array([[0, 0.0, 2.0**52, 1.0]]),
+                    TRUTH,
+                    0.0,
+                    dict.fromkeys(("sent", "received", "taken", "rejected"), 0),
+                ),
+                ghost,
+            ),
+        )
         outsider.token("ghost")  # a member only by its token: never joined
         outsider.token("b")  # the decoy sorts between a and c: the ring would make it c's predecessor
         decoy = outsider.publisher("migrants", "b")
         for i in range(300):
             decoy.put(encode_migrants(Migrants("steer", "b", "r", 5, TRUTH[None, :], np.zeros(1), time.time(), i), Credentials.issue("b", b"y" * 32)))
         a_run = query(db, "SELECT run FROM islands WHERE island = 'a'")[0][0]
-        mallory.put("migrants", encode_migrants(Migrants("steer", "a", a_run, 5, TRUTH[None, :], np.zeros(1), time.time(), 10**6),
-                                                Credentials("a", a_run, mallory.credentials.key, mallory.credentials.coordinator)), key_island="a")
+        mallory.put(
+            "migrants",
+            encode_migrants(
+                Migrants("steer", "a", a_run, 5, TRUTH[None, :], np.zeros(1), time.time(), 10**6),
+                Credentials("a", a_run, mallory.credentials.key, mallory.credentials.coordinator),
+            ),
+            key_island="a",
+        )
         replays = outsider.publisher("migrants", "a")
         for message in captured[:3] * 30:
             replays.put(message)
@@ -270,7 +311,7 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     reasons = doc["migrations"]["rejected_reasons"]
     assert reasons["unjoined"] >= 300 + 3 and reasons["forged"] >= 1 and reasons["replay"] >= 87  # the first three may be the originals
     assert migrations_are_unique(db) and not query(db, "SELECT 1 FROM migrations WHERE island IN ('b', 'ghost', 'mallory')")
-    assert {e for e, in query(db, "SELECT DISTINCT island FROM members")} == {"a", "c", "mallory"}
+    assert {e for (e,) in query(db, "SELECT DISTINCT island FROM members")} == {"a", "c", "mallory"}
     a_doc, c_doc = (next(i for i in doc["islands"] if i["island"] == name) for name in ("a", "c"))
     assert c_doc["rejected"] >= 1  # the decoy's flood: never listed, so never checked, and rejected once it waited in vain
     assert 0 < c_doc["received"] <= 2 * a_doc["sent"] + 1  # c kept taking from its real predecessor a, and only from a
@@ -323,8 +364,23 @@ def test_rows_sent_while_the_coordinator_was_down_arrive_when_it_returns_and_the
     """An island finishes while its coordinator is dead; it waits, the resumed coordinator fetches what it
     missed, confirms, and, nothing being left to do, ends with its report."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "down.sqlite"
-    first = spawn("coordinator", "--listen", endpoint, "--campaign", "down", "--db", str(db), "--out", str(tmp_path / "out1"),
-                  *PSO_ISLANDS, "--iterations", "1200", "--interval", "0", "--quiet")
+    first = spawn(
+        "coordinator",
+        "--listen",
+        endpoint,
+        "--campaign",
+        "down",
+        "--db",
+        str(db),
+        "--out",
+        str(tmp_path / "out1"),
+        *PSO_ISLANDS,
+        "--iterations",
+        "1200",
+        "--interval",
+        "0",
+        "--quiet",
+    )
     ready(endpoint, "down")
     session = open_session(session_config("client", connect=[endpoint]), endpoint)
     secret = secret_of(db, "down")
@@ -340,8 +396,9 @@ def test_rows_sent_while_the_coordinator_was_down_arrive_when_it_returns_and_the
         stored_before = rows_of(db, "solo")
         wait_for(lambda: node.finished, 120, "the island to finish its budget with nobody listening")
         assert len(node.rows) == 1201 > stored_before and worker.is_alive()  # it waits for a confirmation
-        second = spawn("coordinator", "--listen", endpoint, "--campaign", "down", "--db", str(db), "--resume", "--out", str(tmp_path / "out2"),
-                       "--json", "--quiet")
+        second = spawn(
+            "coordinator", "--listen", endpoint, "--campaign", "down", "--db", str(db), "--resume", "--out", str(tmp_path / "out2"), "--json", "--quiet"
+        )
         doc = finished(second, timeout=90)
         worker.join(30)
     finally:
@@ -412,7 +469,7 @@ def test_ten_thousand_hostile_messages_over_zenoh_leave_coordinator_and_islands_
         for entity in broken.entities[1:]:  # the ghosts leave; the broken island's own token stays
             entity.undeclare()
         del broken.entities[1:]
-        recorded = lambda: query(db, "SELECT coalesce(sum(n), 0) FROM rejected")[0][0]  # noqa: E731
+        recorded = lambda: query(db, "SELECT coalesce(sum(n), 0) FROM rejected")[0][0]
         wait_for(lambda: recorded() >= to_coordinator, 120, f"the coordinator to count {to_coordinator} rejects")
         rows = {name: rows_of(db, name) for name in islands}
         wait_for(lambda: all(rows_of(db, n) > rows[n] + 20 for n in islands), 60, "both islands to keep going")

@@ -23,12 +23,12 @@ from hysid.cli import main
 from hysid.diagnosis.naming import excess_words
 from hysid.report import diagnosis_figures, figures, style
 from hysid.report.style import RC
-from support import PSO_ISLANDS, Lines, interruptible, wait_for
 from hysid.report.text import band_text, hz_text, mass_text
 from hysid_model.synth import synth_loops
-from island.secret import CampaignSecret
 from island.sealing import new_key, public_key
-from support import GA_SMALL, hysid as hysid_argv
+from island.secret import CampaignSecret
+from support import GA_SMALL, PSO_ISLANDS, Lines, interruptible, wait_for
+from support import hysid as hysid_argv
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -46,8 +46,7 @@ def test_main_sh_hands_its_arguments_to_hysid_campaign(tmp_path):
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
     (venv / ".hysid-installed-main").touch()  # "installed": no pip run, so only the hand-over is tested
     env = {**os.environ, "HYSID_VENV": str(venv), "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
-    proc = subprocess.run(["bash", str(ROOT / "scripts" / "main.sh"), "--islands", "0", "--json"],
-                          capture_output=True, text=True, env=env, timeout=120)
+    proc = subprocess.run(["bash", str(ROOT / "scripts" / "main.sh"), "--islands", "0", "--json"], capture_output=True, text=True, env=env, timeout=120)
     # the arguments reached `hysid campaign` (which refuses 0 islands), not pip
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr == "hysid: error: --islands 0: a campaign needs at least one island\n"
@@ -196,17 +195,35 @@ def test_version_models_and_masses(capsys):
 def test_island_and_coordinator_count_iterations_alike_and_a_quiet_coordinator_says_it_is_ready(tmp_path):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     coordinator = subprocess.Popen(
-        hysid_argv("coordinator", "--listen", endpoint, "--campaign", "count", "--db", str(tmp_path / "c.sqlite"),
-                   "--out", str(tmp_path / "out"), *PSO_ISLANDS,
-                   "--iterations", "7", "--json", "--quiet"),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        hysid_argv(
+            "coordinator",
+            "--listen",
+            endpoint,
+            "--campaign",
+            "count",
+            "--db",
+            str(tmp_path / "c.sqlite"),
+            "--out",
+            str(tmp_path / "out"),
+            *PSO_ISLANDS,
+            "--iterations",
+            "7",
+            "--json",
+            "--quiet",
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     try:
         ready = coordinator.stderr.readline()  # the line a script waits for, --quiet or not
         assert ready.startswith("coordinator of campaign 'count' ready"), ready
-        island = subprocess.run(hysid_argv("island", "--connect", endpoint, "--campaign", "count", "--id", "one",
-                                           "--secret-file", str(tmp_path / "c.sqlite-count.secret")),
-                                capture_output=True, text=True, timeout=120)
+        island = subprocess.run(
+            hysid_argv("island", "--connect", endpoint, "--campaign", "count", "--id", "one", "--secret-file", str(tmp_path / "c.sqlite-count.secret")),
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         out, _ = coordinator.communicate(timeout=120)
     finally:
         coordinator.kill()
@@ -221,8 +238,13 @@ def test_ctrl_c_that_ends_a_string_exec_while_loading_still_exits_130(tmp_path):
     """A Ctrl-C that ends a string exec while modules load (dataclasses and namedtuples build their methods so) and is
     caught: CPython would still end a ``python -m`` process by SIGINT at exit; hysid says its line and exits 130."""
     (tmp_path / "ctrl_c_in_exec.py").write_text('exec("raise KeyboardInterrupt")  # a Ctrl-C landing while a dataclass is built\n')
-    done = subprocess.run([sys.executable, "-m", "hysid", "models", "--import", "ctrl_c_in_exec"], capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *filter(None, [os.environ.get("PYTHONPATH")])])})
+    done = subprocess.run(
+        [sys.executable, "-m", "hysid", "models", "--import", "ctrl_c_in_exec"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *filter(None, [os.environ.get("PYTHONPATH")])])},
+    )
     assert (done.returncode, done.stderr) == (130, "hysid: error: interrupted\n")
 
 
@@ -245,9 +267,13 @@ def test_ctrl_c_on_an_island_while_it_starts_is_one_line(stage):
     that lands while the interpreter itself starts meets Python's own handling, which no program can change.
     (Inside Zenoh's connect the interrupt is only seen when the connect gives up, after --wait.)"""
     secret = CampaignSecret.create("default", public_key(new_key()))  # a coordinator's that is not there
-    island = subprocess.Popen([sys.executable, "-X", "importtime", "-m", "hysid", "island", "--connect", f"tcp/127.0.0.1:{free_port()}", "--wait", "5"],
-                              stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,  # Ctrl-C reaches it whatever the runner ignores
-                              env={**os.environ, "HYSID_SECRET": secret.text()})
+    island = subprocess.Popen(
+        [sys.executable, "-X", "importtime", "-m", "hysid", "island", "--connect", f"tcp/127.0.0.1:{free_port()}", "--wait", "5"],
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=interruptible,  # Ctrl-C reaches it whatever the runner ignores
+        env={**os.environ, "HYSID_SECRET": secret.text()},
+    )
     try:
         stderr = Lines(island.stderr)
         wait_for(lambda: re.search(STAGES[stage], stderr.text(), re.M) is not None, 120, f"the island {stage}")

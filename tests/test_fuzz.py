@@ -14,14 +14,14 @@ import pytest
 from coordinator.launch import island_specs, run_single_node
 from coordinator.state import Coordinator
 from coordinator.store import Store
+from hostile import Hostile, stream
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
+from island.handshake import JoinRequest, decode_challenge, decode_joined, encode_join, encode_prove
+from island.memory import MemoryBus
 from island.migration import Migration
 from island.node import IslandNode
-from island.handshake import JoinRequest, decode_challenge, decode_joined, encode_join, encode_prove
 from island.sealing import Counter, Credentials, new_key, public_key
-from island.memory import MemoryBus
-from hostile import Hostile, stream
 
 pytestmark = pytest.mark.slow  # a few seconds of messages
 
@@ -34,8 +34,7 @@ ISLAND_MESSAGES = 2500
 def config() -> CampaignConfig:
     """Islands keep their algorithm (``share="fixed"``): a move lands at whichever iteration the island
     hears of it, so only a fixed share makes two campaigns the same search, message for message."""
-    return CampaignConfig.create(LOOPS, name="fz", options=SIZES, migration=Migration(interval=5, k=2, topology="ring"), seed=4, min_islands=3,
-                                 share="fixed")
+    return CampaignConfig.create(LOOPS, name="fz", options=SIZES, migration=Migration(interval=5, k=2, topology="ring"), seed=4, min_islands=3, share="fixed")
 
 
 def campaign(tmp_path, name: str, fuzz=None) -> Coordinator:
@@ -96,7 +95,9 @@ def test_ten_thousand_hostile_messages_leave_coordinator_and_islands_running_wit
     assert fuzzed.rejected == COORDINATOR_MESSAGES and "answered" not in sent  # all rejected, no bad join answered
     reasons = fuzzed.store.rejected_reasons("fz")
     assert sum(reasons.values()) == COORDINATOR_MESSAGES
-    assert {"undecodable", "schema", "forged", "unjoined", "sender", "shape", "not_finite", "out_of_bounds", "implausible", "oversized"} <= set(reasons), " ".join(f"{k}={v}" for k, v in sorted(reasons.items()))
+    assert {"undecodable", "schema", "forged", "unjoined", "sender", "shape", "not_finite", "out_of_bounds", "implausible", "oversized"} <= set(reasons), (
+        " ".join(f"{k}={v}" for k, v in sorted(reasons.items()))
+    )
     assert fuzzed.stop_reason == reference.stop_reason == "every island finished"
     assert fuzzed.best.fitness == pytest.approx(reference.best.fitness, rel=1e-12)  # the same search, message for message
     polished = fuzzed.outcome().runs

@@ -10,7 +10,8 @@ from scipy.stats import truncnorm
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
 from island.ga import GA, blx_crossover, gaussian_mutation, mutation_count, rank_probabilities, select_couples
-from support import GA_SMALL as SMALL, ask_sizes, drive, polished_to_truth
+from support import GA_SMALL as SMALL
+from support import ask_sizes, drive, polished_to_truth
 
 
 def test_rank_probabilities_are_eq_3_5():

@@ -21,9 +21,9 @@ from coordinator.loop import serve
 from coordinator.state import Coordinator
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
+from hysid.cli import main
 from hysid.report.campaign_text import campaign_progress_line, watch_text
 from hysid.watch import snapshot
-from hysid.cli import main
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig
@@ -58,8 +58,9 @@ def test_a_hosts_islands_are_named_seeded_and_mixed_like_separate_islands() -> N
         host_specs("node7", 0, cfg)
 
 
-@pytest.mark.parametrize("count, message", [("0", "--count '0': must be from 1 to 4096 islands (or 'cores')"),
-                                            ("many", "--count 'many': must be a number of islands or 'cores'")])
+@pytest.mark.parametrize(
+    "count, message", [("0", "--count '0': must be from 1 to 4096 islands (or 'cores')"), ("many", "--count 'many': must be a number of islands or 'cores'")]
+)
 def test_a_bad_count_is_a_one_line_error(count: str, message: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["island", "--count", count, "--campaign", "h1"]) == 2
     err = capsys.readouterr().err
@@ -147,9 +148,7 @@ def test_each_island_of_a_process_joins_as_its_own_run_with_its_own_key_and_repo
     assert {e for i, e in query(Path(campaign.c.store.path), "SELECT island, event FROM members")} == {"join", "left"}
 
 
-def test_a_coordinator_of_more_islands_than_it_follows_leaves_migration_to_them_and_says_so(
-    trio: Campaign, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_a_coordinator_of_more_islands_than_it_follows_leaves_migration_to_them_and_says_so(trio: Campaign, monkeypatch: pytest.MonkeyPatch) -> None:
     """Past :data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO` islands alive (2 here) the coordinator stops
     subscribing to migrant messages before the islands start; they still migrate to one another, report
     their counts, and the result says who counted what."""
@@ -219,8 +218,28 @@ def test_ctrl_c_ends_every_island_of_a_process_cleanly(spawn, tmp_path: Path) ->
     """SIGINT to ``hysid island --count 3``: every island stops, sends its last history (each run ends
     ``final`` and ``left``), the coordinator confirms, and the process exits with 130 in seconds."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "c.sqlite"
-    coordinator = spawn("coordinator", "--listen", endpoint, "--campaign", "ctrlc", "--db", str(db), "--out", str(tmp_path / "out"), "--quiet",
-                        "--iterations", "1000000", "--population", "10", "--initial", "20", "--interval", "2", "--no-polish", "synth")
+    coordinator = spawn(
+        "coordinator",
+        "--listen",
+        endpoint,
+        "--campaign",
+        "ctrlc",
+        "--db",
+        str(db),
+        "--out",
+        str(tmp_path / "out"),
+        "--quiet",
+        "--iterations",
+        "1000000",
+        "--population",
+        "10",
+        "--initial",
+        "20",
+        "--interval",
+        "2",
+        "--no-polish",
+        "synth",
+    )
     ready(endpoint, "ctrlc")
     host = spawn("island", "--connect", endpoint, "--campaign", "ctrlc", "--id", "h", "--count", "3", "--secret-file", secret_file(db, "ctrlc"))
     wait_for(lambda: all(rows_of(db, f"h-{k}") > 5 for k in range(3)), 60, "three islands reporting")

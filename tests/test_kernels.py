@@ -26,8 +26,15 @@ def population(model, rng, n: int = 12) -> np.ndarray:
     rows = []
     for i in range(n):
         zy, r = SHAPES[i % len(SHAPES)]
-        values = {**BASE, "bw_k": rng.uniform(10.0, 500.0), "bw_zy": zy, "bw_r": r, "F_d": rng.uniform(0.01, 1.0),
-                  "f_c": rng.uniform(0.5, 20.0), "delay_s": rng.uniform(-1e-3, 1e-3)}
+        values = {
+            **BASE,
+            "bw_k": rng.uniform(10.0, 500.0),
+            "bw_zy": zy,
+            "bw_r": r,
+            "F_d": rng.uniform(0.01, 1.0),
+            "f_c": rng.uniform(0.5, 20.0),
+            "delay_s": rng.uniform(-1e-3, 1e-3),
+        }
         rows.append([values[name] for name in model.names])
     return np.array(rows)
 
@@ -39,7 +46,10 @@ def relative_error(fast: np.ndarray, reference: np.ndarray) -> float:
 
 
 EXACT = [
-    "baseline+bouc_wen", "thesis+bouc_wen", "thesis+bouc_wen+channel_delay", "thesis+coulomb_friction+channel_delay",
+    "baseline+bouc_wen",
+    "thesis+bouc_wen",
+    "thesis+bouc_wen+channel_delay",
+    "thesis+coulomb_friction+channel_delay",
     "thesis+bouc_wen+coulomb_friction+channel_delay",
 ]
 
@@ -103,7 +113,9 @@ def test_velocity_sign_through_the_high_pass_is_the_exact_exponential_step_respo
     since_jump = np.where(sign > 0, np.mod(phase + np.pi / 2, 2 * np.pi), np.mod(phase - np.pi / 2, 2 * np.pi)) / w
     exact = sign * fd * 2.0 / (1.0 + np.exp(-np.pi / (w * tau))) * np.exp(-since_jump / tau)
     np.testing.assert_allclose(jump, exact, rtol=0, atol=1e-12 * fd)
-    reference = Objective(ideal, model, compiled=False).predict(theta)[0] - Objective(ideal, model, compiled=False).predict(model.from_dict(values | {"F_d": 0.0}))[0]
+    reference = (
+        Objective(ideal, model, compiled=False).predict(theta)[0] - Objective(ideal, model, compiled=False).predict(model.from_dict(values | {"F_d": 0.0}))[0]
+    )
     np.testing.assert_allclose(reference, exact, atol=5e-3 * (2 * np.pi * f_c / w).max())
 
 
@@ -114,8 +126,10 @@ def test_velocity_sign_through_a_high_pass_of_vanishing_cut_off_is_the_plain_squ
     model = build_model("baseline+coulomb_friction+charge_amplifier_highpass").fix(meq=MEQ_KG)
     values = {"xi0": 0.0, "w0": 100.0, "F_d": 1.0}
     objective = Objective(ideal, model)
-    jump = {f_c: objective.predict(model.from_dict(values | {"f_c": f_c}))[0] - objective.predict(model.from_dict(values | {"F_d": 0.0, "f_c": f_c}))[0]
-            for f_c in (0.0, 1e-18)}
+    jump = {
+        f_c: objective.predict(model.from_dict(values | {"f_c": f_c}))[0] - objective.predict(model.from_dict(values | {"F_d": 0.0, "f_c": f_c}))[0]
+        for f_c in (0.0, 1e-18)
+    }
     assert np.all(np.isfinite(jump[1e-18]))
     np.testing.assert_allclose(jump[1e-18], jump[0.0], rtol=0, atol=1e-12)
 
@@ -145,7 +159,9 @@ def test_velocity_sign_through_delay_and_high_pass_on_a_measured_waveform_is_the
     low = periodic_steady_state(rhs, np.zeros((1, loops.n_loops, 1)), shifted[:, None, :], steps_per_cycle=1 << 15, max_cycles=200, tol=1e-8)[0][:, 0]
     cells = waveform.sample_cells(loops.phases(), loops.n_samples, lo, hi)
     jumps = np.stack([lo, hi], axis=1) + loops.omega[:, None] * values["delay_s"]
-    expected = values["F_d"] * (cell_average(lambda t: square(t[None] - loops.omega[None, :, None] * values["delay_s"])[0], loops.phases(), *cells, jumps) - low)
+    expected = values["F_d"] * (
+        cell_average(lambda t: square(t[None] - loops.omega[None, :, None] * values["delay_s"])[0], loops.phases(), *cells, jumps) - low
+    )
     # RK4 steps across the square wave's jumps are first-order accurate: ~rho h of the jump (h = 2 pi / 2^15)
     np.testing.assert_allclose(on - off, expected, rtol=0, atol=5e-5 * values["F_d"])
 

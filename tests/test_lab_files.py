@@ -45,12 +45,15 @@ def german_set(directory: Path, preamble: list[str] = ()) -> Path:
     return directory
 
 
-@pytest.mark.parametrize("manifest, encoding", [
-    ("file,frequency_hz\nprobe_f9,5Hz.csv,9.5\nprobe_f12,5Hz.csv,12.5\n", "utf-8"),  # unquoted names holding the separator
-    ("file,frequency_hz\nprobe_f9,5Hz.csv,9,5\nprobe_f12,5Hz.csv,12,5\n", "utf-8"),  # and decimal commas in the frequency
-    ("File;Frequency_Hz\r\nprobe_f9,5Hz.csv;9,5\r\nprobe_f12,5Hz.csv;12,5\r\n", "cp1252"),  # a German spreadsheet's export
-    ('file,frequency_hz\n"probe_f9,5Hz.csv",9.5\n"probe_f12,5Hz.csv",12.5\n', "utf-8"),  # quoted, as before
-])
+@pytest.mark.parametrize(
+    "manifest, encoding",
+    [
+        ("file,frequency_hz\nprobe_f9,5Hz.csv,9.5\nprobe_f12,5Hz.csv,12.5\n", "utf-8"),  # unquoted names holding the separator
+        ("file,frequency_hz\nprobe_f9,5Hz.csv,9,5\nprobe_f12,5Hz.csv,12,5\n", "utf-8"),  # and decimal commas in the frequency
+        ("File;Frequency_Hz\r\nprobe_f9,5Hz.csv;9,5\r\nprobe_f12,5Hz.csv;12,5\r\n", "cp1252"),  # a German spreadsheet's export
+        ('file,frequency_hz\n"probe_f9,5Hz.csv",9.5\n"probe_f12,5Hz.csv",12.5\n', "utf-8"),  # quoted, as before
+    ],
+)
 def test_a_manifest_of_german_file_names_as_spreadsheets_write_it(tmp_path, reference, manifest, encoding):
     d = german_set(tmp_path / "d")
     (d / "manifest.csv").write_bytes(manifest.encode(encoding))
@@ -103,8 +106,7 @@ def test_a_preamble_that_cannot_be_told_from_a_header_gets_an_error_with_the_way
     assert str(info.value).endswith("if lines 1-3 are a preamble, skip them: skip_rows = 3 in dataset.toml or --skip-rows 3")
     assert main(["loops", str(d / "run.csv"), "--skip-rows", "3"]) == 0
     assert capsys.readouterr().out.startswith("d: 1 loops")
-    np.testing.assert_allclose(load_dataset(d / "run.csv", skip_rows=3).top, reference.subset([0]).top, rtol=1e-6,
-                               atol=1e-9 * np.abs(reference.top).max())
+    np.testing.assert_allclose(load_dataset(d / "run.csv", skip_rows=3).top, reference.subset([0]).top, rtol=1e-6, atol=1e-9 * np.abs(reference.top).max())
     assert main(["loops", str(d), "--skip-rows", "-1"]) == 2
     assert "--skip-rows -1: must be a whole number of lines >= 0" in capsys.readouterr().err
 
@@ -152,11 +154,13 @@ def test_one_tdms_file_of_one_group_per_test(tmp_path, reference):
     dt = float(RECORDS[0].t[1])
     with nptdms.TdmsWriter(d / "tests.tdms") as writer:
         for rec in RECORDS:
-            writer.write_segment([
-                nptdms.GroupObject(rec.label, properties={"frequency_hz": rec.freq_hz}),
-                nptdms.ChannelObject(rec.label, "Weg", rec.x * 1e3, properties={"unit_string": "mm", "wf_increment": dt}),
-                nptdms.ChannelObject(rec.label, "Kraft", rec.force, properties={"unit_string": "N"}),
-            ])
+            writer.write_segment(
+                [
+                    nptdms.GroupObject(rec.label, properties={"frequency_hz": rec.freq_hz}),
+                    nptdms.ChannelObject(rec.label, "Weg", rec.x * 1e3, properties={"unit_string": "mm", "wf_increment": dt}),
+                    nptdms.ChannelObject(rec.label, "Kraft", rec.force, properties={"unit_string": "N"}),
+                ]
+            )
     same_loops(load_dataset(d / "tests.tdms"), reference)
 
 
@@ -165,8 +169,11 @@ def test_header_mistakes_of_several_files_come_in_one_error(tmp_path, capsys):
     together), not one file per run; the good file is not named."""
     records = [record(f"run{k}", 10.0, 1e-3, k, cycles=4) for k in range(1, 5)]
     d = write_dataset(tmp_path / "d", records)
-    for name, header in (("run1.csv", "time_s,displacement_m,forse_n"), ("run3.csv", "time_s,displacement_m,forse_n"),
-                         ("run4.csv", "time_s,displacment_mm,force_n")):
+    for name, header in (
+        ("run1.csv", "time_s,displacement_m,forse_n"),
+        ("run3.csv", "time_s,displacement_m,forse_n"),
+        ("run4.csv", "time_s,displacment_mm,force_n"),
+    ):
         lines = (d / name).read_text().splitlines()
         (d / name).write_text("\n".join([header] + lines[1:]) + "\n")
     with pytest.raises(HysidInputError) as info:

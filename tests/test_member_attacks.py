@@ -74,8 +74,11 @@ class Sybil:
                 it = min(int(claim * iterations), self.checks.optimizer("pso").iterations)
                 evaluations = min(claim * most, float(self.checks.evaluation_bound("pso", np.array([float(it)]))[0]))
                 rows = np.array([[it, self.f, int(evaluations), 0.0]])
-                publisher.put(encode_history(History(self.campaign, credentials.island, credentials.run, "pso", seed, rows, self.x, self.f, STATS,
-                                                     seq=self.seq), credentials))
+                publisher.put(
+                    encode_history(
+                        History(self.campaign, credentials.island, credentials.run, "pso", seed, rows, self.x, self.f, STATS, seq=self.seq), credentials
+                    )
+                )
             self.seq += 1
             self.stop.wait(0.5)
 
@@ -93,8 +96,12 @@ class Sybil:
         self.stop.set()
         self.thread.join(10)
         for (credentials, _, seed), publisher in zip(self.runs, self.publishers):
-            publisher.put(encode_history(History(self.campaign, credentials.island, credentials.run, "pso", seed, np.empty((0, 4)), self.x, self.f,
-                                                 STATS, final=True, seq=self.seq), credentials))
+            publisher.put(
+                encode_history(
+                    History(self.campaign, credentials.island, credentials.run, "pso", seed, np.empty((0, 4)), self.x, self.f, STATS, final=True, seq=self.seq),
+                    credentials,
+                )
+            )
 
     def close(self) -> None:
         self.stop.set()
@@ -111,8 +118,13 @@ def made_from(secret: CampaignSecret, member: str) -> CampaignSecret:
 
 def effort(db: Path, attacker: str) -> tuple[int, int]:
     """Evaluations of the attacker's runs (ids beginning with ``attacker``) and of everyone else's, as last accepted."""
-    (theirs, ours), = query(db, "SELECT coalesce(sum(CASE WHEN island LIKE ? THEN evaluations END), 0), "
-                                "coalesce(sum(CASE WHEN island NOT LIKE ? THEN evaluations END), 0) FROM islands", f"{attacker}%", f"{attacker}%")
+    ((theirs, ours),) = query(
+        db,
+        "SELECT coalesce(sum(CASE WHEN island LIKE ? THEN evaluations END), 0), "
+        "coalesce(sum(CASE WHEN island NOT LIKE ? THEN evaluations END), 0) FROM islands",
+        f"{attacker}%",
+        f"{attacker}%",
+    )
     return theirs, ours
 
 
@@ -120,9 +132,11 @@ def outlast(campaign: subprocess.Popen, db: Path, sybil: Sybil, attacker: str, l
     """The attack's claims accepted past three budgets, with the honest islands below half of one: the campaign still
     runs, the late honest island joins and searches, the campaign still runs; then the attacker leaves, and Ctrl-C: its
     report."""
+
     def running() -> bool:
-        assert campaign.poll() is None and query(db, "SELECT status, stop_reason FROM campaigns") == [("running", None)], \
-            query(db, "SELECT status, stop_reason FROM campaigns")
+        assert campaign.poll() is None and query(db, "SELECT status, stop_reason FROM campaigns") == [("running", None)], query(
+            db, "SELECT status, stop_reason FROM campaigns"
+        )
         return True
 
     wait_for(lambda: running() and effort(db, attacker)[0] > 3 * BUDGET, 90, "the attacker's claims to pass three budgets")
@@ -142,8 +156,13 @@ def test_the_secret_of_one_launched_island_process_is_one_member_and_cannot_end_
     process of the user reads one (``/proc/PID/environ``), joins 16 runs with it (ids ``<member>-x<k>``: its member's)
     claiming the plausible maximum: they count for that member only, which counts no further than the other island."""
     out = tmp_path / "out"
-    campaign = subprocess.Popen(hysid("campaign", "--islands", "2", "--budget", str(BUDGET), "--out", str(out), *SMALL),
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
+    campaign = subprocess.Popen(
+        hysid("campaign", "--islands", "2", "--budget", str(BUDGET), "--out", str(out), *SMALL),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=interruptible,
+    )
     db, sybil, late = out / "campaign.sqlite", None, None
     try:
         wait_for(lambda: db.exists() and rows_of(db, "island-0") > 5 and rows_of(db, "island-1") > 5, 120, "the islands to search")
@@ -154,8 +173,12 @@ def test_the_secret_of_one_launched_island_process_is_one_member_and_cannot_end_
         sybil = Sybil(endpoint, stolen, [f"{stolen.member}-x{k}" for k in range(16)])
         assert query(db, "SELECT DISTINCT member FROM runs WHERE island LIKE ?", f"{stolen.member}-x%") == [(stolen.member,)]
         assert not sybil.admitted(made_from(stolen, "other"), "other")  # nor does it make another member's secret
-        late = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "campaign", "--id", "late", "--quiet", "--secret-file",
-                                      str(secret_path(db, "campaign"))), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        late = subprocess.Popen(
+            hysid("island", "--connect", endpoint, "--campaign", "campaign", "--id", "late", "--quiet", "--secret-file", str(secret_path(db, "campaign"))),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         doc = outlast(campaign, db, sybil, f"{stolen.member}-x", late)
     finally:
         for p in (campaign, late):
@@ -172,10 +195,12 @@ def test_the_shared_secret_of_a_coordinator_is_one_member_and_cannot_end_the_cam
     the attacker holds the shared secret the coordinator wrote beside its database and joins 16 runs with it: they
     count for the one shared member."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "hand.sqlite"
-    coord = coordinator(spawn, endpoint, "hand", db, "--min-islands", "2", "--budget", str(BUDGET), "--member", "h1", "--member", "h2",
-                        "--member", "late", "--no-polish")
-    islands = [spawn("island", "--connect", endpoint, "--campaign", "hand", "--quiet", "--secret-file", str(member_path(db, "hand", name)))
-               for name in ("h1", "h2")]  # no --id: the member's name
+    coord = coordinator(
+        spawn, endpoint, "hand", db, "--min-islands", "2", "--budget", str(BUDGET), "--member", "h1", "--member", "h2", "--member", "late", "--no-polish"
+    )
+    islands = [
+        spawn("island", "--connect", endpoint, "--campaign", "hand", "--quiet", "--secret-file", str(member_path(db, "hand", name))) for name in ("h1", "h2")
+    ]  # no --id: the member's name
     sybil = None
     try:
         wait_for(lambda: rows_of(db, "h1") > 5 and rows_of(db, "h2") > 5, 120, "the islands to search")

@@ -22,14 +22,14 @@ from coordinator.loop import check_stop, pump
 from coordinator.state import resume
 from coordinator.store import Store
 from hysid_model.errors import HysidInputError, HysidWarning
-from island.node import IslandNode
 from island.handshake import JoinRequest, decode_joined
-from island.protocol import encode_history, History
-from island.secret import CampaignSecret
+from island.joining import join
+from island.node import IslandNode
+from island.protocol import History, encode_history
 from island.sealing import new_key, public_key
+from island.secret import CampaignSecret
 from island.session import open_session, session_config
 from island.termination import Termination
-from island.joining import join
 from island.transports import ZenohTransport
 from support import query, wait_for
 from test_coordinator import STATS, handshake, history, link, make, reasons, truth  # noqa: F401  (link: the fixture)
@@ -68,7 +68,8 @@ def test_no_secret_an_island_holds_makes_another_members_secret(tmp_path, link):
     key, attempts = new_key(), 0
     for member, island in (("lab3", "lab3-0"), ("", "anyone")):
         for admission in {shared.admission, lab2.admission, derived(shared, member), derived(lab2, member), derived(lab2, "lab2")} - {
-                c.keys.admission_for(member)}:
+            c.keys.admission_for(member)
+        }:
             request = JoinRequest("c1", island, "pso", 1, secrets.token_bytes(16), public_key(key), member)
             assert handshake(c, link, request, key, admission=admission) == []
             attempts += 1
@@ -120,7 +121,7 @@ def test_a_members_effort_counts_no_further_than_the_others_while_they_are_alive
     c = make(tmp_path, Termination(budget=1_000_000), iterations=10**6)
     x = truth(c)
     f = float(c.objective(x[None, :])[0])
-    claim = lambda e: [[e // 10, f, e, 0.0]]  # noqa: E731  (iterations of a swarm of 10 that many evaluations take)
+    claim = lambda e: [[e // 10, f, e, 0.0]]
     honest = c.join("a", "pso", 1)
     c.receive("hysid/c1/history/a", history(honest, claim(100_000), x, f, seq=0))
     pump(c, link, 2.0)
@@ -167,8 +168,9 @@ def test_a_member_with_16_runs_claiming_the_most_it_can_neither_ends_the_campaig
                 most, iterations = c.checks.effort_bound(["pso"], time.time() - c.runs[(r.island, r.run)].joined)
                 it = int(0.95 * iterations)
                 row = [[it, f, int(min(0.95 * most, c.checks.evaluation_bound("pso", np.array([float(it)]))[0])), 0.0]]
-                publisher[r.island].put(encode_history(History("mb", r.island, r.run, "pso", c.runs[(r.island, r.run)].seed, np.array(row, dtype=float),
-                                                               x, f, STATS, seq=seq), r))
+                publisher[r.island].put(
+                    encode_history(History("mb", r.island, r.run, "pso", c.runs[(r.island, r.run)].seed, np.array(row, dtype=float), x, f, STATS, seq=seq), r)
+                )
             seq += 1
             time.sleep(0.5)
             assert c.stop_reason is None, c.stop_reason

@@ -19,12 +19,12 @@ import pytest
 import hysid
 from hysid.cli import main
 from hysid.motion import choose_motion, confirm_motion
-from island.memetic import BUDGET
-from island.termination import Termination
-from support import DAMPER
 from hysid_model.datasets import write_dataset
 from hysid_model.model import build_model, to_physical
 from hysid_model.synth import simulate_raw
+from island.memetic import BUDGET
+from island.termination import Termination
+from support import DAMPER
 
 HARMONICS = {2: 0.10, 3: 0.05}
 TRUTH = {"xi0": 0.03, "w0": 2 * np.pi * 40.0, "meq": 0.5}
@@ -120,9 +120,15 @@ def test_cli_fit_and_diagnose_say_which_and_why(tmp_path, capsys):
 def test_a_campaign_reads_the_displacement_as_fit_does_and_keeps_it_in_its_database(tmp_path):
     loops = loops_of("sensor", tmp_path)
     db = tmp_path / "c.sqlite"
-    result = hysid.campaign(loops, "baseline", islands=2, single_node=True, db=db, seed=1,
-                            options={"pso": {"initial_population": 300, "population": 30, "iterations": 8},
-                                     "ga": {"initial_population": 300, "population": 30, "iterations": 8}})
+    result = hysid.campaign(
+        loops,
+        "baseline",
+        islands=2,
+        single_node=True,
+        db=db,
+        seed=1,
+        options={"pso": {"initial_population": 300, "population": 30, "iterations": 8}, "ga": {"initial_population": 300, "population": 30, "iterations": 8}},
+    )
     assert result.fit.displacement_model["displacement"] == "fundamental"
     assert result.to_dict()["displacement_model"]["decided_by"] == "data"
     assert abs(result.fit.params["meq"] - TRUTH["meq"]) < 4 * result.fit.stderr["meq"]

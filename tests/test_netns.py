@@ -25,8 +25,19 @@ HYSID = [sys.executable, "-m", "hysid"]
 ISLANDS = ("h1", "h2")
 TIME_LIMIT_S = 8
 TIME_BOXED_CAMPAIGN = [
-    "--min-islands", str(len(ISLANDS)), "--time-limit", str(TIME_LIMIT_S), "--iterations", "1000000",
-    "--population", "30", "--initial", "60", "--interval", "5", "--no-polish",
+    "--min-islands",
+    str(len(ISLANDS)),
+    "--time-limit",
+    str(TIME_LIMIT_S),
+    "--iterations",
+    "1000000",
+    "--population",
+    "30",
+    "--initial",
+    "60",
+    "--interval",
+    "5",
+    "--no-polish",
 ]
 """Islands that run until the coordinator's time limit, so that both are members at once."""
 
@@ -107,7 +118,9 @@ def test_zenoh_router_and_peers_in_separate_namespaces_exchange(lab: Lab) -> Non
     names = ["h1", "h2"]
     router = subprocess.Popen(
         lab.command(lab.hub, sys.executable, "-c", ROUTER, endpoint, *names),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     peers = []
     try:
@@ -143,20 +156,52 @@ def run_campaign(lab: Lab, tmp_path: Path, campaign: str, coordinator_config: Pa
     out = tmp_path / "out"
     coordinator = subprocess.Popen(
         lab.command(
-            lab.hub, *HYSID, "coordinator", "--config", str(coordinator_config), "--listen", f"{protocol}/{lab.hub_address}:{PORT}",
-            "--campaign", campaign, "--out", str(out), "--quiet", *TIME_BOXED_CAMPAIGN, "synth",
+            lab.hub,
+            *HYSID,
+            "coordinator",
+            "--config",
+            str(coordinator_config),
+            "--listen",
+            f"{protocol}/{lab.hub_address}:{PORT}",
+            "--campaign",
+            campaign,
+            "--out",
+            str(out),
+            "--quiet",
+            *TIME_BOXED_CAMPAIGN,
+            "synth",
         ),
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
     )
     islands = []
     try:
         islands = [
             subprocess.Popen(
                 lab.command(
-                    lab.host(k), *HYSID, "island", "--config", str(island_configs[name]), "--connect", f"{protocol}/{lab.hub_address}:{PORT}",
-                    "--campaign", campaign, "--id", name, "--wait", "20", "--quiet", "--secret-file", str(out / f"campaign.sqlite-{campaign}.secret"),
+                    lab.host(k),
+                    *HYSID,
+                    "island",
+                    "--config",
+                    str(island_configs[name]),
+                    "--connect",
+                    f"{protocol}/{lab.hub_address}:{PORT}",
+                    "--campaign",
+                    campaign,
+                    "--id",
+                    name,
+                    "--wait",
+                    "20",
+                    "--quiet",
+                    "--secret-file",
+                    str(out / f"campaign.sqlite-{campaign}.secret"),
                 ),
-                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+                cwd=tmp_path,
             )
             for k, name in enumerate(ISLANDS, start=1)
         ]
@@ -199,13 +244,30 @@ def test_campaign_across_namespaces_with_tls_credentials_and_acl(lab: Lab, tmp_p
     certs = tmp_path / "certs"
     subprocess.run(
         ["bash", str(DEPLOY / "tls" / "make-certs.sh"), "-o", str(certs), "-s", lab.hub_address, *ISLANDS],
-        check=True, capture_output=True, timeout=60,
+        check=True,
+        capture_output=True,
+        timeout=60,
     )
     endpoint = f"tls/{lab.hub_address}:{PORT}"
     subprocess.run(
-        [sys.executable, str(DEPLOY / "secure-campaign.py"), "--campaign", "demo", "--listen", endpoint, "--connect", endpoint,
-         "--certs", str(certs), "-o", str(tmp_path / "zenoh"), *ISLANDS],
-        check=True, capture_output=True, timeout=60,
+        [
+            sys.executable,
+            str(DEPLOY / "secure-campaign.py"),
+            "--campaign",
+            "demo",
+            "--listen",
+            endpoint,
+            "--connect",
+            endpoint,
+            "--certs",
+            str(certs),
+            "-o",
+            str(tmp_path / "zenoh"),
+            *ISLANDS,
+        ],
+        check=True,
+        capture_output=True,
+        timeout=60,
     )
     island_configs = {name: tmp_path / "zenoh" / "islands" / f"{name}.json5" for name in ISLANDS}
     out = run_campaign(lab, tmp_path, "demo", tmp_path / "zenoh" / "coordinator.json5", island_configs, "tls")

@@ -17,10 +17,12 @@ from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
 from island.ga import GA
+from island.handshake import JoinRequest, decode_join_step, encode_challenge, encode_joined, proof_holds
+from island.joining import fetch_config
 from island.memetic import Island
+from island.memory import MemoryBus
 from island.migration import Migration
 from island.node import HISTORY_MESSAGES_PER_S, HISTORY_PERIOD_MAX_S, IslandNode, history_period
-from island.handshake import JoinRequest, decode_join_step, encode_challenge, encode_joined, proof_holds
 from island.protocol import (
     Best,
     Control,
@@ -35,12 +37,10 @@ from island.protocol import (
     encode_migrants,
     encode_signed_config,
 )
-from island.secret import CampaignSecret
-from island.sealing import Credentials, new_key, public_key
-from island.session import open_session, session_config
 from island.pso import PSO
-from island.joining import fetch_config
-from island.memory import MemoryBus
+from island.sealing import Credentials, new_key, public_key
+from island.secret import CampaignSecret
+from island.session import open_session, session_config
 from island.transports import ZenohTransport
 from support import wait_for
 
@@ -102,8 +102,14 @@ MEMETIC = {"population": 8, "initial_population": 16, "addpop_level": 1, "iterat
 
 def memory_config() -> CampaignConfig:
     """A memory model on noisy loops, searched from scratch (no ``start``)."""
-    cfg = CampaignConfig.create(MEMORY_LOOPS, name="c1", model="thesis+bouc_wen", options={"ga": MEMETIC, "pso": {**MEMETIC, "synchronous": True}},
-                                migration=Migration(interval=3, k=2), seed=3)
+    cfg = CampaignConfig.create(
+        MEMORY_LOOPS,
+        name="c1",
+        model="thesis+bouc_wen",
+        options={"ga": MEMETIC, "pso": {**MEMETIC, "synchronous": True}},
+        migration=Migration(interval=3, k=2),
+        seed=3,
+    )
     return replace(cfg, start=None)
 
 
@@ -141,11 +147,14 @@ def test_a_stalled_memetic_island_keeps_searching_only_while_it_holds_the_best_i
     x, f = island.best(1)
     theta = node._theta(x)
     worse = node.objective.bounds[:, 1][None, :]
-    for seq, (vector, claimed, ahead, behind, evaluated) in enumerate([
-        (theta, f[0], True, False, 1),  # the same best: the member that joined first keeps it
-        (worse, float(node.objective(worse)[0]), True, True, 1),
-        (worse, 0.0, True, True, 0),  # a claim is re-evaluated, never believed; a point already checked is not evaluated again
-    ], start=1):
+    for seq, (vector, claimed, ahead, behind, evaluated) in enumerate(
+        [
+            (theta, f[0], True, False, 1),  # the same best: the member that joined first keeps it
+            (worse, float(node.objective(worse)[0]), True, True, 1),
+            (worse, 0.0, True, True, 0),  # a claim is re-evaluated, never believed; a point already checked is not evaluated again
+        ],
+        start=1,
+    ):
         before = node.migrant_evaluations
         node.receive("b", encode_migrants(Migrants("c1", "b", other.run, 3, vector, np.array([claimed]), time.time(), seq), other))
         assert node._leads(island, ["a", "b"]) is ahead and node._leads(island, ["b", "a"]) is behind
@@ -166,6 +175,7 @@ def forger_posting(payload_for_epoch):
     def forger(bus: MemoryBus, credentials: Credentials) -> None:
         for epoch in range(1, 6):
             bus.exchange("forger", epoch, payload_for_epoch(epoch, credentials))
+
     return forger
 
 
@@ -199,9 +209,11 @@ def test_malformed_migrants_are_counted_and_skipped():
     def junk(epoch: int, credentials: Credentials) -> bytes:
         stranger = Credentials("forger", credentials.run, new_key(), credentials.coordinator)  # the forger's name and run, not its key
         return [
-            b"not msgpack \xc1", encode_best(Best("c1", "forger", np.zeros(4), 0.0), "x", credentials.key),
+            b"not msgpack \xc1",
+            encode_best(Best("c1", "forger", np.zeros(4), 0.0), "x", credentials.key),
             forged(np.array([np.nan, 0, 200, 0]), 0.0, 1, credentials),
-            b"\x00" * 300_000, forged(np.array([0.01, 0, 200, 0]), 0.0, 5, stranger),
+            b"\x00" * 300_000,
+            forged(np.array([0.01, 0, 200, 0]), 0.0, 5, stranger),
         ][(epoch - 1) % 5]
 
     nodes, _ = run_bus(config("full"), [("a", "ga", 1)], forger=forger_posting(junk))
@@ -210,7 +222,7 @@ def test_malformed_migrants_are_counted_and_skipped():
 
 
 def test_a_replayed_migrant_message_is_rejected_and_never_taken_twice():
-    truth_of = lambda cfg: cfg.objective(LOOPS).model.from_dict(TRUE_PARAMS)  # noqa: E731
+    truth_of = lambda cfg: cfg.objective(LOOPS).model.from_dict(TRUE_PARAMS)
     cfg = config("full", k=1)
     first: dict[str, bytes] = {}
 
@@ -292,8 +304,7 @@ class Admissions:
         c = self.issued.get(island)
         return c.key if c is not None and c.run == run else None
 
-    def control(self, stored: dict[str, int] | None = None, stop: str = "", key: bytes | None = None,
-                algos: dict[str, str] | None = None) -> bytes:
+    def control(self, stored: dict[str, int] | None = None, stop: str = "", key: bytes | None = None, algos: dict[str, str] | None = None) -> bytes:
         """A roster of every island issued credentials (all alive, running the algorithm it joined with
         unless ``algos`` says otherwise), ``stored`` rows confirmed; signed with ``key`` (the coordinator's by default)."""
         self.seq += 1
@@ -304,7 +315,8 @@ class Admissions:
     def history_query(self, island: str, since: int, run: str | None = None) -> str:
         self.seq += 1
         return f"hysid/{self.campaign}/history/{island}?" + encode_history_query(
-            HistoryQuery(self.campaign, island, run or self.issued[island].run, since, self.seq), self.key)
+            HistoryQuery(self.campaign, island, run or self.issued[island].run, since, self.seq), self.key
+        )
 
     def close(self) -> None:
         for e in self.entities:
@@ -312,8 +324,11 @@ class Admissions:
 
 
 def endless(interval: int = 0, k: int = 1, topology: str = "ring") -> CampaignConfig:
-    return CampaignConfig(name="c1", options={"pso": {"population": 10, "initial_population": 10, "iterations": 100_000}},
-                          migration=Migration(interval=interval, k=k, topology=topology))
+    return CampaignConfig(
+        name="c1",
+        options={"pso": {"population": 10, "initial_population": 10, "iterations": 100_000}},
+        migration=Migration(interval=interval, k=k, topology=topology),
+    )
 
 
 def start_island(endpoint: str, cfg: CampaignConfig, secret: CampaignSecret, island: str = "pso-9", wait_s: float = 10.0):
@@ -337,7 +352,7 @@ def test_zenoh_island_joins_reports_history_backfills_stops_and_leaves_once_conf
         rsession.liveliness().declare_subscriber("hysid/c1/members/*", lambda s: members.append((str(s.key_expr), s.kind == zenoh.SampleKind.PUT))),
     ]
     client, node, worker = start_island(endpoint, cfg, coordinator.secret)
-    decode = lambda data: decode_history(data, "c1", node.objective.bounds, key_for=coordinator.key_for)  # noqa: E731
+    decode = lambda data: decode_history(data, "c1", node.objective.bounds, key_for=coordinator.key_for)
     try:
         first = decode(arrived.get(timeout=20))
         assert first.island == "pso-9" and first.rows[0, 0] == 0 and first.run == coordinator.issued["pso-9"].run
@@ -354,8 +369,9 @@ def test_zenoh_island_joins_reports_history_backfills_stops_and_leaves_once_conf
             last = decode(arrived.get(timeout=10))
         assert last.rows[-1, 0] == node.rows[-1][0] and node.stop_reason == "stopped by the coordinator"
         # it waits for the confirmation, serving what the coordinator asks: its goodbye again, its token still there
-        waiting = [decode(r.ok.payload.to_bytes()) for r in rsession.get(coordinator.history_query("pso-9", int(last.rows[-1, 0]) - 1), timeout=5)
-                   if r.ok is not None]
+        waiting = [
+            decode(r.ok.payload.to_bytes()) for r in rsession.get(coordinator.history_query("pso-9", int(last.rows[-1, 0]) - 1), timeout=5) if r.ok is not None
+        ]
         assert [(h.final, h.rows[-1, 0]) for h in waiting] == [(True, last.rows[-1, 0])]
         assert node.confirmed is None and worker.is_alive() and members[-1] == ("hysid/c1/members/pso-9", True)
         rsession.put("hysid/c1/control", coordinator.control(stored={"pso-9": int(last.rows[-1, 0])}, stop="enough"))
@@ -377,7 +393,7 @@ def test_zenoh_island_moved_to_another_algorithm_by_the_roster_carries_its_searc
     arrived: queue.Queue = queue.Queue()
     sub = rsession.declare_subscriber("hysid/c1/history/*", lambda s: arrived.put(s.payload.to_bytes()))
     client, node, worker = start_island(endpoint, cfg, coordinator.secret)
-    decode = lambda data: decode_history(data, "c1", node.objective.bounds, key_for=coordinator.key_for)  # noqa: E731
+    decode = lambda data: decode_history(data, "c1", node.objective.bounds, key_for=coordinator.key_for)
     try:
         assert decode(arrived.get(timeout=20)).algo == "pso"
         rsession.put("hysid/c1/control", coordinator.control(algos={"pso-9": "ga"}))
@@ -435,7 +451,9 @@ def test_migrants_wait_for_the_roster_strangers_are_never_taken_and_a_flood_is_c
     try:
         wait_for(lambda: len(node.rows) >= 5, 20, "the island to run")
         rsession.put("hysid/c1/control", coordinator.control())
-        sender.put("hysid/c1/migrants/stranger", encode_migrants(Migrants("c1", "stranger", stranger.run, 1, truth[None, :], np.array([0.0]), time.time()), stranger))
+        sender.put(
+            "hysid/c1/migrants/stranger", encode_migrants(Migrants("c1", "stranger", stranger.run, 1, truth[None, :], np.array([0.0]), time.time()), stranger)
+        )
         sender.put("hysid/c1/migrants/late", encode_migrants(Migrants("c1", "late", late.run, 1, truth[None, :], np.array([0.0]), time.time()), late))
         rows = len(node.rows)
         wait_for(lambda: len(node.rows) >= rows + 20, 20, "several epochs before the roster lists it")

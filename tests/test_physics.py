@@ -75,12 +75,14 @@ def test_closed_form_force_drives_eq_4_4_into_the_prescribed_motion(freq_hz, x0)
 
 def test_closed_form_force_by_rk4_periodic_steady_state():
     """The same check by :func:`periodic_steady_state` (in phase, from rest) for better damped oscillators."""
-    cases = np.array([  # xi, wn (rad/s), w/wn, X0 (m)
-        [0.15, 200.0, 0.8, 0.5e-3],
-        [0.20, 150.0, 1.0, 1.0e-3],
-        [0.20, 180.0, 1.3, 1.5e-3],
-        [0.25, 190.0, 1.15, 2.0e-3],
-    ]).T
+    cases = np.array(
+        [  # xi, wn (rad/s), w/wn, X0 (m)
+            [0.15, 200.0, 0.8, 0.5e-3],
+            [0.20, 150.0, 1.0, 1.0e-3],
+            [0.20, 180.0, 1.3, 1.5e-3],
+            [0.25, 190.0, 1.15, 2.0e-3],
+        ]
+    ).T
     xi, wn, x0 = cases[0], cases[1], cases[3]
     w = wn * cases[2]
     params = {"xi0": xi, "S_xi": 0.0, "w0": wn, "S_w": 0.0}
@@ -117,11 +119,13 @@ def test_objective_agrees_with_the_thesis_erreval():
     port = ThesisObjective(loops, obj.model)
     rng = np.random.default_rng(11)
     low, span = obj.bounds[:, 0], obj.bounds[:, 1] - obj.bounds[:, 0]
-    pop = np.vstack([
-        low + span * rng.random((5, 4)),  # anywhere in Table 5.4's bounds
-        TRUTH * (1.0 + 0.05 * rng.standard_normal((3, 4))),  # near the optimum
-        TRUTH * (1.0 + 0.01 * rng.standard_normal((2, 4))),
-    ])
+    pop = np.vstack(
+        [
+            low + span * rng.random((5, 4)),  # anywhere in Table 5.4's bounds
+            TRUTH * (1.0 + 0.05 * rng.standard_normal((3, 4))),  # near the optimum
+            TRUTH * (1.0 + 0.01 * rng.standard_normal((2, 4))),
+        ]
+    )
     thesis = port(pop)
     hysid_all = obj(pop)
     for theta, f_thesis, f_all in zip(pop, thesis, hysid_all):

@@ -14,8 +14,8 @@ from hysid.cli import main
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.errors import HysidWarning
 from hysid_model.synth import RawRecord
-
 from support import DAMPER as REAL
+
 FS = 4096.7
 
 
@@ -104,12 +104,17 @@ def test_swapped_displacement_and_force_columns_warn(tmp_path):
     rec = shaker("run", 10.0, 2e-3)
     d = write_dataset(tmp_path / "d", [RawRecord("run", 10.0, 2e-3, rec.t, rec.force, rec.x, 0.0)])
     _, messages = loads(d)
-    assert any("displacement and force look swapped in run (X0 = " in m and 'set displacement_channel = "force_n", displacement_unit = "m", '
-               'force_channel = "displacement_m" and force_unit = "N" in dataset.toml' in m for m in messages)
+    assert any(
+        "displacement and force look swapped in run (X0 = " in m
+        and 'set displacement_channel = "force_n", displacement_unit = "m", force_channel = "displacement_m" and force_unit = "N" in dataset.toml' in m
+        for m in messages
+    )
     metres = write_dataset(tmp_path / "m", [RawRecord("run", 10.0, 2e-3, rec.t, rec.x * 1e3, rec.force, 0.0)])
     _, messages = loads(metres)
-    assert any("the displacement moves as no rig does in run (peak velocity 126 m/s)" in m and "X0 up to 2 m" in m
-               and "mm under its m header? x 0.001 (mm)" in m for m in messages)
+    assert any(
+        "the displacement moves as no rig does in run (peak velocity 126 m/s)" in m and "X0 up to 2 m" in m and "mm under its m header? x 0.001 (mm)" in m
+        for m in messages
+    )
     assert not any("look swapped" in m for m in messages)
 
 
@@ -188,6 +193,7 @@ def test_columns_swapped_with_plausible_magnitudes_are_named_from_the_energy_and
 def test_columns_swapped_on_a_friction_specimen_are_named_from_the_harmonics(tmp_path):
     """A friction damper's force is square-ish and the shaker's displacement a clean sine; swapped, the 'displacement'
     carries the force's harmonics."""
+
     def friction(label, freq, seed):
         rng = np.random.default_rng(seed)
         t = np.arange(int(10 / freq * FS)) / FS
@@ -195,6 +201,7 @@ def test_columns_swapped_on_a_friction_specimen_are_named_from_the_harmonics(tmp
         x = 2e-3 * np.sin(theta)
         force = 300.0 * np.tanh(np.cos(theta) / 0.05) + 1e4 * x
         return RawRecord(label, freq, 2e-3, t, force * 1e-5 + 1e-7 * rng.standard_normal(t.size), x * 1e5, 0.0)
+
     _, messages = loads(write_dataset(tmp_path / "d", [friction(f"r{k}", f, k) for k, f in enumerate((2.0, 4.0, 8.0))]))
     found = physics_messages(messages)
     assert len(found) == 1 and "displacement and force look swapped" in found[0]

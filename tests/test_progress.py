@@ -14,7 +14,8 @@ from hysid.cli import main
 from hysid.cli.progress import PLAIN_STEPS, Progress
 from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT, Tally
 from hysid.report import jsondoc
-from support import hysid as hysid_argv, screen_of
+from support import hysid as hysid_argv
+from support import screen_of
 
 SMALL = ["--islands", "2", "--population", "20", "--initial", "40", "--iterations", "10"]
 PLAIN = re.compile(r"(\w+): (\d+)% \((\d+)/(\d+)\), (\d+:\d\d) elapsed(, about \d+:\d\d left)?(; .*)?")
@@ -95,8 +96,11 @@ def test_diagnose_reports_each_fit_without_changing_the_result():
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "argv, label, total",
-    [(["fit", "synth", "--runs", "2"], "fitting", "/38"), (["campaign", "--single-node", *SMALL], "campaign", "/20"),
-     (["diagnose", "synth", "--points", "30"], "diagnosing", "/")],
+    [
+        (["fit", "synth", "--runs", "2"], "fitting", "/38"),
+        (["campaign", "--single-node", *SMALL], "campaign", "/20"),
+        (["diagnose", "synth", "--points", "30"], "diagnosing", "/"),
+    ],
 )
 def test_a_bar_with_an_eta_on_a_terminal(argv, label, total, tmp_path):
     code, screen = screen_of(hysid_argv(*argv, "--out", str(tmp_path / "o")), 300)

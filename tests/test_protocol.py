@@ -11,7 +11,6 @@ import pytest
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
-from island.migration import Migration, in_neighbours
 from island.handshake import (
     JoinRequest,
     Proof,
@@ -25,6 +24,7 @@ from island.handshake import (
     encode_prove,
     proof_holds,
 )
+from island.migration import Migration, in_neighbours
 from island.protocol import (
     Best,
     Control,
@@ -45,8 +45,8 @@ from island.protocol import (
     encode_migrants,
     encode_signed_config,
 )
-from island.secret import CampaignSecret
 from island.sealing import Credentials, ReplayGuard, check_replay, new_key, public_key, seal
+from island.secret import CampaignSecret
 from island.wire import MAX_BYTES, PROTOCOL_VERSION, MessageRejected, pack_array
 
 BOUNDS = np.array([[0.0, 0.1], [-10.0, 10.0], [100.0, 500.0], [-1e4, 1e4]])
@@ -75,8 +75,18 @@ ENVELOPE = ("v", "type", "campaign", "island", "run", "seq")
 
 def raw(msg_type: str = "migrants", **fields) -> bytes:
     """A migrant message of ga-0, correctly tagged, with any envelope or body field replaced (``...``: left out)."""
-    base = {"v": PROTOCOL_VERSION, "type": msg_type, "campaign": "c1", "island": "ga-0", "run": "r1", "seq": 0, "iteration": 3,
-            "x": pack_array(X), "claimed": pack_array(np.array([0.1, 0.2])), "sent_at": NOW}
+    base = {
+        "v": PROTOCOL_VERSION,
+        "type": msg_type,
+        "campaign": "c1",
+        "island": "ga-0",
+        "run": "r1",
+        "seq": 0,
+        "iteration": 3,
+        "x": pack_array(X),
+        "claimed": pack_array(np.array([0.1, 0.2])),
+        "sent_at": NOW,
+    }
     base.update(fields)
     body = {k: v for k, v in base.items() if k not in ENVELOPE and v is not ...}
     packed_body = msgpack.packb(body, use_bin_type=True)
@@ -213,9 +223,16 @@ def test_rejection_is_a_one_line_hysid_input_error():
 
 def history(**change) -> History:
     fields = dict(
-        campaign="c1", island="pso-1", run="r9", algo="pso", seed=4,
-        rows=np.array([[0, 5.0, 100, 0.1], [1, 2.0, 200, 0.2]]), best_x=X[0], best_f=2.0,
-        stats={"sent": 1, "received": 2, "taken": 1, "rejected": 0}, final=True,
+        campaign="c1",
+        island="pso-1",
+        run="r9",
+        algo="pso",
+        seed=4,
+        rows=np.array([[0, 5.0, 100, 0.1], [1, 2.0, 200, 0.2]]),
+        best_x=X[0],
+        best_f=2.0,
+        stats={"sent": 1, "received": 2, "taken": 1, "rejected": 0},
+        final=True,
     )
     fields.update(change)
     return History(**fields)
@@ -264,8 +281,16 @@ def test_history_allows_an_infinite_best_only_before_the_first_row_and_no_nan_or
 def test_hostile_history_values_are_rejected_not_raised(change, expected):
     data = encode_history(history(**change), PSO1) if "stats" not in change and "seed" not in change else None
     if data is None:  # values the encoder itself would refuse: build the body by hand
-        fields = {"algo": "pso", "seed": 4, "rows": pack_array(np.array([[0, 5.0, 100, 0.1]])), "best_x": pack_array(X[0]),
-                  "best_f": 2.0, "stats": {"sent": 1, "received": 2, "taken": 1, "rejected": 0}, "final": True, **change}
+        fields = {
+            "algo": "pso",
+            "seed": 4,
+            "rows": pack_array(np.array([[0, 5.0, 100, 0.1]])),
+            "best_x": pack_array(X[0]),
+            "best_f": 2.0,
+            "stats": {"sent": 1, "received": 2, "taken": 1, "rejected": 0},
+            "final": True,
+            **change,
+        }
         data = seal("history", "c1", "pso-1", "r9", 0, fields, PSO1.key)
     with pytest.raises(MessageRejected) as info:
         decode_history(data, "c1", BOUNDS, key_for=run_key, sender="pso-1")
@@ -274,15 +299,20 @@ def test_hostile_history_values_are_rejected_not_raised(change, expected):
 
 def test_history_of_a_run_that_never_joined_is_rejected():
     with pytest.raises(MessageRejected, match="unjoined"):
-        decode_history(encode_history(history(island="ghost", run="g1"), Credentials("ghost", "g1", new_key(), SECRET.coordinator)),
-                       "c1", BOUNDS, key_for=run_key)
+        decode_history(
+            encode_history(history(island="ghost", run="g1"), Credentials("ghost", "g1", new_key(), SECRET.coordinator)), "c1", BOUNDS, key_for=run_key
+        )
 
 
 def test_config_round_trip_carries_the_loop_set_and_settings():
     loops = synth_loops(noise_pct=1.0, seed=3, n_points=20)
     config = CampaignConfig(
-        name="c1", bounds={"xi0": (0.0, 0.1)}, algos=["pso"], options={"pso": {"population": 10, "iterations": 3}},
-        migration=Migration(interval=2, k=3, topology="random", random_k=1), seed=7,
+        name="c1",
+        bounds={"xi0": (0.0, 0.1)},
+        algos=["pso"],
+        options={"pso": {"population": 10, "iterations": 3}},
+        migration=Migration(interval=2, k=3, topology="random", random_k=1),
+        seed=7,
     )
     got, got_loops = decode_config(encode_config(config, loops), "c1")
     assert got.as_dict() == config.as_dict()
@@ -327,8 +357,9 @@ def test_best_and_stop_round_trip_and_validate():
         decode_best(encode_best(Best("c1", "ga-0", X[0], np.nan), "coord", COORDINATOR_KEY), "c1", BOUNDS, SECRET.coordinator)
     with pytest.raises(MessageRejected, match="forged"):  # a best from anyone but the coordinator
         decode_best(encode_best(Best("c1", "ga-0", X[0], 1e-9), "coord", GA0.key), "c1", BOUNDS, SECRET.coordinator)
-    control = Control("c1", (MemberState("ga-0", "r1", True, 41, "ga", GA0.public), MemberState("pso-1", "r9", False, -1, "pso", PSO1.public)),
-                      "budget spent", 5)
+    control = Control(
+        "c1", (MemberState("ga-0", "r1", True, 41, "ga", GA0.public), MemberState("pso-1", "r9", False, -1, "pso", PSO1.public)), "budget spent", 5
+    )
     message = encode_control(control, "coord", COORDINATOR_KEY)
     assert decode_control(message, "c1", SECRET.coordinator) == control
     with pytest.raises(MessageRejected):
@@ -352,8 +383,9 @@ def test_join_handshake_is_a_challenge_response_that_proves_the_secret_without_s
     assert decode_join(encode_join(request), "c1", sender="ga-0") == request == decode_join_step(encode_join(request), "c1", "ga-0")
     with pytest.raises(MessageRejected, match="sender"):
         decode_join(encode_join(request), "c1", sender="pso-1")
-    challenge = decode_challenge(encode_challenge("c1", "ga-0", request.nonce, b"c" * 16, "coord", COORDINATOR_KEY), "c1", "ga-0",
-                                 request.nonce, SECRET.coordinator)
+    challenge = decode_challenge(
+        encode_challenge("c1", "ga-0", request.nonce, b"c" * 16, "coord", COORDINATOR_KEY), "c1", "ga-0", request.nonce, SECRET.coordinator
+    )
     with pytest.raises(MessageRejected, match="forged"):  # a stranger answering the request
         decode_challenge(encode_challenge("c1", "ga-0", request.nonce, b"c" * 16, "coord", new_key()), "c1", "ga-0", request.nonce, SECRET.coordinator)
     with pytest.raises(MessageRejected, match="replay"):  # the answer to another request
@@ -371,8 +403,9 @@ def test_join_handshake_is_a_challenge_response_that_proves_the_secret_without_s
     with pytest.raises(MessageRejected, match="forged"):  # credentials from a stranger posing as the coordinator
         decode_joined(encode_joined("c1", request.nonce, "ga-0", "r1", "coord", new_key()), "c1", "ga-0", request.nonce, SECRET.coordinator)
     with pytest.raises(HysidInputError, match="refused island 'ga-0': id taken"):
-        decode_joined(encode_joined("c1", request.nonce, "ga-0", "x", "coord", COORDINATOR_KEY, refused="id taken"), "c1", "ga-0", request.nonce,
-                      SECRET.coordinator)
+        decode_joined(
+            encode_joined("c1", request.nonce, "ga-0", "x", "coord", COORDINATOR_KEY, refused="id taken"), "c1", "ga-0", request.nonce, SECRET.coordinator
+        )
 
 
 def test_history_queries_are_taken_only_with_the_coordinators_signature():
@@ -390,8 +423,12 @@ def test_the_campaign_secret_round_trips_as_one_line_and_bad_ones_are_one_line_e
     path = SECRET.write(tmp_path / "c.secret")
     assert oct(path.stat().st_mode & 0o777) == "0o600" and len(path.read_text().splitlines()) == 1
     assert CampaignSecret.read(path) == SECRET == CampaignSecret.parse(SECRET.text(), "env")
-    for text, words in (("", "not a hysid campaign secret"), ("hysid-secret 9 c1 00 00", "format '9'"), (SECRET.text()[:-2], "32 bytes"),
-                        (SECRET.text().replace(" c1 ", " a/b "), "no valid campaign")):
+    for text, words in (
+        ("", "not a hysid campaign secret"),
+        ("hysid-secret 9 c1 00 00", "format '9'"),
+        (SECRET.text()[:-2], "32 bytes"),
+        (SECRET.text().replace(" c1 ", " a/b "), "no valid campaign"),
+    ):
         with pytest.raises(HysidInputError, match=words):
             CampaignSecret.parse(text, "env")
     with pytest.raises(HysidInputError, match="campaign 'c1''s, not 'c2''s"):
@@ -404,8 +441,14 @@ def test_config_with_hostile_metadata_or_labels_is_rejected():
     nested: list = []
     for _ in range(60):
         nested = [nested]
-    for change in ({"meta": {"deep": nested}}, {"labels": [nested] * loops.n_loops}, {"meq_kg": float("nan")},
-                   {"meq_kg": 2**64 - 1}, {"cycles": [2**64 - 1] * loops.n_loops}, {"meta": {"x": float("inf")}}):
+    for change in (
+        {"meta": {"deep": nested}},
+        {"labels": [nested] * loops.n_loops},
+        {"meq_kg": float("nan")},
+        {"meq_kg": 2**64 - 1},
+        {"cycles": [2**64 - 1] * loops.n_loops},
+        {"meta": {"x": float("inf")}},
+    ):
         data = msgpack.unpackb(msgpack.packb(good))
         data["loops"].update(change)
         with pytest.raises(MessageRejected):

@@ -9,7 +9,8 @@ import pytest
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS
 from island.pso import PSO, bounded_move, constriction
-from support import PSO_SMALL as SMALL, ask_sizes, drive, polished_to_truth
+from support import PSO_SMALL as SMALL
+from support import ask_sizes, drive, polished_to_truth
 
 
 def initialised(model, objective, **options):
@@ -21,7 +22,7 @@ def initialised(model, objective, **options):
 
 def test_constriction_factor_eq_3_8():
     assert constriction(2.05, 2.05) == pytest.approx(0.729843788, abs=1e-9)
-    assert PSO(np.array([[0.0, 1.0]]), 0).K == pytest.approx(0.7298, abs=5e-5)
+    assert pytest.approx(0.7298, abs=5e-5) == PSO(np.array([[0.0, 1.0]]), 0).K
     with pytest.raises(HysidInputError, match="exceed 4"):
         PSO(np.array([[0.0, 1.0]]), 0, phi1=2.0, phi2=2.0)
 
@@ -129,7 +130,7 @@ def test_additional_population_updates_pg_and_with_a_ring_the_best_particle(synt
     f[4] = -1.0
     pso.tell(extra, f)
     assert np.array_equal(pso.Pg, extra[4]) and pso.Pgf == -1.0 and pso.iteration == 1
-    in_swarm = np.all(pso.P == extra[4], axis=1)
+    in_swarm = np.all(extra[4] == pso.P, axis=1)
     if neighbourhood == "ring":  # the neighbourhoods can only see it through a personal best
         assert np.flatnonzero(in_swarm).tolist() == [best_particle] and pso.Pf[best_particle] == -1.0
     else:  # the thesis' global PSO only moves Pg

@@ -17,7 +17,6 @@ from hysid_model.readers.dataset_dir import read_config
 from hysid_model.readers.lvm import read_lvm
 from hysid_model.readers.tidy import read_loops, write_loops
 from hysid_model.synth import AMPLITUDES_M, FREQUENCIES_HZ, MEQ_KG, RawRecord, synth_loops
-
 from support import DAMPER as REAL
 
 
@@ -139,13 +138,32 @@ def lvm_text(t, x_mm, force, *, x_columns: str = "One", decimal: str = ".", name
     def per_channel(a: str, b: str) -> str:  # with X_Columns Multi every channel takes two cells
         return f"{a}\t\t{b}\t" if x_columns == "Multi" else f"{a}\t{b}\t"
 
-    head = ["LabVIEW Measurement\t", "Writer_Version\t2", "Reader_Version\t2", "Separator\tTab", f"Decimal_Separator\t{decimal}",
-            "Multi_Headings\tNo", f"X_Columns\t{x_columns}", "Time_Pref\tRelative", "Operator\ttest", "Date\t2006/05/01",
-            "Time\t12:00:00", "***End_of_Header***\t", "\t"]
+    head = [
+        "LabVIEW Measurement\t",
+        "Writer_Version\t2",
+        "Reader_Version\t2",
+        "Separator\tTab",
+        f"Decimal_Separator\t{decimal}",
+        "Multi_Headings\tNo",
+        f"X_Columns\t{x_columns}",
+        "Time_Pref\tRelative",
+        "Operator\ttest",
+        "Date\t2006/05/01",
+        "Time\t12:00:00",
+        "***End_of_Header***\t",
+        "\t",
+    ]
     n = len(t)
     dx = num(t[1] - t[0])
-    seg = ["Channels\t2\t\t", f"Samples\t{per_channel(n, n)}", f"Y_Unit_Label\t{per_channel(*units)}", f"X_Dimension\t{per_channel('Time', 'Time')}",
-           f"X0\t{per_channel(num(t[0]), num(t[0]))}", f"Delta_X\t{per_channel(dx, dx)}", "***End_of_Header***\t\t\t"]
+    seg = [
+        "Channels\t2\t\t",
+        f"Samples\t{per_channel(n, n)}",
+        f"Y_Unit_Label\t{per_channel(*units)}",
+        f"X_Dimension\t{per_channel('Time', 'Time')}",
+        f"X0\t{per_channel(num(t[0]), num(t[0]))}",
+        f"Delta_X\t{per_channel(dx, dx)}",
+        "***End_of_Header***\t\t\t",
+    ]
     if x_columns == "Multi":
         seg.append(f"X_Value\t{names[0]}\tX_Value\t{names[1]}\tComment")
         rows = [f"{num(a)}\t{num(b)}\t{num(a)}\t{num(c)}" for a, b, c in zip(t, x_mm, force)]

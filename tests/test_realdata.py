@@ -13,31 +13,31 @@ import hysid
 from hysid.cli import main
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
+from hysid_model.objective import Objective
 from hysid_model.problem import prepare_model
 from hysid_model.survey import survey
 from hysid_model.synth import TRUE_PARAMS
-from hysid_model.objective import Objective
-from support import GA_SMALL
+from support import DAMPER, GA_SMALL
 
-from support import DAMPER
 SURVEY_KEYS = {"k_dyn", "c_eq", "loss_factor", "energy_per_cycle", "k_secant", "fn_hz", "xi"}
 POINTS = 40
 
 
-def branches(model, theta: np.ndarray, freqs: np.ndarray, amps: np.ndarray, noise_pct: float = 0.0, seed: int = 0,
-             meq: float | None = None) -> LoopSet:
+def branches(model, theta: np.ndarray, freqs: np.ndarray, amps: np.ndarray, noise_pct: float = 0.0, seed: int = 0, meq: float | None = None) -> LoopSet:
     """Loops of any model on the ideal sine (its force on each branch as the objective sees it), with force
     noise of ``noise_pct`` % of each loop's peak force."""
     f, a = (g.reshape(-1) for g in np.meshgrid(freqs, amps))
     x = np.linspace(-1.0, 1.0, POINTS)
     pack = lambda part: np.stack([np.column_stack([x * ai, fi]) for ai, fi in zip(a, part)])
-    empty = LoopSet(name="specimen", freq_hz=f, x0=a, top=pack(np.zeros((f.size, POINTS))), bottom=pack(np.zeros((f.size, POINTS))),
-                    sigma=np.ones(f.size), meq_kg=meq)
+    empty = LoopSet(
+        name="specimen", freq_hz=f, x0=a, top=pack(np.zeros((f.size, POINTS))), bottom=pack(np.zeros((f.size, POINTS))), sigma=np.ones(f.size), meq_kg=meq
+    )
     force = Objective(empty, model, weights="ml").predict(theta)[0]
     sigma = noise_pct / 100.0 * np.abs(force).max(axis=1)
     force = force + sigma[:, None] * np.random.default_rng(seed).standard_normal(force.shape)
-    return LoopSet(name="specimen", freq_hz=f, x0=a, top=pack(force[:, :POINTS]), bottom=pack(force[:, POINTS:]),
-                   sigma=np.where(sigma > 0, sigma, np.nan), meq_kg=meq)
+    return LoopSet(
+        name="specimen", freq_hz=f, x0=a, top=pack(force[:, :POINTS]), bottom=pack(force[:, POINTS:]), sigma=np.where(sigma > 0, sigma, np.nan), meq_kg=meq
+    )
 
 
 ISOLATOR_FREQS = np.linspace(6.0, 20.0, 8)
@@ -77,7 +77,7 @@ def test_the_survey_of_a_linear_specimen_is_its_physics(tmp_path, capsys):
     data = write_dataset(tmp_path / "d", loops)
     assert main(["loops", str(data), "--json", "--out", str(tmp_path / "out")]) == 0
     rows = json.loads(capsys.readouterr().out)
-    assert all(SURVEY_KEYS <= set(r) for r in rows) and rows[0]["fn_hz"] == pytest.approx(12.0, rel=1e-6)
+    assert all(set(r) >= SURVEY_KEYS for r in rows) and rows[0]["fn_hz"] == pytest.approx(12.0, rel=1e-6)
     assert (tmp_path / "out" / "survey.png").stat().st_size > 20_000
     assert json.loads((tmp_path / "out" / "loops.json").read_text())["mass"] == "estimated"
 
@@ -165,7 +165,8 @@ def test_bounds_and_known_values_from_the_command_line_are_hard(tmp_path, capsys
     doc = json.loads(capsys.readouterr().out)
     assert doc["final_bounds"]["w0"] == [100.0, 500.0] and "w0" not in doc["bounds_from_data"] and "xi0" in doc["bounds_from_data"]
     for flag, bad, says in [
-        ("--bound", "w0=500:100", "--bound w0: lower bound 500"), ("--bound", "w0", "give NAME=LOWER:UPPER"),
+        ("--bound", "w0=500:100", "--bound w0: lower bound 500"),
+        ("--bound", "w0", "give NAME=LOWER:UPPER"),
         ("--bound", "nope=1:2", "unknown parameter 'nope'"),
         ("--bound", "xi0=-1:0.5", "--bound xi0: bounds -1:0.5 reach outside the physical range [0, inf) of damping ratio"),
         ("--fix", "meq=-1", "meq: -1 kg is outside the physical range [0, inf) of equivalent mass"),
@@ -320,9 +321,14 @@ def test_a_campaign_and_a_diagnosis_say_what_one_amplitude_cannot_tell():
 def test_the_gap_is_held_against_a_linear_fit_per_loop_and_the_repeatability():
     loops, _ = isolator(noise_pct=2.0, hidden={"coulomb_friction": {"F_d": 0.3}})
     again, _ = isolator(noise_pct=2.0, seed=1, hidden={"coulomb_friction": {"F_d": 0.3}})
-    both = LoopSet(name="repeated", freq_hz=np.concatenate([loops.freq_hz, again.freq_hz]), x0=np.concatenate([loops.x0, again.x0]),
-                   top=np.concatenate([loops.top, again.top]), bottom=np.concatenate([loops.bottom, again.bottom]),
-                   sigma=np.concatenate([loops.sigma, again.sigma]))
+    both = LoopSet(
+        name="repeated",
+        freq_hz=np.concatenate([loops.freq_hz, again.freq_hz]),
+        x0=np.concatenate([loops.x0, again.x0]),
+        top=np.concatenate([loops.top, again.top]),
+        bottom=np.concatenate([loops.bottom, again.bottom]),
+        sigma=np.concatenate([loops.sigma, again.sigma]),
+    )
     diagnosis = hysid.diagnose(both, "baseline", cross_validate=False)
     ref = diagnosis.to_dict()["references"]
     assert ref["repeated_loops"] == both.n_loops and 0.8 < ref["repeatability"] < 1.2  # only noise differs between repeats
@@ -343,8 +349,7 @@ def test_a_specimen_far_from_the_thesis_gets_the_diagnosis_of_the_same_physics_a
             else:
                 w0, amps = 2 * math.pi * 30.0, np.array([0.5e-3, 1.0e-3, 1.5e-3])
                 model = build_model("thesis+coulomb_friction").fix(meq=0.04)
-                values = {"xi0": 0.5, "S_xi": 0.0, "w0": w0, "S_w": (math.sqrt(0.6) - 1.0) * w0 / amps[-1],
-                          "F_d": 0.15 * 0.04 * w0**2 * 0.5e-3}
+                values = {"xi0": 0.5, "S_xi": 0.0, "w0": w0, "S_w": (math.sqrt(0.6) - 1.0) * w0 / amps[-1], "F_d": 0.15 * 0.04 * w0**2 * 0.5e-3}
                 loops = branches(model, model.from_dict(values), np.linspace(6.0, 20.0, 8) * 2.5, amps, 1.0, seed)
             diagnosis = hysid.diagnose(loops, "baseline", cross_validate=False)
             results.append((tuple(s.effect for s in diagnosis.steps), diagnosis.status))

@@ -6,8 +6,8 @@ each format must give the same loops as the plain CSV record of the same samples
 from __future__ import annotations
 
 import json
-import warnings
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -60,14 +60,17 @@ def test_tab_separated_csv_with_unit_suffixes_is_converted(tmp_path, reference):
     same_loops(load_dataset(csv_dataset(tmp_path / "units", write)), reference)
 
 
-@pytest.mark.parametrize("header, scale", [
-    ("Time [s],Displacement [mm],Force [N]", (1.0, 1e3, 1.0)),
-    ("Time (s),Position (mm),Load (kN)", (1.0, 1e3, 1e-3)),
-    ("t/s,x/m,F/N", (1.0, 1.0, 1.0)),
-    ("TIME;DISP_MM;FORCE_N", (1.0, 1e3, 1.0)),
-    ("Zeit [ms],Weg [mm],Kraft [N]", (1e3, 1e3, 1.0)),
-    ("time s,disp_m,load_N", (1.0, 1.0, 1.0)),
-])
+@pytest.mark.parametrize(
+    "header, scale",
+    [
+        ("Time [s],Displacement [mm],Force [N]", (1.0, 1e3, 1.0)),
+        ("Time (s),Position (mm),Load (kN)", (1.0, 1e3, 1e-3)),
+        ("t/s,x/m,F/N", (1.0, 1.0, 1.0)),
+        ("TIME;DISP_MM;FORCE_N", (1.0, 1e3, 1.0)),
+        ("Zeit [ms],Weg [mm],Kraft [N]", (1e3, 1e3, 1.0)),
+        ("time s,disp_m,load_N", (1.0, 1.0, 1.0)),
+    ],
+)
 def test_csv_headers_as_daq_software_writes_them(tmp_path, reference, header, scale):
     """Units in brackets, parentheses, after a slash, a space or an underscore; the usual words for each quantity."""
     delimiter = ";" if ";" in header else ","
@@ -97,7 +100,10 @@ def test_a_header_without_a_force_column_names_what_it_has_and_the_dataset_toml_
     path = tmp_path / "d" / "run.csv"
     path.parent.mkdir()
     path.write_text("Time [s],Displacement [mm],Frequency [Hz]\n0,1,10\n")
-    with pytest.raises(HysidInputError, match=r"missing column 'force_n'.*the header has: 'Time \[s\]', 'Displacement \[mm\]', 'Frequency \[Hz\]'.*force_channel in dataset.toml"):
+    with pytest.raises(
+        HysidInputError,
+        match=r"missing column 'force_n'.*the header has: 'Time \[s\]', 'Displacement \[mm\]', 'Frequency \[Hz\]'.*force_channel in dataset.toml",
+    ):
         load_dataset(path)
 
 
@@ -110,9 +116,9 @@ def test_frequencies_in_record_names_with_decimal_commas_and_p(name, hz):
 
 def test_csv_channels_and_units_named_in_dataset_toml(tmp_path, reference):
     """A header of the rig's own names, and the mm-under-_m slip fixed by declaring the unit."""
+
     def write(path: Path, rec: RawRecord) -> None:
-        np.savetxt(path, np.column_stack([rec.force / 1e3, rec.t, rec.x * 1e3]), delimiter=",", fmt="%.15g",
-                   header="Load,Zeit,displacement_m", comments="")
+        np.savetxt(path, np.column_stack([rec.force / 1e3, rec.t, rec.x * 1e3]), delimiter=",", fmt="%.15g", header="Load,Zeit,displacement_m", comments="")
 
     d = csv_dataset(tmp_path / "named", write)
     (d / "dataset.toml").write_text('time_channel = "zeit"\nforce_channel = "LOAD"\nforce_unit = "kN"\ndisplacement_unit = "mm"\n')
@@ -142,8 +148,13 @@ def test_tdms_records_read_like_csv_records(tmp_path, reference):
     same_loops(load_dataset(d), reference)
     nptdms = pytest.importorskip("nptdms")
     with nptdms.TdmsWriter(d / "run1.tdms") as writer:  # a name and a stated unit that disagree
-        writer.write_segment([nptdms.ChannelObject("g", "time_s", RECORDS[0].t), nptdms.ChannelObject("g", "force_n", RECORDS[0].force),
-                              nptdms.ChannelObject("g", "displacement_m", RECORDS[0].x * 1e3, properties={"unit_string": "mm"})])
+        writer.write_segment(
+            [
+                nptdms.ChannelObject("g", "time_s", RECORDS[0].t),
+                nptdms.ChannelObject("g", "force_n", RECORDS[0].force),
+                nptdms.ChannelObject("g", "displacement_m", RECORDS[0].x * 1e3, properties={"unit_string": "mm"}),
+            ]
+        )
     with pytest.raises(HysidInputError, match=r"run1.tdms: channel 'g/displacement_m' states the unit 'mm' but its name says m; set displacement_unit"):
         load_dataset(d)
     (d / "dataset.toml").write_text('displacement_unit = "mm"\n')
@@ -156,10 +167,12 @@ def test_a_single_tdms_file_with_channels_named_in_dataset_toml(tmp_path, refere
     d.mkdir()
     rec = RECORDS[0]
     with nptdms.TdmsWriter(d / "run1.tdms") as writer:
-        writer.write_segment([
-            nptdms.ChannelObject("Rig", "LVDT", rec.x / 0.0254, properties={"unit_string": "in"}),
-            nptdms.ChannelObject("Rig", "Load cell", rec.force),
-        ])
+        writer.write_segment(
+            [
+                nptdms.ChannelObject("Rig", "LVDT", rec.x / 0.0254, properties={"unit_string": "in"}),
+                nptdms.ChannelObject("Rig", "Load cell", rec.force),
+            ]
+        )
     (d / "dataset.toml").write_text('displacement_channel = "Rig/LVDT"\nforce_channel = "load cell"\nsample_rate_hz = 3000\n')
     same_loops(load_dataset(d / "run1.tdms"), reference.subset([0]))
     (d / "dataset.toml").write_text('displacement_channel = "LVDT"\nforce_channel = "load cell"\n')
@@ -196,10 +209,12 @@ def test_tdms_and_hdf5_channels_in_a_group_named_as_daq_software_names_them(tmp_
     d.mkdir()
     dt = float(RECORDS[0].t[1] - RECORDS[0].t[0])
     with nptdms.TdmsWriter(d / "run1.tdms") as writer:
-        writer.write_segment([
-            nptdms.ChannelObject("Messung", "Weg [mm]", RECORDS[0].x * 1e3, properties={"wf_increment": dt, "wf_start_offset": 0.0}),
-            nptdms.ChannelObject("Messung", "Kraft", RECORDS[0].force / 1e3, properties={"unit_string": "kN"}),
-        ])
+        writer.write_segment(
+            [
+                nptdms.ChannelObject("Messung", "Weg [mm]", RECORDS[0].x * 1e3, properties={"wf_increment": dt, "wf_start_offset": 0.0}),
+                nptdms.ChannelObject("Messung", "Kraft", RECORDS[0].force / 1e3, properties={"unit_string": "kN"}),
+            ]
+        )
     with h5py.File(d / "run2.h5", "w") as f:
         g = f.create_group("Messung")
         g["Zeit [s]"] = RECORDS[1].t

@@ -74,8 +74,10 @@ def test_a_stolen_run_key_numbering_2_63_cannot_take_a_victims_history_or_migran
     db = tmp_path / "rp.sqlite"
     captured: list[tuple[str, bytes]] = []
     thief = open_session(session_config("client", connect=[campaign.endpoint]), campaign.endpoint)  # another process' session, as it were
-    spies = [thief.declare_subscriber(f"hysid/rp/{kind}/victim", lambda s, kind=kind: captured.append((kind, s.payload.to_bytes())))
-             for kind in ("history", "migrants")]
+    spies = [
+        thief.declare_subscriber(f"hysid/rp/{kind}/victim", lambda s, kind=kind: captured.append((kind, s.payload.to_bytes())))
+        for kind in ("history", "migrants")
+    ]
     nodes = [IslandNode(name, "pso", seed, cfg, cfg.objective(LOOPS), history_every_s=0.05) for name, seed in (("victim", 1), ("other", 2))]
     transports: list[ZenohTransport] = []
     ready = threading.Barrier(3)
@@ -95,19 +97,20 @@ def test_a_stolen_run_key_numbering_2_63_cannot_take_a_victims_history_or_migran
     try:
         ready.wait(30)
         victim, other = nodes
-        wait_for(lambda: victim.stats["sent"] > 5 and other.stats["received"] > 5 and sum(k == "migrants" for k, _ in captured) > 20, 60,
-                 "the islands to migrate")
+        wait_for(
+            lambda: victim.stats["sent"] > 5 and other.stats["received"] > 5 and sum(k == "migrants" for k, _ in captured) > 20, 60, "the islands to migrate"
+        )
         replays = captured[:200]  # the victim's own, before the thief publishes (its own messages come back to its subscribers)
         stolen = victim.credentials
         x, f = victim._snapshot
-        thief.put("hysid/rp/history/victim", encode_history(History("rp", "victim", stolen.run, "pso", 1, np.zeros((0, 4)), x, f, STATS,
-                                                                    seq=2**63 - 1), stolen))
-        thief.put("hysid/rp/migrants/victim", encode_migrants(Migrants("rp", "victim", stolen.run, 2, x[None, :], np.zeros(1), time.time(), 2**63 - 1),
-                                                              stolen))
+        thief.put(
+            "hysid/rp/history/victim", encode_history(History("rp", "victim", stolen.run, "pso", 1, np.zeros((0, 4)), x, f, STATS, seq=2**63 - 1), stolen)
+        )
+        thief.put("hysid/rp/migrants/victim", encode_migrants(Migrants("rp", "victim", stolen.run, 2, x[None, :], np.zeros(1), time.time(), 2**63 - 1), stolen))
         for kind, payload in replays:
             thief.put(f"hysid/rp/{kind}/victim", payload)
         histories = sum(kind == "history" for kind, _ in replays)  # (a replayed migrant message may be superseded in the inbox instead)
-        reasons = lambda: dict(query(db, "SELECT reason, sum(n) FROM rejected GROUP BY reason"))  # noqa: E731
+        reasons = lambda: dict(query(db, "SELECT reason, sum(n) FROM rejected GROUP BY reason"))
         wait_for(lambda: reasons().get("replay", 0) >= histories, 60, "the coordinator to refuse the replays")
         assert reasons()["ahead"] == 2
         received, rows = other.stats["received"], victim.rows[-1][0]

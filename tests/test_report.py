@@ -45,8 +45,14 @@ def test_report_files_are_written(report_dir):
 def test_report_tells_parameters_amplitudes_half_power_and_runs(report_dir):
     _, path, result = report_dir
     text = path.read_text()
-    for heading in ("## Parameters", "## Damping ratio and natural frequency at each amplitude",
-                    "## Half-power cross-check of the damping (Eq. 2.7)", "## Runs", "## Model vs measured loops", "## Residuals"):
+    for heading in (
+        "## Parameters",
+        "## Damping ratio and natural frequency at each amplitude",
+        "## Half-power cross-check of the damping (Eq. 2.7)",
+        "## Runs",
+        "## Model vs measured loops",
+        "## Residuals",
+    ):
         assert heading in text
     for name in result.model.names:
         assert f"| `{name}` |" in text

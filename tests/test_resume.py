@@ -54,8 +54,7 @@ def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own
     survivors, and the campaign ends by its evaluation budget with the right answer."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "r.sqlite"
     budget = 400_000
-    first = start_coordinator(spawn, endpoint, "back", db, tmp_path / "out1", "--algos", "ga,pso", *SMALL, "--min-islands", "3",
-                              "--evaluations", str(budget))
+    first = start_coordinator(spawn, endpoint, "back", db, tmp_path / "out1", "--algos", "ga,pso", *SMALL, "--min-islands", "3", "--evaluations", str(budget))
     islands = {name: start_island(spawn, endpoint, "back", name, db, "--wait", "60") for name in ("a", "b", "c")}
     wait_for(lambda: all(rows_of(db, n) > 30 for n in islands), 90, "every island's history")
     first.send_signal(signal.SIGKILL)
@@ -128,8 +127,9 @@ def test_mixed_islands_with_an_evaluation_budget_all_search_until_the_coordinato
     """GA islands iterate many times faster than PSO ones: with a budget in evaluations none stops on
     its own iteration budget; every island searches, and migrates, until the coordinator's stop."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "m.sqlite"
-    coordinator = start_coordinator(spawn, endpoint, "mixed", db, tmp_path / "out", "--algos", "ga,pso", *SMALL, "--min-islands", "4",
-                                    "--evaluations", "120000")
+    coordinator = start_coordinator(
+        spawn, endpoint, "mixed", db, tmp_path / "out", "--algos", "ga,pso", *SMALL, "--min-islands", "4", "--evaluations", "120000"
+    )
     islands = [start_island(spawn, endpoint, "mixed", f"{algo}-{i}", db, "--algo", algo) for i, algo in enumerate(["ga", "pso", "ga", "pso"])]
     doc = finished(coordinator)
     assert doc["settings"]["stop_reason"] == "budget of 120,000 evaluations spent" and doc["settings"]["until_stopped"] is True

@@ -19,13 +19,13 @@ from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.algorithms import ALGORITHMS, ROLES, make_optimizer, switch_algorithm
 from island.config import CampaignConfig
 from island.ga import GA
+from island.memory import MemoryBus
 from island.migration import Migration
 from island.node import IslandNode
 from island.protocol import History, decode_control, decode_history, encode_history
 from island.pso import PSO
 from island.share import LEADING, WINDOW, Share, Staged, check_share
 from island.termination import Termination
-from island.memory import MemoryBus
 
 BOUNDS = np.array([[-5.0, 5.0]] * 4)
 SIZES = {"population": 10, "initial_population": 20, "iterations": 1000}
@@ -222,8 +222,9 @@ LOOPS = synth_loops(n_points=30)
 
 def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_the_roster(tmp_path):
     sizes = {"population": 10, "initial_population": 20}
-    config = CampaignConfig.create(LOOPS, name="c1", algos=["ga", "pso"], options={"ga": sizes, "pso": sizes}, migration=Migration(interval=5, k=2),
-                                   until_stopped=True, share="adaptive")
+    config = CampaignConfig.create(
+        LOOPS, name="c1", algos=["ga", "pso"], options={"ga": sizes, "pso": sizes}, migration=Migration(interval=5, k=2), until_stopped=True, share="adaptive"
+    )
     c = Coordinator(Store(tmp_path / "c.sqlite"), config, LOOPS, Termination(budget=10**6))
     link = MemoryLink(threading.Event())
     creds = {"ga-0": c.join("ga-0", "ga", 0), "pso-1": c.join("pso-1", "pso", 1)}
@@ -237,8 +238,23 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
         """Five iterations of honest rows (10 + 15 evaluations each) and the island's gain so far."""
         cred = creds[island]
         rows = [[i, f, 20 + 25 * i, 0.01 * i] for i in range(first, first + 5)]
-        payload = encode_history(History("c1", island, cred.run, algo, {"ga-0": 0, "pso-1": 1}[island], np.array(rows, dtype=float), x, f,
-                                         {"sent": 0, "received": 0, "taken": 0, "rejected": 0}, False, seq[island], gain), cred)
+        payload = encode_history(
+            History(
+                "c1",
+                island,
+                cred.run,
+                algo,
+                {"ga-0": 0, "pso-1": 1}[island],
+                np.array(rows, dtype=float),
+                x,
+                f,
+                {"sent": 0, "received": 0, "taken": 0, "rejected": 0},
+                False,
+                seq[island],
+                gain,
+            ),
+            cred,
+        )
         seq[island] += 1
         assert c.receive(f"hysid/c1/history/{island}", payload)
         pump(c, link, 5.0)
@@ -265,8 +281,9 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
 
 def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_it_can_still_move(tmp_path):
     sizes = {"population": 10, "initial_population": 20}
-    config = CampaignConfig.create(LOOPS, name="c2", algos=["ga", "pso"], options={"ga": sizes, "pso": sizes}, migration=Migration(interval=5, k=2),
-                                   until_stopped=True)  # the default share: staged, a survey of 5 iterations
+    config = CampaignConfig.create(
+        LOOPS, name="c2", algos=["ga", "pso"], options={"ga": sizes, "pso": sizes}, migration=Migration(interval=5, k=2), until_stopped=True
+    )  # the default share: staged, a survey of 5 iterations
     c = Coordinator(Store(tmp_path / "c.sqlite"), config, LOOPS, Termination(budget=10**6))
     link = MemoryLink(threading.Event())
     seeds = {"ga-0": 0, "pso-1": 1, "ga-2": 2, "ga-4": 4}
@@ -281,8 +298,23 @@ def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_i
         """Honest rows of iterations ``first..last`` (10 + 15 evaluations each); the runs moved so far."""
         cred = creds[island]
         rows = [[i, f, 20 + 25 * i, 0.01 * i] for i in range(first, last + 1)]
-        payload = encode_history(History("c2", island, cred.run, island[:-2], seeds[island], np.array(rows, dtype=float), x, f,
-                                         {"sent": 0, "received": 0, "taken": 0, "rejected": 0}, final, seq[island], 0.0), cred)
+        payload = encode_history(
+            History(
+                "c2",
+                island,
+                cred.run,
+                island[:-2],
+                seeds[island],
+                np.array(rows, dtype=float),
+                x,
+                f,
+                {"sent": 0, "received": 0, "taken": 0, "rejected": 0},
+                final,
+                seq[island],
+                0.0,
+            ),
+            cred,
+        )
         seq[island] += 1
         assert c.receive(f"hysid/c2/history/{island}", payload)
         pump(c, link, 5.0)
@@ -302,8 +334,12 @@ def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_i
 
 
 def test_an_island_told_another_algorithm_carries_its_search_on_with_it():
-    config = CampaignConfig(name="c1", algos=["ga", "pso"], options={a: {"population": 10, "initial_population": 20, "iterations": 40} for a in ("ga", "pso")},
-                            migration=Migration(interval=5, k=2))
+    config = CampaignConfig(
+        name="c1",
+        algos=["ga", "pso"],
+        options={a: {"population": 10, "initial_population": 20, "iterations": 40} for a in ("ga", "pso")},
+        migration=Migration(interval=5, k=2),
+    )
     delivered: list[bytes] = []
     told = {"ga-0": None}
     bus = MemoryBus("c1", ["ga-0"], lambda key, data: delivered.append(data) if "/history/" in key else None, threading.Event(), assigned=told.get)
@@ -332,8 +368,16 @@ def mixed_campaign(tmp_path, share: str, budget: int):
     loops = synth_loops()
     sizes = {"population": 20, "initial_population": 40}
     config = CampaignConfig.create(
-        loops, name=f"mixed-{share}", model="thesis+coulomb_friction", algos=["ga", "pso"], options={"ga": sizes, "pso": sizes},
-        migration=Migration(interval=5, k=2), seed=4, min_islands=4, until_stopped=True, share=share,
+        loops,
+        name=f"mixed-{share}",
+        model="thesis+coulomb_friction",
+        algos=["ga", "pso"],
+        options={"ga": sizes, "pso": sizes},
+        migration=Migration(interval=5, k=2),
+        seed=4,
+        min_islands=4,
+        until_stopped=True,
+        share=share,
     )
     config.start = None
     db = tmp_path / f"{share}.sqlite"
@@ -381,7 +425,11 @@ def test_a_staged_campaign_hands_its_ga_islands_over_to_pso_after_their_first_ro
     assert all(m["evaluations"] < 2_000 for m in moves), seen  # one round: every island's first migration interval
     assert {r["island"]: r["algo"] for r in outcome.islands} == dict.fromkeys(["island-0", "island-1", "island-2", "island-3"], "pso"), seen
     assert {r["island"]: r["algorithms"] for r in outcome.islands} == {  # the name never contradicts the algorithm: it is beside it
-        "island-0": ["ga", "pso"], "island-1": ["pso"], "island-2": ["ga", "pso"], "island-3": ["pso"]}
+        "island-0": ["ga", "pso"],
+        "island-1": ["pso"],
+        "island-2": ["ga", "pso"],
+        "island-3": ["pso"],
+    }
     summary = CampaignResult.from_database(db).summary()
     assert "share: staged, 2 island move(s) of the exploring algorithm (GA) to the converging one (PSO)" in summary
     assert re.search(r"\n  island-0 +GA -> PSO +seed 40 ", summary) and re.search(r"\n  island-1 +PSO +seed 41 ", summary)
@@ -392,19 +440,24 @@ def test_a_fixed_share_moves_nobody(tmp_path):
     assert outcome.settings["moves"] == [] and {r["algo"] for r in outcome.islands} == {"ga", "pso"}
 
 
-@pytest.mark.parametrize(("share", "interval", "why"), [
-    ("staged", 5, "none: no GA island searched its first migration interval (5 iterations) before it ended"),
-    ("staged", 0, "none: the islands were isolated (migration interval 0)"),
-    ("adaptive", 5, "none: each algorithm held its due share of the islands after every round"),
-])
+@pytest.mark.parametrize(
+    ("share", "interval", "why"),
+    [
+        ("staged", 5, "none: no GA island searched its first migration interval (5 iterations) before it ended"),
+        ("staged", 0, "none: the islands were isolated (migration interval 0)"),
+        ("adaptive", 5, "none: each algorithm held its due share of the islands after every round"),
+    ],
+)
 def test_a_share_that_moved_no_island_says_why(share, interval, why):
     from hysid.report.campaign_text import SHARE_RULES, share_lines
 
     settings = {"algos": ["ga", "pso"], "share": share, "moves": [], "migration": {"interval": interval, "k": 2}}
     lines = share_lines(settings)
     assert lines[0] == f"share: {share}, 0 island move(s) {SHARE_RULES[share]}" and lines[1].strip().startswith(why)
-    assert not any(line.strip().startswith("none:") for line in share_lines({**settings, "moves": [
-        {"island": "ga-0", "src": "ga", "dst": "pso", "evaluations": 100, "credit": {"ga": 0.1, "pso": 1.0}}]}))
+    assert not any(
+        line.strip().startswith("none:")
+        for line in share_lines({**settings, "moves": [{"island": "ga-0", "src": "ga", "dst": "pso", "evaluations": 100, "credit": {"ga": 0.1, "pso": 1.0}}]})
+    )
 
 
 def test_a_move_the_island_ended_before_hearing_is_reported_as_not_followed():

@@ -53,8 +53,9 @@ def test_the_delay_relay_holds_every_byte_for_its_delay_each_way() -> None:
 
     threading.Thread(target=serve, daemon=True).start()
     port = free_port()
-    relay = subprocess.Popen([sys.executable, "-m", "hysid.bench.relay", "127.0.0.1", str(port), "127.0.0.1", str(echo.getsockname()[1]), "50"],
-                             stdout=subprocess.PIPE, text=True)
+    relay = subprocess.Popen(
+        [sys.executable, "-m", "hysid.bench.relay", "127.0.0.1", str(port), "127.0.0.1", str(echo.getsockname()[1]), "50"], stdout=subprocess.PIPE, text=True
+    )
     try:
         assert relay.stdout.readline().strip() == "ready"
         message = bytes(range(256)) * 400
@@ -85,15 +86,45 @@ def test_islands_behind_a_router_take_part_in_a_campaign(tmp_path: Path) -> None
         assert " ready (listening on " + site in ready, ready
         db = tmp_path / "c.sqlite"
         coordinator = subprocess.Popen(
-            hysid("coordinator", "--listen", upstream, "--campaign", "behind", "--db", str(db), "--out", str(tmp_path / "out"), "--quiet",
-                  "--min-islands", "2", "--time-limit", "6", "--iterations", "1000000", "--population", "30", "--initial", "60",
-                  "--interval", "5", "--no-polish", "synth"),
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+            hysid(
+                "coordinator",
+                "--listen",
+                upstream,
+                "--campaign",
+                "behind",
+                "--db",
+                str(db),
+                "--out",
+                str(tmp_path / "out"),
+                "--quiet",
+                "--min-islands",
+                "2",
+                "--time-limit",
+                "6",
+                "--iterations",
+                "1000000",
+                "--population",
+                "30",
+                "--initial",
+                "60",
+                "--interval",
+                "5",
+                "--no-polish",
+                "synth",
+            ),
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
         )
         processes.append(coordinator)
-        islands = [subprocess.Popen(hysid("island", "--connect", site, "--campaign", "behind", "--id", name, "--wait", "30", "--quiet",
-                                          "--secret-file", f"{db}-behind.secret"),
-                                    stderr=subprocess.PIPE, text=True) for name in ("a", "b")]
+        islands = [
+            subprocess.Popen(
+                hysid("island", "--connect", site, "--campaign", "behind", "--id", name, "--wait", "30", "--quiet", "--secret-file", f"{db}-behind.secret"),
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            for name in ("a", "b")
+        ]
         processes += islands
         linked = router.stderr.readline()
         assert " router " in linked and " up | routers 1" in linked, linked

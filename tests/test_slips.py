@@ -9,8 +9,8 @@ from __future__ import annotations
 import json
 import re
 import warnings
-from typing import ClassVar
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -40,8 +40,15 @@ def bearing() -> list[RawRecord]:
     return simulate_raw(model, truth, f, x0, noise_n=0.005 * 3e6 * x0, seed=0, sample_rate_hz=1500.0, cycles=5, sensor={2: 0.01})
 
 
-def lab_files(directory: Path, records: list[RawRecord], header: tuple[str, str, str] = LAB, x_scale: float = 1e3,
-              f_scale: float = 1e-3, swap: bool = False, toml: str = "") -> Path:
+def lab_files(
+    directory: Path,
+    records: list[RawRecord],
+    header: tuple[str, str, str] = LAB,
+    x_scale: float = 1e3,
+    f_scale: float = 1e-3,
+    swap: bool = False,
+    toml: str = "",
+) -> Path:
     """One German CSV per record (';', decimal commas): time, then x * x_scale and F * f_scale under ``header``, or
     (``swap``) the force's numbers in the displacement's column and the displacement's in the force's."""
     directory.mkdir(parents=True)
@@ -72,8 +79,7 @@ def test_swapped_columns_of_a_german_lab_csv_are_named_with_the_lines_that_read_
     right, _ = loaded(lab_files(tmp_path / "right", bearing))
     _loops, found = loaded(lab_files(tmp_path / "swapped", bearing, swap=True))
     assert "swapped_columns" in found and not UNIT_CODES & set(found)
-    fix = ('displacement_channel = "Kraft [kN]", displacement_unit = "mm", force_channel = "Weg [mm]" and force_unit = "kN"'
-           " in dataset.toml")
+    fix = 'displacement_channel = "Kraft [kN]", displacement_unit = "mm", force_channel = "Weg [mm]" and force_unit = "kN" in dataset.toml'
     assert "the loops generate energy" in found["swapped_columns"] and fix in found["swapped_columns"]
     lines = re.search(r"set (.*) in dataset.toml", found["swapped_columns"]).group(1).replace(" and ", ", ").split(", ")
     fixed, found = loaded(lab_files(tmp_path / "fixed", bearing, swap=True, toml="\n".join(lines) + "\n"))
@@ -90,8 +96,7 @@ def test_metres_under_a_millimetre_header_every_value_below_one_are_named_from_t
     assert 'the displacement in m under its mm header (displacement_unit = "m")' in found["unit_slip"]
     assert re.search(r"inertia, 2(\.\d+)?e\+05 \+- .* making the inertia (199|20\d) kg", found["unit_slip"])
     _, found = loaded(lab_files(tmp_path / "mass", bearing, x_scale=1.0, toml="meq_kg = 200\n"))
-    assert re.search(rf"is {THOUSAND} times the given mass meq_kg = 200 kg: a unit slip\? the displacement in m under its mm header",
-                     found["unit_slip"])
+    assert re.search(rf"is {THOUSAND} times the given mass meq_kg = 200 kg: a unit slip\? the displacement in m under its mm header", found["unit_slip"])
     _, found = loaded(lab_files(tmp_path / "fixed", bearing, x_scale=1.0, toml='meq_kg = 200\ndisplacement_unit = "m"\n'))
     assert not UNIT_CODES & set(found)
 
@@ -102,19 +107,22 @@ def test_millimetres_under_a_metre_header_every_value_below_one_on_a_soft_isolat
     mass given (50 kg, 1000 times the inertia shown) the displacement, the force or a mass in grams."""
     model = build_model("baseline").with_bounds({"w0": (0.1, 500), "meq": (1, 1000)})
     truth = model.from_dict(dict(xi0=0.05, w0=2 * np.pi * 0.4, meq=50.0))
-    records = simulate_raw(model, truth, np.array([0.3, 0.4, 0.5] * 2), np.repeat([0.3e-3, 0.6e-3], 3), noise_n=0.002, seed=1,
-                           sample_rate_hz=200.0, cycles=6)
+    records = simulate_raw(model, truth, np.array([0.3, 0.4, 0.5] * 2), np.repeat([0.3e-3, 0.6e-3], 3), noise_n=0.002, seed=1, sample_rate_hz=200.0, cycles=6)
     metre = ("Zeit [s]", "Weg [m]", "Kraft [N]")
     _, found = loaded(lab_files(tmp_path / "right", records, header=("Zeit [s]", "Weg [mm]", "Kraft [N]"), f_scale=1.0, toml="meq_kg = 50\n"))
     assert found == {}
     _, found = loaded(lab_files(tmp_path / "nomass", records, header=metre, f_scale=1.0))
     assert set(found) & UNIT_CODES == {"unit_slip"} and "moves as no rig does" not in found["unit_slip"]
-    assert ('the force in kN under its N header (force_unit = "kN") or the displacement in mm under its m header '
-            '(displacement_unit = "mm")') in found["unit_slip"]
+    assert ('the force in kN under its N header (force_unit = "kN") or the displacement in mm under its m header (displacement_unit = "mm")') in found[
+        "unit_slip"
+    ]
     _, found = loaded(lab_files(tmp_path / "mass", records, header=metre, f_scale=1.0, toml="meq_kg = 50\n"))
-    assert re.search(rf"is 1/{THOUSAND} of the given mass meq_kg = 50 kg: a unit slip\? the displacement in mm under its m header "
-                     r'\(displacement_unit = "mm"\), the force in kN under its N header \(force_unit = "kN"\) or meq_kg in g '
-                     r"\(meq_kg = 0\.05\)", found["unit_slip"])
+    assert re.search(
+        rf"is 1/{THOUSAND} of the given mass meq_kg = 50 kg: a unit slip\? the displacement in mm under its m header "
+        r'\(displacement_unit = "mm"\), the force in kN under its N header \(force_unit = "kN"\) or meq_kg in g '
+        r"\(meq_kg = 0\.05\)",
+        found["unit_slip"],
+    )
 
 
 def test_kilonewtons_under_a_newton_header_are_named_where_a_mass_is_given(tmp_path, bearing):
@@ -131,8 +139,9 @@ def test_kilonewtons_under_a_newton_header_are_named_where_a_mass_is_given(tmp_p
     _, found = loaded(lab_files(tmp_path / "grams", bearing, toml="meq_kg = 200000\n"))
     assert "meq_kg in g (meq_kg = 200)" in found["unit_slip"]
     t = np.arange(3000) / 1500.0
-    springs = [RawRecord(f"r{k}", f, 2e-3, t, 2e-3 * np.sin(2 * np.pi * f * t), 4e3 * np.sin(2 * np.pi * f * t + 0.2), 0.0)
-               for k, f in enumerate((8.0, 10.0, 12.0))]
+    springs = [
+        RawRecord(f"r{k}", f, 2e-3, t, 2e-3 * np.sin(2 * np.pi * f * t), 4e3 * np.sin(2 * np.pi * f * t + 0.2), 0.0) for k, f in enumerate((8.0, 10.0, 12.0))
+    ]
     _, found = loaded(lab_files(tmp_path / "nomotion", springs, toml="meq_kg = 200\n"))
     assert set(found) == {"mass_contradicted"} and "contradicts the given mass meq_kg = 200 kg" in found["mass_contradicted"]
 
@@ -143,10 +152,8 @@ def test_kilonewtons_under_a_newton_header_in_a_resonance_dwell_are_named_from_t
     would (a resonance damped below 5e-5)."""
     model = build_model("baseline").with_bounds({"w0": (1, 500), "meq": (0.01, 10)})
     truth = model.from_dict(dict(xi0=0.02, w0=2 * np.pi * 30.0, meq=0.5))
-    records = simulate_raw(model, truth, np.full(3, 30.0), np.array([0.2e-3, 0.5e-3, 1e-3]), noise_n=0.005, seed=2,
-                           sample_rate_hz=3000.0, cycles=8)
-    _, found = loaded(lab_files(tmp_path / "right", records, header=("Zeit [s]", "Weg [mm]", "Kraft [N]"), f_scale=1.0,
-                                toml="meq_kg = 0.5\n"))
+    records = simulate_raw(model, truth, np.full(3, 30.0), np.array([0.2e-3, 0.5e-3, 1e-3]), noise_n=0.005, seed=2, sample_rate_hz=3000.0, cycles=8)
+    _, found = loaded(lab_files(tmp_path / "right", records, header=("Zeit [s]", "Weg [mm]", "Kraft [N]"), f_scale=1.0, toml="meq_kg = 0.5\n"))
     assert found == {}
     _, found = loaded(lab_files(tmp_path / "kn", records, header=("Zeit [s]", "Weg [mm]", "Kraft [N]"), toml="meq_kg = 0.5\n"))
     assert "of the inertia force m w^2 X0 of the given mass meq_kg = 0.5 kg in every loop" in found["unit_slip"]
@@ -156,6 +163,7 @@ def test_kilonewtons_under_a_newton_header_in_a_resonance_dwell_are_named_from_t
 def test_warnings_are_kept_whatever_the_filters_and_said_again():
     """A result keeps every HysidWarning its work raised, also under an 'ignore' filter, and the warning still reaches
     Python's own handling (the command line prints it from there)."""
+
     class Result:
         raised: ClassVar[list] = []
 
@@ -227,8 +235,28 @@ def test_fit_diagnose_campaign_and_report_write_the_warnings_near_the_top(tmp_pa
     runs = {
         "fit": (["fit", data, "--model", "baseline", *small, "--out", str(tmp_path / "fit")], "report.md", "result.json"),
         "diagnose": (["diagnose", data, *small, "--out", str(tmp_path / "diagnose")], "diagnosis.md", "diagnosis.json"),
-        "campaign": (["campaign", data, "--model", "baseline", "--single-node", "--islands", "2", "--population", "20", "--initial",
-                      "40", "--iterations", "5", *small, "--out", str(tmp_path / "campaign")], "report.md", "result.json"),
+        "campaign": (
+            [
+                "campaign",
+                data,
+                "--model",
+                "baseline",
+                "--single-node",
+                "--islands",
+                "2",
+                "--population",
+                "20",
+                "--initial",
+                "40",
+                "--iterations",
+                "5",
+                *small,
+                "--out",
+                str(tmp_path / "campaign"),
+            ],
+            "report.md",
+            "result.json",
+        ),
         "report": (["report", str(tmp_path / "campaign" / "campaign.sqlite"), "--out", str(tmp_path / "report")], "report.md", "result.json"),
     }
     for name, (argv, markdown, document) in runs.items():

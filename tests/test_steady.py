@@ -15,8 +15,9 @@ from hysid_model.extraction import extract_loop
 from hysid_model.synth import RawRecord
 
 
-def start_up(f_drive: float, *, fn: float = 10.0, xi: float = 0.02, duration: float = 6.0, fs: float = 2000.0,
-             noise: float = 0.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
+def start_up(
+    f_drive: float, *, fn: float = 10.0, xi: float = 0.02, duration: float = 6.0, fs: float = 2000.0, noise: float = 0.0, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray]:
     """A 1-DOF specimen (fn, xi) driven by F0 sin(wt) from rest: x = steady state + a decaying free vibration
     at the damped natural frequency (they beat). Returns t, x, F, the steady amplitude X and the free
     vibration's envelope relative to X."""
@@ -119,7 +120,7 @@ def test_a_global_steady_window_applies_to_every_record_unless_its_own_entry_ove
     per_loop = loops.meta["per_loop"]
     assert list(loops.cycles) == [3, 3, 2]
     assert per_loop["steady_t0_s"] == pytest.approx([1.0, 1.0, 1.5])
-    toml.write_text('steady_t0_s = 1.0\n')
+    toml.write_text("steady_t0_s = 1.0\n")
     with pytest.raises(HysidInputError, match=r"dataset.toml: steady_t0_s and steady_t1_s must both be given"):
         load_dataset(tmp_path / "d")
 
@@ -154,8 +155,7 @@ def test_cycle_to_cycle_amplitude_scatter_is_not_a_transient():
     t = np.arange(int(n / freq * fs)) / fs
     theta = 2 * np.pi * freq * t
     envelope = np.interp(t * freq, np.arange(n + 1), 1 + 0.02 * rng.standard_normal(n + 1))
-    loop = extract_loop(t, 1e-3 * envelope * np.sin(theta), 100 * envelope * np.sin(theta + 0.5) + 0.5 * rng.standard_normal(t.size),
-                        source="jitter.csv")
+    loop = extract_loop(t, 1e-3 * envelope * np.sin(theta), 100 * envelope * np.sin(theta + 0.5) + 0.5 * rng.standard_normal(t.size), source="jitter.csv")
     assert loop.cycles >= 90
 
 

@@ -42,7 +42,7 @@ def test_history_rows_are_stored_once_per_island_run_and_iteration(tmp_path):
 
 def test_the_iterations_handled_are_the_rows_stored_and_the_stretches_thinned(tmp_path):
     store = Store(tmp_path / "c.sqlite")
-    row = lambda i: [i, 1.0, 10 * i, 0.1 * i]  # noqa: E731
+    row = lambda i: [i, 1.0, 10 * i, 0.1 * i]
     store.add_history("c1", "a", "r", np.array([row(i) for i in (1, 2, 3)]))
     assert store.handled("c1", "a", "r") == [(1, 3)]  # iteration 0 missing
     store.add_history("c1", "a", "r", np.array([row(i) for i in (0, 7, 8)]))
@@ -165,8 +165,10 @@ def test_a_database_that_still_holds_keys_has_them_moved_out_when_opened_for_wri
     admission, signing = os.urandom(32), os.urandom(32)
     con = sqlite3.connect(db)
     con.execute("PRAGMA journal_mode=WAL")
-    con.execute("CREATE TABLE campaigns (name TEXT PRIMARY KEY, dataset TEXT NOT NULL, config BLOB NOT NULL, created REAL NOT NULL, "
-                "status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT)")
+    con.execute(
+        "CREATE TABLE campaigns (name TEXT PRIMARY KEY, dataset TEXT NOT NULL, config BLOB NOT NULL, created REAL NOT NULL, "
+        "status TEXT NOT NULL, stop_reason TEXT, ended REAL, result TEXT)"
+    )
     con.execute("CREATE TABLE secrets (campaign TEXT PRIMARY KEY, campaign_key BLOB NOT NULL, admission BLOB, signing BLOB)")
     con.execute("INSERT INTO campaigns VALUES ('old', 'synth', x'00', 0, 'stopped', 'budget', 1, NULL)")
     con.execute("INSERT INTO secrets VALUES ('old', ?, ?, ?)", (os.urandom(32), admission, signing))
@@ -207,8 +209,11 @@ def test_a_campaign_left_running_by_a_coordinator_that_is_gone_reads_interrupted
     store.db.execute("UPDATE commits SET pid = ?", (int(ended.stdout),))  # the heartbeat of a coordinator process that ended
     store.db.commit()
     status, reason = store.state("c1")
-    assert status == "interrupted" and reason.startswith("interrupted: its coordinator is gone (last heartbeat ") and reason.endswith(
-        "and left the campaign running")
+    assert (
+        status == "interrupted"
+        and reason.startswith("interrupted: its coordinator is gone (last heartbeat ")
+        and reason.endswith("and left the campaign running")
+    )
     store.db.execute("UPDATE commits SET pid = ?, host = 'elsewhere', t = t - ?", (os.getpid(), COORDINATOR_LEASE_S + 1))  # another host's, stale
     store.db.commit()
     assert store.state("c1")[0] == "interrupted"

@@ -38,7 +38,12 @@ def test_fit_tables_hold_parameters_with_errors_and_every_amplitude(result):
     for row in amplitudes:
         a, hp = level[row["x0_m"]]
         assert (row["fn_hz"], row["xi"], row["xi_stderr"], row["k_n_per_m"], row["c_n_s_per_m"]) == (
-            a.values["fn_hz"], a.values["xi"], a.stderr["xi"], a.values["k"], a.values["c"])
+            a.values["fn_hz"],
+            a.values["xi"],
+            a.stderr["xi"],
+            a.values["k"],
+            a.values["c"],
+        )
         assert row["xi_half_power"] == hp.xi and row["xi_half_power"] == pytest.approx(row["xi"], rel=0.05)
         w = 2 * np.pi * row["f_hz"]  # the linear oscillator's k_eff is k - m w^2, its xi_eq c w / (2 k_eff) below resonance
         k_dyn = a.values["k"] - a.values["m"] * w**2
@@ -71,8 +76,27 @@ def test_dataframes_when_pandas_is_there_and_a_clear_error_when_not(result, monk
 
 @pytest.mark.slow  # over 3 s
 def test_csv_flag_of_fit_campaign_and_diagnose(tmp_path, capsys):
-    assert main(["campaign", "--single-node", "--islands", "2", "--population", "20", "--initial", "40", "--iterations", "10",
-                 "--quiet", "--csv", "--out", str(tmp_path / "c")]) == 0
+    assert (
+        main(
+            [
+                "campaign",
+                "--single-node",
+                "--islands",
+                "2",
+                "--population",
+                "20",
+                "--initial",
+                "40",
+                "--iterations",
+                "10",
+                "--quiet",
+                "--csv",
+                "--out",
+                str(tmp_path / "c"),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert out.rstrip().endswith(f"tables: {tmp_path / 'c' / 'parameters.csv'}, {tmp_path / 'c' / 'amplitudes.csv'}, {tmp_path / 'c' / 'islands.csv'}")
     islands = read_csv(tmp_path / "c" / "islands.csv")

@@ -62,9 +62,7 @@ def matlab_getloopdisp(hys1: np.ndarray) -> tuple[int, int, int, int]:
     f4 = nr - i
     if h(nr, 1) < h(nr - 1, 1) and h(nr, 2) < h(nr - 1, 2):
         found = (f2, f1 - f1f, f3, f2 - f2f)
-    elif h(nr, 1) > h(nr - 1, 1) and h(nr, 2) < h(nr - 1, 2):
-        found = (f4, f3 - f3f, f3, f2 - f2f)
-    elif h(nr, 1) > h(nr - 1, 1) and h(nr, 2) > h(nr - 1, 2):
+    elif (h(nr, 1) > h(nr - 1, 1) and h(nr, 2) < h(nr - 1, 2)) or (h(nr, 1) > h(nr - 1, 1) and h(nr, 2) > h(nr - 1, 2)):
         found = (f4, f3 - f3f, f3, f2 - f2f)
     elif h(nr, 1) < h(nr - 1, 1) and h(nr, 2) > h(nr - 1, 2):
         found = (f2, f1 - f1f, f3, f2 - f2f)
@@ -173,11 +171,11 @@ def test_reinterpolate_and_centercurveloop():
     rng = np.random.default_rng(0)
     x = np.sort(rng.uniform(-2.0, 3.0, 40))
     top = np.column_stack([x, 4.0 * x + 1.0])
-    bot = np.column_stack([x[::-1], -x[::-1] ** 3])
+    bot = np.column_stack([x[::-1], -(x[::-1] ** 3)])
     rt, rb = reinterpolate(top, bot, 25)
     np.testing.assert_allclose(rt[:, 0], np.linspace(x.min(), x.max(), 25))
     np.testing.assert_allclose(rt[:, 1], 4.0 * rt[:, 0] + 1.0, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(rb[[0, -1], 1], -np.array([x.min(), x.max()]) ** 3)
+    np.testing.assert_allclose(rb[[0, -1], 1], -(np.array([x.min(), x.max()]) ** 3))
     ct, cb = centercurveloop(top + [1.0, 2.0], bot + [1.0, 2.0])
     both = np.concatenate([ct, cb])
     assert both[:, 0].max() == pytest.approx(-both[:, 0].min())
@@ -196,13 +194,7 @@ def test_thesis_objective_is_the_weighted_sum_of_erreval():
     rng = np.random.default_rng(5)
     low, span = port.bounds[:, 0], port.bounds[:, 1] - port.bounds[:, 0]
     pop = low + span * rng.random((3, 4))
-    expected = [
-        sum(
-            weights[j] * erreval(loops.top[j], loops.bottom[j], p, loops.freq_hz[j], loops.x0[j], MEQ_KG)
-            for j in range(loops.n_loops)
-        )
-        for p in pop
-    ]
+    expected = [sum(weights[j] * erreval(loops.top[j], loops.bottom[j], p, loops.freq_hz[j], loops.x0[j], MEQ_KG) for j in range(loops.n_loops)) for p in pop]
     got = port(pop)
     np.testing.assert_allclose(got, expected, rtol=1e-12)
     assert port.evaluations == 3

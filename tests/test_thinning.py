@@ -41,6 +41,7 @@ def test_runs_offering_less_than_their_share_keep_every_row_the_others_are_thinn
     assert water_level(np.array([10.0, 100.0, 1000.0]), 2000.0) == np.inf  # everything fits
     assert water_level(np.array([10.0, 100.0, 1000.0]), 300.0) == 190.0  # 10 and 100 kept whole, 190 left for the fastest
     assert water_level(np.array([200.0, 100.0, 1000.0]), 300.0) == 100.0  # 100 whole, 200 shared by the two others
+
     def measured(seconds: float, busy_s: float, writing_s: float, written: int) -> HistoryPolicy:
         policy = HistoryPolicy()
         for key, per_s in (("slow", 10.0), ("mid", 100.0), ("fast", 1000.0)):

@@ -165,8 +165,13 @@ def test_dahl_rate_reaches_the_closed_form_orbit_and_bouc_wen_with_r_1(labterms,
 def test_a_state_that_forgets_slowly_is_found_on_its_periodic_orbit(labterms):
     """A Maxwell element, dz/dt = k v - z / tau with w tau = 300: plain integration from rest would need
     thousands of cycles; its periodic orbit is z = Re[k X0 w e^(i wt) / (i w + 1 / tau)] (under x = X0 sin wt)."""
-    maxwell = hysid.term(rate=lambda z, x, v, k_m, tau: k_m * v - z / tau, name="maxwell_probe", units={"k_m": "N/m", "tau": "s"},
-                         bounds={"k_m": (0.0, 1e6), "tau": (1e-3, 10.0)}, strength="k_m")
+    maxwell = hysid.term(
+        rate=lambda z, x, v, k_m, tau: k_m * v - z / tau,
+        name="maxwell_probe",
+        units={"k_m": "N/m", "tau": "s"},
+        bounds={"k_m": (0.0, 1e6), "tau": (1e-3, 10.0)},
+        strength="k_m",
+    )
     kin = kinematics(False)
     tau = 300.0 / kin.omega[0]
     theta = np.broadcast_to(np.linspace(0.0, 2 * np.pi, 53), (2, 53))
@@ -180,8 +185,9 @@ def test_the_periodic_solution_is_found_whether_it_attracts_or_repels(labterms):
     """dz/dt = a z + b v: z = Re[b X0 w e^(i wt) / (i w - a)] under x = X0 sin wt, attracting for a < 0 (the
     steady state) and repelling for a > 0 (no steady state; its continuation, smooth across a = 0, is what a
     finite difference at a strength's bound of 0 sees)."""
-    linear = hysid.term(rate=lambda z, x, v, a, b: a * z + b * v, name="linear_probe", units={"a": "1/s", "b": "N/m"},
-                        bounds={"a": (-10.0, 10.0), "b": (0.0, 1e3)})
+    linear = hysid.term(
+        rate=lambda z, x, v, a, b: a * z + b * v, name="linear_probe", units={"a": "1/s", "b": "N/m"}, bounds={"a": (-10.0, 10.0), "b": (0.0, 1e3)}
+    )
     kin = kinematics(False)
     theta = np.broadcast_to(np.linspace(0.0, 2 * np.pi, 41), (2, 41))
     a = np.array([[-5.0], [5.0]])
@@ -194,7 +200,7 @@ def test_the_periodic_solution_is_found_whether_it_attracts_or_repels(labterms):
 def test_a_law_without_a_periodic_solution_gives_no_force(labterms):
     """dz/dt = b v + c drifts by c T every cycle from any start: no periodic solution, no force (NaN: an infinite
     fitness), and a term of it is refused when made, naming where (c = 0, the midpoint, has one)."""
-    drifting = lambda z, x, v, b, c: b * v + c  # noqa: E731
+    drifting = lambda z, x, v, b, c: b * v + c
     with pytest.raises(HysidInputError, match=r"rate: term 'drifting_probe': rate gives non-finite forces at b=300, c=-0.4 \(no periodic solution"):
         hysid.term(rate=drifting, name="drifting_probe", units={"b": "N/m", "c": "N/s"}, bounds={"b": (0.0, 1e3), "c": (-1.0, 1.0)})
     unchecked = RateTerm(drifting, "drifting", (Parameter("b", "N/m", 0.0, 1e3), Parameter("c", "N/s", -1.0, 1.0)), "", "", ())
@@ -223,15 +229,22 @@ BAD = [
     (dict(fn=lambda x, v: x, name="t", units={}, bounds={}), r"takes \(x, v, then its parameters by name\)"),
     (dict(fn=lambda x, v, *p: x, name="t", units={}, bounds={}), r"name every parameter as an argument, not \*p"),
     (dict(fn=lambda x, v, F_d: F_d * x, name="t", units={"F_d": "N"}, bounds={"F_d": (0, 1)}), r"'F_d' of term 't' is a parameter of coulomb_friction"),
-    (dict(fn=lambda x, v, c: np.sum(c * x, axis=-1), name="t", units={"c": "N/m"}, bounds={"c": (0, 1)}), r"fn returns shape \(2, 2\), which is not \(2, 2, 24\)"),
+    (
+        dict(fn=lambda x, v, c: np.sum(c * x, axis=-1), name="t", units={"c": "N/m"}, bounds={"c": (0, 1)}),
+        r"fn returns shape \(2, 2\), which is not \(2, 2, 24\)",
+    ),
     (dict(fn=lambda x, v, c: c * v / x, name="t", units={"c": "N"}, bounds={"c": (0, 1)}), r"fn gives non-finite forces at c=0.5$"),
     (dict(fn=lambda x, v, c: float(c) * x, name="t", units={"c": "N/m"}, bounds={"c": (0, 1)}), r"fn fails on the probe motion at c=0.5 \(TypeError: "),
     (dict(fn=lambda x, v, c: c * x / np.abs(x).max(), name="t", units={"c": "N"}, bounds={"c": (0, 1)}), r"must be vectorized"),
-    (dict(fn=lambda x, v, c, d: c * x + d, name="t", units={"c": "N/m", "d": "N"}, bounds={"c": (0, 1), "d": (0, 1)}, strength="e"),
-     r"strength='e': is no parameter of term 't'"),
+    (
+        dict(fn=lambda x, v, c, d: c * x + d, name="t", units={"c": "N/m", "d": "N"}, bounds={"c": (0, 1), "d": (0, 1)}, strength="e"),
+        r"strength='e': is no parameter of term 't'",
+    ),
     (dict(fn=lambda x, v, c: c * x, name="t", units={"c": "N/m"}, bounds={"c": (1, 2)}, strength="c"), r"its bounds 1:2 must hold 0"),
-    (dict(fn=lambda x, v, c, d: c * x + d * x**2, name="t", units={"c": "N/m", "d": "N/m^2"}, bounds={"c": (0, 1), "d": (0, 1)}, strength="c"),
-     r"at c = 0 its force is not zero"),
+    (
+        dict(fn=lambda x, v, c, d: c * x + d * x**2, name="t", units={"c": "N/m", "d": "N/m^2"}, bounds={"c": (0, 1), "d": (0, 1)}, strength="c"),
+        r"at c = 0 its force is not zero",
+    ),
     (dict(rate=lambda z, x, v, c: c * np.log(x), name="t", units={"c": "N/s"}, bounds={"c": (0, 1)}), r"rate gives non-finite forces"),
     (dict(rate=lambda z, c: c * z, name="t", units={"c": "1/s"}, bounds={"c": (0, 1)}), r"takes \(z, x, v, then its parameters by name\)"),
 ]

@@ -13,8 +13,8 @@ import pytest
 
 from coordinator.queries import COORDINATOR_LEASE_S
 from coordinator.store import Store
-from hysid.cli import main
 from hysid.campaigns import CampaignResult
+from hysid.cli import main
 from support import hysid, interruptible, rows_of, screen_of, wait_for
 
 SMALL = ["--population", "20", "--initial", "40"]
@@ -90,16 +90,35 @@ def test_watch_and_report_of_a_finished_campaign_create_no_file_and_take_its_out
     assert json.loads(capsys.readouterr().out)["params"] == pytest.approx(original["params"], rel=1e-9)
     assert not [p.name for p in db.parent.iterdir() if p.name.endswith(("-wal", "-shm"))] and digest(db) == before
     assert main(["report", str(tmp_path), "--out", str(tmp_path / "r")]) == 2
-    assert capsys.readouterr().err == (f"hysid: error: {tmp_path}: a directory without campaign.sqlite; give the campaign database "
-                                       "(--db of the campaign, or OUT/campaign.sqlite)\n")
+    assert capsys.readouterr().err == (
+        f"hysid: error: {tmp_path}: a directory without campaign.sqlite; give the campaign database (--db of the campaign, or OUT/campaign.sqlite)\n"
+    )
 
 
 def start_campaign(tmp_path, islands: int = 2):
     db = tmp_path / "out" / "campaign.sqlite"
     proc = subprocess.Popen(
-        hysid("campaign", "--single-node", "--islands", str(islands), "--algos", "pso", *SMALL, "--iterations", "10000000",
-              "--time-limit", "300", "--quiet", "--json", "--out", str(tmp_path / "out")),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible,
+        hysid(
+            "campaign",
+            "--single-node",
+            "--islands",
+            str(islands),
+            "--algos",
+            "pso",
+            *SMALL,
+            "--iterations",
+            "10000000",
+            "--time-limit",
+            "300",
+            "--quiet",
+            "--json",
+            "--out",
+            str(tmp_path / "out"),
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=interruptible,
     )
     wait_for(lambda: all(rows_of(db, f"island-{i}") > 20 for i in range(islands)), 120, "both islands' history")
     return db, proc
@@ -127,7 +146,7 @@ def test_watch_follows_a_running_campaign_on_a_terminal_until_it_stops(tmp_path)
     screen = ANSI.sub("", text)
     assert "campaign 'campaign' on synth: running after" in screen and "global best " in screen
     assert re.search(r"island-0\s+PSO\s+alive\s+\d+", screen) and re.search(r"island-1\s+PSO\s+alive\s+\d+", screen)
-    final = screen[screen.rindex("campaign 'campaign' on synth: stopped (interrupted)"):]
+    final = screen[screen.rindex("campaign 'campaign' on synth: stopped (interrupted)") :]
     assert re.search(r"island-0\s+PSO\s+stopped\s+\d+", final) and "members: 0 alive, 0 left, 2 stopped by the user, 0 lost" in final
     assert campaign.returncode == 130 and err.endswith("hysid: error: interrupted\n"), err  # interrupted, and reported
     assert json.loads(out)["settings"]["stop_reason"] == "interrupted"
@@ -143,8 +162,10 @@ def test_watch_and_report_of_a_campaign_whose_coordinator_was_killed(tmp_path, c
     store = Store.read_only(db)
     assert store.gone_since("campaign") is None  # running: it commits
     assert main(["campaign", "--single-node", "--out", str(db.parent)]) == 2  # a second run on the same --out, named as such
-    assert capsys.readouterr().err == (f"hysid: error: --out {db.parent}: is the output directory of campaign 'campaign', which is still running "
-                                       f"(its coordinator writes {db}): two runs cannot share one --out; choose a new directory (nothing was written)\n")
+    assert capsys.readouterr().err == (
+        f"hysid: error: --out {db.parent}: is the output directory of campaign 'campaign', which is still running "
+        f"(its coordinator writes {db}): two runs cannot share one --out; choose a new directory (nothing was written)\n"
+    )
     campaign.kill()  # SIGKILL: no stop, no result, the database left as it was
     campaign.communicate()
     wait_for(lambda: store.gone_since("campaign") is not None, 3 * COORDINATOR_LEASE_S, "the coordinator's lease to run out")

@@ -87,7 +87,9 @@ def test_coulomb_friction_and_bouc_wen_follow_the_measured_displacement():
     np.testing.assert_allclose(u, 1.5 * (np.sign(v) - np.sign(v).mean()), atol=2e-3)  # the mean within the grid's resolution
     bw = build_model("baseline+bouc_wen").fix(meq=0.3)
     shape = {"bw_k": 1e4, "bw_zy": 4e-4, "bw_r": 0.5}
-    u = model_force(bw, bw.from_dict(base | shape), f, X0, GRID, DISTORTED) - model_force(bw, bw.from_dict(base | shape | {"bw_k": 0.0}), f, X0, GRID, DISTORTED)
+    u = model_force(bw, bw.from_dict(base | shape), f, X0, GRID, DISTORTED) - model_force(
+        bw, bw.from_dict(base | shape | {"bw_k": 0.0}), f, X0, GRID, DISTORTED
+    )
     gamma, beta = (1 + shape["bw_r"]) / (2 * shape["bw_zy"]), (1 - shape["bw_r"]) / (2 * shape["bw_zy"])
 
     def rhs(theta, z):  # Eq. 2.1b with A = 1, n = 1, driven by the measured waveform: dz/dtheta

@@ -154,8 +154,16 @@ def _half_period(rhs: ScalarRhs, theta0: float, z0: float, rtol: float, atol: fl
     pieces, start, z = [], theta0, z0
     while True:
         with np.errstate(all="ignore"):  # a rejected trial step may overflow
-            sol = solve_ivp(lambda t, y: [rhs(t, y[0])], (start, theta0 + np.pi), [z], method="DOP853", rtol=rtol, atol=atol,
-                            dense_output=True, events=crossing if z != 0.0 else None)
+            sol = solve_ivp(
+                lambda t, y: [rhs(t, y[0])],
+                (start, theta0 + np.pi),
+                [z],
+                method="DOP853",
+                rtol=rtol,
+                atol=atol,
+                dense_output=True,
+                events=crossing if z != 0.0 else None,
+            )
         pieces.append((start, sol.t[-1], sol.sol))
         if sol.status != 1:
             return pieces
@@ -164,8 +172,9 @@ def _half_period(rhs: ScalarRhs, theta0: float, z0: float, rtol: float, atol: fl
             return pieces
 
 
-def odd_periodic_orbit(rhs: ScalarRhs, theta0: float, bracket: tuple[float, float], phase_out: np.ndarray, *, rtol: float = 1e-12,
-                       atol: float = 1e-15) -> np.ndarray:
+def odd_periodic_orbit(
+    rhs: ScalarRhs, theta0: float, bracket: tuple[float, float], phase_out: np.ndarray, *, rtol: float = 1e-12, atol: float = 1e-15
+) -> np.ndarray:
     """The periodic orbit of a scalar dz/dtheta = rhs(theta, z) that is odd, rhs(theta + pi, -z) = -rhs(theta, z)
     (e.g. a rate-independent law driven by x = X0 sin(theta)), so that z(theta + pi) = -z(theta): its state z0 at
     ``theta0`` solves z0 + z(theta0 + pi; z0) = 0, found by Brent's method in ``bracket`` with each half period

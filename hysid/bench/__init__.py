@@ -67,10 +67,7 @@ def run_on_one_core(function: str, timeout_s: float = 600.0) -> Any:
     """
     module, name = function.split(":")
     cpu = max(os.sched_getaffinity(0))
-    code = (
-        f"import os, json, sys; os.sched_setaffinity(0, {{{cpu}}}); "
-        f"import {module} as m; json.dump(m.{name}(), sys.stdout)"
-    )
+    code = f"import os, json, sys; os.sched_setaffinity(0, {{{cpu}}}); import {module} as m; json.dump(m.{name}(), sys.stdout)"
     env = {**os.environ, **SINGLE_THREAD_ENV}
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=timeout_s)
     if done.returncode != 0:

@@ -73,9 +73,16 @@ def cramer_rao_target(seeds: int) -> dict[str, Any]:
     """Target 2: RMS error / Cramer-Rao bound at each noise level over ``seeds`` draws (ML weights, polish)."""
     bounds = cramer_rao_bounds(NOISY)
     from scipy.stats import chi2  # loaded only by this bench (fast CLI start)
+
     lo, hi = (float(np.sqrt(chi2.ppf(q, seeds) / seeds)) for q in (0.025, 0.975))
-    out: dict[str, Any] = {"algo": HYSID_ALGO, "seeds": seeds, "noise_seeds": "1000 x noise% + (0 .. seeds-1)", "target_ratio": CR_RATIO_TARGET,
-                           "ratio_95pct_range_if_efficient": [lo, hi], "noise": {}}
+    out: dict[str, Any] = {
+        "algo": HYSID_ALGO,
+        "seeds": seeds,
+        "noise_seeds": "1000 x noise% + (0 .. seeds-1)",
+        "target_ratio": CR_RATIO_TARGET,
+        "ratio_95pct_range_if_efficient": [lo, hi],
+        "noise": {},
+    }
     for noise in NOISY:
         err = np.array([_estimate(noise, 1000 * noise + s, HYSID_ALGO, s, weights="ml", polish=True) - TRUE for s in range(seeds)])
         rms = np.sqrt(np.mean(err**2, axis=0))
@@ -161,4 +168,3 @@ def to_text(result: dict[str, Any]) -> str:
         lines.append(f"   {algo.upper():>6}" + "".join(f"{a['ratio'][p]:>10.3f}" for p in PARAMS))
     lines.append(f"overall: {_verdict(result['pass'])} in {result['wall_s']:.0f} s")
     return "\n".join(lines)
-

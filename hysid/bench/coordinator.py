@@ -79,7 +79,10 @@ def simulated(endpoint: str, secret_file: Path, islands: int, seconds: float) ->
     """A process of ``islands`` simulated islands (:mod:`hysid.bench.simulated`) for ``seconds``."""
     return subprocess.Popen(
         [sys.executable, "-m", "hysid.bench.simulated", endpoint, str(secret_file), str(islands), f"{seconds:g}", f"{RATE:g}", str(INTERVAL)],
-        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
 
 
@@ -175,19 +178,38 @@ def drive(islands: int, seconds: float, rss_every_s: float = 1.0) -> dict[str, A
         unfollowed = c.store.unfollowed("load")
         peak = max(m for _, m in rss)
         return {
-            "islands": islands, "seconds": seconds, "elapsed_s": elapsed, "stop_reason": reason, "rate_per_island": RATE, "interval": INTERVAL,
+            "islands": islands,
+            "seconds": seconds,
+            "elapsed_s": elapsed,
+            "stop_reason": reason,
+            "rate_per_island": RATE,
+            "interval": INTERVAL,
             "history_period_s": history_period(HISTORY_EVERY_S, islands),
-            "rows_sent": done["rows"], "history_rows": history_rows, "rows_thinned": thinned, "rows_lost": done["rows"] - history_rows - thinned,
-            "rows_per_s": history_rows / seconds, "rows_sent_per_s": done["rows"] / seconds,
-            "history_messages_sent": done["history_messages"], "migrant_messages_sent": done["migrant_messages"], "migrations": c.migrations,
-            "migrant_messages_superseded": c.superseded, "migrant_messages_per_s": c.migrations / seconds,
+            "rows_sent": done["rows"],
+            "history_rows": history_rows,
+            "rows_thinned": thinned,
+            "rows_lost": done["rows"] - history_rows - thinned,
+            "rows_per_s": history_rows / seconds,
+            "rows_sent_per_s": done["rows"] / seconds,
+            "history_messages_sent": done["history_messages"],
+            "migrant_messages_sent": done["migrant_messages"],
+            "migrations": c.migrations,
+            "migrant_messages_superseded": c.superseded,
+            "migrant_messages_per_s": c.migrations / seconds,
             "migrants_unfollowed_at_islands": None if unfollowed is None else unfollowed["islands"],
             "migrant_messages_sent_per_s": done["migrant_messages"] / seconds,
             "row_lag_s": {"p50": float(np.percentile(lag, 50)), "p95": float(np.percentile(lag, 95)), "max": float(np.max(lag))},
             "sending_late_p95_s": done["late_p95_s"],
-            "commits": commits.ticks, "max_commit_gap_s": commits.longest, "max_stop_check_gap_s": checks.longest,
-            "deepest_inbox": deepest[0], "rejected": c.rejected, "storage_holds_rows_per_s": c.policy.holds if np.isfinite(c.policy.holds) else None,
-            "rss_before_mb": baseline, "rss_mb": peak, "rss_mb_per_island": peak / islands, "rss_added_mb_per_island": (peak - baseline) / islands,
+            "commits": commits.ticks,
+            "max_commit_gap_s": commits.longest,
+            "max_stop_check_gap_s": checks.longest,
+            "deepest_inbox": deepest[0],
+            "rejected": c.rejected,
+            "storage_holds_rows_per_s": c.policy.holds if np.isfinite(c.policy.holds) else None,
+            "rss_before_mb": baseline,
+            "rss_mb": peak,
+            "rss_mb_per_island": peak / islands,
+            "rss_added_mb_per_island": (peak - baseline) / islands,
             "rss_samples": rss,
         }
 
@@ -205,9 +227,15 @@ def sustain(seconds: float = 180.0, settle_s: float = 30.0) -> dict[str, Any]:
     r = drive(ISLANDS, seconds)
     samples = np.array(r.pop("rss_samples"))
     late = samples[(samples[:, 0] >= settle_s) & (samples[:, 0] <= seconds)]
-    return {**r, "settle_s": settle_s, "rss_first_mb": float(samples[0, 1]), "rss_settled_mb": float(late[0, 1]),
-            "rss_last_mb": float(late[-1, 1]), "rss_slope_mb_per_min": float(np.polyfit(late[:, 0], late[:, 1], 1)[0] * 60.0),
-            "rss_every_10_s": [[round(t), round(m, 1)] for t, m in samples[::10]]}
+    return {
+        **r,
+        "settle_s": settle_s,
+        "rss_first_mb": float(samples[0, 1]),
+        "rss_settled_mb": float(late[0, 1]),
+        "rss_last_mb": float(late[-1, 1]),
+        "rss_slope_mb_per_min": float(np.polyfit(late[:, 0], late[:, 1], 1)[0] * 60.0),
+        "rss_every_10_s": [[round(t), round(m, 1)] for t, m in samples[::10]],
+    }
 
 
 RAMP = (32, 64, 128, 256, 512, 1024, 2048)
@@ -232,8 +260,13 @@ def ramp(steps: tuple[int, ...] = RAMP, seconds: float = 12.0) -> dict[str, Any]
         if lags(r):
             break
     held = [r["islands"] for r in results if not lags(r)]
-    return {"steps": results, "lag_limit_s": LAG_LIMIT_S, "held_at_islands": max(held, default=None),
-            "degrades_at_islands": results[-1]["islands"] if lags(results[-1]) else None, "mb_per_island_limit": MB_PER_ISLAND}
+    return {
+        "steps": results,
+        "lag_limit_s": LAG_LIMIT_S,
+        "held_at_islands": max(held, default=None),
+        "degrades_at_islands": results[-1]["islands"] if lags(results[-1]) else None,
+        "mb_per_island_limit": MB_PER_ISLAND,
+    }
 
 
 def backlog(rounds: int = 200, budget: int = 400_000) -> dict[str, Any]:
@@ -254,8 +287,14 @@ def backlog(rounds: int = 200, budget: int = 400_000) -> dict[str, Any]:
         started = time.monotonic()
         reason = serve(c, MemoryLink(threading.Event()), lambda p: seen.append((time.monotonic() - started, p.evaluations, len(c.inbox))), progress_every_s=0.0)
         decided_s, _, left = next(s for s in seen if s[1] >= budget)
-        return {"queued": queued, "budget": budget, "stop_reason": reason, "stop_decided_s": decided_s, "still_queued_at_stop": left,
-                "stop_checks_before": sum(1 for s in seen if s[1] < budget)}
+        return {
+            "queued": queued,
+            "budget": budget,
+            "stop_reason": reason,
+            "stop_decided_s": decided_s,
+            "still_queued_at_stop": left,
+            "stop_checks_before": sum(1 for s in seen if s[1] < budget),
+        }
 
 
 PARTS = ("load", "sustain", "ramp", "backlog", "commits", "flood", "host")
@@ -264,8 +303,15 @@ PARTS = ("load", "sustain", "ramp", "backlog", "commits", "flood", "host")
 def run(seconds: float = 10.0, sustain_s: float = 180.0, ramp_s: float = 12.0, parts: tuple[str, ...] = PARTS) -> dict[str, Any]:
     """A coordinator with 32 islands (gaps, memory over 3 minutes), more islands until it lags, a backlog, commit gaps with and
     without a flood, an island under a migrant flood; 64 islands in one process (memory, same answers)."""
-    benches = {"load": lambda: load(seconds), "sustain": lambda: sustain(sustain_s), "ramp": lambda: ramp(seconds=ramp_s), "backlog": backlog,
-               "commits": commits, "flood": flood, "host": host}
+    benches = {
+        "load": lambda: load(seconds),
+        "sustain": lambda: sustain(sustain_s),
+        "ramp": lambda: ramp(seconds=ramp_s),
+        "backlog": backlog,
+        "commits": commits,
+        "flood": flood,
+        "host": host,
+    }
     return {part: benches[part]() for part in parts}
 
 
@@ -273,36 +319,45 @@ def to_text(r: dict[str, Any]) -> str:
     """One line (or a few) per part that ran."""
 
     def traffic(x: dict[str, Any]) -> str:
-        return (f"{x['islands']} islands for {x['elapsed_s']:.1f} s: {x['rows_per_s']:,.0f} rows/s stored of {x['rows_sent_per_s']:,.0f} sent "
-                f"({x['rows_thinned']:,} thinned, {x['rows_lost']} lost), {x['migrant_messages_per_s']:,.0f} migrant messages/s handled of "
-                f"{x['migrant_messages_sent_per_s']:,.0f} ({x['migrant_messages_superseded']:,} superseded"
-                + (f"; not followed once {x['migrants_unfollowed_at_islands']} islands were alive" if x.get("migrants_unfollowed_at_islands") else "")
-                + f"); row lag p50 "
-                f"{x['row_lag_s']['p50']:.3f} s, p95 {x['row_lag_s']['p95']:.3f} s; longest gap between commits {x['max_commit_gap_s']:.3f} s, "
-                f"between stop-rule checks {x['max_stop_check_gap_s']:.3f} s; deepest inbox {x['deepest_inbox']}; "
-                f"RSS {x['rss_mb']:.0f} MB ({x['rss_mb_per_island']:.2f} MB per island)")
+        return (
+            f"{x['islands']} islands for {x['elapsed_s']:.1f} s: {x['rows_per_s']:,.0f} rows/s stored of {x['rows_sent_per_s']:,.0f} sent "
+            f"({x['rows_thinned']:,} thinned, {x['rows_lost']} lost), {x['migrant_messages_per_s']:,.0f} migrant messages/s handled of "
+            f"{x['migrant_messages_sent_per_s']:,.0f} ({x['migrant_messages_superseded']:,} superseded"
+            + (f"; not followed once {x['migrants_unfollowed_at_islands']} islands were alive" if x.get("migrants_unfollowed_at_islands") else "")
+            + f"); row lag p50 "
+            f"{x['row_lag_s']['p50']:.3f} s, p95 {x['row_lag_s']['p95']:.3f} s; longest gap between commits {x['max_commit_gap_s']:.3f} s, "
+            f"between stop-rule checks {x['max_stop_check_gap_s']:.3f} s; deepest inbox {x['deepest_inbox']}; "
+            f"RSS {x['rss_mb']:.0f} MB ({x['rss_mb_per_island']:.2f} MB per island)"
+        )
 
     lines = []
     if "load" in r:
         lines.append(f"load: {traffic(r['load'])}")
     if "sustain" in r:
         su = r["sustain"]
-        lines.append(f"sustain: {traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
-                     f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min")
+        lines.append(
+            f"sustain: {traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
+            f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min"
+        )
     if "ramp" in r:
         ra = r["ramp"]
         lines += [f"ramp: {traffic(x)}{' <- lags' if lags(x) else ''}" for x in ra["steps"]]
         lines.append(f"ramp: held {ra['held_at_islands']} islands; degrades at {ra['degrades_at_islands'] or 'none of the steps'}")
     if "backlog" in r:
         bl = r["backlog"]
-        lines.append(f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
-                     f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)")
+        lines.append(
+            f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
+            f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)"
+        )
     if "commits" in r:
         co = r["commits"]
-        lines += [f"commits: {'under ' + format(x['flood_messages_per_s'], ',.0f') + ' migrant messages/s of 256 new migrants' if x['flood'] else 'no flood'}, "
-                  f"{x['seconds']:g} s on {co['cores']} cores: {x['commits']} commits, longest gap {x['max_gap_s']:.3f} s (p99 {x['p99_gap_s']:.3f} s, "
-                  f"median {x['median_gap_s']:.3f} s; target {co['target_s']:g} s); {x['migrant_messages_per_s']:,.0f} migrant messages/s handled, "
-                  f"{x['superseded']:,} superseded" for x in (co["quiet"], co["flooded"])]
+        lines += [
+            f"commits: {'under ' + format(x['flood_messages_per_s'], ',.0f') + ' migrant messages/s of 256 new migrants' if x['flood'] else 'no flood'}, "
+            f"{x['seconds']:g} s on {co['cores']} cores: {x['commits']} commits, longest gap {x['max_gap_s']:.3f} s (p99 {x['p99_gap_s']:.3f} s, "
+            f"median {x['median_gap_s']:.3f} s; target {co['target_s']:g} s); {x['migrant_messages_per_s']:,.0f} migrant messages/s handled, "
+            f"{x['superseded']:,} superseded"
+            for x in (co["quiet"], co["flooded"])
+        ]
     if "flood" in r:
         fl = r["flood"]
         lines.append(
@@ -311,12 +366,14 @@ def to_text(r: dict[str, Any]) -> str:
             f"(ratio {fl['run_time_ratio']:.2f}); CPU of its evolution thread {fl['quiet']['evolution_cpu_s']:.2f} -> "
             f"{fl['flooded']['evolution_cpu_s']:.2f} s, of the whole island process {fl['quiet']['process_cpu_s']:.2f} -> "
             f"{fl['flooded']['process_cpu_s']:.2f} s; it re-evaluated {fl['flooded']['migrants_evaluated']} migrants "
-            f"(at most {fl['most_migrants_allowed']} allowed)")
+            f"(at most {fl['most_migrants_allowed']} allowed)"
+        )
     if "host" in r:
         ho = r["host"]
         lines.append(
             f"host: {ho['islands']} islands in one process: peak RSS {ho['host_peak_rss_mb']:.0f} MB, {ho['host_rss_mb_per_island']:.1f} MB per island "
             f"(an island process: {ho['island_process_peak_rss_mb']:.0f} MB, x {ho['memory_ratio']:.0f}); CPU {ho['host_cpu_s']:.0f} s against "
             f"{ho['separate_cpu_s']:.0f} s as separate processes; the same answer in {ho['same_answers']} of {ho['islands']} islands, "
-            f"the same rows in {ho['same_rows']:,} of {ho['rows_compared']:,} stored both times")
+            f"the same rows in {ho['same_rows']:,} of {ho['rows_compared']:,} stored both times"
+        )
     return "\n".join(lines)

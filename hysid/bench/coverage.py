@@ -98,17 +98,37 @@ class Specimen:
 def specimens() -> dict[str, Specimen]:
     w0 = 2.0 * np.pi * 10.0
     oscillator = {"xi0": 0.05, "w0": w0, "meq": 200.0}
-    return {s.name: s for s in (
-        Specimen("bearing", "elastomeric bearing: Bouc-Wen n = 2 (2.5 MN/m, yield 2 mm, r = 0.5) beside a 200 kg, 10 Hz oscillator; "
-                 "0.5-2 Hz; fitted with mr_damper", lambda: build_model("mr_damper"),
-                 {**oscillator, "bw_k": 2.5e6, "bw_zy": 2e-3, "bw_r": 0.5, "bw_n": 2.0}, (0.5, 1.0, 1.5, 2.0), (1e-3, 3e-3, 8e-3)),
-        Specimen("fluid_damper", "fluid viscous damper c_f |v|^0.4 (5 kN (s/m)^-0.4) on 20 kg with an 8 Hz spring; 1-3 Hz; "
-                 "fitted with baseline + the law as a user's term", lambda: build_model("baseline") + fluid_term(),
-                 {"xi0": 0.05, "w0": 2.0 * np.pi * 8.0, "meq": 20.0, "c_f": 5e3}, (1.0, 2.0, 3.0), (5e-3, 10e-3, 20e-3),
-                 FLUID_POINTS, FLUID_RATE_HZ),
-        Specimen("linear_bearing", "linear oscillator: 200 kg, 10 Hz, xi0 = 0.05; 0.5-2 Hz; fitted with baseline",
-                 lambda: build_model("baseline"), oscillator, (0.5, 1.0, 1.5, 2.0), (1e-3, 3e-3, 8e-3)),
-    )}
+    return {
+        s.name: s
+        for s in (
+            Specimen(
+                "bearing",
+                "elastomeric bearing: Bouc-Wen n = 2 (2.5 MN/m, yield 2 mm, r = 0.5) beside a 200 kg, 10 Hz oscillator; 0.5-2 Hz; fitted with mr_damper",
+                lambda: build_model("mr_damper"),
+                {**oscillator, "bw_k": 2.5e6, "bw_zy": 2e-3, "bw_r": 0.5, "bw_n": 2.0},
+                (0.5, 1.0, 1.5, 2.0),
+                (1e-3, 3e-3, 8e-3),
+            ),
+            Specimen(
+                "fluid_damper",
+                "fluid viscous damper c_f |v|^0.4 (5 kN (s/m)^-0.4) on 20 kg with an 8 Hz spring; 1-3 Hz; fitted with baseline + the law as a user's term",
+                lambda: build_model("baseline") + fluid_term(),
+                {"xi0": 0.05, "w0": 2.0 * np.pi * 8.0, "meq": 20.0, "c_f": 5e3},
+                (1.0, 2.0, 3.0),
+                (5e-3, 10e-3, 20e-3),
+                FLUID_POINTS,
+                FLUID_RATE_HZ,
+            ),
+            Specimen(
+                "linear_bearing",
+                "linear oscillator: 200 kg, 10 Hz, xi0 = 0.05; 0.5-2 Hz; fitted with baseline",
+                lambda: build_model("baseline"),
+                oscillator,
+                (0.5, 1.0, 1.5, 2.0),
+                (1e-3, 3e-3, 8e-3),
+            ),
+        )
+    }
 
 
 def loops_of(specimen: Specimen, seed: int) -> LoopSet:
@@ -135,9 +155,18 @@ def polished(loops: LoopSet, model: Model | str, start: dict[str, float], seed: 
     assert isinstance(objective, Objective)  # the closed form (build_objective's default kind)
     first = np.clip(objective.model.from_dict(start), objective.bounds[:, 0], objective.bounds[:, 1])
     best = polish(objective, first)
-    run = RunResult(label="polish from a start", algo="polish", seed=seed, theta=best.theta, fitness=best.fitness,
-                    evaluations=best.evaluations, history=[], search_theta=first, search_fitness=float(objective(first[None, :])[0]),
-                    wall_s=time.perf_counter() - began)
+    run = RunResult(
+        label="polish from a start",
+        algo="polish",
+        seed=seed,
+        theta=best.theta,
+        fitness=best.fitness,
+        evaluations=best.evaluations,
+        history=[],
+        search_theta=first,
+        search_fitness=float(objective(first[None, :])[0]),
+        wall_s=time.perf_counter() - began,
+    )
     return FitResult.from_runs(objective, [run], {"displacement": motion.displacement, "displacement_model": motion.as_dict(), "polish": True})
 
 
@@ -177,8 +206,7 @@ def specimen_coverage(specimen: Specimen, seeds: int) -> dict[str, Any]:
         for name, (value, se, true) in reported(result, specimen.truth).items():
             z.setdefault(name, []).append(abs(value - true) / se if np.isfinite(se) and se > 0 else np.inf)
     quantities = {
-        name: {"covered": float(np.mean(np.array(v) <= WITHIN)), "median_abs_z": float(np.median(v)),
-               "without_error": int(np.sum(~np.isfinite(v)))}
+        name: {"covered": float(np.mean(np.array(v) <= WITHIN)), "median_abs_z": float(np.median(v)), "without_error": int(np.sum(~np.isfinite(v)))}
         for name, v in z.items()
     }
     worst = min(quantities, key=lambda n: quantities[n]["covered"])
@@ -206,19 +234,26 @@ def run(seeds: int = SEEDS, names: tuple[str, ...] | None = None) -> dict[str, A
         raise HysidInputError(f"unknown specimen {unknown[0]!r}; choose from {', '.join(known)}", param="specimens", value=unknown[0])
     if seeds < 10:
         raise HysidInputError("need at least 10 noise seeds (a share of fewer says little)", param="seeds", value=seeds)
-    result: dict[str, Any] = {"bench": "coverage", "target": {"within_stderr": WITHIN, "share": TARGET},
-              "specimens": {name: specimen_coverage(known[name], seeds) for name in names}}
+    result: dict[str, Any] = {
+        "bench": "coverage",
+        "target": {"within_stderr": WITHIN, "share": TARGET},
+        "specimens": {name: specimen_coverage(known[name], seeds) for name in names},
+    }
     result["ok"] = all(s["ok"] for s in result["specimens"].values())
     return jsondoc.plain(result)
 
 
 def to_text(result: dict[str, Any]) -> str:
     t = result["target"]
-    lines = [f"hysid bench coverage: truth within {t['within_stderr']:g} reported standard errors in >= {100 * t['share']:.0f} % of the seeds, "
-             f"every reported quantity  {'PASS' if result['ok'] else 'FAIL'}"]
+    lines = [
+        f"hysid bench coverage: truth within {t['within_stderr']:g} reported standard errors in >= {100 * t['share']:.0f} % of the seeds, "
+        f"every reported quantity  {'PASS' if result['ok'] else 'FAIL'}"
+    ]
     for name, s in result["specimens"].items():
-        lines.append(f"  {name} ({s['loops']} loops, {s['seeds']} seeds, {s['wall_s']:.0f} s): worst {s['worst']} "
-                     f"{100 * s['worst_covered']:.0f} %  {'ok' if s['ok'] else 'FAIL'}")
+        lines.append(
+            f"  {name} ({s['loops']} loops, {s['seeds']} seeds, {s['wall_s']:.0f} s): worst {s['worst']} "
+            f"{100 * s['worst_covered']:.0f} %  {'ok' if s['ok'] else 'FAIL'}"
+        )
         lines.append(f"    {s['description']}")
         for q, v in s["quantities"].items():
             if "mm" not in q or v["covered"] < 1.0:

@@ -88,8 +88,16 @@ def proposals(diagnosis: Diagnosis) -> list[dict[str, Any]]:
 def outcome(diagnosis: Diagnosis, cpu: float, wall: float) -> dict[str, Any]:
     """What a diagnosis ended with: the effects named on the way (and those set aside for a proposal), the final model,
     its status and loop NRMSE, what discovery tried from each model and what came of it, and the seconds."""
-    return {"named": sorted({s.effect for s in diagnosis.steps}), "set_aside": sorted(diagnosis.set_aside), "final_model": diagnosis.final.spec,
-            "status": diagnosis.status, "nrmse_pct": diagnosis.gap[-1].nrmse_pct, "discovery": diagnosis.discovery, "cpu_s": cpu, "wall_s": wall}
+    return {
+        "named": sorted({s.effect for s in diagnosis.steps}),
+        "set_aside": sorted(diagnosis.set_aside),
+        "final_model": diagnosis.final.spec,
+        "status": diagnosis.status,
+        "nrmse_pct": diagnosis.gap[-1].nrmse_pct,
+        "discovery": diagnosis.discovery,
+        "cpu_s": cpu,
+        "wall_s": wall,
+    }
 
 
 def run_law(name: str, noise_pct: float, quick: bool) -> dict[str, Any]:
@@ -107,11 +115,23 @@ def run_law(name: str, noise_pct: float, quick: bool) -> dict[str, Any]:
     floor = truth_nrmse(loops, (spec, values, "measured"))
     n_params = sum(len(p["params"]) for p in proposed)
     row = {
-        "law": name, "truth": law.formula, "truth_params": law.truth, "issue_law": law.issue, "noise_pct": noise_pct, "loops": loops.n_loops,
-        "baseline": base, "discovery": discovered, "proposed": proposed, "n_params": n_params, "law_params": law.n_params,
-        "shape_error": shape_error(truth, found, x, v), "nothing_proposed_shape_error": shape_error(truth, np.zeros_like(x), x, v),
-        "floor_nrmse_pct": floor, "floor_ratio": discovered["nrmse_pct"] / floor,
-        "time_ratio": discovered["cpu_s"] / base["cpu_s"], "wall_ratio": discovered["wall_s"] / base["wall_s"],
+        "law": name,
+        "truth": law.formula,
+        "truth_params": law.truth,
+        "issue_law": law.issue,
+        "noise_pct": noise_pct,
+        "loops": loops.n_loops,
+        "baseline": base,
+        "discovery": discovered,
+        "proposed": proposed,
+        "n_params": n_params,
+        "law_params": law.n_params,
+        "shape_error": shape_error(truth, found, x, v),
+        "nothing_proposed_shape_error": shape_error(truth, np.zeros_like(x), x, v),
+        "floor_nrmse_pct": floor,
+        "floor_ratio": discovered["nrmse_pct"] / floor,
+        "time_ratio": discovered["cpu_s"] / base["cpu_s"],
+        "wall_ratio": discovered["wall_s"] / base["wall_s"],
     }
     row["meets"] = {
         "proposed": bool(proposed),
@@ -131,8 +151,15 @@ def run_control(name: str, seeds: int, quick: bool) -> dict[str, Any]:
         diagnosis, cpu, wall = diagnosed(dc.loops_of(name, CONTROL_NOISE_PCT, seed, quick), True)
         draws.append({"seed": seed, **outcome(diagnosis, cpu, wall), "proposed": [p["formula"] for p in proposals(diagnosis)]})
     false = sum(bool(d["proposed"]) for d in draws)
-    return {"control": name, "model": dc.CONTROLS[name][0], "noise_pct": CONTROL_NOISE_PCT, "seeds": seeds, "false_proposals": false,
-            "meets": false <= TARGETS["false_proposals"] * seeds / 20, "draws": draws}
+    return {
+        "control": name,
+        "model": dc.CONTROLS[name][0],
+        "noise_pct": CONTROL_NOISE_PCT,
+        "seeds": seeds,
+        "false_proposals": false,
+        "meets": false <= TARGETS["false_proposals"] * seeds / 20,
+        "draws": draws,
+    }
 
 
 def run_real() -> dict[str, Any]:
@@ -143,12 +170,25 @@ def run_real() -> dict[str, Any]:
     proposed = proposals(diagnosis)
     held = [(p.get("evidence") or {}).get("held_out_before") for p in proposed], [(p.get("evidence") or {}).get("held_out_after") for p in proposed]
     supported = [None if b is None or a is None else bool(a < b) for b, a in zip(*held)]
-    return {"device": "arts_friction_damper", "loops": loops.n_loops, "baseline": base, "discovery": outcome(diagnosis, cpu, wall),
-            "proposed": proposed, "held_out_supports": supported, "time_ratio": cpu / base["cpu_s"]}
+    return {
+        "device": "arts_friction_damper",
+        "loops": loops.n_loops,
+        "baseline": base,
+        "discovery": outcome(diagnosis, cpu, wall),
+        "proposed": proposed,
+        "held_out_supports": supported,
+        "time_ratio": cpu / base["cpu_s"],
+    }
 
 
-def run(quick: bool = False, seeds: int | None = None, laws: tuple[str, ...] = tuple(dc.LAWS), controls: tuple[str, ...] = tuple(dc.CONTROLS),
-        noise: tuple[float, ...] = dc.NOISE_PCT, real: bool = True) -> dict[str, Any]:
+def run(
+    quick: bool = False,
+    seeds: int | None = None,
+    laws: tuple[str, ...] = tuple(dc.LAWS),
+    controls: tuple[str, ...] = tuple(dc.CONTROLS),
+    noise: tuple[float, ...] = dc.NOISE_PCT,
+    real: bool = True,
+) -> dict[str, Any]:
     """Discovery: nine force laws the library lacks at two noise levels (shape error, parameters, NRMSE vs floor, time) and two controls."""
     seeds = (QUICK_SEEDS if quick else CONTROL_SEEDS) if seeds is None else seeds
     for given, known, what in ((laws, dc.LAWS, "law"), (controls, dc.CONTROLS, "control")):
@@ -161,14 +201,28 @@ def run(quick: bool = False, seeds: int | None = None, laws: tuple[str, ...] = t
     diagnosed(dc.loops_of("no_effect", CONTROL_NOISE_PCT, 0, True), True)  # warm-up: imports and compiled kernels out of the first timing
     rows = [run_law(name, level, quick) for name in laws for level in noise]
     checks = [run_control(name, seeds, quick) for name in controls]
-    return tallied({"bench": "discovery", "quick": quick, "targets": TARGETS, "points_per_branch": dc.POINTS,
-                    "laws": rows, "controls": checks, "real": run_real() if real else None, "bench_s": time.perf_counter() - began})
+    return tallied(
+        {
+            "bench": "discovery",
+            "quick": quick,
+            "targets": TARGETS,
+            "points_per_branch": dc.POINTS,
+            "laws": rows,
+            "controls": checks,
+            "real": run_real() if real else None,
+            "bench_s": time.perf_counter() - began,
+        }
+    )
 
 
 def tallied(result: dict[str, Any]) -> dict[str, Any]:
     """``result`` with its counts: law cases meeting every target, and whether every control does."""
-    return {**result, "meet_all": sum(r["meets_all"] for r in result["laws"]), "of": len(result["laws"]),
-            "controls_meet": all(c["meets"] for c in result["controls"])}
+    return {
+        **result,
+        "meet_all": sum(r["meets_all"] for r in result["laws"]),
+        "of": len(result["laws"]),
+        "controls_meet": all(c["meets"] for c in result["controls"]),
+    }
 
 
 def combined(parts: list[dict[str, Any]]) -> dict[str, Any]:
@@ -179,9 +233,16 @@ def combined(parts: list[dict[str, Any]]) -> dict[str, Any]:
     keys = [(r["law"], r["noise_pct"]) for p in parts for r in p["laws"]] + [(c["control"], None) for p in parts for c in p["controls"]]
     if len(keys) != len(set(keys)) or sum(p["real"] is not None for p in parts) > 1:
         raise HysidInputError("the runs to merge overlap (a law at one noise level, a control or the real device in two of them)", param="merge")
-    return tallied({**parts[0], "laws": [r for p in parts for r in p["laws"]], "controls": [c for p in parts for c in p["controls"]],
-                    "real": next((p["real"] for p in parts if p["real"] is not None), None), "bench_s": max(p["bench_s"] for p in parts),
-                    "parts": len(parts)})
+    return tallied(
+        {
+            **parts[0],
+            "laws": [r for p in parts for r in p["laws"]],
+            "controls": [c for p in parts for c in p["controls"]],
+            "real": next((p["real"] for p in parts if p["real"] is not None), None),
+            "bench_s": max(p["bench_s"] for p in parts),
+            "parts": len(parts),
+        }
+    )
 
 
 def proposed_text(row: dict[str, Any]) -> str:
@@ -189,16 +250,20 @@ def proposed_text(row: dict[str, Any]) -> str:
 
 
 def to_text(result: dict[str, Any]) -> str:
-    lines = [f"hysid bench discovery{' (quick)' if result['quick'] else ''}: {result['meet_all']} of {result['of']} law cases meet every target; "
-             f"controls {'meet' if result['controls_meet'] else 'MISS'} (false proposals at most 1 in 20)"]
+    lines = [
+        f"hysid bench discovery{' (quick)' if result['quick'] else ''}: {result['meet_all']} of {result['of']} law cases meet every target; "
+        f"controls {'meet' if result['controls_meet'] else 'MISS'} (false proposals at most 1 in 20)"
+    ]
     for r in result["laws"]:
         m = r["meets"]
         lines.append(f"  {r['law']:<15} {r['noise_pct']:g} %  proposed {proposed_text(r)}")
-        lines.append(f"    shape error {100 * r['shape_error']:.1f} % (nothing proposed: {100 * r['nothing_proposed_shape_error']:.1f} %) "
-                     f"{'ok' if m['shape'] else 'MISS'}; params {r['n_params']} (law {r['law_params']}) {'ok' if m['params'] else 'MISS'}; "
-                     f"NRMSE {r['discovery']['nrmse_pct']:.3g} % vs floor {r['floor_nrmse_pct']:.3g} % ({r['floor_ratio']:.2f}x) "
-                     f"{'ok' if m['floor'] else 'MISS'}; time {r['discovery']['cpu_s']:.0f} s vs {r['baseline']['cpu_s']:.0f} s "
-                     f"({r['time_ratio']:.2f}x) {'ok' if m['time'] else 'MISS'}; named {', '.join(r['discovery']['named']) or 'nothing'}")
+        lines.append(
+            f"    shape error {100 * r['shape_error']:.1f} % (nothing proposed: {100 * r['nothing_proposed_shape_error']:.1f} %) "
+            f"{'ok' if m['shape'] else 'MISS'}; params {r['n_params']} (law {r['law_params']}) {'ok' if m['params'] else 'MISS'}; "
+            f"NRMSE {r['discovery']['nrmse_pct']:.3g} % vs floor {r['floor_nrmse_pct']:.3g} % ({r['floor_ratio']:.2f}x) "
+            f"{'ok' if m['floor'] else 'MISS'}; time {r['discovery']['cpu_s']:.0f} s vs {r['baseline']['cpu_s']:.0f} s "
+            f"({r['time_ratio']:.2f}x) {'ok' if m['time'] else 'MISS'}; named {', '.join(r['discovery']['named']) or 'nothing'}"
+        )
     for c in result["controls"]:
         lines.append(f"  control {c['control']:<17} proposals in {c['false_proposals']} of {c['seeds']} draws {'ok' if c['meets'] else 'MISS'}")
     if result.get("real"):
@@ -210,60 +275,93 @@ def to_text(result: dict[str, Any]) -> str:
 def real_text(real: dict[str, Any]) -> str:
     """One paragraph on the real damper: what each diagnosis ended with, what was proposed, and its held-out evidence."""
     b, d = real["baseline"], real["discovery"]
-    text = (f"{real['loops']} loops; without discovery `{b['final_model']}`, {b['status']}, loop NRMSE {b['nrmse_pct']:.3g} %; "
-            f"with discovery `{d['final_model']}`, {d['status']}, {d['nrmse_pct']:.3g} % ({real['time_ratio']:.2f}x the time). ")
+    text = (
+        f"{real['loops']} loops; without discovery `{b['final_model']}`, {b['status']}, loop NRMSE {b['nrmse_pct']:.3g} %; "
+        f"with discovery `{d['final_model']}`, {d['status']}, {d['nrmse_pct']:.3g} % ({real['time_ratio']:.2f}x the time). "
+    )
     if not real["proposed"]:
         tried = "; ".join(f"from `{start}`: {what}" for start, what in (d.get("discovery") or {}).items())
         return text + "Nothing proposed" + (f" (discovery tried {tried})." if tried else ".")
     parts = []
     for p, ok in zip(real["proposed"], real["held_out_supports"]):
         e = p.get("evidence") or {}
-        held = (f"held-out error {e['held_out_before']:.4g} -> {e['held_out_after']:.4g}" if ok is not None else "no held-out error")
-        parts.append(f"proposed `{p.get('notation') or p['formula']}` ({held}, delta BIC {e.get('delta_bic', float('nan')):.4g}, "
-                     f"share of the excess removed {e.get('share_of_excess_removed', float('nan')):.3g}): held-out data "
-                     + ("support it" if ok else "do not support it" if ok is not None else "were not checked"))
+        held = f"held-out error {e['held_out_before']:.4g} -> {e['held_out_after']:.4g}" if ok is not None else "no held-out error"
+        parts.append(
+            f"proposed `{p.get('notation') or p['formula']}` ({held}, delta BIC {e.get('delta_bic', float('nan')):.4g}, "
+            f"share of the excess removed {e.get('share_of_excess_removed', float('nan')):.3g}): held-out data "
+            + ("support it" if ok else "do not support it" if ok is not None else "were not checked")
+        )
     return text + "; ".join(parts) + "."
 
 
 def to_markdown(result: dict[str, Any], environment: dict[str, Any]) -> str:
     """The discovery section of docs/VALIDATION.md: the table of the laws, the controls' counts, how it was made."""
-    head = ["hidden law", "noise", "proposed", "shape error (nothing proposed)", "parameters (law)", "loop NRMSE vs floor",
-            "CPU time with / without discovery", "targets"]
+    head = [
+        "hidden law",
+        "noise",
+        "proposed",
+        "shape error (nothing proposed)",
+        "parameters (law)",
+        "loop NRMSE vs floor",
+        "CPU time with / without discovery",
+        "targets",
+    ]
     rows = []
     for r in result["laws"]:
         missed = [k for k, ok in r["meets"].items() if not ok]
-        rows.append([f"`{r['law']}`: {r['truth']}", f"{r['noise_pct']:g} %", f"`{proposed_text(r)}`",
-                     f"{100 * r['shape_error']:.1f} % ({100 * r['nothing_proposed_shape_error']:.1f} %)", f"{r['n_params']} ({r['law_params']})",
-                     f"{r['discovery']['nrmse_pct']:.3g} % vs {r['floor_nrmse_pct']:.3g} % ({r['floor_ratio']:.2f}x)",
-                     f"{r['discovery']['cpu_s']:.0f} s / {r['baseline']['cpu_s']:.0f} s ({r['time_ratio']:.2f}x)",
-                     "met" if not missed else "**missed: " + ", ".join(missed) + "**"])
+        rows.append(
+            [
+                f"`{r['law']}`: {r['truth']}",
+                f"{r['noise_pct']:g} %",
+                f"`{proposed_text(r)}`",
+                f"{100 * r['shape_error']:.1f} % ({100 * r['nothing_proposed_shape_error']:.1f} %)",
+                f"{r['n_params']} ({r['law_params']})",
+                f"{r['discovery']['nrmse_pct']:.3g} % vs {r['floor_nrmse_pct']:.3g} % ({r['floor_ratio']:.2f}x)",
+                f"{r['discovery']['cpu_s']:.0f} s / {r['baseline']['cpu_s']:.0f} s ({r['time_ratio']:.2f}x)",
+                "met" if not missed else "**missed: " + ", ".join(missed) + "**",
+            ]
+        )
     cells = [[cell.replace("|", "\\|") for cell in row] for row in rows]  # |v| inside a table cell
     table = ["| " + " | ".join(head) + " |", "|" + "|".join([":--"] * len(head)) + "|"] + ["| " + " | ".join(row) + " |" for row in cells]
-    controls = [f"* `{c['control']}` (`{c['model']}`, {c['noise_pct']:g} % noise): something proposed in **{c['false_proposals']} of "
-                f"{c['seeds']}** noise draws ({'met' if c['meets'] else 'missed'}: at most 1 in 20)" for c in result["controls"]]
+    controls = [
+        f"* `{c['control']}` (`{c['model']}`, {c['noise_pct']:g} % noise): something proposed in **{c['false_proposals']} of "
+        f"{c['seeds']}** noise draws ({'met' if c['meets'] else 'missed'}: at most 1 in 20)"
+        for c in result["controls"]
+    ]
     machine = environment.get("machine", {})
     doc = (__doc__ or "").split("\n\n", 1)[1].strip()
     parts = f", the longest of {result['parts']} parts run side by side and merged by --merge" if result.get("parts", 1) > 1 else ""
-    return "\n".join([
-        "## Discovery: force laws the library lacks",
-        "",
-        f"Generated {environment.get('date', '')} on {machine.get('hostname', '')} ({machine.get('cpu_model', '')}, load "
-        f"{machine.get('load_avg_1m', '')}) by `hysid bench discovery{' --quick' if result['quick'] else ''} --markdown docs/VALIDATION.md` "
-        f"({result['bench_s']:.0f} s{parts}). **{result['meet_all']} of {result['of']} law cases meet every target.**",
-        "",
-        *table,
-        "",
-        "Controls:",
-        "",
-        *controls,
-        "",
-        *([("Real device, the ARTS-Lab band-brake friction damper (`data/arts-friction-damper`: Dataset-Friction-Damper-with-Backlash, "
-            "ARTS-Laboratory, Coble, Huggins, Cao, Ricles and Downey 2022, CC BY-SA 4.0, converted subset; see its README): "
-            + real_text(result["real"]).replace("|", "\\|")), ""] if result.get("real") else []),
-        "### How",
-        "",
-        doc,
-        "",
-        (dc.__doc__ or "").split("\n\n", 1)[1].strip(),
-        "",
-    ])
+    return "\n".join(
+        [
+            "## Discovery: force laws the library lacks",
+            "",
+            f"Generated {environment.get('date', '')} on {machine.get('hostname', '')} ({machine.get('cpu_model', '')}, load "
+            f"{machine.get('load_avg_1m', '')}) by `hysid bench discovery{' --quick' if result['quick'] else ''} --markdown docs/VALIDATION.md` "
+            f"({result['bench_s']:.0f} s{parts}). **{result['meet_all']} of {result['of']} law cases meet every target.**",
+            "",
+            *table,
+            "",
+            "Controls:",
+            "",
+            *controls,
+            "",
+            *(
+                [
+                    (
+                        "Real device, the ARTS-Lab band-brake friction damper (`data/arts-friction-damper`: Dataset-Friction-Damper-with-Backlash, "
+                        "ARTS-Laboratory, Coble, Huggins, Cao, Ricles and Downey 2022, CC BY-SA 4.0, converted subset; see its README): "
+                        + real_text(result["real"]).replace("|", "\\|")
+                    ),
+                    "",
+                ]
+                if result.get("real")
+                else []
+            ),
+            "### How",
+            "",
+            doc,
+            "",
+            (dc.__doc__ or "").split("\n\n", 1)[1].strip(),
+            "",
+        ]
+    )

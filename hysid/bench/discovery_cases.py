@@ -110,22 +110,50 @@ def quintic(x, v, hqu_k):
     return hqu_k * x**5
 
 
-LAWS = {law.name: law for law in (
-    Law("fluid_viscous", "c |v|^alpha sgn v, alpha = 0.35", fluid_viscous, {"hfv_c": 120.0, "hfv_alpha": 0.35},
-        {"hfv_c": "N (s/m)^alpha", "hfv_alpha": "1"}, {"hfv_c": (0.0, 1e4), "hfv_alpha": (0.05, 2.0)}),
-    Law("orifice", "c v |v|", orifice, {"hor_c": 800.0}, {"hor_c": "N s^2/m^2"}, {"hor_c": (0.0, 1e5)}),
-    Law("gap", "k (|x| - g)+ sgn x", gap, {"hgp_k": 8e4, "hgp_g": 1.2e-3}, {"hgp_k": "N/m", "hgp_g": "m"},
-        {"hgp_k": (0.0, 1e7), "hgp_g": (0.0, 1e-2)}),
-    Law("stribeck", "F_c sgn v (1 + s exp(-(v/v_s)^2)), static F_c (1 + s)", stribeck, {"hst_fc": 25.0, "hst_s": 1.4, "hst_vs": 0.04},
-        {"hst_fc": "N", "hst_s": "1", "hst_vs": "m/s"}, {"hst_fc": (0.0, 1e3), "hst_s": (0.0, 10.0), "hst_vs": (1e-4, 1.0)}),
-    Law("asymmetric", "k x^2", asymmetric, {"has_k": 1.5e7}, {"has_k": "N/m^2"}, {"has_k": (-1e9, 1e9)}),
-    Law("saturating", "F_0 tanh(v / v_0)", saturating, {"hsa_f": 50.0, "hsa_v": 0.08}, {"hsa_f": "N", "hsa_v": "m/s"},
-        {"hsa_f": (0.0, 1e4), "hsa_v": (1e-4, 10.0)}, issue=False),
-    Law("one_sided_stop", "k (x - g)+", one_sided_stop, {"hos_k": 6e4, "hos_g": 1.5e-3}, {"hos_k": "N/m", "hos_g": "m"},
-        {"hos_k": (0.0, 1e7), "hos_g": (0.0, 1e-2)}, issue=False),
-    Law("wedge_friction", "mu_k |x| sgn v", wedge_friction, {"hwf_k": 1.5e4}, {"hwf_k": "N/m"}, {"hwf_k": (0.0, 1e7)}, issue=False),
-    Law("quintic", "k_5 x^5", quintic, {"hqu_k": 2.4e14}, {"hqu_k": "N/m^5"}, {"hqu_k": (-1e17, 1e17)}, issue=False),
-)}
+LAWS = {
+    law.name: law
+    for law in (
+        Law(
+            "fluid_viscous",
+            "c |v|^alpha sgn v, alpha = 0.35",
+            fluid_viscous,
+            {"hfv_c": 120.0, "hfv_alpha": 0.35},
+            {"hfv_c": "N (s/m)^alpha", "hfv_alpha": "1"},
+            {"hfv_c": (0.0, 1e4), "hfv_alpha": (0.05, 2.0)},
+        ),
+        Law("orifice", "c v |v|", orifice, {"hor_c": 800.0}, {"hor_c": "N s^2/m^2"}, {"hor_c": (0.0, 1e5)}),
+        Law("gap", "k (|x| - g)+ sgn x", gap, {"hgp_k": 8e4, "hgp_g": 1.2e-3}, {"hgp_k": "N/m", "hgp_g": "m"}, {"hgp_k": (0.0, 1e7), "hgp_g": (0.0, 1e-2)}),
+        Law(
+            "stribeck",
+            "F_c sgn v (1 + s exp(-(v/v_s)^2)), static F_c (1 + s)",
+            stribeck,
+            {"hst_fc": 25.0, "hst_s": 1.4, "hst_vs": 0.04},
+            {"hst_fc": "N", "hst_s": "1", "hst_vs": "m/s"},
+            {"hst_fc": (0.0, 1e3), "hst_s": (0.0, 10.0), "hst_vs": (1e-4, 1.0)},
+        ),
+        Law("asymmetric", "k x^2", asymmetric, {"has_k": 1.5e7}, {"has_k": "N/m^2"}, {"has_k": (-1e9, 1e9)}),
+        Law(
+            "saturating",
+            "F_0 tanh(v / v_0)",
+            saturating,
+            {"hsa_f": 50.0, "hsa_v": 0.08},
+            {"hsa_f": "N", "hsa_v": "m/s"},
+            {"hsa_f": (0.0, 1e4), "hsa_v": (1e-4, 10.0)},
+            issue=False,
+        ),
+        Law(
+            "one_sided_stop",
+            "k (x - g)+",
+            one_sided_stop,
+            {"hos_k": 6e4, "hos_g": 1.5e-3},
+            {"hos_k": "N/m", "hos_g": "m"},
+            {"hos_k": (0.0, 1e7), "hos_g": (0.0, 1e-2)},
+            issue=False,
+        ),
+        Law("wedge_friction", "mu_k |x| sgn v", wedge_friction, {"hwf_k": 1.5e4}, {"hwf_k": "N/m"}, {"hwf_k": (0.0, 1e7)}, issue=False),
+        Law("quintic", "k_5 x^5", quintic, {"hqu_k": 2.4e14}, {"hqu_k": "N/m^5"}, {"hqu_k": (-1e17, 1e17)}, issue=False),
+    )
+}
 """The hidden laws (module docstring); strengths of 10-50 % of the spring's force at the largest amplitude."""
 CONTROLS = {"no_effect": ("baseline", {}), "coulomb_friction": ("baseline+coulomb_friction", {"F_d": 30.0})}
 """The controls: model and values beside :data:`SPECIMEN` (no missing effect; a library effect only)."""

@@ -145,8 +145,7 @@ def _measured(spec: IngestSet, directory: Path, rounds: int, seconds: float) -> 
     sizes = [p.stat().st_size / 1e6 for p in directory.glob("*.csv") if p.name != "manifest.csv"]
     code = "import json, sys; from hysid.bench.ingest import measure; json.dump(measure(sys.argv[1], sys.argv[2], int(sys.argv[3])), sys.stdout)"
     load_before = os.getloadavg()[0]
-    done = subprocess.run([sys.executable, "-c", code, str(directory), json.dumps(parse_plan(spec)), str(rounds)],
-                          capture_output=True, text=True, timeout=7200)
+    done = subprocess.run([sys.executable, "-c", code, str(directory), json.dumps(parse_plan(spec)), str(rounds)], capture_output=True, text=True, timeout=7200)
     if done.returncode != 0:
         tail = done.stderr.strip().splitlines()[-1:] or ["(no output)"]
         raise RuntimeError(f"ingest measurement of {spec.name} failed (exit {done.returncode}): {tail[0]}")
@@ -179,8 +178,9 @@ def _measured(spec: IngestSet, directory: Path, rounds: int, seconds: float) -> 
     }
 
 
-def run(parts: list[str] | tuple[str, ...] = PARTS, records: int = RECORDS, seconds: float = SECONDS,
-        sample_rate_hz: float = SAMPLE_RATE_HZ, rounds: int = ROUNDS) -> dict[str, Any]:
+def run(
+    parts: list[str] | tuple[str, ...] = PARTS, records: int = RECORDS, seconds: float = SECONDS, sample_rate_hz: float = SAMPLE_RATE_HZ, rounds: int = ROUNDS
+) -> dict[str, Any]:
     """Ingestion speed: hysid.load against numpy's parse of the same raw records, and peak memory against the largest file."""
     unknown = [p for p in parts if p not in PARTS]
     if unknown or not parts:
@@ -214,13 +214,14 @@ def to_text(result: dict[str, Any]) -> str:
             f"{r['data_mb']:.1f} MB of CSV (largest file {r['largest_file_mb']:.1f} MB), {r['cycles']} cycles "
             f"(load average {r['load_avg_1m'][0]:g} -> {r['load_avg_1m'][1]:g})",
             f"  numpy parse        {r['parse_s']:.2f} s",
-            f"  hysid load         {r['load_s']:.2f} s   {r['load_ratio']:.2f} x the parse (target <= {result['target_ratio']:g}), "
-            f"{r['mb_per_s']:.1f} MB/s",
+            f"  hysid load         {r['load_s']:.2f} s   {r['load_ratio']:.2f} x the parse (target <= {result['target_ratio']:g}), {r['mb_per_s']:.1f} MB/s",
             f"  extraction alone   {r['extract_s']:.2f} s   {r['extract_ratio']:.2f} x the parse",
             f"  memory             {r['rss_growth_mb']:.0f} MB for loading ({r['rss_per_largest_file']:.2f} x the largest file; "
             f"target <= {r['rss_bound_mb']:.0f} MB = {result['target_rss']})"
             + f"; {r['rss_growth_warm_mb']:.0f} MB in the rounds after the first load ({r['first_load_s']:.2f} s)",
         ]
-    lines.append(f"targets {'met' if result['meets_targets'] else 'NOT met'} (medians of {len(next(iter(result['sets'].values()))['rounds']['parse_s'])} "
-                 "alternating rounds; memory: the largest of them)")
+    lines.append(
+        f"targets {'met' if result['meets_targets'] else 'NOT met'} (medians of {len(next(iter(result['sets'].values()))['rounds']['parse_s'])} "
+        "alternating rounds; memory: the largest of them)"
+    )
     return "\n".join(lines)

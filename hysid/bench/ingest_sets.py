@@ -119,8 +119,18 @@ def lab_record(k: int, samples: int, rate: float) -> tuple[float, float, np.ndar
     model = build_model("baseline+bouc_wen")
     cycles = samples * freq / rate
     peak = WIRE_ROPE["bw_k"] * WIRE_ROPE["bw_zy"] + WIRE_ROPE["meq"] * WIRE_ROPE["w0"] ** 2 * x0
-    rec = simulate_raw(model, model.from_dict(WIRE_ROPE), np.array([freq]), np.array([x0]), noise_n=0.01 * peak, seed=2000 + k,
-                       sample_rate_hz=rate, cycles=int(np.ceil(cycles)), x_noise=1e-3, distortion={3: 0.02})[0]
+    rec = simulate_raw(
+        model,
+        model.from_dict(WIRE_ROPE),
+        np.array([freq]),
+        np.array([x0]),
+        noise_n=0.01 * peak,
+        seed=2000 + k,
+        sample_rate_hz=rate,
+        cycles=int(np.ceil(cycles)),
+        x_noise=1e-3,
+        distortion={3: 0.02},
+    )[0]
     t, x, force = rec.t[:samples], rec.x[:samples], rec.force[:samples]
     ramp = 0.5 - 0.5 * np.cos(np.pi * np.clip(t / 1.0, 0.0, 1.0))
     return freq, x0, t, x * ramp, force * ramp
@@ -159,8 +169,7 @@ def write_daq_records(directory: Path, spec: IngestSet) -> None:
     rows = ["file,frequency_hz"]
     for k in range(spec.records):
         freq, t, x, force = daq_record(k, spec.samples, spec.sample_rate_hz)
-        np.savetxt(directory / f"rec{k:02d}.csv", np.column_stack([t, x * 1e3, force * 1e-3]), delimiter=";",
-                   fmt=DAQ_FORMAT, header=DAQ_HEADER, comments="")
+        np.savetxt(directory / f"rec{k:02d}.csv", np.column_stack([t, x * 1e3, force * 1e-3]), delimiter=";", fmt=DAQ_FORMAT, header=DAQ_HEADER, comments="")
         rows.append(f"rec{k:02d}.csv,{freq:g}")
     (directory / "manifest.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
 

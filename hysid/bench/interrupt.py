@@ -47,7 +47,10 @@ class Job:
         self.db = out / "campaign.sqlite"
         self.process = subprocess.Popen(
             [sys.executable, "-m", "hysid", "campaign", *CAMPAIGN, "--model", model, "--out", str(out)],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # Ctrl-C, also where this process ignores it
         )
         self.lines: list[tuple[float, str]] = []
@@ -103,10 +106,21 @@ def first_ctrl_c(model: str, workdir: Path) -> dict[str, Any]:
         end = job.exited()
     finally:
         job.end()
-    since = {what: None if t is None else t - key for what, t in (
-        ("stopping_s", job.said("stopping: ")), ("islands_in_s", job.said("members 0 (", after=key)), ("reported_s", job.said("hysid: error: interrupted")))}
-    return {**since, "exit_s": end - key, "returncode": job.process.returncode,
-            "stopping_line": next((line for _, line in job.lines if "stopping:" in line), None), "islands": events(job.db)}
+    since = {
+        what: None if t is None else t - key
+        for what, t in (
+            ("stopping_s", job.said("stopping: ")),
+            ("islands_in_s", job.said("members 0 (", after=key)),
+            ("reported_s", job.said("hysid: error: interrupted")),
+        )
+    }
+    return {
+        **since,
+        "exit_s": end - key,
+        "returncode": job.process.returncode,
+        "stopping_line": next((line for _, line in job.lines if "stopping:" in line), None),
+        "islands": events(job.db),
+    }
 
 
 def second_ctrl_c(workdir: Path) -> dict[str, Any]:
@@ -123,9 +137,15 @@ def second_ctrl_c(workdir: Path) -> dict[str, Any]:
     finally:
         job.end()
     status = query(job.db, "SELECT status, stop_reason FROM campaigns")
-    return {"exit_s": end - key, "returncode": job.process.returncode, "status": status[0][0] if status else None,
-            "stop_reason": status[0][1] if status else None, "integrity": query(job.db, "PRAGMA integrity_check")[0][0],
-            "islands": events(job.db), "frozen_island_gone": not Path(f"/proc/{island}").exists()}
+    return {
+        "exit_s": end - key,
+        "returncode": job.process.returncode,
+        "status": status[0][0] if status else None,
+        "stop_reason": status[0][1] if status else None,
+        "integrity": query(job.db, "PRAGMA integrity_check")[0][0],
+        "islands": events(job.db),
+        "frozen_island_gone": not Path(f"/proc/{island}").exists(),
+    }
 
 
 def run(runs: int = RUNS) -> dict[str, Any]:
@@ -138,8 +158,11 @@ def run(runs: int = RUNS) -> dict[str, Any]:
             done = [first_ctrl_c(model, Path(tmp) / f"{re.sub(r'[^a-z]', '-', model)}-{k}") for k in range(runs)]
             cases.append({"model": model, "runs": done, "max_exit_s": max(r["exit_s"] for r in done)})
         leave_now = second_ctrl_c(Path(tmp) / "leave-now")
-    ok = all(r["returncode"] == 130 and r["exit_s"] < TARGET_S and r["stopping_s"] is not None and set(r["islands"]) == {"stopped"}
-             for case in cases for r in case["runs"])
+    ok = all(
+        r["returncode"] == 130 and r["exit_s"] < TARGET_S and r["stopping_s"] is not None and set(r["islands"]) == {"stopped"}
+        for case in cases
+        for r in case["runs"]
+    )
     ok = ok and leave_now["returncode"] == 130 and leave_now["status"] == "interrupted" and leave_now["integrity"] == "ok"
     return {"target_s": TARGET_S, "cases": cases, "leave_now": leave_now, "ok": ok}
 
@@ -149,11 +172,15 @@ def to_text(result: dict[str, Any]) -> str:
     for case in result["cases"]:
         lines.append(f"  {case['model']}:")
         for r in case["runs"]:
-            timed = ", ".join(f"{what} {'never' if r[key] is None else format(r[key], '.2f') + ' s'}" for what, key in (
-                ("'stopping'", "stopping_s"), ("islands in", "islands_in_s"), ("reported", "reported_s")))
+            timed = ", ".join(
+                f"{what} {'never' if r[key] is None else format(r[key], '.2f') + ' s'}"
+                for what, key in (("'stopping'", "stopping_s"), ("islands in", "islands_in_s"), ("reported", "reported_s"))
+            )
             lines.append(f"    {timed}, exit {r['returncode']} after {r['exit_s']:.2f} s, islands {r['islands']}")
     n = result["leave_now"]
-    lines.append(f"  a second Ctrl-C, one island frozen: exit {n['returncode']} after {n['exit_s']:.2f} s, database {n['status']} "
-                 f"({n['stop_reason']}), integrity {n['integrity']}, islands {n['islands']}, frozen island gone: {n['frozen_island_gone']}")
+    lines.append(
+        f"  a second Ctrl-C, one island frozen: exit {n['returncode']} after {n['exit_s']:.2f} s, database {n['status']} "
+        f"({n['stop_reason']}), integrity {n['integrity']}, islands {n['islands']}, frozen island gone: {n['frozen_island_gone']}"
+    )
     lines.append(f"ok: {result['ok']}")
     return "\n".join(lines)

@@ -47,11 +47,11 @@ reaches the Synth set's optimum, which would leave nothing to measure.
 
 from __future__ import annotations
 
-from dataclasses import replace
 import tempfile
 import time
-from pathlib import Path
 from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -71,8 +71,11 @@ from island.termination import Termination
 SPEEDUP_TARGET = 1.7
 PARTS = ("speedup", "migration", "mixed", "pygmo", "latency")
 MIXES = {
-    "ga": (["ga"], "fixed"), "pso": (["pso"], "fixed"),
-    "mixed_fixed": (["ga", "pso"], "fixed"), "mixed_adaptive": (["ga", "pso"], "adaptive"), "mixed": (["ga", "pso"], "staged"),
+    "ga": (["ga"], "fixed"),
+    "pso": (["pso"], "fixed"),
+    "mixed_fixed": (["ga", "pso"], "fixed"),
+    "mixed_adaptive": (["ga", "pso"], "adaptive"),
+    "mixed": (["ga", "pso"], "staged"),
 }
 """The campaigns of the mixed part, as (algorithms, share): GA islands only, PSO islands only, and half
 and half with each share (``mixed``: the default one, staged)."""
@@ -80,8 +83,20 @@ MIX_LABELS = {"mixed": "GA+PSO staged", "mixed_adaptive": "GA+PSO adaptive", "mi
 
 
 def campaign(
-    workdir: Path, name: str, algo: str | list[str], islands: int, options: dict[str, Any], migration: Migration, rules: Termination,
-    seed: int, *, model: str = "thesis", objective_kind: str = "closed_form", single_node: bool = False, start: bool = True, share: str = "fixed",
+    workdir: Path,
+    name: str,
+    algo: str | list[str],
+    islands: int,
+    options: dict[str, Any],
+    migration: Migration,
+    rules: Termination,
+    seed: int,
+    *,
+    model: str = "thesis",
+    objective_kind: str = "closed_form",
+    single_node: bool = False,
+    start: bool = True,
+    share: str = "fixed",
 ) -> Coordinator:
     """One campaign on the noiseless Synth set (islands as processes over Zenoh, or threads) of one
     algorithm or a mix (island i runs ``algo[i % len(algo)]``, each with ``options``); without
@@ -90,9 +105,19 @@ def campaign(
     mix's :mod:`island.share` policy. Returns its finished coordinator."""
     loops = synth_loops()
     algos = [algo] if isinstance(algo, str) else list(algo)
-    config = CampaignConfig.create(loops, name=name, model=model, algos=algos, options={a: options for a in algos}, migration=migration,
-                                   seed=seed, min_islands=islands, objective_kind=objective_kind, until_stopped="iterations" not in options,
-                                   share=share)
+    config = CampaignConfig.create(
+        loops,
+        name=name,
+        model=model,
+        algos=algos,
+        options={a: options for a in algos},
+        migration=migration,
+        seed=seed,
+        min_islands=islands,
+        objective_kind=objective_kind,
+        until_stopped="iterations" not in options,
+        share=share,
+    )
     if not start:
         config = replace(config, start=None)
     coordinator = Coordinator(Store(workdir / f"{name}.sqlite"), config, loops, rules)
@@ -127,8 +152,19 @@ def speedup_on(which: str, seeds: int, population: int) -> dict[str, Any]:
             for n in (1, 2):
                 p = population // n
                 options = {"population": p, "initial_population": 2 * p, "iterations": 100_000, "addpop_level": 1}
-                c = campaign(Path(tmp), f"speedup-{which}-{n}-{seed}", "pso", n, options, Migration(interval=2, k=2),
-                             Termination(target=target, time_limit_s=900), seed, model=model, objective_kind=kind, start=False)
+                c = campaign(
+                    Path(tmp),
+                    f"speedup-{which}-{n}-{seed}",
+                    "pso",
+                    n,
+                    options,
+                    Migration(interval=2, k=2),
+                    Termination(target=target, time_limit_s=900),
+                    seed,
+                    model=model,
+                    objective_kind=kind,
+                    start=False,
+                )
                 t = time_to(c, target)
                 if t is None:
                     raise RuntimeError(f"speedup bench ({which}): {n} island(s), seed {seed} did not reach fitness {target:g} ({c.stop_reason})")
@@ -137,11 +173,20 @@ def speedup_on(which: str, seeds: int, population: int) -> dict[str, Any]:
                 per_island[n].append(next(e for _, f, e, _ in c.best_trace if f <= target) / n)
     ratio = float(np.median(times[1]) / np.median(times[2]))
     return {
-        "objective": description, "model": model, "algo": "pso", "population_total": population,
-        "target_fitness": target, "seeds": seeds, "time_1_island_s": times[1], "time_2_islands_s": times[2],
-        "evaluations_1_island": evaluations[1], "evaluations_2_islands": evaluations[2],
+        "objective": description,
+        "model": model,
+        "algo": "pso",
+        "population_total": population,
+        "target_fitness": target,
+        "seeds": seeds,
+        "time_1_island_s": times[1],
+        "time_2_islands_s": times[2],
+        "evaluations_1_island": evaluations[1],
+        "evaluations_2_islands": evaluations[2],
         "work_ratio": float(np.median(per_island[1]) / np.median(per_island[2])),
-        "ratio": ratio, "ratio_target": SPEEDUP_TARGET, "ok": ratio >= SPEEDUP_TARGET,
+        "ratio": ratio,
+        "ratio_target": SPEEDUP_TARGET,
+        "ok": ratio >= SPEEDUP_TARGET,
     }
 
 
@@ -160,14 +205,30 @@ def migration(seeds: int = 20, islands: int = 4, population: int = 20, budget: i
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
         for seed in range(seeds):
             for label, interval in (("migration", 5), ("isolated", 0)):
-                c = campaign(Path(tmp), f"{label}-{seed}", "pso", islands, options, Migration(interval=interval, k=2),
-                             Termination(budget=budget), seed, single_node=True, start=False)
+                c = campaign(
+                    Path(tmp),
+                    f"{label}-{seed}",
+                    "pso",
+                    islands,
+                    options,
+                    Migration(interval=interval, k=2),
+                    Termination(budget=budget),
+                    seed,
+                    single_node=True,
+                    start=False,
+                )
                 assert c.best is not None
                 finals[label].append(c.best.fitness)
     rate = {k: float(np.mean(np.array(v) <= threshold)) for k, v in finals.items()}
     return {
-        "algo": "pso", "islands": islands, "population": population, "budget_evaluations": budget, "threshold": threshold,
-        "seeds": seeds, "success_rate": rate, "median_final_fitness": {k: float(np.median(v)) for k, v in finals.items()},
+        "algo": "pso",
+        "islands": islands,
+        "population": population,
+        "budget_evaluations": budget,
+        "threshold": threshold,
+        "seeds": seeds,
+        "success_rate": rate,
+        "median_final_fitness": {k: float(np.median(v)) for k, v in finals.items()},
         "ok": rate["migration"] > rate["isolated"],
     }
 
@@ -189,6 +250,8 @@ run, and at 100 seeds that spread alone moved a rate by several points."""
 MIXED_FIRST_SEED = 1300
 """The mixed part's seeds start here, on seeds no share policy was ever tried on (they were designed on
 0-59, 200-259, 300-359 and 3000-3099; this bench ran on 1000-1099 three times and on 1000-1299 once)."""
+
+
 def mixed(seeds: int = MIXED_SEEDS, islands: int = 4, population: int = 20) -> dict[str, Any]:
     """Part mixed: GA+PSO islands (each share) against GA-only and PSO-only ones at
     equal total evaluations (a campaign budget; every island searches until the coordinator stops) on
@@ -208,8 +271,20 @@ def mixed(seeds: int = MIXED_SEEDS, islands: int = 4, population: int = 20) -> d
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
         for seed in range(MIXED_FIRST_SEED, MIXED_FIRST_SEED + seeds):
             for label, (algos, share) in MIXES.items():
-                c = campaign(Path(tmp), f"mixed-{label}-{seed}", algos, islands, options, Migration(interval=5, k=2),
-                             Termination(budget=max(MIXED_BUDGETS)), seed, single_node=True, start=False, model=MIXED_MODEL, share=share)
+                c = campaign(
+                    Path(tmp),
+                    f"mixed-{label}-{seed}",
+                    algos,
+                    islands,
+                    options,
+                    Migration(interval=5, k=2),
+                    Termination(budget=max(MIXED_BUDGETS)),
+                    seed,
+                    single_node=True,
+                    start=False,
+                    model=MIXED_MODEL,
+                    share=share,
+                )
                 for budget in MIXED_BUDGETS:
                     within = [f for _, f, evaluations, _ in c.best_trace if evaluations <= budget]  # the stop overshoots: cut at the budget
                     finals[label][budget].append(within[-1] if within else np.inf)
@@ -233,11 +308,22 @@ def mixed(seeds: int = MIXED_SEEDS, islands: int = 4, population: int = 20) -> d
     mixes = [k for k, (algos, _) in MIXES.items() if len(algos) > 1]
     versus = {k: paired(success[k], success[better]) for k in mixes}
     return {
-        "model": MIXED_MODEL, "islands": islands, "population": population, "seeds": seeds, "first_seed": MIXED_FIRST_SEED,
-        "budget_evaluations": MIXED_TARGET[0], "threshold": MIXED_TARGET[1],
-        "mixes": {k: "+".join(a) + f" ({s} share)" for k, (a, s) in MIXES.items()}, "success_rate": rate,
-        "grid": rates, "better_single": better, "paired": versus, "ended_lower": {k: ended_lower(final[k], final[better]) for k in mixes},
-        "margin": NON_INFERIORITY_MARGIN, "moves": moves, "mean_evaluations_at_stop": {k: float(np.mean(v)) for k, v in spent.items()},
+        "model": MIXED_MODEL,
+        "islands": islands,
+        "population": population,
+        "seeds": seeds,
+        "first_seed": MIXED_FIRST_SEED,
+        "budget_evaluations": MIXED_TARGET[0],
+        "threshold": MIXED_TARGET[1],
+        "mixes": {k: "+".join(a) + f" ({s} share)" for k, (a, s) in MIXES.items()},
+        "success_rate": rate,
+        "grid": rates,
+        "better_single": better,
+        "paired": versus,
+        "ended_lower": {k: ended_lower(final[k], final[better]) for k in mixes},
+        "margin": NON_INFERIORITY_MARGIN,
+        "moves": moves,
+        "mean_evaluations_at_stop": {k: float(np.mean(v)) for k, v in spent.items()},
         "ok": versus["mixed"]["difference95"][0] >= -NON_INFERIORITY_MARGIN,
     }
 
@@ -294,8 +380,9 @@ def versus_pygmo(seeds: int = 3, islands: int = 4, population: int = 20, budget:
             options = {"population": population, "initial_population": population, "iterations": 100_000}
             c = campaign(Path(tmp), f"vs-pygmo-{seed}", "pso", islands, options, Migration(interval=5, k=2), Termination(budget=budget), seed)
             _, f, evaluations, x = [entry for entry in c.best_trace if entry[2] <= budget][-1]  # the best within the budget
-            out["hysid"].append({"time_to_target_s": time_to(c, target), "final_fitness": f, "evaluations": evaluations,
-                                 "parameter_error": parameter_error(x, names)})
+            out["hysid"].append(
+                {"time_to_target_s": time_to(c, target), "final_fitness": f, "evaluations": evaluations, "parameter_error": parameter_error(x, names)}
+            )
             out["pygmo"].append(pygmo_archipelago(islands, population, 5, budget, target, seed))
     summary: dict[str, dict[str, Any]] = {}
     for k, runs in out.items():
@@ -307,8 +394,13 @@ def versus_pygmo(seeds: int = 3, islands: int = 4, population: int = 20, budget:
         }
     both = summary["hysid"]["median_time_to_target_s"], summary["pygmo"]["median_time_to_target_s"]
     return {
-        "islands": islands, "population": population, "budget_evaluations": budget, "target_fitness": target, "seeds": seeds,
-        "runs": out, "summary": summary,
+        "islands": islands,
+        "population": population,
+        "budget_evaluations": budget,
+        "target_fitness": target,
+        "seeds": seeds,
+        "runs": out,
+        "summary": summary,
         "time_ratio_pygmo_over_hysid": both[1] / both[0] if None not in both else None,
     }
 
@@ -329,8 +421,10 @@ def run(parts: list[str] | tuple[str, ...] = PARTS) -> dict[str, Any]:
 def success_line(head: str, r: dict[str, Any], labels: dict[str, str]) -> str:
     """A success-rate part as one line: ``head``, budget, threshold, seeds, then each rate by its label."""
     rates = ", ".join(f"{label} {100 * r['success_rate'][key]:.0f} %" for key, label in labels.items())
-    return (f"{head}, {r['budget_evaluations']:,} evaluations, success = fitness <= {r['threshold']:g}, {r['seeds']} seeds): "
-            f"{rates} {'OK' if r['ok'] else 'MISSED'}")
+    return (
+        f"{head}, {r['budget_evaluations']:,} evaluations, success = fitness <= {r['threshold']:g}, {r['seeds']} seeds): "
+        f"{rates} {'OK' if r['ok'] else 'MISSED'}"
+    )
 
 
 def to_text(result: dict[str, Any]) -> str:
@@ -348,19 +442,33 @@ def to_text(result: dict[str, Any]) -> str:
         lines.append(success_line(f"migration ({r['islands']} PSO islands", r, {"migration": "with migration", "isolated": "isolated"}))
     if "mixed" in result:
         r = result["mixed"]
-        lines.append(success_line(f"mixed ({r['model']}, {r['islands']} islands", r, MIX_LABELS)
-                     + f" (the staged mix at least as good as the better one: its paired 95 % interval above -{100 * r['margin']:.0f} points)")
+        lines.append(
+            success_line(f"mixed ({r['model']}, {r['islands']} islands", r, MIX_LABELS)
+            + f" (the staged mix at least as good as the better one: its paired 95 % interval above -{100 * r['margin']:.0f} points)"
+        )
         for key in r["grid"]["mixed"]:
             if not key.endswith("@median"):
-                lines.append(f"  {key.replace('@', ' evaluations, <= ')}: " + ", ".join(
-                    f"{label} {100 * r['grid'][k][key]['rate']:.0f} % [{100 * r['grid'][k][key]['wilson95'][0]:.0f}-{100 * r['grid'][k][key]['wilson95'][1]:.0f}]"
-                    for k, label in MIX_LABELS.items()))
-        lines.append(f"  paired at the target, seed by seed, against {MIX_LABELS[r['better_single']]}: " + "; ".join(
-            f"{MIX_LABELS[k]} {100 * p['difference']:+.0f} points [{100 * p['difference95'][0]:+.0f}, {100 * p['difference95'][1]:+.0f}] "
-            f"(only it {p['only_a']} seeds, only {MIX_LABELS[r['better_single']]} {p['only_b']}, sign test p {p['sign_test_p']:.2g})"
-            for k, p in r["paired"].items()))
-        lines.append(f"  final fitness at {r['budget_evaluations']:,} evaluations, seed by seed, against {MIX_LABELS[r['better_single']]}: " + "; ".join(
-            f"{MIX_LABELS[k]} lower in {e['lower']}, higher in {e['higher']} (Wilcoxon p {e['wilcoxon_p']:.2g})" for k, e in r["ended_lower"].items()))
+                lines.append(
+                    f"  {key.replace('@', ' evaluations, <= ')}: "
+                    + ", ".join(
+                        f"{label} {100 * r['grid'][k][key]['rate']:.0f} % [{100 * r['grid'][k][key]['wilson95'][0]:.0f}-{100 * r['grid'][k][key]['wilson95'][1]:.0f}]"
+                        for k, label in MIX_LABELS.items()
+                    )
+                )
+        lines.append(
+            f"  paired at the target, seed by seed, against {MIX_LABELS[r['better_single']]}: "
+            + "; ".join(
+                f"{MIX_LABELS[k]} {100 * p['difference']:+.0f} points [{100 * p['difference95'][0]:+.0f}, {100 * p['difference95'][1]:+.0f}] "
+                f"(only it {p['only_a']} seeds, only {MIX_LABELS[r['better_single']]} {p['only_b']}, sign test p {p['sign_test_p']:.2g})"
+                for k, p in r["paired"].items()
+            )
+        )
+        lines.append(
+            f"  final fitness at {r['budget_evaluations']:,} evaluations, seed by seed, against {MIX_LABELS[r['better_single']]}: "
+            + "; ".join(
+                f"{MIX_LABELS[k]} lower in {e['lower']}, higher in {e['higher']} (Wilcoxon p {e['wilcoxon_p']:.2g})" for k, e in r["ended_lower"].items()
+            )
+        )
         lines.append("  moves: " + "; ".join(f"{MIX_LABELS[k]} {v or 'none'}" for k, v in r["moves"].items()))
     if "pygmo" in result:
         r = result["pygmo"]
@@ -382,4 +490,3 @@ def to_text(result: dict[str, Any]) -> str:
             f"{r['latency_median_ms']:.2f} ms, p99 {r['latency_p99_ms']:.2f} ms = {r['latency_in_ga_iterations']:.2f} thesis GA iterations"
         )
     return "\n".join(lines)
-

@@ -83,7 +83,13 @@ def latency(messages: int = 5000, paced: int = 500, k: int = 2) -> dict[str, Any
     iteration = ga_iteration_s()
     median = float(np.median(delays))
     return {
-        "messages": messages, "migrants_per_message": k, "messages_per_s": messages / elapsed, "migrants_per_s": k * messages / elapsed,
-        "paced_messages": paced, "latency_median_ms": 1e3 * median, "latency_p99_ms": 1e3 * float(np.percentile(delays, 99)),
-        "ga_iteration_ms": 1e3 * iteration, "latency_in_ga_iterations": median / iteration,
+        "messages": messages,
+        "migrants_per_message": k,
+        "messages_per_s": messages / elapsed,
+        "migrants_per_s": k * messages / elapsed,
+        "paced_messages": paced,
+        "latency_median_ms": 1e3 * median,
+        "latency_p99_ms": 1e3 * float(np.percentile(delays, 99)),
+        "ga_iteration_ms": 1e3 * iteration,
+        "latency_in_ga_iterations": median / iteration,
     }

@@ -119,8 +119,11 @@ class Lab:
 
     def has_netem(self) -> bool:
         """Whether this kernel has the netem qdisc (tried on the hub's loopback, then removed)."""
-        added = subprocess.run(["tc", "-n", self.hub, "qdisc", "add", "dev", "lo", "root", "netem", "delay", "0ms"],
-                               capture_output=True, timeout=20) if shutil.which("tc") else None
+        added = (
+            subprocess.run(["tc", "-n", self.hub, "qdisc", "add", "dev", "lo", "root", "netem", "delay", "0ms"], capture_output=True, timeout=20)
+            if shutil.which("tc")
+            else None
+        )
         if added is None or added.returncode != 0:
             return False
         subprocess.run(["tc", "-n", self.hub, "qdisc", "del", "dev", "lo", "root"], capture_output=True, timeout=20)
@@ -129,8 +132,12 @@ class Lab:
     def netem(self, k: int, delay_ms: float, loss_pct: float) -> None:
         """Delay and loss each way on host k's link with netem (needs :meth:`has_netem`)."""
         for namespace, device in ((self.host(k), "eth0"), (self.hub, f"veth{k}")):
-            subprocess.run(["tc", "-n", namespace, "qdisc", "add", "dev", device, "root", "netem",
-                            "delay", f"{delay_ms:g}ms", "loss", f"{loss_pct:g}%"], check=True, capture_output=True, timeout=20)
+            subprocess.run(
+                ["tc", "-n", namespace, "qdisc", "add", "dev", device, "root", "netem", "delay", f"{delay_ms:g}ms", "loss", f"{loss_pct:g}%"],
+                check=True,
+                capture_output=True,
+                timeout=20,
+            )
 
     def drop(self, k: int, loss_pct: float) -> str | None:
         """Randomly drop ``loss_pct`` % of host k's incoming and outgoing packets with iptables;
@@ -139,9 +146,25 @@ class Lab:
             return "iptables is not installed"
         for chain, side in (("INPUT", "-i"), ("OUTPUT", "-o")):
             done = subprocess.run(
-                self.command(self.host(k), "iptables", "-A", chain, side, "eth0", "-m", "statistic", "--mode", "random",
-                             "--probability", f"{loss_pct / 100:g}", "-j", "DROP"),
-                capture_output=True, text=True, timeout=20,
+                self.command(
+                    self.host(k),
+                    "iptables",
+                    "-A",
+                    chain,
+                    side,
+                    "eth0",
+                    "-m",
+                    "statistic",
+                    "--mode",
+                    "random",
+                    "--probability",
+                    f"{loss_pct / 100:g}",
+                    "-j",
+                    "DROP",
+                ),
+                capture_output=True,
+                text=True,
+                timeout=20,
             )
             if done.returncode != 0:
                 return f"iptables statistic match refused: {done.stderr.strip()}"
@@ -151,9 +174,12 @@ class Lab:
         """A :mod:`hysid.bench.relay` in host k's namespace: ``127.0.0.1:port`` reaches the hub's
         ``upstream_port`` over host k's link with ``delay_ms`` more each way; returns once it listens."""
         relay = subprocess.Popen(
-            self.command(self.host(k), sys.executable, "-m", "hysid.bench.relay", "127.0.0.1", str(port),
-                         self.hub_address, str(upstream_port), f"{delay_ms:g}"),
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            self.command(
+                self.host(k), sys.executable, "-m", "hysid.bench.relay", "127.0.0.1", str(port), self.hub_address, str(upstream_port), f"{delay_ms:g}"
+            ),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
         )
         return when_ready(relay, lambda p: f"delay relay in {self.host(k)} did not start: {p.communicate()[1].strip()}")
 

@@ -154,9 +154,16 @@ def distorted_synth() -> LoopSet:
     force = model.force(model.from_dict(TRUE_PARAMS)[None, :], Kinematics(base.x0, base.omega, xh), phase, base.n_samples)[0]
     n = base.n_samples
     return LoopSet(
-        name="synth-distorted", freq_hz=base.freq_hz, x0=base.x0, top=np.stack([x, force[:, :n]], axis=-1),
-        bottom=np.stack([x, force[:, n:]], axis=-1), sigma=base.sigma, meq_kg=MEQ_KG, labels=base.labels,
-        meta={**base.meta, "source": "synth-distorted"}, x_harmonics=xh,
+        name="synth-distorted",
+        freq_hz=base.freq_hz,
+        x0=base.x0,
+        top=np.stack([x, force[:, :n]], axis=-1),
+        bottom=np.stack([x, force[:, n:]], axis=-1),
+        sigma=base.sigma,
+        meq_kg=MEQ_KG,
+        labels=base.labels,
+        meta={**base.meta, "source": "synth-distorted"},
+        x_harmonics=xh,
     )
 
 
@@ -220,8 +227,10 @@ def bouc_wen_fit() -> dict[str, float]:
     start = time.perf_counter()
     result = hysid.fit(loops, MEMORY_MODEL)
     return {
-        "bouc_wen_fit_s": time.perf_counter() - start, "bouc_wen_fit_evaluations": int(result.evaluations),
-        "bouc_wen_search_s": search_s, "bouc_wen_search_evaluations": int(search.evaluations),
+        "bouc_wen_fit_s": time.perf_counter() - start,
+        "bouc_wen_fit_evaluations": int(result.evaluations),
+        "bouc_wen_search_s": search_s,
+        "bouc_wen_search_evaluations": int(search.evaluations),
     }
 
 
@@ -247,8 +256,10 @@ def run() -> dict[str, Any]:
     fit = run_on_one_core("hysid.bench.objective:bouc_wen_fit")
     diagnosed = run_on_one_core("hysid.bench.objective:diagnosis")
     memory_ok = bool(
-        memory["memory_ratio"] >= TARGET_MEMORY_RATIO and memory["memory_waveform_cost"] <= TARGET_WAVEFORM_COST
-        and fit["bouc_wen_fit_s"] < TARGET_FIT_S and diagnosed["diagnose_s"] < TARGET_DIAGNOSE_S
+        memory["memory_ratio"] >= TARGET_MEMORY_RATIO
+        and memory["memory_waveform_cost"] <= TARGET_WAVEFORM_COST
+        and fit["bouc_wen_fit_s"] < TARGET_FIT_S
+        and diagnosed["diagnose_s"] < TARGET_DIAGNOSE_S
     )
     return {
         "hysid_evals_per_s": hysid["evals_per_s"],
@@ -264,8 +275,12 @@ def run() -> dict[str, Any]:
         **fit,
         **diagnosed,
         "targets": {
-            "ratio_min": TARGET_RATIO, "thesis_ga_budget_s_max": TARGET_BUDGET_S, "memory_ratio_min": TARGET_MEMORY_RATIO,
-            "memory_waveform_cost_max": TARGET_WAVEFORM_COST, "bouc_wen_fit_s_max": TARGET_FIT_S, "diagnose_s_max": TARGET_DIAGNOSE_S,
+            "ratio_min": TARGET_RATIO,
+            "thesis_ga_budget_s_max": TARGET_BUDGET_S,
+            "memory_ratio_min": TARGET_MEMORY_RATIO,
+            "memory_waveform_cost_max": TARGET_WAVEFORM_COST,
+            "bouc_wen_fit_s_max": TARGET_FIT_S,
+            "diagnose_s_max": TARGET_DIAGNOSE_S,
         },
         "targets_met": bool(ratio >= TARGET_RATIO and one_core["thesis_ga_budget_s"] < TARGET_BUDGET_S and memory_ok),
     }
@@ -278,31 +293,32 @@ def to_text(result: dict[str, Any]) -> str:
     targets = result["targets"]
     ratio_ok = result["ratio"] >= result["targets"]["ratio_min"]
     budget_ok = result["thesis_ga_budget_s"] < result["targets"]["thesis_ga_budget_s_max"]
-    return "\n".join([
-        f"objective on the Synth set ({result['loops']} loops x {result['samples_per_loop']} samples), thesis model and weights",
-        f"  hysid (closed form, GA batches)   {result['hysid_evals_per_s']:>14,.0f} evaluations/s",
-        f"  thesis erreval (faithful port)    {result['thesis_port_evals_per_s']:>14,.1f} evaluations/s"
-        f"  ({result['thesis_port_evaluations']} evaluations)",
-        f"  ratio                             {result['ratio']:>14,.0f} x   (target >= {result['targets']['ratio_min']:g}: {verdict(ratio_ok)})",
-        f"thesis GA budget on one core ({result['thesis_ga_evaluations']} evaluations)",
-        f"  objective only                    {result['thesis_ga_budget_s']:>14.4f} s   "
-        f"(target < {result['targets']['thesis_ga_budget_s_max']:g} s: {verdict(budget_ok)})",
-        f"  full GA run (operators included)  {result['thesis_ga_run_s']:>14.4f} s",
-        f"memory terms ({MEMORY_MODEL}, {result['memory_rounds']} alternating rounds)",
-        f"  compiled (hysid_model.sampled)    {result['memory_evals_per_s']:>14,.0f} evaluations/s",
-        f"  numpy reference path              {result['memory_reference_evals_per_s']:>14,.0f} evaluations/s",
-        f"  ratio                             {result['memory_ratio']:>14,.1f} x   (target >= {targets['memory_ratio_min']:g}: "
-        f"{verdict(result['memory_ratio'] >= targets['memory_ratio_min'])})",
-        f"  measured waveform (10.6 % THD)    {result['memory_waveform_evals_per_s']:>14,.0f} evaluations/s = "
-        f"{result['memory_waveform_objective_cost']:.2f} x the ideal sine's cost (10 linear features instead of 2); "
-        f"its memory force {result['memory_waveform_cost']:.2f} x (target <= {targets['memory_waveform_cost_max']:g}: "
-        f"{verdict(result['memory_waveform_cost'] <= targets['memory_waveform_cost_max'])})",
-        f"  exponent n free in [1, 6]         {result['memory_exponent_evals_per_s']:>14,.0f} evaluations/s = "
-        f"{result['memory_exponent_cost']:.2f} x the cost with n = 1 (same candidates)",
-        f"on one core: Bouc-Wen fit of Synth 5 % ({result['bouc_wen_fit_evaluations']:,} evaluations, polish included) "
-        f"{result['bouc_wen_fit_s']:.2f} s (target < {targets['bouc_wen_fit_s_max']:g} s: {verdict(result['bouc_wen_fit_s'] < targets['bouc_wen_fit_s_max'])}), "
-        f"the PSO search alone, without the polish ({result['bouc_wen_search_evaluations']:,} evaluations) {result['bouc_wen_search_s']:.2f} s",
-        f"  diagnosis of Synth from the baseline {result['diagnose_s']:.2f} s (target < {targets['diagnose_s_max']:g} s: "
-        f"{verdict(result['diagnose_s'] < targets['diagnose_s_max'])})",
-        f"peak RSS {result['peak_rss_mb']:.0f} MB",
-    ])
+    return "\n".join(
+        [
+            f"objective on the Synth set ({result['loops']} loops x {result['samples_per_loop']} samples), thesis model and weights",
+            f"  hysid (closed form, GA batches)   {result['hysid_evals_per_s']:>14,.0f} evaluations/s",
+            f"  thesis erreval (faithful port)    {result['thesis_port_evals_per_s']:>14,.1f} evaluations/s  ({result['thesis_port_evaluations']} evaluations)",
+            f"  ratio                             {result['ratio']:>14,.0f} x   (target >= {result['targets']['ratio_min']:g}: {verdict(ratio_ok)})",
+            f"thesis GA budget on one core ({result['thesis_ga_evaluations']} evaluations)",
+            f"  objective only                    {result['thesis_ga_budget_s']:>14.4f} s   "
+            f"(target < {result['targets']['thesis_ga_budget_s_max']:g} s: {verdict(budget_ok)})",
+            f"  full GA run (operators included)  {result['thesis_ga_run_s']:>14.4f} s",
+            f"memory terms ({MEMORY_MODEL}, {result['memory_rounds']} alternating rounds)",
+            f"  compiled (hysid_model.sampled)    {result['memory_evals_per_s']:>14,.0f} evaluations/s",
+            f"  numpy reference path              {result['memory_reference_evals_per_s']:>14,.0f} evaluations/s",
+            f"  ratio                             {result['memory_ratio']:>14,.1f} x   (target >= {targets['memory_ratio_min']:g}: "
+            f"{verdict(result['memory_ratio'] >= targets['memory_ratio_min'])})",
+            f"  measured waveform (10.6 % THD)    {result['memory_waveform_evals_per_s']:>14,.0f} evaluations/s = "
+            f"{result['memory_waveform_objective_cost']:.2f} x the ideal sine's cost (10 linear features instead of 2); "
+            f"its memory force {result['memory_waveform_cost']:.2f} x (target <= {targets['memory_waveform_cost_max']:g}: "
+            f"{verdict(result['memory_waveform_cost'] <= targets['memory_waveform_cost_max'])})",
+            f"  exponent n free in [1, 6]         {result['memory_exponent_evals_per_s']:>14,.0f} evaluations/s = "
+            f"{result['memory_exponent_cost']:.2f} x the cost with n = 1 (same candidates)",
+            f"on one core: Bouc-Wen fit of Synth 5 % ({result['bouc_wen_fit_evaluations']:,} evaluations, polish included) "
+            f"{result['bouc_wen_fit_s']:.2f} s (target < {targets['bouc_wen_fit_s_max']:g} s: {verdict(result['bouc_wen_fit_s'] < targets['bouc_wen_fit_s_max'])}), "
+            f"the PSO search alone, without the polish ({result['bouc_wen_search_evaluations']:,} evaluations) {result['bouc_wen_search_s']:.2f} s",
+            f"  diagnosis of Synth from the baseline {result['diagnose_s']:.2f} s (target < {targets['diagnose_s_max']:g} s: "
+            f"{verdict(result['diagnose_s'] < targets['diagnose_s_max'])})",
+            f"peak RSS {result['peak_rss_mb']:.0f} MB",
+        ]
+    )

@@ -39,13 +39,13 @@ from coordinator.store import Store
 from hysid.bench.relay import when_ready
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config
+from island.joining import fetch_config, join
 from island.migration import Migration
 from island.node import IslandNode
 from island.protocol import Migrants, encode_migrants
 from island.secret import CampaignSecret, secret_path
 from island.session import open_session, session_config
 from island.termination import Termination
-from island.joining import fetch_config, join
 from island.transports import ZenohTransport
 
 SIZES = {a: {"population": 20, "initial_population": 40, "iterations": 10**9} for a in ("ga", "pso")}
@@ -80,8 +80,11 @@ def commit_gaps(flood: bool, seconds: float = COMMITS_S) -> dict[str, Any]:
     island reports; with ``flood``, while a joined island floods (:func:`flooder`, varied migrants)."""
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
         c, endpoint, session, link, secret = listening(Path(tmp), "gaps")
-        island = subprocess.Popen([sys.executable, "-m", "hysid", "island", "--connect", endpoint, "--campaign", "gaps", "--id", "a",
-                                   "--secret-file", str(secret), "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        island = subprocess.Popen(
+            [sys.executable, "-m", "hysid", "island", "--connect", endpoint, "--campaign", "gaps", "--id", "a", "--secret-file", str(secret), "--quiet"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         stamps: list[float] = []
         commit = c.store.commit
 
@@ -125,16 +128,29 @@ def commit_gaps(flood: bool, seconds: float = COMMITS_S) -> dict[str, Any]:
             c.store.close()
     watched = np.array([t for t in stamps if window and window[0] <= t <= window[0] + seconds])
     gaps = np.diff(watched)
-    return {"flood": flood, "flood_messages_per_s": FLOOD_PER_S if flood else 0, "seconds": seconds, "commits": int(watched.size),
-            "max_gap_s": float(gaps.max()), "p99_gap_s": float(np.percentile(gaps, 99)), "median_gap_s": float(np.median(gaps)),
-            "migrant_messages_per_s": (handled[-1] - handled[0]) / seconds, "superseded": c.superseded}
+    return {
+        "flood": flood,
+        "flood_messages_per_s": FLOOD_PER_S if flood else 0,
+        "seconds": seconds,
+        "commits": int(watched.size),
+        "max_gap_s": float(gaps.max()),
+        "p99_gap_s": float(np.percentile(gaps, 99)),
+        "median_gap_s": float(np.median(gaps)),
+        "migrant_messages_per_s": (handled[-1] - handled[0]) / seconds,
+        "superseded": c.superseded,
+    }
 
 
 def commits(seconds: float = COMMITS_S) -> dict[str, Any]:
     """The commit gaps without and with a flood (:func:`commit_gaps`), on this process' cores."""
     quiet, flooded = commit_gaps(False, seconds), commit_gaps(True, seconds)
-    return {"quiet": quiet, "flooded": flooded, "cores": len(os.sched_getaffinity(0)), "target_s": COMMIT_EVERY_S,
-            "ok": max(quiet["max_gap_s"], flooded["max_gap_s"]) <= COMMIT_EVERY_S}
+    return {
+        "quiet": quiet,
+        "flooded": flooded,
+        "cores": len(os.sched_getaffinity(0)),
+        "target_s": COMMIT_EVERY_S,
+        "ok": max(quiet["max_gap_s"], flooded["max_gap_s"]) <= COMMIT_EVERY_S,
+    }
 
 
 def flooder(endpoint: str, secret_file: str, per_s: float = 1000.0, varied: bool = False) -> None:
@@ -165,7 +181,8 @@ def start_flooder(endpoint: str, secret: Path, per_s: float, varied: bool) -> su
     """A process of :func:`flooder`, returned once it joined and floods."""
     flooding = subprocess.Popen(
         [sys.executable, "-c", f"from hysid.bench.processes import flooder; flooder({endpoint!r}, {str(secret)!r}, {per_s!r}, {varied!r})"],
-        stdout=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE,
+        text=True,
     )
     return when_ready(flooding, lambda p: f"the flooder did not start ({p.wait()})")
 
@@ -184,10 +201,36 @@ def flood_run(iterations: int, flood: bool) -> dict[str, Any]:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
         coordinator_process = subprocess.Popen(
-            [sys.executable, "-m", "hysid", "coordinator", "--listen", endpoint, "--campaign", "flood", "--db", f"{tmp}/f.sqlite",
-             "--out", f"{tmp}/out", "--quiet", "--algos", "pso", "--population", "20", "--initial", "40", "--iterations", str(iterations),
-             "--interval", "1", "--topology", "full", "--no-polish"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            [
+                sys.executable,
+                "-m",
+                "hysid",
+                "coordinator",
+                "--listen",
+                endpoint,
+                "--campaign",
+                "flood",
+                "--db",
+                f"{tmp}/f.sqlite",
+                "--out",
+                f"{tmp}/out",
+                "--quiet",
+                "--algos",
+                "pso",
+                "--population",
+                "20",
+                "--initial",
+                "40",
+                "--iterations",
+                str(iterations),
+                "--interval",
+                "1",
+                "--topology",
+                "full",
+                "--no-polish",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
         )
         flooding = None
         client = open_session(session_config("client", connect=[endpoint], connect_timeout_s=30), endpoint)
@@ -210,14 +253,26 @@ def flood_run(iterations: int, flood: bool) -> dict[str, Any]:
                     p.kill()
                     p.wait()
             client.close()
-        return {"run_s": elapsed, "evolution_cpu_s": own, "process_cpu_s": process_cpu, "iterations": iterations,
-                "migrants_evaluated": node.migrant_evaluations, "rejected": node.stats["rejected"], "received": node.stats["received"]}
+        return {
+            "run_s": elapsed,
+            "evolution_cpu_s": own,
+            "process_cpu_s": process_cpu,
+            "iterations": iterations,
+            "migrants_evaluated": node.migrant_evaluations,
+            "rejected": node.stats["rejected"],
+            "received": node.stats["received"],
+        }
 
 
 def flood(iterations: int = 1000) -> dict[str, Any]:
     quiet, flooded = flood_run(iterations, False), flood_run(iterations, True)
-    return {"quiet": quiet, "flooded": flooded, "run_time_ratio": flooded["run_s"] / quiet["run_s"], "flood_messages_per_s": 1000,
-            "most_migrants_allowed": 2 * iterations + 1}  # k = 2 from its one in-neighbour per migration, plus the global best
+    return {
+        "quiet": quiet,
+        "flooded": flooded,
+        "run_time_ratio": flooded["run_s"] / quiet["run_s"],
+        "flood_messages_per_s": 1000,
+        "most_migrants_allowed": 2 * iterations + 1,
+    }  # k = 2 from its one in-neighbour per migration, plus the global best
 
 
 HOST_ISLANDS = 64
@@ -267,8 +322,22 @@ def host_campaign(workdir: Path, name: str, islands: list[tuple[str, int]], host
     first) or one process each; every island's answer (iterations, evaluations, best fitness and vector) and
     stored rows (iteration -> best, evaluations), and the processes."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", workdir / f"{name}.sqlite"
-    coordinator = hysid_process("coordinator", "--listen", endpoint, "--campaign", name, "--db", str(db), "--out", str(workdir / name), "--quiet",
-                                "--min-islands", str(len(islands)), *HOST_SETTINGS, "synth")
+    coordinator = hysid_process(
+        "coordinator",
+        "--listen",
+        endpoint,
+        "--campaign",
+        name,
+        "--db",
+        str(db),
+        "--out",
+        str(workdir / name),
+        "--quiet",
+        "--min-islands",
+        str(len(islands)),
+        *HOST_SETTINGS,
+        "synth",
+    )
     secret = secret_path(db, name)
     common = ["--connect", endpoint, "--campaign", name, "--secret-file", str(secret), "--wait", "120", "--quiet"]
     try:
@@ -288,8 +357,10 @@ def host_campaign(workdir: Path, name: str, islands: list[tuple[str, int]], host
                 p.kill()
                 p.wait()
     with sqlite3.connect(db) as con:
-        found: dict[str, Any] = {island: {"answer": tuple(answer), "rows": {}} for island, *answer in con.execute(
-            "SELECT island, iterations, evaluations, best_fitness, best_x FROM islands WHERE campaign = ?", (name,))}
+        found: dict[str, Any] = {
+            island: {"answer": tuple(answer), "rows": {}}
+            for island, *answer in con.execute("SELECT island, iterations, evaluations, best_fitness, best_x FROM islands WHERE campaign = ?", (name,))
+        }
         for island, iteration, *row in con.execute("SELECT island, iteration, best_fitness, evaluations FROM history WHERE campaign = ?", (name,)):
             found[island]["rows"][iteration] = tuple(row)
     return found, processes
@@ -317,11 +388,19 @@ def host(islands: int = HOST_ISLANDS) -> dict[str, Any]:
     rows_same = sum(a[it] == b[it] for a, b in both for it in a.keys() & b.keys())
     single = float(np.median([w.peak_mb for w in separate]))
     return {
-        "islands": islands, "iterations": HOST_ITERATIONS, "host_peak_rss_mb": hosted.peak_mb, "host_rss_mb_per_island": hosted.peak_mb / islands,
-        "island_process_peak_rss_mb": single, "memory_ratio": single / (hosted.peak_mb / islands), "mb_per_island_limit": MB_PER_HOSTED_ISLAND,
-        "host_cpu_s": hosted.cpu_s, "separate_cpu_s": sum(w.cpu_s for w in separate), "host_wall_s": hosted_s, "separate_wall_s": separate_s,
-        "separate_at_once": SEPARATE_AT_ONCE, "same_answers": len(same),
-        "rows_compared": sum(len(a.keys() & b.keys()) for a, b in both), "same_rows": rows_same,
+        "islands": islands,
+        "iterations": HOST_ITERATIONS,
+        "host_peak_rss_mb": hosted.peak_mb,
+        "host_rss_mb_per_island": hosted.peak_mb / islands,
+        "island_process_peak_rss_mb": single,
+        "memory_ratio": single / (hosted.peak_mb / islands),
+        "mb_per_island_limit": MB_PER_HOSTED_ISLAND,
+        "host_cpu_s": hosted.cpu_s,
+        "separate_cpu_s": sum(w.cpu_s for w in separate),
+        "host_wall_s": hosted_s,
+        "separate_wall_s": separate_s,
+        "separate_at_once": SEPARATE_AT_ONCE,
+        "same_answers": len(same),
+        "rows_compared": sum(len(a.keys() & b.keys()) for a, b in both),
+        "same_rows": rows_same,
     }
-
-

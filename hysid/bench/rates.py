@@ -31,6 +31,7 @@ def paired(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
     the difference of their success rates with its 95 % (Wald, paired) interval, and the exact
     two-sided sign-test (McNemar) p-value of the seeds only one of them passed."""
     from scipy.stats import binomtest  # on first use: a fast CLI and island start
+
     only_a, only_b, n = int(np.sum(a & ~b)), int(np.sum(b & ~a)), a.size
     d = (only_a - only_b) / n
     half = 1.96 * np.sqrt(max(only_a + only_b - n * d * d, 0.0)) / n
@@ -42,6 +43,7 @@ def ended_lower(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
     """Two campaigns' final fitness compared seed by seed: in how many seeds ``a`` ended lower (and
     higher), and the two-sided Wilcoxon signed-rank p-value of the log10 ratios."""
     from scipy.stats import wilcoxon  # on first use: a fast CLI and island start
+
     r = np.log10(np.maximum(a, 1e-300)) - np.log10(np.maximum(b, 1e-300))
     r = r[np.isfinite(r)]
     p = wilcoxon(r).pvalue if np.any(r != 0) else 1.0

@@ -57,7 +57,7 @@ async def _serve(listen: tuple[str, int], upstream: tuple[str, int], delay_s: fl
     async def connection(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         try:
             up_reader, up_writer = await asyncio.wait_for(asyncio.open_connection(*upstream), timeout=5.0)
-        except (OSError, asyncio.TimeoutError):
+        except (TimeoutError, OSError):
             writer.close()
             return
         pipes = {asyncio.create_task(_pipe(reader, up_writer, delay_s)), asyncio.create_task(_pipe(up_reader, writer, delay_s))}

@@ -101,13 +101,28 @@ def run_method(problem: Problem, method: str, seed: int, budget: int) -> dict[st
     began = time.perf_counter()
     if method == "fit":
         trace: list[tuple[int, float, float]] = []
-        result = hysid.fit(problem.loops, problem.model, bounds=problem.bounds, seed=seed, displacement=DISPLACEMENT,
-                           progress=lambda run, row: trace.append((row.evaluations, row.wall_s, row.best_fitness)))
+        result = hysid.fit(
+            problem.loops,
+            problem.model,
+            bounds=problem.bounds,
+            seed=seed,
+            displacement=DISPLACEMENT,
+            progress=lambda run, row: trace.append((row.evaluations, row.wall_s, row.best_fitness)),
+        )
         return {"fitness": result.fitness, "evaluations": result.evaluations, "wall_s": time.perf_counter() - began, "trace": trace}
     if method in CAMPAIGNS:
         islands, single = CAMPAIGNS[method]
-        outcome = hysid.campaign(problem.loops, problem.model, islands=islands, name=f"search-{seed}", bounds=problem.bounds, displacement=DISPLACEMENT,
-                                 seed=1000 * seed, termination=Termination(budget=budget), single_node=single)
+        outcome = hysid.campaign(
+            problem.loops,
+            problem.model,
+            islands=islands,
+            name=f"search-{seed}",
+            bounds=problem.bounds,
+            displacement=DISPLACEMENT,
+            seed=1000 * seed,
+            termination=Termination(budget=budget),
+            single_node=single,
+        )
         return {"fitness": outcome.fit.fitness, "evaluations": outcome.fit.evaluations, "wall_s": time.perf_counter() - began, "trace": []}
     objective = build_objective(problem.loops, problem.model, bounds=problem.bounds)
     return PEERS[method](objective, budget, seed)
@@ -129,10 +144,13 @@ def summarize(runs: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
         ok = f <= threshold
         reached = [first_success(r, threshold) for r, s in zip(rs, ok) if s]
         out["methods"][method] = {
-            "seeds": len(rs), "success_rate": float(ok.mean()), "wilson95": wilson(int(ok.sum()), len(rs)),
+            "seeds": len(rs),
+            "success_rate": float(ok.mean()),
+            "wilson95": wilson(int(ok.sum()), len(rs)),
             "median_evaluations_to_success": float(np.median([e for e, _ in reached])) if reached else None,
             "median_s_to_success": float(np.median([t for _, t in reached])) if reached else None,
-            "median_s": float(np.median([r["wall_s"] for r in rs])), "median_evaluations": float(np.median([r["evaluations"] for r in rs])),
+            "median_s": float(np.median([r["wall_s"] for r in rs])),
+            "median_evaluations": float(np.median([r["evaluations"] for r in rs])),
             "fitness_over_best_quantiles": {str(q): float(np.quantile(f / best - 1.0, q / 100)) for q in (0, 25, 50, 75, 100)},
             "success": ok.tolist(),
         }
@@ -150,8 +168,17 @@ def judge(problems: dict[str, Any], peers: list[str]) -> dict[str, Any]:
         versus[p] = {m: paired(mine, np.array(r["methods"][m]["success"])) for m in peers}
     non_inferior = all(v["difference95"][0] >= -NON_INFERIORITY_MARGIN for pv in versus.values() for v in pv.values())
     ahead = all(problems[p]["methods"][CAMPAIGN]["success_rate"] > problems[p]["methods"][m]["success_rate"] for p in hardest for m in peers)
-    return {"campaign": CAMPAIGN, "peers": peers, "hardest": hardest, "peer_best_rate": peer_best, "paired": versus,
-            "non_inferior": non_inferior, "ahead_on_hardest": ahead, "margin": NON_INFERIORITY_MARGIN, "ok": non_inferior and ahead}
+    return {
+        "campaign": CAMPAIGN,
+        "peers": peers,
+        "hardest": hardest,
+        "peer_best_rate": peer_best,
+        "paired": versus,
+        "non_inferior": non_inferior,
+        "ahead_on_hardest": ahead,
+        "margin": NON_INFERIORITY_MARGIN,
+        "ok": non_inferior and ahead,
+    }
 
 
 def speedup(budget: int, problem: Problem, repeats: int = SPEEDUP_REPEATS) -> dict[str, Any]:
@@ -165,9 +192,15 @@ def speedup(budget: int, problem: Problem, repeats: int = SPEEDUP_REPEATS) -> di
         for repeat in range(repeats):
             for n in (1, 2):
                 name = f"speedup-{n}-{repeat}"
-                config = CampaignConfig.create(problem.loops, name=name, model=problem.model, bounds=problem.bounds, min_islands=n,
-                                               options=default_options(problem.loops, problem.model, problem.bounds),
-                                               until_stopped=True)
+                config = CampaignConfig.create(
+                    problem.loops,
+                    name=name,
+                    model=problem.model,
+                    bounds=problem.bounds,
+                    min_islands=n,
+                    options=default_options(problem.loops, problem.model, problem.bounds),
+                    until_stopped=True,
+                )
                 coordinator = Coordinator(Store(Path(tmp) / f"{name}.sqlite"), config, problem.loops, Termination(budget=budget))
                 run_campaign(coordinator, island_specs(n, ["pso"], 0), polish=False)
                 ended = time.monotonic()
@@ -176,9 +209,18 @@ def speedup(budget: int, problem: Problem, repeats: int = SPEEDUP_REPEATS) -> di
                 coordinator.store.close()
     per_evaluation = {n: float(np.median([t["s"] / t["evaluations"] for t in runs])) for n, runs in times.items()}
     ratio = per_evaluation[1] / per_evaluation[2]
-    return {"problem": problem.name, "model": problem.model, "budget": budget, "repeats": repeats, "one_island": times[1],
-            "two_islands": times[2], "median_s_per_evaluation": {str(n): v for n, v in per_evaluation.items()},
-            "ratio": ratio, "target": SPEEDUP_TARGET, "ok": ratio >= SPEEDUP_TARGET}
+    return {
+        "problem": problem.name,
+        "model": problem.model,
+        "budget": budget,
+        "repeats": repeats,
+        "one_island": times[1],
+        "two_islands": times[2],
+        "median_s_per_evaluation": {str(n): v for n, v in per_evaluation.items()},
+        "ratio": ratio,
+        "target": SPEEDUP_TARGET,
+        "ok": ratio >= SPEEDUP_TARGET,
+    }
 
 
 def fit_times() -> dict[str, Any]:
@@ -188,23 +230,44 @@ def fit_times() -> dict[str, Any]:
     extracted at the default 100 samples per branch) with ``mr_damper``; loading not counted."""
     cases = {
         "arts_friction_damper": (lambda: hysid.load(DAMPER), "baseline+coulomb_friction+bouc_wen"),
-        "mr_damper_40_loops": (lambda: extracted("mr_damper_1v_40", mr_damper_records(MR_LEVELS["mr_damper_1v"], freqs_hz=FIT_TIME_MR_FREQS_HZ,
-                                                                                     amplitudes_m=FIT_TIME_MR_AMPLITUDES_M), None, points=FIT_TIME_POINTS),
-                               "mr_damper"),
+        "mr_damper_40_loops": (
+            lambda: extracted(
+                "mr_damper_1v_40",
+                mr_damper_records(MR_LEVELS["mr_damper_1v"], freqs_hz=FIT_TIME_MR_FREQS_HZ, amplitudes_m=FIT_TIME_MR_AMPLITUDES_M),
+                None,
+                points=FIT_TIME_POINTS,
+            ),
+            "mr_damper",
+        ),
     }
     out: dict[str, Any] = {}
     for name, (make, model) in cases.items():
         loops = make()
         began = time.perf_counter()
         result = hysid.fit(loops, model)
-        out[name] = {"model": model, "loops": loops.n_loops, "samples_per_branch": loops.n_samples, "s": time.perf_counter() - began,
-                     "evaluations": result.evaluations, "fitness": result.fitness, "rms_pct": result.quality["rms_residual_pct"],
-                     "displacement": (result.displacement_model or {}).get("displacement"), "at_bounds": result.at_bounds}
+        out[name] = {
+            "model": model,
+            "loops": loops.n_loops,
+            "samples_per_branch": loops.n_samples,
+            "s": time.perf_counter() - began,
+            "evaluations": result.evaluations,
+            "fitness": result.fitness,
+            "rms_pct": result.quality["rms_residual_pct"],
+            "displacement": (result.displacement_model or {}).get("displacement"),
+            "at_bounds": result.at_bounds,
+        }
     return {"limit_s": FIT_TIME_LIMIT_S, "cases": out, "ok": all(c["s"] < FIT_TIME_LIMIT_S for c in out.values())}
 
 
-def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] = PROBLEMS, methods: tuple[str, ...] = METHODS,
-        budget: int = BUDGET, speedup_budget: int = SPEEDUP_BUDGET, partial: Path | None = None) -> dict[str, Any]:
+def run(
+    seeds: int = MIN_SEEDS,
+    quick: bool = False,
+    problems: tuple[str, ...] = PROBLEMS,
+    methods: tuple[str, ...] = METHODS,
+    budget: int = BUDGET,
+    speedup_budget: int = SPEEDUP_BUDGET,
+    partial: Path | None = None,
+) -> dict[str, Any]:
     """Search where it is hard: hysid's fit and campaigns against least squares, DE, CMA-ES and pygmo at equal budgets.
 
     ``partial``: a file the results so far are written to after every problem (a long run's progress)."""
@@ -224,8 +287,15 @@ def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] =
     if why is not None and "pygmo" in methods:
         methods, skipped["pygmo"] = tuple(m for m in methods if m != "pygmo"), why
     began = time.perf_counter()
-    out: dict[str, Any] = {"problems": {}, "budget_evaluations": budget, "seeds": seeds, "quick": quick, "skipped": skipped,
-                           "success_rtol": SUCCESS_RTOL, "preliminary": quick or seeds < MIN_SEEDS}
+    out: dict[str, Any] = {
+        "problems": {},
+        "budget_evaluations": budget,
+        "seeds": seeds,
+        "quick": quick,
+        "skipped": skipped,
+        "success_rtol": SUCCESS_RTOL,
+        "preliminary": quick or seeds < MIN_SEEDS,
+    }
     built = {}
     for name in problems:
         with warnings.catch_warnings():
@@ -234,9 +304,14 @@ def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] =
             runs = {m: [run_method(problem, m, seed, budget) for seed in range(seeds)] for m in methods}
         fits = [r["fitness"] for r in runs.get("fit", [])]
         out["problems"][name] = {
-            "description": problem.description, "model": problem.model, "loops": problem.loops.n_loops,
-            "samples_per_branch": problem.loops.n_samples, "parameters": len(problem.bounds), "memory": problem.memory,
-            **summarize(runs), "fit_seed_spread": float(max(fits) / min(fits) - 1.0) if fits else None,
+            "description": problem.description,
+            "model": problem.model,
+            "loops": problem.loops.n_loops,
+            "samples_per_branch": problem.loops.n_samples,
+            "parameters": len(problem.bounds),
+            "memory": problem.memory,
+            **summarize(runs),
+            "fit_seed_spread": float(max(fits) / min(fits) - 1.0) if fits else None,
         }
         peers = [m for m in methods if m in PEERS]
         if CAMPAIGN in methods and peers:
@@ -255,22 +330,34 @@ def run(seeds: int = MIN_SEEDS, quick: bool = False, problems: tuple[str, ...] =
     return out
 
 
-LABELS = {"fit": "hysid fit", "campaign_2_processes": "campaign 2 proc", "campaign_4_processes": "campaign 4 proc",
-          "campaign_2_single": "campaign 2 single", "campaign_4_single": "campaign 4 single", "least_squares": "least_squares multi-start",
-          "differential_evolution": "differential_evolution", "cma_es": "CMA-ES (IPOP)", "pygmo": "pygmo archipelago"}
+LABELS = {
+    "fit": "hysid fit",
+    "campaign_2_processes": "campaign 2 proc",
+    "campaign_4_processes": "campaign 4 proc",
+    "campaign_2_single": "campaign 2 single",
+    "campaign_4_single": "campaign 4 single",
+    "least_squares": "least_squares multi-start",
+    "differential_evolution": "differential_evolution",
+    "cma_es": "CMA-ES (IPOP)",
+    "pygmo": "pygmo archipelago",
+}
 
 
 def to_text(result: dict[str, Any]) -> str:
-    lines = [f"search ({result['seeds']} seeds, {result['budget_evaluations']:,} evaluations each, success = within "
-             f"{result['success_rtol']:g} of the best fitness found){' QUICK' if result['quick'] else ''}"
-             f"{f' PRELIMINARY (fewer than {MIN_SEEDS} seeds: no verdict)' if result.get('preliminary') else ''}"]
+    lines = [
+        f"search ({result['seeds']} seeds, {result['budget_evaluations']:,} evaluations each, success = within "
+        f"{result['success_rtol']:g} of the best fitness found){' QUICK' if result['quick'] else ''}"
+        f"{f' PRELIMINARY (fewer than {MIN_SEEDS} seeds: no verdict)' if result.get('preliminary') else ''}"
+    ]
     for name, p in result["problems"].items():
         lines.append(f"{name}: {p['description']} ({p['model']}, {p['loops']} loops x {p['samples_per_branch']} samples, best {p['best_fitness']:.8g})")
         for m, s in p["methods"].items():
             e, t = s["median_evaluations_to_success"], s["median_s_to_success"]
-            lines.append(f"  {LABELS.get(m, m):26s} {100 * s['success_rate']:5.1f} % [{100 * s['wilson95'][0]:.0f}-{100 * s['wilson95'][1]:.0f}]"
-                         f"  to success: {'-' if e is None else f'{e:,.0f} evaluations, {t:.2f} s'}"
-                         f"  median fitness/best - 1: {s['fitness_over_best_quantiles']['50']:.2g} (worst {s['fitness_over_best_quantiles']['100']:.2g})")
+            lines.append(
+                f"  {LABELS.get(m, m):26s} {100 * s['success_rate']:5.1f} % [{100 * s['wilson95'][0]:.0f}-{100 * s['wilson95'][1]:.0f}]"
+                f"  to success: {'-' if e is None else f'{e:,.0f} evaluations, {t:.2f} s'}"
+                f"  median fitness/best - 1: {s['fitness_over_best_quantiles']['50']:.2g} (worst {s['fitness_over_best_quantiles']['100']:.2g})"
+            )
         if p.get("fit_seed_spread") is not None:
             lines.append(f"  fit's seeds agree within {100 * p['fit_seed_spread']:.3g} % of the fitness")
     for peer, why in result["skipped"].items():
@@ -278,18 +365,24 @@ def to_text(result: dict[str, Any]) -> str:
     if "judgement" in result:
         j = result["judgement"]
         lines.append(f"hardest half (lowest best-peer success rate): {', '.join(j['hardest'])}")
-        lines.append(f"{LABELS[j['campaign']]} non-inferior to every peer on every problem (paired 95 % interval above -{100 * j['margin']:.0f} points): "
-                     f"{j['non_inferior']}; ahead of every peer on the hardest half: {j['ahead_on_hardest']} -> {'OK' if j['ok'] else 'MISSED'}")
+        lines.append(
+            f"{LABELS[j['campaign']]} non-inferior to every peer on every problem (paired 95 % interval above -{100 * j['margin']:.0f} points): "
+            f"{j['non_inferior']}; ahead of every peer on the hardest half: {j['ahead_on_hardest']} -> {'OK' if j['ok'] else 'MISSED'}"
+        )
     if "fit_seeds_agree" in result:
         lines.append(f"fit's independent seeds agree within 1 % on every problem: {result['fit_seeds_agree']}")
     s = result["speedup"]
     seconds = lambda runs: ", ".join(f"{r['s']:.1f}" for r in runs)
-    lines.append(f"speedup ({s['problem']}, {s['budget']:,} evaluations, {s.get('repeats', 1)} pairs in turn): 1 island {seconds(s['one_island'])} s, "
-                 f"2 islands {seconds(s['two_islands'])} s -> {s['ratio']:.2f} per evaluation, of the medians (target >= {s['target']}) {'OK' if s['ok'] else 'MISSED'}")
+    lines.append(
+        f"speedup ({s['problem']}, {s['budget']:,} evaluations, {s.get('repeats', 1)} pairs in turn): 1 island {seconds(s['one_island'])} s, "
+        f"2 islands {seconds(s['two_islands'])} s -> {s['ratio']:.2f} per evaluation, of the medians (target >= {s['target']}) {'OK' if s['ok'] else 'MISSED'}"
+    )
     t = result["fit_time"]
     for name, c in t["cases"].items():
-        lines.append(f"fit with the defaults, {name} ({c['model']}, {c['loops']} loops x {c['samples_per_branch']} samples): {c['s']:.1f} s, "
-                     f"{c['evaluations']:,} evaluations, RMS {c['rms_pct']:.3g} %")
+        lines.append(
+            f"fit with the defaults, {name} ({c['model']}, {c['loops']} loops x {c['samples_per_branch']} samples): {c['s']:.1f} s, "
+            f"{c['evaluations']:,} evaluations, RMS {c['rms_pct']:.3g} %"
+        )
     lines.append(f"every memory-model fit under {t['limit_s']:.0f} s: {'OK' if t['ok'] else 'MISSED'}")
     lines.append(f"bench time {result['bench_s']:.0f} s")
     return "\n".join(lines)

@@ -83,6 +83,7 @@ class Tracker:
 
 def least_squares_multistart(objective: Any, budget: int, seed: int) -> dict[str, Any]:
     from scipy.optimize import least_squares  # on first use: a fast CLI and island start
+
     tracker = Tracker(objective, budget)
     rng = np.random.default_rng(seed)
     lower, upper = objective.bounds[:, 0], objective.bounds[:, 1]
@@ -98,12 +99,14 @@ def least_squares_multistart(objective: Any, budget: int, seed: int) -> dict[str
 
 def differential_evolution_peer(objective: Any, budget: int, seed: int) -> dict[str, Any]:
     from scipy.optimize import differential_evolution  # on first use: a fast CLI and island start
+
     tracker = Tracker(objective, budget)
     size = 15 * objective.dim
     maxiter = max(int(0.9 * budget / size) - 1, 1)
     try:
-        differential_evolution(lambda x: tracker.fitness(np.asarray(x).T), objective.bounds, seed=seed, maxiter=maxiter, polish=True,
-                               vectorized=True, updating="deferred")
+        differential_evolution(
+            lambda x: tracker.fitness(np.asarray(x).T), objective.bounds, seed=seed, maxiter=maxiter, polish=True, vectorized=True, updating="deferred"
+        )
     except BudgetSpent:
         pass
     return {**tracker.result(), "maxiter": maxiter}
@@ -118,8 +121,15 @@ def cma_es(objective: Any, budget: int, seed: int) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     options = {"bounds": [0.0, 1.0], "maxfevals": budget, "seed": seed + 1, "verbose": -9}
     try:
-        cma.fmin2(None, lambda: rng.random(lower.size), 0.3, options, restarts=9, incpopsize=2,
-                  parallel_objective=lambda xs: list(tracker.fitness(scaled(np.array(xs)))))
+        cma.fmin2(
+            None,
+            lambda: rng.random(lower.size),
+            0.3,
+            options,
+            restarts=9,
+            incpopsize=2,
+            parallel_objective=lambda xs: list(tracker.fitness(scaled(np.array(xs)))),
+        )
     except BudgetSpent:
         pass
     return tracker.result()
@@ -152,8 +162,15 @@ def pygmo_archipelago(objective: Any, budget: int, seed: int) -> dict[str, Any]:
     import pygmo as pg
 
     began = time.perf_counter()
-    archi = pg.archipelago(n=PYGMO_ISLANDS, t=pg.ring(), algo=pg.sade(gen=PYGMO_GENERATIONS), prob=PygmoProblem(objective),
-                           pop_size=PYGMO_POPULATION, seed=seed, udi=pg.mp_island())
+    archi = pg.archipelago(
+        n=PYGMO_ISLANDS,
+        t=pg.ring(),
+        algo=pg.sade(gen=PYGMO_GENERATIONS),
+        prob=PygmoProblem(objective),
+        pop_size=PYGMO_POPULATION,
+        seed=seed,
+        udi=pg.mp_island(),
+    )
     fevals = 0
     while fevals < budget:
         archi.evolve()

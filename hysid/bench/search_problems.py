@@ -52,7 +52,7 @@ from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.problem import prepare_model
 from hysid_model.resolution import reversals_resolved
-from hysid_model.synth import FREQUENCIES_HZ, AMPLITUDES_M, MEQ_KG, TRUE_PARAMS, RawRecord, simulate_raw, synth_loops
+from hysid_model.synth import AMPLITUDES_M, FREQUENCIES_HZ, MEQ_KG, TRUE_PARAMS, RawRecord, simulate_raw, synth_loops
 from hysid_model.waveform import displacement
 
 POINTS = 24
@@ -114,9 +114,15 @@ def extracted(name: str, records: list[RawRecord], meq_kg: float | None, points:
     k = max(e.x_harmonics.size for e in loops)
     resolved, reversals = reversals_resolved([e.reversal_steps for e in loops if e.reversal_steps is not None])
     return LoopSet(
-        name=name, freq_hz=np.array([e.freq_hz for e in loops]), x0=np.array([e.x0 for e in loops]),
-        top=np.stack([e.top for e in loops]), bottom=np.stack([e.bottom for e in loops]), sigma=np.array([e.sigma for e in loops]),
-        meq_kg=meq_kg, labels=[r.label for r in records], cycles=np.array([e.cycles for e in loops], dtype=float),
+        name=name,
+        freq_hz=np.array([e.freq_hz for e in loops]),
+        x0=np.array([e.x0 for e in loops]),
+        top=np.stack([e.top for e in loops]),
+        bottom=np.stack([e.bottom for e in loops]),
+        sigma=np.array([e.sigma for e in loops]),
+        meq_kg=meq_kg,
+        labels=[r.label for r in records],
+        cycles=np.array([e.cycles for e in loops], dtype=float),
         x_harmonics=np.stack([np.pad(e.x_harmonics, (0, k - e.x_harmonics.size)) for e in loops]),
         meta={"per_loop": {"reversals_resolved": [resolved] * len(loops)}, "reversals": reversals},
     )
@@ -126,9 +132,17 @@ def grid(freqs: np.ndarray, amps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.tile(freqs, amps.size), np.repeat(amps, freqs.size)
 
 
-def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: float = 2.0, *, rate_hz: float = MR_RATE_HZ,
-                      cycles: int = CYCLES, freqs_hz: np.ndarray = MR_FREQ_HZ, amplitudes_m: np.ndarray = MR_AMPLITUDES_M,
-                      substeps: int = MR_SUBSTEPS) -> list[RawRecord]:
+def mr_damper_records(
+    level: dict[str, float],
+    seed: int = DATA_SEED,
+    exponent: float = 2.0,
+    *,
+    rate_hz: float = MR_RATE_HZ,
+    cycles: int = CYCLES,
+    freqs_hz: np.ndarray = MR_FREQ_HZ,
+    amplitudes_m: np.ndarray = MR_AMPLITUDES_M,
+    substeps: int = MR_SUBSTEPS,
+) -> list[RawRecord]:
     """Raw records of a Spencer-type damper, F = m x'' + c0 x' + k0 x + k_bw z with
     z' = x' - gamma |x'| |z|^(n-1) z - beta x' |z|^n (A = 1, gamma = (1 + r) / (2 z_y^n), beta = (1 - r) / (2 z_y^n):
     the shape ``level['r']``, 0 unless given, the mass ``level['mass']``, 0 unless given, the exponent ``level['n']``
@@ -168,7 +182,17 @@ def mr_damper_records(level: dict[str, float], seed: int = DATA_SEED, exponent: 
         keep = time >= 1.0 / f
         sigma = NOISE_PCT / 100.0 * np.abs(clean[keep]).max()
         force = clean + sigma * rng.standard_normal(n)
-        records.append(RawRecord(f"MR_{a * 1e3:g}mm_{f:g}Hz", float(f), float(a), time[keep] - time[keep][0], x[keep] + 1e-4 * a * rng.standard_normal(int(keep.sum())), force[keep], float(sigma)))
+        records.append(
+            RawRecord(
+                f"MR_{a * 1e3:g}mm_{f:g}Hz",
+                float(f),
+                float(a),
+                time[keep] - time[keep][0],
+                x[keep] + 1e-4 * a * rng.standard_normal(int(keep.sum())),
+                force[keep],
+                float(sigma),
+            )
+        )
     return records
 
 
@@ -178,8 +202,16 @@ def peak_noise(model, theta: np.ndarray, freq: np.ndarray, amp: np.ndarray, dist
     return np.array([NOISE_PCT / 100.0 * np.abs(r.force).max() for r in clean])
 
 
-def simulated(model_spec: str, values: dict[str, float], freq: np.ndarray, amp: np.ndarray, *, rate_hz: float,
-              distortion: dict[int, complex] | None = None, cycles: int = CYCLES) -> list[RawRecord]:
+def simulated(
+    model_spec: str,
+    values: dict[str, float],
+    freq: np.ndarray,
+    amp: np.ndarray,
+    *,
+    rate_hz: float,
+    distortion: dict[int, complex] | None = None,
+    cycles: int = CYCLES,
+) -> list[RawRecord]:
     model = build_model(model_spec)
     theta = model.from_dict(values)
     noise = peak_noise(model, theta, freq, amp, distortion)
@@ -257,5 +289,13 @@ def build(name: str) -> Problem:
     return Problem(name, description, loops, model, bounds, truth)
 
 
-PROBLEMS = ("synth_bouc_wen_distorted", "mr_damper_0v", "friction_bouc_wen", "mr_damper_1v", "mr_damper_2v", "mr_damper_sharp", "wire_rope_sensor",
-            "thesis_easy")
+PROBLEMS = (
+    "synth_bouc_wen_distorted",
+    "mr_damper_0v",
+    "friction_bouc_wen",
+    "mr_damper_1v",
+    "mr_damper_2v",
+    "mr_damper_sharp",
+    "wire_rope_sensor",
+    "thesis_easy",
+)

@@ -29,12 +29,12 @@ import zenoh
 
 from hysid_model.synth import synth_loops
 from island.config import decode_config
+from island.joining import fetch_config, join, key_prefix
 from island.node import HISTORY_EVERY_S, history_period
 from island.protocol import STAT_NAMES, History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials
 from island.secret import CampaignSecret
 from island.session import open_session, session_config
-from island.joining import fetch_config, join, key_prefix
 
 IMPROVES = 0.02
 """Chance that an iteration improves a simulated island's best (by 1 %)."""
@@ -59,8 +59,19 @@ def evaluations(iterations: np.ndarray) -> np.ndarray:
     return 40 + 20 * iterations
 
 
-def traffic(cred: Credentials, campaign: str, seed: int, x: np.ndarray, f: float, bounds: np.ndarray, members: int, seconds: float,
-            rate: float, interval: int, start: float) -> Planned:
+def traffic(
+    cred: Credentials,
+    campaign: str,
+    seed: int,
+    x: np.ndarray,
+    f: float,
+    bounds: np.ndarray,
+    members: int,
+    seconds: float,
+    rate: float,
+    interval: int,
+    start: float,
+) -> Planned:
     """Island ``cred``'s messages for ``seconds`` of a campaign of ``members`` islands (its clock starting at the
     Unix time ``start``): rows at ``rate`` iterations a second, history every :func:`history_period`, migrants
     every ``interval`` iterations, the last history final."""
@@ -130,11 +141,20 @@ def main(argv: list[str]) -> int:
     for p in plans:
         for _, key, _ in p.messages:
             counts[key.rsplit("/", 2)[-2]] += 1
-    print(json.dumps({
-        "done": True, "rows": sum(p.rows for p in plans), "history_messages": counts["history"], "migrant_messages": counts["migrants"],
-        "late_p95_s": float(np.percentile(late, 95)) if late else 0.0, "late_share": len(late) / max(sum(counts.values()), 1),
-        "islands": {p.island: {"start": start + p.offset_s, "ends": p.ends} for p in plans},
-    }), flush=True)
+    print(
+        json.dumps(
+            {
+                "done": True,
+                "rows": sum(p.rows for p in plans),
+                "history_messages": counts["history"],
+                "migrant_messages": counts["migrants"],
+                "late_p95_s": float(np.percentile(late, 95)) if late else 0.0,
+                "late_share": len(late) / max(sum(counts.values()), 1),
+                "islands": {p.island: {"start": start + p.offset_s, "ends": p.ends} for p in plans},
+            }
+        ),
+        flush=True,
+    )
     sys.stdin.readline()  # the bench says when to leave (after the coordinator took the final histories)
     for token in tokens:
         token.undeclare()

@@ -119,15 +119,18 @@ class Database:
 
     def history(self, islands: list[str]) -> dict[str, tuple[int, int]]:
         """Rows stored and highest iteration, per island."""
-        return {i: (n, top) for i, n, top in self.rows(
-            "SELECT island, COUNT(*), MAX(iteration) FROM history WHERE campaign = ? GROUP BY island", CAMPAIGN) if i in islands}
+        return {
+            i: (n, top)
+            for i, n, top in self.rows("SELECT island, COUNT(*), MAX(iteration) FROM history WHERE campaign = ? GROUP BY island", CAMPAIGN)
+            if i in islands
+        }
 
 
 def wait_for(what: str, condition: Any, timeout_s: float, processes: list[subprocess.Popen]) -> Any:
     """Poll ``condition()`` every 0.1 s until it returns something true; fail if a process died or time ran out."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        if (value := condition()):
+        if value := condition():
             return value
         if dead := [p for p in processes if p.poll() is not None]:
             raise RuntimeError(f"waiting for {what}: {cast(list[str], dead[0].args)[-8:]} exited with {dead[0].returncode}")
@@ -162,9 +165,28 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
     everyone = [n for group in names.values() for n in group]
     db = Database(workdir / "sites.sqlite")
     coordinator = subprocess.Popen(
-        hysid(lab, lab.hub, "coordinator", "--listen", f"tcp/{lab.hub_address}:{PORT}", "--campaign", CAMPAIGN, "--db", str(db.path),
-              "--out", str(workdir / "out"), "--min-islands", str(len(everyone)), "--time-limit", f"{time_limit_s:g}", *ISLAND_SETTINGS, "synth"),
-        stdout=subprocess.DEVNULL, stderr=log, cwd=workdir,
+        hysid(
+            lab,
+            lab.hub,
+            "coordinator",
+            "--listen",
+            f"tcp/{lab.hub_address}:{PORT}",
+            "--campaign",
+            CAMPAIGN,
+            "--db",
+            str(db.path),
+            "--out",
+            str(workdir / "out"),
+            "--min-islands",
+            str(len(everyone)),
+            "--time-limit",
+            f"{time_limit_s:g}",
+            *ISLAND_SETTINGS,
+            "synth",
+        ),
+        stdout=subprocess.DEVNULL,
+        stderr=log,
+        cwd=workdir,
     )
     processes.append(coordinator)
     routers, islands = [], []
@@ -183,8 +205,12 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
                 applied["loss"] = "iptables -m statistic --mode random" if why is None else f"not applied: {why}"
         impairments.append(applied)
         config = ["--config", str(ROUTER_CONFIG)] if ROUTER_CONFIG.is_file() else []
-        router = subprocess.Popen(hysid(lab, lab.host(k), "router", *config, "--listen", f"tcp/{lab.host_address(k)}:{PORT}", "--connect", upstream),
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        router = subprocess.Popen(
+            hysid(lab, lab.host(k), "router", *config, "--listen", f"tcp/{lab.host_address(k)}:{PORT}", "--connect", upstream),
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         processes.append(router)
         assert router.stderr is not None
         ready = router.stderr.readline()
@@ -194,9 +220,28 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
         routers.append(router)
         for name, ids in hosts[k]:
             count = ["--count", str(len(ids)), "--seed", str(zlib.crc32(name.encode()) % 10**6)] if len(ids) > 1 else []
-            island = subprocess.Popen(hysid(lab, lab.host(k), "island", "--connect", f"tcp/{lab.host_address(k)}:{PORT}", "--campaign", CAMPAIGN,
-                                            "--id", name, *count, "--wait", "120", "--quiet", "--secret-file", str(secret_path(db.path, CAMPAIGN))),
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            island = subprocess.Popen(
+                hysid(
+                    lab,
+                    lab.host(k),
+                    "island",
+                    "--connect",
+                    f"tcp/{lab.host_address(k)}:{PORT}",
+                    "--campaign",
+                    CAMPAIGN,
+                    "--id",
+                    name,
+                    *count,
+                    "--wait",
+                    "120",
+                    "--quiet",
+                    "--secret-file",
+                    str(secret_path(db.path, CAMPAIGN)),
+                ),
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
             processes.append(island)
             islands.append(island)
     launched = time.monotonic()
@@ -210,7 +255,8 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
             continue
         time.sleep(max(0.0, t0 + site.cut_at_s - time.time()))
         memory = {
-            "island_rss_mb": [rss_mb(p.pid) for p in islands], "router_rss_mb": [rss_mb(p.pid) for p in routers],
+            "island_rss_mb": [rss_mb(p.pid) for p in islands],
+            "router_rss_mb": [rss_mb(p.pid) for p in routers],
             "coordinator_rss_mb": rss_mb(coordinator.pid),
         }
         stood = db.history(names[k])
@@ -227,9 +273,17 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
             ok = all(n in now and now[n][0] == now[n][1] + 1 and now[n][1] > stood.get(n, (0, -1))[1] for n in names[k])  # noqa: B023 (called within this iteration)
             return time.time() if ok else None
 
-        links.append({"site": k, "cut_at_s": cut - t0, "cut_for_s": up - cut, "detect_s": max(lost.values()) - cut,
-                      "first_lost_s": min(lost.values()) - cut, "back_s": max(back.values()) - up,
-                      "caught_up_s": wait_for(f"site {k} history caught up", caught_up, 60, [coordinator]) - up})
+        links.append(
+            {
+                "site": k,
+                "cut_at_s": cut - t0,
+                "cut_for_s": up - cut,
+                "detect_s": max(lost.values()) - cut,
+                "first_lost_s": min(lost.values()) - cut,
+                "back_s": max(back.values()) - up,
+                "caught_up_s": wait_for(f"site {k} history caught up", caught_up, 60, [coordinator]) - up,
+            }
+        )
     for island in islands:
         if island.wait(timeout=time_limit_s + 120) != 0:
             args = cast(list[str], island.args)
@@ -247,23 +301,34 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
     best = np.array([result["params"][n] for n in TRUE_PARAMS])
     truth = np.array(list(TRUE_PARAMS.values()))
     return {
-        "sites": [asdict(s) for s in sites], "islands": len(everyone), "island_processes": len(islands),
+        "sites": [asdict(s) for s in sites],
+        "islands": len(everyone),
+        "island_processes": len(islands),
         "processes": "one island per process" if len(islands) == len(everyone) else f"{len(everyone)} islands in {len(islands)} processes",
-        "impairments": impairments, "netem": netem, "router_config": str(ROUTER_CONFIG.name) if ROUTER_CONFIG.is_file() else "defaults", "startup_s": startup_s, "time_limit_s": time_limit_s,
-        "stop_reason": result["settings"]["stop_reason"], "best_fitness": result["fitness"],
+        "impairments": impairments,
+        "netem": netem,
+        "router_config": str(ROUTER_CONFIG.name) if ROUTER_CONFIG.is_file() else "defaults",
+        "startup_s": startup_s,
+        "time_limit_s": time_limit_s,
+        "stop_reason": result["settings"]["stop_reason"],
+        "best_fitness": result["fitness"],
         "max_relative_error": float(np.max(np.abs(best - truth) / np.abs(truth))),
         "islands_final": sum(1 for i in by_island.values() if i["final"]),
         "history_rows": sum(n for n, _ in stored.values()),
         "history_rows_missing": sum(by_island[i]["iterations"] + 1 - stored.get(i, (0, 0))[0] for i in everyone),
-        "links": links, **memory,
+        "links": links,
+        **memory,
         "members": [(i, e) for i, e, _ in db.rows("SELECT island, event, t FROM members WHERE campaign = ? ORDER BY t", CAMPAIGN)],
     }
 
 
 BENCH_SITES = [Site(11, delay_ms=50.0), Site(11, delay_ms=50.0, loss_pct=1.0, cut_at_s=15.0, cut_for_s=10.0), Site(10)]
 """32 islands on three sites: two behind 50 ms each way, one of them losing 1 % and cut for 10 s."""
-LARGE_SITES = [Site(86, delay_ms=50.0, per_process=43), Site(86, delay_ms=50.0, loss_pct=1.0, cut_at_s=15.0, cut_for_s=10.0, per_process=43),
-               Site(84, per_process=42)]
+LARGE_SITES = [
+    Site(86, delay_ms=50.0, per_process=43),
+    Site(86, delay_ms=50.0, loss_pct=1.0, cut_at_s=15.0, cut_for_s=10.0, per_process=43),
+    Site(84, per_process=42),
+]
 """The same three sites with 256 islands, in processes of 42-43 islands each (``hysid island --count``)."""
 
 
@@ -282,10 +347,14 @@ def to_text(r: dict[str, Any]) -> str:
     for imp in r["impairments"]:
         lines.append(f"site {imp['site']}: delay {imp['delay'] or '-'}; loss {imp['loss'] or '-'}; cut {imp['cut'] or '-'}")
     for link in r["links"]:
-        lines.append(f"site {link['site']} cut at {link['cut_at_s']:.1f} s for {link['cut_for_s']:.1f} s: lost after {link['detect_s']:.2f} s "
-                     f"(first {link['first_lost_s']:.2f} s), back {link['back_s']:.2f} s after the restore, history caught up after {link['caught_up_s']:.2f} s")
+        lines.append(
+            f"site {link['site']} cut at {link['cut_at_s']:.1f} s for {link['cut_for_s']:.1f} s: lost after {link['detect_s']:.2f} s "
+            f"(first {link['first_lost_s']:.2f} s), back {link['back_s']:.2f} s after the restore, history caught up after {link['caught_up_s']:.2f} s"
+        )
     if r.get("island_rss_mb"):
         rss = [m for m in r["island_rss_mb"] if m is not None]
-        lines.append(f"RSS per island process {np.median(rss):.0f} MB (median; {min(rss):.0f}-{max(rss):.0f}; {r['islands'] / len(rss):.0f} islands each), routers "
-                     f"{max(m or 0 for m in r['router_rss_mb']):.0f} MB at most, coordinator {r['coordinator_rss_mb']:.0f} MB")
+        lines.append(
+            f"RSS per island process {np.median(rss):.0f} MB (median; {min(rss):.0f}-{max(rss):.0f}; {r['islands'] / len(rss):.0f} islands each), routers "
+            f"{max(m or 0 for m in r['router_rss_mb']):.0f} MB at most, coordinator {r['coordinator_rss_mb']:.0f} MB"
+        )
     return "\n".join(lines)

@@ -96,8 +96,9 @@ def _noise(model: str, values: dict[str, float], freq: np.ndarray, amp: np.ndarr
 
 def _simulated(model: str, values: dict[str, float], freq: np.ndarray, amp: np.ndarray, rate_hz: float = RATE_HZ, **kind: Any) -> list[RawRecord]:
     m = build_model(model)
-    return simulate_raw(m, m.from_dict(values), freq, amp, noise_n=_noise(model, values, freq, amp), seed=sp.DATA_SEED,
-                        sample_rate_hz=rate_hz, cycles=CYCLES, **kind)
+    return simulate_raw(
+        m, m.from_dict(values), freq, amp, noise_n=_noise(model, values, freq, amp), seed=sp.DATA_SEED, sample_rate_hz=rate_hz, cycles=CYCLES, **kind
+    )
 
 
 def _linear(kind: dict[str, Any], rate_hz: float = RATE_HZ, freqs: tuple[float, ...] = (15.0, 25.0, 35.0, 45.0, 55.0)) -> Callable[[], LoopSet]:
@@ -121,26 +122,68 @@ def cases() -> list[Case]:
     freq_f, amp_f = sp.grid(np.array([2.0, 4.0, 8.0]), np.array([2e-3, 4e-3, 6e-3]))
     freq_w, amp_w = sp.grid(np.array([10.0, 18.0, 30.0]), np.array([0.5e-3, 1.0e-3, 2.0e-3]))
     out = [
-        Case("sensor_distortion", "sensor distortion", "linear specimen, sensor adds 10 % 2nd and 5 % 3rd harmonic",
-             _linear({"sensor": DISTORTION}), frozenset(), "fundamental", ("baseline", LINEAR, "fundamental")),
-        Case("motion_distortion", "sensor distortion", "linear specimen, the same harmonics in the motion",
-             _linear({"distortion": DISTORTION}), frozenset(), "measured", ("baseline", LINEAR, "measured")),
+        Case(
+            "sensor_distortion",
+            "sensor distortion",
+            "linear specimen, sensor adds 10 % 2nd and 5 % 3rd harmonic",
+            _linear({"sensor": DISTORTION}),
+            frozenset(),
+            "fundamental",
+            ("baseline", LINEAR, "fundamental"),
+        ),
+        Case(
+            "motion_distortion",
+            "sensor distortion",
+            "linear specimen, the same harmonics in the motion",
+            _linear({"distortion": DISTORTION}),
+            frozenset(),
+            "measured",
+            ("baseline", LINEAR, "measured"),
+        ),
     ]
     for name, level in sp.MR_LEVELS.items():
-        out.append(Case(name, "MR damper", f"Spencer-type MR damper, Bouc-Wen n = 2, yield force {level['f_y']:g} N",
-                        _mr_loops(name, level),
-                        frozenset(BOUC_WEN), None, ("mr_damper", _mr_truth(level), "measured")))
+        out.append(
+            Case(
+                name,
+                "MR damper",
+                f"Spencer-type MR damper, Bouc-Wen n = 2, yield force {level['f_y']:g} N",
+                _mr_loops(name, level),
+                frozenset(BOUC_WEN),
+                None,
+                ("mr_damper", _mr_truth(level), "measured"),
+            )
+        )
     out += [
-        Case("friction_damper", "friction damper", "Bouc-Wen hysteresis and Coulomb friction",
-             lambda: sp.extracted("friction", _simulated("baseline+coulomb_friction+bouc_wen", sp.FRICTION_BW, freq_f, amp_f), None, POINTS),
-             frozenset({"bouc_wen", "coulomb_friction"}), None, ("baseline+coulomb_friction+bouc_wen", sp.FRICTION_BW, "measured")),
-        Case("wire_rope", "wire rope", "softening Bouc-Wen (r = -0.5), sensor adds 6 % 2nd and 3 % 3rd harmonic",
-             lambda: sp.extracted("wire rope", _simulated("baseline+bouc_wen", sp.WIRE_ROPE, freq_w, amp_w, sensor=sp.WIRE_ROPE_SENSOR), None, POINTS),
-             frozenset(BOUC_WEN), "fundamental", ("baseline+bouc_wen", sp.WIRE_ROPE, "fundamental")),
-        Case("rational_rate", "rational sample rate", "linear specimen at 2048 Hz, 15-35 Hz, 5 % 3rd harmonic in the motion",
-             _linear({"distortion": {3: 0.05}}, 2048.0, (15.0, 20.0, 25.0, 32.0, 35.0)), frozenset(), "measured", ("baseline", LINEAR, "measured")),
-        Case("arts_friction_damper", "real device", "ARTS-Lab band-brake friction damper (data/arts-friction-damper)",
-             lambda: load_dataset(DAMPER), None, None),
+        Case(
+            "friction_damper",
+            "friction damper",
+            "Bouc-Wen hysteresis and Coulomb friction",
+            lambda: sp.extracted("friction", _simulated("baseline+coulomb_friction+bouc_wen", sp.FRICTION_BW, freq_f, amp_f), None, POINTS),
+            frozenset({"bouc_wen", "coulomb_friction"}),
+            None,
+            ("baseline+coulomb_friction+bouc_wen", sp.FRICTION_BW, "measured"),
+        ),
+        Case(
+            "wire_rope",
+            "wire rope",
+            "softening Bouc-Wen (r = -0.5), sensor adds 6 % 2nd and 3 % 3rd harmonic",
+            lambda: sp.extracted("wire rope", _simulated("baseline+bouc_wen", sp.WIRE_ROPE, freq_w, amp_w, sensor=sp.WIRE_ROPE_SENSOR), None, POINTS),
+            frozenset(BOUC_WEN),
+            "fundamental",
+            ("baseline+bouc_wen", sp.WIRE_ROPE, "fundamental"),
+        ),
+        Case(
+            "rational_rate",
+            "rational sample rate",
+            "linear specimen at 2048 Hz, 15-35 Hz, 5 % 3rd harmonic in the motion",
+            _linear({"distortion": {3: 0.05}}, 2048.0, (15.0, 20.0, 25.0, 32.0, 35.0)),
+            frozenset(),
+            "measured",
+            ("baseline", LINEAR, "measured"),
+        ),
+        Case(
+            "arts_friction_damper", "real device", "ARTS-Lab band-brake friction damper (data/arts-friction-damper)", lambda: load_dataset(DAMPER), None, None
+        ),
     ]
     return out
 
@@ -164,6 +207,7 @@ def reference_nrmse(loops: LoopSet) -> float:
     """The outside reference: scipy's least squares (its own defaults) from ``REFERENCE_STARTS`` uniform random
     starts within the bounds of ``mr_damper`` on ``loops``, the best kept (module docstring)."""
     from scipy.optimize import least_squares  # on first use: a fast CLI and island start
+
     objective = build_objective(loops, "mr_damper", displacement="measured")
     assert isinstance(objective, Objective)  # the closed form (build_objective's default kind)
     lower, upper = objective.bounds[:, 0], objective.bounds[:, 1]
@@ -173,8 +217,10 @@ def reference_nrmse(loops: LoopSet) -> float:
         r = objective.weighted_residuals(theta)
         return np.where(np.isfinite(r), r, 1e150)
 
-    fits = [least_squares(residuals, lower + (upper - lower) * rng.random(lower.size), bounds=(lower, upper), method="trf", x_scale="jac")
-            for _ in range(REFERENCE_STARTS)]
+    fits = [
+        least_squares(residuals, lower + (upper - lower) * rng.random(lower.size), bounds=(lower, upper), method="trf", x_scale="jac")
+        for _ in range(REFERENCE_STARTS)
+    ]
     return loop_nrmse_pct(objective, min(fits, key=lambda f: f.cost).x)
 
 
@@ -189,16 +235,29 @@ def run_case(case: Case) -> dict[str, Any]:
         final = diagnosis.gap[-1].nrmse_pct
         reading = diagnosis.motion.displacement if diagnosis.motion else None
         row: dict[str, Any] = {
-            "case": case.name, "kind": case.kind, "description": case.description, "loops": loops.n_loops,
-            "named": sorted(named), "final_model": diagnosis.final.spec, "status": diagnosis.status, "reading": reading,
-            "nrmse_pct": final, "seconds": seconds,
+            "case": case.name,
+            "kind": case.kind,
+            "description": case.description,
+            "loops": loops.n_loops,
+            "named": sorted(named),
+            "final_model": diagnosis.final.spec,
+            "status": diagnosis.status,
+            "reading": reading,
+            "nrmse_pct": final,
+            "seconds": seconds,
         }
         if case.truth is not None:
             floor = truth_nrmse(loops, case.truth)
             nrmse_ok = final <= max(NRMSE_SLACK[0] * floor, floor + NRMSE_SLACK[1])
             reading_ok = case.reading is None or reading == case.reading
-            row.update({"truth_effects": sorted(case.effects or ()), "truth_reading": case.reading, "truth_nrmse_pct": floor,
-                        "matches": bool(named == set(case.effects or ()) and reading_ok and nrmse_ok)})
+            row.update(
+                {
+                    "truth_effects": sorted(case.effects or ()),
+                    "truth_reading": case.reading,
+                    "truth_nrmse_pct": floor,
+                    "matches": bool(named == set(case.effects or ()) and reading_ok and nrmse_ok),
+                }
+            )
         else:
             reference = reference_nrmse(loops)
             row.update({"reference_nrmse_pct": reference, "matches": bool(final <= REFERENCE_SLACK * reference)})
@@ -216,10 +275,15 @@ def run(names: list[str] | None = None) -> dict[str, Any]:
 def to_text(result: dict[str, Any]) -> str:
     lines = [f"hysid bench validation: {result['matches']} of {result['of']} cases match the truth or the reference"]
     for r in result["cases"]:
-        against = (f"truth {', '.join(r['truth_effects']) or 'no effect'}, NRMSE {r['truth_nrmse_pct']:.3g} %" if "truth_nrmse_pct" in r
-                   else f"reference NRMSE {r['reference_nrmse_pct']:.3g} %")
-        lines.append(f"  {r['case']:<22} {'match' if r['matches'] else 'MISS ':<5}  named {', '.join(r['named']) or 'nothing':<32} "
-                     f"reading {r['reading'] or '-':<11} NRMSE {r['nrmse_pct']:.3g} %  ({against}); {r['seconds']:.1f} s")
+        against = (
+            f"truth {', '.join(r['truth_effects']) or 'no effect'}, NRMSE {r['truth_nrmse_pct']:.3g} %"
+            if "truth_nrmse_pct" in r
+            else f"reference NRMSE {r['reference_nrmse_pct']:.3g} %"
+        )
+        lines.append(
+            f"  {r['case']:<22} {'match' if r['matches'] else 'MISS ':<5}  named {', '.join(r['named']) or 'nothing':<32} "
+            f"reading {r['reading'] or '-':<11} NRMSE {r['nrmse_pct']:.3g} %  ({against}); {r['seconds']:.1f} s"
+        )
     return "\n".join(lines)
 
 
@@ -229,26 +293,42 @@ def to_markdown(result: dict[str, Any], environment: dict[str, Any]) -> str:
     rows = []
     for r in result["cases"]:
         if "truth_nrmse_pct" in r:
-            truth = (f"{', '.join(r['truth_effects']) or 'no effect'}"
-                     + (f", {r['truth_reading']}" if r["truth_reading"] else "") + f"; NRMSE {r['truth_nrmse_pct']:.3g} %")
+            truth = (
+                f"{', '.join(r['truth_effects']) or 'no effect'}"
+                + (f", {r['truth_reading']}" if r["truth_reading"] else "")
+                + f"; NRMSE {r['truth_nrmse_pct']:.3g} %"
+            )
         else:
             truth = f"least squares, 8 starts, mr_damper: NRMSE {r['reference_nrmse_pct']:.3g} %"
-        rows.append([f"`{r['case']}`", r["description"], f"`{r['final_model']}`", r["reading"] or "-", r["status"],
-                     f"{r['nrmse_pct']:.3g} %", truth, "match" if r["matches"] else "**miss**", f"{r['seconds']:.0f} s"])
+        rows.append(
+            [
+                f"`{r['case']}`",
+                r["description"],
+                f"`{r['final_model']}`",
+                r["reading"] or "-",
+                r["status"],
+                f"{r['nrmse_pct']:.3g} %",
+                truth,
+                "match" if r["matches"] else "**miss**",
+                f"{r['seconds']:.0f} s",
+            ]
+        )
     table = "\n".join(["| " + " | ".join(head) + " |", "|" + "|".join([":--"] * len(head)) + "|"] + ["| " + " | ".join(row) + " |" for row in rows])
     machine = environment.get("machine", {})
     doc = (__doc__ or "").split("\n\n", 1)[1].strip()
-    return "\n".join([
-        "# Validation: hysid on devices it was not built on",
-        "",
-        f"Generated {environment.get('date', '')} on {machine.get('hostname', '')} ({machine.get('cpu_model', '')}, "
-        f"load {machine.get('load_avg_1m', '')}) by `hysid bench validation --markdown docs/VALIDATION.md` "
-        f"({result['bench_s']:.0f} s). **{result['matches']} of {result['of']} cases match.**",
-        "",
-        table,
-        "",
-        "## How",
-        "",
-        doc,
-        "",
-    ])
+    return "\n".join(
+        [
+            "# Validation: hysid on devices it was not built on",
+            "",
+            f"Generated {environment.get('date', '')} on {machine.get('hostname', '')} ({machine.get('cpu_model', '')}, "
+            f"load {machine.get('load_avg_1m', '')}) by `hysid bench validation --markdown docs/VALIDATION.md` "
+            f"({result['bench_s']:.0f} s). **{result['matches']} of {result['of']} cases match.**",
+            "",
+            table,
+            "",
+            "## How",
+            "",
+            doc,
+            "",
+        ]
+    )

@@ -58,7 +58,10 @@ for module in (data, fit, bench, campaign, island, router, diagnose, watch):
 @app.command("models")
 def models_command(
     modules: list[str] | None = typer.Option(
-        None, "--import", metavar="MODULE", help="Import this module (repeatable) and list the terms of your own it makes (hysid.term).",
+        None,
+        "--import",
+        metavar="MODULE",
+        help="Import this module (repeatable) and list the terms of your own it makes (hysid.term).",
     ),
 ) -> None:
     """List the model presets, the effect library and terms of your own (--import), with every parameter's unit and default bounds."""

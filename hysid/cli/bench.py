@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import typer
 
@@ -73,19 +73,26 @@ def search_command(
     seeds: int = typer.Option(search.MIN_SEEDS, "--seeds", help=f"Search seeds per problem and method ({search.MIN_SEEDS} for a verdict; fewer: preliminary)."),
     quick: bool = typer.Option(False, "--quick", help="3 seeds on two problems with small budgets: the machinery, not a verdict."),
     problems: str = typer.Option(",".join(search.PROBLEMS), "--problems", help="Comma-separated problems to run."),
-    methods: str = typer.Option(",".join(search.METHODS), "--methods", help="Comma-separated methods to run (the verdict needs the 4-island campaign and a peer)."),
+    methods: str = typer.Option(
+        ",".join(search.METHODS), "--methods", help="Comma-separated methods to run (the verdict needs the 4-island campaign and a peer)."
+    ),
     budget: int = typer.Option(search.BUDGET, "--budget", help="Evaluations of every search."),
-    partial: Optional[Path] = typer.Option(None, "--partial", help="Write the results so far to this JSON file after every problem."),
+    partial: Path | None = typer.Option(None, "--partial", help="Write the results so far to this JSON file after every problem."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    emit(search.run(seeds, quick, tuple(p for p in problems.split(",") if p), tuple(m for m in methods.split(",") if m), budget=budget, partial=partial),
-         search.to_text, as_json)
+    emit(
+        search.run(seeds, quick, tuple(p for p in problems.split(",") if p), tuple(m for m in methods.split(",") if m), budget=budget, partial=partial),
+        search.to_text,
+        as_json,
+    )
 
 
 @bench_app.command("validation", help=(validation.run.__doc__ or "").strip().splitlines()[0])
 def validation_command(
     cases: str = typer.Option("", "--cases", help="Comma-separated cases to run (default: all)."),
-    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the table as the validation section of this Markdown file (docs/VALIDATION.md; other sections kept)."),
+    markdown: Path | None = typer.Option(
+        None, "--markdown", help="Also write the table as the validation section of this Markdown file (docs/VALIDATION.md; other sections kept)."
+    ),
     as_json: bool = BENCH_JSON,
 ) -> None:
     names = [c for c in cases.split(",") if c] or None
@@ -102,20 +109,23 @@ def validation_command(
 @bench_app.command("discovery", help=(discovery.run.__doc__ or "").strip().splitlines()[0])
 def discovery_command(
     quick: bool = typer.Option(False, "--quick", help=f"4 loops a specimen and {discovery.QUICK_SEEDS} control draws: the machinery, not a verdict."),
-    seeds: Optional[int] = typer.Option(None, "--seeds", help=f"Noise draws per control (default {discovery.CONTROL_SEEDS}; --quick {discovery.QUICK_SEEDS})."),
+    seeds: int | None = typer.Option(None, "--seeds", help=f"Noise draws per control (default {discovery.CONTROL_SEEDS}; --quick {discovery.QUICK_SEEDS})."),
     laws: str = typer.Option(",".join(discovery.dc.LAWS), "--laws", help="Comma-separated hidden laws to run (none: '')."),
     controls: str = typer.Option(",".join(discovery.dc.CONTROLS), "--controls", help="Comma-separated controls to run (none: '')."),
-    noise: str = typer.Option(",".join(f"{n:g}" for n in discovery.dc.NOISE_PCT), "--noise", help="Comma-separated force noise levels of the laws, per cent of each record's peak."),
+    noise: str = typer.Option(
+        ",".join(f"{n:g}" for n in discovery.dc.NOISE_PCT), "--noise", help="Comma-separated force noise levels of the laws, per cent of each record's peak."
+    ),
     real: bool = typer.Option(True, "--real/--no-real", help="Also diagnose the real friction damper (data/arts-friction-damper) with and without discovery."),
-    merge: Optional[list[Path]] = typer.Option(None, "--merge", help="Run nothing: merge the --json output of runs of disjoint parts (repeat the option)."),
-    markdown: Optional[Path] = typer.Option(None, "--markdown", help="Also write the discovery section of this Markdown file (docs/VALIDATION.md)."),
+    merge: list[Path] | None = typer.Option(None, "--merge", help="Run nothing: merge the --json output of runs of disjoint parts (repeat the option)."),
+    markdown: Path | None = typer.Option(None, "--markdown", help="Also write the discovery section of this Markdown file (docs/VALIDATION.md)."),
     as_json: bool = BENCH_JSON,
 ) -> None:
     if merge:
         result = discovery.combined([json_file(path, "--merge") for path in merge])
     else:
-        result = discovery.run(quick, seeds, tuple(n for n in laws.split(",") if n), tuple(n for n in controls.split(",") if n),
-                               tuple(number_list(noise, "--noise")), real=real)
+        result = discovery.run(
+            quick, seeds, tuple(n for n in laws.split(",") if n), tuple(n for n in controls.split(",") if n), tuple(number_list(noise, "--noise")), real=real
+        )
     if markdown is not None:
         write_section(markdown, "discovery", discovery.to_markdown(result, environment()))
     emit(result, discovery.to_text, as_json)

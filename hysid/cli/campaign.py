@@ -14,12 +14,11 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
-from typing import Optional
 
 import typer
 
-from coordinator.launch import island_specs
 from coordinator.keys import key_path
+from coordinator.launch import island_specs
 from coordinator.links import ZenohLink
 from coordinator.loop import serve
 from coordinator.progress import CampaignProgress
@@ -47,7 +46,7 @@ def print_line(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
-def database(db: Optional[Path], out: Path, campaign_name: str, resuming: bool) -> Path:
+def database(db: Path | None, out: Path, campaign_name: str, resuming: bool) -> Path:
     """The campaign database: ``--db`` or OUT/campaign.sqlite; a stored campaign is only ever resumed.
     Whether it can be written is checked here, before any work."""
     path = db if db is not None else out / o.DB_NAME
@@ -78,8 +77,10 @@ def resumed_from(store: Store, name: str) -> str:
     if status in ("running", "stopping"):
         last = store.last_commit(name)
         ago = "" if last is None else f", its heartbeat {time.time() - last:.0f} s ago"
-        raise HysidInputError(f"{store.path}: campaign {name!r} is {status} (its coordinator is alive{ago}); stop it first, or wait "
-                              f"{COORDINATOR_LEASE_S:g} s after a crash on another machine")
+        raise HysidInputError(
+            f"{store.path}: campaign {name!r} is {status} (its coordinator is alive{ago}); stop it first, or wait "
+            f"{COORDINATOR_LEASE_S:g} s after a crash on another machine"
+        )
     why = (reason or "").removeprefix("interrupted: ")
     return f"hysid: resuming campaign {name!r}, {status}" + (f" ({why})" if why else "")
 
@@ -99,7 +100,7 @@ def discard_failed(out: Path, db: Path, campaign_name: str) -> None:
         return
     store = Store.read_only(db)
     try:
-        kept = store.has_campaign(campaign_name) and store.count("history", campaign_name) > 0 or len(store.campaign_list()) > 1
+        kept = (store.has_campaign(campaign_name) and store.count("history", campaign_name) > 0) or len(store.campaign_list()) > 1
     finally:
         store.db.close()
     if kept:
@@ -118,23 +119,23 @@ def register(app: typer.Typer) -> None:
     @app.command("campaign")
     @grouped
     def campaign_command(
-        dataset: Optional[str] = o.DATASET_OR_SYNTH,
+        dataset: str | None = o.DATASET_OR_SYNTH,
         islands: int = typer.Option(4, "--islands", help="Number of islands."),
         name: str = typer.Option("campaign", "--campaign", help="Campaign name (in the database and the key space hysid/<name>/**)."),
         search: Search = LAID_OUT,
         model: str = o.MODEL,
-        weights: Optional[str] = o.WEIGHTS,
+        weights: str | None = o.WEIGHTS,
         reading: Reading = LAID_OUT,
         stop: Stop = LAID_OUT,
         single_node: bool = typer.Option(False, "--single-node", help="All islands in this process, migrating in memory (no network)."),
-        out: Optional[Path] = o.OUT,
-        db: Optional[Path] = o.DB,
+        out: Path | None = o.OUT,
+        db: Path | None = o.DB,
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
         csv: bool = o.CSV,
         limits: Constraints = LAID_OUT,
-    ) -> Optional[int]:
+    ) -> int | None:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
         bounds, fixed, displacement = limits.bounds(), limits.fixed(), limits.displacement
         algo_list = search.algo_list()
@@ -151,14 +152,31 @@ def register(app: typer.Typer) -> None:
         new_db = not path.exists()
         loops = reading.load(dataset or "synth")
         plan, termination, until_stopped, iterations = o.island_plan(
-            loops, model, bounds, algo_list, search.population, search.initial, search.iterations, termination)
+            loops, model, bounds, algo_list, search.population, search.initial, search.iterations, termination
+        )
         try:
             with Progress("campaign", islands * (iterations or 0) or 100, enabled=not (quiet or as_json)) as bar:
                 result = campaign(
-                    loops, model, islands=islands, name=name, weights=weights, bounds=bounds, fixed=fixed, displacement=displacement,
-                    algos=algo_list, options=plan, migration=migration,
-                    seed=seed, termination=termination, single_node=single_node, db=path, dataset=dataset or "synth",
-                    polish=polish, progress=campaign_reporter(bar, islands, iterations, termination), until_stopped=until_stopped, share=share,
+                    loops,
+                    model,
+                    islands=islands,
+                    name=name,
+                    weights=weights,
+                    bounds=bounds,
+                    fixed=fixed,
+                    displacement=displacement,
+                    algos=algo_list,
+                    options=plan,
+                    migration=migration,
+                    seed=seed,
+                    termination=termination,
+                    single_node=single_node,
+                    db=path,
+                    dataset=dataset or "synth",
+                    polish=polish,
+                    progress=campaign_reporter(bar, islands, iterations, termination),
+                    until_stopped=until_stopped,
+                    share=share,
                 )
         except BaseException:
             if new_db:
@@ -170,37 +188,41 @@ def register(app: typer.Typer) -> None:
     @app.command("coordinator")
     @grouped
     def coordinator_command(
-        dataset: Optional[str] = o.DATASET_OR_SYNTH,
+        dataset: str | None = o.DATASET_OR_SYNTH,
         listen: list[str] = typer.Option([], "--listen", help="Endpoint to listen on, repeatable (default tcp/127.0.0.1:7447)."),
         connect: list[str] = typer.Option([], "--connect", help="Zenoh router to connect to as well, repeatable."),
-        config_file: Optional[Path] = o.CONFIG,
+        config_file: Path | None = o.CONFIG,
         name: str = o.CAMPAIGN,
-        db: Optional[Path] = o.DB,
-        resume_db: bool = typer.Option(False, "--resume", help="Carry on the campaign stored in --db after a crash (its settings and loop set come from there)."),
-        secret_file: Optional[Path] = typer.Option(
-            None, "--secret-file",
+        db: Path | None = o.DB,
+        resume_db: bool = typer.Option(
+            False, "--resume", help="Carry on the campaign stored in --db after a crash (its settings and loop set come from there)."
+        ),
+        secret_file: Path | None = typer.Option(
+            None,
+            "--secret-file",
             help="Where to keep the campaign's shared secret (mode 0600; default DB-CAMPAIGN.secret beside the database): islands joined "
-                 "with it, whoever holds it, count as one member.",
+            "with it, whoever holds it, count as one member.",
         ),
         members: list[str] = typer.Option(
-            [], "--member",
+            [],
+            "--member",
             help="Also write a member secret for NAME (repeatable; DB-CAMPAIGN+NAME.secret, mode 0600; the same again with --resume): "
-                 "its holder joins only as NAME's islands (ids NAME or NAME-...), and no member (the shared secret's holders together "
-                 "are one) takes more than half the run slots or counts more effort than all the other members together. Hand each "
-                 "host or process its own.",
+            "its holder joins only as NAME's islands (ids NAME or NAME-...), and no member (the shared secret's holders together "
+            "are one) takes more than half the run slots or counts more effort than all the other members together. Hand each "
+            "host or process its own.",
         ),
         min_islands: int = typer.Option(1, "--min-islands", help="Islands wait (up to 60 s) until this many have joined before they start."),
         search: Search = LAID_OUT,
         model: str = o.MODEL,
-        weights: Optional[str] = o.WEIGHTS,
+        weights: str | None = o.WEIGHTS,
         reading: Reading = LAID_OUT,
         stop: Stop = LAID_OUT,
-        out: Optional[Path] = o.OUT,
+        out: Path | None = o.OUT,
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
         quiet: bool = o.QUIET,
         limits: Constraints = LAID_OUT,
-    ) -> Optional[int]:
+    ) -> int | None:
         """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
         check_name("campaign", name)
         for member in members:
@@ -219,12 +241,25 @@ def register(app: typer.Typer) -> None:
             migration = search.migration()
             loops = reading.load(dataset or "synth")
             sizes, termination, until_stopped, _ = o.island_plan(
-                loops, model, bounds, search.algo_list(), search.population, search.initial, search.iterations, termination)
+                loops, model, bounds, search.algo_list(), search.population, search.initial, search.iterations, termination
+            )
             motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)
             config = CampaignConfig.create(
-                loops, name=name, algos=search.algo_list(), model=model, seed=search.seed, weights=weights, share=search.share, bounds=bounds,
-                displacement=motion.displacement, fixed=fixed, displacement_by=motion.decided_by, options=sizes, migration=migration,
-                min_islands=min_islands, until_stopped=until_stopped,
+                loops,
+                name=name,
+                algos=search.algo_list(),
+                model=model,
+                seed=search.seed,
+                weights=weights,
+                share=search.share,
+                bounds=bounds,
+                displacement=motion.displacement,
+                fixed=fixed,
+                displacement_by=motion.decided_by,
+                options=sizes,
+                migration=migration,
+                min_islands=min_islands,
+                until_stopped=until_stopped,
             )
         store = Store(path)
         try:
@@ -243,7 +278,9 @@ def register(app: typer.Typer) -> None:
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
             session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
             link = ZenohLink(session, coordinator)
-            print(f"coordinator of campaign {name!r} ready (database {store.path}, islands' shared secret {kept})", file=sys.stderr, flush=True)  # also with --quiet: scripts wait for it
+            print(
+                f"coordinator of campaign {name!r} ready (database {store.path}, islands' shared secret {kept})", file=sys.stderr, flush=True
+            )  # also with --quiet: scripts wait for it
             try:
                 serve(coordinator, link, announcing_stop(None if quiet else print_progress, print_line))
             finally:

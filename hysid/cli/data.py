@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import typer
 
@@ -33,8 +33,15 @@ def register(app: typer.Typer) -> None:
         out_dir = o.report_dir(out_dir, "synth", param="out_dir")
         if raw:
             records = synth_raw(noise, noise_seed)
-            write_dataset(out_dir, records, name=f"synth-raw-{noise:g}pct-seed{noise_seed}", meq_kg=MEQ_KG, bounds=BOUNDS,
-                          true_params=TRUE_PARAMS, description="Thesis Synth set (section 5.2) as raw time series")
+            write_dataset(
+                out_dir,
+                records,
+                name=f"synth-raw-{noise:g}pct-seed{noise_seed}",
+                meq_kg=MEQ_KG,
+                bounds=BOUNDS,
+                true_params=TRUE_PARAMS,
+                description="Thesis Synth set (section 5.2) as raw time series",
+            )
             print(f"wrote {len(records)} raw records, manifest.csv and dataset.toml to {out_dir}")
         else:
             loops = synth_loops(noise, noise_seed)
@@ -47,8 +54,10 @@ def register(app: typer.Typer) -> None:
         dataset: str = o.DATASET,
         as_json: bool = typer.Option(False, "--json", help="Print a JSON list of objects (one per loop) instead of a table."),
         reading: Reading = LAID_OUT,
-        out: Optional[Path] = typer.Option(
-            None, "--out", help="Also write the loops (loops.csv: fit, diagnose and campaign read this directory without extracting again), survey.png and loops.json to this new (or empty) directory."
+        out: Path | None = typer.Option(
+            None,
+            "--out",
+            help="Also write the loops (loops.csv: fit, diagnose and campaign read this directory without extracting again), survey.png and loops.json to this new (or empty) directory.",
         ),
     ) -> None:
         """List a dataset's loops and their equivalent-linear survey: frequency, X0, force, noise, cycles,
@@ -63,8 +72,9 @@ def register(app: typer.Typer) -> None:
 
             write_dataset(target, loops)
             figures.survey_figure(target / "survey.png", found)
-            jsondoc.write(target / "loops.json", {"dataset": loops.name, "warnings": stored(loops.meta), "mass": found.mass_source,
-                                                  "meq_kg": found.meq_kg, "loops": rows})
+            jsondoc.write(
+                target / "loops.json", {"dataset": loops.name, "warnings": stored(loops.meta), "mass": found.mass_source, "meq_kg": found.meq_kg, "loops": rows}
+            )
         print(jsondoc.dumps(rows, indent=1) if as_json else loops_table(loops, rows, found) + _loop_notes(loops, rows))
 
 

@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import typer
 
 from hysid.cli import options as o
 from hysid.cli.groups import Reading, grouped, laid_out
+from hysid.cli.progress import Progress
 from hysid.diagnosis.scoring import candidate_effects
 from hysid.diagnosis.selection import diagnose
-from hysid.cli.progress import Progress
-
 
 REPORT_WORK = 4.0
 """The report's work in the bar, in fits: its figures took 3.6-4.2 s where a memoryless refit takes about 1 s."""
@@ -30,14 +28,14 @@ def register(app: typer.Typer) -> None:
     def diagnose_command(
         dataset: str = o.DATASET,
         model: str = o.START_MODEL,
-        out: Optional[Path] = o.OUT,
+        out: Path | None = o.OUT,
         as_json: bool = o.JSON,
         reading: Reading = READING,
         csv: bool = o.CSV,
         quiet: bool = o.QUIET,
-        bound: Optional[list[str]] = o.BOUND,
+        bound: list[str] | None = o.BOUND,
         displacement: str = o.DISPLACEMENT,
-        candidates: Optional[str] = o.CANDIDATES,
+        candidates: str | None = o.CANDIDATES,
         no_discover: bool = o.NO_DISCOVER,
     ) -> None:
         """Find which effects of the library (and --candidates of your own) the model misses, step by step, and write a report."""
@@ -46,7 +44,12 @@ def register(app: typer.Typer) -> None:
         loops = reading.load(dataset)
         with Progress("diagnosing", 1, enabled=not (quiet or as_json)) as progress:  # in fits (hysid.diagnosis.tally)
             result = diagnose(
-                loops, model, bounds=bounds, candidates=effects, displacement=displacement, discover=not no_discover,
+                loops,
+                model,
+                bounds=bounds,
+                candidates=effects,
+                displacement=displacement,
+                discover=not no_discover,
                 progress=lambda done, total, what: progress.update(done, what, total + REPORT_WORK),
             )
             progress.update(progress.done, "writing the report and its figures")

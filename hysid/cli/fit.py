@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -31,8 +30,8 @@ def register(app: typer.Typer) -> None:
         model: str = o.MODEL,
         runs: int = o.RUNS,
         seed: int = o.SEED,
-        weights: Optional[str] = o.WEIGHTS,
-        out: Optional[Path] = o.OUT,
+        weights: str | None = o.WEIGHTS,
+        out: Path | None = o.OUT,
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
         reading: Reading = LAID_OUT,
@@ -50,8 +49,17 @@ def register(app: typer.Typer) -> None:
                 progress.update(i * ROWS_PER_RUN + row.iteration + 1, f"run {i + 1}/{runs}, best {row.best_fitness:.4g}")
 
             result = fit(
-                loops, model, algo=algo, runs=runs, seed=seed, weights=weights, polish=polish, bounds=bounds, fixed=fixed,
-                displacement=displacement, progress=show,
+                loops,
+                model,
+                algo=algo,
+                runs=runs,
+                seed=seed,
+                weights=weights,
+                polish=polish,
+                bounds=bounds,
+                fixed=fixed,
+                displacement=displacement,
+                progress=show,
             )
         o.show_result(result, target, as_json, csv)
 
@@ -61,8 +69,8 @@ def register(app: typer.Typer) -> None:
     @reproduce.command("thesis")
     def reproduce_thesis_command(
         runs: int = typer.Option(4, "--runs", help="Runs per algorithm, noise level and setting (the thesis: 4)."),
-        out: Optional[Path] = o.OUT,
-        seeds_noise: Optional[str] = typer.Option(None, "--seeds-noise", help="Comma-separated noise seeds, one per run (default 0..RUNS-1)."),
+        out: Path | None = o.OUT,
+        seeds_noise: str | None = typer.Option(None, "--seeds-noise", help="Comma-separated noise seeds, one per run (default 0..RUNS-1)."),
         seed: int = typer.Option(0, "--seed", help="Optimizer seed of the first run (run r uses SEED + r)."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON object (tables and paths) on stdout."),
     ) -> None:

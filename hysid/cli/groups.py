@@ -89,6 +89,7 @@ class Constraints:
 
 GROUPS = (Search, Reading, Stop, Constraints)
 
+
 @dataclasses.dataclass(frozen=True)
 class LaidOut:
     """The default of a group's parameter in a command's signature, which :func:`grouped` replaces by the group's

@@ -16,7 +16,6 @@ import threading
 import time
 import warnings
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -41,27 +40,32 @@ def register(app: typer.Typer) -> None:
     @app.command("island")
     def island_command(
         connect: list[str] = typer.Option([], "--connect", help="Coordinator endpoint, repeatable (default tcp/127.0.0.1:7447)."),
-        config_file: Optional[Path] = o.CONFIG,
+        config_file: Path | None = o.CONFIG,
         name: str = o.CAMPAIGN,
-        algo: Optional[str] = typer.Option(None, "--algo", help="ga or pso (default: from the campaign's mix, by seed)."),
-        seed: Optional[int] = typer.Option(None, "--seed", help="Optimizer seed (default: from the campaign seed and the island id)."),
-        island_id: Optional[str] = typer.Option(
+        algo: str | None = typer.Option(None, "--algo", help="ga or pso (default: from the campaign's mix, by seed)."),
+        seed: int | None = typer.Option(None, "--seed", help="Optimizer seed (default: from the campaign seed and the island id)."),
+        island_id: str | None = typer.Option(
             None, "--id", help="Island name, unique in the campaign (default: the user name of --config's authentication, else island-<host>-<pid>)."
         ),
         wait: float = typer.Option(
-            30.0, "--wait",
+            30.0,
+            "--wait",
             help="Seconds to wait for the coordinator: at the start, for the final confirmation, and for one that fell silent to come back.",
         ),
-        secret_file: Optional[Path] = typer.Option(
-            None, "--secret-file", envvar=SECRET_FILE_ENV, show_envvar=False,
+        secret_file: Path | None = typer.Option(
+            None,
+            "--secret-file",
+            envvar=SECRET_FILE_ENV,
+            show_envvar=False,
             help=f"The secret its coordinator wrote beside its database (waited for up to --wait): this host's member secret "
-                 f"(DB-CAMPAIGN+NAME.secret, hysid coordinator --member NAME; ids NAME or NAME-...), or the shared one (DB-CAMPAIGN.secret); "
-                 f"or give its text in ${SECRET_ENV}, or the file in ${SECRET_FILE_ENV}.",
+            f"(DB-CAMPAIGN+NAME.secret, hysid coordinator --member NAME; ids NAME or NAME-...), or the shared one (DB-CAMPAIGN.secret); "
+            f"or give its text in ${SECRET_ENV}, or the file in ${SECRET_FILE_ENV}.",
         ),
         count: str = typer.Option(
-            "1", "--count",
+            "1",
+            "--count",
             help="Islands in this process, threads over one Zenoh session: a number, or 'cores' for one per core the process may run on "
-                 "(under SLURM its task's CPUs). Several islands are ID-0, ID-1, ... with seeds SEED, SEED+1, ...",
+            "(under SLURM its task's CPUs). Several islands are ID-0, ID-1, ... with seeds SEED, SEED+1, ...",
         ),
         quiet: bool = typer.Option(False, "--quiet", help="Print nothing but errors."),
     ) -> None:
@@ -77,16 +81,23 @@ def register(app: typer.Typer) -> None:
         zconfig = session_config("client", connect=connect, config_file=config_file, connect_timeout_s=wait)
         identity = authenticated_name(zconfig)
         if island_id is not None and identity is not None and island_id != identity:
-            raise HysidInputError(f"this island authenticates as {identity!r} (user name in {config_file}); its id is that name", param="island", value=island_id)
+            raise HysidInputError(
+                f"this island authenticates as {identity!r} (user name in {config_file}); its id is that name", param="island", value=island_id
+            )
         island = check_name("island", island_id or identity or default_island_id())
-        where = ', '.join(connect) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)
+        where = ", ".join(connect) or (f"as in {config_file}" if config_file else DEFAULT_ENDPOINT)
         secret = island_secret(secret_file, name, wait, island)
         if secret.member and island_id is None and identity is None:
             island = secret.member  # a member's island bears its name
         elif secret.member and not of_member(island, secret.member):
-            raise HysidInputError(f"the secret is member {secret.member!r}'s: its islands' ids are {secret.member!r} or begin with "
-                                  f"'{secret.member}-'", param="island", value=island)
-        waiting = threading.Timer(WAIT_NOTICE_S, lambda: say(f"island {island}: no coordinator of campaign {name!r} at {where} yet; waiting up to {wait:g} s (--wait)"))
+            raise HysidInputError(
+                f"the secret is member {secret.member!r}'s: its islands' ids are {secret.member!r} or begin with '{secret.member}-'",
+                param="island",
+                value=island,
+            )
+        waiting = threading.Timer(
+            WAIT_NOTICE_S, lambda: say(f"island {island}: no coordinator of campaign {name!r} at {where} yet; waiting up to {wait:g} s (--wait)")
+        )
         waiting.start()  # an island started before its coordinator waits for it, and says so
         try:
             session = open_session(zconfig, f"connect {where}")
@@ -112,10 +123,13 @@ def register(app: typer.Typer) -> None:
                 continue
             node = h.node
             if node.confirmed is False:
-                warnings.warn(HysidWarning(
-                    f"island {node.island}: the coordinator did not confirm its history within {wait:g} s; rows sent since its last "
-                    "confirmation may be missing from the campaign database"
-                ), stacklevel=1)
+                warnings.warn(
+                    HysidWarning(
+                        f"island {node.island}: the coordinator did not confirm its history within {wait:g} s; rows sent since its last "
+                        "confirmation may be missing from the campaign database"
+                    ),
+                    stacklevel=1,
+                )
             if not quiet:
                 rows = node.rows
                 best = rows[-1][1] if rows else float("inf")
@@ -130,7 +144,8 @@ def register(app: typer.Typer) -> None:
         if failed:
             raise HysidInputError(
                 f"{len(failed)} of {len(hosted)} islands of this process failed: "
-                + "; ".join(f"{h.spec.id}: {describe(h.error)}" for h in failed[:3] if h.error is not None) + ("; ..." if len(failed) > 3 else "")
+                + "; ".join(f"{h.spec.id}: {describe(h.error)}" for h in failed[:3] if h.error is not None)
+                + ("; ..." if len(failed) > 3 else "")
             )
 
 
@@ -147,7 +162,7 @@ def island_count(text: str) -> int:
     return n
 
 
-def island_secret(secret_file: Optional[Path], campaign_name: str, wait: float, island: str) -> CampaignSecret:
+def island_secret(secret_file: Path | None, campaign_name: str, wait: float, island: str) -> CampaignSecret:
     """The campaign secret of an island: ``--secret-file`` (waited for up to ``wait`` seconds: the
     coordinator writes it when it starts), else the environment; one line if there is none."""
     if secret_file is None:

@@ -95,15 +95,19 @@ DATASET_HELP = "Dataset directory, loops file, .mat or .lvm directory, or 'synth
 DATASET = typer.Argument(..., help=DATASET_HELP)
 DATASET_OR_SYNTH = typer.Argument(None, help=DATASET_HELP + " Default: synth.")
 MODEL = typer.Option(
-    "thesis", "--model",
+    "thesis",
+    "--model",
     help="A preset (thesis, baseline, mr_damper) with +effects (see 'hysid models') and +module:attribute terms of your own (hysid.term).",
 )
 CANDIDATES = typer.Option(
-    None, "--candidates", metavar="MODULE:ATTRIBUTE,...",
+    None,
+    "--candidates",
+    metavar="MODULE:ATTRIBUTE,...",
     help="Terms of your own (made by hysid.term, imported from modules on the Python path) scored beside the library's effects.",
 )
 NO_DISCOVER = typer.Option(
-    False, "--no-discover",
+    False,
+    "--no-discover",
     help="Do not propose a force of your own from the data where no library effect explains the loops (proposed.py).",
 )
 START_MODEL = typer.Option("baseline", "--model", help=f"Start model: {' or '.join(PRESETS)}.")
@@ -113,7 +117,9 @@ NOISE_SEED = typer.Option(0, "--noise-seed", help="Seed of that noise.")
 SYNTH_NOISE_SEED = typer.Option(0, "--noise-seed", "--seed", help="Seed of that noise (--seed, its old name, works too).")
 POINTS = typer.Option(None, "--points", help="Points per branch when loops are extracted from raw records (default 100; a loops file keeps its own).")
 SKIP_ROWS = typer.Option(
-    None, "--skip-rows", metavar="N",
+    None,
+    "--skip-rows",
+    metavar="N",
     help="Lines before the header of every CSV record (a preamble of free text), as skip_rows in dataset.toml. "
     "Default: a preamble is found by the rows of numbers under the header and skipped with a warning.",
 )
@@ -134,17 +140,21 @@ INITIAL = typer.Option(None, "--initial", help=f"Initial random population / swa
 ISLAND_ITERATIONS = 60
 """Each island's iteration budget when neither --iterations nor an evaluation or time budget is given."""
 ITERATIONS = typer.Option(
-    None, "--iterations",
+    None,
+    "--iterations",
     help=f"Iterations of each island: its own budget (the thesis: 18). Default: none with --evaluations or --time "
     f"(every island searches and migrates until the campaign stops), else {ISLAND_ITERATIONS}.",
 )
 SHARE = typer.Option(
-    "staged", "--share",
+    "staged",
+    "--share",
     help="With several --algos: staged moves GA islands to PSO after their first migration interval (GA explores, PSO converges); "
     "adaptive moves islands to the algorithm whose own moves gain more; fixed keeps each island's algorithm.",
 )
 TOPOLOGY = typer.Option("ring", "--topology", help="Who takes migrants from whom: ring, full or random.")
-INTERVAL = typer.Option(5, "--interval", help="Migrate every N iterations (0: isolated islands, which take nothing from others, a late joiner not even the best so far).")
+INTERVAL = typer.Option(
+    5, "--interval", help="Migrate every N iterations (0: isolated islands, which take nothing from others, a late joiner not even the best so far)."
+)
 MIGRANTS = typer.Option(2, "--migrants", help="Best candidates each island sends per migration.")
 RANDOM_K = typer.Option(2, "--random-k", help="Neighbours of each island per migration with --topology random.")
 BUDGET = typer.Option(None, "--evaluations", "--budget", help="Stop after this many evaluations over all islands (--budget is the same).")
@@ -155,11 +165,14 @@ DB = typer.Option(None, "--db", help="Campaign database (SQLite; default OUT/cam
 CONFIG = typer.Option(None, "--config", help="Zenoh configuration file (JSON5); authoritative for mode, TLS, auth, ACL, lease.")
 CAMPAIGN = typer.Option("default", "--campaign", help="Campaign name: its key space is hysid/<name>/**.")
 BOUND = typer.Option(
-    None, "--bound", metavar="NAME=LO:HI",
+    None,
+    "--bound",
+    metavar="NAME=LO:HI",
     help="A hard search bound (repeatable): kept as given, never widened; overrides the dataset's and the data-derived bound.",
 )
 DISPLACEMENT = typer.Option(
-    "auto", "--displacement",
+    "auto",
+    "--displacement",
     help="auto: the data decide whether the displacement's harmonics are the motion or the sensor's distortion; "
     "measured: the model is driven by each loop's measured waveform; fundamental: by its fundamental (the harmonics are the "
     "sensor's); sine: the ideal X0 sin(wt) of Eq. 4.5 (as the thesis).",
@@ -207,12 +220,15 @@ def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
                 raise HysidInputError(
                     f"is the output directory of campaign {running!r}, which is still running (its coordinator writes "
                     f"{out / DB_NAME}): two runs cannot share one {FLAGS.get(param, param)}; choose a new directory "
-                    "(nothing was written)", param=param, value=out,
+                    "(nothing was written)",
+                    param=param,
+                    value=out,
                 )
             raise HysidInputError(
                 f"holds the database of a campaign that did not finish ({out / DB_NAME}, no report.md): carry it on with "
                 f"'hysid coordinator --resume --db {out / DB_NAME} --out NEW_DIR', or choose a new directory (nothing was written)",
-                param=param, value=out,
+                param=param,
+                value=out,
             )
         raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
     return check_writable(out, param)
@@ -226,8 +242,14 @@ def running_campaign(db: Path) -> str | None:
     except HysidInputError:
         return None
     try:
-        return next((c["name"] for c in store.campaign_list() if c["status"] != "stopped" and store.last_commit(c["name"]) is not None
-                     and store.gone_since(c["name"]) is None), None)
+        return next(
+            (
+                c["name"]
+                for c in store.campaign_list()
+                if c["status"] != "stopped" and store.last_commit(c["name"]) is not None and store.gone_since(c["name"]) is None
+            ),
+            None,
+        )
     finally:
         store.close()
 
@@ -339,8 +361,14 @@ def island_sizes(population: int | None, initial: int | None, iterations: int | 
 
 
 def island_plan(
-    loops: LoopSet, model: str, bounds: dict[str, tuple[float, float]] | None, algos: list[str],
-    population: int | None, initial: int | None, iterations: int | None, termination: Termination,
+    loops: LoopSet,
+    model: str,
+    bounds: dict[str, tuple[float, float]] | None,
+    algos: list[str],
+    population: int | None,
+    initial: int | None,
+    iterations: int | None,
+    termination: Termination,
 ) -> tuple[dict[str, dict[str, Any]] | None, Termination, bool, int | None]:
     """The islands' ``(options, termination, until_stopped, iterations)`` from ``--population``, ``--initial``,
     ``--iterations`` and the stop rules: with none of the three given on a model with memory, the library's

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import sys
 import time
-from types import TracebackType
 from collections.abc import Callable
+from types import TracebackType
 from typing import TYPE_CHECKING, TextIO
 
 from rich.console import Console
@@ -53,13 +53,20 @@ class Progress:
         self.bar: RichProgress | None = None
         if self.terminal:
             self.bar = RichProgress(
-                TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TaskProgressColumn(),
-                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), TextColumn("{task.fields[status]}"),
-                console=Console(file=self.stream), transient=True,
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TaskProgressColumn(),
+                TimeElapsedColumn(),
+                TextColumn("ETA"),
+                TimeRemainingColumn(),
+                TextColumn("{task.fields[status]}"),
+                console=Console(file=self.stream),
+                transient=True,
             )
             self.task = self.bar.add_task(label, total=self.total, status="")
 
-    def __enter__(self) -> "Progress":
+    def __enter__(self) -> Progress:
         if self.bar is not None:
             self.bar.start()
         return self
@@ -99,9 +106,8 @@ class Progress:
         elapsed = time.monotonic() - self.started
         left = elapsed * (self.total - self.done) / self.done if self.done > 0 else float("nan")
         eta = f", about {clock(left)} left" if self.done < self.total and left == left else ""
-        return (
-            f"{self.label}: {100 * self.done / self.total:.0f}% ({self.done:.0f}/{self.total:.0f}), "
-            f"{clock(elapsed)} elapsed{eta}" + (f"; {status}" if status else "")
+        return f"{self.label}: {100 * self.done / self.total:.0f}% ({self.done:.0f}/{self.total:.0f}), {clock(elapsed)} elapsed{eta}" + (
+            f"; {status}" if status else ""
         )
 
 

@@ -28,7 +28,6 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Optional
 
 import typer
 import zenoh
@@ -47,7 +46,7 @@ def register(app: typer.Typer) -> None:
         connect: list[str] = typer.Option(
             [], "--connect", help="The coordinator's (or another site router's) endpoint, repeatable; dialled until it answers and again after every loss."
         ),
-        config_file: Optional[Path] = o.CONFIG,
+        config_file: Path | None = o.CONFIG,
         quiet: bool = typer.Option(False, "--quiet", help="Print only the ready line and errors."),
     ) -> None:
         """Forward a campaign between this site's islands and the coordinator: a Zenoh router (what zenohd does)."""
@@ -70,7 +69,8 @@ def register(app: typer.Typer) -> None:
                 print(
                     f"[{time.monotonic() - started:7.1f} s] {kind} {zid} {'up' if up else 'down'} | routers {len(links['router'])}, "
                     f"peers {len(links['peer'])}, clients {len(links['client'])}",
-                    file=sys.stderr, flush=True,
+                    file=sys.stderr,
+                    flush=True,
                 )
 
         upstream = f"; dialling {', '.join(connect) or ('as in ' + str(config_file) if config_file else 'nothing')}"

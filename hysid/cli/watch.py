@@ -5,7 +5,6 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
-from typing import Optional
 
 import typer
 from rich.console import Console
@@ -29,7 +28,7 @@ def register(app: typer.Typer) -> None:
     @app.command("watch")
     def watch_command(
         db: Path = CAMPAIGN_DB,
-        name: Optional[str] = CAMPAIGN_NAME,
+        name: str | None = CAMPAIGN_NAME,
         interval: float = typer.Option(1.0, "--interval", help="Seconds between refreshes."),
         once: bool = typer.Option(False, "--once", help="Show the campaign once and exit."),
     ) -> None:
@@ -64,8 +63,8 @@ def register(app: typer.Typer) -> None:
     @app.command("report")
     def report_command(
         db: Path = CAMPAIGN_DB,
-        name: Optional[str] = CAMPAIGN_NAME,
-        out: Optional[Path] = o.OUT,
+        name: str | None = CAMPAIGN_NAME,
+        out: Path | None = o.OUT,
         as_json: bool = o.JSON,
         csv: bool = o.CSV,
     ) -> None:

@@ -71,6 +71,7 @@ def created_order(before: Fit, after: Fit) -> tuple[int, float, float] | None:
     after), or None. An effect that buys a better first harmonic with content the loops do not have
     (a hysteretic spring fitting how a linear stiffness changes with amplitude) has the wrong shape."""
     from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
+
     orders = before.objective.harmonics.orders()
     n_loops = before.objective.harmonics.loops.n_loops
     r0, r1 = (f.residual.reshape(n_loops, -1) for f in (before, after))
@@ -109,8 +110,10 @@ def visible_error(before: Fit, after: Fit, harmonics: Harmonics) -> str | None:
     rise = float(np.sum((energy[0] - truth) ** 2) - np.sum((energy[1] - truth) ** 2))
     spread = float(np.sqrt(4.0 * np.sum((energy[0] - energy[1]) ** 2 * noise**2)))
     if rise > VISIBLE_Z * spread and energy_error_pct(after, harmonics) > VISIBLE_FLOOR_PCT:
-        return (f"raises the energy error from {energy_error_pct(before, harmonics):.4g} % to {energy_error_pct(after, harmonics):.4g} % "
-                f"(by {rise / max(spread, 1e-300):.3g} x its noise)")
+        return (
+            f"raises the energy error from {energy_error_pct(before, harmonics):.4g} % to {energy_error_pct(after, harmonics):.4g} % "
+            f"(by {rise / max(spread, 1e-300):.3g} x its noise)"
+        )
     return None
 
 

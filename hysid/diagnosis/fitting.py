@@ -16,8 +16,8 @@ import numpy as np
 from hysid.identifiability import PROFILED, profile
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import MAX_WIDENINGS, Model, spec_of
-from hysid_model.terms import Oscillator
 from hysid_model.problem import prepare_model, starting_point
+from hysid_model.terms import Oscillator
 from hysid_model.uncertainty import jacobian_covariance
 from island.polish import polish
 
@@ -99,8 +99,7 @@ def soft_bounds(model: Model) -> dict[str, tuple[float, float]]:
     return {p.name: (p.lower, p.upper) for p in model.parameters if p.soft}
 
 
-def make_model(harmonics: Harmonics, start: str, effects: tuple[str, ...], bounds: dict[str, tuple[float, float]],
-               free: Sequence[str] = ()) -> Model:
+def make_model(harmonics: Harmonics, start: str, effects: tuple[str, ...], bounds: dict[str, tuple[float, float]], free: Sequence[str] = ()) -> Model:
     """The start model plus ``effects``, ready for the loops (known mass fixed, bounds by the one rule of
     :func:`hysid_model.problem.prepare_model`), with the parameters ``free`` searched that the effects fix by
     default (a Bouc-Wen exponent freed earlier) and the soft ``bounds`` widened so far."""

@@ -43,8 +43,13 @@ class GapMetrics:
     cv_whitened_rms: float | None
 
     def as_dict(self) -> dict[str, Any]:
-        return {"model": self.spec, "whitened_rms": self.whitened_rms, "loop_nrmse_pct": self.nrmse_pct,
-                "energy_error_pct": self.energy_error_pct, "cv_whitened_rms": self.cv_whitened_rms}
+        return {
+            "model": self.spec,
+            "whitened_rms": self.whitened_rms,
+            "loop_nrmse_pct": self.nrmse_pct,
+            "energy_error_pct": self.energy_error_pct,
+            "cv_whitened_rms": self.cv_whitened_rms,
+        }
 
 
 def nrmse_pct(fit: Fit) -> np.ndarray:

@@ -61,6 +61,7 @@ def excess_words(names: list[str], orders: np.ndarray, share: np.ndarray) -> str
 def residual_signature(fit: Fit, harmonics: Harmonics) -> dict:
     """Where the chi^2 above the noise floor sits: by harmonic coefficient, and its trend over the loops."""
     from scipy.stats import spearmanr  # on first use: a fast CLI and island start
+
     observed, expected = groups(fit.residual, fit.dof, harmonics)
     excess = np.maximum(observed - expected, 0.0)
     total = float(excess.sum())

@@ -57,8 +57,10 @@ def implausible_effect(effect: str, loops: LoopSet) -> str | None:
     if effect == "charge_amplifier_highpass":
         share = force_has_mean(loops)
         if share is not None:
-            return (f"the force records keep a mean of {100 * share:.3g} % of their amplitude (median over loops): the force "
-                    "channel passes DC, and a high-pass would have removed it")
+            return (
+                f"the force records keep a mean of {100 * share:.3g} % of their amplitude (median over loops): the force "
+                "channel passes DC, and a high-pass would have removed it"
+            )
     return None
 
 
@@ -70,9 +72,11 @@ def implausible_values(fit: object, loops: LoopSet) -> dict[str, str]:
     if "delay_s" in params:
         delay, period = abs(params["delay_s"]), float(1.0 / loops.freq_hz.max())
         if delay > MAX_DELAY_S and delay > MAX_DELAY_PERIOD * period:
-            out["delay_s"] = (f"a channel delay of {delay * 1e3:.3g} ms ({100 * delay / period:.3g} % of the period at "
-                              f"{loops.freq_hz.max():.4g} Hz) is beyond what a measurement chain adds (up to a few ms): it stands "
-                              "in for physics the model lacks")
+            out["delay_s"] = (
+                f"a channel delay of {delay * 1e3:.3g} ms ({100 * delay / period:.3g} % of the period at "
+                f"{loops.freq_hz.max():.4g} Hz) is beyond what a measurement chain adds (up to a few ms): it stands "
+                "in for physics the model lacks"
+            )
     return out
 
 
@@ -89,5 +93,7 @@ def mass_note(model: Model, theta: np.ndarray, loops: LoopSet) -> str | None:
     upper = max(m, 0.0) + MASS_SPAN * se
     if not (upper > 0 and meq > MASS_FACTOR * upper):
         return None
-    return (f"the fitted equivalent mass meq = {meq:.4g} kg is far above what the loops' inertia supports (Re(F1/X1) against w^2 gives "
-            f"{m:.3g} +- {se:.2g} kg): meq, w0 and xi0 stand for each amplitude's stiffness and damping, not for a resonance")
+    return (
+        f"the fitted equivalent mass meq = {meq:.4g} kg is far above what the loops' inertia supports (Re(F1/X1) against w^2 gives "
+        f"{m:.3g} +- {se:.2g} kg): meq, w0 and xi0 stand for each amplitude's stiffness and damping, not for a resonance"
+    )

@@ -42,8 +42,7 @@ def without(fit: Fit, harmonics: Harmonics, term_id: str) -> Fit:
     effects = tuple(t.spec for t in fit.model.terms if not isinstance(t, Oscillator) and t.id != term_id)
     model = make_model(harmonics, "baseline", effects, soft_bounds(fit.model), [n for n in fit.freed])
     values = dict(zip(fit.model.names, fit.theta))
-    start = np.clip(np.array([values.get(n, 0.5 * (lo + hi)) for n, (lo, hi) in zip(model.names, model.bounds)]),
-                    model.bounds[:, 0], model.bounds[:, 1])
+    start = np.clip(np.array([values.get(n, 0.5 * (lo + hi)) for n, (lo, hi) in zip(model.names, model.bounds)]), model.bounds[:, 0], model.bounds[:, 1])
     return fit_objective(HarmonicObjective(harmonics, model), "baseline", effects, [start])
 
 
@@ -54,8 +53,7 @@ def prune(fit: Fit, harmonics: Harmonics) -> tuple[Fit, dict[str, str]]:
     tried: set[str] = set()
     while True:
         zeros = zero_like(fit.params(), fit.model.as_dict(fit.stderr))
-        terms = [(zeros[t.strength], t) for t in fit.model.terms
-                 if not isinstance(t, Oscillator) and t.strength in zeros and t.id not in tried]
+        terms = [(zeros[t.strength], t) for t in fit.model.terms if not isinstance(t, Oscillator) and t.strength in zeros and t.id not in tried]
         if not terms:
             return fit, dropped
         z, term = min(terms, key=lambda item: item[0])
@@ -64,6 +62,8 @@ def prune(fit: Fit, harmonics: Harmonics) -> tuple[Fit, dict[str, str]]:
         reduced = without(fit, harmonics, term.id)
         if reduced.bic > fit.bic:
             continue
-        dropped[term.id] = (f"{term.strength} = {fit.theta[i]:.4g} +- {fit.stderr[i]:.2g} is consistent with zero ({z:.2g} standard errors); "
-                            f"without it the BIC changes by {reduced.bic - fit.bic:+.1f}")
+        dropped[term.id] = (
+            f"{term.strength} = {fit.theta[i]:.4g} +- {fit.stderr[i]:.2g} is consistent with zero ({z:.2g} standard errors); "
+            f"without it the BIC changes by {reduced.bic - fit.bic:+.1f}"
+        )
         fit = reduced

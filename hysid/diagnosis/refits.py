@@ -111,8 +111,7 @@ def refit(fit: Fit, harmonics: Harmonics, candidates: tuple[Candidate, ...], bou
     values = fixed.params()
     rows = [wider.from_dict({**values, **{n: model.fixed[n] for n in freeable}})]
     rows += [wider.from_dict({**values, **{n: float(np.clip(2.0 * model.fixed[n], *wider.bounds[wider.names.index(n)])) for n in freeable}})]
-    rows += [wider.from_dict({**values, **point}) for c in candidates for point in data_starts(c.effect, harmonics, wider.names)
-             if set(freeable) <= set(point)]
+    rows += [wider.from_dict({**values, **point}) for c in candidates for point in data_starts(c.effect, harmonics, wider.names) if set(freeable) <= set(point)]
     free = best_of(HarmonicObjective(harmonics, wider), fit.start, effects, np.clip(np.array(rows), wider.bounds[:, 0], wider.bounds[:, 1]), hard)
     return free if free.bic < fixed.bic - BIC_MARGIN else fixed
 

@@ -58,8 +58,10 @@ class Step:
     def __repr__(self) -> str:
         joint = f" (with {self.joint_with})" if self.joint_with else ""
         confusable = f"; confusable with {', '.join(self.confusable_with)}" if self.confusable_with else ""
-        return (f"<Step + {self.effect}{joint}: score {self.score:.4g}, whitened RMS {self.before.whitened_rms:.4g} -> "
-                f"{self.after.whitened_rms:.4g}, BIC {self.after.bic - self.before.bic:+.1f}{confusable}>")
+        return (
+            f"<Step + {self.effect}{joint}: score {self.score:.4g}, whitened RMS {self.before.whitened_rms:.4g} -> "
+            f"{self.after.whitened_rms:.4g}, BIC {self.after.bic - self.before.bic:+.1f}{confusable}>"
+        )
 
 
 @dataclass
@@ -182,15 +184,29 @@ class Diagnosis:
         """What this diagnosis' writers read beyond its document (:meth:`to_dict`)."""
         fits = self.fits()
         h = self.harmonics
-        return DiagnosisRecord(self.estimates(), h.loops, [label for label, _ in fits], [fit.bic for _, fit in fits], self.start.start,
-                               int(h.orders().max()), h.coef.shape[1], self.raised, self.report, [(p.law, p.number) for p in self.proposed])
+        return DiagnosisRecord(
+            self.estimates(),
+            h.loops,
+            [label for label, _ in fits],
+            [fit.bic for _, fit in fits],
+            self.start.start,
+            int(h.orders().max()),
+            h.coef.shape[1],
+            self.raised,
+            self.report,
+            [(p.law, p.number) for p in self.proposed],
+        )
 
     def curves(self) -> DiagnosisCurves:
         """What this diagnosis' figures draw: each loop's whitened RMS and the model's force, of the start and the final model."""
         h = self.harmonics
-        return DiagnosisCurves(loop_whitened_rms(self.start, h), loop_whitened_rms(self.final, h),
-                               self.start.objective.objective.predict(self.start.theta)[0], self.final.objective.objective.predict(self.final.theta)[0],
-                               [proposed_force(p, h) for p in self.proposed])
+        return DiagnosisCurves(
+            loop_whitened_rms(self.start, h),
+            loop_whitened_rms(self.final, h),
+            self.start.objective.objective.predict(self.start.theta)[0],
+            self.final.objective.objective.predict(self.final.theta)[0],
+            [proposed_force(p, h) for p in self.proposed],
+        )
 
     def to_csv(self, out_dir: str | Path) -> dict[str, Path]:
         """Each table of :meth:`tables` as ``<name>.csv`` in ``out_dir`` (a header line, SI units in the column names)."""

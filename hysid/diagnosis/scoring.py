@@ -100,14 +100,16 @@ def joint_score(a: Candidate, b: Candidate, residual: np.ndarray) -> tuple[float
     return float(residual @ residual - after @ after), step
 
 
-def candidate_effects(extra: "Term | TermGroup | str | Sequence[Term | TermGroup | str] | None" = None) -> tuple[str, ...]:
+def candidate_effects(extra: Term | TermGroup | str | Sequence[Term | TermGroup | str] | None = None) -> tuple[str, ...]:
     """The effects a diagnosis scores: the library's, then ``extra`` (a user's terms, :func:`hysid.term`, or their
     model strings ``module:attribute``), each of which must name its strength."""
     added = specs_of(extra, "candidates") if extra is not None else ()
     for spec in added:
         if not effect_term(spec).strength:
-            raise HysidInputError(f"term {spec!r} names no strength (the parameter whose 0 switches it off), which a diagnosis tests; "
-                                  "give hysid.term(..., strength=...)", param="candidates")
+            raise HysidInputError(
+                f"term {spec!r} names no strength (the parameter whose 0 switches it off), which a diagnosis tests; give hysid.term(..., strength=...)",
+                param="candidates",
+            )
     return tuple(EFFECTS) + tuple(s for s in added if s not in EFFECTS)
 
 
@@ -121,8 +123,19 @@ def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[flo
     for effect in effects:
         partner = effect_term(effect).slope_of
         if single and partner:  # one amplitude: a slope of xi or wn with amplitude is xi0 or w0 again (fixed at 0 if in the model)
-            out.append(Candidate(effect=effect, score=0.0, starts=[], physical=True, identifiable=False, absorbed_by=[partner],
-                                 direction=np.zeros_like(e), norm=0.0, n_shapes=0))
+            out.append(
+                Candidate(
+                    effect=effect,
+                    score=0.0,
+                    starts=[],
+                    physical=True,
+                    identifiable=False,
+                    absorbed_by=[partner],
+                    direction=np.zeros_like(e),
+                    norm=0.0,
+                    n_shapes=0,
+                )
+            )
             continue
         if effect in effects_in(fit):
             continue
@@ -146,10 +159,15 @@ def score_candidates(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[flo
         direction = g_perp[best] / np.sqrt(norm2[best]) if norm2[best] > 0 else g_perp[best]
         out.append(
             Candidate(
-                effect=effect, score=float(lm[best]),
+                effect=effect,
+                score=float(lm[best]),
                 starts=[(shapes[i], float(step[i])) for i in ranked[:STARTS] if usable[i] >= 0 or i == best],
-                physical=bool(physical[best]), identifiable=bool(identifiable[best]), absorbed_by=absorbed_by,
-                direction=direction, norm=float(np.sqrt(norm2[best])), n_shapes=len(shapes),
+                physical=bool(physical[best]),
+                identifiable=bool(identifiable[best]),
+                absorbed_by=absorbed_by,
+                direction=direction,
+                norm=float(np.sqrt(norm2[best])),
+                n_shapes=len(shapes),
             )
         )
     return sorted(out, key=lambda c: -(c.score if c.physical and c.identifiable else -1.0))

@@ -107,6 +107,7 @@ def weight(fit: Fit, effects: tuple[str, ...]) -> float:
 def threshold(candidates: list[Candidate]) -> float:
     """The score a contender needs: chi^2_1 at the family-wise ``SIGNIFICANCE`` (Bonferroni over all effects and shapes)."""
     from scipy.stats import chi2 as chi2_dist  # on first use: a fast CLI and island start
+
     return float(chi2_dist.isf(SIGNIFICANCE / max(sum(c.n_shapes for c in candidates), 1), 1))
 
 
@@ -224,10 +225,16 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
     no force of x and v is sought: the loops show none."""
     harmonics = result.harmonics
     if loops_linear(harmonics):
-        return replace(result, discovery={result.final.spec: (
-            f"each loop on its own is linear within the noise (linear per loop {result.references.linear_per_loop:.4g}, and coefficient "
-            "by coefficient): what the model misses is how its stiffness, damping or mass change from loop to loop, not a force "
-            "of x and v; nothing proposed")})
+        return replace(
+            result,
+            discovery={
+                result.final.spec: (
+                    f"each loop on its own is linear within the noise (linear per loop {result.references.linear_per_loop:.4g}, and coefficient "
+                    "by coefficient): what the model misses is how its stiffness, damping or mass change from loop to loop, not a force "
+                    "of x and v; nothing proposed"
+                )
+            },
+        )
     bases = [result.start] + ([result.final] if result.final is not result.start else [])
     tally.expect(len(bases) * (2 + int(cross_validate)) + 1)
     tried, found = {}, []
@@ -243,16 +250,28 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
         return replace(result, discovery=tried)
     steps, pruned, gaps, set_aside = result.steps, result.pruned, list(result.gap), {}
     if best.base is result.start and result.steps:
-        set_aside = {s.effect: f"the proposed {best.name} alone explains the loops as well (BIC {best.fit.bic - result.final.bic:+.1f} "
-                               f"against {result.final.spec})" for s in result.steps}
+        set_aside = {
+            s.effect: f"the proposed {best.name} alone explains the loops as well (BIC {best.fit.bic - result.final.bic:+.1f} against {result.final.spec})"
+            for s in result.steps
+        }
         steps, pruned, gaps = [], {}, gaps[:1]
     fit = best.fit
     check = adequacy(fit, harmonics)
     gaps.append(gap_metrics(fit, harmonics, cross_validate))
     tally.done(f"gap after the proposed {best.name}")
-    return replace(result, steps=steps, pruned=pruned, final=fit, status="adequate" if check.adequate else "unexplained",
-                   unexplained=None if check.adequate else residual_signature(fit, harmonics), gap=gaps,
-                   identifiability=final_identifiability(fit, harmonics), proposed=[best], set_aside=set_aside, discovery=tried)
+    return replace(
+        result,
+        steps=steps,
+        pruned=pruned,
+        final=fit,
+        status="adequate" if check.adequate else "unexplained",
+        unexplained=None if check.adequate else residual_signature(fit, harmonics),
+        gap=gaps,
+        identifiability=final_identifiability(fit, harmonics),
+        proposed=[best],
+        set_aside=set_aside,
+        discovery=tried,
+    )
 
 
 def choose(found: list[Proposed], start: Fit, final: Fit) -> tuple[Proposed | None, dict[str, str]]:
@@ -273,8 +292,10 @@ def choose(found: list[Proposed], start: Fit, final: Fit) -> tuple[Proposed | No
         elif best is None:
             verdicts[p.base.spec] = f"{said} but is not kept: {final.spec} explains the loops better (BIC {final.bic - p.fit.bic:+.1f})"
         else:
-            verdicts[p.base.spec] = (f"{said} but is not kept: {best.name} added to {best.base.spec} explains the loops as well or "
-                                     f"better (BIC {best.fit.bic - p.fit.bic:+.1f})" + (" with fewer effects" if best is alone else ""))
+            verdicts[p.base.spec] = (
+                f"{said} but is not kept: {best.name} added to {best.base.spec} explains the loops as well or "
+                f"better (BIC {best.fit.bic - p.fit.bic:+.1f})" + (" with fewer effects" if best is alone else "")
+            )
     return best, verdicts
 
 
@@ -285,8 +306,14 @@ def other_reading(motion: MotionChoice) -> MotionChoice | None:
     if motion.decided_by != "data":
         return None
     other = "fundamental" if motion.displacement == "measured" else "measured"
-    return MotionChoice(other, "data", f"{WORDS[other]}: the diagnosis under the reading the {motion.model} start chose ended unexplained",
-                        dict(motion.chi2), motion.model, motion.orders)
+    return MotionChoice(
+        other,
+        "data",
+        f"{WORDS[other]}: the diagnosis under the reading the {motion.model} start chose ended unexplained",
+        dict(motion.chi2),
+        motion.model,
+        motion.orders,
+    )
 
 
 def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps: int, cross_validate: bool, tally: Tally) -> Diagnosis:
@@ -331,12 +358,15 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
         if pairs is not None:  # the pair of others counts only where it beats the greedy pair and every single by BIC_MARGIN
             others, (members, joint) = tuple(c.effect for c in pairs[0][0]), pairs[1]
             greedy = refit(fit, harmonics, members, bounds, joint)
-            done(f"step {len(steps) + 1}: refitted with {label(tuple(c.effect for c in members))} (the greedy pair)",
-                 weight(fit, tuple(c.effect for c in members)))
+            done(
+                f"step {len(steps) + 1}: refitted with {label(tuple(c.effect for c in members))} (the greedy pair)",
+                weight(fit, tuple(c.effect for c in members)),
+            )
             rivals = [greedy.bic] + [r.bic for e, r in refits.items() if len(e) == 1 and verdicts[e] is None]
             if verdicts[others] is None and refits[others].bic > min(rivals) - BIC_MARGIN:
-                verdicts[others] = (f"fits no better than {label(tuple(c.effect for c in members))} together or one effect alone "
-                                    f"(BIC {refits[others].bic - min(rivals):+.1f})")
+                verdicts[others] = (
+                    f"fits no better than {label(tuple(c.effect for c in members))} together or one effect alone (BIC {refits[others].bic - min(rivals):+.1f})"
+                )
         ranked = sorted((r.bic, effects) for effects, r in refits.items() if verdicts[effects] is None)
         chosen = None
         if cross_validate and not ranked:
@@ -356,8 +386,11 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
         best = refits[chosen]
         passed = [e for _, e in ranked if e != chosen and verdicts[e] is None]
         confusable = [label(e) for e in passed if refits[e].bic - best.bic < BIC_MARGIN]
-        reasons = {label(e): v or f"fits worse than {label(chosen)} (BIC +{refits[e].bic - best.bic:.1f})"
-                   for e, v in verdicts.items() if e != chosen and label(e) not in confusable}
+        reasons = {
+            label(e): v or f"fits worse than {label(chosen)} (BIC +{refits[e].bic - best.bic:.1f})"
+            for e, v in verdicts.items()
+            if e != chosen and label(e) not in confusable
+        }
         if len(chosen) == 1:
             steps.append(Step(effect=chosen[0], confusable_with=confusable, score=scores[chosen[0]], before=fit, after=best, rejected=reasons))
         else:

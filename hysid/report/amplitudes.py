@@ -21,8 +21,10 @@ from hysid_model.modal import COMBINATIONS, DERIVED_UNITS, AmplitudeResult
 Table = tuple[list[str], list[list[str]]]
 MAX_POINTS = 24
 """Beyond this many amplitude-frequency points a summary gives each amplitude's range over the frequencies."""
-EFFECTIVE_TITLE = ("effective stiffness k_eff = (F+ - F-) / (2 X0) and equivalent damping xi_eq = E_d / (4 pi E_s), "
-                   "E_s = k_eff X0^2 / 2, of the whole model under X0 sin(wt) (ISO 10846, EN 15129)")
+EFFECTIVE_TITLE = (
+    "effective stiffness k_eff = (F+ - F-) / (2 X0) and equivalent damping xi_eq = E_d / (4 pi E_s), "
+    "E_s = k_eff X0^2 / 2, of the whole model under X0 sin(wt) (ISO 10846, EN 15129)"
+)
 
 
 def pm(value: float, stderr: float, digits: int = 4) -> str:
@@ -39,8 +41,16 @@ def modal_rows(levels: Sequence[AmplitudeResult], half_power: Sequence[HalfPower
     rows = []
     for a, hp in zip(levels, half_power):
         half = f"{hp.xi:.5f} (grid resolution {hp.resolution:.2g})" if hp.ok else f"n/a ({hp.note})"
-        rows.append([f"{a.x0 * 1e3:.4g}", pm(a.values["fn_hz"], a.stderr["fn_hz"], 6), pm(a.values["xi"], a.stderr["xi"]), half,
-                     pm(a.values["k"], a.stderr["k"], 5), pm(a.values["c"], a.stderr["c"])])
+        rows.append(
+            [
+                f"{a.x0 * 1e3:.4g}",
+                pm(a.values["fn_hz"], a.stderr["fn_hz"], 6),
+                pm(a.values["xi"], a.stderr["xi"]),
+                half,
+                pm(a.values["k"], a.stderr["k"], 5),
+                pm(a.values["c"], a.stderr["c"]),
+            ]
+        )
     return ["X0 (mm)", "fn (Hz)", "xi (fit)", "xi half-power (Eq. 2.7)", "k (N/m)", "c (N s/m)"], rows
 
 
@@ -48,8 +58,15 @@ def effective_rows(points: Sequence[OperatingPoint], most: int | None = MAX_POIN
     """k_eff, xi_eq and E_d at each amplitude and frequency; beyond ``most`` points, each amplitude's range over its frequencies."""
     if most is None or len(points) <= most:
         return ["X0 (mm)", "f (Hz)", "k_eff (N/m)", "xi_eq", "E_d per cycle (J)"], [
-            [f"{p.x0 * 1e3:.4g}", f"{p.freq_hz:.4g}", pm(p.values["k_eff"], p.stderr["k_eff"], 5), pm(p.values["xi_eq"], p.stderr["xi_eq"]),
-             pm(p.values["energy"], p.stderr["energy"])] for p in points]
+            [
+                f"{p.x0 * 1e3:.4g}",
+                f"{p.freq_hz:.4g}",
+                pm(p.values["k_eff"], p.stderr["k_eff"], 5),
+                pm(p.values["xi_eq"], p.stderr["xi_eq"]),
+                pm(p.values["energy"], p.stderr["energy"]),
+            ]
+            for p in points
+        ]
     rows = []
     for x0 in dict.fromkeys(p.x0 for p in points):
         level = [p for p in points if p.x0 == x0]

@@ -22,12 +22,16 @@ def migrations_text(m: dict[str, Any]) -> str:
     unfollowed = m.get("unfollowed")
     unlisted = f", {m['unlisted']:,} that waited in vain for the roster to list their run" if m.get("unlisted") else ""
     if not unfollowed:
-        return (f"{m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
-                f"{m['received']} migrants re-evaluated, {m['taken']} taken in{unlisted}, {m['rejected']} messages rejected")
-    return (f"{m['messages']:,} messages handled by the coordinator ({m['topology']}, every {m['interval']} iterations) until "
-            f"{unfollowed['islands']:,} islands were alive, {unfollowed['after_s']:.0f} s in (it follows those of at most "
-            f"{unfollowed['follows_up_to']} islands); by the islands' own counts {m['sent']:,} messages sent, {m['received']:,} "
-            f"migrants re-evaluated, {m['taken']:,} taken in{unlisted}; {m['rejected']:,} messages rejected by the coordinator")
+        return (
+            f"{m['messages']} messages ({m['topology']}, every {m['interval']} iterations), "
+            f"{m['received']} migrants re-evaluated, {m['taken']} taken in{unlisted}, {m['rejected']} messages rejected"
+        )
+    return (
+        f"{m['messages']:,} messages handled by the coordinator ({m['topology']}, every {m['interval']} iterations) until "
+        f"{unfollowed['islands']:,} islands were alive, {unfollowed['after_s']:.0f} s in (it follows those of at most "
+        f"{unfollowed['follows_up_to']} islands); by the islands' own counts {m['sent']:,} messages sent, {m['received']:,} "
+        f"migrants re-evaluated, {m['taken']:,} taken in{unlisted}; {m['rejected']:,} messages rejected by the coordinator"
+    )
 
 
 def algorithms_text(island: dict[str, Any]) -> str:
@@ -63,8 +67,10 @@ def stored_line(h: dict[str, Any]) -> str:
     """How much history the coordinator stored, and what it left out when it could not keep up."""
     line = f"history: {h['history_rows']:,} rows stored"
     if h["thinned_rows"]:
-        line += (f"; {h['thinned_rows']:,} rows thinned while the islands offered more than the coordinator's storage held "
-                 "(every improvement kept; per island in the islands table)")
+        line += (
+            f"; {h['thinned_rows']:,} rows thinned while the islands offered more than the coordinator's storage held "
+            "(every improvement kept; per island in the islands table)"
+        )
     if h["superseded_migrant_messages"]:
         line += f"; {h['superseded_migrant_messages']:,} migrant messages superseded by a newer one of their island before it handled them"
     return line
@@ -107,17 +113,19 @@ def share_lines(settings: dict[str, Any], islands: list[dict[str, Any]] | None =
     for k, m in enumerate(moves):
         credit = ", ".join(f"{a.upper()} {c:.2g}" for a, c in m["credit"].items())
         unheard = last[m["island"]] == k and ended_as.get(m["island"], m["dst"]) != m["dst"]
-        lines.append(f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained by each algorithm's own moves{over}: {credit})"
-                     + (f"; not followed: the island's last history shows {ended_as[m['island']].upper()}" if unheard else ""))
+        lines.append(
+            f"  {m['island']:<12} {m['src'].upper()} -> {m['dst'].upper()} after {m['evaluations']:,} evaluations (orders of magnitude gained by each algorithm's own moves{over}: {credit})"
+            + (f"; not followed: the island's last history shows {ended_as[m['island']].upper()}" if unheard else "")
+        )
     return lines
 
 
-def migrant_messages(p: "CampaignProgress") -> str:
+def migrant_messages(p: CampaignProgress) -> str:
     """The migrant messages the coordinator handled; once it stopped following them, that the rest go island to island."""
     return f"{p.migrations}" if p.migrations_followed else f"{p.migrations} (then island to island)"
 
 
-def campaign_progress_line(p: "CampaignProgress") -> str:
+def campaign_progress_line(p: CampaignProgress) -> str:
     """One line of live progress: members, evaluations, global best, migrations, each island's best."""
     alive = sum(s == "alive" for s in p.members.values())
     gone = ", ".join(f"{i} {s}" for i, s in sorted(p.members.items()) if s != "alive")
@@ -128,7 +136,7 @@ def campaign_progress_line(p: "CampaignProgress") -> str:
     )
 
 
-def stopping_line(p: "CampaignProgress") -> str:
+def stopping_line(p: CampaignProgress) -> str:
     """What the user reads at once after Ctrl-C in a campaign: how many islands' last rows it waits for, and
     that a second Ctrl-C leaves without them."""
     alive = sum(s == "alive" for s in p.members.values())
@@ -152,7 +160,7 @@ def sparkline(values: Sequence[float]) -> str:
     return "".join(SPARK[int(round((x - v.min()) / span * (len(SPARK) - 1)))] for x in v)
 
 
-def watch_text(snap: "CampaignSnapshot") -> str:
+def watch_text(snap: CampaignSnapshot) -> str:
     """The screen of ``hysid watch``: status, global best, one row per island run, membership."""
     p = snap.progress
     why = (snap.stop_reason or "").removeprefix("interrupted: ")
@@ -166,8 +174,17 @@ def watch_text(snap: "CampaignSnapshot") -> str:
     ]
     several = {i["island"] for i in snap.islands if sum(j["island"] == i["island"] for j in snap.islands) > 1}
     rows = [
-        [f"{i['island']}/{i['run']}" if i["island"] in several else i["island"], algorithms_text(i), i["status"], str(i["iterations"]),
-         f"{i['evaluations']:,}", f"{i['best_fitness']:.4g}", str(i["messages"]), f"{i['received']}/{i['taken']}", sparkline(i["trend"])]
+        [
+            f"{i['island']}/{i['run']}" if i["island"] in several else i["island"],
+            algorithms_text(i),
+            i["status"],
+            str(i["iterations"]),
+            f"{i['evaluations']:,}",
+            f"{i['best_fitness']:.4g}",
+            str(i["messages"]),
+            f"{i['received']}/{i['taken']}",
+            sparkline(i["trend"]),
+        ]
         for i in snap.islands
     ]
     headers = ["island", "algo", "status", "iteration", "evaluations", "best", "sent", "received/taken", "best over iterations"]
@@ -176,5 +193,8 @@ def watch_text(snap: "CampaignSnapshot") -> str:
     latest = ", ".join(f"{island} {event} {time.strftime('%H:%M:%S', time.localtime(t))}" for island, event, t in snap.events)
     stopped = f", {counts['stopped']} stopped by the user" if counts["stopped"] else ""
     unknown = f", {counts['unknown']} unknown (its coordinator gone)" if counts["unknown"] else ""
-    lines += ["", f"members: {counts['alive']} alive, {counts['left']} left{stopped}, {counts['lost']} lost{unknown}" + (f"; latest: {latest}" if latest else "")]
+    lines += [
+        "",
+        f"members: {counts['alive']} alive, {counts['left']} left{stopped}, {counts['lost']} lost{unknown}" + (f"; latest: {latest}" if latest else ""),
+    ]
     return "\n".join(lines)

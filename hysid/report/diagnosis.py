@@ -36,11 +36,17 @@ def _effect_section(step: dict[str, Any], i: int) -> list[str]:
         f"to {num(step['whitened_rms_after'], 4)}."
     )
     if step["joint_with"]:
-        lines += ["", f"**Named together with {step['joint_with']}**: the two, refitted together, fit better than any single "
-                  "effect refitted alone, so they are taken as a pair."]
+        lines += [
+            "",
+            f"**Named together with {step['joint_with']}**: the two, refitted together, fit better than any single "
+            "effect refitted alone, so they are taken as a pair.",
+        ]
     if step["confusable_with"]:
-        lines += ["", f"**Confusable with** {', '.join(step['confusable_with'])}: on this data set they fit within "
-                  f"{BIC_MARGIN:g} BIC of it, so the data cannot tell them apart (e.g. too narrow a band of frequencies or amplitudes)."]
+        lines += [
+            "",
+            f"**Confusable with** {', '.join(step['confusable_with'])}: on this data set they fit within "
+            f"{BIC_MARGIN:g} BIC of it, so the data cannot tell them apart (e.g. too narrow a band of frequencies or amplitudes).",
+        ]
     if step["rejected"]:
         lines += ["", "Other contenders this step: " + "; ".join(f"{e} ({why})" for e, why in step["rejected"].items()) + "."]
     return lines + [""]
@@ -50,9 +56,12 @@ def _summary(doc: dict[str, Any]) -> str:
     effects = [s["effect"] + (f" (confusable with {', '.join(s['confusable_with'])})" if s["confusable_with"] else "") for s in doc["steps"]]
     found = "The start model misses: " + ", ".join(effects) + "." if effects else "No library effect is missing from the start model."
     if doc["proposed"]:
-        found = (("The start model misses: " + ", ".join(effects) + ", and a force" if effects else "No library effect is named; the start "
-                  "model misses a force") + " proposed from the data, not a library effect: "
-                 + "; ".join(f"{p['name']}, F = {p['notation']}" for p in doc["proposed"]) + ".")
+        found = (
+            ("The start model misses: " + ", ".join(effects) + ", and a force" if effects else "No library effect is named; the start model misses a force")
+            + " proposed from the data, not a library effect: "
+            + "; ".join(f"{p['name']}, F = {p['notation']}" for p in doc["proposed"])
+            + "."
+        )
     if doc["status"] == "adequate":
         return f"{found} The final model {doc['final_model_name']} leaves only noise (whitened RMS {num(doc['whitened_rms'], 3)})."
     return (
@@ -66,8 +75,14 @@ def gap_rows(doc: dict[str, Any], record: DiagnosisRecord) -> list[list[str]]:
     """One row per fit (the start, each step): the document's gap entries, and the BIC change from the fit before."""
     bic = record.bic
     return [
-        [label, num(m["whitened_rms"], 4), num(m["loop_nrmse_pct"], 3), num(m["energy_error_pct"], 3), num(m["cv_whitened_rms"], 4),
-         "" if i == 0 else num(bic[i] - bic[i - 1], 5)]
+        [
+            label,
+            num(m["whitened_rms"], 4),
+            num(m["loop_nrmse_pct"], 3),
+            num(m["energy_error_pct"], 3),
+            num(m["cv_whitened_rms"], 4),
+            "" if i == 0 else num(bic[i] - bic[i - 1], 5),
+        ]
         for i, (label, m) in enumerate(zip(record.labels, doc["gap"]))
     ]
 
@@ -77,8 +92,7 @@ GAP_HEADERS = ["model", "whitened RMS", "loop NRMSE %", "energy/cycle error %", 
 
 def overview(doc: dict[str, Any], record: DiagnosisRecord) -> str:
     """The status, the warnings and the gap table, as Markdown (a notebook's view of a diagnosis)."""
-    return "\n\n".join([f"**Status: {doc['status']}.** {_summary(doc)}", *warnings_section(doc["warnings"]),
-                        table(GAP_HEADERS, gap_rows(doc, record))])
+    return "\n\n".join([f"**Status: {doc['status']}.** {_summary(doc)}", *warnings_section(doc["warnings"]), table(GAP_HEADERS, gap_rows(doc, record))])
 
 
 DIAGNOSIS_MD = "diagnosis.md"
@@ -110,8 +124,7 @@ def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves:
         f"force noise {sigma}. Each loop is reduced to its harmonics of orders 0-{record.orders} "
         f"({record.coefficients} coefficients, in phase and in quadrature with the measured displacement).",
         "",
-        *([f"**Displacement model**: {motion['meaning']} ({motion['reason']}).", ""]
-          if motion is not None and motion["decided_by"] != "none" else []),
+        *([f"**Displacement model**: {motion['meaning']} ({motion['reason']}).", ""] if motion is not None and motion["decided_by"] != "none" else []),
         f"**Status: {doc['status']}.** {_summary(doc)}",
         "",
         *[part + "\n" for part in warnings_section(doc["warnings"])],
@@ -138,8 +151,10 @@ def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves:
     if doc["status"] == "adequate":
         lines.append("The residual is consistent with the noise: its chi^2 and the chi^2 of every harmonic coefficient are within their noise range.")
     else:
-        lines.append(f"**Unexplained**: {doc['unexplained_signature']['description']}. "
-                     + ("No effect of the library accounts for it; it is not named." if not doc["proposed"] else "Nothing else accounts for it."))
+        lines.append(
+            f"**Unexplained**: {doc['unexplained_signature']['description']}. "
+            + ("No effect of the library accounts for it; it is not named." if not doc["proposed"] else "Nothing else accounts for it.")
+        )
         lines += ["", f"Against references that need no physical model, {reference_text(doc)}."]
     if doc["rejected"]:
         lines += ["", "Candidates tried last and not taken: " + "; ".join(f"{e} ({why})" for e, why in doc["rejected"].items()) + "."]
@@ -157,23 +172,40 @@ def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves:
     for name in (name for name in reasons if name in doc["final_params"]):
         lines += ["", f"**`{name}` of the final model is not identifiable** (no standard error): it {reasons[name]}."]
     corr = doc["correlation"]
-    lines += ["", "Correlation between the final model's parameters:", "",
-              table([""] + [f"`{n}`" for n in corr],
-                    [[f"`{a}`"] + ["" if r is None else f"{r:+.3f}" for r in row.values()] for a, row in corr.items()])]
+    lines += [
+        "",
+        "Correlation between the final model's parameters:",
+        "",
+        table([""] + [f"`{n}`" for n in corr], [[f"`{a}`"] + ["" if r is None else f"{r:+.3f}" for r in row.values()] for a, row in corr.items()]),
+    ]
     effective = effective_figure(out / "effective.png", measured, survey(measured, doc["final_fixed"].get("meq")), record.estimates.effective)
-    lines += ["", "## Effective stiffness and equivalent damping", "",
-              f"The final model's {EFFECTIVE_TITLE}; one standard error (delta method through the full covariance); "
-              "every row in `amplitudes.csv`.", "", table(*effective_rows(record.estimates.effective, MARKDOWN_POINTS)), "",
-              image(effective, out, "Effective stiffness and equivalent damping per amplitude against frequency: final model "
-                    "(one standard error) and each loop's own (the forces at its branches' ends, its area)")]
+    lines += [
+        "",
+        "## Effective stiffness and equivalent damping",
+        "",
+        f"The final model's {EFFECTIVE_TITLE}; one standard error (delta method through the full covariance); every row in `amplitudes.csv`.",
+        "",
+        table(*effective_rows(record.estimates.effective, MARKDOWN_POINTS)),
+        "",
+        image(
+            effective,
+            out,
+            "Effective stiffness and equivalent damping per amplitude against frequency: final model "
+            "(one standard error) and each loop's own (the forces at its branches' ends, its area)",
+        ),
+    ]
     lines += [
         "",
         image(maps, out, "Residual per loop over frequency x amplitude, before and after"),
         "",
         "## Loops",
         "",
-        image(loops, out, "Measured loops (points), start model (dashed) and final model (solid); rows: amplitudes, "
-              "columns: the loop the start model fits worst and the one at the median frequency"),
+        image(
+            loops,
+            out,
+            "Measured loops (points), start model (dashed) and final model (solid); rows: amplitudes, "
+            "columns: the loop the start model fits worst and the one at the median frequency",
+        ),
         "",
         "## Method",
         "",

@@ -9,8 +9,8 @@ ends of its branches and its area (:func:`hysid_model.effective.loop_effective`)
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 from matplotlib.lines import Line2D
@@ -32,8 +32,10 @@ def effective_figure(path: Path, loops: LoopSet, survey: Survey, points: Sequenc
     k_loop, xi_loop = loop_effective(loops, survey.energy_per_cycle)
     fig = new_figure(3.0)
     axes = fig.subplots(1, 2)
-    for ax, q, own, label in ((axes[0], "k_eff", k_loop, "(a) effective stiffness $k_{eff}$ (N/m)"),
-                              (axes[1], "xi_eq", xi_loop, r"(b) equivalent damping ratio $\xi_{eq}$")):
+    for ax, q, own, label in (
+        (axes[0], "k_eff", k_loop, "(a) effective stiffness $k_{eff}$ (N/m)"),
+        (axes[1], "xi_eq", xi_loop, r"(b) equivalent damping ratio $\xi_{eq}$"),
+    ):
         for k, level in enumerate(levels):
             color = series_color(k)
             at = [p for p in points if p.x0 == level]

@@ -16,8 +16,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 from matplotlib.artist import Artist
@@ -100,7 +100,12 @@ def convergence_figure(path: Path, panels: Sequence[tuple[str, Sequence[RunResul
             low, high = f"{min(clipped):.2g}", f"{max(clipped):.2g}"
             ax.annotate(
                 f"polish: {low}" + (f" to {high}" if high != low else "") + "\n(below the axis)",
-                xy=((last + 1) * 1.15 if many else last + 1, floor * 1.05), xytext=(-6, 10), textcoords="offset points", ha="right", va="bottom", fontsize=7,
+                xy=((last + 1) * 1.15 if many else last + 1, floor * 1.05),
+                xytext=(-6, 10),
+                textcoords="offset points",
+                ha="right",
+                va="bottom",
+                fontsize=7,
             )
         ax.set_yscale("log")
         if floor:
@@ -298,9 +303,9 @@ def half_power_figure(
         ax2.set_ylim(float(comp[in_view].min()) * 1e3 / 1.3, top * 1.3)
     ax2.set_title(r"(b) resonance: peak and $-3$ dB points, Eq. 2.7")
     xi_rows = [
-        (Line2D([], [], color=series_color(k), marker="s", markersize=4, linestyle="none"),
-         rf"$\xi_{{2.7}}$ = {hp.xi:.5f}, fit {xi_fit[k]:.5f}")
-        for k, hp in enumerate(half_power) if hp.ok
+        (Line2D([], [], color=series_color(k), marker="s", markersize=4, linestyle="none"), rf"$\xi_{{2.7}}$ = {hp.xi:.5f}, fit {xi_fit[k]:.5f}")
+        for k, hp in enumerate(half_power)
+        if hp.ok
     ]
     ax2.legend([h for h, _ in xi_rows], [t for _, t in xi_rows], loc="lower center", title="damping ratio at each $X_0$")
     handles += [

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -21,8 +22,8 @@ from hysid.report.records import FitCurves, FitRecord
 from hysid.report.text import fixed_text, loops_description, quality_text
 from hysid_model.frf import amplitude_levels, compliance, first_harmonic, model_compliance
 from hysid_model.modal import DERIVED_UNITS
-from hysid_model.survey import survey
 from hysid_model.model_names import named
+from hysid_model.survey import survey
 
 REPORT = "report.md"
 """The name of a fit's (and a campaign's) report in its directory."""
@@ -105,10 +106,8 @@ def summary_lines(result: FitRecord) -> list[str]:
     lines = [
         f"- **Data**: `{result.loops.name}`: {loops_description(result)}.",
         f"- **Model**: {named(result.estimates.model)}, parameters {', '.join(result.estimates.model.names)}{fixed_text(result.estimates.model.fixed)}.",
-        f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; "
-        f"{result.weights} loop weights.",
-        f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) "
-        f"after {result.evaluations:,} evaluations in total.",
+        f"- **Search**: {algos}, {len(runs)} run(s) (seeds {', '.join(str(r.seed) for r in runs)}), {polish}; {result.weights} loop weights.",
+        f"- **Best**: {best.label}, fitness {best.fitness:.6g} ({FITNESS_MEANING[result.weights]}) after {result.evaluations:,} evaluations in total.",
         f"- **Fit quality**: {quality_text(result)}.",
     ]
     if result.adequacy is not None:
@@ -165,10 +164,19 @@ def half_power_rows(result: FitRecord) -> tuple[list[str], list[list[str]]]:
     for hp, a in zip(result.estimates.half_power, result.estimates.levels):
         xi_fit = a.values["xi"]
         if hp.ok:
-            rows.append([
-                num(hp.x0 * 1e3, 4), str(hp.n_loops), num(hp.f_peak_hz, 6), num(hp.f1_hz, 6), num(hp.f2_hz, 6),
-                num(hp.xi, 4), num(hp.resolution, 2), num(xi_fit, 4), f"{num(hp.xi - xi_fit, 2)} ({num(100 * (hp.xi - xi_fit) / xi_fit, 2)} %)",
-            ])
+            rows.append(
+                [
+                    num(hp.x0 * 1e3, 4),
+                    str(hp.n_loops),
+                    num(hp.f_peak_hz, 6),
+                    num(hp.f1_hz, 6),
+                    num(hp.f2_hz, 6),
+                    num(hp.xi, 4),
+                    num(hp.resolution, 2),
+                    num(xi_fit, 4),
+                    f"{num(hp.xi - xi_fit, 2)} ({num(100 * (hp.xi - xi_fit) / xi_fit, 2)} %)",
+                ]
+            )
         else:
             rows.append([num(hp.x0 * 1e3, 4), str(hp.n_loops), num(hp.f_peak_hz, 6), "n/a", "n/a", f"n/a: {hp.note}", "n/a", num(xi_fit, 4), "n/a"])
     return headers, rows
@@ -203,11 +211,37 @@ def fit_overview(result: FitRecord) -> str:
 
 def island_rows(islands: Sequence[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
     """One row per island run of a campaign: its algorithm, status, best and what it exchanged."""
-    headers = ["island", "algorithm", "seed", "status", "best fitness", "iterations", "evaluations",
-               "migrant messages sent", "migrants received", "taken in", "messages rejected", "messages unlisted (waited for the roster)"]
-    rows = [[f"`{i['island']}`", algorithms_text(i), str(i["seed"]), i["status"], num(i["best_fitness"], 4), f"{i['iterations']:,}",
-             f"{i['evaluations']:,}", f"{i['sent']:,}", f"{i['received']:,}", f"{i['taken']:,}", f"{i['rejected']:,}", f"{i.get('unlisted', 0):,}"]
-            for i in islands]
+    headers = [
+        "island",
+        "algorithm",
+        "seed",
+        "status",
+        "best fitness",
+        "iterations",
+        "evaluations",
+        "migrant messages sent",
+        "migrants received",
+        "taken in",
+        "messages rejected",
+        "messages unlisted (waited for the roster)",
+    ]
+    rows = [
+        [
+            f"`{i['island']}`",
+            algorithms_text(i),
+            str(i["seed"]),
+            i["status"],
+            num(i["best_fitness"], 4),
+            f"{i['iterations']:,}",
+            f"{i['evaluations']:,}",
+            f"{i['sent']:,}",
+            f"{i['received']:,}",
+            f"{i['taken']:,}",
+            f"{i['rejected']:,}",
+            f"{i.get('unlisted', 0):,}",
+        ]
+        for i in islands
+    ]
     return headers, rows
 
 
@@ -217,12 +251,23 @@ def campaign_sections(m: dict[str, Any], settings: dict[str, Any], islands: list
     reasons = ", ".join(f"{k}: {v:,}" for k, v in sorted((m.get("rejected_reasons") or {}).items()))
     moves = [line.strip() for line in share_lines(settings, islands)]
     i_head, i_rows = island_rows(islands)
-    return (["## Islands and migrations", f"Migrations: {migrations_text(m)}" + (f" ({reasons})" if reasons else "") + "."]
-            + (["\n".join(f"- {line}" for line in moves)] if moves else []) + [table(i_head, i_rows)])
+    return (
+        ["## Islands and migrations", f"Migrations: {migrations_text(m)}" + (f" ({reasons})" if reasons else "") + "."]
+        + (["\n".join(f"- {line}" for line in moves)] if moves else [])
+        + [table(i_head, i_rows)]
+    )
 
 
-def write_fit_report(result: FitRecord, out_dir: Path, document: dict[str, Any], curves: FitCurves | None, *, title: str = "hysid fit",
-                     sections: Sequence[str] = (), figures_left_out: str | None = None) -> Path:
+def write_fit_report(
+    result: FitRecord,
+    out_dir: Path,
+    document: dict[str, Any],
+    curves: FitCurves | None,
+    *,
+    title: str = "hysid fit",
+    sections: Sequence[str] = (),
+    figures_left_out: str | None = None,
+) -> Path:
     """Write ``report.md`` (``out_dir / REPORT``, which ``result.report`` names), ``result.json`` (``document``: the
     fit's, or a campaign's, which holds it) and the PNG figures (of ``curves``) into ``out_dir``; returns the report path.
 
@@ -234,6 +279,7 @@ def write_fit_report(result: FitRecord, out_dir: Path, document: dict[str, Any],
 
     def picture(name: str, caption: str) -> str:
         return image(figs[name], out_dir, caption) if figs else f"*{caption}: not drawn, {figures_left_out}.*"
+
     report = out_dir / REPORT
     jsondoc.write(out_dir / "result.json", document)
 
@@ -245,8 +291,7 @@ def write_fit_report(result: FitRecord, out_dir: Path, document: dict[str, Any],
     identifiable = (
         "Every parameter is determined by the data."
         if not result.not_identifiable
-        else "Not identifiable with these loops (no standard error is given): "
-        + "; ".join(f"`{n}` {why}" for n, why in result.not_identifiable.items()) + "."
+        else "Not identifiable with these loops (no standard error is given): " + "; ".join(f"`{n}` {why}" for n, why in result.not_identifiable.items()) + "."
     )
     parts = [
         f"# {title}: {result.loops.name}",
@@ -273,24 +318,28 @@ def write_fit_report(result: FitRecord, out_dir: Path, document: dict[str, Any],
         "the energy dissipated per cycle and E_s = k_eff X0^2 / 2 (none where the inertia makes k_eff negative). "
         "Uncertainties are one standard error (delta method through the full covariance); every row is in `amplitudes.csv`.",
         table(*effective_rows(result.estimates.effective, MARKDOWN_POINTS)),
-        picture("effective", "Effective stiffness and equivalent damping per amplitude against frequency: "
-                "fitted model (one standard error) and each loop's own (the forces at its branches' ends, its area)"),
+        picture(
+            "effective",
+            "Effective stiffness and equivalent damping per amplitude against frequency: "
+            "fitted model (one standard error) and each loop's own (the forces at its branches' ends, its area)",
+        ),
         "## Half-power cross-check of the damping (Eq. 2.7)",
         "Independently of the model: the compliance |X0/F1| of every loop (F1 = first harmonic of the measured "
         "force) gives one frequency response per amplitude; its resonance peak and -3 dB points give "
         "xi = (w2 - w1) / (2 w0) (Eq. 2.7, Fig. 6.1). The resolution is what the frequency spacing alone "
         "guarantees; the estimate interpolates between frequencies and is much closer for a 1-DOF response.",
         table(h_head, h_rows),
-        picture("half_power", "Compliance per amplitude: loops (dots) and fitted model (lines)"
-                + ("; (b) the resonance with its peak and -3 dB points" if any(hp.ok for hp in result.estimates.half_power) else "")),
+        picture(
+            "half_power",
+            "Compliance per amplitude: loops (dots) and fitted model (lines)"
+            + ("; (b) the resonance with its peak and -3 dB points" if any(hp.ok for hp in result.estimates.half_power) else ""),
+        ),
         "## Runs",
         table(r_head, r_rows),
-        picture("convergence", "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); "
-                "stars: after the least-squares polish"),
+        picture("convergence", "Convergence: best fitness per iteration of every run (as Figs. 5.6-5.9); stars: after the least-squares polish"),
         *sections,
         "## Model vs measured loops",
-        picture("loops", "Trial and model loops; rows: amplitudes, columns: frequencies across the band "
-                "(as Figs. 5.10-5.13)"),
+        picture("loops", "Trial and model loops; rows: amplitudes, columns: frequencies across the band (as Figs. 5.10-5.13)"),
         "## Residuals",
         "Residuals that are noise-like and at the noise level mean the model explains the loops; a pattern "
         "repeated over loops (panel b) points to physics the model is missing.",

@@ -32,12 +32,16 @@ def _run_table(doc: dict[str, Any], labels: dict[str, str], algo: str, noise: in
         pub = tt.RUNS[(algo, noise)][p]
         mean, std, rel = tt.SUMMARY[(algo, noise)][p]
         cr = num(doc["cramer_rao"][str(noise)][p], 3) if noise > 0 else "0"
-        rows.append([f"`{p}`", "published", num(TRUE_PARAMS[p], 7)] + [num(v, 7) for v in pub] + [""] * (n_cols - 4) + [num(mean, 7), num(std, 4), num(rel, 4), cr])
+        rows.append(
+            [f"`{p}`", "published", num(TRUE_PARAMS[p], 7)] + [num(v, 7) for v in pub] + [""] * (n_cols - 4) + [num(mean, 7), num(std, 4), num(rel, 4), cr]
+        )
         for key, label in labels.items():
             cell = found[(key, algo, noise)]
             v = cell["runs"][p]
             rows.append(
-                ["", label, ""] + [num(x, 7) for x in v] + [""] * (n_cols - v.size)
+                ["", label, ""]
+                + [num(x, 7) for x in v]
+                + [""] * (n_cols - v.size)
                 + [num(cell["mean"][p], 7), num(cell["std"][p], 4), num(cell["rel_std"][p], 4), ""]
             )
     return table(headers, rows)
@@ -84,16 +88,23 @@ def write_reproduction_report(doc: dict[str, Any], labels: dict[str, str], curve
     parts.append("## Figs. 5.2-5.5: parameter scatter per noise level")
     for p in PARAMS:
         panels = [
-            (f"({'ab'[k]}) {algo.upper()}", [
-                ("published", {n: np.array(tt.RUNS[(algo, n)][p]) for n in tt.NOISE_LEVELS}),
-                *[(label, {n: found[(key, algo, n)]["runs"][p] for n in tt.NOISE_LEVELS if (key, algo, n) in found}) for key, label in labels.items()],
-            ])
+            (
+                f"({'ab'[k]}) {algo.upper()}",
+                [
+                    ("published", {n: np.array(tt.RUNS[(algo, n)][p]) for n in tt.NOISE_LEVELS}),
+                    *[(label, {n: found[(key, algo, n)]["runs"][p] for n in tt.NOISE_LEVELS if (key, algo, n) in found}) for key, label in labels.items()],
+                ],
+            )
             for k, algo in enumerate(tt.ALGOS)
         ]
-        path = figures.scatter_figure(out_dir / f"fig5_{n_fig}_{p}.png", p, UNITS[p], TRUE_PARAMS[p], panels,
-                                      {int(n): b[p] for n, b in doc["cramer_rao"].items()})
-        parts.append(image(path, out_dir, f"Fig. 5.{n_fig}: {p} per noise level; hollow: runs, filled: mean, red dashed: true value, "
-                           "grey band: true +- Cramer-Rao bound"))
+        path = figures.scatter_figure(
+            out_dir / f"fig5_{n_fig}_{p}.png", p, UNITS[p], TRUE_PARAMS[p], panels, {int(n): b[p] for n, b in doc["cramer_rao"].items()}
+        )
+        parts.append(
+            image(
+                path, out_dir, f"Fig. 5.{n_fig}: {p} per noise level; hollow: runs, filled: mean, red dashed: true value, grey band: true +- Cramer-Rao bound"
+            )
+        )
         n_fig += 1
     parts.append("## Figs. 5.6-5.9: convergence (thesis-faithful runs)")
     for noise in tt.NOISE_LEVELS:
@@ -126,9 +137,7 @@ def reproduction_summary(doc: dict[str, Any], labels: dict[str, str]) -> str:
         row = f"  {p:<9} {'published':<16}" + "".join(f"{tt.TABLE_5_13[p][(a, n)]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS)
         lines.append(row)
         for key, label in labels.items():
-            row = f"  {'':<9} {label:<16}" + "".join(
-                f"{found[(key, a, n)]['abs_error_of_mean'][p]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS
-            )
+            row = f"  {'':<9} {label:<16}" + "".join(f"{found[(key, a, n)]['abs_error_of_mean'][p]:>11.3g}" for n in tt.NOISE_LEVELS for a in tt.ALGOS)
             lines.append(row)
     if doc["report"]:
         lines += ["", f"report: {doc['report']}"]

@@ -31,10 +31,17 @@ def parameter_rows(params: Mapping[str, float], stderr: Mapping[str, float], mod
     fitted, fixed (a known value) or ended on a bound."""
     rows = []
     for p in model.parameters:
-        rows.append({
-            "parameter": p.name, "value": params[p.name], "stderr": stderr[p.name], "unit": p.unit,
-            "lower": p.lower, "upper": p.upper, "status": "at bound" if p.name in at_bounds else "fitted",
-        })
+        rows.append(
+            {
+                "parameter": p.name,
+                "value": params[p.name],
+                "stderr": stderr[p.name],
+                "unit": p.unit,
+                "lower": p.lower,
+                "upper": p.upper,
+                "status": "at bound" if p.name in at_bounds else "fitted",
+            }
+        )
     for name, value in model.fixed.items():
         unit = next((p.unit for t in model.terms for p in t.params if p.name == name), "")
         rows.append({"parameter": name, "value": value, "stderr": 0.0, "unit": unit, "lower": value, "upper": value, "status": "fixed"})
@@ -56,8 +63,14 @@ def fit_tables(result: Estimates) -> dict[str, Rows]:
             row[column] = a.values[quantity]
             row[f"{column}_stderr"] = a.stderr[quantity]
         row.update(effective_cells(point))
-        row.update({"xi_half_power": hp.xi if hp.ok else None, "xi_half_power_resolution": hp.resolution if hp.ok else None,
-                    "half_power_loops": hp.n_loops, "half_power_note": hp.note})
+        row.update(
+            {
+                "xi_half_power": hp.xi if hp.ok else None,
+                "xi_half_power_resolution": hp.resolution if hp.ok else None,
+                "half_power_loops": hp.n_loops,
+                "half_power_note": hp.note,
+            }
+        )
         amplitudes.append(row)
     parameters = parameter_rows(result.params, result.stderr, result.model, result.at_bounds) + combination_rows(result.combinations)
     return {"parameters": parameters, "amplitudes": amplitudes}
@@ -65,8 +78,10 @@ def fit_tables(result: Estimates) -> dict[str, Rows]:
 
 def combination_rows(found: Mapping[str, tuple[float, float]]) -> Rows:
     """The stiffness k = meq w0^2 and damping coefficient c = 2 xi0 meq w0 as rows of the parameter table (status 'derived')."""
-    return [{"parameter": name, "value": value, "stderr": se, "unit": DERIVED_UNITS[name], "lower": None, "upper": None,
-             "status": f"derived: {COMBINATIONS[name]}"} for name, (value, se) in found.items()]
+    return [
+        {"parameter": name, "value": value, "stderr": se, "unit": DERIVED_UNITS[name], "lower": None, "upper": None, "status": f"derived: {COMBINATIONS[name]}"}
+        for name, (value, se) in found.items()
+    ]
 
 
 def diagnosis_tables(final: Estimates, document: Mapping[str, Any], labels: Sequence[str]) -> dict[str, Rows]:
@@ -74,14 +89,25 @@ def diagnosis_tables(final: Estimates, document: Mapping[str, Any], labels: Sequ
     (whitened RMS, loop NRMSE, energy error after each fit, ``labels`` naming them), from a diagnosis's
     ``document`` (:meth:`hysid.diagnosis.result.Diagnosis.to_dict`)."""
     steps = [
-        {"step": i + 1, "effect": s["effect"], "parameter": name, "value": value, "stderr": s["stderr"][name],
-         "confusable_with": " ".join(s["confusable_with"]), "whitened_rms_after": s["whitened_rms_after"]}
-        for i, s in enumerate(document["steps"]) for name, value in s["params"].items()
+        {
+            "step": i + 1,
+            "effect": s["effect"],
+            "parameter": name,
+            "value": value,
+            "stderr": s["stderr"][name],
+            "confusable_with": " ".join(s["confusable_with"]),
+            "whitened_rms_after": s["whitened_rms_after"],
+        }
+        for i, s in enumerate(document["steps"])
+        for name, value in s["params"].items()
     ]
     gap = [{"step": label, **g} for label, g in zip(labels, document["gap"])]
-    return {"parameters": parameter_rows(final.params, final.stderr, final.model) + combination_rows(final.combinations),
-            "steps": steps, "gap": gap,
-            "amplitudes": [{"x0_m": p.x0, "f_hz": p.freq_hz, **effective_cells(p)} for p in final.effective]}
+    return {
+        "parameters": parameter_rows(final.params, final.stderr, final.model) + combination_rows(final.combinations),
+        "steps": steps,
+        "gap": gap,
+        "amplitudes": [{"x0_m": p.x0, "f_hz": p.freq_hz, **effective_cells(p)} for p in final.effective],
+    }
 
 
 def effective_cells(point: OperatingPoint) -> dict[str, Any]:

@@ -62,7 +62,7 @@ def models_text() -> str:
     return "\n".join(lines)
 
 
-def term_line(term: "Term") -> str:
+def term_line(term: Term) -> str:
     """A term's parameters: name, unit and default bounds (or fixed value) of each."""
     return ", ".join(
         f"{p.name} [{p.unit}] " + (f"in [{p.lower:g}, {p.upper:g}]" if p.vary else f"fixed at {p.value:g} (search [{p.lower:g}, {p.upper:g}] when freed)")
@@ -119,8 +119,16 @@ def quality_text(result: FitRecord) -> str:
     return out + ("" if result.loops.kept().all() else "; the four reversal samples of each loop are left out: extraction did not resolve the force there")
 
 
-def fit_warnings(loops: LoopSet, model: "Model", theta: np.ndarray, weights: str, settings: dict[str, Any],
-                 adequacy: "Adequacy | None", misfit: float | None, implausible: str | None) -> list[Notice]:
+def fit_warnings(
+    loops: LoopSet,
+    model: Model,
+    theta: np.ndarray,
+    weights: str,
+    settings: dict[str, Any],
+    adequacy: Adequacy | None,
+    misfit: float | None,
+    implausible: str | None,
+) -> list[Notice]:
     """What a reader must know before trusting a fit's numbers (``theta`` of ``model`` on ``loops``): a model that
     misses the data, a mass the loops' inertia does not support (``implausible``, :func:`hysid.diagnosis.plausible.mass_note`),
     parameters on bounds (each with its code, :data:`hysid_model.notices.CODES`; it reads as its message)."""
@@ -128,20 +136,26 @@ def fit_warnings(loops: LoopSet, model: "Model", theta: np.ndarray, weights: str
     if "meq" in model.names:
         found = survey(loops)
         if found.meq_kg is None:
-            out.append(Notice("mass_unknown",
-                f"note: the equivalent mass is fitted, but the survey cannot estimate it ({found.mass_source.removeprefix('unknown: ')}): "
-                "meq, w0 and xi0 stand for each amplitude's stiffness k and damping c (given below) more than for a resonance"
-            ))
+            out.append(
+                Notice(
+                    "mass_unknown",
+                    f"note: the equivalent mass is fitted, but the survey cannot estimate it ({found.mass_source.removeprefix('unknown: ')}): "
+                    "meq, w0 and xi0 stand for each amplitude's stiffness k and damping c (given below) more than for a resonance",
+                )
+            )
     if implausible:
         out.append(Notice("mass_implausible", f"warning: {implausible}"))
     missed = adequacy is not None and not adequacy.adequate
     if adequacy is not None and missed:
         out.append(Notice("misfit", f"warning: {adequacy.words()}; a diagnosis (hysid diagnose, or hysid.diagnose) tells what it is missing"))
     if misfit is not None and misfit > STDERR_TRUST and weights != "ml":  # ML weights' errors are scaled up by it
-        out.append(Notice("stderr_understated",
-            f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
-            f"understate the uncertainty, by a factor of about {misfit:.2g}"
-        ))
+        out.append(
+            Notice(
+                "stderr_understated",
+                f"note: the residual is {misfit:.3g} x the noise: the standard errors assume the model is right and "
+                f"understate the uncertainty, by a factor of about {misfit:.2g}",
+            )
+        )
     soft = {p.name for p in model.parameters if p.soft}
     searched = model.at_bounds(theta)
     given = [n for n in searched if n not in soft]
@@ -152,17 +166,23 @@ def fit_warnings(loops: LoopSet, model: "Model", theta: np.ndarray, weights: str
     if settings.get("bounds_widened"):
         out.append(Notice("bounds_widened", f"note: {widened_sentence(settings['bounds_widened'])}"))
     if given:
-        out.append(Notice("on_given_bound",
-            f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
-            "beyond it and its standard error means little; widen that bound ([bounds] in dataset.toml, bounds=...) if the physics allows"
-        ))
+        out.append(
+            Notice(
+                "on_given_bound",
+                f"warning: {', '.join(given)} ended on a bound that was given (by the dataset or the call), so the optimum may lie "
+                "beyond it and its standard error means little; widen that bound ([bounds] in dataset.toml, bounds=...) if the physics allows",
+            )
+        )
     if derived:
         widened = [w["param"] for w in settings.get("bounds_widened", [])]
         times = max(widened.count(n) for n in derived)
-        out.append(Notice("on_data_bound",
-            f"warning: {', '.join(derived)} ended on a search bound (from the data or its term's default) even after {times} widening(s): "
-            + ("the model cannot reach the data there" if missed else "its value and standard error mean little")
-        ))
+        out.append(
+            Notice(
+                "on_data_bound",
+                f"warning: {', '.join(derived)} ended on a search bound (from the data or its term's default) even after {times} widening(s): "
+                + ("the model cannot reach the data there" if missed else "its value and standard error mean little"),
+            )
+        )
     return out
 
 
@@ -209,7 +229,13 @@ def fit_summary(result: FitRecord, command: str = "hysid fit") -> str:
     lines += [f"  not identifiable: {name} {why}" for name, why in result.not_identifiable.items()]
     lines += [f"  {warning}" for warning in result.judgments]
     lines.append("")
-    lines += [text_table(*modal_rows(result.estimates.levels, result.estimates.half_power)), "", f"  {EFFECTIVE_TITLE}:", text_table(*effective_rows(result.estimates.effective)), ""]
+    lines += [
+        text_table(*modal_rows(result.estimates.levels, result.estimates.half_power)),
+        "",
+        f"  {EFFECTIVE_TITLE}:",
+        text_table(*effective_rows(result.estimates.effective)),
+        "",
+    ]
     if result.report:
         lines.append(f"report: {result.report} (figures and result.json alongside)")
     return "\n".join(lines)
@@ -217,8 +243,10 @@ def fit_summary(result: FitRecord, command: str = "hysid fit") -> str:
 
 def diagnosis_summary(doc: dict[str, Any], record: DiagnosisRecord) -> str:
     """The gap after each step, the status, and what cannot be identified (a diagnosis' document and record)."""
-    lines = [f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"
-             + (f"; {doc['samples_left_out']}" if doc["samples_left_out"] else "")]
+    lines = [
+        f"hysid diagnose {doc['dataset']}: start model {doc['start_model']}, noise {doc['noise_sigma']}"
+        + (f"; {doc['samples_left_out']}" if doc["samples_left_out"] else "")
+    ]
     if doc["displacement_model"] and doc["displacement_model"]["decided_by"] != "none":
         lines.append(displacement_text(doc["displacement_model"]))
     lines += told_line(notices.merged(notices.stored(record.loops.meta), record.raised), "diagnosis.json")
@@ -235,7 +263,7 @@ def diagnosis_summary(doc: dict[str, Any], record: DiagnosisRecord) -> str:
         lines.append(f"  + {label:<{width}} whitened RMS {after['whitened_rms']:10.4g}   score {step['score']:.4g}")
     if pruned:
         lines.append(f"  - {pruned:<{width}} whitened RMS {gap[len(doc['steps']) + 1]['whitened_rms']:10.4g}")
-    for entry, after in zip(doc["proposed"], gap[-len(doc["proposed"]):] if doc["proposed"] else []):
+    for entry, after in zip(doc["proposed"], gap[-len(doc["proposed"]) :] if doc["proposed"] else []):
         lines.append(f"  + {'proposed ' + entry['name'] + ' (from the data)':<{width}} whitened RMS {after['whitened_rms']:10.4g}")
     lines += proposed_lines(doc, record.report)
     if doc["status"] == "adequate":
@@ -270,10 +298,15 @@ def fitted_text(entry: dict[str, Any]) -> str:
 
 def evidence_text(entry: dict[str, Any]) -> str:
     e = entry["evidence"]
-    held = (f", held-out whitened RMS {e['held_out_before']:.4g} -> {e['held_out_after']:.4g}"
-            if e["held_out_before"] is not None and e["held_out_after"] is not None else "")
-    return (f"BIC {e['delta_bic']:.5g} against {entry['added_to']}, whitened RMS {e['whitened_rms_before']:.4g} -> "
-            f"{e['whitened_rms_after']:.4g}{held}, removes {100 * e['share_of_excess_removed']:.0f} % of the residual above the noise")
+    held = (
+        f", held-out whitened RMS {e['held_out_before']:.4g} -> {e['held_out_after']:.4g}"
+        if e["held_out_before"] is not None and e["held_out_after"] is not None
+        else ""
+    )
+    return (
+        f"BIC {e['delta_bic']:.5g} against {entry['added_to']}, whitened RMS {e['whitened_rms_before']:.4g} -> "
+        f"{e['whitened_rms_after']:.4g}{held}, removes {100 * e['share_of_excess_removed']:.0f} % of the residual above the noise"
+    )
 
 
 def proposed_lines(doc: dict[str, Any], report: str | None) -> list[str]:
@@ -281,10 +314,12 @@ def proposed_lines(doc: dict[str, Any], report: str | None) -> list[str]:
     lines = []
     folder = str(PurePath(report).parent) if report else "<report folder>"
     for entry in doc["proposed"]:
-        lines += [f"{KIND}: {entry['name']}, F = {entry['notation']}",
-                  f"  {fitted_text(entry)}",
-                  f"  evidence: {evidence_text(entry)}",
-                  f"  reuse: PYTHONPATH={folder} hysid fit DATA --model {entry['model']} (the term is {folder}/{entry['module']})"]
+        lines += [
+            f"{KIND}: {entry['name']}, F = {entry['notation']}",
+            f"  {fitted_text(entry)}",
+            f"  evidence: {evidence_text(entry)}",
+            f"  reuse: PYTHONPATH={folder} hysid fit DATA --model {entry['model']} (the term is {folder}/{entry['module']})",
+        ]
     lines += [f"set aside: {effect} ({why})" for effect, why in doc["set_aside"].items()]
     if not doc["proposed"]:
         lines += [f"discovery from {base}: {what}" for base, what in doc["discovery"].items()]
@@ -308,22 +343,35 @@ def reference_text(doc: dict[str, Any]) -> str:
         f"linear per loop {ref['linear_per_loop']:.4g}{repeat}"
     )
     if doc["reaches"] != "noise floor" and ref["linear_per_loop"] <= LINEAR_LOOPS:
-        out += ("; each loop on its own is linear within the noise, so what the model misses is how stiffness, "
-                "damping or mass change from loop to loop (with amplitude or frequency)")
+        out += (
+            "; each loop on its own is linear within the noise, so what the model misses is how stiffness, "
+            "damping or mass change from loop to loop (with amplitude or frequency)"
+        )
     return out
 
 
-
-def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | None" = None) -> str:
+def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: Survey | None = None) -> str:
     """``hysid loops``: one row per loop (label, frequency, X0, peak force, noise, cycles, phase, distortion,
     and the equivalent-linear survey where given)."""
-    columns = [("label", "label", "{}"), ("frequency_hz", "freq_Hz", "{:.6g}"), ("x0_m", "X0_mm", "{:.4f}"),
-               ("peak_force_n", "Fpk_N", "{:.5g}"), ("sigma_n", "sigma_N", "{:.3g}"), ("cycles", "cycles", "{:d}")]
+    columns = [
+        ("label", "label", "{}"),
+        ("frequency_hz", "freq_Hz", "{:.6g}"),
+        ("x0_m", "X0_mm", "{:.4f}"),
+        ("peak_force_n", "Fpk_N", "{:.5g}"),
+        ("sigma_n", "sigma_N", "{:.3g}"),
+        ("cycles", "cycles", "{:d}"),
+    ]
     if "phase_deg" in rows[0]:
         columns += [("phase_deg", "phase_deg", "{:.2f}"), ("x_distortion", "x_thd_%", "{:.2f}")]
     if "k_dyn" in rows[0]:
-        columns += [("k_dyn", "k_dyn_N/m", "{:.4g}"), ("c_eq", "c_eq_Ns/m", "{:.4g}"), ("loss_factor", "eta", "{:.3g}"),
-                    ("energy_per_cycle", "E_cycle_J", "{:.4g}"), ("fn_hz", "fn_Hz", "{:.4g}"), ("xi", "xi", "{:.4g}")]
+        columns += [
+            ("k_dyn", "k_dyn_N/m", "{:.4g}"),
+            ("c_eq", "c_eq_Ns/m", "{:.4g}"),
+            ("loss_factor", "eta", "{:.3g}"),
+            ("energy_per_cycle", "E_cycle_J", "{:.4g}"),
+            ("fn_hz", "fn_Hz", "{:.4g}"),
+            ("xi", "xi", "{:.4g}"),
+        ]
     scale = {"x0_m": 1e3, "x_distortion": 100.0}
     cells = []
     for row in rows:
@@ -339,4 +387,3 @@ def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: "Survey | No
         head += f"; survey mass {found}"
     head += "" if loops.kept().all() else f"\nnote: {loops.meta.get('reversals')}"
     return head + "\n" + text_table([title for _, title, _ in columns], cells, indent="")
-

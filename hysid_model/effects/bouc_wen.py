@@ -128,7 +128,11 @@ class BoucWen(Term):
         has a small dynamic stiffness but a stiff, early-yielding hysteretic spring), yield from 1/1000 of the
         smallest to 10 x the largest amplitude; the shape r from -0.9 to 3 and the exponent (where it is free) from 1 to 6, soft: a fit that
         ends on 3 (a knee sharper than r = 3 draws, beta < 0) or on 6 (or 1) widens it."""
-        return {"bw_k": (0.0, max(10.0 * scale.stiffness, scale.force / (0.01 * scale.x_min))), "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max), "bw_n": (1.0, 6.0)}
+        return {
+            "bw_k": (0.0, max(10.0 * scale.stiffness, scale.force / (0.01 * scale.x_min))),
+            "bw_zy": (1e-3 * scale.x_min, 10.0 * scale.x_max),
+            "bw_n": (1.0, 6.0),
+        }
 
     def shape_grid(self, kin: Kinematics, free: Collection[str] = ()) -> list[dict[str, float]]:
         """Yield displacements from 3 % to 100 % of the median amplitude, times three shapes r; times the
@@ -151,7 +155,7 @@ class BoucWen(Term):
                 out[mask] = part({name: value[mask] for name, value in v.items()}, kin, phase[mask] if phase.ndim == 3 else phase)
         return out
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> "BoucWenSampler":
+    def sampler(self, kin: Kinematics, phase: np.ndarray) -> BoucWenSampler:
         return BoucWenSampler(kin, phase)
 
     def data_starts(self, loops: LoopSet, free: Collection[str] = ()) -> list[dict[str, float]]:
@@ -197,8 +201,12 @@ def _any_exponent(v: Values, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
         shape = (columns[0].size,) + travel.shape[-2:]
         out = np.empty(shape)
         bouc_wen_orbit.bouc_wen_exact(
-            *columns, spans.astype(float), which.reshape(-1).astype(np.int64),
-            np.ascontiguousarray(np.broadcast_to(travel, shape)), np.ascontiguousarray(np.broadcast_to(sign, shape)), out,
+            *columns,
+            spans.astype(float),
+            which.reshape(-1).astype(np.int64),
+            np.ascontiguousarray(np.broadcast_to(travel, shape)),
+            np.ascontiguousarray(np.broadcast_to(sign, shape)),
+            out,
         )
         return out
 

@@ -122,10 +122,12 @@ def loop_readings(loops: LoopSet) -> list[dict[str, float]]:
 
 def knee_exponent(ratio: float) -> float:
     """n with T_1(9/10) / T_1(1/2) = ``ratio``, within [1/2, 60]."""
+
     def excess(n: float) -> float:
         return _travel(0.9, 1.0, n) / _travel(0.5, 1.0, n) - ratio
 
     from scipy.optimize import brentq  # on first use: a fast CLI and island start
+
     lo, hi = 0.5, 60.0
     if excess(lo) <= 0.0:
         return lo
@@ -136,10 +138,12 @@ def knee_exponent(ratio: float) -> float:
 
 def shape_from_run(ratio: float, n: float) -> float:
     """r with T_-r(1) = ``ratio`` (the travel from a reversal to z = 0 in z_y), within [-0.9, 30]."""
+
     def excess(r: float) -> float:
         return _travel(1.0, -r, n) - ratio
 
     from scipy.optimize import brentq  # on first use: a fast CLI and island start
+
     lo, hi = -0.9, 30.0
     if excess(lo) <= 0.0:
         return lo

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from hysid_model.params import Parameter
 import math
 
-import numpy as np
-
 from hysid_model.kinematics import Kinematics
+from hysid_model.params import Parameter
 from hysid_model.terms import Coefficients, DataScale, ModalState, Term, Values, linear_response
 
 

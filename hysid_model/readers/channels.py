@@ -36,12 +36,42 @@ DEFAULT_NAMES = {"time": "time_s", "displacement": "displacement_m", "force": "f
 UNITS = {"time": TIME_UNITS, "displacement": DISPLACEMENT_UNITS, "force": FORCE_UNITS}
 SI = {"time": "s", "displacement": "m", "force": "N"}
 UNIT_ALIASES = {
-    "s": "s", "sec": "s", "second": "s", "seconds": "s", "ms": "ms", "us": "us",
-    "m": "m", "meter": "m", "meters": "m", "metre": "m", "metres": "m",
-    "mm": "mm", "millimeter": "mm", "millimeters": "mm", "millimetre": "mm", "millimetres": "mm",
-    "um": "um", "micrometer": "um", "micrometers": "um", "µm": "um", "cm": "cm", "in": "in", "inch": "in", "inches": "in",
-    "n": "N", "newton": "N", "newtons": "N", "kn": "kN", "kilonewton": "kN", "kilonewtons": "kN",
-    "mn": "mN", "lbf": "lbf", "lb": "lbf", "lbs": "lbf", "kip": "kip", "kips": "kip",
+    "s": "s",
+    "sec": "s",
+    "second": "s",
+    "seconds": "s",
+    "ms": "ms",
+    "us": "us",
+    "m": "m",
+    "meter": "m",
+    "meters": "m",
+    "metre": "m",
+    "metres": "m",
+    "mm": "mm",
+    "millimeter": "mm",
+    "millimeters": "mm",
+    "millimetre": "mm",
+    "millimetres": "mm",
+    "um": "um",
+    "micrometer": "um",
+    "micrometers": "um",
+    "µm": "um",
+    "cm": "cm",
+    "in": "in",
+    "inch": "in",
+    "inches": "in",
+    "n": "N",
+    "newton": "N",
+    "newtons": "N",
+    "kn": "kN",
+    "kilonewton": "kN",
+    "kilonewtons": "kN",
+    "mn": "mN",
+    "lbf": "lbf",
+    "lb": "lbf",
+    "lbs": "lbf",
+    "kip": "kip",
+    "kips": "kip",
 }
 """Unit labels as files write them (lower case) -> the unit names of ``dataset.toml``."""
 SYNONYMS = {
@@ -105,13 +135,16 @@ def _configured(config: DatasetConfig | None, quantity: str) -> tuple[str | int 
 
 
 @overload
-def choose(names: list[str], quantity: str, config: DatasetConfig | None, source: str,
-           file_units: list[str | None] | None = None, required: Literal[True] = True) -> Channel: ...
+def choose(
+    names: list[str], quantity: str, config: DatasetConfig | None, source: str, file_units: list[str | None] | None = None, required: Literal[True] = True
+) -> Channel: ...
 @overload
-def choose(names: list[str], quantity: str, config: DatasetConfig | None, source: str,
-           file_units: list[str | None] | None = None, required: bool = True) -> Channel | None: ...
-def choose(names: list[str], quantity: str, config: DatasetConfig | None, source: str,
-           file_units: list[str | None] | None = None, required: bool = True) -> Channel | None:
+def choose(
+    names: list[str], quantity: str, config: DatasetConfig | None, source: str, file_units: list[str | None] | None = None, required: bool = True
+) -> Channel | None: ...
+def choose(
+    names: list[str], quantity: str, config: DatasetConfig | None, source: str, file_units: list[str | None] | None = None, required: bool = True
+) -> Channel | None:
     """The channel of ``quantity`` among ``names`` (see the module docstring); ``file_units`` are the units the
     file states per channel. None when it is absent and not ``required``."""
     chosen, declared = _configured(config, quantity)
@@ -139,8 +172,7 @@ def choose(names: list[str], quantity: str, config: DatasetConfig | None, source
             matches = [i for i, n in enumerate(names) if label(n, quantity)[0]]
         if len(matches) > 1:
             raise HysidInputError(
-                f"{source}: {len(matches)} {quantity} channels ({', '.join(repr(names[i]) for i in matches)}); "
-                f"name one with {key} in dataset.toml"
+                f"{source}: {len(matches)} {quantity} channels ({', '.join(repr(names[i]) for i in matches)}); name one with {key} in dataset.toml"
             )
         if not matches:
             if not required:
@@ -163,12 +195,12 @@ def _unit(name: str, quantity: str, declared: str | None, stated: str | None, so
         raise HysidInputError(f"{source}: channel {name!r} states the unit {stated!r}, not a {quantity} unit; set {key} in dataset.toml")
     from_name = _suffix_unit(name.rsplit("/", 1)[-1], quantity) or label(name, quantity)[1]
     if from_file and from_name and from_file != from_name:
-        raise HysidInputError(
-            f"{source}: channel {name!r} states the unit {stated!r} but its name says {from_name}; set {key} in dataset.toml"
-        )
+        raise HysidInputError(f"{source}: channel {name!r} states the unit {stated!r} but its name says {from_name}; set {key} in dataset.toml")
     unit = from_file or from_name
     if unit is None:
         if quantity != "time" and name.strip().lower() != DEFAULT_NAMES[quantity]:  # a unit slip in time shows as a wrong frequency
-            warnings.warn(HysidWarning(f"channel {name!r} states no unit: read as {SI[quantity]} (set {key} in dataset.toml if it is not)", "no_unit"), stacklevel=2)
+            warnings.warn(
+                HysidWarning(f"channel {name!r} states no unit: read as {SI[quantity]} (set {key} in dataset.toml if it is not)", "no_unit"), stacklevel=2
+            )
         unit = SI[quantity]
     return unit, table[unit]

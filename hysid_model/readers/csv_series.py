@@ -51,8 +51,16 @@ class TimeSeries:
     units: tuple[str, str] | None = None
 
 
-def checked_series(source: str, t: np.ndarray, x: np.ndarray, force: np.ndarray, names: tuple[str, str, str] = COLUMNS,
-                   first_line: int = 2, unit: str = "line", units: tuple[str, str] | None = None) -> TimeSeries:
+def checked_series(
+    source: str,
+    t: np.ndarray,
+    x: np.ndarray,
+    force: np.ndarray,
+    names: tuple[str, str, str] = COLUMNS,
+    first_line: int = 2,
+    unit: str = "line",
+    units: tuple[str, str] | None = None,
+) -> TimeSeries:
     """Reject NaN/inf (naming column and line) and time that does not increase; the arrays are kept as they are
     (contiguous float64: no copy of a big record's columns).
 
@@ -71,8 +79,7 @@ def checked_series(source: str, t: np.ndarray, x: np.ndarray, force: np.ndarray,
     if back.any():
         k = int(np.argmax(back))
         raise HysidInputError(
-            f"{source}: {unit} {first_line + k + 1}: {names[0]} does not increase ({float(t[k + 1])!r} after {float(t[k])!r}); "
-            "time must be strictly increasing"
+            f"{source}: {unit} {first_line + k + 1}: {names[0]} does not increase ({float(t[k + 1])!r} after {float(t[k])!r}); time must be strictly increasing"
         )
     return TimeSeries(source, columns[0], columns[1], columns[2], names, units)
 
@@ -182,8 +189,12 @@ def sniff(path: Path, skip_rows: int | None = None) -> Dialect:
     found = _data_header(lines, content)
     header = content[0]
     skipped: tuple[tuple[int, str], ...] = ()
-    if skip_rows is None and found is not None and found != header and len(_cells(lines[header], _separator(lines[found]))) < len(
-            _cells(lines[found], _separator(lines[found]))):
+    if (
+        skip_rows is None
+        and found is not None
+        and found != header
+        and len(_cells(lines[header], _separator(lines[found]))) < len(_cells(lines[found], _separator(lines[found])))
+    ):
         skipped = tuple((k, lines[k]) for k in content if k < found)
         header = found
     text = lines[header].rstrip("\r\n")
@@ -224,9 +235,11 @@ def _missing(path: Path, dialect: Dialect, missing: list[str]) -> HysidInputErro
         close = difflib.get_close_matches(name, names, n=1, cutoff=0.5)
         hints.append(f"{name!r}" + (f" (found {close[0]!r})" if close else ""))
     rows = dialect.data_header
-    skip = (f"; if lines {dialect.header_line + 1}-{rows} are a preamble, skip them: skip_rows = {rows} in dataset.toml or --skip-rows {rows}"
-            if rows is not None and rows > dialect.header_line else
-            "; a preamble before the header is skipped with skip_rows = <lines before it> in dataset.toml or --skip-rows")
+    skip = (
+        f"; if lines {dialect.header_line + 1}-{rows} are a preamble, skip them: skip_rows = {rows} in dataset.toml or --skip-rows {rows}"
+        if rows is not None and rows > dialect.header_line
+        else "; a preamble before the header is skipped with skip_rows = <lines before it> in dataset.toml or --skip-rows"
+    )
     return HysidInputError(
         f"{path}: missing column {', '.join(hints)}; expected columns {', '.join(COLUMNS)}, the header"
         f"{f' (line {dialect.header_line + 1})' if dialect.header_line else ''} has: "
@@ -280,7 +293,13 @@ def read_columns(path: Path, dialect: Dialect, usecols: list[int]) -> np.ndarray
         from hysid_model.readers.numbers import read_numbers  # on first use: numba loads only when a big file is read
 
         return read_numbers(
-            path, dialect.header_line + 1, dialect.delimiter, usecols, dialect.encoding, MAX_LINE, line_end(path),
+            path,
+            dialect.header_line + 1,
+            dialect.delimiter,
+            usecols,
+            dialect.encoding,
+            MAX_LINE,
+            line_end(path),
             too_long=lambda line: HysidInputError(f"{path}: line {line} is longer than {MAX_LINE} characters; not a record of samples"),
             unreadable=lambda: _bad_line(path, dialect, used),
         )
@@ -295,11 +314,20 @@ def read_text_columns(path: Path, dialect: Dialect, usecols: list[int], dtype: t
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             if dialect.delimiter == ",":
-                return np.loadtxt(path, delimiter=dialect.delimiter, skiprows=dialect.header_line + 1, usecols=usecols,
-                                  ndmin=2, encoding=dialect.encoding, dtype=dtype, comments="#")
+                return np.loadtxt(
+                    path,
+                    delimiter=dialect.delimiter,
+                    skiprows=dialect.header_line + 1,
+                    usecols=usecols,
+                    ndmin=2,
+                    encoding=dialect.encoding,
+                    dtype=dtype,
+                    comments="#",
+                )
             text = path.read_text(encoding=dialect.encoding).replace(",", ".")
-            return np.loadtxt(io.StringIO(text), delimiter=dialect.delimiter, skiprows=dialect.header_line + 1,
-                              usecols=usecols, ndmin=2, dtype=dtype, comments="#")
+            return np.loadtxt(
+                io.StringIO(text), delimiter=dialect.delimiter, skiprows=dialect.header_line + 1, usecols=usecols, ndmin=2, dtype=dtype, comments="#"
+            )
     except UnicodeDecodeError:
         raise HysidInputError(f"{path}: not UTF-8 text") from None
     except ValueError:
@@ -331,8 +359,15 @@ def read_series(path: Path, config: DatasetConfig | None = None, dialect: Dialec
     for column, channel in zip(data, chosen):
         if channel.factor != 1.0:
             column *= channel.factor
-    return checked_series(str(path), data[0], data[1], data[2], names=(chosen[0].name, chosen[1].name, chosen[2].name), first_line=dialect.header_line + 2,
-                          units=(chosen[1].unit, chosen[2].unit))
+    return checked_series(
+        str(path),
+        data[0],
+        data[1],
+        data[2],
+        names=(chosen[0].name, chosen[1].name, chosen[2].name),
+        first_line=dialect.header_line + 2,
+        units=(chosen[1].unit, chosen[2].unit),
+    )
 
 
 def write_series(path: Path, t: np.ndarray, x: np.ndarray, force: np.ndarray) -> None:

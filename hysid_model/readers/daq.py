@@ -61,11 +61,17 @@ class _Channels:
     load: Callable[[int], Any]
     frequencies: dict[str, float | None]
 
-    def of_group(self, group: str) -> "_Channels":
+    def of_group(self, group: str) -> _Channels:
         """The channels of one group only (numbered from 0 again, as ``dataset.toml`` counts a group's channels)."""
         keep = [i for i, g in enumerate(self.groups) if g == group]
-        return _Channels([self.names[i] for i in keep], [self.units[i] for i in keep], [self.timing[i] for i in keep],
-                         [group] * len(keep), lambda k: self.load(keep[k]), {group: self.frequencies.get(group)})
+        return _Channels(
+            [self.names[i] for i in keep],
+            [self.units[i] for i in keep],
+            [self.timing[i] for i in keep],
+            [group] * len(keep),
+            lambda k: self.load(keep[k]),
+            {group: self.frequencies.get(group)},
+        )
 
 
 def _text(value: Any) -> str | None:
@@ -201,8 +207,7 @@ def record_groups(path: Path, config: DatasetConfig) -> list[GroupRecord]:
 
 def _holds_record(found: _Channels, config: DatasetConfig, source: str) -> bool:
     try:
-        return all(channels.choose(found.names, q, config, source, found.units, required=False) is not None
-                   for q in ("displacement", "force"))
+        return all(channels.choose(found.names, q, config, source, found.units, required=False) is not None for q in ("displacement", "force"))
     except HysidInputError:  # two displacement channels in one group: not a test of its own
         return False
 
@@ -223,8 +228,7 @@ def _source(path: Path, group: str | None) -> str:
     return str(path) if group is None else f"{path} (group {group})"
 
 
-def _chosen(path: Path, found: _Channels, config: DatasetConfig, source: str
-            ) -> tuple[channels.Channel, channels.Channel, channels.Channel | None]:
+def _chosen(path: Path, found: _Channels, config: DatasetConfig, source: str) -> tuple[channels.Channel, channels.Channel, channels.Channel | None]:
     if not found.names:
         raise HysidInputError(f"{source}: holds no channels")
     x_ch = channels.choose(found.names, "displacement", config, source, found.units)
@@ -251,5 +255,6 @@ def _record(path: Path, found: _Channels, config: DatasetConfig, source: str) ->
         raise HysidInputError(
             f"{source}: channels of different lengths: {t.size} time, {x.size} displacement ({x_ch.name!r}), {force.size} force ({f_ch.name!r})"
         )
-    return checked_series(source, t, x, force, names=(t_ch.name if t_ch else "time", x_ch.name, f_ch.name), first_line=0, unit="sample",
-                          units=(x_ch.unit, f_ch.unit))
+    return checked_series(
+        source, t, x, force, names=(t_ch.name if t_ch else "time", x_ch.name, f_ch.name), first_line=0, unit="sample", units=(x_ch.unit, f_ch.unit)
+    )

@@ -99,8 +99,16 @@ def read_long(path: Path, config: DatasetConfig | None) -> list[LongRecord]:
     for label, rows in zip(labels, rows_of):
         t, x, force = data[0, rows] * time.factor, data[1, rows] * picked[0].factor, data[2, rows] * picked[1].factor
         order = np.argsort(t, kind="stable")
-        series = checked_series(f"{path} (record {label})", t[order], x[order], force[order], names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1,
-                                units=(picked[0].unit, picked[1].unit))
+        series = checked_series(
+            f"{path} (record {label})",
+            t[order],
+            x[order],
+            force[order],
+            names=(time.name, picked[0].name, picked[1].name),
+            unit="sample",
+            first_line=1,
+            units=(picked[0].unit, picked[1].unit),
+        )
         out.append(LongRecord(label, series, _nominal(path, label, freq[rows])))
     return out
 
@@ -111,8 +119,17 @@ def _rows_by_group(group: np.ndarray, n_groups: int) -> list[np.ndarray]:
     return np.split(order, np.cumsum(np.bincount(group, minlength=n_groups))[:-1])
 
 
-def _long(path: Path, dialect: Dialect, config: DatasetConfig | None, labels: list[str], rows_of: list[np.ndarray],
-          freq: np.ndarray, time: channels.Channel, channel_col: int, value_col: int) -> list[LongRecord]:
+def _long(
+    path: Path,
+    dialect: Dialect,
+    config: DatasetConfig | None,
+    labels: list[str],
+    rows_of: list[np.ndarray],
+    freq: np.ndarray,
+    time: channels.Channel,
+    channel_col: int,
+    value_col: int,
+) -> list[LongRecord]:
     """Pivot the long format: per record, the displacement and force rows, each sorted by time."""
     where = str(path)
     names, row_channel = _groups(read_text_columns(path, dialect, [channel_col])[:, 0])
@@ -137,10 +154,17 @@ def _long(path: Path, dialect: Dialect, config: DatasetConfig | None, labels: li
         (t, x), (t_f, force) = parts
         if t.size != t_f.size or not np.array_equal(t, t_f):
             raise HysidInputError(
-                f"{path}: record {label!r}: {picked[0].name!r} and {picked[1].name!r} are not sampled at the same times "
-                f"({t.size} and {t_f.size} samples)"
+                f"{path}: record {label!r}: {picked[0].name!r} and {picked[1].name!r} are not sampled at the same times ({t.size} and {t_f.size} samples)"
             )
-        series = checked_series(f"{path} (record {label})", t, x, force, names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1,
-                                units=(picked[0].unit, picked[1].unit))
+        series = checked_series(
+            f"{path} (record {label})",
+            t,
+            x,
+            force,
+            names=(time.name, picked[0].name, picked[1].name),
+            unit="sample",
+            first_line=1,
+            units=(picked[0].unit, picked[1].unit),
+        )
         out.append(LongRecord(label, series, _nominal(path, label, freq[mine])))
     return out

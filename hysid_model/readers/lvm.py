@@ -155,8 +155,7 @@ def _pick(path: Path, names: list[str], chosen: str | int | None, key: str, word
     if len(matches) != 1:
         found = "no" if not matches else f"{len(matches)}"
         raise HysidInputError(
-            f"{path}: {found} channel names contain {' or '.join(repr(w) for w in words)} (channels: {listing}); "
-            f"set {key} (name or number) in dataset.toml"
+            f"{path}: {found} channel names contain {' or '.join(repr(w) for w in words)} (channels: {listing}); set {key} (name or number) in dataset.toml"
         )
     return matches[0]
 
@@ -228,6 +227,10 @@ def _read_standard(path: Path, text: str, config: DatasetConfig) -> TimeSeries:
         x_parts.append(data[:, 0] * x_scale)
         f_parts.append(data[:, 1] * f_scale)
     return checked_series(
-        str(path), np.concatenate(t_parts), np.concatenate(x_parts), np.concatenate(f_parts),
-        names=("X_Value", "displacement", "force"), first_line=segments[0].first_line,
+        str(path),
+        np.concatenate(t_parts),
+        np.concatenate(x_parts),
+        np.concatenate(f_parts),
+        names=("X_Value", "displacement", "force"),
+        first_line=segments[0].first_line,
     )

@@ -106,8 +106,7 @@ def read_mat_dataset(files: list[Path], config: DatasetConfig, n_points: int, ma
             missing = [n for n in names if parsed[n][1] is None]
             if missing:
                 raise HysidInputError(
-                    f"{directory / missing[0]}: no frequency: give an ef vector file (ef.mat), a {MANIFEST_NAME} "
-                    "or a name like SAMPLE2_05mm_436Hz"
+                    f"{directory / missing[0]}: no frequency: give an ef vector file (ef.mat), a {MANIFEST_NAME} or a name like SAMPLE2_05mm_436Hz"
                 )
             freq = np.array([parsed[n][1] for n in names])
             freq_source = "file names"
@@ -115,7 +114,9 @@ def read_mat_dataset(files: list[Path], config: DatasetConfig, n_points: int, ma
     for name, f in zip(names, freq):
         amp, name_freq = parse_loop_name(Path(name).stem)
         if name_freq is not None and abs(f / name_freq - 1) > FREQ_TOLERANCE:
-            raise HysidInputError(f"{directory / name}: the name says {name_freq:g} Hz but {freq_source} gives {f:g} Hz (more than {100 * FREQ_TOLERANCE:g} % apart)")
+            raise HysidInputError(
+                f"{directory / name}: the name says {name_freq:g} Hz but {freq_source} gives {f:g} Hz (more than {100 * FREQ_TOLERANCE:g} % apart)"
+            )
         branches = [_real(directory / name, key, loops[name][key], "a numeric N x 2 array (x, F)") for key in ("HexpT", "HexpB")]
         a, t, b = loop_from_branches(branches[0], branches[1], n_points, str(directory / name))
         x0.append(a)

@@ -117,8 +117,7 @@ def _number(buf: np.ndarray, p: int, end: int, delimiter: int, comma: bool) -> t
 
 
 @njit(cache=True, nogil=True)
-def _parse_lines(buf: np.ndarray, delimiter: int, comma: bool, target: np.ndarray, out: np.ndarray, row: int,
-                 max_line: int) -> tuple[int, int, int, int]:
+def _parse_lines(buf: np.ndarray, delimiter: int, comma: bool, target: np.ndarray, out: np.ndarray, row: int, max_line: int) -> tuple[int, int, int, int]:
     """Parse the whole lines of ``buf`` (each ending in ``\\n``, the last one may not) into ``out[:, row:]``:
     field j goes to ``out[target[j]]`` (-1: not read); fields beyond ``target`` are not read.
 
@@ -185,8 +184,17 @@ def _read_line(handle: io.BufferedReader, newline: bytes, limit: int) -> bytes:
     return line
 
 
-def read_numbers(path: Path, skip_lines: int, delimiter: str, usecols: list[int], encoding: str, max_line: int, newline: bytes,
-                 too_long: Callable[[int], Exception], unreadable: Callable[[], Exception]) -> np.ndarray:
+def read_numbers(
+    path: Path,
+    skip_lines: int,
+    delimiter: str,
+    usecols: list[int],
+    encoding: str,
+    max_line: int,
+    newline: bytes,
+    too_long: Callable[[int], Exception],
+    unreadable: Callable[[], Exception],
+) -> np.ndarray:
     """Columns ``usecols`` of the lines after the first ``skip_lines``, as ``(len(usecols), rows)`` float64 (each
     column contiguous); decimal commas are read with ``;`` or tab separators. Lines end in ``newline``: ``\\n``
     (``\\r\\n`` too) or a bare ``\\r`` (each chunk's turned into ``\\n`` as it is read). ``too_long(line)`` is raised for
@@ -228,8 +236,7 @@ def read_numbers(path: Path, skip_lines: int, delimiter: str, usecols: list[int]
     return out[:, :row]
 
 
-def _loadtxt_rest(text: bytes, delimiter: str, usecols: list[int], encoding: str, out: np.ndarray, row: int,
-                  unreadable: Callable[[], Exception]) -> int:
+def _loadtxt_rest(text: bytes, delimiter: str, usecols: list[int], encoding: str, out: np.ndarray, row: int, unreadable: Callable[[], Exception]) -> int:
     """``np.loadtxt`` of the lines the kernel left, into ``out[:, row:]``; returns the next row."""
     try:
         decoded = text.decode(encoding)

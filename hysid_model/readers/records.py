@@ -84,18 +84,29 @@ def sources_of_file(path: Path, config: DatasetConfig, nominal_hz: float | None,
     empty = path.stat().st_size == 0
     dialect = sniff(path, config.skip_rows) if suffix == ".csv" and not empty else None
     if dialect is not None and is_long_csv(dialect):
-        return [RawSource(r.label, name, path, r.nominal_hz if r.nominal_hz is not None else frequency_in_name(r.label),
-                          _given(r.series)) for r in read_long(path, config)]
+        return [
+            RawSource(r.label, name, path, r.nominal_hz if r.nominal_hz is not None else frequency_in_name(r.label), _given(r.series))
+            for r in read_long(path, config)
+        ]
     if suffix in TDMS_SUFFIXES + HDF5_SUFFIXES and not empty:
         groups = record_groups(path, config)
         if groups:
-            return [RawSource(g.group, name, path, g.nominal_hz if g.nominal_hz is not None else frequency_in_name(g.group),
-                              partial(read_daq, path, config, g.group), partial(check_daq, path, config, g.group)) for g in groups]
+            return [
+                RawSource(
+                    g.group,
+                    name,
+                    path,
+                    g.nominal_hz if g.nominal_hz is not None else frequency_in_name(g.group),
+                    partial(read_daq, path, config, g.group),
+                    partial(check_daq, path, config, g.group),
+                )
+                for g in groups
+            ]
     check: Callable[[], object] | None = None
     if dialect is not None:
-        check = lambda: record_columns(path, config, dialect)  # noqa: E731
+        check = lambda: record_columns(path, config, dialect)
     elif suffix in TDMS_SUFFIXES + HDF5_SUFFIXES and not empty:
-        check = lambda: check_daq(path, config)  # noqa: E731
+        check = lambda: check_daq(path, config)
     return [RawSource(path.stem, name, path, nominal_hz, lambda: read_record(path, config, dialect), check)]
 
 
@@ -137,9 +148,7 @@ def is_record_csv(path: Path, config: DatasetConfig) -> bool:
     """Whether a ``.csv`` file holds raw records (time, displacement and force columns, or a ``record`` column)."""
     try:
         dialect = sniff(path, config.skip_rows)
-        return is_long_csv(dialect) or all(
-            channels.choose(dialect.names, q, config, str(path), required=False) is not None for q in channels.QUANTITIES
-        )
+        return is_long_csv(dialect) or all(channels.choose(dialect.names, q, config, str(path), required=False) is not None for q in channels.QUANTITIES)
     except HysidInputError:
         return False
 
@@ -167,10 +176,14 @@ def directory_sources(directory: Path, config: DatasetConfig) -> list[RawSource]
         raise HysidInputError(f"{directory}: {outside[0]!r} links outside the dataset directory; copy the file in")
     skipped = [p.name for p in candidates if p.suffix.lower() == ".csv" and not is_record_csv(p, config)]
     if skipped:
-        warnings.warn(HysidWarning(
-            f"{directory}: left out {', '.join(skipped)}: no time, displacement and force columns (nor a record column)"
-            + ("" if config.skip_rows is None else f" in the header after skip_rows = {config.skip_rows} lines"), "records_left_out",
-        ), stacklevel=3)
+        warnings.warn(
+            HysidWarning(
+                f"{directory}: left out {', '.join(skipped)}: no time, displacement and force columns (nor a record column)"
+                + ("" if config.skip_rows is None else f" in the header after skip_rows = {config.skip_rows} lines"),
+                "records_left_out",
+            ),
+            stacklevel=3,
+        )
     out = []
     for path in candidates:
         if path.name not in skipped:
@@ -184,4 +197,3 @@ def manifest_text(sources: list[RawSource], frequencies: list[float]) -> str:
     writer = csv.writer(out, lineterminator="\n")  # a name holding a comma is quoted
     writer.writerows([("file", "frequency_hz")] + [(s.file, f"{f:.6g}") for s, f in zip(sources, frequencies)])
     return out.getvalue()
-

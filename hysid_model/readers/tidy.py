@@ -157,9 +157,18 @@ def read_loops(path: Path) -> LoopSet:
         head = tuple(cell[f] for f in LOOP_FIELDS)
         entry = loops.get(j)
         if entry is None:
-            entry = loops[j] = {"head": head, "line": number, "top": [], "bottom": [], "values": (
-                _float(cell["frequency_hz"], "frequency_hz", where), _float(cell["x0_m"], "x0_m", where),
-                _float(cell["sigma_n"], "sigma_n", where), _int(cell["cycles"], "cycles", where))}
+            entry = loops[j] = {
+                "head": head,
+                "line": number,
+                "top": [],
+                "bottom": [],
+                "values": (
+                    _float(cell["frequency_hz"], "frequency_hz", where),
+                    _float(cell["x0_m"], "x0_m", where),
+                    _float(cell["sigma_n"], "sigma_n", where),
+                    _int(cell["cycles"], "cycles", where),
+                ),
+            }
         elif entry["head"] != head:
             raise HysidInputError(f"{where}: loop {j}'s {', '.join(LOOP_FIELDS)} differ from its first row (line {entry['line']})")
         entry[cell["branch"]].append((_float(cell["displacement_m"], "displacement_m", where), _float(cell["force_n"], "force_n", where)))
