@@ -83,6 +83,7 @@ def test_simple_exponents_are_those_within_two_standard_errors_of_a_half() -> No
     assert simple_value(1.917, 0.05) == 2.0 and simple_value(1.917, 0.03) is None
     assert simple_value(0.35, 0.01) is None and simple_value(0.48, 0.02) == 0.5 and simple_value(5.1, 0.06) == 5.0
     assert simple_value(2.0, float("nan")) is None
+    assert simple_value(2.4, 0.25) == 2.0 and simple_value(2.4, 0.1) == 2.5  # the whole number first, where it is within reach
 
 
 def test_orifice_damping_is_proposed_with_one_parameter_and_exponent_two() -> None:

@@ -270,9 +270,15 @@ def refit(fit: Fit, law: Law, harmonics: Harmonics, bounds: dict[str, tuple[floa
 
 
 def simple_value(value: float, error: float) -> float | None:
-    """The simple exponent (a multiple of 1/2, at least 1/2) within ``SIMPLE_WITHIN`` standard errors of ``value``, or None."""
-    simple = max(round(2.0 * value) / 2.0, 0.5)
-    return simple if np.isfinite(error) and abs(value - simple) <= SIMPLE_WITHIN * error else None
+    """The simplest exponent within ``SIMPLE_WITHIN`` standard errors of ``value``, or None: the nearest whole
+    number (at least 1) where it is that close, else the nearest multiple of 1/2 (at least 1/2). A weak law's
+    2.4 +- 0.25 is 2, not 2.5: both are within reach, and the whole number is the simpler law."""
+    if not np.isfinite(error):
+        return None
+    for simple in (max(float(round(value)), 1.0), max(round(2.0 * value) / 2.0, 0.5)):
+        if abs(value - simple) <= SIMPLE_WITHIN * error:
+            return simple
+    return None
 
 
 def parsimonious(proposal: Proposed, harmonics: Harmonics, bounds: dict[str, tuple[float, float]], tally: Tally) -> Proposed:
