@@ -18,7 +18,7 @@ from coordinator.members import Member
 from coordinator.store import Store
 from island.config import CampaignConfig
 from island.population import PopulationOptimizer
-from island.share import Move, Share, Staged
+from island.share import Move, Share, Staged, round_iterations
 
 
 class RunView(Protocol):
@@ -26,11 +26,6 @@ class RunView(Protocol):
 
     iteration: int
     final: bool
-
-
-SHARE_ROUND_ITERATIONS = 10
-"""When islands do not migrate: iterations per island in one round of the adaptive share, and those an
-exploring run searches before the staged share moves it."""
 
 
 class Sharing:
@@ -41,7 +36,7 @@ class Sharing:
     def __init__(self, store: Store, config: CampaignConfig, joined: dict[tuple[str, str], str], optimizer: Callable[[str], PopulationOptimizer]) -> None:
         self.store = store
         self.name = config.name
-        self._round_iterations = config.migration.interval or SHARE_ROUND_ITERATIONS
+        self._round_iterations = round_iterations(config.migration.interval)
         """A run's migration interval: its iterations in a round (adaptive), its survey (staged)."""
         mixed = len(set(config.algos)) > 1
         self.policy: Share | Staged | None = None

@@ -40,7 +40,8 @@ evaluate -> tell) and uses its hooks:
   (the thesis', Coulomb friction's in the mixed-islands bench) it searches as the thesis' islands do;
 * when the roster assigns its run another algorithm (a mixed campaign's
   staged or adaptive share, :mod:`island.share`), it carries its search on with that
-  algorithm from the next iteration;
+  algorithm from the next iteration; with the staged share an exploring island waits for that
+  order at the end of its first round (:mod:`island.handover`), however far behind the coordinator is;
 * it stops at the coordinator's stop order or when its own budget is spent,
   then waits (bounded) until the coordinator confirms it has committed every
   history row, serving the rows it asks for again (e.g. after a restart).
@@ -63,6 +64,7 @@ from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer, switch_algorithm
 from island.arrivals import Arrivals
 from island.config import CampaignConfig
+from island.handover import await_handover
 from island.memetic import IMPROVED, Island, starting_points
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
@@ -77,6 +79,7 @@ from island.protocol import (
 )
 from island.run import HistoryRow, run
 from island.sealing import Counter, Credentials
+from island.share import handover_iteration
 from island.space import SpaceObjective
 from island.turns import Turns
 from island.wire import MessageRejected, check_name
@@ -310,6 +313,9 @@ class IslandNode:
         in once, and migrate every ``migration.interval`` iterations; returns the optimizer to go on with."""
         transport, credentials = self._attached()
         arrivals = self._arrivals()
+        if optimizer.iteration == handover_iteration(self.config.algos, self.config.share, self.config.migration.interval, self.algo):
+            self._flush()  # the history the coordinator hands this run over on, then its order
+            await_handover(self.algo, transport.assigned_algo, transport.stop_requested, self.turns)
         optimizer = self._follow_assignment()
         if isinstance(optimizer, Island):
             optimizer.refine()

@@ -64,6 +64,9 @@ SHARES = ("staged", "adaptive", "fixed")
 WINDOW = 2
 """Rounds over which each algorithm's credit is summed before it is compared, and that a moved island
 stays with its new algorithm."""
+SHARE_ROUND_ITERATIONS = 10
+"""When islands do not migrate: iterations per island in one round of the adaptive share, and those an
+exploring run searches before the staged share moves it."""
 LEADING = 0.1
 """The least credit per island over the window (orders of magnitude: a best 21 % lower) that makes an
 algorithm a leader to follow; below it nobody is gaining (a converged or stuck campaign), and noise
@@ -75,6 +78,22 @@ def check_share(share: Any) -> str:
     if share not in SHARES:
         raise HysidInputError(f"share must be one of {', '.join(SHARES)}", param="share", value=share)
     return str(share)
+
+
+def round_iterations(interval: int) -> int:
+    """A run's iterations in one round of the adaptive share, and the survey of the staged share: its
+    migration ``interval`` (:data:`SHARE_ROUND_ITERATIONS` when islands do not migrate)."""
+    return interval or SHARE_ROUND_ITERATIONS
+
+
+def handover_iteration(algos: list[str], share: str, interval: int, algo: str) -> int | None:
+    """The iteration after which the staged share moves a run of ``algo`` in a campaign of ``algos``
+    (migration ``interval``) to the converging algorithm: the end of its first round (:class:`Staged`);
+    None if it never does (another share, one algorithm, or ``algo`` converges)."""
+    mixed = len(set(algos)) > 1 and any(ROLES.get(a) == "converge" for a in algos)
+    if share != "staged" or not mixed or ROLES.get(algo) != "explore":
+        return None
+    return round_iterations(interval)
 
 
 @dataclass(frozen=True)

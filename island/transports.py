@@ -137,9 +137,11 @@ class ZenohHost:
             t.node.count_unlisted()
 
     def add(self, transport: ZenohTransport) -> None:
-        """An island of this host joined: the coordinator answered it."""
+        """An island of this host joined: the coordinator answered it (a roster that lists its run already
+        came: the algorithm it assigns the run is the transport's from now on, as from every roster after it)."""
         with self._cond:
             self._islands[transport.node.island] = transport
+            transport.assign(self._roster.get((transport.node.island, transport.credentials.run)))
             self._heard_at = time.monotonic()
 
     def remove(self, transport: ZenohTransport) -> None:
