@@ -236,7 +236,7 @@ def travels(kin: Kinematics, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def travel_runs(travel: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The samples ``(L, N)`` as runs for :func:`hysid_model.kernels.bouc_wen_samples`: ``runs`` ``(R, 5)``
+    """The samples ``(L, N)`` as runs for :func:`hysid_model.bouc_wen_kernels.bouc_wen_samples`: ``runs`` ``(R, 5)``
     (loop, first sample, stride, count, sign), each run's uniform travel ``step`` (NaN if it is not on one),
     ``spread`` (twice its largest offset from the grid) and every sample's ``deviation`` from its run's grid.
 
@@ -271,7 +271,7 @@ def travel_runs(travel: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 class BoucWenSampler:
-    """:meth:`BoucWen.time_force` at fixed phases through the compiled kernels of :mod:`hysid_model.kernels`
+    """:meth:`BoucWen.time_force` at fixed phases through the compiled kernels of :mod:`hysid_model.bouc_wen_kernels`
     (n = 1) and :mod:`hysid_model.bouc_wen_tables` (any other n).
 
     What depends only on the loops is prepared once: each sample's travel since
@@ -282,9 +282,10 @@ class BoucWenSampler:
     """
 
     def __init__(self, kin: Kinematics, phase: np.ndarray) -> None:
-        from hysid_model import kernels
+        from hysid_model import bouc_wen_kernels, motion_kernels
 
-        self.kernels = kernels
+        self.kernels = bouc_wen_kernels
+        self.motion_tables = motion_kernels.motion_tables
         self.kin = kin
         self.phase = np.ascontiguousarray(np.broadcast_to(phase, (kin.x0.size, phase.shape[-1])), dtype=float)
         x_min, x_max = kin.extremes
@@ -354,7 +355,7 @@ class BoucWenSampler:
 
     def _motion_tables(self) -> tuple[np.ndarray, np.ndarray]:
         if self._motion is None:
-            self._motion = self.kernels.motion_tables(self.kin.harmonics, self.phase)
+            self._motion = self.motion_tables(self.kin.harmonics, self.phase)
         return self._motion
 
     def _add_one(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
