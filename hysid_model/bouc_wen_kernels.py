@@ -1,15 +1,16 @@
-"""Compiled kernels (numba) of the Bouc-Wen orbit for n = 1 (Eq. 2.1b): its peak state, its force at fixed
-samples, its cycle mean, and its force at phases shifted per candidate (a channel delay).
+"""Compiled kernels (numba) of the Bouc-Wen orbit for n = 1 (Eq. 2.1b) at a loop set's fixed samples: its peak
+state, its force and its cycle mean.
 
-The numpy form (:meth:`hysid_model.terms.Term.time_force` of
-:class:`hysid_model.effects.bouc_wen.BoucWen`) evaluates a population as arrays of shape ``(P, L, N)``,
-every branch of a piecewise formula computed everywhere, with temporaries per step. These kernels walk
-candidates x loops x samples once, compute only the branch taken and add into one output array;
-:class:`hysid_model.effects.bouc_wen.BoucWenSampler` calls them (:mod:`hysid_model.bouc_wen_tables` for any
-other n). The numpy form stays as the reference the tests compare them with.
+The numpy form (:meth:`hysid_model.terms.Term.time_force` of :class:`hysid_model.effects.bouc_wen.BoucWen`)
+evaluates a population as arrays of shape ``(P, L, N)``, every branch of a piecewise formula computed everywhere,
+with temporaries per step. These kernels walk candidates x loops x samples once, compute only the branch taken and
+add into one output array; :class:`hysid_model.effects.bouc_wen.BoucWenSampler` calls them (at phases shifted by a
+channel delay: :mod:`hysid_model.shifted_kernels`; any other n: :mod:`hysid_model.bouc_wen_tables`). The numpy
+form stays as the reference the tests compare them with.
 
-The kernels compile on first use and are cached on disk (``cache=True``), so a
-new process (an island, a command) loads them instead of compiling.
+The kernels compile on first use and are cached on disk (``cache=True``), so a new process (an island, a
+command) loads them instead of compiling. numba invalidates a cached kernel when its own file changes, not when a
+function it calls from another file does: the helpers a kernel inlines live in its own file.
 """
 
 from __future__ import annotations
@@ -18,8 +19,6 @@ import math
 
 import numpy as np
 from numba import njit
-
-from hysid_model.motion_kernels import _motion, _rotate
 
 NEWTON_STEPS = 60
 """At most this many safeguarded Newton steps for the orbit's peak state (it converges in about 5)."""
@@ -79,19 +78,6 @@ def bouc_wen_orbit(span: np.ndarray, a: np.ndarray, b: np.ndarray, z_max: np.nda
             zm = -math.expm1(u) / bp
             z_max[p, i] = zm
             run[p, i] = zm if ap == 0.0 else math.log1p(ap * zm) / ap
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _state(t: float, z_max: float, run: float, a: float, b: float) -> float:
-    """z on the loading branch after travel ``t`` from the reversal (Eq. 2.1b, n = 1): climbing from
-    -z_max under dz/dx = 1 - a z up to ``run``, then relaxing under 1 - b z
-    (:func:`hysid_model.effects.bouc_wen._loading`)."""
-    if t < run:
-        if a == 0.0:
-            return t - z_max
-        e = math.expm1(-a * t)
-        return -z_max * (1.0 + e) - e / a
-    return -math.expm1(-b * (t - run)) / b
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -289,7 +275,7 @@ def bouc_wen_mean(
     """out[p, l] = mean of z over the nodes of loop l (a uniform phase grid: the cycle mean).
 
     ``travel`` ``(L, M)`` holds the loading nodes' travels (the first ``split[l]``), then the
-    unloading ones', each increasing; z = +-z(travel) (:func:`_state`), summed piece by piece."""
+    unloading ones', each increasing; z = +-z(travel) (:func:`hysid_model.shifted_kernels._state`), summed piece by piece."""
     nodes = travel.shape[1]
     for p in range(a.shape[0]):
         ap, bp = a[p], b[p]
@@ -315,31 +301,3 @@ def bouc_wen_mean(
                 part -= _exp_sum(travel, l, lo, last, rn, bp) / bp
                 total += part if g == 0 else -part
             out[p, l] = total / nodes
-
-
-@njit(cache=True, nogil=True)
-def bouc_wen_shifted(
-    orbit: Orbit,
-    shift: np.ndarray,
-    xh: np.ndarray,
-    waves: np.ndarray,
-    x_min: np.ndarray,
-    x_max: np.ndarray,
-    out: np.ndarray,
-) -> None:
-    """out[p, l, n] += k_p (z(theta_n - shift[p, l]) - mean[p, l]): the orbit at phases shifted per candidate
-    (a channel delay). The displacement ``xh`` (Re, Im) ``(2, L, K)`` is evaluated at the shifted phase from
-    ``waves`` (:func:`_motion`); its velocity's sign there is the branch."""
-    z_max, run, which, a, b, k, mean = orbit
-    xs = np.empty((2, xh.shape[2]))
-    for p in range(a.shape[0]):
-        for l in range(waves.shape[1]):
-            _rotate(xh, l, shift[p, l], xs)
-            zm, rn, mn, kp = z_max[p, which[l]], run[p, which[l]], mean[p, l], k[p]
-            for n in range(waves.shape[2]):
-                x, v = _motion(waves, l, n, xs)
-                if v >= 0.0:
-                    z = _state(x - x_min[l], zm, rn, a[p], b[p])
-                else:
-                    z = -_state(x_max[l] - x, zm, rn, a[p], b[p])
-                out[p, l, n] += kp * (z - mn)

@@ -21,7 +21,7 @@ from numba import njit
 
 from hysid_model.bouc_wen_kernels import _piece
 from hysid_model.bouc_wen_orbit import digamma, orbit, relaxing_travel, travel
-from hysid_model.motion_kernels import _motion, _rotate
+from hysid_model.shifted_kernels import _motion, _rotate
 
 TAIL_DEFICIT = 1e-8
 """1 - u^n at the last node of the relaxing table; beyond it u = 1 - (1 - u^n) / n exactly to 1e-16."""
@@ -367,7 +367,7 @@ def bouc_wen_shifted(
     out: np.ndarray,
 ) -> None:
     """out[p, l, j] += k_p (z(theta_j - shift[p, l]) - mean): the orbit at phases shifted per candidate, any
-    exponent (as :func:`hysid_model.bouc_wen_kernels.bouc_wen_shifted`, whose ``xh, waves`` are ``motion`` here and
+    exponent (as :func:`hysid_model.shifted_kernels.bouc_wen_shifted`, whose ``xh, waves`` are ``motion`` here and
     ``x_min, x_max`` ``bounds``)."""
     exponent, r, zy, k = candidates
     (xh, waves), (x_min, x_max) = motion, bounds

@@ -1,5 +1,5 @@
 """The per-sample force of a model at the fixed phases of a loop set, compiled (:mod:`hysid_model.bouc_wen_kernels`,
-:mod:`hysid_model.chain_kernels`, :mod:`hysid_model.squares_kernels`).
+:mod:`hysid_model.shifted_kernels`, :mod:`hysid_model.squares_kernels`).
 
 :meth:`hysid_model.model.Model.memory_force` is the numpy reference: the
 memory terms' force and, behind a measurement chain, the sign-of-velocity
@@ -13,7 +13,7 @@ once and evaluates a population through the kernels:
   :mod:`hysid_model.user_laws`), at phases delayed by the chain's delay;
 * F sgn(x') delayed and through a single-pole high-pass exactly: the periodic
   response of G = s / (s + w_c) to the square wave sgn(x') is exponential
-  between the reversals (:func:`hysid_model.chain_kernels.velocity_sign_chain`);
+  between the reversals (:func:`hysid_model.shifted_kernels.velocity_sign_chain`);
   the reference sums its first 128 harmonics (``CHAIN_ORDERS``) instead. A
   jump the delay moves into a sample's cell is averaged over the cell in both
   (:func:`hysid_model.waveform.sample_cells`).
@@ -29,10 +29,9 @@ from __future__ import annotations
 import numpy as np
 
 from hysid_model import waveform
-from hysid_model.chain_kernels import velocity_sign_chain
 from hysid_model.kinematics import Kinematics
 from hysid_model.model import Model
-from hysid_model.motion_kernels import motion_tables
+from hysid_model.shifted_kernels import motion_tables, velocity_sign_chain
 from hysid_model.squares_kernels import sum_of_squares
 from hysid_model.terms import MeasurementTerm, ModalState, Term, Values
 

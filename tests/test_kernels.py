@@ -1,4 +1,4 @@
-"""Compiled per-sample forces (hysid_model/*_kernels.py, sampled.py) against the numpy reference path and
+"""Compiled per-sample forces (hysid_model/bouc_wen_kernels.py, shifted_kernels.py, squares_kernels.py, sampled.py) against the numpy reference path and
 against exact or time-domain forms (issue 11: fast nonlinear and memory terms)."""
 
 from __future__ import annotations

@@ -1,9 +1,15 @@
-"""Compiled kernel (numba) of the measurement chain's sign-of-velocity feature: F sgn(x') delayed and through a
-single-pole high-pass, exactly (Eq. 4.1-4.2), at a loop set's fixed phases.
+"""Compiled kernels (numba) of the forces at phases shifted per candidate (a channel delay, Eq. 4.1-4.2) at a loop
+set's fixed phases: the Bouc-Wen orbit for n = 1 (Eq. 2.1b) driven by the measured displacement, and F sgn(x')
+delayed and through a single-pole high-pass, exactly. The displacement x(theta - shift) and dx/dtheta come from
+its harmonics (:mod:`hysid_model.waveform`) in real arithmetic.
 
 The numpy reference (:meth:`hysid_model.model.Model.memory_force`) sums the chain's first harmonics;
-:class:`hysid_model.sampled.SampledMemory` calls this kernel instead, and the tests compare both. Compiled on
-first use and cached on disk (``cache=True``).
+:class:`hysid_model.sampled.SampledMemory` and :class:`hysid_model.effects.bouc_wen.BoucWenSampler` call these
+kernels instead, and the tests compare both.
+
+The kernels compile on first use and are cached on disk (``cache=True``), so a new process (an island, a
+command) loads them instead of compiling. numba invalidates a cached kernel when its own file changes, not when a
+function it calls from another file does: the helpers a kernel inlines live in its own file.
 """
 
 from __future__ import annotations
@@ -13,9 +19,81 @@ import math
 import numpy as np
 from numba import njit
 
-from hysid_model.motion_kernels import _motion, _rotate
+from hysid_model.bouc_wen_kernels import Orbit
 
 TWO_PI = 2.0 * math.pi
+
+
+def motion_tables(xh: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The displacement harmonics ``xh`` ``(L, K)`` as (Re, Im) ``(2, L, K)`` and (cos k theta, sin k theta)
+    ``(2, L, N, K)`` at ``phase`` ``(L, N)``: what :func:`_motion` evaluates x(theta - shift) from."""
+    k = np.arange(1, xh.shape[1] + 1)
+    angle = phase[..., None] * k
+    return np.ascontiguousarray(np.stack([xh.real, xh.imag]), dtype=float), np.ascontiguousarray(np.stack([np.cos(angle), np.sin(angle)]))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rotate(xh: np.ndarray, l: int, shift: float, out: np.ndarray) -> None:
+    """out[0, k], out[1, k] = Re, Im of X_k e^{-ik shift}: the harmonics of x(theta - shift) (``xh`` = (Re, Im) ``(2, L, K)``)."""
+    for i in range(xh.shape[2]):
+        c, s = math.cos((i + 1) * shift), math.sin((i + 1) * shift)
+        out[0, i] = xh[0, l, i] * c + xh[1, l, i] * s
+        out[1, i] = xh[1, l, i] * c - xh[0, l, i] * s
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _motion(waves: np.ndarray, l: int, n: int, xs: np.ndarray) -> tuple[float, float]:
+    """x and dx/dtheta at sample n of loop l from harmonics ``xs`` (:func:`_rotate`) and ``waves``
+    = (cos k theta_n, sin k theta_n) ``(2, L, N, K)``: x = sum_k Re[X_k e^{ik theta}] (real arithmetic:
+    numba's complex product checks for infinities and is ~20 times slower)."""
+    x = 0.0
+    v = 0.0
+    for i in range(xs.shape[1]):
+        c, s = waves[0, l, n, i], waves[1, l, n, i]
+        x += xs[0, i] * c - xs[1, i] * s
+        v -= (i + 1) * (xs[0, i] * s + xs[1, i] * c)
+    return x, v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _state(t: float, z_max: float, run: float, a: float, b: float) -> float:
+    """z on the loading branch after travel ``t`` from the reversal (Eq. 2.1b, n = 1): climbing from
+    -z_max under dz/dx = 1 - a z up to ``run``, then relaxing under 1 - b z
+    (:func:`hysid_model.effects.bouc_wen._loading`)."""
+    if t < run:
+        if a == 0.0:
+            return t - z_max
+        e = math.expm1(-a * t)
+        return -z_max * (1.0 + e) - e / a
+    return -math.expm1(-b * (t - run)) / b
+
+
+@njit(cache=True, nogil=True)
+def bouc_wen_shifted(
+    orbit: Orbit,
+    shift: np.ndarray,
+    xh: np.ndarray,
+    waves: np.ndarray,
+    x_min: np.ndarray,
+    x_max: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """out[p, l, n] += k_p (z(theta_n - shift[p, l]) - mean[p, l]): the orbit at phases shifted per candidate
+    (a channel delay). The displacement ``xh`` (Re, Im) ``(2, L, K)`` is evaluated at the shifted phase from
+    ``waves`` (:func:`_motion`); its velocity's sign there is the branch."""
+    z_max, run, which, a, b, k, mean = orbit
+    xs = np.empty((2, xh.shape[2]))
+    for p in range(a.shape[0]):
+        for l in range(waves.shape[1]):
+            _rotate(xh, l, shift[p, l], xs)
+            zm, rn, mn, kp = z_max[p, which[l]], run[p, which[l]], mean[p, l], k[p]
+            for n in range(waves.shape[2]):
+                x, v = _motion(waves, l, n, xs)
+                if v >= 0.0:
+                    z = _state(x - x_min[l], zm, rn, a[p], b[p])
+                else:
+                    z = -_state(x_max[l] - x, zm, rn, a[p], b[p])
+                out[p, l, n] += kp * (z - mn)
 
 
 @njit(cache=True, nogil=True, inline="always")
