@@ -33,8 +33,8 @@ from typing import TYPE_CHECKING
 from coordinator.link import Link
 from hysid_model.errors import HysidInputError
 from island.algorithms import ALGORITHMS
+from island.coordinator_messages import Control, MemberState, encode_control
 from island.handshake import JoinRequest, decode_join_step, encode_challenge, encode_joined, proof_holds
-from island.protocol import Control, MemberState, encode_control
 from island.sealing import Credentials, new_key, public_key
 from island.secret import of_member
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected

@@ -30,8 +30,8 @@ from hysid_model.objective import Objective
 from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer
 from island.config import CampaignConfig
+from island.island_messages import History
 from island.population import MAX_ITERATIONS, PopulationOptimizer
-from island.protocol import History
 from island.run import run
 from island.wire import MessageRejected
 

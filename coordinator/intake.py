@@ -30,7 +30,8 @@ from coordinator.histories import check_claim
 from coordinator.link import Link
 from coordinator.progress import IslandView
 from coordinator.records import IslandRecord, StoredBest
-from island.protocol import History, HistoryQuery, Migrants, encode_history_query
+from island.coordinator_messages import HistoryQuery, encode_history_query
+from island.island_messages import History, Migrants
 from island.sealing import check_replay
 from island.wire import MessageRejected
 

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from coordinator.link import Link
 from coordinator.writes import StoreError
-from island.protocol import Migrants, decode_history, decode_migrants
+from island.island_messages import Migrants, decode_history, decode_migrants
 from island.wire import MAX_BYTES, NAME_PATTERN, MessageRejected
 
 if TYPE_CHECKING:
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from coordinator.store import Store
     from hysid_model.objective import Objective
     from hysid_model.thesis_port import ThesisObjective
-    from island.protocol import History
+    from island.island_messages import History
 
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
 """Rejected messages recorded one by one (a token bucket); beyond it they are counted in summaries."""

@@ -101,8 +101,10 @@ from coordinator.thinning import HistoryPolicy
 from coordinator.writes import StoreError
 from hysid_model.loops import LoopSet
 from island.config import CampaignConfig, decode_config, encode_config
+from island.coordinator_messages import Best, encode_best
+from island.island_messages import Migrants
 from island.joining import key_prefix
-from island.protocol import Best, Migrants, encode_best, encode_signed_config
+from island.protocol import encode_signed_config
 from island.sealing import ReplayGuard
 from island.termination import Termination
 

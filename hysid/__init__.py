@@ -30,7 +30,8 @@ if TYPE_CHECKING:
     from hysid.campaigns import CampaignResult, campaign
     from hysid.diagnosis.result import Diagnosis
     from hysid.diagnosis.selection import diagnose
-    from hysid.fitting import FitResult, fit
+    from hysid.fit_result import FitResult
+    from hysid.fitting import fit
     from hysid_model.datasets import load_dataset as load
     from hysid_model.errors import HysidInputError, HysidWarning
     from hysid_model.loops import LoopSet
@@ -47,7 +48,7 @@ _EXPORTS = {
     "campaign": ("hysid.campaigns", "campaign"),
     "Diagnosis": ("hysid.diagnosis.result", "Diagnosis"),
     "diagnose": ("hysid.diagnosis.selection", "diagnose"),
-    "FitResult": ("hysid.fitting", "FitResult"),
+    "FitResult": ("hysid.fit_result", "FitResult"),
     "fit": ("hysid.fitting", "fit"),
     "load": ("hysid_model.datasets", "load_dataset"),
     "HysidInputError": ("hysid_model.errors", "HysidInputError"),

@@ -26,7 +26,7 @@ from coordinator.outcome import CampaignOutcome, polished
 from coordinator.progress import CampaignProgress
 from coordinator.state import Coordinator
 from coordinator.store import Store
-from hysid.fitting import FitResult
+from hysid.fit_result import FitResult
 from hysid.motion import MotionChoice, choose_motion, confirm_motion, order_evidence, refit_under_other_reading
 from hysid.report import campaign_text, jsondoc, markdown, tables
 from hysid_model import notices
@@ -48,7 +48,7 @@ from island.wire import MessageRejected, check_name
 
 @dataclass
 class CampaignResult:
-    """A campaign's :class:`~hysid.fitting.FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
+    """A campaign's :class:`~hysid.fit_result.FitResult` (same report as ``hysid fit``) plus its islands and migrations."""
 
     fit: FitResult
     islands: list[dict[str, Any]]

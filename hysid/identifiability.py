@@ -1,6 +1,6 @@
 """Standard errors that cover the truth: the full covariance, the profile where it cannot be trusted, and what the data cannot determine.
 
-One rule for ``fit``, campaigns (both :class:`hysid.fitting.FitResult`) and a
+One rule for ``fit``, campaigns (both :class:`hysid.fit_result.FitResult`) and a
 diagnosis' final model (:func:`hysid.diagnosis.selection.diagnose`):
 
 1. every standard error comes from the covariance of *all* the free

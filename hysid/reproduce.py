@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 
 from hysid import thesis_tables as tt
-from hysid.fitting import FitResult, fit
+from hysid.fit_result import FitResult
+from hysid.fitting import fit
 from hysid.report import reproduction
 from hysid.report.records import ReproductionCurves
 from hysid_model.errors import HysidInputError

@@ -7,7 +7,7 @@ w' = 1 - c w^n, w'' = -n c w^(n-1) w' are known (:func:`build_table`): nodes gra
 (where w^n is not smooth for a non-integer n; below the first node w = sigma within 1e-10) and
 towards the pole of 1 / (1 - c w^n), beyond the last relaxing node (1 - u^n = 1e-8) the exact
 exponential tail 1 - u = (eps_M / n) exp(-n (sigma - sigma_M)). Samples along a branch walk the
-table; the tail runs through the multiply-add chain of :func:`hysid_model.kernels._piece`, as the
+table; the tail runs through the multiply-add chain of :func:`hysid_model.bouc_wen_kernels._piece`, as the
 n = 1 orbit does. Within 1e-9 of z_y of the exact z (:func:`hysid_model.bouc_wen_orbit.bouc_wen_exact`;
 the tests compare both, and both with the time integration of Eq. 2.1b).
 """
@@ -19,8 +19,9 @@ import math
 import numpy as np
 from numba import njit
 
+from hysid_model.bouc_wen_kernels import _piece
 from hysid_model.bouc_wen_orbit import digamma, orbit, relaxing_travel, travel
-from hysid_model.kernels import _motion, _piece, _rotate
+from hysid_model.shifted_kernels import _motion, _rotate
 
 TAIL_DEFICIT = 1e-8
 """1 - u^n at the last node of the relaxing table; beyond it u = 1 - (1 - u^n) / n exactly to 1e-16."""
@@ -322,7 +323,7 @@ def bouc_wen_samples(
     out: np.ndarray,
 ) -> None:
     """out[p, l, j] += k_p (z - mean) at fixed samples, any exponent: ``candidates`` the columns (exponent, r,
-    zy, k) ``(P,)``; the runs as in :func:`hysid_model.kernels.bouc_wen_samples`; the cycle mean over
+    zy, k) ``(P,)``; the runs as in :func:`hysid_model.bouc_wen_kernels.bouc_wen_samples`; the cycle mean over
     ``mean_nodes`` ``(L, M)`` (M = 0: none)."""
     exponent, r, zy, k = candidates
     climb, relax, um, tn, mean = _scratch(span, which)
@@ -366,7 +367,7 @@ def bouc_wen_shifted(
     out: np.ndarray,
 ) -> None:
     """out[p, l, j] += k_p (z(theta_j - shift[p, l]) - mean): the orbit at phases shifted per candidate, any
-    exponent (as :func:`hysid_model.kernels.bouc_wen_shifted`, whose ``xh, waves`` are ``motion`` here and
+    exponent (as :func:`hysid_model.shifted_kernels.bouc_wen_shifted`, whose ``xh, waves`` are ``motion`` here and
     ``x_min, x_max`` ``bounds``)."""
     exponent, r, zy, k = candidates
     (xh, waves), (x_min, x_max) = motion, bounds

@@ -11,7 +11,7 @@ at the reversal stays sharp; samples too close to a reversal for the measured
 displacement to tell their branch are left out (``GUARD_SIGMAS``).
 
 A window is used as it is when its samples determine the quadratic about as
-well as evenly spread samples would (``CONDITION``, ``MIN_SAMPLES``), else it
+well as evenly spread samples would (:mod:`hysid_model.phase_sums`), else it
 widens (``WIDEN``) until they do. Counting distinct phases is not enough: a
 sample rate that is a ratio of small integers times the frequency (2048 Hz at
 20 Hz: 102.4 samples per cycle) puts its samples on a few hundred phases,
@@ -21,7 +21,7 @@ into spikes and a noise estimate 50 times too large. A window widened until
 it overlaps its neighbours shares their samples, and its value's variance
 counts that (:func:`_shared_variance`). Windows that widen, or records that
 need the harmonics below, first have the force's smooth part taken out
-(:func:`smooth_part`: harmonics 0..K and a jump at the reversals), so a wide
+(:func:`hysid_model.force_harmonics.smooth_part`: harmonics 0..K and a jump at the reversals), so a wide
 window is biased only by what that part misses. A record whose samples fall on
 too few phases even for a window ``MAX_WIDTH`` wide (sparse sampling, or fewer
 than about 25 distinct phases per cycle) gets the force's harmonics below its
@@ -42,13 +42,13 @@ Every step is linear in the record length.
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import reduce
-from math import comb
 from typing import cast
 
 import numpy as np
 
 from hysid_model import waveform
+from hysid_model.force_harmonics import harmonic_branches
+from hysid_model.phase_sums import PhaseSums, concatenated_ranges
 
 END_WINDOW = 4.0
 """One-sided window at a reversal, in interior window widths: a local-quadratic fit
@@ -64,43 +64,14 @@ MAX_WIDTH = np.pi / 4
 samples per cycle: a local quadratic over a wider window would bias what the smooth part leaves of a curved force
 (by about f^(4) w^4 / 4500 inside and f^(3) w^3 / 120 at a reversal). A record whose samples need more (sparse
 sampling, or fewer distinct phases per cycle) gets the force's harmonics instead."""
-CONDITION = 4.0
-"""A window is used when its branch value's variance is at most this many times that of as many samples spread
-evenly over it. Samples bunched on two or three phases (a sample rate that is a ratio of small integers times the
-frequency repeats a few phases, each smeared a little by the frequency's error) fail it, however many they are."""
-MIN_SAMPLES = 20
-"""Fewest samples in a window. A few samples at random phases (a short record) determine a quadratic by chance
-well or badly, and the worst windows then set the loop's sigma: the variance factor of 6 random samples is 3.8
-times that of evenly spread ones on average (17 times for one window in a hundred), of 20 samples 1.1 (1.8)."""
 VARIANCE_SPREAD = 2.0
 """A branch value whose variance exceeds the median one's this many times gets a wider window."""
-DISTINCT = 1e-3
-"""Sample phases closer than this fraction of a window apart count as one in the force's harmonics (averaged
-first: a rate locked to the excitation repeats them, so the cost does not grow with the cycles)."""
-CHUNK = 1 << 16
-"""Samples whose harmonic design rows are built at once (:func:`smooth_part`)."""
 SNAP = 1e-9
 """Phases (rad) this close to a reversal are at the reversal (a record sampled exactly at its peaks)."""
 GUARD_SIGMAS = 6.0
 """Samples closer to a reversal than this many standard errors of its phase are left out: the measured displacement
 cannot tell on which branch they are, and one force sample of the other branch (a friction jump away) at the edge
 of a reversal's one-sided window throws its extrapolated value off by a fraction of the jump."""
-
-
-def harmonic_design(theta: np.ndarray, harmonics: int) -> np.ndarray:
-    """Rows 1, sin(k theta), cos(k theta) for k = 1..harmonics, ``(2 harmonics + 1, N)`` (angle-sum recurrence)."""
-    design = np.empty((2 * harmonics + 1, theta.size))
-    design[0] = 1.0
-    np.sin(theta, out=design[1])
-    np.cos(theta, out=design[2])
-    s1, c1 = design[1], design[2]
-    for k in range(2, harmonics + 1):
-        s, c = design[2 * k - 3], design[2 * k - 2]
-        np.multiply(s, c1, out=design[2 * k - 1])
-        design[2 * k - 1] += c * s1
-        np.multiply(c, c1, out=design[2 * k])
-        design[2 * k] -= s * s1
-    return design
 
 
 def phase_windows(theta: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
@@ -143,14 +114,6 @@ def _chi2_median_ratio(dof: float) -> float:
     return float(2.0 * gammaincinv(0.5 * dof, 0.5) / dof)
 
 
-def _concatenated_ranges(first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(owner, position) of every element of the ranges [first_j, stop_j)."""
-    counts = stop - first
-    owner = np.repeat(np.arange(first.size), counts)
-    position = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts - first, counts)
-    return owner, position
-
-
 def half_cycle_phases(theta: np.ndarray, reversal: tuple[float, float]) -> np.ndarray:
     """Phases ``theta`` in [lo, lo + 2 pi): the loading half cycle [lo, hi), the unloading one [hi, lo + 2 pi)
     (``reversal`` = (lo, hi)); a sample at a reversal belongs to the branch it starts, whatever the last bits of its
@@ -171,43 +134,6 @@ def reversal_guard(xh: np.ndarray, reversal: tuple[float, float], x_sigma: float
     return float(GUARD_SIGMAS * slope_sd / max(float(curvature.min()), 1e-300))
 
 
-def smooth_part(
-    theta: np.ndarray,
-    harmonics: int,
-    gram: np.ndarray,
-    projection: np.ndarray,
-    psi: np.ndarray,
-    hi: float,
-    force: np.ndarray,
-    at_branches: np.ndarray,
-    design: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """(the force less its smooth part, the smooth part at the 2n branch samples).
-
-    The smooth part is the least-squares fit of the force's harmonics 0..K (``harmonics``; the samples at phases
-    ``theta``, whose design rows give ``gram`` = design design^T and ``projection`` = design force;
-    ``at_branches`` ``(2K + 1, 2n)`` at the branch samples, top then bottom) and of sgn(x'), +1 on the loading
-    half cycle (half-cycle phases ``psi`` below ``hi``) and -1 on the unloading one: a friction jump at the
-    reversals, which harmonics alone would ring around. The branch values are the local fits of what is left,
-    plus the smooth part: a local quadratic is then biased only by what the smooth part misses (force content
-    above order K other than a jump at the reversals), so its windows may widen without bias where a record's
-    few distinct sample phases need it, and the force's harmonics (:func:`_harmonic_branches`) are those of a
-    force without the jump. The design rows are rebuilt ``CHUNK`` samples at a time, so the memory stays that of
-    a few copies of the record; a record of at most ``CHUNK`` samples may pass its ``design`` rows, built already.
-    """
-    side = np.where(psi < hi, 1.0, -1.0)
-    blocks = [slice(i, i + CHUNK) for i in range(0, theta.size, CHUNK)]
-    rows = (lambda b: design[:, b]) if design is not None else (lambda b: harmonic_design(theta[b], harmonics))
-    cross = reduce(np.add, (rows(b) @ side[b] for b in blocks))
-    full = np.block([[gram, cross[:, None]], [cross[None, :], np.array([[float(side.size)]])]])
-    coef = np.linalg.lstsq(full, np.append(projection, side @ force), rcond=None)[0]
-    residual = force - coef[-1] * side
-    for b in blocks:
-        residual[b] -= coef[:-1] @ rows(b)
-    n = at_branches.shape[1] // 2
-    return residual, coef[:-1] @ at_branches + coef[-1] * np.repeat([1.0, -1.0], n)
-
-
 def branch_values(
     psi: np.ndarray,
     force: np.ndarray,
@@ -220,7 +146,7 @@ def branch_values(
     """Branch values at the 2n ``sample_phases`` (top, then bottom) of the force samples at half-cycle phases ``psi``
     (:func:`half_cycle_phases`); ``reversal`` = (lo, hi) phases, samples within ``guard`` of them left out
     (:func:`reversal_guard`). Where a window must widen, or the force's harmonics take over, the branches
-    are those of the force less its smooth part, plus that part (``smooth``: :func:`smooth_part` of
+    are those of the force less its smooth part, plus that part (``smooth``: :func:`hysid_model.force_harmonics.smooth_part` of
     ``force``); a record whose windows all keep their width (the usual one) does not need it.
 
     Returns (values, variance factors v, sigma_raw, overlap, harmonics). Local-quadratic fits in
@@ -228,7 +154,7 @@ def branch_values(
     determine the quadratic well (``CONDITION``, ``MIN_SAMPLES``; ``harmonics`` None); else, for
     records whose samples fall on few phases per cycle (a rate locked to the excitation, or sparse
     sampling), the force's harmonics below the sample rate's Nyquist order
-    (:func:`_harmonic_branches`). ``overlap`` is how many branch values share one independent number
+    (:func:`hysid_model.force_harmonics.harmonic_branches`). ``overlap`` is how many branch values share one independent number
     (1: independent); where windows overlap, each value's v counts its samples' shares
     (:func:`_shared_variance`).
     """
@@ -237,7 +163,7 @@ def branch_values(
     half_lo, half_hi = half_lo + guard, half_hi - guard
     order = np.argsort(psi, kind="stable")
     ps = psi[order]
-    sums = _PhaseSums(ps, h)
+    sums = PhaseSums(ps, h)
     widest = np.maximum(MAX_WIDEN, MAX_WIDTH / (width * h))
     lo, hi = np.full(centre.size, np.nan), np.full(centre.size, np.nan)
     chosen_r = np.zeros(centre.size)
@@ -260,7 +186,7 @@ def branch_values(
     if harmonics:
         lo_phase, hi_phase = reversal
         keep = (ps >= lo_phase + guard) & (np.abs(ps - hi_phase) >= guard) & (ps <= lo_phase + 2 * np.pi - guard)
-        values, var, sigma_raw, overlap, k = _harmonic_branches(ps[keep], ys[keep], sample_phases, h, samples_per_cycle)
+        values, var, sigma_raw, overlap, k = harmonic_branches(ps[keep], ys[keep], sample_phases, h, samples_per_cycle)
         return values + at_branches, var, sigma_raw, overlap, k
     value, v, ss, dof = _local_fits(ps, ys, centre, h, lo, hi)
     sigma_raw = float(np.sqrt(np.median(ss / dof) / _chi2_median_ratio(float(np.median(dof)))))
@@ -294,7 +220,7 @@ def _shared_variance(ps: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np
 
     Windows widened until they overlap share their samples: the 2n values then carry fewer independent
     numbers than 2n, and a value's variance times this factor is the variance that the raw samples'
-    information gives it (as the force's harmonics' values are scaled, :func:`_harmonic_branches`), so that
+    information gives it (as the force's harmonics' values are scaled, :func:`hysid_model.force_harmonics.harmonic_branches`), so that
     the loop's sigma gives chi^2 and the Fisher information of the samples used, not of each one counted
     several times. 1 for disjoint windows. Each window is a range of the sorted samples, so the count per
     sample is a running sum of the windows' starts and ends.
@@ -303,36 +229,6 @@ def _shared_variance(ps: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np
     shares = np.cumsum(np.bincount(a, minlength=ps.size + 1) - np.bincount(b, minlength=ps.size + 1))[:-1]
     total = np.concatenate([[0.0], np.cumsum(shares, dtype=float)])
     return (total[b] - total[a]) / (b - a), float(np.sum(b - a) / np.count_nonzero(shares))
-
-
-def _harmonic_branches(
-    ps: np.ndarray, ys: np.ndarray, sample_phases: np.ndarray, h: float, samples_per_cycle: float
-) -> tuple[np.ndarray, np.ndarray, float, float, int]:
-    """Branch values of a record with few distinct sample phases: the force's harmonics 0..K by least
-    squares over every sample (K below the sample rate's Nyquist order and the distinct phases'),
-    evaluated at the branch phases.
-
-    Exact for a force without content above order K, whatever the phases; content above K (a
-    friction jump) is smoothed, as the samples themselves cannot resolve it. Samples at one phase
-    (within ``DISTINCT``) are averaged first, so the cost does not grow with the cycles. The 2n values
-    then carry 2K + 1 independent numbers: their variance factors are scaled by 2n / (2K + 1), so
-    that the loop's sigma gives chi^2 and the Fisher information of the raw samples.
-    """
-    key = np.concatenate([[0], np.cumsum(np.diff(ps) > DISTINCT * h)])
-    count = np.bincount(key).astype(float)
-    phase = np.bincount(key, ps) / count
-    mean = np.bincount(key, ys) / count
-    k = int(max(1, min((samples_per_cycle - 1) // 2, (count.size - 1) // 2)))
-    design = harmonic_design(phase, k)  # (2k + 1, distinct)
-    gram_inv = np.linalg.inv((design * count) @ design.T)
-    coef = gram_inv @ (design @ (count * mean))
-    within = float(np.sum(ys * ys) - np.sum(count * mean * mean))
-    between = float(np.sum(count * (mean - coef @ design) ** 2))
-    sigma_raw = float(np.sqrt(max(within + between, 0.0) / max(ys.size - (2 * k + 1), 1)))
-    at = harmonic_design(sample_phases, k)
-    var = np.einsum("in,ij,jn->n", at, gram_inv, at)
-    overlap = max(1.0, sample_phases.size / (2 * k + 1))
-    return coef @ at, var * overlap, sigma_raw, overlap, k
 
 
 def _window_bounds(
@@ -347,7 +243,7 @@ def _window_fits(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray], np.ndarray]:
     """(window of each used sample, its position in ``ps``, its u = (phase - centre) / h, moments of u^0..u^4,
     inverse Gram matrices ``(W, 3, 3)``) of local-quadratic fits in the windows [lo, hi)."""
-    win, pos = _concatenated_ranges(np.searchsorted(ps, lo), np.searchsorted(ps, hi))
+    win, pos = concatenated_ranges(np.searchsorted(ps, lo), np.searchsorted(ps, hi))
     u = (ps[pos] - centre[win]) / h  # in window widths: the normal equations stay well conditioned
     u2 = u * u
     starts = _starts(win)
@@ -362,71 +258,8 @@ def _starts(win: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.diff(win, prepend=-1))
 
 
-class _PhaseSums:
-    """Prefix sums of the powers 0..4 of the sorted sample phases, each about the centre of its block of phases
-    (blocks ``h`` wide): the local-quadratic Gram matrix of any window from the few blocks it spans, to choose
-    windows before the one pass that fits them.
-
-    Powers of the phases themselves (up to 2 pi) summed over a long record lose the digits that a window h wide
-    needs (the variance came out 30 % off at 100 points per branch, and meaningless at 300); about their block's
-    centre they stay below (h/2)^k.
-    """
-
-    def __init__(self, ps: np.ndarray, h: float) -> None:
-        self.ps, self.h = ps, h
-        n_blocks = int((ps[-1] - ps[0]) / h) + 1
-        self.edges = np.searchsorted(ps, ps[0] + h * np.arange(n_blocks + 1))
-        self.edges[-1] = ps.size
-        self.ref = ps[0] + h * (np.arange(n_blocks) + 0.5)
-        d = (ps - np.repeat(self.ref, np.diff(self.edges))) / h
-        self.cum = np.empty((5, ps.size + 1))
-        self.cum[:, 0] = 0.0
-        self.cum[0, 1:] = np.arange(1, ps.size + 1)
-        power = d.copy()
-        for k in range(1, 5):
-            np.cumsum(power, out=self.cum[k, 1:])
-            if k < 4:
-                power *= d
-
-    def moments(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
-        """sum u^p, p = 0..4, u = (phase - centre) / h, over the samples in each window [lo, hi): per block spanned,
-        the block's sums shifted from its centre to the window's (binomial expansion)."""
-        a, b = np.searchsorted(self.ps, lo), np.searchsorted(self.ps, hi)
-        first = np.searchsorted(self.edges, a, side="right") - 1
-        stop = np.where(b > a, np.searchsorted(self.edges, b - 1, side="right"), first)
-        owner, block = _concatenated_ranges(first, stop)
-        begin, end = np.maximum(a[owner], self.edges[block]), np.minimum(b[owner], self.edges[block + 1])
-        s = [c[end] - c[begin] for c in self.cum]
-        e = (self.ref[block] - centre[owner]) / self.h
-        powers = [e**m for m in range(5)]
-        return [np.bincount(owner, sum(comb(p, k) * s[k] * powers[p - k] for k in range(p + 1)), minlength=centre.size) for p in range(5)]
-
-    def variance(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """[(U^T U)^-1]_00 of the windows [lo, hi) about ``centre`` (inf where the samples do not determine a quadratic)."""
-        return _inverse_00(self.moments(centre, lo, hi))
-
-    def conditioned(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """Whether the windows [lo, hi) hold ``MIN_SAMPLES`` samples that determine a local quadratic about ``centre``
-        nearly as well as as many samples spread evenly over the window (``CONDITION``)."""
-        m = self.moments(centre, lo, hi)
-        a, b = (lo - centre) / self.h, (hi - centre) / self.h
-        span = np.maximum(b - a, 1e-300)
-        even = _inverse_00([(b ** (p + 1) - a ** (p + 1)) / ((p + 1) * span) for p in range(5)])
-        with np.errstate(invalid="ignore"):
-            return (m[0] >= MIN_SAMPLES) & (_inverse_00(m) * m[0] <= CONDITION * even)
-
-
-def _inverse_00(m: list[np.ndarray]) -> np.ndarray:
-    """[M^-1]_00 of the 3 x 3 moment matrices M_ij = m_(i+j) (Cramer's rule; inf where M is singular)."""
-    minor = m[2] * m[4] - m[3] * m[3]
-    det = m[0] * minor - m[1] * (m[1] * m[4] - m[2] * m[3]) + m[2] * (m[1] * m[3] - m[2] * m[2])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v = minor / det
-    return np.where(np.isfinite(v) & (det > 0) & (v > 0), v, np.inf)
-
-
 def _even_out_variance(
-    sums: _PhaseSums,
+    sums: PhaseSums,
     centre: np.ndarray,
     start: np.ndarray,
     width: np.ndarray,

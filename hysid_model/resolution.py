@@ -28,7 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hysid_model.branches import CONDITION, MIN_SAMPLES, phase_windows
+from hysid_model.branches import phase_windows
+from hysid_model.phase_sums import CONDITION, MIN_SAMPLES
 
 ALPHA = 1e-3
 """Level at which a set's reversal differences are taken to be more than noise."""

@@ -1,4 +1,5 @@
-"""The per-sample force of a model at the fixed phases of a loop set, compiled (:mod:`hysid_model.kernels`).
+"""The per-sample force of a model at the fixed phases of a loop set, compiled (:mod:`hysid_model.bouc_wen_kernels`,
+:mod:`hysid_model.shifted_kernels`, :mod:`hysid_model.squares_kernels`).
 
 :meth:`hysid_model.model.Model.memory_force` is the numpy reference: the
 memory terms' force and, behind a measurement chain, the sign-of-velocity
@@ -12,7 +13,7 @@ once and evaluates a population through the kernels:
   :mod:`hysid_model.user_laws`), at phases delayed by the chain's delay;
 * F sgn(x') delayed and through a single-pole high-pass exactly: the periodic
   response of G = s / (s + w_c) to the square wave sgn(x') is exponential
-  between the reversals (:func:`hysid_model.kernels.velocity_sign_chain`);
+  between the reversals (:func:`hysid_model.shifted_kernels.velocity_sign_chain`);
   the reference sums its first 128 harmonics (``CHAIN_ORDERS``) instead. A
   jump the delay moves into a sample's cell is averaged over the cell in both
   (:func:`hysid_model.waveform.sample_cells`).
@@ -27,9 +28,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from hysid_model import kernels, waveform
+from hysid_model import waveform
 from hysid_model.kinematics import Kinematics
 from hysid_model.model import Model
+from hysid_model.shifted_kernels import motion_tables, velocity_sign_chain
+from hysid_model.squares_kernels import sum_of_squares
 from hysid_model.terms import MeasurementTerm, ModalState, Term, Values
 
 
@@ -58,7 +61,7 @@ class SampledMemory:
         self.samplers = samplers if self.compiled else []
         self.gain = gains[0] if gains and self.compiled else None
         if self.compiled and model.filters_sgn:
-            self.motion = kernels.motion_tables(kin.harmonics, self.phase)
+            self.motion = motion_tables(kin.harmonics, self.phase)
             lo, hi = kin.reversals
             self.theta_lo, self.theta_hi = np.ascontiguousarray(lo, dtype=float), np.ascontiguousarray(hi, dtype=float)
             self.cells = tuple(np.ascontiguousarray(c) for c in waveform.sample_cells(self.phase, self.n_top, lo, hi))
@@ -75,7 +78,7 @@ class SampledMemory:
         force = self.force(modal)
         if keep is not None:
             force *= keep
-        kernels.sum_of_squares(coef, features, force, y, out)
+        sum_of_squares(coef, features, force, y, out)
         return out
 
     def force(self, modal: tuple[Values, ModalState], out: np.ndarray | None = None) -> np.ndarray:
@@ -101,5 +104,5 @@ class SampledMemory:
             if self.gain is not None:
                 rho = np.ascontiguousarray(np.broadcast_to(self.gain.corner(v) / self.kin.omega[None, :], state.xi.shape), dtype=float)
             assert shift is not None
-            kernels.velocity_sign_chain(sgn, shift, rho, *self.motion, self.phase, self.x0, self.theta_lo, self.theta_hi, self.n_top, *self.cells, out)
+            velocity_sign_chain(sgn, shift, rho, *self.motion, self.phase, self.x0, self.theta_lo, self.theta_hi, self.n_top, *self.cells, out)
         return out

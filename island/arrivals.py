@@ -34,7 +34,7 @@ from collections.abc import Callable, Collection
 
 import numpy as np
 
-from island.protocol import Migrants, migrants_of
+from island.island_messages import Migrants, migrants_of
 from island.sealing import Envelope, KeyLookup, Known, ReplayGuard, check_replay, envelope, open_envelope
 from island.wire import MAX_MEMBERS, MessageRejected
 

@@ -1,5 +1,5 @@
 """Islands as threads of one process, exchanging migrants in memory: :class:`MemoryBus` and each island's
-:class:`MemoryTransport` (an :class:`island.node.Transport`), in lock step at every epoch so that a single-node
+:class:`MemoryTransport` (an :class:`island.transport.Transport`), in lock step at every epoch so that a single-node
 campaign is reproducible (over Zenoh: :mod:`island.transports`)."""
 
 from __future__ import annotations

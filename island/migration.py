@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from hysid_model.errors import HysidInputError
-from island.protocol import MAX_MIGRANTS
+from island.island_messages import MAX_MIGRANTS
 
 MAX_INTERVAL = 10**9
 TOPOLOGIES = ("ring", "full", "random")

@@ -46,7 +46,7 @@ evaluate -> tell) and uses its hooks:
   then waits (bounded) until the coordinator confirms it has committed every
   history row, serving the rows it asks for again (e.g. after a restart).
 
-A :class:`Transport` carries the bytes (:mod:`island.transports`: over
+A :class:`island.transport.Transport` carries the bytes (:mod:`island.transports`: over
 Zenoh, any number of islands per process, or in memory, islands as threads of
 one process).
 """
@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Protocol
 
 import numpy as np
 
@@ -64,30 +63,24 @@ from hysid_model.thesis_port import ThesisObjective
 from island.algorithms import make_optimizer, switch_algorithm
 from island.arrivals import Arrivals
 from island.config import CampaignConfig
+from island.coordinator_messages import Best, decode_best
 from island.handover import await_handover
+from island.island_messages import STAT_NAMES, History, Migrants, encode_history, encode_migrants
 from island.memetic import IMPROVED, Island, starting_points
 from island.migration import in_neighbours
 from island.population import PopulationOptimizer
-from island.protocol import (
-    STAT_NAMES,
-    Best,
-    History,
-    Migrants,
-    decode_best,
-    encode_history,
-    encode_migrants,
-)
 from island.run import HistoryRow, run
 from island.sealing import Counter, Credentials
 from island.share import handover_iteration
 from island.space import SpaceObjective
+from island.transport import Transport
 from island.turns import Turns
 from island.wire import MessageRejected, check_name
 
 START_TIMEOUT_S = 60.0
 """Longest wait for ``min_islands`` members before an island starts anyway."""
 HISTORY_CHUNK = 20_000
-"""History rows per message (well under :data:`island.protocol.MAX_ROWS`)."""
+"""History rows per message (well under :data:`island.island_messages.MAX_ROWS`)."""
 HISTORY_EVERY_S = 0.25
 """How often an island sends its history rows by default."""
 HISTORY_MESSAGES_PER_S = 1000.0
@@ -105,51 +98,6 @@ def history_period(every_s: float, members: int) -> float:
     :data:`HISTORY_EVERY_S`, long enough for them to send that many (at most :data:`HISTORY_PERIOD_MAX_S`)."""
     scaled = members / HISTORY_MESSAGES_PER_S
     return every_s if scaled <= HISTORY_EVERY_S else max(every_s, min(scaled, HISTORY_PERIOD_MAX_S))
-
-
-class Transport(Protocol):
-    """How an island's messages travel (bytes in, bytes out)."""
-
-    credentials: Credentials
-    """The island run's identity: issued when it joined."""
-
-    @property
-    def arrivals(self) -> Arrivals | None:
-        """The migrant messages this island takes from, if the transport shares them between the islands of a
-        process (None: the island keeps its own)."""
-
-    silent_s: float | None
-    """A ring member that sent no migrants for this long is skipped (None: every member sends at every epoch)."""
-
-    def exchange(self, epoch: int, payload: bytes) -> list[tuple[str, bytes]]:
-        """Publish this island's migrants; return ``(sender, message)`` pairs the node should still
-        :meth:`IslandNode.receive` (a transport may hand them over as they arrive instead)."""
-
-    def publish_history(self, payload: bytes) -> None: ...
-
-    def members(self) -> list[str]:
-        """Islands currently alive in the campaign, in the order they joined."""
-
-    def key_for(self, island: str, run: str) -> bytes | None:
-        """The public key of a member's run (None: the roster does not list it)."""
-
-    def stop_requested(self) -> bool:
-        """The coordinator ordered the stop, or (Zenoh) it has been silent for longer than the island waits."""
-
-    def global_best(self) -> list[bytes]:
-        """Answers to the question for the coordinator's current best (asked once, when the island starts)."""
-
-    def stop_reason(self) -> str:
-        """Why :meth:`stop_requested` holds."""
-
-    def wait_for_members(self, n: int, timeout_s: float) -> None:
-        """Return once ``n`` islands have joined (or after ``timeout_s``, or on a stop order)."""
-
-    def confirm(self, iteration: int) -> bool:
-        """Wait (bounded) until the coordinator has committed this run's rows up to ``iteration``."""
-
-    def assigned_algo(self) -> str | None:
-        """The algorithm the coordinator tells this run to run (None: it has not said)."""
 
 
 class IslandNode:

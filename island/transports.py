@@ -6,7 +6,7 @@ speaks too), on a :class:`ZenohHost` that the islands of one process share (one
 session, migrants and the roster checked once for all of them); it joins with
 :func:`island.joining.join`. Every answer and every roster is checked against the
 coordinator's key in the campaign secret (:mod:`island.secret`): a stranger that
-answers first changes nothing. It is the :class:`island.node.Transport` of an
+answers first changes nothing. It is the :class:`island.transport.Transport` of an
 :class:`island.node.IslandNode` over Zenoh.
 """
 
@@ -21,9 +21,9 @@ import numpy as np
 import zenoh
 
 from island.arrivals import Arrivals
+from island.coordinator_messages import Control, MemberState, decode_control, decode_history_query
 from island.joining import join, key_prefix, replies
 from island.node import IslandNode
-from island.protocol import Control, MemberState, decode_control, decode_history_query
 from island.secret import CampaignSecret
 from island.wire import MessageRejected
 

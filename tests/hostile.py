@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import msgpack
 import numpy as np
 
+from island.coordinator_messages import encode_control
 from island.handshake import JoinRequest, encode_join, encode_prove
-from island.protocol import encode_control
 from island.sealing import Credentials, new_key, public_key, seal
 from island.wire import MAX_BYTES, PROTOCOL_VERSION, pack_array
 
@@ -303,8 +303,9 @@ class RogueCoordinator:
     def __init__(self, session, campaign: str, config: bytes, best_x: np.ndarray, every_s: float = 0.2) -> None:
         import threading
 
+        from island.coordinator_messages import Best, Control, encode_best
         from island.handshake import decode_join_step, encode_challenge, encode_joined
-        from island.protocol import Best, Control, encode_best, encode_signed_config
+        from island.protocol import encode_signed_config
 
         self.session, self.campaign, self.key = session, campaign, new_key()
         self.answered: dict[str, int] = {}

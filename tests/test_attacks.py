@@ -25,7 +25,7 @@ from hostile import RogueCoordinator, join_flood
 from hysid.cli.campaign import resumed_from
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config, encode_config
-from island.protocol import History, Migrants, encode_history, encode_migrants
+from island.island_messages import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials
 from island.session import open_session, session_config
 from support import PSO_ISLANDS, Peer, events, query, ready, rows_of, secret_file, secret_of, wait_for

@@ -20,9 +20,10 @@ from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
+from island.coordinator_messages import decode_control
 from island.handshake import JoinRequest, decode_challenge, decode_joined, encode_join, encode_prove
+from island.island_messages import History, Migrants, encode_history, encode_migrants
 from island.migration import Migration
-from island.protocol import History, Migrants, decode_control, encode_history, encode_migrants
 from island.sealing import Credentials, new_key, public_key
 from island.termination import Termination
 

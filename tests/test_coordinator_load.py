@@ -18,7 +18,7 @@ import pytest
 import coordinator.intake
 from coordinator.inbox import URGENT_RUN, Inbox
 from coordinator.loop import COMMIT_EVERY_S, COMMIT_ROWS, pump, serve
-from island.protocol import Migrants, encode_migrants
+from island.island_messages import Migrants, encode_migrants
 from island.termination import Termination
 from test_coordinator import history, link, make, truth  # noqa: F401  (link: the fixture)
 

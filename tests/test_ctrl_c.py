@@ -19,7 +19,7 @@ import hysid
 from coordinator.interrupt import CtrlC
 from coordinator.loop import LEFT_AT_ONCE
 from hysid.campaigns import CampaignResult
-from hysid.fitting import FitResult
+from hysid.fit_result import FitResult
 from hysid_model.synth import synth_loops
 from support import GA_SMALL, Lines, interruptible, query, wait_for
 from support import hysid as hysid_argv

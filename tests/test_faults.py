@@ -23,9 +23,9 @@ from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid_model.synth import TRUE_PARAMS
 from island.config import decode_config
+from island.island_messages import History, Migrants, encode_history, encode_migrants
 from island.joining import fetch_config
 from island.node import IslandNode
-from island.protocol import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials, envelope, seal
 from island.session import open_session, session_config
 from island.transports import ZenohTransport

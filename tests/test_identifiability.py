@@ -11,7 +11,7 @@ import pytest
 
 import hysid
 from hysid.bench import coverage
-from hysid.fitting import parameter_covariance
+from hysid.fit_result import parameter_covariance
 from hysid.identifiability import side_width
 from support import ROOT
 

@@ -29,8 +29,8 @@ from coordinator.histories import HistoryChecks
 from coordinator.launch import free_port
 from hysid_model.errors import HysidInputError
 from island.config import decode_config
+from island.island_messages import History, encode_history
 from island.joining import fetch_config, join
-from island.protocol import History, encode_history
 from island.secret import SECRET_ENV, CampaignSecret, member_path, secret_path
 from island.session import open_session, session_config
 from support import hysid, interruptible, query, rows_of, wait_for

@@ -23,9 +23,9 @@ from coordinator.state import resume
 from coordinator.store import Store
 from hysid_model.errors import HysidInputError, HysidWarning
 from island.handshake import JoinRequest, decode_joined
+from island.island_messages import History, encode_history
 from island.joining import join
 from island.node import IslandNode
-from island.protocol import History, encode_history
 from island.sealing import new_key, public_key
 from island.secret import CampaignSecret
 from island.session import open_session, session_config

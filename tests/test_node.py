@@ -16,27 +16,16 @@ from coordinator.launch import free_port
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
+from island.coordinator_messages import Best, Control, HistoryQuery, MemberState, encode_best, encode_control, encode_history_query
 from island.ga import GA
 from island.handshake import JoinRequest, decode_join_step, encode_challenge, encode_joined, proof_holds
+from island.island_messages import Migrants, decode_history, decode_migrants, encode_migrants
 from island.joining import fetch_config
 from island.memetic import Island
 from island.memory import MemoryBus
 from island.migration import Migration
 from island.node import HISTORY_MESSAGES_PER_S, HISTORY_PERIOD_MAX_S, IslandNode, history_period
-from island.protocol import (
-    Best,
-    Control,
-    HistoryQuery,
-    MemberState,
-    Migrants,
-    decode_history,
-    decode_migrants,
-    encode_best,
-    encode_control,
-    encode_history_query,
-    encode_migrants,
-    encode_signed_config,
-)
+from island.protocol import encode_signed_config
 from island.pso import PSO
 from island.sealing import Credentials, new_key, public_key
 from island.secret import CampaignSecret

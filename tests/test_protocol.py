@@ -1,4 +1,4 @@
-"""Campaign messages: round trips, strict rejection of bad input, tags and replays (island/protocol.py, sealing.py, wire.py)."""
+"""Campaign messages: round trips, strict rejection of bad input, tags and replays (island/protocol.py, island_messages.py, coordinator_messages.py, sealing.py, wire.py)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,18 @@ import pytest
 from hysid_model.errors import HysidInputError
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config, encode_config
+from island.coordinator_messages import (
+    Best,
+    Control,
+    HistoryQuery,
+    MemberState,
+    decode_best,
+    decode_control,
+    decode_history_query,
+    encode_best,
+    encode_control,
+    encode_history_query,
+)
 from island.handshake import (
     JoinRequest,
     Proof,
@@ -24,27 +36,9 @@ from island.handshake import (
     encode_prove,
     proof_holds,
 )
+from island.island_messages import History, Migrants, decode_history, decode_migrants, encode_history, encode_migrants
 from island.migration import Migration, in_neighbours
-from island.protocol import (
-    Best,
-    Control,
-    History,
-    HistoryQuery,
-    MemberState,
-    Migrants,
-    decode_best,
-    decode_control,
-    decode_history,
-    decode_history_query,
-    decode_migrants,
-    decode_signed_config,
-    encode_best,
-    encode_control,
-    encode_history,
-    encode_history_query,
-    encode_migrants,
-    encode_signed_config,
-)
+from island.protocol import decode_signed_config, encode_signed_config
 from island.sealing import Credentials, ReplayGuard, check_replay, new_key, public_key, seal
 from island.secret import CampaignSecret
 from island.wire import MAX_BYTES, PROTOCOL_VERSION, MessageRejected, pack_array

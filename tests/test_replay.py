@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from coordinator.loop import pump
+from island.island_messages import History, Migrants, encode_history, encode_migrants
 from island.node import IslandNode
-from island.protocol import History, Migrants, encode_history, encode_migrants
 from island.sealing import ReplayGuard
 from island.session import open_session, session_config
 from island.transports import ZenohTransport

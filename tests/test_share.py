@@ -18,11 +18,12 @@ from hysid_model.errors import HysidInputError
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.algorithms import ALGORITHMS, ROLES, make_optimizer, switch_algorithm
 from island.config import CampaignConfig
+from island.coordinator_messages import decode_control
 from island.ga import GA
+from island.island_messages import History, decode_history, encode_history
 from island.memory import MemoryBus
 from island.migration import Migration
 from island.node import IslandNode
-from island.protocol import History, decode_control, decode_history, encode_history
 from island.pso import PSO
 from island.share import LEADING, WINDOW, Share, Staged, check_share
 from island.termination import Termination

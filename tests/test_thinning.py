@@ -20,8 +20,8 @@ from coordinator.thinning import HistoryPolicy, water_level
 from hysid.campaigns import CampaignResult
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig
+from island.island_messages import History, Migrants, encode_history, encode_migrants
 from island.migration import Migration
-from island.protocol import History, Migrants, encode_history, encode_migrants
 
 LOOPS = synth_loops(n_points=30)
 STATS = {"sent": 0, "received": 0, "taken": 0, "rejected": 0}

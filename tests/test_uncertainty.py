@@ -1,4 +1,4 @@
-"""Standard errors (hysid_model/uncertainty.py, their use in hysid/fitting.py) against independent values: the spread
+"""Standard errors (hysid_model/uncertainty.py, their use in hysid/fit_result.py) against independent values: the spread
 of the estimates over noise draws, and the noise that was put in."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hysid.fitting import noise_unit, parameter_covariance
+from hysid.fit_result import noise_unit, parameter_covariance
 from hysid_model.loops import LoopSet
 from hysid_model.problem import build_objective
 from hysid_model.synth import TRUE_PARAMS, synth_loops
@@ -26,7 +26,7 @@ def noisy(base: LoopSet, sigma: np.ndarray, rng: np.random.Generator, known: boo
 
 def estimates(base: LoopSet, sigma: np.ndarray, draws: int, known: bool) -> tuple[np.ndarray, list[np.ndarray], list[float], np.ndarray]:
     """Per noise draw, the thesis-weighted least-squares estimate (polished from the truth), the fit's covariance
-    (:func:`hysid.fitting.parameter_covariance`) and its noise unit there; and the truth."""
+    (:func:`hysid.fit_result.parameter_covariance`) and its noise unit there; and the truth."""
     truth = build_objective(base, "thesis", weights="thesis").model.from_dict(TRUE_PARAMS)
     rng = np.random.default_rng(7)
     thetas, covs, units = [], [], []

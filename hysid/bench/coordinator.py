@@ -40,8 +40,8 @@ import numpy as np
 from coordinator.links import MemoryLink
 from coordinator.loop import pump, serve
 from hysid.bench.processes import commits, coordinator, flood, host, listening
+from island.island_messages import History, encode_history
 from island.node import HISTORY_EVERY_S, history_period
-from island.protocol import History, encode_history
 from island.termination import Termination
 
 ISLANDS = 32

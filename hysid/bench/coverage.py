@@ -21,7 +21,7 @@ Every seed is new raw records (:func:`hysid_model.synth.simulate_raw`, force
 noise 1 % of the peak, 6 cycles) extracted as real data are; the
 displacement reading chosen as ``fit`` chooses it; the least-squares polish
 from the truth (the optimum a search finds, cheaply) and the result built
-as ``fit`` builds it (:meth:`hysid.fitting.FitResult.from_runs`: the error rule
+as ``fit`` builds it (:meth:`hysid.fit_result.FitResult.from_runs`: the error rule
 of :mod:`hysid.identifiability`). Over the seeds, for every reported parameter
 and derived quantity (the combinations k and c; xi, fn, k, c, m at each
 amplitude; k_eff, xi_eq and the energy per cycle at each amplitude and
@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from hysid.bench import search_problems as sp
-from hysid.fitting import FitResult
+from hysid.fit_result import FitResult
 from hysid.motion import choose_motion
 from hysid.report import jsondoc
 from hysid_model.effective import EFFECTIVE, device_model, effective_values, sine_loops
@@ -148,7 +148,7 @@ def fitted(specimen: Specimen, loops: LoopSet, seed: int) -> FitResult:
 
 def polished(loops: LoopSet, model: Model | str, start: dict[str, float], seed: int = 0) -> FitResult:
     """``model`` polished on ``loops`` from the values ``start`` (the displacement read as ``fit`` reads it), reported
-    as ``fit`` reports a fit (:meth:`hysid.fitting.FitResult.from_runs`)."""
+    as ``fit`` reports a fit (:meth:`hysid.fit_result.FitResult.from_runs`)."""
     began = time.perf_counter()
     motion = choose_motion(loops, model, "auto")
     objective = build_objective(loops, model, displacement=motion.displacement)

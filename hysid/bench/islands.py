@@ -30,7 +30,7 @@ Each part is a ratio (or a rate) measured in one run on the Synth set (section 5
   islands (``pygmo.pso`` with constriction and velocity memory, ring topology,
   multiprocessing islands, migration after every 5 generations), same
   objective, same number of islands, population and evaluation budget: time
-  to target and final parameter error. pygmo is an optional, bench-only
+  to target and final parameter error (:mod:`hysid.bench.pygmo_islands`). pygmo is an optional, bench-only
   dependency (``pip install pygmo``); without it this part says so;
 * **latency**: migrant messages through a Zenoh router on loopback (two
   client sessions, as two islands): messages and migrants per second, and the
@@ -50,21 +50,16 @@ from __future__ import annotations
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from coordinator.launch import island_specs, run_campaign
-from coordinator.state import Coordinator
-from coordinator.store import Store
+from hysid.bench.island_campaigns import campaign, time_to
 from hysid.bench.latency import latency
+from hysid.bench.pygmo_islands import versus_pygmo
 from hysid.bench.rates import NON_INFERIORITY_MARGIN, ended_lower, paired, wilson
 from hysid_model.errors import HysidInputError
-from hysid_model.problem import build_objective
-from hysid_model.synth import TRUE_PARAMS, synth_loops
-from island.config import CampaignConfig
 from island.migration import Migration
 from island.termination import Termination
 
@@ -80,56 +75,6 @@ MIXES = {
 """The campaigns of the mixed part, as (algorithms, share): GA islands only, PSO islands only, and half
 and half with each share (``mixed``: the default one, staged)."""
 MIX_LABELS = {"mixed": "GA+PSO staged", "mixed_adaptive": "GA+PSO adaptive", "mixed_fixed": "GA+PSO fixed", "ga": "GA only", "pso": "PSO only"}
-
-
-def campaign(
-    workdir: Path,
-    name: str,
-    algo: str | list[str],
-    islands: int,
-    options: dict[str, Any],
-    migration: Migration,
-    rules: Termination,
-    seed: int,
-    *,
-    model: str = "thesis",
-    objective_kind: str = "closed_form",
-    single_node: bool = False,
-    start: bool = True,
-    share: str = "fixed",
-) -> Coordinator:
-    """One campaign on the noiseless Synth set (islands as processes over Zenoh, or threads) of one
-    algorithm or a mix (island i runs ``algo[i % len(algo)]``, each with ``options``); without
-    ``iterations`` in ``options`` the islands search until the coordinator stops; ``start=False`` leaves the
-    survey's linear estimate out of the islands' populations (a search from scratch); ``share`` is the
-    mix's :mod:`island.share` policy. Returns its finished coordinator."""
-    loops = synth_loops()
-    algos = [algo] if isinstance(algo, str) else list(algo)
-    config = CampaignConfig.create(
-        loops,
-        name=name,
-        model=model,
-        algos=algos,
-        options={a: options for a in algos},
-        migration=migration,
-        seed=seed,
-        min_islands=islands,
-        objective_kind=objective_kind,
-        until_stopped="iterations" not in options,
-        share=share,
-    )
-    if not start:
-        config = replace(config, start=None)
-    coordinator = Coordinator(Store(workdir / f"{name}.sqlite"), config, loops, rules)
-    run_campaign(coordinator, island_specs(islands, algos, seed * 100), single_node=single_node, polish=False)
-    coordinator.store.close()
-    return coordinator
-
-
-def time_to(coordinator: Coordinator, target: float) -> float | None:
-    """Seconds from the islands' start to the global best reaching ``target`` (None if it never did)."""
-    assert coordinator.full_at is not None
-    return next((t - coordinator.full_at for t, f, _, _ in coordinator.best_trace if f <= target), None)
 
 
 SPEEDUP_OBJECTIVES = {
@@ -325,83 +270,6 @@ def mixed(seeds: int = MIXED_SEEDS, islands: int = 4, population: int = 20) -> d
         "moves": moves,
         "mean_evaluations_at_stop": {k: float(np.mean(v)) for k, v in spent.items()},
         "ok": versus["mixed"]["difference95"][0] >= -NON_INFERIORITY_MARGIN,
-    }
-
-
-def parameter_error(x: np.ndarray, names: list[str]) -> float:
-    """Largest relative error of a parameter vector against Table 5.3."""
-    truth = np.array([TRUE_PARAMS[n] for n in names])
-    return float(np.max(np.abs(np.asarray(x) - truth) / np.abs(truth)))
-
-
-def pygmo_archipelago(islands: int, population: int, generations: int, budget: int, target: float, seed: int) -> dict[str, Any]:
-    import pygmo as pg
-
-    objective = build_objective(synth_loops())
-
-    class Problem:
-        """The hysid objective as a pygmo user-defined problem."""
-
-        def __init__(self) -> None:
-            self.bounds = objective.bounds
-
-        def fitness(self, x: np.ndarray) -> list[float]:
-            return [float(objective(np.asarray(x)[None, :])[0])]
-
-        def get_bounds(self) -> tuple[list[float], list[float]]:
-            return list(self.bounds[:, 0]), list(self.bounds[:, 1])
-
-    pg.mp_island.init_pool(islands)  # worker processes started before the clock, as hysid's islands are
-    archi = pg.archipelago(n=islands, t=pg.ring(), algo=pg.pso(gen=generations, memory=True), prob=Problem(), pop_size=population, seed=seed)
-    start, reached = time.monotonic(), None
-    while True:
-        archi.evolve()
-        archi.wait_check()
-        best = float(np.min([f[0] for f in archi.get_champions_f()]))
-        fevals = sum(isl.get_population().problem.get_fevals() for isl in archi)
-        if reached is None and best <= target:
-            reached = time.monotonic() - start
-        if fevals >= budget:
-            break
-    champion = archi.get_champions_x()[int(np.argmin([f[0] for f in archi.get_champions_f()]))]
-    return {"time_to_target_s": reached, "final_fitness": best, "evaluations": int(fevals), "parameter_error": parameter_error(champion, objective.model.names)}
-
-
-def versus_pygmo(seeds: int = 3, islands: int = 4, population: int = 20, budget: int = 60_000, target: float = 1e-8) -> dict[str, Any]:
-    """Part (c): hysid PSO islands over Zenoh vs a pygmo archipelago of PSO islands."""
-    try:
-        import pygmo  # noqa: F401
-    except ImportError as exc:
-        return {"skipped": f"pygmo is not installed ({exc}); it is an optional bench-only dependency: pip install pygmo"}
-    out: dict[str, list[dict[str, Any]]] = {"hysid": [], "pygmo": []}
-    names = build_objective(synth_loops()).model.names
-    with tempfile.TemporaryDirectory(prefix="hysid-bench-") as tmp:
-        for seed in range(seeds):
-            options = {"population": population, "initial_population": population, "iterations": 100_000}
-            c = campaign(Path(tmp), f"vs-pygmo-{seed}", "pso", islands, options, Migration(interval=5, k=2), Termination(budget=budget), seed)
-            _, f, evaluations, x = [entry for entry in c.best_trace if entry[2] <= budget][-1]  # the best within the budget
-            out["hysid"].append(
-                {"time_to_target_s": time_to(c, target), "final_fitness": f, "evaluations": evaluations, "parameter_error": parameter_error(x, names)}
-            )
-            out["pygmo"].append(pygmo_archipelago(islands, population, 5, budget, target, seed))
-    summary: dict[str, dict[str, Any]] = {}
-    for k, runs in out.items():
-        times = [r["time_to_target_s"] for r in runs]
-        summary[k] = {
-            "reached_target": sum(t is not None for t in times),
-            "median_time_to_target_s": float(np.median([t for t in times if t is not None])) if any(t is not None for t in times) else None,
-            "median_parameter_error": float(np.median([r["parameter_error"] for r in runs])),
-        }
-    both = summary["hysid"]["median_time_to_target_s"], summary["pygmo"]["median_time_to_target_s"]
-    return {
-        "islands": islands,
-        "population": population,
-        "budget_evaluations": budget,
-        "target_fitness": target,
-        "seeds": seeds,
-        "runs": out,
-        "summary": summary,
-        "time_ratio_pygmo_over_hysid": both[1] / both[0] if None not in both else None,
     }
 
 

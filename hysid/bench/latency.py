@@ -16,7 +16,7 @@ from coordinator.launch import free_port
 from hysid_model.problem import build_objective
 from hysid_model.synth import synth_loops
 from island.ga import GA
-from island.protocol import Migrants, decode_migrants, encode_migrants
+from island.island_messages import Migrants, decode_migrants, encode_migrants
 from island.run import run as run_optimizer
 from island.sealing import Credentials
 from island.session import open_session, session_config

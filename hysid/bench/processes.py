@@ -39,10 +39,10 @@ from coordinator.store import Store
 from hysid.bench.relay import when_ready
 from hysid_model.synth import synth_loops
 from island.config import CampaignConfig, decode_config
+from island.island_messages import Migrants, encode_migrants
 from island.joining import fetch_config, join
 from island.migration import Migration
 from island.node import IslandNode
-from island.protocol import Migrants, encode_migrants
 from island.secret import CampaignSecret, secret_path
 from island.session import open_session, session_config
 from island.termination import Termination

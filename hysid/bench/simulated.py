@@ -29,9 +29,9 @@ import zenoh
 
 from hysid_model.synth import synth_loops
 from island.config import decode_config
+from island.island_messages import STAT_NAMES, History, Migrants, encode_history, encode_migrants
 from island.joining import fetch_config, join, key_prefix
 from island.node import HISTORY_EVERY_S, history_period
-from island.protocol import STAT_NAMES, History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials
 from island.secret import CampaignSecret
 from island.session import open_session, session_config

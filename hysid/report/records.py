@@ -1,6 +1,6 @@
 """What a result hands its writers: small typed records of what it estimated, defined below both.
 
-A result (:class:`hysid.fitting.FitResult`, :class:`hysid.diagnosis.result.Diagnosis`) builds the record; the
+A result (:class:`hysid.fit_result.FitResult`, :class:`hysid.diagnosis.result.Diagnosis`) builds the record; the
 writers of :mod:`hysid.report` take it (or the result's JSON document, ``to_dict()``) and never import the
 result, as pymoo's and lmfit's results hand their reports what they print.
 """
@@ -48,7 +48,7 @@ class Estimates:
 @dataclass(frozen=True)
 class FitRecord:
     """What a fit's writers read (its summary, Markdown report and notebook view): built by
-    :meth:`hysid.fitting.FitResult.record`, a campaign's by its fit's."""
+    :meth:`hysid.fit_result.FitResult.record`, a campaign's by its fit's."""
 
     loops: LoopSet
     estimates: Estimates

@@ -236,7 +236,7 @@ def travels(kin: Kinematics, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def travel_runs(travel: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The samples ``(L, N)`` as runs for :func:`hysid_model.kernels.bouc_wen_samples`: ``runs`` ``(R, 5)``
+    """The samples ``(L, N)`` as runs for :func:`hysid_model.bouc_wen_kernels.bouc_wen_samples`: ``runs`` ``(R, 5)``
     (loop, first sample, stride, count, sign), each run's uniform travel ``step`` (NaN if it is not on one),
     ``spread`` (twice its largest offset from the grid) and every sample's ``deviation`` from its run's grid.
 
@@ -271,8 +271,8 @@ def travel_runs(travel: np.ndarray, sign: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 class BoucWenSampler:
-    """:meth:`BoucWen.time_force` at fixed phases through the compiled kernels of :mod:`hysid_model.kernels`
-    (n = 1) and :mod:`hysid_model.bouc_wen_tables` (any other n).
+    """:meth:`BoucWen.time_force` at fixed phases through the compiled kernels of :mod:`hysid_model.bouc_wen_kernels`
+    and :mod:`hysid_model.shifted_kernels` (n = 1) and :mod:`hysid_model.bouc_wen_tables` (any other n).
 
     What depends only on the loops is prepared once: each sample's travel since
     the last reversal, the samples of each branch by increasing travel and the
@@ -282,9 +282,10 @@ class BoucWenSampler:
     """
 
     def __init__(self, kin: Kinematics, phase: np.ndarray) -> None:
-        from hysid_model import kernels
+        from hysid_model import bouc_wen_kernels, shifted_kernels
 
-        self.kernels = kernels
+        self.kernels = bouc_wen_kernels
+        self.shifted = shifted_kernels
         self.kin = kin
         self.phase = np.ascontiguousarray(np.broadcast_to(phase, (kin.x0.size, phase.shape[-1])), dtype=float)
         x_min, x_max = kin.extremes
@@ -354,7 +355,7 @@ class BoucWenSampler:
 
     def _motion_tables(self) -> tuple[np.ndarray, np.ndarray]:
         if self._motion is None:
-            self._motion = self.kernels.motion_tables(self.kin.harmonics, self.phase)
+            self._motion = self.shifted.motion_tables(self.kin.harmonics, self.phase)
         return self._motion
 
     def _add_one(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
@@ -362,7 +363,7 @@ class BoucWenSampler:
         if shift is None:
             self.kernels.bouc_wen_samples((z_max, run, self.which, a, b, k, mean), *self._samples(), out)
             return
-        self.kernels.bouc_wen_shifted(
+        self.shifted.bouc_wen_shifted(
             (z_max, run, self.which, a, b, k, mean), np.ascontiguousarray(shift, dtype=float), *self._motion_tables(), self.x_min, self.x_max, out
         )
 

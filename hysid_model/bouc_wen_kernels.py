@@ -1,15 +1,16 @@
-"""Compiled kernels (numba) for forces evaluated sample by sample: memory terms and the measurement chain.
+"""Compiled kernels (numba) of the Bouc-Wen orbit for n = 1 (Eq. 2.1b) at a loop set's fixed samples: its peak
+state, its force and its cycle mean.
 
-The numpy forms (:meth:`hysid_model.terms.Term.time_force`,
-:meth:`hysid_model.model.Model.memory_force`) evaluate a population as arrays
-of shape ``(P, L, N)``, every branch of a piecewise formula computed
-everywhere, with temporaries per step. These kernels walk candidates x loops x
-samples once, compute only the branch taken and add into one output array;
-:mod:`hysid_model.sampled` calls them. The numpy forms stay as the reference
-the tests compare them with.
+The numpy form (:meth:`hysid_model.terms.Term.time_force` of :class:`hysid_model.effects.bouc_wen.BoucWen`)
+evaluates a population as arrays of shape ``(P, L, N)``, every branch of a piecewise formula computed everywhere,
+with temporaries per step. These kernels walk candidates x loops x samples once, compute only the branch taken and
+add into one output array; :class:`hysid_model.effects.bouc_wen.BoucWenSampler` calls them (at phases shifted by a
+channel delay: :mod:`hysid_model.shifted_kernels`; any other n: :mod:`hysid_model.bouc_wen_tables`). The numpy
+form stays as the reference the tests compare them with.
 
-The kernels compile on first use and are cached on disk (``cache=True``), so a
-new process (an island, a command) loads them instead of compiling.
+The kernels compile on first use and are cached on disk (``cache=True``), so a new process (an island, a
+command) loads them instead of compiling. numba invalidates a cached kernel when its own file changes, not when a
+function it calls from another file does: the helpers a kernel inlines live in its own file.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ import math
 import numpy as np
 from numba import njit
 
-TWO_PI = 2.0 * math.pi
 NEWTON_STEPS = 60
 """At most this many safeguarded Newton steps for the orbit's peak state (it converges in about 5)."""
 EXACT_GRID = 1e-13
@@ -78,19 +78,6 @@ def bouc_wen_orbit(span: np.ndarray, a: np.ndarray, b: np.ndarray, z_max: np.nda
             zm = -math.expm1(u) / bp
             z_max[p, i] = zm
             run[p, i] = zm if ap == 0.0 else math.log1p(ap * zm) / ap
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _state(t: float, z_max: float, run: float, a: float, b: float) -> float:
-    """z on the loading branch after travel ``t`` from the reversal (Eq. 2.1b, n = 1): climbing from
-    -z_max under dz/dx = 1 - a z up to ``run``, then relaxing under 1 - b z
-    (:func:`hysid_model.effects.bouc_wen._loading`)."""
-    if t < run:
-        if a == 0.0:
-            return t - z_max
-        e = math.expm1(-a * t)
-        return -z_max * (1.0 + e) - e / a
-    return -math.expm1(-b * (t - run)) / b
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -250,15 +237,6 @@ def bouc_wen_samples(
             )
 
 
-@njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _square_sum(residual: np.ndarray) -> float:
-    """sum of residual^2 (``fastmath``: in vector lanes, a few ulps from the sequential sum)."""
-    total = 0.0
-    for n in range(residual.shape[0]):
-        total += residual[n] * residual[n]
-    return total
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _exp_sum(travel: np.ndarray, l: int, first: int, last: int, origin: float, c: float) -> float:
     """sum_j expm1(-c (travel[l, j] - origin)) over j = first..last-1 (travel increasing).
@@ -297,7 +275,7 @@ def bouc_wen_mean(
     """out[p, l] = mean of z over the nodes of loop l (a uniform phase grid: the cycle mean).
 
     ``travel`` ``(L, M)`` holds the loading nodes' travels (the first ``split[l]``), then the
-    unloading ones', each increasing; z = +-z(travel) (:func:`_state`), summed piece by piece."""
+    unloading ones', each increasing; z = +-z(travel) (:func:`hysid_model.shifted_kernels._state`), summed piece by piece."""
     nodes = travel.shape[1]
     for p in range(a.shape[0]):
         ap, bp = a[p], b[p]
@@ -323,175 +301,3 @@ def bouc_wen_mean(
                 part -= _exp_sum(travel, l, lo, last, rn, bp) / bp
                 total += part if g == 0 else -part
             out[p, l] = total / nodes
-
-
-def motion_tables(xh: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The displacement harmonics ``xh`` ``(L, K)`` as (Re, Im) ``(2, L, K)`` and (cos k theta, sin k theta)
-    ``(2, L, N, K)`` at ``phase`` ``(L, N)``: what :func:`_motion` evaluates x(theta - shift) from."""
-    k = np.arange(1, xh.shape[1] + 1)
-    angle = phase[..., None] * k
-    return np.ascontiguousarray(np.stack([xh.real, xh.imag]), dtype=float), np.ascontiguousarray(np.stack([np.cos(angle), np.sin(angle)]))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _rotate(xh: np.ndarray, l: int, shift: float, out: np.ndarray) -> None:
-    """out[0, k], out[1, k] = Re, Im of X_k e^{-ik shift}: the harmonics of x(theta - shift) (``xh`` = (Re, Im) ``(2, L, K)``)."""
-    for i in range(xh.shape[2]):
-        c, s = math.cos((i + 1) * shift), math.sin((i + 1) * shift)
-        out[0, i] = xh[0, l, i] * c + xh[1, l, i] * s
-        out[1, i] = xh[1, l, i] * c - xh[0, l, i] * s
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _motion(waves: np.ndarray, l: int, n: int, xs: np.ndarray) -> tuple[float, float]:
-    """x and dx/dtheta at sample n of loop l from harmonics ``xs`` (:func:`_rotate`) and ``waves``
-    = (cos k theta_n, sin k theta_n) ``(2, L, N, K)``: x = sum_k Re[X_k e^{ik theta}] (real arithmetic:
-    numba's complex product checks for infinities and is ~20 times slower)."""
-    x = 0.0
-    v = 0.0
-    for i in range(xs.shape[1]):
-        c, s = waves[0, l, n, i], waves[1, l, n, i]
-        x += xs[0, i] * c - xs[1, i] * s
-        v -= (i + 1) * (xs[0, i] * s + xs[1, i] * c)
-    return x, v
-
-
-@njit(cache=True, nogil=True)
-def bouc_wen_shifted(
-    orbit: Orbit,
-    shift: np.ndarray,
-    xh: np.ndarray,
-    waves: np.ndarray,
-    x_min: np.ndarray,
-    x_max: np.ndarray,
-    out: np.ndarray,
-) -> None:
-    """out[p, l, n] += k_p (z(theta_n - shift[p, l]) - mean[p, l]): the orbit at phases shifted per candidate
-    (a channel delay). The displacement ``xh`` (Re, Im) ``(2, L, K)`` is evaluated at the shifted phase from
-    ``waves`` (:func:`_motion`); its velocity's sign there is the branch."""
-    z_max, run, which, a, b, k, mean = orbit
-    xs = np.empty((2, xh.shape[2]))
-    for p in range(a.shape[0]):
-        for l in range(waves.shape[1]):
-            _rotate(xh, l, shift[p, l], xs)
-            zm, rn, mn, kp = z_max[p, which[l]], run[p, which[l]], mean[p, l], k[p]
-            for n in range(waves.shape[2]):
-                x, v = _motion(waves, l, n, xs)
-                if v >= 0.0:
-                    z = _state(x - x_min[l], zm, rn, a[p], b[p])
-                else:
-                    z = -_state(x_max[l] - x, zm, rn, a[p], b[p])
-                out[p, l, n] += kp * (z - mn)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _past_jump(offset: float, before: float, after: float) -> float:
-    """:func:`hysid_model.waveform.past_jump` for one sample (``offset`` strictly inside its cell)."""
-    peak = -0.5 * before if after <= 0.0 else (0.5 * after if before <= 0.0 else 0.0)
-    width = 0.5 * (before + after)
-    if offset >= peak:
-        return (after - offset) ** 2 / (2.0 * (after - peak)) / width
-    return 1.0 - (offset + before) ** 2 / (2.0 * (peak + before)) / width
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _jump_in_cell(reversal: float, shift: float, theta: float, before: float, after: float, jump: float, past: bool) -> float:
-    """What averaging the jump ``jump`` at ``reversal`` + ``shift`` over the cell of the sample at ``theta``
-    adds to its point value (which is past the jump if ``past``): 0 unless the jump is inside the cell."""
-    offset = (reversal + shift - theta + math.pi) % TWO_PI - math.pi
-    if offset <= -before or offset >= after:
-        return 0.0
-    return jump * (_past_jump(offset, before, after) - (1.0 if past else 0.0))
-
-
-@njit(cache=True, nogil=True)
-def velocity_sign_chain(
-    amplitude: np.ndarray,
-    shift: np.ndarray,
-    rho: np.ndarray,
-    xh: np.ndarray,
-    waves: np.ndarray,
-    phase: np.ndarray,
-    x0: np.ndarray,
-    theta_lo: np.ndarray,
-    theta_hi: np.ndarray,
-    n_top: int,
-    before: np.ndarray,
-    after: np.ndarray,
-    out: np.ndarray,
-) -> None:
-    """out[p, l, n] += amplitude[p, l] y(theta_n - shift[p, l]): sgn(x') delayed by ``shift`` and, where
-    ``rho[p, l]`` = w_c / w > 0, through the single-pole high-pass G = s / (s + w_c) (Eq. 4.1-4.2).
-
-    sgn(x') is +1 from the reversal theta_lo to theta_hi (a phase T1) and -1 for the rest of the
-    cycle (T2). The high-pass's periodic response to it is exact: it jumps by +-2 at the
-    reversals and decays as exp(-rho (theta - reversal)) in between, from
-    A = 2 (1 - E2) / (1 - E1 E2) after the jump up and -B = -2 (1 - E1) / (1 - E1 E2) after the
-    jump down, E_i = exp(-rho T_i). Where the velocity at the shifted phase vanishes
-    (|x'| < 1e-9 X0: the sample is at a reversal) the branch is the sample's own, loading for the
-    first ``n_top`` samples, as :meth:`hysid_model.model.Model.memory_force` decides. A jump of +-2 that
-    the shift moves into a sample's cell (``before`` and ``after`` it, ``(L, N)``:
-    :func:`hysid_model.waveform.sample_cells`) is averaged over the cell (:func:`_jump_in_cell`), as the
-    reference does.
-    """
-    xs = np.empty((2, xh.shape[2]))
-    for p in range(amplitude.shape[0]):
-        for l in range(waves.shape[1]):
-            _rotate(xh, l, shift[p, l], xs)
-            t1 = theta_hi[l] - theta_lo[l]
-            t2 = TWO_PI - t1
-            rh, f = rho[p, l], amplitude[p, l]
-            if -math.expm1(-rh * TWO_PI) <= 0.0:  # a cut-off so low that no decay over the cycle is representable: none
-                rh = 0.0
-            up = down = 1.0
-            if rh > 0.0:
-                whole = -math.expm1(-rh * TWO_PI)  # 1 - E1 E2, exact where rho is tiny
-                up, down = 2.0 * -math.expm1(-rh * t2) / whole, 2.0 * -math.expm1(-rh * t1) / whole
-            for n in range(waves.shape[2]):
-                _, v = _motion(waves, l, n, xs)
-                tie = abs(v) < 1e-9 * x0[l]
-                loading = (n < n_top) if tie else v > 0.0
-                theta, b, a = phase[l, n], before[l, n], after[l, n]
-                cell = _jump_in_cell(theta_lo[l], shift[p, l], theta, b, a, 2.0, loading)
-                cell += _jump_in_cell(theta_hi[l], shift[p, l], theta, b, a, -2.0, not loading)
-                out[p, l, n] += f * cell
-                if rh <= 0.0:
-                    out[p, l, n] += f if loading else -f
-                    continue
-                phi = (phase[l, n] - shift[p, l] - theta_lo[l]) % TWO_PI
-                if tie:  # at a reversal: the side of the jump is the branch's
-                    near_lo = min(phi, TWO_PI - phi) < abs(phi - t1)
-                    if loading:
-                        elapsed = 0.0 if near_lo else t1
-                    else:
-                        elapsed = t2 if near_lo else 0.0
-                elif loading:
-                    elapsed = phi if phi <= t1 else phi - TWO_PI
-                else:
-                    elapsed = phi - t1 if phi >= t1 else phi - t1 + TWO_PI
-                if loading:
-                    out[p, l, n] += f * up * math.exp(-rh * elapsed)
-                else:
-                    out[p, l, n] -= f * down * math.exp(-rh * elapsed)
-
-
-@njit(cache=True, nogil=True, fastmath=True)
-def sum_of_squares(coef: np.ndarray, features: np.ndarray, memory: np.ndarray, y: np.ndarray, out: np.ndarray) -> None:
-    """out[p, l] = sum_n (sum_m coef[p, l, m] features[l, m, n] + memory[p, l, n] - y[l, n])^2.
-
-    ``features`` is feature-major ``(L, M, N)`` so that each pass over the samples is one
-    contiguous vector loop (``fastmath`` lets the final sum run in vector lanes: its rounding
-    differs from a sequential sum by a few ulps; a non-finite force still sums to a non-finite value).
-    """
-    n_pop, n_loops, n_features = coef.shape
-    n_samples = y.shape[1]
-    residual = np.empty(n_samples)
-    for l in range(n_loops):  # loop-major: the loop's features and data stay in cache across candidates
-        for p in range(n_pop):
-            for n in range(n_samples):
-                residual[n] = memory[p, l, n] - y[l, n]
-            for m in range(n_features):
-                a = coef[p, l, m]
-                for n in range(n_samples):
-                    residual[n] += a * features[l, m, n]
-            out[p, l] = _square_sum(residual)
