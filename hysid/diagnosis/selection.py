@@ -49,13 +49,13 @@ import numpy as np
 
 from hysid.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
-from hysid.diagnosis.contest import with_discovery
+from hysid.diagnosis.contest import stacked, with_discovery
 from hysid.diagnosis.fitting import Fit, final_identifiability, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
 from hysid.diagnosis.naming import adequacy, residual_signature
 from hysid.diagnosis.plausible import implausible_effect
 from hysid.diagnosis.pruning import prune
-from hysid.diagnosis.refits import joint_contender, refit
+from hysid.diagnosis.refits import joint_contender, refit, weight
 from hysid.diagnosis.result import Diagnosis, Step
 from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
 from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT, Report, Tally
@@ -64,7 +64,7 @@ from hysid_model import notices
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
-from hysid_model.model import build_model, effect_term
+from hysid_model.model import build_model
 from hysid_model.presets import PRESETS
 from hysid_model.problem import dataset_bounds, displaced
 from hysid_model.terms import Term, TermGroup
@@ -95,11 +95,6 @@ def search_work(max_steps: int, cross_validate: bool) -> float:
     and the round that finds nothing more, the pruning (:mod:`.pruning`), and the gap after the start and after each step."""
     rounds = min(EXPECTED_STEPS, max_steps) + 1
     return 1 + rounds * round_work(cross_validate) + 1 + rounds
-
-
-def weight(fit: Fit, effects: tuple[str, ...]) -> float:
-    """The work of a fit of ``fit``'s model plus ``effects``: :data:`MEMORY_FIT_WEIGHT` where its force has memory."""
-    return MEMORY_FIT_WEIGHT if fit.model.has_memory or any(effect_term(e).memory for e in effects) else 1.0
 
 
 def threshold(candidates: list[Candidate]) -> float:
@@ -205,7 +200,7 @@ def diagnose(
         else:
             motion.reason += f"; read the other way the diagnosis ends {other.final.bic - result.final.bic:.4g} higher in BIC"
     result.motion = motion
-    if discover and result.status != "adequate":
+    if discover and (result.status != "adequate" or stacked(result)):
         result = with_discovery(result, cross_validate, tally)
     tally.finish(f"diagnosis done: {result.final.spec}, {result.status}")
     return result
