@@ -17,9 +17,13 @@ import hysid
 from hysid.bench import discovery_cases as cases
 from hysid.bench import search_problems as sp
 from hysid.diagnosis.acceptance import judge, own_shape
+from hysid.diagnosis.contest import choose, library_shape
+from hysid.diagnosis.discovery import propose
 from hysid.diagnosis.fitting import Fit, initial_fit, soft_bounds
 from hysid.diagnosis.refits import refit
 from hysid.diagnosis.scoring import score_candidates
+from hysid.diagnosis.selection import diagnose
+from hysid.diagnosis.tally import Tally
 from hysid_model.datasets import write_dataset
 from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
@@ -46,9 +50,14 @@ def with_effect(loops: LoopSet, effect: str) -> tuple[Fit, Fit, Harmonics]:
     """The baseline fitted to ``loops`` and refitted with ``effect`` as a diagnosis refits a contender."""
     harmonics = Harmonics.from_loops(loops)
     start = initial_fit(harmonics, "baseline")
-    bounds = soft_bounds(start.model)
-    (candidate,) = score_candidates(start, harmonics, bounds, (effect,))
-    return start, refit(start, harmonics, (candidate,), bounds), harmonics
+    return start, added(start, harmonics, effect), harmonics
+
+
+def added(fit: Fit, harmonics: Harmonics, effect: str) -> Fit:
+    """``fit`` refitted with ``effect`` as a diagnosis refits a contender."""
+    bounds = soft_bounds(fit.model)
+    (candidate,) = score_candidates(fit, harmonics, bounds, (effect,))
+    return refit(fit, harmonics, (candidate,), bounds)
 
 
 def test_a_cubic_spring_standing_in_for_a_gap_is_refused_for_its_shape() -> None:
@@ -69,3 +78,30 @@ def test_a_library_effect_at_work_has_its_own_shape_and_is_taken(effects: tuple[
     assert own_shape(start, after) is None
     assert judge(start, after, (effect,), harmonics) is None
     assert after.chi2 < 0.6 * start.chi2 and np.isfinite(after.bic)
+
+
+def test_a_law_replaces_library_effects_at_the_noise_only_with_fewer_parameters_and_a_better_bic() -> None:
+    """Where the library ends adequate by stacking effects, a law proposed from the start model replaces them only
+    with fewer parameters than they have and a BIC lower by the margin (the gap's dead zone has two)."""
+    start, cubic, harmonics = with_effect(cases.loops_of("gap", NOISE_PCT, 0), "cubic_stiffness")
+    two = added(cubic, harmonics, "amplitude_dependent_frequency")
+    three = added(two, harmonics, "hysteretic_damping")
+    law, why = propose(start, harmonics, soft_bounds(start.model), False, Tally())
+    assert law is not None and law.law.n_params == 2, why
+    assert law.fit.bic < two.bic - 10.0
+    kept, verdicts = choose([law], start, two, adequate=True)
+    assert kept is None and "fewer parameters (2 against 2)" in verdicts[start.spec], verdicts
+    kept, verdicts = choose([law], start, three, adequate=True)
+    assert kept is law and verdicts[start.spec].endswith(": kept")
+
+
+@pytest.mark.slow
+def test_a_sign_law_where_coulomb_friction_would_do_is_coulomb_frictions_own_shape() -> None:
+    """On the Coulomb friction control, the law discovery finds from the start model is the friction's sgn v: it never
+    replaces coulomb_friction, which alone explains the loops as well."""
+    result = diagnose(cases.loops_of("coulomb_friction", NOISE_PCT, 1), cross_validate=False, discover=False)
+    assert [s.effect for s in result.steps] == ["coulomb_friction"], result
+    law, why = propose(result.start, result.harmonics, soft_bounds(result.start.model), False, Tally())
+    assert law is not None, why
+    shape = library_shape(law, result, Tally())
+    assert shape is not None and shape.startswith("it is coulomb_friction's own shape"), (law.notation, law.fit.bic - result.final.bic)
