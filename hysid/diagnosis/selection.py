@@ -174,8 +174,8 @@ def diagnose(
     ``displacement``: ``auto`` (the data decide whether the displacement's harmonics are the motion or the
     sensor's, :mod:`hysid.motion`), ``measured``, ``fundamental`` or ``sine``, as :func:`hysid.fit`;
     ``cross_validate`` adds the leave-one-frequency-out gap of every step and judges every effect by it
-    (a refit per frequency). ``discover``: where the diagnosis ends unexplained, propose the missing force from
-    the data (:mod:`hysid.diagnosis.discovery`, :func:`hysid.diagnosis.contest.with_discovery`). ``progress(done, total, what)`` is called after every fit: ``done`` of ``total``
+    (a refit per frequency). ``discover``: where the diagnosis ends unexplained, or adequate only by stacked effects
+    (:func:`hysid.diagnosis.contest.stacked`), propose the missing force from the data (:mod:`hysid.diagnosis.discovery`, :func:`hysid.diagnosis.contest.with_discovery`). ``progress(done, total, what)`` is called after every fit: ``done`` of ``total``
     fits, an estimate from the start revised as the diagnosis learns how many effects it names, whose share
     done never falls and is 1 only at the end (:mod:`hysid.diagnosis.tally`). It does not change the result.
     """
