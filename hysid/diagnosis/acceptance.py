@@ -54,15 +54,17 @@ from hysid_model.harmonics import Harmonics
 from hysid_model.model import effect_term
 from hysid_model.uncertainty import jacobian_covariance
 
-OWN_SHAPE = 0.002
+OWN_SHAPE = 0.003
 """Rule 9: the most a loop-by-loop strength may add to what an effect removes at one strength (less the L - 1 the
 noise adds), as a share of it. Library effects at work: at most 8e-4 before that correction (Coulomb friction, a
 cubic spring, a loss factor, Bouc-Wen, Bouc-Wen with Coulomb friction, a cubic spring with a loss factor, a Spencer
-MR damper; six or nine loops, 1 % noise; a weak channel delay's is not significant); effects standing in for a
-law of ``hysid bench discovery`` the library lacks: 3e-3 to 0.7 (a cubic spring for a dead zone, a one-sided stop
+MR damper; six or nine loops, 1 % noise; a weak channel delay's is not significant), 1.5e-3 for Bouc-Wen on the
+real friction damper (data/arts-friction-damper: no library effect is its exact shape, Bouc-Wen its best); effects
+standing in for a law of ``hysid bench discovery`` the library lacks: 4e-3 to 0.7 (a cubic spring for a dead zone
 or x^5, Coulomb friction or Bouc-Wen for |v|^0.35, Coulomb friction for Stribeck friction, an amplitude-dependent
-damping, a loss factor, a Zener relaxation or a channel delay for v|v|, |v|^0.35 or tanh), 1e-3 for an
-amplitude-dependent frequency after the cubic spring for a dead zone."""
+damping, a loss factor, a Zener relaxation or a channel delay for v|v|, |v|^0.35 or tanh), but 3e-3 for a cubic
+spring standing in for a one-sided stop and 1e-3 for an amplitude-dependent frequency after it for a dead zone
+(these leave the residual unexplained: discovery runs and sets them aside, :mod:`.contest`)."""
 VISIBLE_Z = 3.0
 """Standard deviations (of what the force noise alone would make of it) a rise of the loop NRMSE or the energy
 error must exceed to count: two models equally far from the truth differ in both by their noise only."""
