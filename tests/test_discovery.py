@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 from hysid.bench.discovery_cases import LAWS, loops_of, truth_model
+from hysid.diagnosis.contest import choose
 from hysid.diagnosis.discovery import Proposed, propose, simple_value
 from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
-from hysid.diagnosis.selection import choose, diagnose
+from hysid.diagnosis.selection import diagnose
 from hysid.diagnosis.tally import Tally
 from hysid_model.discovery.features import library
 from hysid_model.discovery.frols import frols

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hysid.identifiability import PROFILED, profile
+from hysid.identifiability import PROFILED, Identifiability, assess, profile
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import MAX_WIDENINGS, Model, spec_of
 from hysid_model.problem import prepare_model, starting_point
@@ -160,3 +160,11 @@ def profile_errors(fit: Fit) -> Fit:
         if found.width > 0:
             fit.profiled[name] = float(found.width)
     return fit
+
+
+def final_identifiability(fit: Fit, harmonics: Harmonics) -> Identifiability:
+    """The final fit's standard errors and what the harmonics cannot determine, by the rule of :mod:`hysid.identifiability`
+    (as ``fit``'s): the full covariance scaled up by chi^2 / dof where the model misses the noise floor, the profile where
+    the curvature cannot be trusted."""
+    unit = max(1.0, fit.whitened_rms**2)
+    return assess(fit.objective, fit.theta, unit * jacobian_covariance(fit.jacobian), lambda model: HarmonicObjective(harmonics, model), unit)

@@ -40,6 +40,7 @@ import numpy as np
 from hysid.criteria import BIC_MARGIN
 from hysid.diagnosis.fitting import Fit, fit_objective, make_model
 from hysid.diagnosis.scoring import Candidate
+from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import Model, effect_term
 from island.memetic import memetic_search, needs_islands
@@ -125,3 +126,8 @@ def best_of(objective: HarmonicObjective, start: str, effects: tuple[str, ...], 
     if search:
         starts.insert(0, memetic_search(objective, starts, seed=0, budget=SEARCH_BUDGET).theta)
     return fit_objective(objective, start, effects, starts)
+
+
+def weight(fit: Fit, effects: tuple[str, ...]) -> float:
+    """The work of a fit of ``fit``'s model plus ``effects``: :data:`MEMORY_FIT_WEIGHT` where its force has memory."""
+    return MEMORY_FIT_WEIGHT if fit.model.has_memory or any(effect_term(e).memory for e in effects) else 1.0

@@ -49,27 +49,25 @@ import numpy as np
 
 from hysid.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
-from hysid.diagnosis.discovery import Proposed, propose
-from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
+from hysid.diagnosis.contest import stacked, with_discovery
+from hysid.diagnosis.fitting import Fit, final_identifiability, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
-from hysid.diagnosis.naming import adequacy, loops_linear, residual_signature
+from hysid.diagnosis.naming import adequacy, residual_signature
 from hysid.diagnosis.plausible import implausible_effect
 from hysid.diagnosis.pruning import prune
-from hysid.diagnosis.refits import joint_contender, refit
+from hysid.diagnosis.refits import joint_contender, refit, weight
 from hysid.diagnosis.result import Diagnosis, Step
 from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
 from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT, Report, Tally
-from hysid.identifiability import Identifiability, assess
 from hysid.motion import WORDS, MotionChoice, choose_motion, confirm_motion
 from hysid_model import notices
 from hysid_model.errors import HysidInputError
-from hysid_model.harmonics import HarmonicObjective, Harmonics
+from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
-from hysid_model.model import build_model, effect_term
+from hysid_model.model import build_model
 from hysid_model.presets import PRESETS
 from hysid_model.problem import dataset_bounds, displaced
 from hysid_model.terms import Term, TermGroup
-from hysid_model.uncertainty import jacobian_covariance
 
 TRIALS = 4
 """Contenders refitted per round (plus those parallel to the best)."""
@@ -97,11 +95,6 @@ def search_work(max_steps: int, cross_validate: bool) -> float:
     and the round that finds nothing more, the pruning (:mod:`.pruning`), and the gap after the start and after each step."""
     rounds = min(EXPECTED_STEPS, max_steps) + 1
     return 1 + rounds * round_work(cross_validate) + 1 + rounds
-
-
-def weight(fit: Fit, effects: tuple[str, ...]) -> float:
-    """The work of a fit of ``fit``'s model plus ``effects``: :data:`MEMORY_FIT_WEIGHT` where its force has memory."""
-    return MEMORY_FIT_WEIGHT if fit.model.has_memory or any(effect_term(e).memory for e in effects) else 1.0
 
 
 def threshold(candidates: list[Candidate]) -> float:
@@ -181,8 +174,8 @@ def diagnose(
     ``displacement``: ``auto`` (the data decide whether the displacement's harmonics are the motion or the
     sensor's, :mod:`hysid.motion`), ``measured``, ``fundamental`` or ``sine``, as :func:`hysid.fit`;
     ``cross_validate`` adds the leave-one-frequency-out gap of every step and judges every effect by it
-    (a refit per frequency). ``discover``: where the diagnosis ends unexplained, propose the missing force from
-    the data (:mod:`hysid.diagnosis.discovery`, :func:`with_discovery`). ``progress(done, total, what)`` is called after every fit: ``done`` of ``total``
+    (a refit per frequency). ``discover``: where the diagnosis ends unexplained, or adequate only by stacked effects
+    (:func:`hysid.diagnosis.contest.stacked`), propose the missing force from the data (:mod:`hysid.diagnosis.discovery`, :func:`hysid.diagnosis.contest.with_discovery`). ``progress(done, total, what)`` is called after every fit: ``done`` of ``total``
     fits, an estimate from the start revised as the diagnosis learns how many effects it names, whose share
     done never falls and is 1 only at the end (:mod:`hysid.diagnosis.tally`). It does not change the result.
     """
@@ -207,96 +200,10 @@ def diagnose(
         else:
             motion.reason += f"; read the other way the diagnosis ends {other.final.bic - result.final.bic:.4g} higher in BIC"
     result.motion = motion
-    if discover and result.status != "adequate":
+    if discover and (result.status != "adequate" or stacked(result)):
         result = with_discovery(result, cross_validate, tally)
     tally.finish(f"diagnosis done: {result.final.spec}, {result.status}")
     return result
-
-
-def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Diagnosis:
-    """``result`` (unexplained) with a force proposed from the data where one is taken (:func:`hysid.diagnosis.discovery.propose`).
-
-    Proposals are sought from the start model and from the final library model. Of those taken by the
-    acceptance rules, the one with the lowest BIC is kept, but the one added to the start model wherever it
-    is within ``BIC_MARGIN`` of it and of the final library model: the library effects named on the way are
-    then set aside, since one proposed law explains the loops as well as they do together (no library
-    effect is kept as a substitute for a law the library lacks). The gap table gains the model with the
-    proposed term. Where every loop on its own is linear within the noise (:func:`hysid.diagnosis.naming.loops_linear`),
-    no force of x and v is sought: the loops show none."""
-    harmonics = result.harmonics
-    if loops_linear(harmonics):
-        return replace(
-            result,
-            discovery={
-                result.final.spec: (
-                    f"each loop on its own is linear within the noise (linear per loop {result.references.linear_per_loop:.4g}, and coefficient "
-                    "by coefficient): what the model misses is how its stiffness, damping or mass change from loop to loop, not a force "
-                    "of x and v; nothing proposed"
-                )
-            },
-        )
-    bases = [result.start] + ([result.final] if result.final is not result.start else [])
-    tally.expect(len(bases) * (2 + int(cross_validate)) + 1)
-    tried, found = {}, []
-    for base in bases:
-        proposal, why = propose(base, harmonics, soft_bounds(base.model), cross_validate, tally)
-        tried[base.spec] = why
-        if proposal is not None:
-            found.append(proposal)
-    best, verdicts = choose(found, result.start, result.final)
-    tried.update(verdicts)
-    if best is None:
-        tally.expect(-1)
-        return replace(result, discovery=tried)
-    steps, pruned, gaps, set_aside = result.steps, result.pruned, list(result.gap), {}
-    if best.base is result.start and result.steps:
-        set_aside = {
-            s.effect: f"the proposed {best.name} alone explains the loops as well (BIC {best.fit.bic - result.final.bic:+.1f} against {result.final.spec})"
-            for s in result.steps
-        }
-        steps, pruned, gaps = [], {}, gaps[:1]
-    fit = best.fit
-    check = adequacy(fit, harmonics)
-    gaps.append(gap_metrics(fit, harmonics, cross_validate))
-    tally.done(f"gap after the proposed {best.name}")
-    return replace(
-        result,
-        steps=steps,
-        pruned=pruned,
-        final=fit,
-        status="adequate" if check.adequate else "unexplained",
-        unexplained=None if check.adequate else residual_signature(fit, harmonics),
-        gap=gaps,
-        identifiability=final_identifiability(fit, harmonics),
-        proposed=[best],
-        set_aside=set_aside,
-        discovery=tried,
-    )
-
-
-def choose(found: list[Proposed], start: Fit, final: Fit) -> tuple[Proposed | None, dict[str, str]]:
-    """Of the proposals ``found`` (each taken by the acceptance rules), the one kept (:func:`with_discovery`: the lowest
-    BIC, but the one added to ``start`` wherever it is within ``BIC_MARGIN`` of it and of the library's ``final``),
-    and what came of each, by the spec of the model it was added to: kept, or not kept and why."""
-    best = min(found, key=lambda p: p.fit.bic, default=None)
-    alone = next((p for p in found if p.base is start), None)
-    if alone is not None and best is not None and alone.fit.bic < min(best.fit.bic, final.bic) + BIC_MARGIN:
-        best = alone
-    elif best is alone:
-        best = None  # added to the start model, it explains less than the library's effects
-    verdicts = {}
-    for p in found:
-        said = f"{p.notation} added to {p.base.spec} passes the acceptance rules"
-        if p is best:
-            verdicts[p.base.spec] = f"{said}: kept"
-        elif best is None:
-            verdicts[p.base.spec] = f"{said} but is not kept: {final.spec} explains the loops better (BIC {final.bic - p.fit.bic:+.1f})"
-        else:
-            verdicts[p.base.spec] = (
-                f"{said} but is not kept: {best.name} added to {best.base.spec} explains the loops as well or "
-                f"better (BIC {best.fit.bic - p.fit.bic:+.1f})" + (" with fewer effects" if best is alone else "")
-            )
-    return best, verdicts
 
 
 def other_reading(motion: MotionChoice) -> MotionChoice | None:
@@ -452,11 +359,3 @@ def pair_steps(
         Step(effect=first, confusable_with=confusable, score=scores[first], before=fit, after=refits[(first,)], rejected=reasons, joint_with=second),
         Step(effect=second, confusable_with=[], score=scores[second], before=refits[(first,)], after=refits[pair], rejected={}, joint_with=first),
     ]
-
-
-def final_identifiability(fit: Fit, harmonics: Harmonics) -> Identifiability:
-    """The final fit's standard errors and what the harmonics cannot determine, by the rule of :mod:`hysid.identifiability`
-    (as ``fit``'s): the full covariance scaled up by chi^2 / dof where the model misses the noise floor, the profile where
-    the curvature cannot be trusted."""
-    unit = max(1.0, fit.whitened_rms**2)
-    return assess(fit.objective, fit.theta, unit * jacobian_covariance(fit.jacobian), lambda model: HarmonicObjective(harmonics, model), unit)

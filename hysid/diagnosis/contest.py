@@ -1,0 +1,181 @@
+"""Discovery's place in a diagnosis: where a force is proposed from the data, and which proposal is kept.
+
+Discovery (:func:`hysid.diagnosis.discovery.propose`) runs where the library search (:mod:`.selection`)
+ends unexplained, from the start model and from the final library model; and where it ends adequate only by
+stacking effects (:func:`stacked`: two or more, or a sensor effect), from the start model, so that one law
+the library lacks can compete with the library effects that stand in for it together. Of the proposals the
+acceptance rules take (:mod:`.acceptance`), :func:`choose` keeps one, or none:
+
+* where the library search ended unexplained, the one with the lowest BIC, but the one added to the start
+  model wherever it is within ``BIC_MARGIN`` of it and of the final library model (one law explains the
+  loops as well as the library effects together: they are set aside);
+* where it ended adequate by stacking, the one added to the start model only where it has fewer parameters
+  than the effects stacked and a BIC lower than theirs by ``BIC_MARGIN``: the library's model is at the
+  noise already, and a law replaces its names only where the data prefer it;
+* never a law that is a library effect's own shape (:func:`library_shape`): where one library effect of the
+  final model, refitted alone on the start model, explains the loops within ``BIC_MARGIN`` of the law added
+  there (or better), the law is that effect (a fitted sgn v where Coulomb friction would do), and the
+  library's name stands.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from hysid.criteria import BIC_MARGIN
+from hysid.diagnosis.discovery import Proposed, propose
+from hysid.diagnosis.fitting import Fit, final_identifiability, profile_errors, soft_bounds
+from hysid.diagnosis.metrics import gap_metrics
+from hysid.diagnosis.naming import adequacy, loops_linear, residual_signature
+from hysid.diagnosis.refits import refit, weight
+from hysid.diagnosis.result import Diagnosis
+from hysid.diagnosis.scoring import score_candidates
+from hysid.diagnosis.tally import Tally
+from hysid_model.model import effect_term
+from hysid_model.terms import MeasurementTerm
+
+
+def stacked(result: Diagnosis) -> bool:
+    """Whether ``result``'s final library model holds two effects or more, or a sensor effect (a
+    :class:`hysid_model.terms.MeasurementTerm`): where it is adequate, discovery still competes with them."""
+    effects = result.final.effects
+    return len(effects) > 1 or any(isinstance(effect_term(e), MeasurementTerm) for e in effects)
+
+
+def added_parameters(fit: Fit, start: Fit) -> int:
+    """The parameters ``fit`` searches beyond the ``start`` model's."""
+    return fit.model.dim - start.model.dim
+
+
+def alone(result: Diagnosis, effect: str, tally: Tally) -> Fit:
+    """The start model of ``result`` with its library ``effect`` alone: the first step's refit where that named
+    it (a pair's first member is refitted alone there too), else refitted here from the start's scores."""
+    first = result.steps[0] if result.steps else None
+    if first is not None and first.effect == effect and first.before is result.start:
+        return first.after
+    start, harmonics = result.start, result.harmonics
+    bounds = soft_bounds(start.model)
+    tally.expect(work := weight(start, (effect,)))
+    (candidate,) = score_candidates(start, harmonics, bounds, (effect,))
+    fit = profile_errors(refit(start, harmonics, (candidate,), bounds))
+    tally.done(f"discovery: {effect} refitted alone on {start.spec}", work)
+    return fit
+
+
+def library_shape(proposal: Proposed, result: Diagnosis, tally: Tally) -> str | None:
+    """Why ``proposal`` (added to the start model) is a library effect's own shape, or None: an effect of the
+    final library model, refitted alone on the start model (:func:`alone`), whose BIC is within ``BIC_MARGIN``
+    of the proposal's or lower."""
+    for effect in result.final.effects:
+        fit = alone(result, effect, tally)
+        if fit.bic < proposal.fit.bic + BIC_MARGIN:
+            return f"it is {effect}'s own shape: {effect} alone explains the loops as well (BIC {fit.bic - proposal.fit.bic:+.1f})"
+    return None
+
+
+def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Diagnosis:
+    """``result`` (unexplained, or adequate by :func:`stacked` effects) with a force proposed from the data where
+    one is kept (module docstring, :func:`choose`): the library effects named on the way are then set aside where
+    the law was added to the start model, and the gap table gains the model with the proposed term. Where every
+    loop on its own is linear within the noise (:func:`hysid.diagnosis.naming.loops_linear`), no force of x and v
+    is sought: the loops show none."""
+    harmonics, adequate = result.harmonics, result.status == "adequate"
+    if loops_linear(harmonics):
+        return result if adequate else replace(result, discovery={result.final.spec: linear_loops(result)})
+    start, final = result.start, result.final
+    bases = [start] + ([final] if final is not start and not adequate else [])
+    tally.expect(len(bases) * (2 + int(cross_validate)) + 1)
+    tried, found = {}, []
+    for base in bases:
+        proposal, why = propose(base, harmonics, soft_bounds(base.model), cross_validate, tally)
+        tried[base.spec] = why
+        if proposal is not None:
+            found.append(proposal)
+    best, verdicts = choose(found, start, final, adequate)
+    refused = {}
+    if best is not None and best.base is start and final.effects and (shape := library_shape(best, result, tally)) is not None:
+        refused[start.spec] = f"{passes(best)} but is not kept: {shape}"
+        found.remove(best)  # then the law added to the final library model may still be kept
+        best, verdicts = choose(found, start, final, adequate)
+    tried.update(verdicts | refused)
+    if best is None:
+        tally.expect(-1)
+        return replace(result, discovery=tried)
+    steps, pruned, gaps, set_aside = result.steps, result.pruned, list(result.gap), {}
+    if best.base is start and result.steps:
+        how = "better with fewer parameters" if adequate else "as well"
+        set_aside = {
+            s.effect: f"the proposed {best.name} alone explains the loops {how} (BIC {best.fit.bic - final.bic:+.1f} against {final.spec})"
+            for s in result.steps
+        }
+        steps, pruned, gaps = [], {}, gaps[:1]
+    fit = best.fit
+    check = adequacy(fit, harmonics)
+    gaps.append(gap_metrics(fit, harmonics, cross_validate))
+    tally.done(f"gap after the proposed {best.name}")
+    return replace(
+        result,
+        steps=steps,
+        pruned=pruned,
+        final=fit,
+        status="adequate" if check.adequate else "unexplained",
+        unexplained=None if check.adequate else residual_signature(fit, harmonics),
+        gap=gaps,
+        identifiability=final_identifiability(fit, harmonics),
+        proposed=[best],
+        set_aside=set_aside,
+        discovery=tried,
+    )
+
+
+def linear_loops(result: Diagnosis) -> str:
+    """Why nothing is proposed where every loop on its own is linear within the noise."""
+    return (
+        f"each loop on its own is linear within the noise (linear per loop {result.references.linear_per_loop:.4g}, and coefficient "
+        "by coefficient): what the model misses is how its stiffness, damping or mass change from loop to loop, not a force "
+        "of x and v; nothing proposed"
+    )
+
+
+def passes(proposal: Proposed) -> str:
+    return f"{proposal.notation} added to {proposal.base.spec} passes the acceptance rules"
+
+
+def replaces(proposal: Proposed, start: Fit, final: Fit) -> bool:
+    """Whether ``proposal`` (added to ``start``) replaces the adequate library model ``final``: fewer parameters
+    than the effects stacked there, and a BIC lower by ``BIC_MARGIN``."""
+    return added_parameters(proposal.fit, start) < added_parameters(final, start) and proposal.fit.bic < final.bic - BIC_MARGIN
+
+
+def choose(found: list[Proposed], start: Fit, final: Fit, adequate: bool = False) -> tuple[Proposed | None, dict[str, str]]:
+    """Of the proposals ``found`` (each taken by the acceptance rules), the one kept by the module docstring's
+    rules (the own-shape rule apart, :func:`library_shape`: it needs refits) where the library's ``final`` model ends
+    unexplained or, with ``adequate``, at the noise by stacked effects; and what came of each, by the spec of
+    the model it was added to: kept, or not kept and why."""
+    best = min(found, key=lambda p: p.fit.bic, default=None)
+    first = next((p for p in found if p.base is start), None)
+    if adequate:
+        best = first if first is not None and replaces(first, start, final) else None
+    elif first is not None and best is not None and first.fit.bic < min(best.fit.bic, final.bic) + BIC_MARGIN:
+        best = first
+    elif best is first:
+        best = None  # added to the start model, it explains less than the library's effects
+    verdicts = {}
+    for p in found:
+        said = passes(p)
+        if p is best:
+            verdicts[p.base.spec] = f"{said}: kept"
+        elif best is None and adequate:
+            verdicts[p.base.spec] = (
+                f"{said} but is not kept: {final.spec} is at the noise, and the law replaces it only with fewer parameters "
+                f"({added_parameters(p.fit, start)} against {added_parameters(final, start)}) and a BIC lower by {BIC_MARGIN:g} "
+                f"({p.fit.bic - final.bic:+.1f})"
+            )
+        elif best is None:
+            verdicts[p.base.spec] = f"{said} but is not kept: {final.spec} explains the loops better (BIC {final.bic - p.fit.bic:+.1f})"
+        else:
+            verdicts[p.base.spec] = (
+                f"{said} but is not kept: {best.name} added to {best.base.spec} explains the loops as well or "
+                f"better (BIC {best.fit.bic - p.fit.bic:+.1f})" + (" with fewer effects" if best is first else "")
+            )
+    return best, verdicts
