@@ -1,5 +1,5 @@
 """What a diagnosis found: :class:`Diagnosis` (the result of :func:`hysid.diagnosis.selection.diagnose`, reporting
-itself like :class:`hysid.fitting.FitResult`) and its :class:`Step` s, one per effect named."""
+itself like :class:`hysid.fit_result.FitResult`) and its :class:`Step` s, one per effect named."""
 
 from __future__ import annotations
 
