@@ -40,6 +40,7 @@ from deploy_support import (
     wait_until,
     watching,
 )
+from support import sizes
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -409,12 +410,7 @@ def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_anothe
             "3",
             "--algos",
             "pso",
-            "--population",
-            "20",
-            "--initial",
-            "40",
-            "--iterations",
-            "300",
+            *sizes(20, 40, 300),
             "--no-polish",
             "--quiet",
             "--json",
@@ -481,12 +477,7 @@ def test_another_user_finds_no_key_in_any_file_a_campaign_leaves(tmp_path: Path)
                 "campaign",
                 "--islands",
                 "2",
-                "--iterations",
-                "30",
-                "--population",
-                "10",
-                "--initial",
-                "20",
+                *sizes(10, 20, 30),
                 "--out",
                 str(out),
                 "--quiet",
