@@ -21,7 +21,7 @@ from hysid_model.errors import HysidWarning
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from support import PSO_ISLANDS, coordinator_args, events, history_iterations, hysid, interruptible, query, rows_of, secret_file, wait_for
+from support import PSO_ISLANDS, coordinator_args, events, history_iterations, hysid, query, rows_of, secret_file, wait_for
 
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
 FIT_KEYS = {"params", "stderr", "fitness", "evaluations", "history"}
@@ -109,26 +109,20 @@ def test_campaign_falls_back_to_one_process_when_zenoh_cannot_open(tmp_path):
 
 
 @pytest.mark.slow
-def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
+def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(spawn, tmp_path):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     db = tmp_path / "lj.sqlite"
-    coordinator = subprocess.Popen(
-        hysid(
-            *coordinator_args(endpoint, "lj", db, tmp_path / "out"),
-            *PSO_ISLANDS,
-            "--iterations",
-            "10000000",
-            "--interval",
-            "1000000",
-            "--time-limit",
-            "120",
-            "--json",
-            "--quiet",
-        ),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=interruptible,
+    coordinator = spawn(
+        *coordinator_args(endpoint, "lj", db, tmp_path / "out"),
+        *PSO_ISLANDS,
+        "--iterations",
+        "10000000",
+        "--interval",
+        "1000000",
+        "--time-limit",
+        "120",
+        "--json",
+        "--quiet",
     )
     secret = ["--secret-file", secret_file(db, "lj")]
     early = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet", *secret), stderr=subprocess.PIPE, text=True)
