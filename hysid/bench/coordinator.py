@@ -329,23 +329,9 @@ def _traffic(x: dict[str, Any]) -> str:
     )
 
 
-def _sustain_text(su: dict[str, Any]) -> list[str]:
-    return [
-        f"sustain: {_traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
-        f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min"
-    ]
-
-
 def _ramp_text(ra: dict[str, Any]) -> list[str]:
     steps = [f"ramp: {_traffic(x)}{' <- lags' if lags(x) else ''}" for x in ra["steps"]]
     return [*steps, f"ramp: held {ra['held_at_islands']} islands; degrades at {ra['degrades_at_islands'] or 'none of the steps'}"]
-
-
-def _backlog_text(bl: dict[str, Any]) -> list[str]:
-    return [
-        f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
-        f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)"
-    ]
 
 
 def _commits_text(co: dict[str, Any]) -> list[str]:
@@ -358,34 +344,32 @@ def _commits_text(co: dict[str, Any]) -> list[str]:
     ]
 
 
-def _flood_text(fl: dict[str, Any]) -> list[str]:
-    return [
+TEXT = {
+    "load": lambda x: [f"load: {_traffic(x)}"],
+    "sustain": lambda su: [
+        f"sustain: {_traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
+        f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min"
+    ],
+    "ramp": _ramp_text,
+    "backlog": lambda bl: [
+        f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
+        f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)"
+    ],
+    "commits": _commits_text,
+    "flood": lambda fl: [
         f"flood: an island of {fl['quiet']['iterations']} iterations ran {fl['quiet']['run_s']:.2f} s alone and "
         f"{fl['flooded']['run_s']:.2f} s under {fl['flood_messages_per_s']:,} migrant messages/s of 256 migrants each "
         f"(ratio {fl['run_time_ratio']:.2f}); CPU of its evolution thread {fl['quiet']['evolution_cpu_s']:.2f} -> "
         f"{fl['flooded']['evolution_cpu_s']:.2f} s, of the whole island process {fl['quiet']['process_cpu_s']:.2f} -> "
         f"{fl['flooded']['process_cpu_s']:.2f} s; it re-evaluated {fl['flooded']['migrants_evaluated']} migrants "
         f"(at most {fl['most_migrants_allowed']} allowed)"
-    ]
-
-
-def _host_text(ho: dict[str, Any]) -> list[str]:
-    return [
+    ],
+    "host": lambda ho: [
         f"host: {ho['islands']} islands in one process: peak RSS {ho['host_peak_rss_mb']:.0f} MB, {ho['host_rss_mb_per_island']:.1f} MB per island "
         f"(an island process: {ho['island_process_peak_rss_mb']:.0f} MB, x {ho['memory_ratio']:.0f}); CPU {ho['host_cpu_s']:.0f} s against "
         f"{ho['separate_cpu_s']:.0f} s as separate processes; the same answer in {ho['same_answers']} of {ho['islands']} islands, "
         f"the same rows in {ho['same_rows']:,} of {ho['rows_compared']:,} stored both times"
-    ]
-
-
-TEXT = {
-    "load": lambda x: [f"load: {_traffic(x)}"],
-    "sustain": _sustain_text,
-    "ramp": _ramp_text,
-    "backlog": _backlog_text,
-    "commits": _commits_text,
-    "flood": _flood_text,
-    "host": _host_text,
+    ],
 }
 """Each part's lines of the bench's text, from its part of the result."""
 
