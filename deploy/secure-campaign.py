@@ -92,25 +92,28 @@ def access_control(campaign: str, hosts: dict[str, list[str]]) -> dict:
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
 
 
+def transport(endpoint: str, certs: str, files: dict, usrpwd: dict, verify_name: bool = False) -> dict:
+    """The ``transport`` section of either side: the endpoint's protocol, the lease, mutual TLS under the campaign's CA
+    with this side's certificate and key ``files`` (the connecting side checking the name, ``verify_name``), and
+    user/password authentication ``usrpwd``."""
+    tls = {"root_ca_certificate": f"{certs}/ca.pem", **files, "enable_mtls": True}
+    if verify_name:
+        tls["verify_name_on_connect"] = True
+    tls["close_link_on_expiration"] = True
+    return {"link": {"protocols": [endpoint.split("/")[0]], "tx": LEASE, "tls": tls}, "auth": {"usrpwd": usrpwd}}
+
+
 def coordinator_config(campaign: str, listen: str, certs: str, credentials: str, hosts: dict[str, list[str]]) -> dict:
     return {
         "mode": "router",
         "listen": {"endpoints": [listen]},
         "scouting": {"multicast": {"enabled": False}},
-        "transport": {
-            "link": {
-                "protocols": [listen.split("/")[0]],
-                "tx": LEASE,
-                "tls": {
-                    "root_ca_certificate": f"{certs}/ca.pem",
-                    "listen_certificate": f"{certs}/coordinator/cert.pem",
-                    "listen_private_key": f"{certs}/coordinator/key.pem",
-                    "enable_mtls": True,
-                    "close_link_on_expiration": True,
-                },
-            },
-            "auth": {"usrpwd": {"dictionary_file": credentials}},
-        },
+        "transport": transport(
+            listen,
+            certs,
+            {"listen_certificate": f"{certs}/coordinator/cert.pem", "listen_private_key": f"{certs}/coordinator/key.pem"},
+            {"dictionary_file": credentials},
+        ),
         "access_control": access_control(campaign, hosts),
     }
 
@@ -125,21 +128,13 @@ def island_config(island: str, connect: str, certs: str, password: str) -> dict:
             "retry": {"period_init_ms": 250, "period_max_ms": 2000, "period_increase_factor": 2},
         },
         "scouting": {"multicast": {"enabled": False}},
-        "transport": {
-            "link": {
-                "protocols": [connect.split("/")[0]],
-                "tx": LEASE,
-                "tls": {
-                    "root_ca_certificate": f"{certs}/ca.pem",
-                    "connect_certificate": f"{certs}/islands/{island}/cert.pem",
-                    "connect_private_key": f"{certs}/islands/{island}/key.pem",
-                    "enable_mtls": True,
-                    "verify_name_on_connect": True,
-                    "close_link_on_expiration": True,
-                },
-            },
-            "auth": {"usrpwd": {"user": island, "password": password}},
-        },
+        "transport": transport(
+            connect,
+            certs,
+            {"connect_certificate": f"{certs}/islands/{island}/cert.pem", "connect_private_key": f"{certs}/islands/{island}/key.pem"},
+            {"user": island, "password": password},
+            verify_name=True,
+        ),
     }
 
 

@@ -87,7 +87,19 @@ def sampled_memory(model: Model, kin: Kinematics, phase: np.ndarray, n_top: int)
     return SampledMemory(model, kin, phase, n_top)
 
 
-class ModelSpace:
+class Bounded:
+    """A search space: ``bounds`` ``(dim, 2)``, the lower and upper bound of each of its ``dim`` parameters."""
+
+    @property
+    def bounds(self) -> np.ndarray:
+        raise NotImplementedError
+
+    @property
+    def dim(self) -> int:
+        return int(self.bounds.shape[0])
+
+
+class ModelSpace(Bounded):
     """An objective over a model's parameters: the search space (``bounds``, ``dim``) is the model's."""
 
     model: Model
@@ -96,10 +108,6 @@ class ModelSpace:
     def bounds(self) -> np.ndarray:
         """``(dim, 2)`` lower and upper bounds of the model's parameters."""
         return self.model.bounds
-
-    @property
-    def dim(self) -> int:
-        return self.model.dim
 
 
 class Objective(ModelSpace):

@@ -89,17 +89,15 @@ def getloopdisp_indices(hys1: np.ndarray) -> tuple[int, int, int, int]:
     starts = np.concatenate([[0], np.flatnonzero(steps[1:] != steps[:-1]) + 1])
     pos, run = nr - 1, starts.size - 1
     pos, run, _ = _walk(steps, starts, pos, run, 0.0)
-    pos, run, _ = _walk(steps, starts, pos, run, -1.0)
-    f1 = pos
-    pos, run, f1f = _walk(steps, starts, pos, run, 0.0)
-    pos, run, _ = _walk(steps, starts, pos, run, 1.0)
-    f2 = pos
-    pos, run, f2f = _walk(steps, starts, pos, run, 0.0)
-    pos, run, _ = _walk(steps, starts, pos, run, -1.0)
-    f3 = pos
-    pos, run, f3f = _walk(steps, starts, pos, run, 0.0)
-    pos, run, _ = _walk(steps, starts, pos, run, 1.0)
-    f4 = pos
+    ends, flats = [], []  # F1..F4 and F1f..F3f: after each monotone run (down, up, down, up), the repeated x at its turn
+    for k, direction in enumerate((-1.0, 1.0, -1.0, 1.0)):
+        pos, run, _ = _walk(steps, starts, pos, run, direction)
+        ends.append(pos)
+        if k < 3:
+            pos, run, flat = _walk(steps, starts, pos, run, 0.0)
+            flats.append(flat)
+    f1, f2, f3, f4 = ends
+    f1f, f2f, f3f = flats
     x_end, x_prev = x[-1], x[-2]
     f_end, f_prev = hys1[-1, 1], hys1[-2, 1]
     force_moves = f_end < f_prev or f_end > f_prev  # the MATLAB cases test F for < and > only
@@ -166,14 +164,7 @@ def erreval_points(
 
 
 def erreval(
-    hexp_t: np.ndarray,
-    hexp_b: np.ndarray,
-    p: np.ndarray,
-    ef: float,
-    xpk: float,
-    meq: float,
-    tspan: float = THESIS_TSPAN_S,
-    dt: float = THESIS_DT_S,
+    hexp_t: np.ndarray, hexp_b: np.ndarray, p: np.ndarray, ef: float, xpk: float, meq: float, tspan: float = THESIS_TSPAN_S, dt: float = THESIS_DT_S
 ) -> float:
     """``fitness = erreval(HexpT, HexpB, p, ef, Xpk, Meq, tspan)``: one loop's OLS force error.
 

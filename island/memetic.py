@@ -54,6 +54,7 @@ import numpy as np
 from hysid_model.errors import HysidInputError
 from hysid_model.kinematics import Kinematics
 from hysid_model.model import Model
+from hysid_model.objective import Bounded
 from island.algorithms import make_optimizer, switch_algorithm
 from island.polish import MEMORY_NFEV, polish
 from island.population import MAX_ITERATIONS
@@ -122,7 +123,7 @@ def starting_points(objective: Any, start: Sequence[float] | None) -> np.ndarray
     return np.clip(np.array(rows), objective.bounds[:, 0], objective.bounds[:, 1])
 
 
-class Island:
+class Island(Bounded):
     """One memetic island in the coordinates of :mod:`island.space` (module docstring): the thesis' PSO
     or GA with small populations, its best refined every :data:`REFINE_EVERY` iterations, a fresh start
     once it has stalled.
@@ -164,10 +165,6 @@ class Island:
     @property
     def bounds(self) -> np.ndarray:
         return self.objective.bounds
-
-    @property
-    def dim(self) -> int:
-        return self.objective.dim
 
     @property
     def iteration(self) -> int:

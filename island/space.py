@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from hysid_model.objective import Bounded
+
 LOG_SPAN = 100.0
 """The least ratio (upper + s) / (lower + s) of bounds searched on a log scale."""
 ZERO_SHIFT = 1e-6
@@ -75,7 +77,7 @@ class SearchSpace:
         return np.clip(theta, self.theta_bounds[:, 0], self.theta_bounds[:, 1])
 
 
-class SpaceObjective:
+class SpaceObjective(Bounded):
     """``objective`` seen in the coordinates ``u`` of :class:`SearchSpace` (module docstring).
 
     ``evaluations`` counts model evaluations as the benches do: a candidate of a
@@ -94,10 +96,6 @@ class SpaceObjective:
     @property
     def bounds(self) -> np.ndarray:
         return self.space.bounds
-
-    @property
-    def dim(self) -> int:
-        return self.space.dim
 
     def __call__(self, pop: np.ndarray) -> np.ndarray:
         pop = np.atleast_2d(np.asarray(pop, dtype=float))

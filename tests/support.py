@@ -35,6 +35,22 @@ PSO_ISLANDS = ("--algos", "pso", "--population", "20", "--initial", "40")
 """Command-line options of small PSO islands (20 particles, 40 initial candidates): the campaign tests'."""
 
 
+def sizes(population: int, initial: int, iterations: int) -> list[str]:
+    """Command-line options of islands of ``population`` members drawn from ``initial`` candidates, ``iterations`` long."""
+    return ["--population", str(population), "--initial", str(initial), "--iterations", str(iterations)]
+
+
+def time_boxed(islands: int, seconds: float) -> list[str]:
+    """Command-line options of a campaign of ``islands`` small islands (30 of 60, migrating every 5 iterations, no
+    polish) that run until the coordinator's time limit of ``seconds``, so that all are members at once."""
+    return ["--min-islands", str(islands), "--time-limit", str(seconds), *sizes(30, 60, 1_000_000), "--interval", "5", "--no-polish"]
+
+
+def coordinator_args(endpoint: str, campaign: str, db: Path, out: Path) -> list[str]:
+    """The arguments of ``hysid coordinator`` listening on ``endpoint`` for ``campaign``, its store ``db``, its report in ``out``."""
+    return ["coordinator", "--listen", endpoint, "--campaign", campaign, "--db", str(db), "--out", str(out)]
+
+
 def cell_average(u, theta: np.ndarray, before: np.ndarray, after: np.ndarray, jumps: np.ndarray) -> np.ndarray:
     """A piecewise-constant u (vectorized over phases) averaged over each sample's cell [theta - before,
     theta + after] ``(L, N)`` with its hat function (peak 1 at theta; for a sample at a reversal, a cell side

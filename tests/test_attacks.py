@@ -28,7 +28,7 @@ from island.config import decode_config, encode_config
 from island.island_messages import History, Migrants, encode_history, encode_migrants
 from island.sealing import Credentials
 from island.session import open_session, session_config
-from support import PSO_ISLANDS, Peer, events, query, ready, rows_of, secret_file, secret_of, wait_for
+from support import PSO_ISLANDS, Peer, coordinator_args, events, query, ready, rows_of, secret_file, secret_of, wait_for
 from test_faults import BOUNDS, TRUTH, coordinator, finished, interrupted, island
 
 pytestmark = pytest.mark.slow  # processes, floods and waits of seconds
@@ -102,15 +102,7 @@ def test_a_token_held_by_a_stranger_neither_keeps_a_campaign_open_nor_hides_a_lo
     is silent, the other leaves with its final history, and the campaign ends as if nobody held them."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "t.sqlite"
     coord = spawn(
-        "coordinator",
-        "--listen",
-        endpoint,
-        "--campaign",
-        "held",
-        "--db",
-        str(db),
-        "--out",
-        str(tmp_path / "out"),
+        *coordinator_args(endpoint, "held", db, tmp_path / "out"),
         "--json",
         *PSO_ISLANDS,
         "--iterations",
@@ -357,15 +349,7 @@ def test_a_junk_flood_around_the_end_does_not_keep_the_coordinator_alive(spawn, 
     the coordinator reports and exits while the flood goes on."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "f.sqlite"
     coord = spawn(
-        "coordinator",
-        "--listen",
-        endpoint,
-        "--campaign",
-        "junk",
-        "--db",
-        str(db),
-        "--out",
-        str(tmp_path / "out"),
+        *coordinator_args(endpoint, "junk", db, tmp_path / "out"),
         "--json",
         *PSO_ISLANDS,
         "--iterations",

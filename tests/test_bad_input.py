@@ -46,6 +46,12 @@ def error_of(spec, **kwargs) -> str:
     return message
 
 
+def spoiled(d: Path, name: str, text: str) -> str:
+    """The one-line error of loading the dataset ``d`` once its file ``name`` holds ``text``."""
+    (d / name).write_text(text)
+    return error_of(d)
+
+
 def cli_error(args: list[str], capsys) -> str:
     assert main(args) == 2
     err = capsys.readouterr().err
@@ -111,30 +117,27 @@ def test_listed_file_missing(tmp_path):
 
 def test_empty_files(tmp_path):
     d = dataset(tmp_path)
-    (d / "run.csv").write_text("")
-    assert "run.csv: the file is empty" in error_of(d)
-    (d / "run.csv").write_text(HEADER + "\n")
-    assert "run.csv: the header is there but there are no data rows" in error_of(d)
-    (d / "manifest.csv").write_text("")
-    assert "manifest.csv: the file is empty" in error_of(d)
+    assert "run.csv: the file is empty" in spoiled(d, "run.csv", "")
+    assert "run.csv: the header is there but there are no data rows" in spoiled(d, "run.csv", HEADER + "\n")
+    assert "manifest.csv: the file is empty" in spoiled(d, "manifest.csv", "")
 
 
 def test_manifest_without_header_or_with_duplicates(tmp_path):
     d = dataset(tmp_path, manifest=f"run.csv,{FREQ}\n")
     assert "manifest.csv: the first line must be the header 'file,frequency_hz' (found 'run.csv,10.0')" in error_of(d)
-    (d / "manifest.csv").write_text(f"file,frequency_hz\nrun.csv,{FREQ}\nrun.csv,{FREQ}\n")
-    assert "manifest.csv: line 3: 'run.csv' is listed twice (also on line 2)" in error_of(d)
-    (d / "manifest.csv").write_text("file,frequency_hz\nrun.csv,fast\n")
-    assert "line 2: frequency_hz 'fast' is not a positive number" in error_of(d)
+    assert "manifest.csv: line 3: 'run.csv' is listed twice (also on line 2)" in spoiled(
+        d, "manifest.csv", f"file,frequency_hz\nrun.csv,{FREQ}\nrun.csv,{FREQ}\n"
+    )
+    assert "line 2: frequency_hz 'fast' is not a positive number" in spoiled(d, "manifest.csv", "file,frequency_hz\nrun.csv,fast\n")
 
 
 def test_invalid_toml_and_bad_bounds(tmp_path):
     d = dataset(tmp_path, toml="name = 'x\nmeq_kg = 1\n")
     assert "dataset.toml: invalid TOML" in error_of(d)
-    (d / "dataset.toml").write_text("[bounds]\nxi0 = [0.1, 0.0]\n")
-    assert "dataset.toml: bounds.xi0 must be [lower, upper] with lower < upper" in error_of(d)
-    (d / "dataset.toml").write_text('[[tests]]\nfile = "other.csv"\nsteady_t0_s = 0\nsteady_t1_s = 1\n')
-    assert "dataset.toml: [[tests]] file 'other.csv' is not listed in manifest.csv" in error_of(d)
+    assert "dataset.toml: bounds.xi0 must be [lower, upper] with lower < upper" in spoiled(d, "dataset.toml", "[bounds]\nxi0 = [0.1, 0.0]\n")
+    assert "dataset.toml: [[tests]] file 'other.csv' is not listed in manifest.csv" in spoiled(
+        d, "dataset.toml", '[[tests]]\nfile = "other.csv"\nsteady_t0_s = 0\nsteady_t1_s = 1\n'
+    )
 
 
 def test_unknown_dataset_path(tmp_path, capsys):
@@ -179,14 +182,11 @@ def test_lvm_needs_sample_rate_and_channels(tmp_path):
 
 def test_manifest_and_loops_file_together_and_bad_tidy(tmp_path):
     d = dataset(tmp_path)
-    (d / "loops.csv").write_text("# hysid-loops v1\n")
-    assert "holds both manifest.csv (raw records) and loops.csv (extracted loops); keep one" in error_of(d)
+    assert "holds both manifest.csv (raw records) and loops.csv (extracted loops); keep one" in spoiled(d, "loops.csv", "# hysid-loops v1\n")
     (d / "manifest.csv").unlink()
     assert "loops.csv: header line '# name: ...' missing" in error_of(d)
-    (d / "loops.csv").write_text("# hysid-loops v9\n")
-    assert "unsupported loops file version 'hysid-loops v9'" in error_of(d)
-    (d / "loops.csv").write_text("# hysid-loops v1\n# name: x\n# meq_kg: -1\n# meta: {}\n")
-    assert "loops.csv: meq_kg must be a positive mass or 'unknown'" in error_of(d)
+    assert "unsupported loops file version 'hysid-loops v9'" in spoiled(d, "loops.csv", "# hysid-loops v9\n")
+    assert "loops.csv: meq_kg must be a positive mass or 'unknown'" in spoiled(d, "loops.csv", "# hysid-loops v1\n# name: x\n# meq_kg: -1\n# meta: {}\n")
 
 
 def test_synth_never_overwrites(tmp_path, capsys):

@@ -21,17 +21,21 @@ from hysid_model.errors import HysidWarning
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from support import PSO_ISLANDS, events, history_iterations, hysid, interruptible, query, rows_of, secret_file, wait_for
+from support import PSO_ISLANDS, coordinator_args, events, history_iterations, hysid, query, rows_of, secret_file, wait_for
 
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
 FIT_KEYS = {"params", "stderr", "fitness", "evaluations", "history"}
 
 
+def json_of(capsys, out, *argv: str) -> dict:
+    """``hysid ARGV --json --quiet --out OUT`` run in this process, which must succeed: its JSON document."""
+    assert main([*argv, "--json", "--quiet", "--out", str(out)]) == 0, capsys.readouterr().err
+    return json.loads(capsys.readouterr().out)
+
+
 def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations(tmp_path, capsys):
     out = tmp_path / "out"
-    code = main(["campaign", "--single-node", "--islands", "3", *SMALL, "--json", "--quiet", "--out", str(out)])
-    assert code == 0
-    doc = json.loads(capsys.readouterr().out)
+    doc = json_of(capsys, out, "campaign", "--single-node", "--islands", "3", *SMALL)
     assert FIT_KEYS | {"islands", "migrations"} <= set(doc)
     for name, true in TRUE_PARAMS.items():  # noiseless data: the polished global best is the truth
         assert doc["params"][name] == pytest.approx(true, rel=1e-6)
@@ -105,34 +109,20 @@ def test_campaign_falls_back_to_one_process_when_zenoh_cannot_open(tmp_path):
 
 
 @pytest.mark.slow
-def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(tmp_path):
+def test_coordinator_and_islands_by_hand_a_late_joiner_gets_the_best(spawn, tmp_path):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     db = tmp_path / "lj.sqlite"
-    coordinator = subprocess.Popen(
-        hysid(
-            "coordinator",
-            "--listen",
-            endpoint,
-            "--campaign",
-            "lj",
-            "--db",
-            str(db),
-            "--out",
-            str(tmp_path / "out"),
-            *PSO_ISLANDS,
-            "--iterations",
-            "10000000",
-            "--interval",
-            "1000000",
-            "--time-limit",
-            "120",
-            "--json",
-            "--quiet",
-        ),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=interruptible,
+    coordinator = spawn(
+        *coordinator_args(endpoint, "lj", db, tmp_path / "out"),
+        *PSO_ISLANDS,
+        "--iterations",
+        "10000000",
+        "--interval",
+        "1000000",
+        "--time-limit",
+        "120",
+        "--json",
+        "--quiet",
     )
     secret = ["--secret-file", secret_file(db, "lj")]
     early = subprocess.Popen(hysid("island", "--connect", endpoint, "--campaign", "lj", "--id", "early", "--quiet", *secret), stderr=subprocess.PIPE, text=True)
@@ -229,23 +219,7 @@ def test_a_stored_campaign_is_never_overwritten(tmp_path, capsys):
     [(["--target", "1e-6"], "target fitness 1e-06 reached"), (["--stall", "3000"], "no improvement in 3,000 evaluations")],
 )
 def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path, capsys):
-    argv = [
-        "campaign",
-        "--single-node",
-        "--islands",
-        "2",
-        *PSO_ISLANDS,
-        "--iterations",
-        "10000000",
-        *rule,
-        "--no-polish",
-        "--json",
-        "--quiet",
-        "--out",
-        str(tmp_path / "o"),
-    ]
-    assert main(argv) == 0
-    doc = json.loads(capsys.readouterr().out)
+    doc = json_of(capsys, tmp_path / "o", "campaign", "--single-node", "--islands", "2", *PSO_ISLANDS, "--iterations", "10000000", *rule, "--no-polish")
     assert doc["settings"]["stop_reason"] == reason
     assert all(i["status"] == "left" and i["final"] for i in doc["islands"])
     if rule[0] == "--target":
@@ -255,24 +229,8 @@ def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path,
 @pytest.mark.slow
 def test_resuming_a_finished_campaign_reports_it_again_from_the_database(tmp_path, capsys):
     db = tmp_path / "c.sqlite"
-    assert main(["campaign", "--single-node", "--islands", "2", *SMALL, "--db", str(db), "--json", "--quiet", "--out", str(tmp_path / "a")]) == 0
-    first = json.loads(capsys.readouterr().out)
-    argv = [
-        "coordinator",
-        "--resume",
-        "--db",
-        str(db),
-        "--campaign",
-        "campaign",
-        "--listen",
-        f"tcp/127.0.0.1:{free_port()}",
-        "--json",
-        "--quiet",
-        "--out",
-        str(tmp_path / "b"),
-    ]
-    assert main(argv) == 0
-    again = json.loads(capsys.readouterr().out)
+    first = json_of(capsys, tmp_path / "a", "campaign", "--single-node", "--islands", "2", *SMALL, "--db", str(db))
+    again = json_of(capsys, tmp_path / "b", "coordinator", "--resume", "--db", str(db), "--campaign", "campaign", "--listen", f"tcp/127.0.0.1:{free_port()}")
     assert again["settings"]["stop_reason"] == "every island finished"
     assert again["islands"] == first["islands"] and again["params"] == pytest.approx(first["params"], rel=1e-9)
     assert again["dataset"]["true_params"] == TRUE_PARAMS  # the loop set's metadata travelled through the database
@@ -290,9 +248,7 @@ def shadow_package(where):
 @pytest.mark.slow
 def test_a_folder_named_hysid_in_the_working_directory_does_not_shadow_the_islands_package(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(shadow_package(tmp_path / "parent"))
-    argv = ["campaign", "--islands", "2", "--algos", "pso", *SMALL, "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
-    assert main(argv) == 0, capsys.readouterr().err
-    doc = json.loads(capsys.readouterr().out)
+    doc = json_of(capsys, tmp_path / "o", "campaign", "--islands", "2", "--algos", "pso", *SMALL, "--no-polish")
     assert [(i["island"], i["iterations"], i["status"]) for i in doc["islands"]] == [("island-0", 15, "left"), ("island-1", 15, "left")]
 
 
@@ -329,31 +285,8 @@ def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, caps
 
 @pytest.mark.slow  # over 3 s
 def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_the_stop(tmp_path, capsys):
-    argv = [
-        "campaign",
-        "--single-node",
-        "--islands",
-        "2",
-        "--algos",
-        "ga,pso",
-        "--share",
-        "fixed",
-        "--population",
-        "20",
-        "--initial",
-        "40",
-        "--interval",
-        "5",
-        "--evaluations",
-        "6000",
-        "--no-polish",
-        "--json",
-        "--quiet",
-        "--out",
-        str(tmp_path / "o"),
-    ]
-    assert main(argv) == 0
-    doc = json.loads(capsys.readouterr().out)
+    argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--share", "fixed", "--population", "20", "--initial", "40", "--interval", "5"]
+    doc = json_of(capsys, tmp_path / "o", *argv, "--evaluations", "6000", "--no-polish")
     assert doc["settings"]["stop_reason"] == "budget of 6,000 evaluations spent" and doc["settings"]["until_stopped"] is True
     assert doc["settings"]["share"] == "fixed" and doc["settings"]["moves"] == []
     ga, pso = doc["islands"]
@@ -364,9 +297,7 @@ def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_
 
 @pytest.mark.slow  # over 3 s
 def test_iterations_given_stay_each_islands_own_budget(tmp_path, capsys):
-    argv = ["campaign", "--single-node", "--islands", "2", *SMALL, "--time", "600", "--no-polish", "--json", "--quiet", "--out", str(tmp_path / "o")]
-    assert main(argv) == 0
-    doc = json.loads(capsys.readouterr().out)
+    doc = json_of(capsys, tmp_path / "o", "campaign", "--single-node", "--islands", "2", *SMALL, "--time", "600", "--no-polish")
     assert doc["settings"]["stop_reason"] == "every island finished" and doc["settings"]["until_stopped"] is False
     assert [i["iterations"] for i in doc["islands"]] == [15, 15]
 

@@ -40,6 +40,7 @@ from deploy_support import (
     wait_until,
     watching,
 )
+from support import sizes
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -169,6 +170,11 @@ def test_acl_denies_everything_to_an_authenticated_user_not_listed(certs: Path, 
         queryable.undeclare()
 
 
+def x509(certificate: Path, *fields: str) -> str:
+    """``openssl x509 -noout FIELDS`` of a PEM certificate: what it prints."""
+    return subprocess.run(["openssl", "x509", "-in", str(certificate), "-noout", *fields], capture_output=True, text=True, check=True, timeout=30).stdout
+
+
 def test_make_certs_reuses_the_ca_to_add_an_island_later(certs: Path, tmp_path: Path) -> None:
     outdir = tmp_path / "certs"
     shutil.copytree(certs, outdir)
@@ -176,21 +182,9 @@ def test_make_certs_reuses_the_ca_to_add_an_island_later(certs: Path, tmp_path: 
     done = make_certs(outdir, "island-3")
     assert done.returncode == 0, done.stderr
     assert hashlib.sha256((outdir / "ca.pem").read_bytes()).hexdigest() == ca_before
-    text = subprocess.run(
-        ["openssl", "x509", "-in", str(outdir / "islands/island-3/cert.pem"), "-noout", "-subject", "-ext", "extendedKeyUsage"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=30,
-    ).stdout
+    text = x509(outdir / "islands/island-3/cert.pem", "-subject", "-ext", "extendedKeyUsage")
     assert "CN = island-3" in text and "TLS Web Client Authentication" in text
-    coordinator_text = subprocess.run(
-        ["openssl", "x509", "-in", str(outdir / "coordinator/cert.pem"), "-noout", "-ext", "subjectAltName"],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=30,
-    ).stdout
+    coordinator_text = x509(outdir / "coordinator/cert.pem", "-ext", "subjectAltName")
     assert "IP Address:127.0.0.1" in coordinator_text and "DNS:localhost" in coordinator_text
 
 
@@ -409,12 +403,7 @@ def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_anothe
             "3",
             "--algos",
             "pso",
-            "--population",
-            "20",
-            "--initial",
-            "40",
-            "--iterations",
-            "300",
+            *sizes(20, 40, 300),
             "--no-polish",
             "--quiet",
             "--json",
@@ -481,12 +470,7 @@ def test_another_user_finds_no_key_in_any_file_a_campaign_leaves(tmp_path: Path)
                 "campaign",
                 "--islands",
                 "2",
-                "--iterations",
-                "30",
-                "--population",
-                "10",
-                "--initial",
-                "20",
+                *sizes(10, 20, 30),
                 "--out",
                 str(out),
                 "--quiet",

@@ -18,7 +18,7 @@ import pytest
 from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid.cli import main
-from support import PSO_ISLANDS, hysid
+from support import PSO_ISLANDS, coordinator_args, hysid
 
 
 @pytest.fixture
@@ -108,15 +108,7 @@ def test_a_database_disk_that_fills_up_mid_run_stops_the_campaign_cleanly(mount,
     db, endpoint = place / "c.sqlite", f"tcp/127.0.0.1:{free_port()}"
     coordinator = subprocess.Popen(
         hysid(
-            "coordinator",
-            "--listen",
-            endpoint,
-            "--campaign",
-            "full",
-            "--db",
-            str(db),
-            "--out",
-            str(tmp_path / "out"),
+            *coordinator_args(endpoint, "full", db, tmp_path / "out"),
             "--quiet",
             *PSO_ISLANDS,
             "--iterations",

@@ -30,7 +30,7 @@ from island.sealing import Credentials, envelope, seal
 from island.session import open_session, session_config
 from island.transports import ZenohTransport
 from island.wire import MAX_BYTES, MessageRejected, pack_array
-from support import PSO_ISLANDS, Peer, events, query, ready, rows_of, secret_file, secret_of, wait_for
+from support import PSO_ISLANDS, Peer, coordinator_args, events, query, ready, rows_of, secret_file, secret_of, wait_for
 
 pytestmark = pytest.mark.slow  # processes, kills and restarts: the full suite runs these
 
@@ -236,15 +236,7 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     the ring: the campaign still ends because its islands finished, with their own numbers only."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "st.sqlite"
     coord = spawn(
-        "coordinator",
-        "--listen",
-        endpoint,
-        "--campaign",
-        "steer",
-        "--db",
-        str(db),
-        "--out",
-        str(tmp_path / "out"),
+        *coordinator_args(endpoint, "steer", db, tmp_path / "out"),
         "--json",
         *PSO_ISLANDS,
         "--iterations",
@@ -365,15 +357,7 @@ def test_rows_sent_while_the_coordinator_was_down_arrive_when_it_returns_and_the
     missed, confirms, and, nothing being left to do, ends with its report."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "down.sqlite"
     first = spawn(
-        "coordinator",
-        "--listen",
-        endpoint,
-        "--campaign",
-        "down",
-        "--db",
-        str(db),
-        "--out",
-        str(tmp_path / "out1"),
+        *coordinator_args(endpoint, "down", db, tmp_path / "out1"),
         *PSO_ISLANDS,
         "--iterations",
         "1200",

@@ -27,7 +27,7 @@ from hysid.report.text import band_text, hz_text, mass_text
 from hysid_model.synth import synth_loops
 from island.sealing import new_key, public_key
 from island.secret import CampaignSecret
-from support import GA_SMALL, PSO_ISLANDS, Lines, interruptible, wait_for
+from support import GA_SMALL, PSO_ISLANDS, Lines, coordinator_args, interruptible, wait_for
 from support import hysid as hysid_argv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -196,15 +196,7 @@ def test_island_and_coordinator_count_iterations_alike_and_a_quiet_coordinator_s
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     coordinator = subprocess.Popen(
         hysid_argv(
-            "coordinator",
-            "--listen",
-            endpoint,
-            "--campaign",
-            "count",
-            "--db",
-            str(tmp_path / "c.sqlite"),
-            "--out",
-            str(tmp_path / "out"),
+            *coordinator_args(endpoint, "count", tmp_path / "c.sqlite", tmp_path / "out"),
             *PSO_ISLANDS,
             "--iterations",
             "7",

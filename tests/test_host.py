@@ -32,7 +32,7 @@ from island.migration import Migration
 from island.session import open_session, session_config
 from island.termination import Termination
 from island.turns import Turns
-from support import query, ready, rows_of, secret_file, wait_for
+from support import coordinator_args, query, ready, rows_of, secret_file, sizes, wait_for
 
 LOOPS = synth_loops(n_points=30)
 SIZES = {a: {"population": 10, "initial_population": 20, "iterations": 12} for a in ("ga", "pso")}
@@ -219,22 +219,9 @@ def test_ctrl_c_ends_every_island_of_a_process_cleanly(spawn, tmp_path: Path) ->
     ``final`` and ``left``), the coordinator confirms, and the process exits with 130 in seconds."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "c.sqlite"
     coordinator = spawn(
-        "coordinator",
-        "--listen",
-        endpoint,
-        "--campaign",
-        "ctrlc",
-        "--db",
-        str(db),
-        "--out",
-        str(tmp_path / "out"),
+        *coordinator_args(endpoint, "ctrlc", db, tmp_path / "out"),
         "--quiet",
-        "--iterations",
-        "1000000",
-        "--population",
-        "10",
-        "--initial",
-        "20",
+        *sizes(10, 20, 1000000),
         "--interval",
         "2",
         "--no-polish",

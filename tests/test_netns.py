@@ -16,6 +16,7 @@ import pytest
 import zenoh
 
 from hysid.bench.netns import SUBNET, Lab, NamespacesUnavailable, ip, unavailable
+from support import time_boxed
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -24,22 +25,7 @@ DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
 HYSID = [sys.executable, "-m", "hysid"]
 ISLANDS = ("h1", "h2")
 TIME_LIMIT_S = 8
-TIME_BOXED_CAMPAIGN = [
-    "--min-islands",
-    str(len(ISLANDS)),
-    "--time-limit",
-    str(TIME_LIMIT_S),
-    "--iterations",
-    "1000000",
-    "--population",
-    "30",
-    "--initial",
-    "60",
-    "--interval",
-    "5",
-    "--no-polish",
-]
-"""Islands that run until the coordinator's time limit, so that both are members at once."""
+TIME_BOXED_CAMPAIGN = time_boxed(len(ISLANDS), TIME_LIMIT_S)
 
 
 def lab_or_skip(hosts: int) -> Iterator[Lab]:

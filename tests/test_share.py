@@ -221,6 +221,25 @@ def test_a_search_is_carried_on_only_between_two_iterations():
 LOOPS = synth_loops(n_points=30)
 
 
+def history_sender(c: Coordinator, link: MemoryLink, creds: dict):
+    """``send(island, algo, seed, iterations, gain, final)``: that island's honest history of ``iterations`` (rows at the
+    Synth truth, 10 + 15 evaluations an iteration), in sequence, taken by the coordinator ``c`` and pumped through ``link``."""
+    campaign = c.config.name
+    x = c.objective.model.from_dict(TRUE_PARAMS)
+    f = float(c.objective(x[None, :])[0])
+    seq = dict.fromkeys(creds, 0)
+
+    def send(island: str, algo: str, seed: int, iterations: range, gain: float = 0.0, final: bool = False) -> None:
+        rows = np.array([[i, f, 20 + 25 * i, 0.01 * i] for i in iterations], dtype=float)
+        counts = {"sent": 0, "received": 0, "taken": 0, "rejected": 0}
+        payload = encode_history(History(campaign, island, creds[island].run, algo, seed, rows, x, f, counts, final, seq[island], gain), creds[island])
+        seq[island] += 1
+        assert c.receive(f"hysid/{campaign}/history/{island}", payload)
+        pump(c, link, 5.0)
+
+    return send
+
+
 def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_the_roster(tmp_path):
     sizes = {"population": 10, "initial_population": 20}
     config = CampaignConfig.create(
@@ -231,34 +250,11 @@ def test_the_coordinator_credits_gains_moves_the_lagging_island_and_tells_it_in_
     creds = {"ga-0": c.join("ga-0", "ga", 0), "pso-1": c.join("pso-1", "pso", 1)}
     for island in creds:
         c.member(island, True, wait_s=None)
-    x = c.objective.model.from_dict(TRUE_PARAMS)
-    f = float(c.objective(x[None, :])[0])
-    seq = dict.fromkeys(creds, 0)
+    send = history_sender(c, link, creds)
 
     def report(island: str, first: int, gain: float, algo: str) -> None:
-        """Five iterations of honest rows (10 + 15 evaluations each) and the island's gain so far."""
-        cred = creds[island]
-        rows = [[i, f, 20 + 25 * i, 0.01 * i] for i in range(first, first + 5)]
-        payload = encode_history(
-            History(
-                "c1",
-                island,
-                cred.run,
-                algo,
-                {"ga-0": 0, "pso-1": 1}[island],
-                np.array(rows, dtype=float),
-                x,
-                f,
-                {"sent": 0, "received": 0, "taken": 0, "rejected": 0},
-                False,
-                seq[island],
-                gain,
-            ),
-            cred,
-        )
-        seq[island] += 1
-        assert c.receive(f"hysid/c1/history/{island}", payload)
-        pump(c, link, 5.0)
+        """Five iterations of honest rows and the island's gain so far."""
+        send(island, algo, {"ga-0": 0, "pso-1": 1}[island], range(first, first + 5), gain=gain)
 
     rounds = 0
     while not c.sharing.moves and rounds < 3 * WINDOW:  # one round: both islands' five iterations (2 x 5 x 25 evaluations)
@@ -291,34 +287,11 @@ def test_the_coordinator_moves_a_ga_run_once_its_history_reaches_the_survey_if_i
     creds = {island: c.join(island, island[:-2], seed) for island, seed in seeds.items()}
     for island in ("ga-0", "pso-1", "ga-2"):
         c.member(island, True, wait_s=None)  # ga-4's liveliness token has not shown yet
-    x = c.objective.model.from_dict(TRUE_PARAMS)
-    f = float(c.objective(x[None, :])[0])
-    seq = dict.fromkeys(creds, 0)
+    send = history_sender(c, link, creds)
 
     def report(island: str, first: int, last: int, final: bool = False) -> list[str]:
-        """Honest rows of iterations ``first..last`` (10 + 15 evaluations each); the runs moved so far."""
-        cred = creds[island]
-        rows = [[i, f, 20 + 25 * i, 0.01 * i] for i in range(first, last + 1)]
-        payload = encode_history(
-            History(
-                "c2",
-                island,
-                cred.run,
-                island[:-2],
-                seeds[island],
-                np.array(rows, dtype=float),
-                x,
-                f,
-                {"sent": 0, "received": 0, "taken": 0, "rejected": 0},
-                final,
-                seq[island],
-                0.0,
-            ),
-            cred,
-        )
-        seq[island] += 1
-        assert c.receive(f"hysid/c2/history/{island}", payload)
-        pump(c, link, 5.0)
+        """Honest rows of iterations ``first..last``; the runs moved so far."""
+        send(island, island[:-2], seeds[island], range(first, last + 1), final=final)
         return [m.island for m in c.sharing.moves]
 
     assert report("ga-0", 0, 4) == []  # four iterations: still exploring

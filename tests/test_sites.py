@@ -20,7 +20,7 @@ from coordinator.launch import free_port
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.bench.sites import Site, campaign
 from hysid.cli import main
-from support import hysid, query
+from support import coordinator_args, hysid, query, time_boxed
 
 pytestmark = pytest.mark.timeout(120)
 DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
@@ -87,29 +87,9 @@ def test_islands_behind_a_router_take_part_in_a_campaign(tmp_path: Path) -> None
         db = tmp_path / "c.sqlite"
         coordinator = subprocess.Popen(
             hysid(
-                "coordinator",
-                "--listen",
-                upstream,
-                "--campaign",
-                "behind",
-                "--db",
-                str(db),
-                "--out",
-                str(tmp_path / "out"),
+                *coordinator_args(upstream, "behind", db, tmp_path / "out"),
                 "--quiet",
-                "--min-islands",
-                "2",
-                "--time-limit",
-                "6",
-                "--iterations",
-                "1000000",
-                "--population",
-                "30",
-                "--initial",
-                "60",
-                "--interval",
-                "5",
-                "--no-polish",
+                *time_boxed(2, 6),
                 "synth",
             ),
             stdout=subprocess.DEVNULL,

@@ -22,6 +22,7 @@ from hysid_model.errors import HysidWarning
 from hysid_model.model import build_model
 from hysid_model.notices import CODES, MAX_MESSAGE, keeps_warnings, merged, recorded
 from hysid_model.synth import RawRecord, simulate_raw
+from support import sizes
 
 LAB = ("Zeit [s]", "Weg [mm]", "Kraft [kN]")
 UNIT_CODES = {"unit_slip", "unit_slip_displacement", "unit_slip_force", "mass_contradicted"}
@@ -244,12 +245,7 @@ def test_fit_diagnose_campaign_and_report_write_the_warnings_near_the_top(tmp_pa
                 "--single-node",
                 "--islands",
                 "2",
-                "--population",
-                "20",
-                "--initial",
-                "40",
-                "--iterations",
-                "5",
+                *sizes(20, 40, 5),
                 *small,
                 "--out",
                 str(tmp_path / "campaign"),

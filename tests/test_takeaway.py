@@ -12,7 +12,7 @@ import pytest
 import hysid
 from hysid.cli import main
 from hysid_model.errors import HysidInputError
-from support import GA_SMALL
+from support import GA_SMALL, sizes
 
 
 @pytest.fixture(scope="module")
@@ -83,12 +83,7 @@ def test_csv_flag_of_fit_campaign_and_diagnose(tmp_path, capsys):
                 "--single-node",
                 "--islands",
                 "2",
-                "--population",
-                "20",
-                "--initial",
-                "40",
-                "--iterations",
-                "10",
+                *sizes(20, 40, 10),
                 "--quiet",
                 "--csv",
                 "--out",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import operator
+
 import numpy as np
 import pytest
 
@@ -25,41 +27,32 @@ THETA = np.array([TRUE_PARAMS[k] for k in ("xi0", "S_xi", "w0", "S_w")])
 
 
 def matlab_getloopdisp(hys1: np.ndarray) -> tuple[int, int, int, int]:
-    """getloopdisp of Appendix A transcribed line by line (1-based), returning 0-based TOPmin..BOTmax."""
+    """getloopdisp of Appendix A transcribed sample by sample (1-based; its while loops one ``walk``, its four runs one
+    loop), returning 0-based TOPmin..BOTmax."""
 
     def h(row: int, col: int) -> float:
         if row < 1:
             raise IndexError("index 0")
         return hys1[row - 1, col - 1]
 
+    def walk(i: int, holds) -> tuple[int, int]:
+        """``while holds(hys1(NR-i,1), hys1(NR-i-1,1)), i=i+1; end``: the new i and how many rows it walked."""
+        start = i
+        while holds(h(nr - i, 1), h(nr - i - 1, 1)):
+            i += 1
+        return i, i - start
+
     nr = hys1.shape[0]
-    i = 0
-    while h(nr - i, 1) == h(nr - i - 1, 1):
-        i += 1
-    while h(nr - i, 1) < h(nr - i - 1, 1):
-        i += 1
-    f1 = nr - i
-    f1f = 0
-    while h(nr - i, 1) == h(nr - i - 1, 1):
-        i += 1
-        f1f += 1
-    while h(nr - i, 1) > h(nr - i - 1, 1):
-        i += 1
-    f2 = nr - i
-    f2f = 0
-    while h(nr - i, 1) == h(nr - i - 1, 1):
-        i += 1
-        f2f += 1
-    while h(nr - i, 1) < h(nr - i - 1, 1):
-        i += 1
-    f3 = nr - i
-    f3f = 0
-    while h(nr - i, 1) == h(nr - i - 1, 1):
-        i += 1
-        f3f += 1
-    while h(nr - i, 1) > h(nr - i - 1, 1):
-        i += 1
-    f4 = nr - i
+    i, _ = walk(0, operator.eq)
+    ends, flats = [], []  # F1..F4, each after its run (x falling, rising, falling, rising); F1f..F3f at the turns after F1..F3
+    for k, holds in enumerate((operator.lt, operator.gt, operator.lt, operator.gt)):
+        i, _ = walk(i, holds)
+        ends.append(nr - i)
+        if k < 3:
+            i, flat = walk(i, operator.eq)
+            flats.append(flat)
+    f1, f2, f3, f4 = ends
+    f1f, f2f, f3f = flats
     if h(nr, 1) < h(nr - 1, 1) and h(nr, 2) < h(nr - 1, 2):
         found = (f2, f1 - f1f, f3, f2 - f2f)
     elif (h(nr, 1) > h(nr - 1, 1) and h(nr, 2) < h(nr - 1, 2)) or (h(nr, 1) > h(nr - 1, 1) and h(nr, 2) > h(nr - 1, 2)):

@@ -315,65 +315,65 @@ def run(seconds: float = 10.0, sustain_s: float = 180.0, ramp_s: float = 12.0, p
     return {part: benches[part]() for part in parts}
 
 
+def _traffic(x: dict[str, Any]) -> str:
+    """A load's (or a ramp step's) rows, migrants, lags, gaps and memory."""
+    return (
+        f"{x['islands']} islands for {x['elapsed_s']:.1f} s: {x['rows_per_s']:,.0f} rows/s stored of {x['rows_sent_per_s']:,.0f} sent "
+        f"({x['rows_thinned']:,} thinned, {x['rows_lost']} lost), {x['migrant_messages_per_s']:,.0f} migrant messages/s handled of "
+        f"{x['migrant_messages_sent_per_s']:,.0f} ({x['migrant_messages_superseded']:,} superseded"
+        + (f"; not followed once {x['migrants_unfollowed_at_islands']} islands were alive" if x.get("migrants_unfollowed_at_islands") else "")
+        + f"); row lag p50 "
+        f"{x['row_lag_s']['p50']:.3f} s, p95 {x['row_lag_s']['p95']:.3f} s; longest gap between commits {x['max_commit_gap_s']:.3f} s, "
+        f"between stop-rule checks {x['max_stop_check_gap_s']:.3f} s; deepest inbox {x['deepest_inbox']}; "
+        f"RSS {x['rss_mb']:.0f} MB ({x['rss_mb_per_island']:.2f} MB per island)"
+    )
+
+
+def _ramp_text(ra: dict[str, Any]) -> list[str]:
+    steps = [f"ramp: {_traffic(x)}{' <- lags' if lags(x) else ''}" for x in ra["steps"]]
+    return [*steps, f"ramp: held {ra['held_at_islands']} islands; degrades at {ra['degrades_at_islands'] or 'none of the steps'}"]
+
+
+def _commits_text(co: dict[str, Any]) -> list[str]:
+    return [
+        f"commits: {'under ' + format(x['flood_messages_per_s'], ',.0f') + ' migrant messages/s of 256 new migrants' if x['flood'] else 'no flood'}, "
+        f"{x['seconds']:g} s on {co['cores']} cores: {x['commits']} commits, longest gap {x['max_gap_s']:.3f} s (p99 {x['p99_gap_s']:.3f} s, "
+        f"median {x['median_gap_s']:.3f} s; target {co['target_s']:g} s); {x['migrant_messages_per_s']:,.0f} migrant messages/s handled, "
+        f"{x['superseded']:,} superseded"
+        for x in (co["quiet"], co["flooded"])
+    ]
+
+
+TEXT = {
+    "load": lambda x: [f"load: {_traffic(x)}"],
+    "sustain": lambda su: [
+        f"sustain: {_traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
+        f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min"
+    ],
+    "ramp": _ramp_text,
+    "backlog": lambda bl: [
+        f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
+        f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)"
+    ],
+    "commits": _commits_text,
+    "flood": lambda fl: [
+        f"flood: an island of {fl['quiet']['iterations']} iterations ran {fl['quiet']['run_s']:.2f} s alone and "
+        f"{fl['flooded']['run_s']:.2f} s under {fl['flood_messages_per_s']:,} migrant messages/s of 256 migrants each "
+        f"(ratio {fl['run_time_ratio']:.2f}); CPU of its evolution thread {fl['quiet']['evolution_cpu_s']:.2f} -> "
+        f"{fl['flooded']['evolution_cpu_s']:.2f} s, of the whole island process {fl['quiet']['process_cpu_s']:.2f} -> "
+        f"{fl['flooded']['process_cpu_s']:.2f} s; it re-evaluated {fl['flooded']['migrants_evaluated']} migrants "
+        f"(at most {fl['most_migrants_allowed']} allowed)"
+    ],
+    "host": lambda ho: [
+        f"host: {ho['islands']} islands in one process: peak RSS {ho['host_peak_rss_mb']:.0f} MB, {ho['host_rss_mb_per_island']:.1f} MB per island "
+        f"(an island process: {ho['island_process_peak_rss_mb']:.0f} MB, x {ho['memory_ratio']:.0f}); CPU {ho['host_cpu_s']:.0f} s against "
+        f"{ho['separate_cpu_s']:.0f} s as separate processes; the same answer in {ho['same_answers']} of {ho['islands']} islands, "
+        f"the same rows in {ho['same_rows']:,} of {ho['rows_compared']:,} stored both times"
+    ],
+}
+"""Each part's lines of the bench's text, from its part of the result."""
+
+
 def to_text(r: dict[str, Any]) -> str:
-    """One line (or a few) per part that ran."""
-
-    def traffic(x: dict[str, Any]) -> str:
-        return (
-            f"{x['islands']} islands for {x['elapsed_s']:.1f} s: {x['rows_per_s']:,.0f} rows/s stored of {x['rows_sent_per_s']:,.0f} sent "
-            f"({x['rows_thinned']:,} thinned, {x['rows_lost']} lost), {x['migrant_messages_per_s']:,.0f} migrant messages/s handled of "
-            f"{x['migrant_messages_sent_per_s']:,.0f} ({x['migrant_messages_superseded']:,} superseded"
-            + (f"; not followed once {x['migrants_unfollowed_at_islands']} islands were alive" if x.get("migrants_unfollowed_at_islands") else "")
-            + f"); row lag p50 "
-            f"{x['row_lag_s']['p50']:.3f} s, p95 {x['row_lag_s']['p95']:.3f} s; longest gap between commits {x['max_commit_gap_s']:.3f} s, "
-            f"between stop-rule checks {x['max_stop_check_gap_s']:.3f} s; deepest inbox {x['deepest_inbox']}; "
-            f"RSS {x['rss_mb']:.0f} MB ({x['rss_mb_per_island']:.2f} MB per island)"
-        )
-
-    lines = []
-    if "load" in r:
-        lines.append(f"load: {traffic(r['load'])}")
-    if "sustain" in r:
-        su = r["sustain"]
-        lines.append(
-            f"sustain: {traffic(su)}; RSS {su['rss_first_mb']:.0f} MB at the start, {su['rss_settled_mb']:.0f} MB after {su['settle_s']:g} s, "
-            f"{su['rss_last_mb']:.0f} MB at the end: slope {su['rss_slope_mb_per_min']:+.2f} MB/min"
-        )
-    if "ramp" in r:
-        ra = r["ramp"]
-        lines += [f"ramp: {traffic(x)}{' <- lags' if lags(x) else ''}" for x in ra["steps"]]
-        lines.append(f"ramp: held {ra['held_at_islands']} islands; degrades at {ra['degrades_at_islands'] or 'none of the steps'}")
-    if "backlog" in r:
-        bl = r["backlog"]
-        lines.append(
-            f"backlog: {bl['queued']} messages queued; {bl['stop_reason']} decided after {bl['stop_decided_s']:.2f} s "
-            f"with {bl['still_queued_at_stop']} still queued ({bl['stop_checks_before']} checks before)"
-        )
-    if "commits" in r:
-        co = r["commits"]
-        lines += [
-            f"commits: {'under ' + format(x['flood_messages_per_s'], ',.0f') + ' migrant messages/s of 256 new migrants' if x['flood'] else 'no flood'}, "
-            f"{x['seconds']:g} s on {co['cores']} cores: {x['commits']} commits, longest gap {x['max_gap_s']:.3f} s (p99 {x['p99_gap_s']:.3f} s, "
-            f"median {x['median_gap_s']:.3f} s; target {co['target_s']:g} s); {x['migrant_messages_per_s']:,.0f} migrant messages/s handled, "
-            f"{x['superseded']:,} superseded"
-            for x in (co["quiet"], co["flooded"])
-        ]
-    if "flood" in r:
-        fl = r["flood"]
-        lines.append(
-            f"flood: an island of {fl['quiet']['iterations']} iterations ran {fl['quiet']['run_s']:.2f} s alone and "
-            f"{fl['flooded']['run_s']:.2f} s under {fl['flood_messages_per_s']:,} migrant messages/s of 256 migrants each "
-            f"(ratio {fl['run_time_ratio']:.2f}); CPU of its evolution thread {fl['quiet']['evolution_cpu_s']:.2f} -> "
-            f"{fl['flooded']['evolution_cpu_s']:.2f} s, of the whole island process {fl['quiet']['process_cpu_s']:.2f} -> "
-            f"{fl['flooded']['process_cpu_s']:.2f} s; it re-evaluated {fl['flooded']['migrants_evaluated']} migrants "
-            f"(at most {fl['most_migrants_allowed']} allowed)"
-        )
-    if "host" in r:
-        ho = r["host"]
-        lines.append(
-            f"host: {ho['islands']} islands in one process: peak RSS {ho['host_peak_rss_mb']:.0f} MB, {ho['host_rss_mb_per_island']:.1f} MB per island "
-            f"(an island process: {ho['island_process_peak_rss_mb']:.0f} MB, x {ho['memory_ratio']:.0f}); CPU {ho['host_cpu_s']:.0f} s against "
-            f"{ho['separate_cpu_s']:.0f} s as separate processes; the same answer in {ho['same_answers']} of {ho['islands']} islands, "
-            f"the same rows in {ho['same_rows']:,} of {ho['rows_compared']:,} stored both times"
-        )
-    return "\n".join(lines)
+    """One line (or a few) per part that ran, in the order of :data:`PARTS`."""
+    return "\n".join(line for part in PARTS if part in r for line in TEXT[part](r[part]))

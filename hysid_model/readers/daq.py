@@ -31,6 +31,7 @@ npTDMS and h5py are optional (``pip install 'hysid[daq]'``) and imported here on
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -90,14 +91,20 @@ def _number(value: Any) -> float | None:
     return number if np.isfinite(number) else None
 
 
+def _optional(module: str, package: str, kind: str, path: Path) -> Any:
+    """The optional ``module`` (pip package ``package``) that reads ``kind`` files such as ``path``; where it is not
+    installed, a one-line error naming the extra that brings it."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise HysidInputError(f"{path}: reading {kind} files needs {package}: {EXTRA}") from None
+
+
 @contextmanager
 def _tdms(path: Path) -> Iterator[_Channels]:
+    nptdms = _optional("nptdms", "npTDMS", "TDMS", path)
     try:
-        from nptdms import TdmsFile
-    except ImportError:
-        raise HysidInputError(f"{path}: reading TDMS files needs npTDMS: {EXTRA}") from None
-    try:
-        tdms = TdmsFile.open(path)  # the channels' data are read when asked for, one channel at a time
+        tdms = nptdms.TdmsFile.open(path)  # the channels' data are read when asked for, one channel at a time
     except Exception as exc:  # npTDMS raises many types on a damaged file
         raise HysidInputError(f"{path}: not a readable TDMS file ({type(exc).__name__})") from None
     with tdms:
@@ -126,10 +133,7 @@ def _tdms(path: Path) -> Iterator[_Channels]:
 
 @contextmanager
 def _hdf5(path: Path) -> Iterator[_Channels]:
-    try:
-        import h5py
-    except ImportError:
-        raise HysidInputError(f"{path}: reading HDF5 files needs h5py: {EXTRA}") from None
+    h5py = _optional("h5py", "h5py", "HDF5", path)
     try:
         handle = h5py.File(path, "r")
     except OSError:

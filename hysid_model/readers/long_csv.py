@@ -73,6 +73,16 @@ def _nominal(path: Path, label: str, values: np.ndarray) -> float | None:
     return float(distinct[0]) if distinct.size else None
 
 
+def _record(
+    path: Path, label: str, txf: tuple[np.ndarray, np.ndarray, np.ndarray], time: channels.Channel, picked: list[channels.Channel], freq: np.ndarray
+) -> LongRecord:
+    """Record ``label``'s time, displacement and force ``txf`` (in SI, time ascending), checked as one series, with its nominal frequency."""
+    series = checked_series(
+        f"{path} (record {label})", *txf, names=(time.name, picked[0].name, picked[1].name), unit="sample", first_line=1, units=(picked[0].unit, picked[1].unit)
+    )
+    return LongRecord(label, series, _nominal(path, label, freq))
+
+
 def read_long(path: Path, config: DatasetConfig | None) -> list[LongRecord]:
     """The records of a tidy long CSV file (see the module docstring)."""
     dialect = sniff(path, None if config is None else config.skip_rows)
@@ -99,17 +109,7 @@ def read_long(path: Path, config: DatasetConfig | None) -> list[LongRecord]:
     for label, rows in zip(labels, rows_of):
         t, x, force = data[0, rows] * time.factor, data[1, rows] * picked[0].factor, data[2, rows] * picked[1].factor
         order = np.argsort(t, kind="stable")
-        series = checked_series(
-            f"{path} (record {label})",
-            t[order],
-            x[order],
-            force[order],
-            names=(time.name, picked[0].name, picked[1].name),
-            unit="sample",
-            first_line=1,
-            units=(picked[0].unit, picked[1].unit),
-        )
-        out.append(LongRecord(label, series, _nominal(path, label, freq[rows])))
+        out.append(_record(path, label, (t[order], x[order], force[order]), time, picked, freq[rows]))
     return out
 
 
@@ -156,15 +156,5 @@ def _long(
             raise HysidInputError(
                 f"{path}: record {label!r}: {picked[0].name!r} and {picked[1].name!r} are not sampled at the same times ({t.size} and {t_f.size} samples)"
             )
-        series = checked_series(
-            f"{path} (record {label})",
-            t,
-            x,
-            force,
-            names=(time.name, picked[0].name, picked[1].name),
-            unit="sample",
-            first_line=1,
-            units=(picked[0].unit, picked[1].unit),
-        )
-        out.append(LongRecord(label, series, _nominal(path, label, freq[mine])))
+        out.append(_record(path, label, (t, x, force), time, picked, freq[mine]))
     return out
