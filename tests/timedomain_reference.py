@@ -139,6 +139,17 @@ def periodic_steady_state(
     return out.reshape(z.shape + phase.shape[-1:])
 
 
+def affine_periodic_start(rhs: Rhs, shape: tuple[int, ...], steps_per_cycle: int) -> np.ndarray:
+    """The periodic state at theta = 0 of a one-component affine law dz/dtheta = a(theta) z + b(theta) (a linear filter
+    driven by the motion), by shooting: a cycle of RK4 maps z0 to A z0 + B, two cycles (from 0 and from 1) give A and
+    B, and the fixed point B / (1 - A) is the orbit of the same grid. A start for :func:`periodic_steady_state`, which
+    then still checks that the state repeats, instead of waiting out ~1 / (2 pi rho) cycles of decay per e-fold."""
+    zero, one = np.zeros(shape), np.ones(shape)
+    b = _rk4_cycle(rhs, zero, np.asarray(rhs(0.0, zero), dtype=float), steps_per_cycle)[0]
+    a = _rk4_cycle(rhs, one, np.asarray(rhs(0.0, one), dtype=float), steps_per_cycle)[0] - b
+    return b / (1.0 - a)
+
+
 ScalarRhs = Callable[[float, float], float]
 
 
