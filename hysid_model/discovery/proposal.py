@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hysid_model.discovery.features import Family
-from hysid_model.discovery.memory import is_memory, rate_expression, with_physical
+from hysid_model.discovery.memory import compiled_term, is_memory, rate_expression, with_physical
 from hysid_model.user_laws import UserTerm
 from hysid_model.user_terms import term
 
@@ -178,9 +178,11 @@ def make_term(law: Law, number: int) -> UserTerm:
         strength=names(law, number)[0]["c"],
         explanation=f"proposed from the data, not a library effect: {expression(law, number, plain=True)}",
     )
-    if law.memory:
-        made.params = with_physical(made.params, names(law, number)[0])
-    return made
+    if not law.memory:
+        return made
+    made.params = with_physical(made.params, names(law, number)[0])
+    shown: dict[str, str | float] = {**names(law, number)[0], **law.fixed[0]}
+    return compiled_term(made, str(shown["c"]), shown["zy"], shown["n"])
 
 
 def module_source(entries: list[tuple[Law, int, str]], dataset: str) -> str:
