@@ -73,6 +73,7 @@ def test_the_written_module_defines_the_memory_term_as_a_rate(tmp_path: Path) ->
     law = Law([family], [{"zy": 3e-4, "n": 3.0}], [25.0], 1000.0, fixed=[{"n": 3.0}])
     source = module_source([(law, 91, "t91_c = 25, t91_zy = 0.0003")], "test loops")
     assert "def term_91_rate(z, x, v, t91_c, t91_zy):" in source and "hysid.term(rate=term_91_rate" in source
+    assert "term_91.params = with_physical(term_91.params, " in source  # a fit widens z_y and n only where the rate is defined
     (tmp_path / "proposed_memory.py").write_text(source)
     spec = importlib.util.spec_from_file_location("proposed_memory", tmp_path / "proposed_memory.py")
     assert spec is not None and spec.loader is not None
@@ -80,6 +81,7 @@ def test_the_written_module_defines_the_memory_term_as_a_rate(tmp_path: Path) ->
     sys.modules["proposed_memory"] = module
     spec.loader.exec_module(module)
     values = {"t91_c": np.array([[25.0]]), "t91_zy": np.array([[3e-4]])}
+    assert [p.physical for p in module.term_91.params][1] == (0.0, np.inf)
     written = module.term_91.time_force(values, AT_REST, kin, phase)[0]
     fitted = make_term(law, 91)  # the diagnosis' term: the same rate, its orbit from the compiled solver
     assert function_source(law, 91) in source

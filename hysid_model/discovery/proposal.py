@@ -199,8 +199,12 @@ def module_source(entries: list[tuple[Law, int, str]], dataset: str) -> str:
         doc += [f"term_{number}: {'' if law.memory else 'F = '}{expression(law, number, plain=True)}", f"  fitted: {fitted}"]
     quotes = '"' * 3
     text = "\n".join(doc).replace("\\", "/").replace(quotes, "'")
-    lines = [quotes + text + "\n" + quotes, "", "import numpy as np", "", "import hysid", ""]
+    memory = any(law.memory for law, _, _ in entries)
+    lines = [quotes + text + "\n" + quotes, "", "import numpy as np", "", "import hysid"]
+    lines += ["from hysid_model.discovery.memory import with_physical", ""] if memory else [""]
     for law, number, _ in entries:
         fn = f"{'rate=' if law.memory else ''}{function_name(law, number)}"
         lines += ["", function_source(law, number), "", f"term_{number} = hysid.term({fn}, {term_call(law, number)})", ""]
+        if law.memory:  # its rate is defined for z_y > 0 and n >= 1 only: a fit widens a bound it ends on within those
+            lines[-1:] = [f"term_{number}.params = with_physical(term_{number}.params, {names(law, number)[0]!r})", ""]
     return "\n".join(lines)
