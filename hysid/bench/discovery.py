@@ -1,6 +1,6 @@
 """``hysid bench discovery``: does ``diagnose`` find the force law its library lacks, and only where there is one?
 
-Each specimen of :mod:`hysid.bench.discovery_cases` (nine hidden laws at two force noise levels, one noise draw
+Each specimen of :mod:`hysid.bench.discovery_cases` (ten hidden laws at two force noise levels, one noise draw
 each) is diagnosed twice in this process, with discovery off (today's diagnosis, the baseline of the time
 ratio) and on, each from ``baseline`` with its defaults. For each law:
 
@@ -8,8 +8,9 @@ ratio) and on, each from ``baseline`` with its defaults. For each law:
 * the **shape error** against the truth (:func:`shape_error`): over the loops' motion (each loop's sine, x =
   X0 sin(phi), v = w X0 cos(phi), at :data:`SHAPE_SAMPLES` uniform phases), the difference of the proposed
   force (the sum of the terms proposed, 0 where none is) and the true law's, less its least-squares fit by a
-  spring and a dashpot (a x + b v, one a and b for all loops), its RMS over the RMS of the true force; the
-  figure of proposing nothing is the law's own (its part no spring and dashpot absorb), reported beside it;
+  spring and a dashpot (a x + b v, one a and b for all loops), its RMS over the RMS of the true force (a term with
+  memory, whose formula is a rate, by its periodic orbit: :func:`memory_force`); the figure of proposing nothing
+  is the law's own (its part no spring and dashpot absorb), reported beside it;
 * the final loop NRMSE (as ``diagnose`` reports it) against the truth's floor: the true model at its true
   values on the same loops (:func:`hysid.bench.validation.truth_nrmse`);
 * the time of the diagnosis with discovery over the time without (CPU time of this process, which other
@@ -36,6 +37,7 @@ import hysid
 from hysid.bench import discovery_cases as dc
 from hysid.bench.validation import DAMPER, truth_nrmse
 from hysid_model.errors import HysidInputError
+from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
 
 if TYPE_CHECKING:  # the result's type only: hysid --help loads no diagnosis (scipy.optimize) through the bench
@@ -70,6 +72,14 @@ def formula_force(formula: str, x: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.broadcast_to(np.asarray(eval(formula, {"__builtins__": {}, "np": np, "numpy": np}, {"x": x, "v": v}), dtype=float), x.shape)
 
 
+def memory_force(diagnosis: Diagnosis, loops: LoopSet) -> np.ndarray:
+    """The sum of the proposed terms with memory (whose ``formula`` is the rate of their force, not a force of x and v)
+    at the motion of :func:`loop_motion`: each term's periodic orbit under each loop's sine."""
+    kin = Kinematics(x0=np.asarray(loops.x0, dtype=float), omega=2.0 * np.pi * np.asarray(loops.freq_hz, dtype=float))
+    phase = np.broadcast_to(2.0 * np.pi * np.arange(SHAPE_SAMPLES) / SHAPE_SAMPLES, (kin.x0.size, SHAPE_SAMPLES))
+    return sum((p.term_force(kin, phase) for p in diagnosis.proposed if p.law.memory), np.zeros(phase.shape))
+
+
 def diagnosed(loops: LoopSet, discover: bool) -> tuple[Diagnosis, float, float]:
     """``hysid.diagnose`` of ``loops`` from ``baseline`` with discovery on or off: the diagnosis, its CPU and wall seconds."""
     with warnings.catch_warnings():
@@ -81,7 +91,7 @@ def diagnosed(loops: LoopSet, discover: bool) -> tuple[Diagnosis, float, float]:
 
 def proposals(diagnosis: Diagnosis) -> list[dict[str, Any]]:
     """What the diagnosis proposed (``diagnose --json``'s ``proposed``): formula, plain notation, values, errors, evidence."""
-    keep = ("formula", "notation", "params", "stderr", "evidence")
+    keep = ("formula", "memory", "notation", "params", "stderr", "evidence")
     return [{k: p[k] for k in keep if k in p} for p in diagnosis.to_dict().get("proposed") or []]
 
 
@@ -110,7 +120,7 @@ def run_law(name: str, noise_pct: float, quick: bool) -> dict[str, Any]:
     proposed = proposals(diagnosis)
     x, v = loop_motion(loops.freq_hz, loops.x0)
     truth = law.force(x, v, **law.truth)
-    found = sum((formula_force(p["formula"], x, v) for p in proposed), np.zeros_like(x))
+    found = sum((formula_force(p["formula"], x, v) for p in proposed if not p["memory"]), memory_force(diagnosis, loops))
     _, values, spec = dc.truth_model(name)
     floor = truth_nrmse(loops, (spec, values, "measured"))
     n_params = sum(len(p["params"]) for p in proposed)
@@ -189,7 +199,7 @@ def run(
     noise: tuple[float, ...] = dc.NOISE_PCT,
     real: bool = True,
 ) -> dict[str, Any]:
-    """Discovery: nine force laws the library lacks at two noise levels (shape error, parameters, NRMSE vs floor, time) and two controls."""
+    """Discovery: ten force laws the library lacks at two noise levels (shape error, parameters, NRMSE vs floor, time) and two controls."""
     seeds = (QUICK_SEEDS if quick else CONTROL_SEEDS) if seeds is None else seeds
     for given, known, what in ((laws, dc.LAWS, "law"), (controls, dc.CONTROLS, "control")):
         unknown = [n for n in given if n not in known]

@@ -16,6 +16,8 @@ simulate the records; the diagnosis never sees it. Laws:
   one-sided stop (bilinear spring on one side) ``k (x - g)+``, a wedge friction proportional to the
   displacement ``mu_k |x| sgn v`` (a hysteretic force whose size follows x), and a quintic spring
   ``k_5 x^5`` (a hardening polynomial of another power than the library's cubic);
+* one with memory: two Jenkins (elastic-perfectly plastic) elements in parallel, a Masing/Iwan model of two
+  sliders (:func:`two_slider`), whose loops the library's one Bouc-Wen spring cannot draw;
 
 and two controls: the specimen alone, and the specimen with Coulomb friction (a library effect).
 """
@@ -68,6 +70,8 @@ class Law:
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     issue: bool = True
     """One of the issue's five (else one of the laws unlike them)."""
+    memory: bool = False
+    """A force with memory (a function of x and v over whole cycles, :func:`jenkins`): a memory term must describe it."""
 
     @property
     def n_params(self) -> int:
@@ -108,6 +112,22 @@ def wedge_friction(x, v, hwf_k):
 
 def quintic(x, v, hqu_k):
     return hqu_k * x**5
+
+
+def jenkins(x, v, k, f):
+    """An elastic-perfectly plastic (Jenkins) element, a spring ``k`` (N/m) in series with a slider of slip force ``f`` (N),
+    on its steady periodic orbit: from the reversal at the lowest displacement, where its force is -F_m, it loads as
+    the spring until it slips at F_m (F_m = f, or k times the half span where it never slips). A function of the
+    travel since the last reversal: the reversals are the extremes of ``x`` over its last axis (whole cycles)."""
+    lo, hi = np.min(x, axis=-1, keepdims=True), np.max(x, axis=-1, keepdims=True)
+    peak = np.minimum(f, 0.5 * k * (hi - lo))
+    return np.where(v >= 0.0, np.minimum(k * (x - lo) - peak, peak), np.maximum(peak - k * (hi - x), -peak))
+
+
+def two_slider(x, v, hts_f, hts_k, hts_fr, hts_kr):
+    """Two Jenkins elements in parallel (a Masing/Iwan model of two sliders): slip force ``hts_f`` and stiffness ``hts_k``,
+    and ``hts_fr`` times the one and ``hts_kr`` times the other."""
+    return jenkins(x, v, hts_k, hts_f) + jenkins(x, v, hts_kr * hts_k, hts_fr * hts_f)
 
 
 LAWS = {
@@ -152,6 +172,16 @@ LAWS = {
         ),
         Law("wedge_friction", "mu_k |x| sgn v", wedge_friction, {"hwf_k": 1.5e4}, {"hwf_k": "N/m"}, {"hwf_k": (0.0, 1e7)}, issue=False),
         Law("quintic", "k_5 x^5", quintic, {"hqu_k": 2.4e14}, {"hqu_k": "N/m^5"}, {"hqu_k": (-1e17, 1e17)}, issue=False),
+        Law(
+            "two_slider",
+            "two Jenkins elements in parallel (Masing/Iwan): slip F and stiffness k, and 3 F with 0.2 k",
+            two_slider,
+            {"hts_f": 20.0, "hts_k": 1e5, "hts_fr": 3.0, "hts_kr": 0.2},
+            {"hts_f": "N", "hts_k": "N/m", "hts_fr": "1", "hts_kr": "1"},
+            {"hts_f": (0.0, 1e3), "hts_k": (1.0, 1e7), "hts_fr": (0.0, 10.0), "hts_kr": (0.01, 10.0)},
+            issue=False,
+            memory=True,
+        ),
     )
 }
 """The hidden laws (module docstring); strengths of 10-50 % of the spring's force at the largest amplitude."""

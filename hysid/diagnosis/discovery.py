@@ -32,10 +32,13 @@ from hysid.diagnosis.metrics import cross_validated_rms
 from hysid.diagnosis.tally import Tally
 from hysid_model.discovery.features import Family, columns, library, scales
 from hysid_model.discovery.frols import frols, refine
+from hysid_model.discovery.memory import is_memory, memory_families
 from hysid_model.discovery.proposal import Law, expression, initial_values, make_term, names, number_of
 from hysid_model.effects.bouc_wen import mean_grid
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
+from hysid_model.kinematics import Kinematics
+from hysid_model.terms import ModalState
 from hysid_model.user_laws import motion
 
 MAX_FAMILIES = 2
@@ -87,12 +90,23 @@ class Proposed:
 
     def forces(self, harmonics: Harmonics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The loops' displacement and velocity at their samples and the term's force there as it enters the
-        model (less its cycle mean), each ``(L, 2n)``: :attr:`formula` evaluated by numpy."""
+        model (less its cycle mean), each ``(L, 2n)``: :attr:`formula` evaluated by numpy, or for a law with memory
+        the term's periodic orbit (its formula is a rate)."""
         x, v, gx, gv = state(self.fit, harmonics)
+        if self.law.memory:
+            return x, v, self.term_force(self.fit.objective.objective.kin, harmonics.loops.phases())
         code = compile(self.formula, f"<{self.name}>", "eval")
         with np.errstate(all="ignore"):
             force = eval(code, {"np": np}, {"x": x, "v": v}) - np.mean(eval(code, {"np": np}, {"x": gx, "v": gv}), axis=-1, keepdims=True)
         return x, v, np.broadcast_to(force, x.shape)
+
+    def term_force(self, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
+        """The term's force at ``phase`` ``(L, N)`` under the motion ``kin``, as the model computes it (less its cycle
+        mean): for a law with memory, the periodic orbit of its rate."""
+        made = next(t for t in self.fit.model.terms if t.id == self.name)
+        values = {n: np.array([[value]]) for n, value in self.params().items()}
+        at_rest = ModalState(xi=np.zeros(1), wn=np.zeros(1), m=np.zeros(1))  # a user's term's force needs no modal state
+        return made.time_force(values, at_rest, kin, phase)[0]
 
     @property
     def share(self) -> float:
@@ -121,6 +135,7 @@ class Proposed:
             "name": self.name,
             "kind": "proposed from the data, not a library effect",
             "formula": self.formula,
+            "memory": self.law.memory,
             "notation": self.notation,
             "params": self.params(),
             "stderr": self.stderr(),
@@ -149,7 +164,8 @@ class Columns:
         self.fit, self.harmonics = fit, harmonics
         self.x, self.v, self.gx, self.gv = state(fit, harmonics)
         kin = fit.objective.objective.kin
-        self.families = library(*scales(kin.x0, kin.omega))
+        x_ref, v_ref = scales(kin.x0, kin.omega)
+        self.families = library(x_ref, v_ref) + memory_families(x_ref, *kin.extremes)
         self.basis = np.linalg.qr(fit.jacobian)[0]
         self.index, forces = columns(self.families, self.x, self.v, self.gx, self.gv)
         self.matrix = self.project(forces)
@@ -181,14 +197,15 @@ def selection_threshold(n_columns: int) -> float:
 def threshold(cols: Columns, n_data: int, used: list[Family]) -> Callable[[list[int], int], float]:
     """What column ``k`` must remove after the families ``used``: more than its parameters cost (BIC_MARGIN + p ln N)
     and the score test's family-wise level over every column; never a family used, nor one past
-    :data:`MAX_PARAMETERS`."""
+    :data:`MAX_PARAMETERS`, nor a family of memory with another (its term is the rate of its own force)."""
     level = selection_threshold(len(cols.index))
     spent = sum(1 + len(f.shapes) for f in used)
+    memory = any(is_memory(f) for f in used)
 
     def limit(chosen: list[int], k: int) -> float:
         family = cols.families[cols.index[k][0]]
         n = 1 + len(family.shapes)
-        if spent + n > MAX_PARAMETERS or family in used:
+        if spent + n > MAX_PARAMETERS or family in used or (used and (memory or is_memory(family))):
             return np.inf
         return max(level, BIC_MARGIN + n * np.log(n_data))
 

@@ -16,7 +16,7 @@ from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows
 from hysid.report.bounds import widened_sentence
 from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_section, with_error
 from hysid.report.records import DiagnosisCurves, DiagnosisRecord
-from hysid.report.text import band_text, mass_text, reference_text
+from hysid.report.text import band_text, law_text, mass_text, reference_text
 from hysid_model.frf import amplitude_levels
 from hysid_model.model import effect_term
 from hysid_model.survey import survey
@@ -59,7 +59,7 @@ def _summary(doc: dict[str, Any]) -> str:
         found = (
             ("The start model misses: " + ", ".join(effects) + ", and a force" if effects else "No library effect is named; the start model misses a force")
             + " proposed from the data, not a library effect: "
-            + "; ".join(f"{p['name']}, F = {p['notation']}" for p in doc["proposed"])
+            + "; ".join(f"{p['name']}, {law_text(p)}" for p in doc["proposed"])
             + "."
         )
     if doc["status"] == "adequate":

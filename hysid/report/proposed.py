@@ -9,7 +9,7 @@ from typing import Any
 
 from hysid.report.markdown import image, table, with_error
 from hysid.report.records import DiagnosisRecord
-from hysid.report.text import KIND, evidence_text, fitted_text
+from hysid.report.text import KIND, evidence_text, fitted_text, law_text
 from hysid_model.discovery.proposal import MODULE, module_source
 
 
@@ -33,9 +33,13 @@ def section(doc: dict[str, Any], record: DiagnosisRecord, out: Path, figures: li
         lines += [
             f"### {name}: {KIND}",
             "",
-            f"F = {entry['notation']}",
+            law_text(entry),
             "",
-            f"As numpy, x in m and v in m/s, F in N: `{entry['formula']}`",
+            (
+                f"A force with memory: its rate as numpy, z the force F in N, x in m and v in m/s, dz/dt in N/s: `{entry['formula']}`"
+                if entry.get("memory")
+                else f"As numpy, x in m and v in m/s, F in N: `{entry['formula']}`"
+            ),
             "",
             table(["parameter", "value +- std. error", "unit"], rows),
             "",

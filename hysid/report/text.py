@@ -291,6 +291,11 @@ def diagnosis_summary(doc: dict[str, Any], record: DiagnosisRecord) -> str:
 KIND = "proposed from the data, not a library effect"
 
 
+def law_text(entry: dict[str, Any]) -> str:
+    """A proposed term's law (its JSON entry): ``F = ...``, or for a term with memory the rate of its force F."""
+    return entry["notation"] if entry.get("memory") else f"F = {entry['notation']}"
+
+
 def fitted_text(entry: dict[str, Any]) -> str:
     """``name = value +- stderr unit`` of every parameter of a proposed term (its JSON entry)."""
     return "; ".join(f"{n} = {v:.4g} +- {entry['stderr'][n]:.2g} {entry['units'][n]}" for n, v in entry["params"].items())

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hysid_model.discovery.features import Family
+from hysid_model.discovery.memory import compiled_term, is_memory, rate_expression, with_physical
 from hysid_model.user_laws import UserTerm
 from hysid_model.user_terms import term
 
@@ -55,6 +56,11 @@ class Law:
             self.fixed = [{} for _ in self.families]
 
     @property
+    def memory(self) -> bool:
+        """A law of the Bouc-Wen state (:mod:`.memory`): its term is the rate of its force, not a force of x and v."""
+        return any(is_memory(f) for f in self.families)
+
+    @property
     def n_params(self) -> int:
         return len(self.families) + sum(len(f.shapes) - len(fixed) for f, fixed in zip(self.families, self.fixed))
 
@@ -88,12 +94,15 @@ def _number(value: float, fmt: str = SIGNIFICANT) -> str:
 
 def expression(law: Law, number: int, values: dict[str, float] | None = None, plain: bool = False) -> str:
     """The term's force as a numpy expression in x and v, in its parameter names, or with ``values`` in place
-    (``plain``: in plain notation, four digits)."""
+    (``plain``: in plain notation, four digits); for a law with memory, the rate dz/dt of its force z in z, x and v
+    (:func:`hysid_model.discovery.memory.rate_expression`)."""
     fmt, times = (".4g", " ") if plain else (SIGNIFICANT, " * ")
     parts, strength = [], ""
     for i, (family, mapping) in enumerate(zip(law.families, names(law, number))):
         shown = {s: (mapping[s] if values is None else _number(values[mapping[s]], fmt)) for s in mapping}
         shown.update({s: _number(value, fmt) for s, value in law.fixed[i].items()})
+        if is_memory(family):
+            return rate_expression({**shown, "c": shown["c"] + (" N" if plain and values is not None else "")}, plain)
         phi = family.render(shown, plain)
         if i == 0:
             strength = shown["c"] + (" N" if plain and values is not None else "")
@@ -121,13 +130,20 @@ def term_bounds(law: Law, number: int) -> dict[str, tuple[float, float]]:
     return out
 
 
+def function_name(law: Law, number: int) -> str:
+    """The name of the ``def`` of :func:`function_source`: the force's, or with memory the rate's."""
+    return f"term_{number}_{'rate' if law.memory else 'force'}"
+
+
 def function_source(law: Law, number: int) -> str:
-    """The force law's ``def`` (what the module defines and the diagnosing process executes)."""
+    """The force law's ``def`` (what the module defines and the diagnosing process executes); for a law with
+    memory, the rate of its force z, ``def term_<n>_rate(z, x, v, ...)`` (given to ``hysid.term`` as ``rate=``)."""
     params = [n for mapping in names(law, number) for n in mapping.values()]
     plain = expression(law, number, plain=True).replace('"', "'")
+    head = plain if law.memory else f"F = {plain}"
     return (
-        f"def term_{number}_force(x, v, {', '.join(params)}):\n"
-        f'    """F = {plain}: proposed from the data, not a library effect."""\n'
+        f"def {function_name(law, number)}({'z, ' if law.memory else ''}x, v, {', '.join(params)}):\n"
+        f'    """{head}: proposed from the data, not a library effect."""\n'
         f"    return {expression(law, number)}\n"
     )
 
@@ -152,14 +168,21 @@ def make_term(law: Law, number: int) -> UserTerm:
     """The law as a term of this process, ``term_<number>``, its force defined by :func:`function_source`."""
     namespace: dict = {"np": np, "__name__": MODULE}
     exec(compile(function_source(law, number), f"<{MODULE}.term_{number}>", "exec"), namespace)
-    return term(
-        namespace[f"term_{number}_force"],
+    law_fn = namespace[function_name(law, number)]
+    made = term(
+        None if law.memory else law_fn,
+        rate=law_fn if law.memory else None,
         name=f"term_{number}",
         units=units(law, number),
         bounds=term_bounds(law, number),
         strength=names(law, number)[0]["c"],
         explanation=f"proposed from the data, not a library effect: {expression(law, number, plain=True)}",
     )
+    if not law.memory:
+        return made
+    made.params = with_physical(made.params, names(law, number)[0])
+    shown: dict[str, str | float] = {**names(law, number)[0], **law.fixed[0]}
+    return compiled_term(made, str(shown["c"]), shown["zy"], shown["n"])
 
 
 def module_source(entries: list[tuple[Law, int, str]], dataset: str) -> str:
@@ -173,10 +196,15 @@ def module_source(entries: list[tuple[Law, int, str]], dataset: str) -> str:
         "",
     ]
     for law, number, fitted in entries:
-        doc += [f"term_{number}: F = {expression(law, number, plain=True)}", f"  fitted: {fitted}"]
+        doc += [f"term_{number}: {'' if law.memory else 'F = '}{expression(law, number, plain=True)}", f"  fitted: {fitted}"]
     quotes = '"' * 3
     text = "\n".join(doc).replace("\\", "/").replace(quotes, "'")
-    lines = [quotes + text + "\n" + quotes, "", "import numpy as np", "", "import hysid", ""]
+    memory = any(law.memory for law, _, _ in entries)
+    lines = [quotes + text + "\n" + quotes, "", "import numpy as np", "", "import hysid"]
+    lines += ["from hysid_model.discovery.memory import with_physical", ""] if memory else [""]
     for law, number, _ in entries:
-        lines += ["", function_source(law, number), "", f"term_{number} = hysid.term(term_{number}_force, {term_call(law, number)})", ""]
+        fn = f"{'rate=' if law.memory else ''}{function_name(law, number)}"
+        lines += ["", function_source(law, number), "", f"term_{number} = hysid.term({fn}, {term_call(law, number)})", ""]
+        if law.memory:  # its rate is defined for z_y > 0 and n >= 1 only: a fit widens a bound it ends on within those
+            lines[-1:] = [f"term_{number}.params = with_physical(term_{number}.params, {names(law, number)[0]!r})", ""]
     return "\n".join(lines)
