@@ -15,6 +15,14 @@ import numpy as np
 
 from hysid_model import waveform
 
+REVERSAL_TIE = 1e-9
+"""A sample where |x'| (d x / d(wt)) is below this times X0 is at a reversal: its branch, not the sign of its
+rounding-sized velocity, says whether it is loading (the first ``n_top`` samples of a loop) or unloading."""
+CREEP = float(np.finfo(float).tiny)
+"""The speed (m/s) of a sample at a reversal: not zero but below anything a law's continuous part can see, so
+that a law that jumps at v = 0 (a friction's sgn v) takes its branch's side there, as the extraction's
+one-sided fits at the reversals do (:mod:`hysid_model.resolution`)."""
+
 
 @dataclass(frozen=True)
 class Kinematics:
@@ -32,6 +40,17 @@ class Kinematics:
     def harmonics(self) -> np.ndarray:
         """``(L, K)`` complex displacement harmonics (K = 1 for the ideal sine)."""
         return waveform.ideal(self.x0) if self.xh is None else self.xh
+
+    def velocity(self, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
+        """Velocity (m/s) at phases ``(L, N)`` or ``(P, L, N)``. Where ``n_top`` is given the phases are samples of
+        each loop's branches, the first ``n_top`` loading: a sample at a reversal (:data:`REVERSAL_TIE`) moves at
+        its branch's one-sided limit, +-:data:`CREEP` (at x_max, the loading sample's is + and the unloading
+        one's -, though both are at the same phase)."""
+        dx = self.displacement(phase, 1)
+        if n_top is None:
+            return self.omega[:, None] * dx
+        branch = np.where(np.arange(phase.shape[-1]) < n_top, CREEP, -CREEP)
+        return np.where(np.abs(dx) < REVERSAL_TIE * self.x0[:, None], branch, self.omega[:, None] * dx)
 
     @cached_property
     def orders(self) -> np.ndarray:

@@ -74,7 +74,7 @@ def test_a_fluid_damper_is_proposed_with_its_exponent_and_its_formula_is_the_fit
     loops = found.fit.objective.harmonics.loops
     kin, phase = loops.kinematics(), loops.phases()
     values = {n: np.array([[v]]) for n, v in params.items()}
-    model_force = term.time_force(values, ModalState(xi=np.zeros(1), wn=np.zeros(1), m=np.zeros(1)), kin, phase)[0]
+    model_force = term.time_force(values, ModalState(xi=np.zeros(1), wn=np.zeros(1), m=np.zeros(1)), kin, phase, loops.n_samples)[0]
     _, _, formula_force = found.forces(found.fit.objective.harmonics)
     assert np.allclose(formula_force, model_force, rtol=1e-7, atol=1e-9 * np.abs(model_force).max())
     assert json.loads(json.dumps(found.as_dict()))["formula"] == found.formula

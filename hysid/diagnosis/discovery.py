@@ -134,10 +134,10 @@ class Proposed:
 
 
 def state(fit: Fit, harmonics: Harmonics) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Displacement and velocity at the loops' samples ``(L, 2n)`` and on the uniform phases of a cycle mean,
-    under the motion ``fit`` is driven by."""
+    """Displacement and velocity at the loops' samples ``(L, 2n)`` (a sample at a reversal on its branch's side,
+    as a term's force is evaluated there) and on the uniform phases of a cycle mean, under the motion ``fit`` is driven by."""
     kin = fit.objective.objective.kin
-    x, v = motion(kin, harmonics.loops.phases())
+    x, v = motion(kin, harmonics.loops.phases(), harmonics.loops.n_samples)
     gx, gv = motion(kin, mean_grid(kin.x0.size))
     return x[0], v[0], gx[0], gv[0]
 
