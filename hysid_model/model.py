@@ -339,7 +339,7 @@ class Model:
                 sign = sign + jump * np.where(inside, waveform.past_jump(offset, before, after) - past, 0.0)
             out += sgn[:, :, None] * sign
         if memory_terms:
-            out += sum(t.time_force(v, state, kin, shifted, n_top) for t in memory_terms)
+            out += sum(t.time_force(v, state, kin, shifted) for t in memory_terms)  # delayed: the motion's own direction
         gain = np.ones((1, 1, CHAIN_ORDERS.size), dtype=complex)
         for t in self._sensors:
             gain = gain * t.gain(v, kin, CHAIN_ORDERS)

@@ -150,8 +150,8 @@ class Term:
 
     def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
         """Force of a memory term at phases ``(L, N)`` or ``(P, L, N)``, shape ``(P, L, N)`` (the numpy reference).
-        ``n_top``: the phases are samples of each loop's branches, the first ``n_top`` loading (which decides the
-        side of a sample at a reversal, :meth:`~hysid_model.kinematics.Kinematics.velocity`); None: any phases."""
+        ``n_top``: the phases are samples of each loop's branches, the first ``n_top`` loading (each moves in its
+        branch's direction, a sample at a reversal too: :meth:`~hysid_model.kinematics.Kinematics.velocity`); None: any phases."""
         raise TypeError(f"term {self.id} has no memory")
 
     def sampler(self, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> Sampler | None:

@@ -46,7 +46,7 @@ GRID_VALUES = 3
 def motion(kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Displacement (m) and velocity (m/s) at phases ``(L, N)`` or ``(P, L, N)``, each ``(1 or P, L, N)``; where
     ``n_top`` is given, at samples of the loops' branches (:meth:`~hysid_model.kinematics.Kinematics.velocity`:
-    a sample at a reversal has its branch's sign of velocity)."""
+    each moves in its branch's direction, a sample at a reversal too)."""
     phase = phase if phase.ndim == 3 else phase[None]
     return kin.displacement(phase), kin.velocity(phase, n_top)
 
@@ -148,7 +148,7 @@ class FunctionSampler:
         self.grid = motion(kin, mean_grid(kin.x0.size))
 
     def add(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
-        at = self.at if shift is None else motion(self.kin, self.phase[None] - shift[:, :, None], self.n_top)
+        at = self.at if shift is None else motion(self.kin, self.phase[None] - shift[:, :, None])  # delayed: the motion's own direction
         out += self.term.centred(v, at, self.grid)
 
 
