@@ -202,9 +202,12 @@ def contenders(cols: Columns, matrix: np.ndarray, target: np.ndarray, limit: Cal
     """The columns FROLS would select first (what they remove less their cost, above ``limit``) of the
     :data:`CONTENDERS` families that remove the most, one column each, best first."""
     picked: list[int] = []
+
+    def new_family(taken: list[int], k: int) -> float:
+        return np.inf if any(cols.index[k][0] == cols.index[j][0] for j in picked) else limit(taken, k)
+
     for _ in range(CONTENDERS):
-        seen = {cols.index[j][0] for j in picked}
-        chosen = frols(matrix, target, lambda taken, k: np.inf if cols.index[k][0] in seen else limit(taken, k), 1, cols.cost)
+        chosen = frols(matrix, target, new_family, 1, cols.cost)
         if not chosen:
             break
         picked.append(chosen[0].index)
