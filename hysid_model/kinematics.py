@@ -15,6 +15,14 @@ import numpy as np
 
 from hysid_model import waveform
 
+REVERSAL_TIE = 1e-9
+"""A sample where |x'| (d x / d(wt)) is below this times X0 is at a reversal: its branch, not the sign of its
+rounding-sized velocity, says whether it is loading (the first ``n_top`` samples of a loop) or unloading."""
+CREEP = 1e-16
+"""The least speed of a sample of a branch, as a share of the loop's velocity amplitude w X0 (:meth:`Kinematics.velocity`):
+the size rounding gives a reversal's own velocity, so that a law's continuous part sees there what it saw before
+(not smaller: a law |v|^a that a fit takes to a < 0 would blow up)."""
+
 
 @dataclass(frozen=True)
 class Kinematics:
@@ -32,6 +40,19 @@ class Kinematics:
     def harmonics(self) -> np.ndarray:
         """``(L, K)`` complex displacement harmonics (K = 1 for the ideal sine)."""
         return waveform.ideal(self.x0) if self.xh is None else self.xh
+
+    def velocity(self, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
+        """Velocity (m/s) at phases ``(L, N)`` or ``(P, L, N)``. Where ``n_top`` is given the phases are samples of
+        each loop's branches, the first ``n_top`` loading: each moves in its branch's direction, at least at
+        :data:`CREEP` w X0, so that a law that jumps at v = 0 (a friction's sgn v) takes its branch's side at a
+        reversal as the extraction's one-sided fits there do (:mod:`hysid_model.resolution`), though the loading
+        and the unloading sample at x_max share one phase, and though a reading of the displacement (its
+        fundamental) may place a sample next to a reversal a hair past it."""
+        v = self.omega[:, None] * self.displacement(phase, 1)
+        if n_top is None:
+            return v
+        branch = np.where(np.arange(phase.shape[-1]) < n_top, 1.0, -1.0)
+        return branch * np.maximum(np.abs(v), CREEP * (self.omega * self.x0)[:, None])
 
     @cached_property
     def orders(self) -> np.ndarray:

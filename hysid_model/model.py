@@ -18,7 +18,7 @@ from hysid_model import waveform
 from hysid_model.basis import design_matrix
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
-from hysid_model.kinematics import Kinematics
+from hysid_model.kinematics import REVERSAL_TIE, Kinematics
 from hysid_model.params import Parameter, on_bounds
 from hysid_model.presets import PRESET_FREES, PRESETS
 from hysid_model.terms import (
@@ -303,10 +303,11 @@ class Model:
         if not memory_terms and not self._filters_sgn:
             return None
         v, state = self.modal_state(pop, kin)
+        n_top = phase.shape[-1] // 2 if n_top is None else n_top
         if not self._sensors:
-            return sum(t.time_force(v, state, kin, phase) for t in memory_terms)
+            return sum(t.time_force(v, state, kin, phase, n_top) for t in memory_terms)
         sgn = self.sgn_coefficient(v, state, kin) if self._filters_sgn else None
-        return self._through_chain(v, state, kin, phase, phase.shape[-1] // 2 if n_top is None else n_top, sgn, memory_terms)
+        return self._through_chain(v, state, kin, phase, n_top, sgn, memory_terms)
 
     def sgn_coefficient(self, v: Values, state: ModalState, kin: Kinematics) -> np.ndarray:
         """The coefficient of the sign-of-velocity feature before the measurement chain, ``(P, L)``."""
@@ -330,7 +331,7 @@ class Model:
         if sgn is not None:
             velocity = kin.displacement(shifted, 1)
             branch = np.where(np.arange(phase.shape[-1]) < n_top, 1.0, -1.0)
-            sign = np.where(np.abs(velocity) < 1e-9 * kin.x0[:, None], branch, np.sign(velocity))
+            sign = np.where(np.abs(velocity) < REVERSAL_TIE * kin.x0[:, None], branch, np.sign(velocity))
             before, after = waveform.sample_cells(phase, n_top, *kin.reversals)
             for reversal, jump, past in zip(kin.reversals, (2.0, -2.0), (sign > 0, sign < 0)):
                 offset = np.mod(reversal[None, :, None] + kin.omega[None, :, None] * delay - phase[None] + np.pi, 2 * np.pi) - np.pi
@@ -338,7 +339,7 @@ class Model:
                 sign = sign + jump * np.where(inside, waveform.past_jump(offset, before, after) - past, 0.0)
             out += sgn[:, :, None] * sign
         if memory_terms:
-            out += sum(t.time_force(v, state, kin, shifted) for t in memory_terms)
+            out += sum(t.time_force(v, state, kin, shifted) for t in memory_terms)  # delayed: the motion's own direction
         gain = np.ones((1, 1, CHAIN_ORDERS.size), dtype=complex)
         for t in self._sensors:
             gain = gain * t.gain(v, kin, CHAIN_ORDERS)

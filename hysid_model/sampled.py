@@ -50,7 +50,7 @@ class SampledMemory:
         memory_terms: list[Term] = [t for t in model.terms if t.memory]
         self.sensors = model.sensors
         gains = [t for t in self.sensors if has_gain(t)]
-        samplers = [t.sampler(kin, self.phase) for t in memory_terms]
+        samplers = [t.sampler(kin, self.phase, self.n_top) for t in memory_terms]
         self.compiled = (
             all(s is not None for s in samplers)
             and len(gains) <= 1

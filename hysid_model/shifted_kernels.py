@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from hysid_model.bouc_wen_kernels import Orbit
+from hysid_model.kinematics import REVERSAL_TIE
 
 TWO_PI = 2.0 * math.pi
 
@@ -140,7 +141,7 @@ def velocity_sign_chain(
     reversals and decays as exp(-rho (theta - reversal)) in between, from
     A = 2 (1 - E2) / (1 - E1 E2) after the jump up and -B = -2 (1 - E1) / (1 - E1 E2) after the
     jump down, E_i = exp(-rho T_i). Where the velocity at the shifted phase vanishes
-    (|x'| < 1e-9 X0: the sample is at a reversal) the branch is the sample's own, loading for the
+    (|x'| < REVERSAL_TIE X0: the sample is at a reversal) the branch is the sample's own, loading for the
     first ``n_top`` samples, as :meth:`hysid_model.model.Model.memory_force` decides. A jump of +-2 that
     the shift moves into a sample's cell (``before`` and ``after`` it, ``(L, N)``:
     :func:`hysid_model.waveform.sample_cells`) is averaged over the cell (:func:`_jump_in_cell`), as the
@@ -161,7 +162,7 @@ def velocity_sign_chain(
                 up, down = 2.0 * -math.expm1(-rh * t2) / whole, 2.0 * -math.expm1(-rh * t1) / whole
             for n in range(waves.shape[2]):
                 _, v = _motion(waves, l, n, xs)
-                tie = abs(v) < 1e-9 * x0[l]
+                tie = abs(v) < REVERSAL_TIE * x0[l]
                 loading = (n < n_top) if tie else v > 0.0
                 theta, b, a = phase[l, n], before[l, n], after[l, n]
                 cell = _jump_in_cell(theta_lo[l], shift[p, l], theta, b, a, 2.0, loading)

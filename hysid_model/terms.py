@@ -148,13 +148,15 @@ class Term:
         """Stage 3: the force as measured (default: unchanged)."""
         return coefs
 
-    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
-        """Force of a memory term at phases ``(L, N)`` or ``(P, L, N)``, shape ``(P, L, N)`` (the numpy reference)."""
+    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
+        """Force of a memory term at phases ``(L, N)`` or ``(P, L, N)``, shape ``(P, L, N)`` (the numpy reference).
+        ``n_top``: the phases are samples of each loop's branches, the first ``n_top`` loading (each moves in its
+        branch's direction, a sample at a reversal too: :meth:`~hysid_model.kinematics.Kinematics.velocity`); None: any phases."""
         raise TypeError(f"term {self.id} has no memory")
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> Sampler | None:
-        """A compiled evaluator of :meth:`time_force` at the fixed phases ``(L, N)`` of a loop set, or None
-        (then :mod:`hysid_model.sampled` uses :meth:`time_force`)."""
+    def sampler(self, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> Sampler | None:
+        """A compiled evaluator of :meth:`time_force` at the fixed phases ``(L, N)`` of a loop set (``n_top`` as
+        there), or None (then :mod:`hysid_model.sampled` uses :meth:`time_force`)."""
         return None
 
     @property

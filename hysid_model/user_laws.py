@@ -43,10 +43,12 @@ GRID_VALUES = 3
 """Values per shape parameter (every parameter but the strength) on a term's :meth:`~UserTerm.shape_grid`."""
 
 
-def motion(kin: Kinematics, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Displacement (m) and velocity (m/s) at phases ``(L, N)`` or ``(P, L, N)``, each ``(1 or P, L, N)``."""
+def motion(kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Displacement (m) and velocity (m/s) at phases ``(L, N)`` or ``(P, L, N)``, each ``(1 or P, L, N)``; where
+    ``n_top`` is given, at samples of the loops' branches (:meth:`~hysid_model.kinematics.Kinematics.velocity`:
+    each moves in its branch's direction, a sample at a reversal too)."""
     phase = phase if phase.ndim == 3 else phase[None]
-    return kin.displacement(phase), kin.omega[:, None] * kin.displacement(phase, 1)
+    return kin.displacement(phase), kin.velocity(phase, n_top)
 
 
 def shaped(made: UserTerm, value: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -130,23 +132,23 @@ class FunctionTerm(UserTerm):
         """The force at the motion ``at`` less its mean over the uniform phases of ``grid``."""
         return self.forces(v, *at) - self.forces(v, *grid).mean(axis=-1, keepdims=True)
 
-    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
-        return self.centred(v, motion(kin, phase), motion(kin, mean_grid(kin.x0.size)))
+    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
+        return self.centred(v, motion(kin, phase, n_top), motion(kin, mean_grid(kin.x0.size)))
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> FunctionSampler:
-        return FunctionSampler(self, kin, phase)
+    def sampler(self, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> FunctionSampler:
+        return FunctionSampler(self, kin, phase, n_top)
 
 
 class FunctionSampler:
     """:meth:`FunctionTerm.time_force` at fixed phases ``(L, N)``, the motion there and on the mean's grid computed once."""
 
-    def __init__(self, term: FunctionTerm, kin: Kinematics, phase: np.ndarray) -> None:
-        self.term, self.kin, self.phase = term, kin, phase
-        self.at = motion(kin, phase)
+    def __init__(self, term: FunctionTerm, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> None:
+        self.term, self.kin, self.phase, self.n_top = term, kin, phase, n_top
+        self.at = motion(kin, phase, n_top)
         self.grid = motion(kin, mean_grid(kin.x0.size))
 
     def add(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
-        at = self.at if shift is None else motion(self.kin, self.phase[None] - shift[:, :, None])
+        at = self.at if shift is None else motion(self.kin, self.phase[None] - shift[:, :, None])  # delayed: the motion's own direction
         out += self.term.centred(v, at, self.grid)
 
 
@@ -247,10 +249,10 @@ class RateTerm(UserTerm):
         at = (2 * t3 - 3 * t2 + 1) * z0 + (t3 - 2 * t2 + t) * s0 + (-2 * t3 + 3 * t2) * z1 + (t3 - t2) * s1
         return at - z[..., :STEPS].mean(axis=-1, keepdims=True)
 
-    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
-        return self.centred(self.orbit(v, Cycle(kin)), phase)
+    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
+        return self.centred(self.orbit(v, Cycle(kin)), phase)  # the orbit is continuous at a reversal: no side to take
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> RateSampler:
+    def sampler(self, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> RateSampler:
         return RateSampler(self, kin, phase)
 
 

@@ -108,7 +108,9 @@ def test_one_hidden_law_end_to_end(tmp_path, capsys):
         assert 0.05 * r["noise_pct"] < r["floor_nrmse_pct"] < r["noise_pct"]
         assert r["nothing_proposed_shape_error"] > 0.2  # v |v| is no dashpot: the case asks a question
         if not r["proposed"]:
-            assert r["shape_error"] == pytest.approx(r["nothing_proposed_shape_error"])
+            assert r["proposed_shape_error"] == pytest.approx(r["nothing_proposed_shape_error"])
+        if not r["proposed"] and not r["discovery"]["named"]:
+            assert r["shape_error"] == pytest.approx(r["nothing_proposed_shape_error"]) and r["n_params"] == 0
     (control,) = result["controls"]
     assert control["seeds"] == 1 and len(control["draws"]) == 1
     text = doc.read_text()

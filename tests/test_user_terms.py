@@ -115,6 +115,27 @@ def test_a_force_law_is_the_law_at_the_samples_less_its_cycle_mean(labterms, dis
         np.testing.assert_allclose(force, 3e5 * (x**2 - kin.x0[:, None] ** 2 / 2) + 2e8 * x**3, rtol=0, atol=1e-12)
 
 
+def dry_friction(x, v, F):
+    return F * np.sign(v)
+
+
+@pytest.mark.parametrize("distorted", [False, True])
+def test_a_friction_law_takes_its_branch_s_side_at_the_reversals(distorted):
+    """At the samples where the motion reverses (x_min and x_max ends both branches, at one phase) a user's law that
+    jumps at v = 0 sees its branch's side, + loading and - unloading, as the library's Coulomb friction does
+    (its sign feature) and as the extraction's one-sided fits at the reversals do; not the sign of a velocity of
+    rounding size, which put + on the unloading sample at x_max (2 F off)."""
+    dry = hysid.term(dry_friction, name="dry", units={"F": "N"}, bounds={"F": (0.0, 100.0)})
+    kin = kinematics(distorted)
+    n = 25
+    top, bottom = np.linspace(*kin.extremes, n).T, np.linspace(*kin.extremes, n).T
+    phase = waveform.branch_phases(kin.harmonics, top, bottom)
+    force = dry.time_force(values(F=30.0), ModalState(0, 0, 0), kin, phase, n)[0]
+    branch = np.where(np.arange(2 * n) < n, 30.0, -30.0)
+    centred = force - force.mean(axis=1, keepdims=True) - (branch - branch.mean())
+    assert np.ptp(centred, axis=1).max() < 1e-9  # the branch's sign at every sample, the reversals' included
+
+
 def test_velocity_is_the_derivative_of_the_displacement_in_time(labterms):
     kin = kinematics(True)
     theta = np.broadcast_to(np.linspace(0.0, 2 * np.pi, 4000, endpoint=False), (2, 4000))

@@ -4,13 +4,16 @@ Each specimen of :mod:`hysid.bench.discovery_cases` (ten hidden laws at two forc
 each) is diagnosed twice in this process, with discovery off (today's diagnosis, the baseline of the time
 ratio) and on, each from ``baseline`` with its defaults. For each law:
 
-* the ``formula`` of every term proposed (``diagnose --json``'s ``proposed``), and their parameters in all;
+* the ``formula`` of every term proposed (``diagnose --json``'s ``proposed``);
 * the **shape error** against the truth (:func:`shape_error`): over the loops' motion (each loop's sine, x =
-  X0 sin(phi), v = w X0 cos(phi), at :data:`SHAPE_SAMPLES` uniform phases), the difference of the proposed
-  force (the sum of the terms proposed, 0 where none is) and the true law's, less its least-squares fit by a
-  spring and a dashpot (a x + b v, one a and b for all loops), its RMS over the RMS of the true force (a term with
-  memory, whose formula is a rate, by its periodic orbit: :func:`memory_force`); the figure of proposing nothing
-  is the law's own (its part no spring and dashpot absorb), reported beside it;
+  X0 sin(phi), v = w X0 cos(phi), at :data:`SHAPE_SAMPLES` uniform phases), the difference of the force the
+  final model adds to the specimen's spring, dashpot and mass (:func:`added`: the terms proposed and the
+  library effects named beside them, as a Stribeck law is Coulomb friction and a hump; 0 where there are none)
+  and the true law's, each less its mean over each loop, less its least-squares fit by a spring and a dashpot
+  (a x + b v, one a and b for all loops), its RMS over the RMS of the true force; the figure of proposing
+  nothing is the law's own (its part no spring and dashpot absorb), and that of the terms proposed alone,
+  reported beside it (a term with memory, whose formula is a rate, by its periodic orbit: :func:`memory_force`);
+  the parameters counted are those of the same added terms;
 * the final loop NRMSE (as ``diagnose`` reports it) against the truth's floor: the true model at its true
   values on the same loops (:func:`hysid.bench.validation.truth_nrmse`);
 * the time of the diagnosis with discovery over the time without (CPU time of this process, which other
@@ -41,6 +44,7 @@ from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
 
 if TYPE_CHECKING:  # the result's type only: hysid --help loads no diagnosis (scipy.optimize) through the bench
+    from hysid.diagnosis.fitting import Fit
     from hysid.diagnosis.result import Diagnosis
 
 SHAPE_SAMPLES = 256
@@ -51,20 +55,44 @@ CONTROL_NOISE_PCT = 1.0
 TARGETS = {"shape_error": 0.20, "max_params": 4, "floor_ratio": 1.5, "time_ratio": 3.0, "false_proposals": 1}
 
 
+def shape_phases(n_loops: int, samples: int = SHAPE_SAMPLES) -> np.ndarray:
+    """``(L, samples)`` uniform phases of a sine's cycle, half a step off its reversals, the loading half (x' > 0) first."""
+    return np.broadcast_to(-0.5 * np.pi + 2.0 * np.pi * (np.arange(samples) + 0.5) / samples, (n_loops, samples))
+
+
 def loop_motion(freq_hz: np.ndarray, x0: np.ndarray, samples: int = SHAPE_SAMPLES) -> tuple[np.ndarray, np.ndarray]:
-    """The sine motion of loops at ``freq_hz`` and amplitudes ``x0``: x (m) and v (m/s), ``(L, samples)`` at uniform phases."""
-    phase = 2.0 * np.pi * np.arange(samples) / samples
+    """The sine motion of loops at ``freq_hz`` and amplitudes ``x0``: x (m) and v (m/s), ``(L, samples)`` at
+    :func:`shape_phases`."""
     amplitude, w = np.asarray(x0, dtype=float)[:, None], 2.0 * np.pi * np.asarray(freq_hz, dtype=float)[:, None]
+    phase = shape_phases(amplitude.shape[0], samples)
     return amplitude * np.sin(phase), w * amplitude * np.cos(phase)
 
 
 def shape_error(truth: np.ndarray, proposed: np.ndarray, x: np.ndarray, v: np.ndarray) -> float:
     """RMS of (proposed - truth) less its least-squares fit by a spring and a dashpot (a x + b v, one a and b over
-    all samples), over the RMS of ``truth``; all forces at the motion ``x``, ``v`` (module docstring)."""
-    difference = np.broadcast_to(np.asarray(proposed, dtype=float), truth.shape).ravel() - truth.ravel()
+    all samples), over the RMS of ``truth``; all forces at the motion ``x``, ``v`` ``(L, samples)`` (module
+    docstring), each less its mean over each loop (the loops are centred: a constant force is not in the data)."""
+    truth = truth - truth.mean(axis=-1, keepdims=True)
+    difference = np.broadcast_to(np.asarray(proposed, dtype=float), truth.shape)
+    difference = (difference - difference.mean(axis=-1, keepdims=True) - truth).ravel()
     basis = np.column_stack([x.ravel(), v.ravel()])
     absorbed = basis @ np.linalg.lstsq(basis, difference, rcond=None)[0]
     return float(np.sqrt(np.mean((difference - absorbed) ** 2)) / np.sqrt(np.mean(truth**2)))
+
+
+def added(fit: Fit, freq_hz: np.ndarray, x0: np.ndarray, samples: int = SHAPE_SAMPLES) -> tuple[np.ndarray, int]:
+    """What the model of ``fit`` adds to its start model's spring, dashpot and mass (the effects named and the terms
+    proposed, whatever carries the law) at the motion of :func:`loop_motion`: its force less the same model's with
+    every added term's strength at 0, ``(L, samples)``, and the added terms' parameters in all."""
+    model, theta = fit.model, np.array(fit.theta, dtype=float)
+    kin = Kinematics(np.asarray(x0, dtype=float), 2.0 * np.pi * np.asarray(freq_hz, dtype=float))
+    phase = shape_phases(kin.x0.size, samples)
+    off, n_params = theta.copy(), 0
+    for term in (t for t in model.terms if t.id in fit.effects):
+        off[model.names.index(term.strength)] = 0.0
+        n_params += sum(p.name in model.names for p in term.params)
+    forces = model.force(np.stack([theta, off]), kin, phase, samples // 2)
+    return forces[0] - forces[1], n_params
 
 
 def formula_force(formula: str, x: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -121,9 +149,9 @@ def run_law(name: str, noise_pct: float, quick: bool) -> dict[str, Any]:
     x, v = loop_motion(loops.freq_hz, loops.x0)
     truth = law.force(x, v, **law.truth)
     found = sum((formula_force(p["formula"], x, v) for p in proposed if not p["memory"]), memory_force(diagnosis, loops))
+    final, n_params = added(diagnosis.final, loops.freq_hz, loops.x0)
     _, values, spec = dc.truth_model(name)
     floor = truth_nrmse(loops, (spec, values, "measured"))
-    n_params = sum(len(p["params"]) for p in proposed)
     row = {
         "law": name,
         "truth": law.formula,
@@ -135,8 +163,10 @@ def run_law(name: str, noise_pct: float, quick: bool) -> dict[str, Any]:
         "discovery": discovered,
         "proposed": proposed,
         "n_params": n_params,
+        "proposed_params": sum(len(p["params"]) for p in proposed),
         "law_params": law.n_params,
-        "shape_error": shape_error(truth, found, x, v),
+        "shape_error": shape_error(truth, final, x, v),
+        "proposed_shape_error": shape_error(truth, found, x, v),
         "nothing_proposed_shape_error": shape_error(truth, np.zeros_like(x), x, v),
         "floor_nrmse_pct": floor,
         "floor_ratio": discovered["nrmse_pct"] / floor,
@@ -268,7 +298,8 @@ def to_text(result: dict[str, Any]) -> str:
         m = r["meets"]
         lines.append(f"  {r['law']:<15} {r['noise_pct']:g} %  proposed {proposed_text(r)}")
         lines.append(
-            f"    shape error {100 * r['shape_error']:.1f} % (nothing proposed: {100 * r['nothing_proposed_shape_error']:.1f} %) "
+            f"    shape error {100 * r['shape_error']:.1f} % (proposed alone: {100 * r['proposed_shape_error']:.1f} %, "
+            f"nothing proposed: {100 * r['nothing_proposed_shape_error']:.1f} %) "
             f"{'ok' if m['shape'] else 'MISS'}; params {r['n_params']} (law {r['law_params']}) {'ok' if m['params'] else 'MISS'}; "
             f"NRMSE {r['discovery']['nrmse_pct']:.3g} % vs floor {r['floor_nrmse_pct']:.3g} % ({r['floor_ratio']:.2f}x) "
             f"{'ok' if m['floor'] else 'MISS'}; time {r['discovery']['cpu_s']:.0f} s vs {r['baseline']['cpu_s']:.0f} s "

@@ -8,7 +8,8 @@ effects it has: the column space of its Jacobian J) is projected out, as for the
 effect (:mod:`.scoring`). FROLS (:func:`hysid_model.discovery.frols.frols`) selects at most two families, one at
 a time: of the columns that remove more than their parameters cost by the information criterion (BIC_MARGIN +
 p ln N) and more than the score test's family-wise level over every column, the one that removes the most less
-its p ln N; at most :data:`MAX_PARAMETERS` parameters in all. Each family's shapes (exponents, thresholds,
+its p ln N, once the best of the few leading families are refined (:func:`select`); at most
+:data:`MAX_PARAMETERS` parameters in all. Each family's shapes (exponents, thresholds,
 velocity scales) are refined by nonlinear least squares from its grid point
 (:func:`hysid_model.discovery.frols.refine`) before the next is sought, and a family the next makes redundant
 is dropped (:func:`backward`). The law becomes a term of the user's kind
@@ -45,6 +46,8 @@ MAX_FAMILIES = 2
 """Families a proposed law combines at most."""
 MAX_PARAMETERS = 4
 """Parameters a proposed law has at most (its coefficients and shapes)."""
+CONTENDERS = 6
+"""Families refined at each step of the selection before one is taken (:func:`select`)."""
 SIMPLE_WITHIN = 2.0
 """Standard errors within which a fitted exponent is taken at a simple value (:func:`parsimonious`)."""
 
@@ -149,10 +152,10 @@ class Proposed:
 
 
 def state(fit: Fit, harmonics: Harmonics) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Displacement and velocity at the loops' samples ``(L, 2n)`` and on the uniform phases of a cycle mean,
-    under the motion ``fit`` is driven by."""
+    """Displacement and velocity at the loops' samples ``(L, 2n)`` (a sample at a reversal on its branch's side,
+    as a term's force is evaluated there) and on the uniform phases of a cycle mean, under the motion ``fit`` is driven by."""
     kin = fit.objective.objective.kin
-    x, v = motion(kin, harmonics.loops.phases())
+    x, v = motion(kin, harmonics.loops.phases(), harmonics.loops.n_samples)
     gx, gv = motion(kin, mean_grid(kin.x0.size))
     return x[0], v[0], gx[0], gv[0]
 
@@ -212,11 +215,30 @@ def threshold(cols: Columns, n_data: int, used: list[Family]) -> Callable[[list[
     return limit
 
 
+def contenders(cols: Columns, matrix: np.ndarray, target: np.ndarray, limit: Callable[[list[int], int], float]) -> list[int]:
+    """The columns FROLS would select first (what they remove less their cost, above ``limit``) of the
+    :data:`CONTENDERS` families that remove the most, one column each, best first."""
+    picked: list[int] = []
+
+    def new_family(taken: list[int], k: int) -> float:
+        return np.inf if any(cols.index[k][0] == cols.index[j][0] for j in picked) else limit(taken, k)
+
+    for _ in range(CONTENDERS):
+        chosen = frols(matrix, target, new_family, 1, cols.cost)
+        if not chosen:
+            break
+        picked.append(chosen[0].index)
+    return picked
+
+
 def select(cols: Columns, residual: np.ndarray) -> tuple[Law | None, list[float]]:
     """The law of at most :data:`MAX_FAMILIES` families FROLS selects (module docstring), each family's shapes
     refined with the ones before it before the next is sought (a grid shape's misfit must not pass for a second
     family), and the error-reduction ratio of each; a family is kept only where the refined law with it removes
-    more than its cost (:func:`threshold`) beyond the refined law without it."""
+    more than its cost (:func:`threshold`) beyond the refined law without it. At each step the best columns of
+    the :data:`CONTENDERS` leading families are refined and the one that removes the most less its cost is
+    taken: on a grid, a family whose shape lies between grid points (a Stribeck hump at v_s = 0.04 m/s) may
+    remove less than another that only resembles it (a tanh), and lose to it before its shape is found."""
     families: list[Family] = []
     shapes: list[dict[str, float]] = []
     law, left, err = None, float(residual @ residual), []
@@ -226,14 +248,16 @@ def select(cols: Columns, residual: np.ndarray) -> tuple[Law | None, list[float]
         if law is not None:
             basis = np.linalg.qr(cols.of(families, shape_vector(families, shapes)))[0]
             target, matrix = residual - basis @ (basis.T @ residual), cols.matrix - basis @ (basis.T @ cols.matrix)
-        chosen = frols(matrix, target, limit, 1, cols.cost)
-        if not chosen:
+        trials = []
+        for k in contenders(cols, matrix, target, limit):
+            family, shape = cols.families[cols.index[k][0]], cols.index[k][1]
+            trial = refined_law(cols, families + [family], shapes + [shape], residual)
+            if left - trial.chi2 > limit([], k):
+                trials.append((left - trial.chi2 - cols.cost[k], trial))
+        if not trials:
             break
-        family, shape = cols.families[cols.index[chosen[0].index][0]], cols.index[chosen[0].index][1]
-        trial = refined_law(cols, families + [family], shapes + [shape], residual)
+        trial = max(trials, key=lambda t: t[0])[1]
         removed = left - trial.chi2
-        if removed <= limit([], chosen[0].index):
-            break
         law, families, shapes, left = trial, trial.families, trial.shapes, trial.chi2
         err.append(removed / max(float(residual @ residual), 1e-300))
         law, dropped = backward(cols, law, residual)

@@ -7,8 +7,11 @@ V, rounded to two digits), so that every coefficient is a force and the formula 
 ``c * np.abs(v / 0.13) ** a * np.sign(v)`` is c (|v| / V)^a sgn(v). The families cover what a missing force
 of a vibrating device is made of: powers of |x| and |v| with their signs (odd) or without (even, a
 loop that is not point-symmetric), products of x and v (x^2 v, x |v|, ...), one-sided, dead-zone and saturating
-springs and a velocity dead zone on a grid of thresholds scaled by the amplitude, and saturating or decaying
-velocity laws (tanh, 1 - exp, a Gaussian hump) on a grid of velocity scales. A shape parameter's grid is
+springs and a velocity dead zone on a grid of thresholds scaled by the amplitude, saturating or decaying
+velocity laws (tanh, 1 - exp, a Gaussian hump) on a grid of velocity scales, and a friction whose normal load
+grows with the displacement, |x|^a sgn v and its smooth sign |x|^a tanh(v / u) (wedge dampers, ring and
+friction springs, a preloaded joint's load beyond its preload beside a Coulomb term: a = 1; a joint's
+micro-slip, a = 2). A shape parameter's grid is
 where the sparse selection looks (:mod:`.frols`); its bounds are where the refinement and the whole
 model's refit may take it.
 """
@@ -26,6 +29,10 @@ EXPONENTS = (0.1, 0.2, 0.35, 0.5, 0.75, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
 EXPONENT_BOUNDS = (0.02, 8.0)
 THRESHOLDS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 """Thresholds the selection tries, as fractions of the reference amplitude X (of V for a velocity's)."""
+LOAD_EXPONENTS = tuple(sorted(EXPONENTS + (1.0,)))
+"""Exponents of a friction whose normal load grows with the displacement, |x|^a sgn v (1 is a wedge's, no spring's)."""
+SMOOTH_LOAD_EXPONENTS = (0.5, 1.0, 2.0, 3.0)
+"""The same for its smooth-sign variant (with a velocity scale each: a coarser grid, the refinement takes it on)."""
 VELOCITY_SCALES = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
 """Velocity scales of the saturating and decaying laws the selection tries, as fractions of V (from 0.02 on,
 the displacement scales of a saturating spring, as fractions of X)."""
@@ -102,6 +109,8 @@ def library(x_ref: float, v_ref: float) -> list[Family]:
     v_gap = Shape("u", "m/s", (0.0, v_ref), tuple(v_ref * f for f in THRESHOLDS), "velocity threshold")
     x_scale = Shape("g", "m", (1e-3 * x_ref, 10.0 * x_ref), tuple(x_ref * f for f in VELOCITY_SCALES[2:]), "displacement scale")
     v_scale = Shape("u", "m/s", (1e-4 * v_ref, 10.0 * v_ref), tuple(v_ref * f for f in VELOCITY_SCALES), "velocity scale")
+    load = Shape("a", "1", EXPONENT_BOUNDS, LOAD_EXPONENTS, "exponent")
+    smooth_load = Shape("a", "1", EXPONENT_BOUNDS, SMOOTH_LOAD_EXPONENTS, "exponent")
     families = [
         Family("velocity_sign", "np.sign(v)", "sgn(v)", ()),
         Family("velocity_power", f"np.abs(v / {V}) ** {{a}} * np.sign(v)", f"(|v| / {V} m/s)^{{a}} sgn(v)", (_exponent(),)),
@@ -120,6 +129,8 @@ def library(x_ref: float, v_ref: float) -> list[Family]:
         Family("tanh_velocity", "np.tanh(v / {u})", "tanh(v / {u} m/s)", (v_scale,)),
         Family("exp_saturation", "-np.expm1(-np.abs(v) / {u}) * np.sign(v)", "(1 - exp(-|v| / {u} m/s)) sgn(v)", (v_scale,)),
         Family("gaussian_velocity", "np.exp(-(v / {u}) ** 2) * np.sign(v)", "exp(-(v / {u} m/s)^2) sgn(v)", (v_scale,)),
+        Family("load_friction", f"np.abs(x / {X}) ** {{a}} * np.sign(v)", f"(|x| / {X} m)^{{a}} sgn(v)", (load,)),
+        Family("smooth_load_friction", f"np.abs(x / {X}) ** {{a}} * np.tanh(v / {{u}})", f"(|x| / {X} m)^{{a}} tanh(v / {{u}} m/s)", (smooth_load, v_scale)),
     ]
     return families
 

@@ -106,8 +106,9 @@ class StateTerm(RateTerm):
         super().__init__(made.law, made.id, made.params, made.explanation, made.strength, made._modules)
         self.shape = shape
 
-    def time_force(self, v: Values, state_: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
-        """c u on each loop's orbit at ``phase`` ``(L, N)`` or ``(P, L, N)``, less its mean over a cycle."""
+    def time_force(self, v: Values, state_: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
+        """c u on each loop's orbit at ``phase`` ``(L, N)`` or ``(P, L, N)``, less its mean over a cycle (rate
+        independent: the travel since the last reversal decides, so ``n_top`` changes nothing)."""
         size = next(iter(v.values())).shape[0]
         c, zy, n = (v[s][:, 0] if isinstance(s, str) else np.full(size, float(s)) for s in self.shape)
         x_min, x_max = kin.extremes
@@ -119,7 +120,7 @@ class StateTerm(RateTerm):
         with np.errstate(all="ignore"):
             return c[:, None, None] * (u(phase) - u(mean_grid(kin.x0.size)).mean(axis=-1, keepdims=True))
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> StateSampler:
+    def sampler(self, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> StateSampler:
         return StateSampler(self, kin, phase)
 
 

@@ -141,11 +141,12 @@ class BoucWen(Term):
         shapes = [{"bw_zy": f * x0, "bw_r": r} for f in (0.03, 0.1, 0.3, 1.0) for r in (-0.5, 0.5, 2.0)]
         return [{**s, "bw_n": n} for s in shapes for n in (1.0, 2.0)] if "bw_n" in free else shapes
 
-    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray) -> np.ndarray:
+    def time_force(self, v: Values, state: ModalState, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> np.ndarray:
         """k_bw z on the periodic orbit; being rate independent, z depends only on the travel since the
         last reversal, so the orbit of a sine with the same extremes holds for any measured displacement
         whose branches are monotonic. Candidates with n = 1 take the closed form, the others
-        :func:`hysid_model.bouc_wen_orbit.bouc_wen_exact`."""
+        :func:`hysid_model.bouc_wen_orbit.bouc_wen_exact`. z is continuous at a reversal: the branches
+        (``n_top``) do not matter."""
         one = v["bw_n"][:, 0] == 1.0
         if one.all():
             return _closed_form(v, kin, phase)
@@ -155,7 +156,7 @@ class BoucWen(Term):
                 out[mask] = part({name: value[mask] for name, value in v.items()}, kin, phase[mask] if phase.ndim == 3 else phase)
         return out
 
-    def sampler(self, kin: Kinematics, phase: np.ndarray) -> BoucWenSampler:
+    def sampler(self, kin: Kinematics, phase: np.ndarray, n_top: int | None = None) -> BoucWenSampler:
         return BoucWenSampler(kin, phase)
 
     def data_starts(self, loops: LoopSet, free: Collection[str] = ()) -> list[dict[str, float]]:
