@@ -283,7 +283,10 @@ def _even_out_variance(
     """
     limit = VARIANCE_SPREAD * np.median(v)
     for r in WIDEN:
-        idx = np.flatnonzero((v > limit) & (r > chosen_r) & (r <= widest))
+        wider = (v > limit) & (r <= widest)
+        if not wider.any():  # a window's v only falls, and r only grows: none will widen
+            break
+        idx = np.flatnonzero(wider & (r > chosen_r))
         if idx.size == 0:
             continue
         wlo, whi = _window_bounds(centre[idx], start[idx], width[idx], half_lo[idx], half_hi[idx], r * sums.h)
