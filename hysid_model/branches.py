@@ -142,12 +142,14 @@ def branch_values(
     samples_per_cycle: float,
     guard: float,
     smooth: Callable[[], tuple[np.ndarray, np.ndarray]],
+    order: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, float, float, int | None]:
     """Branch values at the 2n ``sample_phases`` (top, then bottom) of the force samples at half-cycle phases ``psi``
     (:func:`half_cycle_phases`); ``reversal`` = (lo, hi) phases, samples within ``guard`` of them left out
     (:func:`reversal_guard`). Where a window must widen, or the force's harmonics take over, the branches
     are those of the force less its smooth part, plus that part (``smooth``: :func:`hysid_model.force_harmonics.smooth_part` of
-    ``force``); a record whose windows all keep their width (the usual one) does not need it.
+    ``force``); a record whose windows all keep their width (the usual one) does not need it. ``order``: the
+    stable argsort of ``psi`` (:func:`hysid_model.resolution.reversal_steps` sorts the same samples).
 
     Returns (values, variance factors v, sigma_raw, overlap, harmonics). Local-quadratic fits in
     phase windows, each widened (``WIDEN``, up to ``MAX_WIDEN`` or ``MAX_WIDTH``) until its samples
@@ -161,23 +163,22 @@ def branch_values(
     centre, start, width, half_lo, half_hi, h = phase_windows(sample_phases, *reversal)
     guard = min(guard, 0.5 * h)  # a displacement too noisy to place its reversals better keeps most of its windows
     half_lo, half_hi = half_lo + guard, half_hi - guard
-    order = np.argsort(psi, kind="stable")
     ps = psi[order]
     sums = PhaseSums(ps, h)
     widest = np.maximum(MAX_WIDEN, MAX_WIDTH / (width * h))
     lo, hi = np.full(centre.size, np.nan), np.full(centre.size, np.nan)
-    chosen_r = np.zeros(centre.size)
+    chosen_r, v = np.zeros(centre.size), np.full(centre.size, np.inf)
     for r in WIDEN:
         todo = np.flatnonzero(np.isnan(lo) & (r <= widest))
         if todo.size == 0:
             break
         w_lo, w_hi = _window_bounds(centre[todo], start[todo], width[todo], half_lo[todo], half_hi[todo], r * h)
-        ok = sums.conditioned(centre[todo], w_lo, w_hi)
+        ok, v_todo = sums.conditioned(centre[todo], w_lo, w_hi)
         done = todo[ok]
-        lo[done], hi[done], chosen_r[done] = w_lo[ok], w_hi[ok], r
+        lo[done], hi[done], chosen_r[done], v[done] = w_lo[ok], w_hi[ok], r, v_todo[ok]
     harmonics = bool(np.any(np.isnan(lo)))
     if not harmonics:
-        _even_out_variance(sums, centre, start, width, half_lo, half_hi, lo, hi, chosen_r, widest)
+        _even_out_variance(sums, centre, start, width, half_lo, half_hi, lo, hi, chosen_r, widest, v)
     del sums  # its prefix sums are five copies of the record
     at_branches = np.zeros(centre.size)
     if harmonics or np.any(chosen_r > 1.0):
@@ -269,8 +270,10 @@ def _even_out_variance(
     hi: np.ndarray,
     chosen_r: np.ndarray,
     widest: np.ndarray,
+    v: np.ndarray,
 ) -> None:
-    """Widen (in place) windows whose branch value's variance exceeds ``VARIANCE_SPREAD`` times the median one's.
+    """Widen (in place) windows whose branch value's variance (``v``, :meth:`PhaseSums.variance` of the windows
+    [lo, hi)) exceeds ``VARIANCE_SPREAD`` times the median one's.
 
     On a rate locked to the excitation the samples at a reversal's own phase
     belong to the branch they start, so the branch that ends there
@@ -278,10 +281,12 @@ def _even_out_variance(
     widening its window brings its variance back to the others', so that one
     ``sigma`` describes every branch value.
     """
-    v = sums.variance(centre, lo, hi)
     limit = VARIANCE_SPREAD * np.median(v)
     for r in WIDEN:
-        idx = np.flatnonzero((v > limit) & (r > chosen_r) & (r <= widest))
+        wider = (v > limit) & (r <= widest)
+        if not wider.any():  # a window's v only falls, and r only grows: none will widen
+            break
+        idx = np.flatnonzero(wider & (r > chosen_r))
         if idx.size == 0:
             continue
         wlo, whi = _window_bounds(centre[idx], start[idx], width[idx], half_lo[idx], half_hi[idx], r * sums.h)

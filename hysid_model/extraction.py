@@ -365,6 +365,7 @@ def extract_loop(
     psi = half_cycle_phases(theta + phi, (lo, hi))
     centred = fs - force_mean
     guard = reversal_guard(xh, (lo, hi), x_sigma, xs.size)
+    order = np.argsort(psi, kind="stable")
     values, var, sigma_raw, overlap, force_harmonics = branch_values(
         psi,
         centred,
@@ -375,9 +376,11 @@ def extract_loop(
         lambda: smooth_part(
             theta, harmonics, gram, projection[:, 1] - force_mean * gram[0], psi, hi, centred, harmonic_design(sample_phases - phi, harmonics), kept
         ),
+        order,
     )
     first = int(round((t_a - origin) * f0))  # the cycles used, on the cycles of the per-cycle fits
     used = fits.amplitude[:, first : first + max(int(round(cycles * f0 / freq)), 1)]
+    x_cycle, f_cycle = plausibility.mean_cycles(theta / (2 * np.pi), xs, fs)
     return ExtractedLoop(
         freq_hz=freq,
         x0=x0,
@@ -399,8 +402,6 @@ def extract_loop(
         window_overlap=overlap,
         force_harmonics=force_harmonics,
         drift=cast(tuple[float, float], tuple(float(d) for d in plausibility.amplitude_drift(used))),  # (displacement, force)
-        clipping=plausibility.clipping(
-            plausibility.mean_cycle(theta / (2 * np.pi), xs), plausibility.mean_cycle(theta / (2 * np.pi), fs), plausibility.saturation(fs), xh, freq
-        ),
-        reversal_steps=None if force_harmonics is not None else reversal_steps(psi, centred, sample_phases, (lo, hi), guard, sigma_raw),
+        clipping=plausibility.clipping(x_cycle, f_cycle, plausibility.saturation(fs), xh, freq),
+        reversal_steps=None if force_harmonics is not None else reversal_steps(psi, centred, sample_phases, (lo, hi), guard, sigma_raw, order),
     )

@@ -20,6 +20,12 @@ well or badly, and the worst windows then set the loop's sigma: the variance fac
 times that of evenly spread ones on average (17 times for one window in a hundred), of 20 samples 1.1 (1.8)."""
 
 
+_BINOMIAL = np.array([[comb(p, k) for p in range(5)] for k in range(5)], dtype=float)
+"""``[k, p]``: C(p, k), 0 for k > p (:meth:`PhaseSums.moments`)."""
+_POWER_OF_SUMS = np.repeat(np.arange(5)[:, None], 5, axis=1)
+_POWER_OF_SHIFT = np.maximum(np.arange(5)[None, :] - np.arange(5)[:, None], 0)
+
+
 def concatenated_ranges(first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(owner, position) of every element of the ranges [first_j, stop_j)."""
     counts = stop - first
@@ -54,35 +60,44 @@ class PhaseSums:
             if k < 4:
                 power *= d
 
-    def moments(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
-        """sum u^p, p = 0..4, u = (phase - centre) / h, over the samples in each window [lo, hi): per block spanned,
-        the block's sums shifted from its centre to the window's (binomial expansion)."""
+    def moments(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """``(5, W)``: sum u^p, p = 0..4, u = (phase - centre) / h, over the samples in each window [lo, hi): per
+        block spanned, the block's sums shifted from its centre to the window's (binomial expansion), all orders
+        in a few whole-array operations (a record's windows are chosen in about seven such calls)."""
         a, b = np.searchsorted(self.ps, lo), np.searchsorted(self.ps, hi)
         first = np.searchsorted(self.edges, a, side="right") - 1
         stop = np.where(b > a, np.searchsorted(self.edges, b - 1, side="right"), first)
         owner, block = concatenated_ranges(first, stop)
         begin, end = np.maximum(a[owner], self.edges[block]), np.minimum(b[owner], self.edges[block + 1])
-        s = [c[end] - c[begin] for c in self.cum]
+        s = self.cum[:, end] - self.cum[:, begin]
         e = (self.ref[block] - centre[owner]) / self.h
-        powers = [e**m for m in range(5)]
-        return [np.bincount(owner, sum(comb(p, k) * s[k] * powers[p - k] for k in range(p + 1)), minlength=centre.size) for p in range(5)]
+        powers = np.empty_like(s)
+        for m in range(5):
+            powers[m] = e**m
+        terms = _BINOMIAL[:, :, None] * s[_POWER_OF_SUMS] * powers[_POWER_OF_SHIFT]  # [k, p]: C(p, k) s_k e^(p - k), 0 for k > p
+        shifted = terms[0] + terms[1]
+        for k in range(2, 5):
+            shifted += terms[k]
+        bins = (np.arange(5)[:, None] * centre.size + owner).ravel()
+        return np.bincount(bins, shifted.ravel(), minlength=5 * centre.size).reshape(5, centre.size)
 
     def variance(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """[(U^T U)^-1]_00 of the windows [lo, hi) about ``centre`` (inf where the samples do not determine a quadratic)."""
         return _inverse_00(self.moments(centre, lo, hi))
 
-    def conditioned(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """Whether the windows [lo, hi) hold ``MIN_SAMPLES`` samples that determine a local quadratic about ``centre``
-        nearly as well as as many samples spread evenly over the window (``CONDITION``)."""
+    def conditioned(self, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(whether the windows [lo, hi) hold ``MIN_SAMPLES`` samples that determine a local quadratic about ``centre``
+        nearly as well as as many samples spread evenly over the window (``CONDITION``), their :meth:`variance`)."""
         m = self.moments(centre, lo, hi)
         a, b = (lo - centre) / self.h, (hi - centre) / self.h
         span = np.maximum(b - a, 1e-300)
         even = _inverse_00([(b ** (p + 1) - a ** (p + 1)) / ((p + 1) * span) for p in range(5)])
+        v = _inverse_00(m)
         with np.errstate(invalid="ignore"):
-            return (m[0] >= MIN_SAMPLES) & (_inverse_00(m) * m[0] <= CONDITION * even)
+            return (m[0] >= MIN_SAMPLES) & (v * m[0] <= CONDITION * even), v
 
 
-def _inverse_00(m: list[np.ndarray]) -> np.ndarray:
+def _inverse_00(m: np.ndarray | list[np.ndarray]) -> np.ndarray:
     """[M^-1]_00 of the 3 x 3 moment matrices M_ij = m_(i+j) (Cramer's rule; inf where M is singular)."""
     minor = m[2] * m[4] - m[3] * m[3]
     det = m[0] * minor - m[1] * (m[1] * m[4] - m[2] * m[3]) + m[2] * (m[1] * m[3] - m[2] * m[2])

@@ -85,16 +85,16 @@ def _dwell_ratios(y: np.ndarray, band: float) -> np.ndarray:
     return np.array([np.mean(y >= y.max() - band * half), np.mean(y <= y.min() + band * half)]) / sine
 
 
-def mean_cycle(cycle_phase: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """The average cycle of samples ``x`` at ``cycle_phase`` (in cycles; whole cycles), in up to
-    ``CLIP_BINS`` phase bins (empty bins, of a sample rate locked to the excitation, left out)."""
-    bins = int(max(1, min(CLIP_BINS, x.size // 4)))
+def mean_cycles(cycle_phase: np.ndarray, *signals: np.ndarray) -> list[np.ndarray]:
+    """The average cycle of each of the ``signals`` sampled at ``cycle_phase`` (in cycles; whole cycles), in up to
+    ``CLIP_BINS`` phase bins (empty bins, of a sample rate locked to the excitation, left out); the bins found once
+    for all the signals."""
+    bins = int(max(1, min(CLIP_BINS, cycle_phase.size // 4)))
     b = (np.mod(cycle_phase, 1.0) * bins).astype(np.int64)
     np.minimum(b, bins - 1, out=b)
     count = np.bincount(b, minlength=bins)
-    total = np.bincount(b, weights=x, minlength=bins)
     used = count > 0
-    return total[used] / count[used]
+    return [np.bincount(b, weights=x, minlength=bins)[used] / count[used] for x in signals]
 
 
 def saturation(y: np.ndarray) -> np.ndarray:

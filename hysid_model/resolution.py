@@ -62,15 +62,17 @@ def _one_sided(ps: np.ndarray, ys: np.ndarray, centre: float, lo: float, hi: flo
     return float((inverse @ (design.T @ ys[a:b]))[0]), factor
 
 
-def reversal_steps(psi: np.ndarray, force: np.ndarray, sample_phases: np.ndarray, reversal: tuple[float, float], guard: float, sigma_raw: float) -> np.ndarray:
+def reversal_steps(
+    psi: np.ndarray, force: np.ndarray, sample_phases: np.ndarray, reversal: tuple[float, float], guard: float, sigma_raw: float, order: np.ndarray
+) -> np.ndarray:
     """``(4,)``: each of the four reversal values (loading at the minimum and at the maximum, unloading at the
     minimum and at the maximum) less its fit on the half window, in standard errors of that difference; NaN
     where the samples do not determine the narrower fit. ``psi``: the samples' half-cycle phases and ``force``
     their force (centred); ``sample_phases`` the 2n branch phases; ``reversal`` = (lo, hi); ``guard``: samples
-    this close to a reversal are left out (:func:`hysid_model.branches.reversal_guard`)."""
+    this close to a reversal are left out (:func:`hysid_model.branches.reversal_guard`); ``order``: the stable argsort
+    of ``psi``, as :func:`hysid_model.branches.branch_values` sorts them."""
     n = sample_phases.size // 2
     _, start, width, half_lo, half_hi, h = phase_windows(sample_phases, *reversal)
-    order = np.argsort(psi, kind="stable")
     ps, ys = psi[order], force[order]
     out = np.full(4, np.nan)
     for k, i in enumerate((0, n - 1, n, 2 * n - 1)):

@@ -55,8 +55,6 @@ WAVEFORM_TOLERANCE = 1e-3
 OUTLIERS = 0.05
 """Isolated cycles outside the band (scatter, not a transient) allowed in a steady run, as a fraction of it."""
 MAD_TO_STD = 1.4826
-PARTITION_KTH = 8
-"""Distinct middle positions up to which the phase bins' medians are found by a partition rather than a sort."""
 PIECE = 1 << 18
 """Samples (whole cycles) taken at once by the passes over every sample of a record, so that their memory is that of
 a piece, not of the record (a 7.2 M-sample record's per-cycle fits took 14 copies of it at once)."""
@@ -288,16 +286,11 @@ def _bin_medians(phase: np.ndarray, y: np.ndarray, bins: int) -> tuple[np.ndarra
     order = np.argsort(b.astype(np.int16 if bins <= np.iinfo(np.int16).max else np.int32), kind="stable")  # int16: a radix sort
     counts = np.bincount(b, minlength=bins)
     width = int(counts.max())
-    rank = np.arange(b.size) - np.repeat(np.cumsum(counts) - counts, counts)
     table = np.full((bins, width), np.inf)
-    table[b[order], rank] = y[order]
+    table.ravel()[np.repeat(np.arange(bins) * width - (np.cumsum(counts) - counts), counts) + np.arange(b.size)] = y[order]  # bin, rank
+    table.sort(axis=1)  # numpy's vectorised sort beats a partition at the middle ranks (3x at 14 samples a bin, 1.6x at 5,000)
     used = np.flatnonzero(counts)
     c = counts[used]
-    middle = np.unique(np.concatenate([(c - 1) // 2, c // 2]))
-    if middle.size <= PARTITION_KTH:  # bins of about as many samples each: only their middle values in place
-        table.partition(middle, axis=1)
-    else:
-        table.sort(axis=1)
     rows = table[used]
     median = 0.5 * (rows[np.arange(used.size), (c - 1) // 2] + rows[np.arange(used.size), c // 2])
     return (used + 0.25) / bins, median
@@ -355,6 +348,7 @@ def waveform_steady(
     bounds = cycle_bounds(t, t_a, freq, n_cycles)
     per_cycle = (bounds[-1] - bounds[0]) / n_cycles
     sampled = sampled_cycles(bounds)
+    runs = pieces(bounds)
     steady = np.ones(n_cycles, dtype=bool)
     for y, (amplitude, offset) in zip(signals, trends):
         scale = np.where(amplitude > 0, np.mean(amplitude) / np.where(amplitude > 0, amplitude, 1.0), 1.0)
@@ -362,11 +356,14 @@ def waveform_steady(
         phase, yk = _normalized(t, y, bounds, sampled, t_a, freq, offset, scale)
         centre, median = _bin_medians(phase, yk, max(4, int(per_cycle // 2)))
         spread = np.std(yk)
-        del phase, yk
-        excess = np.empty(n_cycles)
-        for first, stop in pieces(bounds):
-            phase, yk = _normalized(t, y, bounds, np.arange(first, stop), t_a, freq, offset, scale)
-            excess[first:stop] = _excess(phase, yk, bounds[first : stop + 1], centre, median)
+        if sampled.size == n_cycles and len(runs) == 1:  # the median cycle's samples are every cycle's, in one piece
+            excess = _excess(phase, yk, bounds, centre, median)
+        else:
+            del phase, yk
+            excess = np.empty(n_cycles)
+            for first, stop in runs:
+                phase, yk = _normalized(t, y, bounds, np.arange(first, stop), t_a, freq, offset, scale)
+                excess[first:stop] = _excess(phase, yk, bounds[first : stop + 1], centre, median)
         limit = max(np.median(excess) * (1.0 + NOISE_SIGMAS * np.sqrt(2.0 / per_cycle)), (WAVEFORM_TOLERANCE * spread) ** 2)
         steady &= excess <= limit
     if not steady.any():

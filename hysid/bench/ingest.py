@@ -17,7 +17,8 @@ then load first, then parse):
 
 ``load_ratio`` = load_s / parse_s, the median over the rounds of each round's ratio (target <= 2: everything
 ``hysid.load`` does, reading included, within twice numpy's parse alone); ``extract_ratio`` = extract_s / parse_s
-likewise; ``mb_per_s`` = CSV megabytes per second of ``load_s``. Memory: before each load the process' peak
+likewise; ``load_cpu_ratio`` = the same ratio of CPU times (``time.process_time``; on a loaded machine the
+wall-clock ratio also counts the time each waited for a core); ``mb_per_s`` = CSV megabytes per second of ``load_s``. Memory: before each load the process' peak
 resident size is reset (Linux ``/proc/self/clear_refs``), and ``rss_growth_mb`` is the largest rise of it over the
 resident size before the load, the first load included (which loads the compiled reader; ``rss_growth_warm_mb``: the
 rounds' largest). Target:
@@ -103,22 +104,25 @@ def measure(directory: str, plan_json: str, rounds: int) -> dict[str, Any]:
     warnings.simplefilter("ignore")  # the records are distorted on purpose: the warnings are not the bench
 
     def parse() -> float:
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         for path, _ in files:
             _loadtxt(path, plan)
+        times["parse_cpu_s"].append(time.process_time() - cpu)
         return time.perf_counter() - start
 
     def load() -> tuple[float, int, float]:
         resettable = _reset_peak()
         before = _status_mb("VmRSS") if resettable else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         loops = load_dataset(root)
         elapsed = time.perf_counter() - start
+        times["load_cpu_s"].append(time.process_time() - cpu)
         peak = _status_mb("VmHWM") if resettable else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
         return elapsed, int(np.sum(loops.cycles)), float(peak - before)
 
+    times: dict[str, list[float]] = {"parse_s": [], "load_s": [], "extract_s": [], "rss_growth_mb": [], "parse_cpu_s": [], "load_cpu_s": []}
     first_s, _, first_growth = load()  # what hysid loads on first use (scipy's special functions, the compiled reader)
-    times: dict[str, list[float]] = {"parse_s": [], "load_s": [], "extract_s": [], "rss_growth_mb": []}
+    times["load_cpu_s"].clear()  # the first load is not a round
     for r in range(rounds):
         if r % 2 == 0:
             times["parse_s"].append(parse())
@@ -150,7 +154,7 @@ def _measured(spec: IngestSet, directory: Path, rounds: int, seconds: float) -> 
         tail = done.stderr.strip().splitlines()[-1:] or ["(no output)"]
         raise RuntimeError(f"ingest measurement of {spec.name} failed (exit {done.returncode}): {tail[0]}")
     m = json.loads(done.stdout)
-    parse, load, extract = (np.array(m[key]) for key in ("parse_s", "load_s", "extract_s"))
+    parse, load, extract, parse_cpu, load_cpu = (np.array(m[key]) for key in ("parse_s", "load_s", "extract_s", "parse_cpu_s", "load_cpu_s"))
     ratio = float(np.median(load / parse))
     growth, largest = max(m["first_rss_growth_mb"], *m["rss_growth_mb"]), max(sizes)
     bound = TARGET_RSS * largest + FIXED_MB
@@ -160,12 +164,13 @@ def _measured(spec: IngestSet, directory: Path, rounds: int, seconds: float) -> 
         "data_mb": round(sum(sizes), 2),
         "largest_file_mb": largest,
         "cycles": m["cycles"],
-        "rounds": {key: m[key] for key in ("parse_s", "load_s", "extract_s", "rss_growth_mb")},
+        "rounds": {key: m[key] for key in ("parse_s", "load_s", "extract_s", "rss_growth_mb", "parse_cpu_s", "load_cpu_s")},
         "parse_s": float(np.median(parse)),
         "load_s": float(np.median(load)),
         "extract_s": float(np.median(extract)),
         "load_ratio": ratio,
         "extract_ratio": float(np.median(extract / parse)),
+        "load_cpu_ratio": float(np.median(load_cpu / parse_cpu)),
         "mb_per_s": sum(sizes) / float(np.median(load)),
         "rss_growth_mb": growth,
         "rss_growth_warm_mb": max(m["rss_growth_mb"]),
@@ -216,6 +221,7 @@ def to_text(result: dict[str, Any]) -> str:
             f"  numpy parse        {r['parse_s']:.2f} s",
             f"  hysid load         {r['load_s']:.2f} s   {r['load_ratio']:.2f} x the parse (target <= {result['target_ratio']:g}), {r['mb_per_s']:.1f} MB/s",
             f"  extraction alone   {r['extract_s']:.2f} s   {r['extract_ratio']:.2f} x the parse",
+            f"  CPU time           load {r['load_cpu_ratio']:.2f} x the parse (process_time, fairer on a loaded machine)",
             f"  memory             {r['rss_growth_mb']:.0f} MB for loading ({r['rss_per_largest_file']:.2f} x the largest file; "
             f"target <= {r['rss_bound_mb']:.0f} MB = {result['target_rss']})"
             + f"; {r['rss_growth_warm_mb']:.0f} MB in the rounds after the first load ({r['first_load_s']:.2f} s)",
