@@ -105,3 +105,14 @@ def test_a_sign_law_where_coulomb_friction_would_do_is_coulomb_frictions_own_sha
     assert law is not None, why
     shape = library_shape(law, result, Tally())
     assert shape is not None and shape.startswith("it is coulomb_friction's own shape"), (law.notation, law.fit.bic - result.final.bic)
+
+
+@pytest.mark.slow
+def test_a_term_that_only_reshapes_a_refused_stand_in_does_not_bring_it_back() -> None:
+    """Stribeck friction: Coulomb friction, refused by its own shape alone, is a base discovery starts from too; the term
+    found there bends its sgn v into the Stribeck curve, and Coulomb friction beside that term earns nothing by the
+    acceptance rules: neither is named, and the text says why."""
+    result = hysid.diagnose(cases.loops_of("stribeck", NOISE_PCT, 0), "baseline")
+    assert result.steps == [] and result.proposed == [], result.discovery
+    said = result.discovery["baseline+coulomb_friction"]
+    assert "is not kept: coulomb_friction added to baseline+term_" in said and said.endswith("only reshapes it"), said
