@@ -17,14 +17,17 @@ import hysid
 from hysid.bench import discovery_cases as cases
 from hysid.bench import search_problems as sp
 from hysid.diagnosis.acceptance import judge, own_shape
-from hysid.diagnosis.contest import choose, library_shape
-from hysid.diagnosis.discovery import propose
+from hysid.diagnosis.contest import choose, library_shape, needed_beside
+from hysid.diagnosis.discovery import Proposed, propose
+from hysid.diagnosis.discovery import refit as discovery_refit
 from hysid.diagnosis.fitting import Fit, initial_fit, soft_bounds
 from hysid.diagnosis.refits import refit
 from hysid.diagnosis.scoring import score_candidates
 from hysid.diagnosis.selection import diagnose
 from hysid.diagnosis.tally import Tally
 from hysid_model.datasets import write_dataset
+from hysid_model.discovery.features import library, scales
+from hysid_model.discovery.proposal import Law
 from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
@@ -105,3 +108,23 @@ def test_a_sign_law_where_coulomb_friction_would_do_is_coulomb_frictions_own_sha
     assert law is not None, why
     shape = library_shape(law, result, Tally())
     assert shape is not None and shape.startswith("it is coulomb_friction's own shape"), (law.notation, law.fit.bic - result.final.bic)
+
+
+@pytest.mark.slow
+def test_a_refused_effect_is_named_beside_a_proposed_term_only_where_it_earns_its_place_there() -> None:
+    """Stribeck friction, Coulomb friction refitted (a stand-in rule 9 refuses alone) and a term added to it: where the
+    term is the Stribeck peak exp(-(v/v_s)^2) sgn v, Coulomb friction is the law's other part and the model without it
+    takes it back; where the term is Coulomb's own sgn v again, it only reshapes Coulomb friction, which earns nothing beside it."""
+    start, coulomb, harmonics = with_effect(cases.loops_of("stribeck", NOISE_PCT, 0), "coulomb_friction")
+    assert own_shape(start, coulomb) is not None
+    x_ref, v_ref = scales(harmonics.loops.x0, 2.0 * np.pi * harmonics.loops.freq_hz)
+    family = {f.key: f for f in library(x_ref, v_ref)}
+    peak = float(np.max(np.abs(harmonics.loops.forces())))
+    verdicts = {}
+    for key, shape in (("gaussian_velocity", {"u": 0.04}), ("velocity_sign", {})):
+        law = Law([family[key]], [shape], [30.0], peak)
+        number, fit = discovery_refit(coulomb, law, harmonics, soft_bounds(coulomb.model))
+        verdicts[key] = needed_beside(Proposed(number, law, coulomb, fit, [1.0]), "coulomb_friction", Tally())
+    assert verdicts["gaussian_velocity"] is None
+    said = verdicts["velocity_sign"]
+    assert said is not None and said.startswith("coulomb_friction added to baseline+term_") and "BIC changes by only" in said, said

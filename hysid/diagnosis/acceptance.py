@@ -33,7 +33,9 @@ explains, not by how precisely one of its parameters is known there:
    (loop-by-loop strengths 13 % apart between amplitudes), an amplitude-
    dependent damping or a channel delay standing in for an orifice's v|v|
    (strengths of either sign). A library effect refused by it leaves the
-   residual to discovery (:mod:`.contest`).
+   residual to discovery (:mod:`.contest`); where it passes every other
+   rule, discovery also starts from it (a second mechanism the library lacks
+   beside it, :func:`hysid.diagnosis.contest.with_discovery`).
 
 Where the truth lies outside the library, the effects it takes are not kept
 as a substitute for a law the library lacks: discovery competes with them
@@ -193,8 +195,9 @@ def own_shape(before: Fit, after: Fit) -> str | None:
     )
 
 
-def judge(before: Fit, after: Fit, effects: tuple[str, ...], harmonics: Harmonics) -> str | None:
-    """Why ``after`` (``before`` plus ``effects``) is not taken by rules 1-3, 5-7 and 9 of the module docstring, or None."""
+def judge(before: Fit, after: Fit, effects: tuple[str, ...], harmonics: Harmonics, own: bool = True) -> str | None:
+    """Why ``after`` (``before`` plus ``effects``) is not taken by rules 1-3, 5-7 and 9 of the module docstring, or None;
+    without rule 9 where not ``own``."""
     delta = after.bic - before.bic
     if delta > -BIC_MARGIN:
         return f"BIC changes by only {delta:+.1f}"
@@ -215,7 +218,7 @@ def judge(before: Fit, after: Fit, effects: tuple[str, ...], harmonics: Harmonic
     worse = visible_error(before, after, harmonics)
     if worse is not None:
         return worse
-    wrong = own_shape(before, after)
+    wrong = own_shape(before, after) if own else None
     if wrong is not None:
         return wrong
     impossible = implausible_values(after, harmonics.loops)

@@ -1,14 +1,17 @@
 """Discovery's place in a diagnosis: where a force is proposed from the data, and which proposal is kept.
 
 Discovery (:func:`hysid.diagnosis.discovery.propose`) runs where the library search (:mod:`.selection`)
-ends unexplained, from the start model and from the final library model; and where it ends adequate only by
+ends unexplained, from the start model, from the final library model and from the refit of a library effect refused
+there by its own shape alone (:func:`refused_base`: rule 9 of :mod:`.acceptance`, every other rule passed; a
+device with two mechanisms, one in the library and one not); and where it ends adequate only by
 stacking effects (:func:`stacked`: two or more, or a sensor effect), from the start model, so that one law
 the library lacks can compete with the library effects that stand in for it together. Of the proposals the
 acceptance rules take (:mod:`.acceptance`), :func:`choose` keeps one, or none:
 
 * where the library search ended unexplained, the one with the lowest BIC, but the one added to the start
   model wherever it is within ``BIC_MARGIN`` of it and of the final library model (one law explains the
-  loops as well as the library effects together: they are set aside);
+  loops as well as the library effects together: they are set aside). Kept where it was added to the refused
+  effect, that effect is named with it, and the discovery text says it was refused alone and why;
 * where it ended adequate by stacking, the one added to the start model only where it has fewer parameters
   than the effects stacked and a BIC lower than theirs by ``BIC_MARGIN``: the library's model is at the
   noise already, and a law replaces its names only where the data prefer it;
@@ -22,15 +25,19 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from hysid.criteria import BIC_MARGIN
+from hysid.diagnosis.acceptance import held_out, judge
 from hysid.diagnosis.discovery import Proposed, propose
-from hysid.diagnosis.fitting import Fit, final_identifiability, profile_errors, soft_bounds
+from hysid.diagnosis.fitting import Fit, final_identifiability, fit_objective, make_model, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import gap_metrics
 from hysid.diagnosis.naming import adequacy, loops_linear, residual_signature
 from hysid.diagnosis.refits import refit, weight
-from hysid.diagnosis.result import Diagnosis
+from hysid.diagnosis.result import Diagnosis, Refused
 from hysid.diagnosis.scoring import score_candidates
 from hysid.diagnosis.tally import Tally
+from hysid_model.harmonics import HarmonicObjective
 from hysid_model.model import effect_term
 from hysid_model.terms import MeasurementTerm
 
@@ -84,6 +91,8 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
         return result if adequate else replace(result, discovery={result.final.spec: linear_loops(result)})
     start, final = result.start, result.final
     bases = [start] + ([final] if final is not start and not adequate else [])
+    beside = None if adequate else refused_base(result, cross_validate, tally)
+    bases += [beside.step.after] if beside is not None else []
     tally.expect(len(bases) * (2 + int(cross_validate)) + 1)
     tried, found = {}, []
     for base in bases:
@@ -97,11 +106,23 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
         refused[start.spec] = f"{passes(best)} but is not kept: {shape}"
         found.remove(best)  # then the law added to the final library model may still be kept
         best, verdicts = choose(found, start, final, adequate)
+    if best is not None and beside is not None and best.base is beside.step.after and (lacking := needed_beside(best, beside.step.effect, tally)) is not None:
+        refused[best.base.spec] = f"{passes(best)} but is not kept: {lacking}"
+        found.remove(best)
+        best, verdicts = choose(found, start, final, adequate)
     tried.update(verdicts | refused)
     if best is None:
         tally.expect(-1)
         return replace(result, discovery=tried)
-    steps, pruned, gaps, set_aside = result.steps, result.pruned, list(result.gap), {}
+    steps, pruned, gaps, set_aside, rejected = result.steps, result.pruned, list(result.gap), {}, result.rejected
+    if beside is not None and best.base is beside.step.after:
+        effect, taken = beside.step.effect, f"taken with the proposed {best.name}; alone it was refused because it {beside.why}"
+        tried[best.base.spec] += f"; {effect} is {taken}"
+        rejected = {**rejected, effect: taken}
+        steps, pruned, gaps = steps + [beside.step], {}, gaps[: len(steps) + 1]  # from the library model before pruning
+        tally.expect(1)
+        gaps.append(gap_metrics(beside.step.after, harmonics, cross_validate))
+        tally.done(f"gap after {effect}, taken with the proposed {best.name}")
     if best.base is start and result.steps:
         how = "better with fewer parameters" if adequate else "as well"
         set_aside = {
@@ -117,6 +138,7 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
         result,
         steps=steps,
         pruned=pruned,
+        rejected=rejected,
         final=fit,
         status="adequate" if check.adequate else "unexplained",
         unexplained=None if check.adequate else residual_signature(fit, harmonics),
@@ -126,6 +148,42 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
         set_aside=set_aside,
         discovery=tried,
     )
+
+
+def refused_base(result: Diagnosis, cross_validate: bool, tally: Tally) -> Refused | None:
+    """The library effect refused by rule 9 alone (:attr:`hysid.diagnosis.result.Diagnosis.shape_refused`) that also
+    predicts held-out frequencies better (rule 8; the first by BIC that does), or None: a device with two mechanisms,
+    one in the library and one not, leaves beside the library's a force of another shape, and discovery may find it
+    added to that effect's refit (a proposal kept there names the effect with it, :func:`choose`)."""
+    for refused in result.shape_refused:
+        if not cross_validate:
+            return refused
+        step = refused.step
+        tally.expect(work := weight(step.before, (step.effect,)))
+        why = held_out(step.before, step.after, result.harmonics)
+        tally.done(f"discovery: {step.effect}, refused by its own shape alone, checked on held-out frequencies", work)
+        if why is None:
+            return refused
+    return None
+
+
+def needed_beside(proposal: Proposed, effect: str, tally: Tally) -> str | None:
+    """Why the refused library ``effect`` is not needed beside ``proposal`` (added to its refit, :func:`refused_base`),
+    or None: the proposal's model without the effect, refitted from its values, must take the effect back by the
+    acceptance rules (:func:`hysid.diagnosis.acceptance.judge`) but its own shape (rule 9, which refused it alone and is
+    what the proposal is there for: a Bouc-Wen spring for one of two Jenkins sliders, 0.82 to 1.08 times its strength
+    loop by loop beside a term for the other, is no slider's exact shape). A term that only bends the
+    effect's force into another shape (Coulomb friction and a term that makes it a Stribeck curve) leaves the effect
+    nothing of its own there: the two are a substitute for one law the library lacks, not two mechanisms."""
+    fit, harmonics = proposal.fit, proposal.fit.objective.harmonics
+    effects = tuple(e for e in fit.effects if e != effect)
+    model = make_model(harmonics, fit.start, effects, soft_bounds(fit.model), fit.freed)
+    row = np.clip(model.from_dict(fit.params()), model.bounds[:, 0], model.bounds[:, 1])
+    tally.expect(work := weight(fit, ()))
+    without = fit_objective(HarmonicObjective(harmonics, model), fit.start, effects, [row])
+    tally.done(f"discovery: {proposal.name} refitted without {effect}", work)
+    why = judge(without, fit, (effect,), harmonics, own=False)
+    return None if why is None else f"{effect} added to {without.spec} is not taken ({why}): {proposal.name} only reshapes it"
 
 
 def linear_loops(result: Diagnosis) -> str:

@@ -65,6 +65,18 @@ class Step:
 
 
 @dataclass
+class Refused:
+    """A library effect the search's last round refused by rule 9 alone (its own shape,
+    :func:`hysid.diagnosis.acceptance.own_shape`; every other rule of :func:`hysid.diagnosis.acceptance.judge` passed):
+    discovery may also start from its refit (:func:`hysid.diagnosis.contest.with_discovery`)."""
+
+    step: Step
+    """The effect, its score, the model it was added to and the refit, as it would have been named."""
+    why: str
+    """Why rule 9 refused it."""
+
+
+@dataclass
 class Diagnosis:
     """What :func:`diagnose` found: the start fit, every accepted step, the final fit and its gap to the data."""
 
@@ -100,6 +112,8 @@ class Diagnosis:
     """Library effects named on the way and set aside for a proposed term that explains the loops as well alone, and why."""
     discovery: dict[str, str] = field(default_factory=dict)
     """What discovery tried from each model it started from (its spec), and what came of it."""
+    shape_refused: list[Refused] = field(default_factory=list)
+    """The last round's library effects refused by rule 9 alone, best BIC first (:class:`Refused`)."""
 
     def effects_not_identifiable(self) -> dict[str, str]:
         """Why each effect of ``not_identifiable`` cannot be identified from these loops."""

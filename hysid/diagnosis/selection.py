@@ -48,7 +48,7 @@ from itertools import combinations
 import numpy as np
 
 from hysid.criteria import BIC_MARGIN, SIGNIFICANCE
-from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
+from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge, own_shape
 from hysid.diagnosis.contest import stacked, with_discovery
 from hysid.diagnosis.fitting import Fit, final_identifiability, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
@@ -56,7 +56,7 @@ from hysid.diagnosis.naming import adequacy, residual_signature
 from hysid.diagnosis.plausible import implausible_effect
 from hysid.diagnosis.pruning import prune
 from hysid.diagnosis.refits import joint_contender, refit, weight
-from hysid.diagnosis.result import Diagnosis, Step
+from hysid.diagnosis.result import Diagnosis, Refused, Step
 from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
 from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT, Report, Tally
 from hysid.motion import WORDS, MotionChoice, choose_motion, confirm_motion
@@ -232,6 +232,7 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
     done(f"start model {start} fitted")
     first = fit
     steps: list[Step] = []
+    refused: list[Refused] = []
     expected_rounds, rounds = min(EXPECTED_STEPS, max_steps) + 1, 0
     while True:
         rounds += 1
@@ -289,6 +290,7 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
                 break
         rejected = {label(e): v for e, v in verdicts.items() if v is not None}
         if chosen is None:
+            refused = shape_refused(fit, refits, verdicts, scores, harmonics)
             break
         best = refits[chosen]
         passed = [e for _, e in ranked if e != chosen and verdicts[e] is None]
@@ -331,7 +333,24 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
         last_scores=candidates,
         impossible=impossible,
         pruned=pruned,
+        shape_refused=refused,
     )
+
+
+def shape_refused(
+    fit: Fit, refits: dict[tuple[str, ...], Fit], verdicts: dict[tuple[str, ...], str | None], scores: dict[str, float], harmonics: Harmonics
+) -> list[Refused]:
+    """The single effects of the last round (added to ``fit``) refused by rule 9 alone (:func:`hysid.diagnosis.acceptance.own_shape`):
+    every other rule of :func:`hysid.diagnosis.acceptance.judge` passed and no shape parameter degenerates; best BIC first.
+    The held-out frequencies (rule 8) are checked where discovery starts from one (:func:`hysid.diagnosis.contest.with_discovery`)."""
+    out = []
+    for effects, after in sorted(refits.items(), key=lambda item: item[1].bic):
+        why = verdicts[effects]
+        if len(effects) > 1 or why is None or why != own_shape(fit, after):
+            continue
+        if judge(fit, after, effects, harmonics, own=False) is None and degenerate(after, effects) is None:
+            out.append(Refused(Step(effect=effects[0], confusable_with=[], score=scores[effects[0]], before=fit, after=after, rejected={}), why))
+    return out
 
 
 def pair_steps(
