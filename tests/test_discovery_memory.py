@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import hysid
-from hysid.bench.discovery import loop_motion, shape_error
+from hysid.bench.discovery import loop_motion, shape_error, shape_phases
 from hysid.bench.discovery_cases import LAWS, jenkins, loops_of, truth_model
 from hysid.bench.validation import truth_nrmse
 from hysid.diagnosis.discovery import propose
@@ -127,7 +127,7 @@ def test_beside_a_bouc_wen_spring_for_one_slider_discovery_proposes_the_other_as
     assert found.fit.whitened_rms < 1.2
     loops = harmonics.loops
     kin = Kinematics(x0=np.asarray(loops.x0, dtype=float), omega=2.0 * np.pi * np.asarray(loops.freq_hz, dtype=float))
-    phase = np.broadcast_to(2.0 * np.pi * np.arange(256) / 256, (kin.x0.size, 256))
+    phase = shape_phases(kin.x0.size)
     x, v = loop_motion(loops.freq_hz, loops.x0)
     assert shape_error(jenkins(x, v, stiffness, slip), found.term_force(kin, phase), x, v) < 0.1
     entry = json.loads(json.dumps(found.as_dict()))

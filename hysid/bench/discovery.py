@@ -104,7 +104,7 @@ def memory_force(diagnosis: Diagnosis, loops: LoopSet) -> np.ndarray:
     """The sum of the proposed terms with memory (whose ``formula`` is the rate of their force, not a force of x and v)
     at the motion of :func:`loop_motion`: each term's periodic orbit under each loop's sine."""
     kin = Kinematics(x0=np.asarray(loops.x0, dtype=float), omega=2.0 * np.pi * np.asarray(loops.freq_hz, dtype=float))
-    phase = np.broadcast_to(2.0 * np.pi * np.arange(SHAPE_SAMPLES) / SHAPE_SAMPLES, (kin.x0.size, SHAPE_SAMPLES))
+    phase = shape_phases(kin.x0.size)
     return sum((p.term_force(kin, phase) for p in diagnosis.proposed if p.law.memory), np.zeros(phase.shape))
 
 
