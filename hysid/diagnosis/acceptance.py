@@ -35,7 +35,10 @@ explains, not by how precisely one of its parameters is known there:
    (strengths of either sign). A library effect refused by it leaves the
    residual to discovery (:mod:`.contest`); where it passes every other
    rule, discovery also starts from it (a second mechanism the library lacks
-   beside it, :func:`hysid.diagnosis.contest.with_discovery`).
+   beside it, :func:`hysid.diagnosis.contest.with_discovery`); where no law
+   proposed from the data explains the loops better, or discovery is off, it is
+   named after all as the library's best, with why it is not their exact shape
+   (:func:`hysid.diagnosis.contest.with_refused`), and the loops stay unexplained.
 
 Where the truth lies outside the library, the effects it takes are not kept
 as a substitute for a law the library lacks: discovery competes with them

@@ -19,6 +19,10 @@ acceptance rules take (:mod:`.acceptance`), :func:`choose` keeps one, or none:
   final model, refitted alone on the start model, explains the loops within ``BIC_MARGIN`` of the law added
   there (or better), the law is that effect (a fitted sgn v where Coulomb friction would do), and the
   library's name stands.
+
+Where no proposal is kept (or discovery is off) and a library effect was refused by its own shape alone, it is
+named after all as the library's best (:func:`with_refused`), with why it is not the loops' exact shape; the
+diagnosis stays unexplained.
 """
 
 from __future__ import annotations
@@ -113,7 +117,7 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
     tried.update(verdicts | refused)
     if best is None:
         tally.expect(-1)
-        return replace(result, discovery=tried)
+        return with_refused(replace(result, discovery=tried), beside, cross_validate, tally)
     steps, pruned, gaps, set_aside, rejected = result.steps, result.pruned, list(result.gap), {}, result.rejected
     if beside is not None and best.base is beside.step.after:
         effect, taken = beside.step.effect, f"taken with the proposed {best.name}; alone it was refused because it {beside.why}"
@@ -165,6 +169,35 @@ def refused_base(result: Diagnosis, cross_validate: bool, tally: Tally) -> Refus
         if why is None:
             return refused
     return None
+
+
+def with_refused(result: Diagnosis, refused: Refused | None, cross_validate: bool, tally: Tally) -> Diagnosis:
+    """``result`` (unexplained) with the library effect ``refused`` by its own shape alone (:func:`refused_base`) named
+    after all, where no proposed law explains the loops better (or discovery is off): it passed every other rule,
+    held-out frequencies included, so it is the best the library has for what the loops hold, and the report says
+    that it is not that force's exact shape (why rule 9 refused it) and that the loops stay unexplained. A real
+    device whose law is near a library effect's (a Bouc-Wen spring whose shape changes a little with amplitude and
+    frequency) keeps the library's name rather than none."""
+    if refused is None or result.status == "adequate":
+        return result
+    step, harmonics = refused.step, result.harmonics
+    taken = f"taken as the library's best for these loops, though not their exact shape: it {refused.why}; no law proposed from the data explains them better"
+    steps, gaps = result.steps + [step], list(result.gap[: len(result.steps) + 1])  # from the library model before pruning
+    tally.expect(1)
+    gaps.append(gap_metrics(step.after, harmonics, cross_validate))
+    tally.done(f"gap after {step.effect}, refused alone by its own shape, taken as the library's best")
+    check = adequacy(step.after, harmonics)
+    return replace(
+        result,
+        steps=steps,
+        pruned={},
+        rejected={**result.rejected, step.effect: taken},
+        final=step.after,
+        status="adequate" if check.adequate else "unexplained",
+        unexplained=None if check.adequate else residual_signature(step.after, harmonics),
+        gap=gaps,
+        identifiability=final_identifiability(step.after, harmonics),
+    )
 
 
 def needed_beside(proposal: Proposed, effect: str, tally: Tally) -> str | None:

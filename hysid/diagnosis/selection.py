@@ -49,7 +49,7 @@ import numpy as np
 
 from hysid.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge, own_shape
-from hysid.diagnosis.contest import stacked, with_discovery
+from hysid.diagnosis.contest import refused_base, stacked, with_discovery, with_refused
 from hysid.diagnosis.fitting import Fit, final_identifiability, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
 from hysid.diagnosis.naming import adequacy, residual_signature
@@ -202,6 +202,8 @@ def diagnose(
     result.motion = motion
     if discover and (result.status != "adequate" or stacked(result)):
         result = with_discovery(result, cross_validate, tally)
+    elif result.status != "adequate":
+        result = with_refused(result, refused_base(result, cross_validate, tally), cross_validate, tally)
     tally.finish(f"diagnosis done: {result.final.spec}, {result.status}")
     return result
 
