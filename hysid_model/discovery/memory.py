@@ -33,7 +33,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hysid_model.bouc_wen_orbit import bouc_wen_exact
 from hysid_model.discovery.features import Family, Shape
 from hysid_model.effects.bouc_wen import mean_grid, travels
 from hysid_model.kinematics import Kinematics
@@ -82,6 +81,8 @@ def state(zy: np.ndarray, n: np.ndarray, spans: np.ndarray, travel: np.ndarray, 
     """u = z / z_y ``(P, L, N)`` of candidates of yield displacement ``zy`` and exponent ``n`` ``(P,)`` on the orbits
     of loops of half spans ``spans`` ``(L,)``, at the ``travel`` since the last reversal on the branch ``sign``
     ``(L, N)`` or ``(P or 1, L, N)``: :func:`hysid_model.bouc_wen_orbit.bouc_wen_exact` with r = :data:`SHAPE_R`."""
+    from hysid_model.bouc_wen_orbit import bouc_wen_exact  # compiled: on first use, a fast CLI and island start
+
     shape = (zy.size,) + travel.shape[-2:]
     out = np.empty(shape)
     bouc_wen_exact(
