@@ -83,6 +83,10 @@ def state(zy: np.ndarray, n: np.ndarray, spans: np.ndarray, travel: np.ndarray, 
     ``(L, N)`` or ``(P or 1, L, N)``: :func:`hysid_model.bouc_wen_orbit.bouc_wen_exact` with r = :data:`SHAPE_R`."""
     from hysid_model.bouc_wen_orbit import bouc_wen_exact  # compiled: on first use, a fast CLI and island start
 
+    if travel.ndim == 2 and zy.size > 1:  # one motion for all: each distinct (z_y, n) once (a Jacobian's rows share most)
+        unique, inverse = np.unique(np.column_stack([zy, n]), axis=0, return_inverse=True)
+        if unique.shape[0] < zy.size:
+            return state(unique[:, 0], unique[:, 1], spans, travel, sign)[inverse.reshape(-1)]
     shape = (zy.size,) + travel.shape[-2:]
     out = np.empty(shape)
     bouc_wen_exact(
