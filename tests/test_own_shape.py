@@ -128,18 +128,3 @@ def test_a_refused_effect_is_named_beside_a_proposed_term_only_where_it_earns_it
     assert verdicts["gaussian_velocity"] is None
     said = verdicts["velocity_sign"]
     assert said is not None and said.startswith("coulomb_friction added to baseline+term_") and "BIC changes by only" in said, said
-
-
-def test_without_a_proposal_a_library_effect_refused_for_its_shape_is_named_as_the_librarys_best() -> None:
-    """The gap specimen diagnosed without discovery: the cubic spring that stands in for the dead zone is refused by
-    its own shape, and, no law proposed in its place, it is named after all as the library's best, with why it is not
-    the loops' exact shape; the diagnosis stays unexplained (a real device whose law is near a library effect keeps the
-    library's name rather than none). With discovery the gap law is proposed and the cubic spring is not named."""
-    loops = cases.loops_of("gap", NOISE_PCT, 0)
-    alone = diagnose(loops, "baseline", discover=False)
-    assert "cubic_stiffness" in [s.effect for s in alone.steps], alone.rejected
-    assert alone.rejected["cubic_stiffness"].startswith("taken as the library's best for these loops, though not their exact shape: it is not the shape")
-    assert alone.status == "unexplained" and alone.final.effects[-1] == "cubic_stiffness"
-    assert len(alone.gap) == len(alone.steps) + 1
-    found = diagnose(loops, "baseline")
-    assert found.proposed and "cubic_stiffness" not in [s.effect for s in found.steps]

@@ -32,7 +32,11 @@ explains, not by how precisely one of its parameters is known there:
    amplitude and frequency: a cubic spring standing in for a dead zone
    (loop-by-loop strengths 13 % apart between amplitudes), an amplitude-
    dependent damping or a channel delay standing in for an orifice's v|v|
-   (strengths of either sign). A library effect refused by it leaves the
+   (strengths of either sign). The library search (:mod:`.selection`) leaves
+   this rule out: before a second library effect is in the model, the first
+   one's strength varies loop by loop too (Coulomb friction on a softening
+   isolator), and the rule refused right effects there; it judges the forces
+   discovery proposes. Where it refuses a library effect, that effect leaves the
    residual to discovery (:mod:`.contest`); where it passes every other
    rule, discovery also starts from it (a second mechanism the library lacks
    beside it, :func:`hysid.diagnosis.contest.with_discovery`); where no law

@@ -260,7 +260,7 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
             effects = tuple(c.effect for c in members)
             refits[effects] = profile_errors(refit(fit, harmonics, members, bounds, joint))
             done(f"step {len(steps) + 1}: refitted with {label(effects)}", w)
-        verdicts = {effects: judge(fit, r, effects, harmonics) for effects, r in refits.items()}
+        verdicts = {effects: judge(fit, r, effects, harmonics, own=False) for effects, r in refits.items()}  # rule 9: see acceptance
         for effects, why in [(e, degenerate(refits[e], e)) for e, v in verdicts.items() if v is None]:
             rivals = [r.bic for e, r in refits.items() if e != effects and verdicts[e] is None and degenerate(r, e) is None]
             if why is not None and degenerate_gives_way(refits[effects].bic, rivals):  # another explains as much without degenerating
