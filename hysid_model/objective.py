@@ -26,6 +26,7 @@ with a cusp there, :mod:`hysid_model.resolution`) count in no sum of squares.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -87,12 +88,13 @@ def sampled_memory(model: Model, kin: Kinematics, phase: np.ndarray, n_top: int)
     return SampledMemory(model, kin, phase, n_top)
 
 
-class Bounded:
+class Bounded(ABC):
     """A search space: ``bounds`` ``(dim, 2)``, the lower and upper bound of each of its ``dim`` parameters."""
 
     @property
+    @abstractmethod
     def bounds(self) -> np.ndarray:
-        raise NotImplementedError
+        """``(dim, 2)`` lower and upper bounds (each subclass says where they come from)."""
 
     @property
     def dim(self) -> int:
