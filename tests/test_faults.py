@@ -457,6 +457,9 @@ def test_ten_thousand_hostile_messages_over_zenoh_leave_coordinator_and_islands_
         wait_for(lambda: recorded() >= to_coordinator, 120, f"the coordinator to count {to_coordinator} rejects")
         rows = {name: rows_of(db, name) for name in islands}
         wait_for(lambda: all(rows_of(db, n) > rows[n] + 20 for n in islands), 60, "both islands to keep going")
+        counted = lambda: dict(query(db, "SELECT island, sum(rejected) + sum(unlisted) FROM islands WHERE campaign = 'zf' GROUP BY island"))
+        sent = {name: to_islands + 1000 + queries[name] for name in islands}  # each island reads its queue at its own pace
+        wait_for(lambda: all(counted().get(n, 0) >= sent[n] for n in islands), 120, f"the islands to count {sent} messages")
         assert coord.poll() is None and all(p.poll() is None for p in islands.values())
         doc = interrupted(coord)
     finally:
