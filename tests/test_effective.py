@@ -13,6 +13,7 @@ from scipy.special import gamma
 
 import hysid
 from hysid.bench import coverage
+from hysid.report.amplitudes import resonance_note
 from hysid_model.effective import effective_table, loop_effective
 from hysid_model.model import build_model
 from hysid_model.model_names import model_name, named
@@ -35,6 +36,19 @@ def test_a_linear_oscillator_has_k_eff_k_minus_m_w2_and_xi_eq_c_w_over_2_k_eff()
             assert p.values["xi_eq"] == pytest.approx(c * w / (2 * (k - m * w**2)), rel=1e-4)
         else:  # above the resonance no energy is stored: none given
             assert math.isnan(p.values["xi_eq"])
+
+
+def test_a_band_across_the_resonance_is_said_and_its_frequency_given():
+    """k_eff = k - m w^2 passes zero at the resonance sqrt(k/m) / 2 pi: the tables say so (and where), a band
+    below it says nothing."""
+    model = build_model("baseline")
+    m, k, c = 0.04, 1430.0, 0.06
+    theta = model.from_dict({"xi0": c / (2 * math.sqrt(k * m)), "w0": math.sqrt(k / m), "meq": m})
+    fn = math.sqrt(k / m) / (2 * math.pi)
+    across = effective_table(model, theta, NO_ERROR, np.linspace(25.0, 34.0, 10), np.full(10, 1e-3))
+    note = resonance_note(across)
+    assert note is not None and f"{fn:.4g} Hz" in note, (note, fn)
+    assert resonance_note(effective_table(model, theta, NO_ERROR, np.linspace(5.0, 15.0, 6), np.full(6, 1e-3))) is None
 
 
 def test_a_fluid_damper_written_as_a_users_term_gets_its_energy_per_cycle():

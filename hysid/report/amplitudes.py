@@ -78,6 +78,28 @@ def effective_rows(points: Sequence[OperatingPoint], most: int | None = MAX_POIN
     return ["X0 (mm)", "f (Hz)", "k_eff (N/m), range", "xi_eq, range", "E_d per cycle (J), range"], rows
 
 
+def resonance_note(points: Sequence[OperatingPoint]) -> str | None:
+    """A sentence where an amplitude level's k_eff changes sign over its frequencies: the band crosses the resonance,
+    where the whole model's force (the inertia of the moving mass with it) makes k_eff pass zero and xi_eq diverge; None
+    otherwise. The frequency of each crossing is interpolated linearly in k_eff."""
+    crossings = []
+    for x0 in dict.fromkeys(p.x0 for p in points):
+        level = sorted((p for p in points if p.x0 == x0 and math.isfinite(p.values["k_eff"])), key=lambda p: p.freq_hz)
+        for a, b in zip(level, level[1:]):
+            ka, kb = a.values["k_eff"], b.values["k_eff"]
+            if ka > 0.0 >= kb or ka <= 0.0 < kb:
+                crossings.append(a.freq_hz + (b.freq_hz - a.freq_hz) * ka / (ka - kb))
+                break
+    if not crossings:
+        return None
+    at = f"{min(crossings):.4g} Hz" if max(crossings) - min(crossings) < 5e-4 * max(crossings) else f"{min(crossings):.4g}-{max(crossings):.4g} Hz"
+    return (
+        f"the band crosses the resonance (k_eff passes zero at {at}): the whole model's force holds the inertia of the "
+        "moving mass, so k_eff falls through zero and xi_eq grows without bound near it; the oscillator's fn and xi are "
+        "the specimen's frequency and damping"
+    )
+
+
 def combination_rows(found: Mapping[str, tuple[float, float]], columns: int) -> list[list[str]]:
     """The combinations k and c ``found`` (value, standard error) as rows of the parameter table (``columns`` cells
     each): name, value, error, unit."""

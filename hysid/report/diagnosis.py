@@ -12,7 +12,7 @@ from typing import Any
 
 from hysid.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc, proposed
-from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows
+from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows, resonance_note
 from hysid.report.bounds import widened_sentence
 from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_section, with_error
 from hysid.report.records import DiagnosisCurves, DiagnosisRecord
@@ -183,7 +183,8 @@ def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves:
         "",
         "## Effective stiffness and equivalent damping",
         "",
-        f"The final model's {EFFECTIVE_TITLE}; one standard error (delta method through the full covariance); every row in `amplitudes.csv`.",
+        f"The final model's {EFFECTIVE_TITLE}; one standard error (delta method through the full covariance); every row in `amplitudes.csv`."
+        + "".join(f" Note: {note}." for note in [resonance_note(record.estimates.effective)] if note),
         "",
         table(*effective_rows(record.estimates.effective, MARKDOWN_POINTS)),
         "",

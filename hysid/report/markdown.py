@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from hysid.report import jsondoc
-from hysid.report.amplitudes import combination_rows, effective_rows
+from hysid.report.amplitudes import combination_rows, effective_rows, resonance_note
 from hysid.report.campaign_text import algorithms_text, migrations_text, share_lines
 from hysid.report.records import FitCurves, FitRecord
 from hysid.report.text import fixed_text, loops_description, quality_text
@@ -316,7 +316,8 @@ def write_fit_report(
         "(every term, the oscillator's inertia included; the measurement chain left out) under X0 sin(wt): "
         "k_eff = (F+ - F-) / (2 X0) from the forces at the peak displacements, and xi_eq = E_d / (4 pi E_s) with E_d "
         "the energy dissipated per cycle and E_s = k_eff X0^2 / 2 (none where the inertia makes k_eff negative). "
-        "Uncertainties are one standard error (delta method through the full covariance); every row is in `amplitudes.csv`.",
+        "Uncertainties are one standard error (delta method through the full covariance); every row is in `amplitudes.csv`."
+        + "".join(f" Note: {note}." for note in [resonance_note(result.estimates.effective)] if note),
         table(*effective_rows(result.estimates.effective, MARKDOWN_POINTS)),
         picture(
             "effective",

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hysid.criteria import LINEAR_LOOPS
-from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows
+from hysid.report.amplitudes import EFFECTIVE_TITLE, combination_rows, effective_rows, modal_rows, resonance_note
 from hysid.report.bounds import bounds_sentence, widened_sentence
 from hysid.report.records import DiagnosisRecord, FitRecord
 from hysid_model import notices
@@ -234,8 +234,9 @@ def fit_summary(result: FitRecord, command: str = "hysid fit") -> str:
         "",
         f"  {EFFECTIVE_TITLE}:",
         text_table(*effective_rows(result.estimates.effective)),
-        "",
     ]
+    lines += [f"  note: {note}" for note in [resonance_note(result.estimates.effective)] if note]
+    lines.append("")
     if result.report:
         lines.append(f"report: {result.report} (figures and result.json alongside)")
     return "\n".join(lines)
@@ -283,6 +284,7 @@ def diagnosis_summary(doc: dict[str, Any], record: DiagnosisRecord) -> str:
         lines.append(f"note: {widened_sentence(doc['bounds_widened'])}")
     lines += [f"note: {note}" for note in doc["notes"]]
     lines += [f"final model's {EFFECTIVE_TITLE}:", text_table(*effective_rows(record.estimates.effective))]
+    lines += [f"note: {note}" for note in [resonance_note(record.estimates.effective)] if note]
     if record.report:
         lines.append(f"report: {record.report}")
     return "\n".join(lines)
