@@ -32,7 +32,7 @@ import numpy as np
 
 from hysid_model import notices, plausibility, slips
 from hysid_model.errors import HysidInputError, HysidWarning
-from hysid_model.extraction import extract_loop
+from hysid_model.extraction import ExtractedLoop, extract_loop
 from hysid_model.loops import LoopSet
 from hysid_model.readers.csv_series import write_series
 from hysid_model.readers.dataset_dir import (
@@ -223,14 +223,13 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
         )
     )
     plausibility.warn_loops(labels, facts, [e.clipping for e in extracted], str(config.directory))
-    resolved, meta_reversals = reversals_resolved([e.reversal_steps for e in extracted if e.reversal_steps is not None])
-    per_loop["reversals_resolved"] = [resolved] * len(extracted)
     meta = config.meta()
-    meta.update({"format": fmt, "per_loop": per_loop, "reversals": meta_reversals})
+    meta.update({"format": fmt, "per_loop": per_loop})
+    loops = loop_set(config.name, extracted, labels, config.meq_kg, meta)
     estimated = [k for k, s in enumerate(sources) if s.nominal_hz is None]
     if estimate_manifest and estimated:
         files = [k for k, s in enumerate(sources) if s.whole_file]
-        meta["estimated_manifest"] = manifest_text([sources[k] for k in files], [sources[k].nominal_hz or extracted[k].freq_hz for k in files])
+        loops.meta["estimated_manifest"] = manifest_text([sources[k] for k in files], [sources[k].nominal_hz or extracted[k].freq_hz for k in files])
         found = ", ".join(f"{labels[k]} {extracted[k].freq_hz:.6g} Hz" for k in estimated)
         warnings.warn(
             HysidWarning(
@@ -244,22 +243,33 @@ def extract_records(sources: list[RawSource], config: DatasetConfig, n_points: i
             ),
             stacklevel=3,
         )
-    loops = LoopSet(
-        name=config.name,
+    for warning in slips.physics(loops, facts, str(config.directory), slips.Reading.common(read)):
+        warnings.warn(warning, stacklevel=3)
+    return loops
+
+
+def loop_set(name: str, extracted: list[ExtractedLoop], labels: list[str], meq_kg: float | None, meta: dict[str, Any] | None = None) -> LoopSet:
+    """The loop set of loops extracted from records, in their order: branches, noise, cycles and displacement
+    harmonics stacked, ``meta`` (copied) with whether the reversals are resolved (``per_loop['reversals_resolved']``
+    and ``reversals``, :func:`hysid_model.resolution.reversals_resolved`)."""
+    meta = dict(meta or {})
+    per_loop = dict(meta.get("per_loop", {}))
+    resolved, reversals = reversals_resolved([e.reversal_steps for e in extracted if e.reversal_steps is not None])
+    per_loop["reversals_resolved"] = [resolved] * len(extracted)
+    meta.update({"per_loop": per_loop, "reversals": reversals})
+    return LoopSet(
+        name=name,
         freq_hz=np.array([e.freq_hz for e in extracted]),
         x0=np.array([e.x0 for e in extracted]),
         top=np.stack([e.top for e in extracted]),
         bottom=np.stack([e.bottom for e in extracted]),
         sigma=np.array([e.sigma for e in extracted]),
-        meq_kg=config.meq_kg,
+        meq_kg=meq_kg,
         cycles=np.array([e.cycles for e in extracted]),
         labels=labels,
         meta=meta,
         x_harmonics=stack_harmonics([e.x_harmonics for e in extracted]),
     )
-    for warning in slips.physics(loops, facts, str(config.directory), slips.Reading.common(read)):
-        warnings.warn(warning, stacklevel=3)
-    return loops
 
 
 def once_each(caught: list[warnings.WarningMessage], records: int) -> None:

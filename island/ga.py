@@ -142,22 +142,27 @@ class GA(PopulationOptimizer):
         super().__init__(
             bounds,
             seed,
+            population=population,
+            initial_population=initial_population,
             iterations=iterations,
             addpop_amount=addpop_amount,
             addpop_level=addpop_level,
             migrant_policy=migrant_policy,
             redraw_limit=redraw_limit,
         )
-        self.population = check_int(self.name, "population", population, 2, MAX_POPULATION)
-        if self.population % 2:
-            raise HysidInputError("GA population must be even (mu/2 couples)", param="population", value=population)
-        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population, MAX_POPULATION)
         self.alpha_blx = check_float(self.name, "alpha_blx", alpha_blx, 0.0)
         self.mutation_rate = check_float(self.name, "mutation_rate", mutation_rate, 0.0, 1.0)
         self.mutation_amount = check_float(self.name, "mutation_amount", mutation_amount, 0.0)
         self.pop: np.ndarray | None = None
         """Parents ranked best first, ``(mu, D)``; None before the initial population is evaluated."""
         self.fit: np.ndarray | None = None
+
+    def _checked_population(self, population: Any) -> int:
+        """An even population of at least 2 (mu/2 couples), else a one-line error naming the option."""
+        mu = check_int(self.name, "population", population, 2, MAX_POPULATION)
+        if mu % 2:
+            raise HysidInputError("GA population must be even (mu/2 couples)", param="population", value=population)
+        return mu
 
     def _settings(self) -> dict[str, Any]:
         return self._settings_with({"alpha_blx": self.alpha_blx, "mutation_rate": self.mutation_rate, "mutation_amount": self.mutation_amount})

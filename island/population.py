@@ -104,16 +104,13 @@ class PopulationOptimizer(AskTell):
     """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring). ``redraw_limit`` (not in
     the thesis) caps the rounds of "Couldn't calculate" redraws per batch."""
 
-    population: int
-    """The population (GA) or swarm (PSO) size: set by the subclass."""
-    initial_population: int
-    """Candidates of iteration 0: set by the subclass."""
-
     def __init__(
         self,
         bounds: np.ndarray,
         seed: int,
         *,
+        population: int,
+        initial_population: int,
         iterations: int,
         addpop_amount: float,
         addpop_level: int,
@@ -127,6 +124,10 @@ class PopulationOptimizer(AskTell):
         self.addpop_level = check_int(self.name, "addpop_level", addpop_level, 0, 1000)
         self.migrant_policy = check_choice(self.name, "migrant_policy", migrant_policy, MIGRANT_POLICIES)
         self.redraw_limit = check_int(self.name, "redraw_limit", redraw_limit, 0, 10_000)
+        self.population = self._checked_population(population)
+        """The population (GA) or swarm (PSO) size."""
+        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population, MAX_POPULATION)
+        """Candidates of iteration 0: at least the population."""
         self.rng = new_rng(self.seed)
         self.history: list[float] = []
         """Best fitness after each iteration; index 0 = after the initial population (the thesis' ``fhv``)."""
@@ -139,6 +140,10 @@ class PopulationOptimizer(AskTell):
         share of a mixed campaign credits (:mod:`island.share`)."""
 
     # --- subclass hooks ---------------------------------------------------------
+    def _checked_population(self, population: Any) -> int:
+        """The population (or swarm) size, at least 1, else a one-line error naming the option."""
+        return check_int(self.name, "population", population, 1, MAX_POPULATION)
+
     @abstractmethod
     def _next_batch(self) -> tuple[str, np.ndarray]:
         """Kind and candidates of the next step."""

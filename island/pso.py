@@ -38,7 +38,7 @@ import numpy as np
 
 from hysid_model.errors import HysidInputError
 from island.addpop import additional_population
-from island.population import MAX_POPULATION, PopulationOptimizer, array_or_none, check_choice, check_float, check_int, load_array
+from island.population import PopulationOptimizer, array_or_none, check_choice, check_float, load_array
 from island.rng import uniform_population
 
 NEIGHBOURHOODS = ("global", "ring")
@@ -86,14 +86,14 @@ class PSO(PopulationOptimizer):
         super().__init__(
             bounds,
             seed,
+            population=population,
+            initial_population=initial_population,
             iterations=iterations,
             addpop_amount=addpop_amount,
             addpop_level=addpop_level,
             migrant_policy=migrant_policy,
             redraw_limit=redraw_limit,
         )
-        self.population = check_int(self.name, "population", population, 1, MAX_POPULATION)
-        self.initial_population = check_int(self.name, "initial_population", initial_population, self.population, MAX_POPULATION)
         self.phi1 = check_float(self.name, "phi1", phi1, 0.0)
         self.phi2 = check_float(self.name, "phi2", phi2, 0.0)
         self.K = constriction(self.phi1, self.phi2)

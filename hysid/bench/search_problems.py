@@ -47,11 +47,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hysid_model.datasets import loop_set
 from hysid_model.extraction import extract_loop
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.problem import prepare_model
-from hysid_model.resolution import reversals_resolved
 from hysid_model.synth import AMPLITUDES_M, FREQUENCIES_HZ, MEQ_KG, TRUE_PARAMS, RawRecord, simulate_raw, synth_loops
 from hysid_model.waveform import displacement
 
@@ -107,25 +107,13 @@ class Problem:
 def extracted(name: str, records: list[RawRecord], meq_kg: float | None, points: int = POINTS, *, sensor: Callable | None = None) -> LoopSet:
     """Loops from raw records by the extraction real data go through; ``sensor(record)`` (if given) is the
     displacement the sensor reports instead of the motion."""
-    loops = []
-    for r in records:
-        x = r.x if sensor is None else sensor(r)
-        loops.append(extract_loop(r.t, x, r.force, source=r.label, n_points=points, nominal_freq_hz=r.freq_hz, steady_window=(r.t[0], r.t[-1])))
-    k = max(e.x_harmonics.size for e in loops)
-    resolved, reversals = reversals_resolved([e.reversal_steps for e in loops if e.reversal_steps is not None])
-    return LoopSet(
-        name=name,
-        freq_hz=np.array([e.freq_hz for e in loops]),
-        x0=np.array([e.x0 for e in loops]),
-        top=np.stack([e.top for e in loops]),
-        bottom=np.stack([e.bottom for e in loops]),
-        sigma=np.array([e.sigma for e in loops]),
-        meq_kg=meq_kg,
-        labels=[r.label for r in records],
-        cycles=np.array([e.cycles for e in loops], dtype=float),
-        x_harmonics=np.stack([np.pad(e.x_harmonics, (0, k - e.x_harmonics.size)) for e in loops]),
-        meta={"per_loop": {"reversals_resolved": [resolved] * len(loops)}, "reversals": reversals},
-    )
+    loops = [
+        extract_loop(
+            r.t, r.x if sensor is None else sensor(r), r.force, source=r.label, n_points=points, nominal_freq_hz=r.freq_hz, steady_window=(r.t[0], r.t[-1])
+        )
+        for r in records
+    ]
+    return loop_set(name, loops, [r.label for r in records], meq_kg)
 
 
 def grid(freqs: np.ndarray, amps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
