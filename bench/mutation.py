@@ -43,7 +43,7 @@ MODULES: dict[str, dict[str, object]] = {
     "acceptance": {
         "path": "hysid/diagnosis/acceptance.py",
         "functions": ["judge", "degenerate_gives_way", "created_order"],
-        "tests": ["tests/test_rules_acceptance.py"],
+        "tests": ["tests/test_rules_acceptance.py", "tests/test_own_shape.py::test_a_cubic_spring_standing_in_for_a_gap_is_refused_for_its_shape"],
     },
     "motion": {
         "path": "hysid/motion.py",

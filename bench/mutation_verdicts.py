@@ -11,13 +11,13 @@ EQUIVALENT: dict[str, str] = {
     "hysid.diagnosis.acceptance.x_created_order__mutmut_36": AT_EQUALITY,
     "hysid.diagnosis.acceptance.x_created_order__mutmut_37": AT_EQUALITY,
     "hysid.diagnosis.acceptance.x_created_order__mutmut_39": AT_EQUALITY,
-    "hysid.diagnosis.acceptance.x_judge__mutmut_3": AT_EQUALITY,
-    "hysid.diagnosis.acceptance.x_judge__mutmut_31": AT_EQUALITY,
-    "hysid.diagnosis.acceptance.x_judge__mutmut_28": (
+    "hysid.diagnosis.acceptance.x_judge__mutmut_4": AT_EQUALITY,
+    "hysid.diagnosis.acceptance.x_judge__mutmut_32": AT_EQUALITY,
+    "hysid.diagnosis.acceptance.x_judge__mutmut_29": (
         "excess >= 0: rule 5 is reached only past rule 1, whose BIC fall of BIC_MARGIN lowered the chi^2 by "
         "more than 10; with no excess, 'removes less than 0' never holds either way"
     ),
-    "hysid.diagnosis.acceptance.x_judge__mutmut_29": (
+    "hysid.diagnosis.acceptance.x_judge__mutmut_30": (
         "excess > 1: past rule 1 the chi^2 fell by more than 10, above MIN_SHARE times any excess up to 1, "
         "so rule 5 cannot fire for an excess in (0, 1] either way"
     ),
@@ -55,6 +55,7 @@ EQUIVALENT: dict[str, str] = {
     "coordinator.members.xǁMembershipǁsettle__mutmut_7": (
         "'> LEAVE_GRACE_S': differs only where a token has been gone exactly that long to the clock's last digit"
     ),
+    "coordinator.members.xǁMembershipǁheard__mutmut_45": "resumed = None: None is false as False, and resumed is only read as a truth value (if member.resumed)",
     "coordinator.members.xǁMembershipǁsettle__mutmut_18": "'> stale_s': differs only where a run has been silent exactly that long to the clock's last digit",
     "hysid.identifiability.x_partners__mutmut_20": "the scale put in for a column of norm 0: that column is all zeros, and stays so divided by anything",
     "hysid.identifiability.x_partners__mutmut_26": "lstsq without rcond: numpy 2's default is rcond=None",

@@ -70,6 +70,7 @@ def test_a_cubic_spring_standing_in_for_a_gap_is_refused_for_its_shape() -> None
     assert why is not None and why.startswith("is not the shape of what is left"), why
     low, high = (float(s) for s in why.split("need ")[1].split(" times")[0].split(" to "))
     assert high - low > 0.1  # strengths 13 % apart between the two amplitudes
+    assert judge(start, after, ("cubic_stiffness",), harmonics, own=False) is None  # rule 9 alone refused it: without it, taken
 
 
 @pytest.mark.parametrize("effects", [("cubic_stiffness",), ("hysteretic_damping",), ("cubic_stiffness", "hysteretic_damping")])

@@ -91,3 +91,14 @@ def test_the_burst_refills_from_the_time_of_the_last_number_taken():
     guard = ReplayGuard(window=64, rate=100.0, burst=8)
     assert [guard.check(KEY, n, now=100.0) for n in (0, 8)] == ["fresh", "fresh"]
     assert guard.check(KEY, 16, now=100.0) == "ahead" and guard.check(KEY, 16, now=100.1) == "fresh"
+
+
+def test_a_run_takes_no_more_memory_than_its_window_however_many_numbers_it_sends():
+    """What the guard remembers of a run is a mask of its last ``window`` numbers (a few hundred bytes at the default
+    4096), however long the run lives: after 20,000 numbers in order and as many in steps of 3, window 64 keeps at
+    most 64 bits of them (the highest number and its mask, as the guard stores them)."""
+    guard = ReplayGuard(window=64, burst=64)
+    for n in (*range(20_000), *range(20_000, 80_000, 3)):
+        assert guard.check(KEY, n, now=float(n)) == "fresh"
+    high, mask, *_ = guard._seen[KEY]
+    assert high == 79_997 and 0 < mask < 2**64
