@@ -57,6 +57,15 @@ EQUIVALENT: dict[str, str] = {
     ),
     "coordinator.members.xǁMembershipǁheard__mutmut_45": "resumed = None: None is false as False, and resumed is only read as a truth value (if member.resumed)",
     "coordinator.members.xǁMembershipǁsettle__mutmut_18": "'> stale_s': differs only where a run has been silent exactly that long to the clock's last digit",
+    "hysid.identifiability.x_unseen__mutmut_24": "'<=' for '<': differs only for an eigenvalue exactly RANK_TOL times the largest, to the last digit",
+    "hysid.identifiability.x_unseen__mutmut_30": (
+        "max(values.max(), 1.0): the Gram matrix of unit columns has trace D with ones on its diagonal, so its largest "
+        "eigenvalue is at least 1 unless every column is zero, where any positive threshold finds every direction unseen"
+    ),
+    "hysid.identifiability.x_side_width__mutmut_46": "'<=' for '<': differs only for a bracket whose ends are exactly 1.02 apart, to the last digit",
+    "hysid.identifiability.x_side_width__mutmut_74": "'<=' for '<': differs only for a rise whose square root is exactly 0.05 from 1, to the last digit",
+    "hysid.identifiability.x_assess__mutmut_177": "'named or True': with nothing named the comprehension keeps no direction, the same (D, 0) as the else branch",
+    "hysid.identifiability.x_assess__mutmut_184": "'>=' for '>': differs only for a direction's component exactly PARTICIPATION, to the last digit",
     "hysid.identifiability.x_partners__mutmut_20": "the scale put in for a column of norm 0: that column is all zeros, and stays so divided by anything",
     "hysid.identifiability.x_partners__mutmut_26": "lstsq without rcond: numpy 2's default is rcond=None",
     "hysid.identifiability.x_partners__mutmut_32": AT_EQUALITY,

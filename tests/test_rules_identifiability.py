@@ -165,3 +165,89 @@ def test_a_wall_after_a_flat_profile_is_bracketed_by_halving_after_the_quadratic
     below = max(p for p in probes if rise(p) < 1.0)
     above = min(p for p in probes if rise(p) >= 1.0)
     assert below < width < above and 1.98 < width < 2.05 and (above / below < 1.02 or len(probes) == 5 + BISECTIONS)
+
+
+@pytest.mark.parametrize("height", [1.0, 1.5, 4.0])
+def test_a_profile_that_rises_a_unit_at_every_distance_probed_ends_at_the_quadratic_crossing_from_the_optimum(height):
+    """A rise of ``height`` (one unit or more) however close to the optimum: the step shrinks by GROWTH at most
+    MAX_STEPS - 1 times without finding a point below a unit, and the half-width is where a quadratic through the
+    optimum (rise 0) and the last point crosses a unit."""
+    width, probes = probed(lambda d: height, 1.0, 10.0)
+    last = GROWTH ** -(MAX_STEPS - 1)
+    assert probes == pytest.approx([1.0 / GROWTH**k for k in range(MAX_STEPS)], rel=1e-12)
+    assert width == pytest.approx(last / np.sqrt(height), rel=1e-12)
+
+
+def test_a_bracket_already_within_two_percent_is_not_probed_again():
+    """From a step of 0.995 with the bound at 1 the first growing step reaches the bound: the bracket 0.995-1 is within
+    2 %, so the crossing is taken from its ends (exact for the quadratic rise (d / 0.998)^2), without another probe."""
+    width, probes = probed(lambda d: (d / 0.998) ** 2, 0.995, 1.0)
+    assert probes == pytest.approx([0.995, 1.0], rel=1e-12) and width == pytest.approx(0.998, rel=1e-12)
+
+
+@pytest.mark.parametrize("height", [1.0, 1.5])
+def test_a_plateau_of_one_unit_or_more_is_reached_where_it_begins(height):
+    """Flat up to 2, a plateau of ``height`` up to 2.5, then 100: a rise of exactly one unit (or 1.5) has reached
+    the unit, so the bracket closes on 2, the plateau's start, not on the wall at 2.5."""
+    rise = lambda d: 0.0 if d < 2.0 else (height if d < 2.5 else 100.0)
+    width, probes = probed(rise, 0.01, 10.0)
+    assert 1.95 < width < 2.05 and any(2.0 <= p < 2.5 for p in probes)
+
+
+def test_a_jacobian_column_that_moves_nothing_keeps_unit_scale_and_is_the_unseen_direction():
+    """Column b is all zeros (its parameter moves no residual): its scale is 1, not 0 (no division by zero), and the
+    one direction unseen is b's own axis."""
+    a = np.eye(5)[0]
+    directions, scale = unseen(np.column_stack([2.0 * a, np.zeros(5)]))
+    np.testing.assert_array_equal(scale, [2.0, 1.0])
+    assert directions.shape == (2, 1)
+    np.testing.assert_allclose(np.abs(directions[:, 0]), [0.0, 1.0], atol=1e-12)
+
+
+@pytest.mark.parametrize(("gap", "is_unseen"), [(1e-9, True), (4e-9, False)])
+def test_a_direction_is_unseen_below_rank_tol_of_the_largest_eigenvalue(gap, is_unseen):
+    """Two unit columns at an angle t with 1 - cos t = ``gap``: the Gram matrix's eigenvalues are 1 +- cos t, about 2
+    and ``gap``; the direction (a - b) is unseen where ``gap`` is below RANK_TOL (10^-9) times 2, seen above it."""
+    a, b = np.eye(4)[:2]
+    t = np.arccos(1.0 - gap)
+    directions, _ = unseen(np.column_stack([a, np.cos(t) * a + np.sin(t) * b]))
+    assert directions.shape == (2, 1 if is_unseen else 0)
+
+
+def test_a_variance_rounding_left_below_zero_counts_as_zero(thesis):
+    """S_w's variance handed over as -10^-30 (a covariance's rounding): its error is 0 and nothing warns or fails
+    (numpy errors raised); only the parameters correlated beyond the limit are due a profile."""
+    objective, theta = thesis
+    cov = np.diag([1e-8, 1e-2, 1.0, -1e-30])
+    cov[0, 2] = cov[2, 0] = 0.9995 * np.sqrt(1e-8)
+    with np.errstate(all="raise"):
+        found = assess(objective, theta, cov, lambda model: Objective(objective.loops, model), 1.0, profiles=False)
+    assert found.unprofiled == ["xi0", "w0"]
+
+
+def test_a_profiled_error_is_never_below_the_curvatures(thesis):
+    """xi0 and w0 handed over correlated beyond the limit with errors 10 times the curvature's: their profiles rise
+    a unit sooner, and the error kept is the larger, the one handed over; no direction is flat."""
+    objective, theta = thesis
+    jac = objective.jacobian(theta)
+    se = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac))) * 1e-3 * 10.0
+    correlation = np.eye(4)
+    correlation[0, 2] = correlation[2, 0] = 0.9995
+    found = assess(objective, theta, correlation * np.outer(se, se), lambda model: Objective(objective.loops, model), 1e-6)
+    assert found.profiled == pytest.approx({"xi0": se[0], "w0": se[2]}, rel=1e-12)
+    assert found.flat.shape == (4, 0) and found.not_identifiable == {}
+
+
+def test_a_quantity_along_a_flat_direction_has_no_error_and_one_across_it_has():
+    """The mass of three amplitudes at one frequency (25 Hz) is not identifiable (it trades off with w0): a quantity
+    that moves with the mass alone has no error (NaN); the dynamic stiffness meq (w0^2 - w^2) at 25 Hz, which the
+    loops determine, has one."""
+    loops = synth_loops(0.0, n_points=5, params={**TRUE_PARAMS, "S_xi": 0.0, "S_w": 0.0}).subset([0, 40, 80])
+    loops.meq_kg = None
+    objective = build_objective(loops, "baseline")
+    theta = objective.model.from_dict({**TRUE_PARAMS, "meq": MEQ_KG})
+    jac = objective.jacobian(theta)
+    found = assess(objective, theta, np.linalg.pinv(jac.T @ jac) * 1e-6, lambda model: Objective(loops, model), 1e-6)
+    w0, meq, w = theta[1], theta[2], 2.0 * np.pi * 25.0
+    mass_alone, stiffness = found.propagate(np.array([[0.0, 0.0, 1.0], [0.0, 2.0 * meq * w0, w0**2 - w**2]]))
+    assert np.isnan(mass_alone) and np.isfinite(stiffness) and stiffness > 0
