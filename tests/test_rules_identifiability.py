@@ -20,6 +20,18 @@ def thesis():
     return objective, objective.model.from_dict(TRUE_PARAMS)
 
 
+@pytest.fixture(scope="module")
+def one_frequency():
+    """Three amplitudes of the linear Synth oscillator at one frequency (25 Hz), noiseless, the mass fitted: the
+    baseline's objective, its optimum (the truth) and its Jacobian there."""
+    loops = synth_loops(0.0, n_points=5, params={**TRUE_PARAMS, "S_xi": 0.0, "S_w": 0.0}).subset([0, 40, 80])
+    loops.meq_kg = None
+    objective = build_objective(loops, "baseline")
+    theta = objective.model.from_dict({**TRUE_PARAMS, "meq": MEQ_KG})
+    jac = objective.jacobian(theta)
+    return loops, objective, theta, jac
+
+
 @pytest.mark.parametrize(("r", "profiled"), [(0.998, False), (0.99905, True), (0.9995, True), (-0.9995, True), (0.99995, True)])
 def test_a_correlation_beyond_the_limit_sends_both_parameters_to_their_profile(thesis, r, profiled):
     """xi0 and w0 correlated at ``r`` in the covariance the caller hands over: beyond 0.999 either way both are due
@@ -84,15 +96,11 @@ def test_the_crossing_of_a_quadratic_rise_is_exact():
         assert crossing(near, (near / 0.3) ** 2, far, (far / 0.3) ** 2) == pytest.approx(0.3, rel=1e-12)
 
 
-def test_a_parameter_whose_profile_is_flat_over_its_range_is_not_identifiable():
+def test_a_parameter_whose_profile_is_flat_over_its_range_is_not_identifiable(one_frequency):
     """Three amplitudes at one frequency (25 Hz) and the mass fitted: the loops fix the stiffness meq w0^2 and the
     damping 2 meq xi0 w0 there, not the mass apart from w0; the mass's profile stays within a unit over its range,
     so it is named not identifiable (with what it trades off with) and gets no error."""
-    loops = synth_loops(0.0, n_points=5, params={**TRUE_PARAMS, "S_xi": 0.0, "S_w": 0.0}).subset([0, 40, 80])
-    loops.meq_kg = None
-    objective = build_objective(loops, "baseline")
-    theta = objective.model.from_dict({**TRUE_PARAMS, "meq": MEQ_KG})
-    jac = objective.jacobian(theta)
+    loops, objective, theta, jac = one_frequency
     found = assess(objective, theta, np.linalg.pinv(jac.T @ jac) * 1e-6, lambda model: Objective(loops, model), 1e-6)
     assert found.not_identifiable == {"meq": "trades off with w0: its profile is flat over its range (the data determine only a combination)"}
     assert np.isnan(found.stderr[2]) and np.isfinite(found.stderr[:2]).all() and found.flat.shape == (3, 1)
@@ -238,15 +246,11 @@ def test_a_profiled_error_is_never_below_the_curvatures(thesis):
     assert found.flat.shape == (4, 0) and found.not_identifiable == {}
 
 
-def test_a_quantity_along_a_flat_direction_has_no_error_and_one_across_it_has():
+def test_a_quantity_along_a_flat_direction_has_no_error_and_one_across_it_has(one_frequency):
     """The mass of three amplitudes at one frequency (25 Hz) is not identifiable (it trades off with w0): a quantity
     that moves with the mass alone has no error (NaN); the dynamic stiffness meq (w0^2 - w^2) at 25 Hz, which the
     loops determine, has one."""
-    loops = synth_loops(0.0, n_points=5, params={**TRUE_PARAMS, "S_xi": 0.0, "S_w": 0.0}).subset([0, 40, 80])
-    loops.meq_kg = None
-    objective = build_objective(loops, "baseline")
-    theta = objective.model.from_dict({**TRUE_PARAMS, "meq": MEQ_KG})
-    jac = objective.jacobian(theta)
+    loops, objective, theta, jac = one_frequency
     found = assess(objective, theta, np.linalg.pinv(jac.T @ jac) * 1e-6, lambda model: Objective(loops, model), 1e-6)
     w0, meq, w = theta[1], theta[2], 2.0 * np.pi * 25.0
     mass_alone, stiffness = found.propagate(np.array([[0.0, 0.0, 1.0], [0.0, 2.0 * meq * w0, w0**2 - w**2]]))
