@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping, Sequence
 
@@ -85,7 +86,7 @@ def resonance_note(points: Sequence[OperatingPoint]) -> str | None:
     crossings = []
     for x0 in dict.fromkeys(p.x0 for p in points):
         level = sorted((p for p in points if p.x0 == x0 and math.isfinite(p.values["k_eff"])), key=lambda p: p.freq_hz)
-        for a, b in zip(level, level[1:]):
+        for a, b in itertools.pairwise(level):
             ka, kb = a.values["k_eff"], b.values["k_eff"]
             if ka > 0.0 >= kb or ka <= 0.0 < kb:
                 crossings.append(a.freq_hz + (b.freq_hz - a.freq_hz) * ka / (ka - kb))
