@@ -12,7 +12,8 @@ inf and sort last).
 
 A subclass supplies the batches (``_next_batch``), what a complete batch does
 (``_finish``), the migrant policy (``_take``), its known candidates
-(``_known``) and its own state; everything else lives here.
+(``_known``), its own state and, where it asks more of the population size
+than at least 1 (the GA: even), ``_checked_population``; everything else lives here.
 """
 
 from __future__ import annotations
