@@ -255,3 +255,36 @@ def test_a_quantity_along_a_flat_direction_has_no_error_and_one_across_it_has(on
     w0, meq, w = theta[1], theta[2], 2.0 * np.pi * 25.0
     mass_alone, stiffness = found.propagate(np.array([[0.0, 0.0, 1.0], [0.0, 2.0 * meq * w0, w0**2 - w**2]]))
     assert np.isnan(mass_alone) and np.isfinite(stiffness) and stiffness > 0
+
+
+def first_targets(objective, theta, loops, cov, unit):
+    """The first value each profiled parameter of ``objective`` is held at by :func:`assess` (its profile's first
+    probe, on the lower side first), from the models ``rebuild`` is handed."""
+    first: dict[str, float] = {}
+
+    def rebuild(model):
+        for name, value in model.fixed.items():
+            if name in objective.model.names:
+                first.setdefault(name, value)
+        return Objective(loops, model)
+
+    assess(objective, theta, cov, rebuild, unit)
+    return first
+
+
+def test_a_profile_starts_one_curvature_error_away_or_else_half_the_room_to_the_farther_bound(thesis, one_frequency):
+    """xi0 and w0 handed over correlated beyond the limit with errors se: each profile's first probe is se below the
+    optimum. On the one-frequency specimen w0 lies in the direction the Jacobian does not see, so its error says
+    nothing: its first step is half the room to its farther bound (155 rad/s of 311), and as the lower bound is
+    nearer (89 rad/s), the bound itself."""
+    objective, theta = thesis
+    jac = objective.jacobian(theta)
+    se = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac))) * 1e-5
+    correlation = np.eye(4)
+    correlation[0, 2] = correlation[2, 0] = 0.9995
+    first = first_targets(objective, theta, objective.loops, correlation * np.outer(se, se), 1e-6)
+    assert first == pytest.approx({"xi0": theta[0] - se[0], "w0": theta[2] - se[2]}, rel=1e-12)
+    loops, objective, theta, jac = one_frequency
+    lower, upper = objective.model.bounds[1]
+    assert 0.5 * max(theta[1] - lower, upper - theta[1]) > theta[1] - lower
+    assert first_targets(objective, theta, loops, np.linalg.pinv(jac.T @ jac) * 1e-6, 1e-6)["w0"] == lower
