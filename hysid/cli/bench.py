@@ -17,7 +17,22 @@ from typing import Any
 
 import typer
 
-from hysid.bench import accuracy, coordinator, coverage, discovery, environment, ingest, interrupt, islands, objective, search, sites, validation, write_section
+from hysid.bench import (
+    accuracy,
+    coordinator,
+    coverage,
+    diagnose,
+    discovery,
+    environment,
+    ingest,
+    interrupt,
+    islands,
+    objective,
+    search,
+    sites,
+    validation,
+    write_section,
+)
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -129,6 +144,15 @@ def discovery_command(
     if markdown is not None:
         write_section(markdown, "discovery", discovery.to_markdown(result, environment()))
     emit(result, discovery.to_text, as_json)
+
+
+@bench_app.command("diagnose", help=(diagnose.run.__doc__ or "").strip().splitlines()[0])
+def diagnose_command(
+    cases: str = typer.Option("", "--cases", help="Comma-separated cases to run (default: all; the test reads a run of all)."),
+    workers: int = typer.Option(0, "--workers", help="Processes diagnosing seeds side by side (default: one per core this process may use)."),
+    as_json: bool = BENCH_JSON,
+) -> None:
+    emit(diagnose.run(tuple(c for c in cases.split(",") if c), workers or None), diagnose.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
