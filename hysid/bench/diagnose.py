@@ -17,7 +17,8 @@ import os
 import resource
 import subprocess
 import time
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -50,8 +51,10 @@ def children_cpu_s() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def run(names: tuple[str, ...] | None = None, workers: int | None = None) -> dict[str, Any]:
-    """Hidden effects named over 10 noise seeds (at least 9 right per case): the statistics tests/test_diagnose.py reads."""
+def run(names: tuple[str, ...] | None = None, workers: int | None = None, progress: Callable[[int, int, str], None] | None = None) -> dict[str, Any]:
+    """Hidden effects named over 10 noise seeds (at least 9 right per case): the statistics tests/test_diagnose.py reads.
+
+    ``progress(done, total, what)`` is called as each seed's diagnosis comes in."""
     known = dc.cases()
     names = names if names else tuple(known)
     unknown = [n for n in names if n not in known]
@@ -62,8 +65,13 @@ def run(names: tuple[str, ...] | None = None, workers: int | None = None) -> dic
         raise HysidInputError("need at least 1 worker process", param="workers", value=workers)
     began, cpu, children = time.perf_counter(), time.process_time(), children_cpu_s()
     with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:  # spawn: no forked numba or BLAS threads
-        futures = {(name, seed): pool.submit(seed_outcome, name, seed) for name in names for seed in dc.SEEDS}
-        records = {key: future.result() for key, future in futures.items()}
+        futures = {pool.submit(seed_outcome, name, seed): (name, seed) for name in names for seed in dc.SEEDS}
+        records = {}
+        for future in as_completed(futures):
+            name, seed = key = futures[future]
+            records[key] = record = future.result()
+            if progress is not None:
+                progress(len(records), len(futures), f"{name} seed {seed}: {'right' if record['met'] else 'wrong'}, {record['cpu_s']:.0f} s CPU")
     out: dict[str, Any] = {}
     for name in names:
         per_seed = {seed: records[name, seed] for seed in dc.SEEDS}

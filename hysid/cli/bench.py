@@ -152,7 +152,8 @@ def diagnose_command(
     workers: int = typer.Option(0, "--workers", help="Processes diagnosing seeds side by side (default: one per core this process may use)."),
     as_json: bool = BENCH_JSON,
 ) -> None:
-    emit(diagnose.run(tuple(c for c in cases.split(",") if c), workers or None), diagnose.to_text, as_json)
+    report = lambda done, total, what: typer.echo(f"hysid bench diagnose: {done}/{total} {what}", err=True)
+    emit(diagnose.run(tuple(c for c in cases.split(",") if c), workers or None, report), diagnose.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
