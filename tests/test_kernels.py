@@ -14,7 +14,7 @@ from hysid_model.model import build_model
 from hysid_model.objective import Objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS
 from support import cell_average
-from timedomain_reference import affine_periodic_start, periodic_steady_state
+from timedomain_reference import affine_periodic_orbit, periodic_steady_state, tabulated_drive
 
 BASE = {**TRUE_PARAMS}
 SHAPES = [(3e-4, 0.3), (1e-5, -0.8), (5e-3, 1.0), (2e-4, 2.5), (1e-4, 0.0), (2e-6, -0.5), (0.5, 2.0)]
@@ -157,8 +157,7 @@ def test_velocity_sign_through_delay_and_high_pass_on_a_measured_waveform_is_the
 
     shifted = loops.phases() - loops.omega[:, None] * values["delay_s"]
     steps = 1 << 15
-    start = affine_periodic_start(rhs, (1, loops.n_loops, 1), steps)  # the filter is linear: its orbit's start by shooting
-    low = periodic_steady_state(rhs, start, shifted[:, None, :], steps_per_cycle=steps, max_cycles=200, tol=1e-8)[0][:, 0]
+    low = affine_periodic_orbit(rhs, (1, loops.n_loops, 1), shifted[:, None, :], steps_per_cycle=steps, tol=1e-8)[0][:, 0]  # the filter is linear
     cells = waveform.sample_cells(loops.phases(), loops.n_samples, lo, hi)
     jumps = np.stack([lo, hi], axis=1) + loops.omega[:, None] * values["delay_s"]
     expected = values["F_d"] * (
@@ -177,15 +176,16 @@ def test_bouc_wen_on_a_measured_waveform_is_the_time_domain_steady_state(distort
     values = {"xi0": 0.0, "w0": 100.0, "bw_k": 1e4, "bw_zy": 2e-4, "bw_r": 0.5}
     force = Objective(loops, model).predict(model.from_dict(values))[0] - Objective(loops, model).predict(model.from_dict(values | {"bw_k": 0.0}))[0]
     gamma, beta = (1 + values["bw_r"]) / (2 * values["bw_zy"]), (1 - values["bw_r"]) / (2 * values["bw_zy"])
-    xh = loops.x_harmonics
+    xh, steps = loops.x_harmonics, 1 << 14
+    velocity = tabulated_drive(lambda theta: waveform.displacement(xh, np.broadcast_to(theta, (loops.n_loops, theta.size)), 1)[None, :, None], steps)
 
     def rhs(theta, z):
-        dx = waveform.displacement(xh, np.full((loops.n_loops, 1), theta), 1)[None]
+        dx = velocity(theta)
         return dx - gamma * np.abs(dx) * z - beta * dx * np.abs(z)
 
     grid = np.linspace(0.0, 2 * np.pi, 4096, endpoint=False)
     phases = np.concatenate([loops.phases(), np.broadcast_to(grid, (loops.n_loops, grid.size))], axis=1)
-    z = periodic_steady_state(rhs, np.zeros((1, loops.n_loops, 1)), phases[:, None, :], steps_per_cycle=1 << 14, max_cycles=400)[0][:, 0]
+    z = periodic_steady_state(rhs, np.zeros((1, loops.n_loops, 1)), phases[:, None, :], steps_per_cycle=steps, max_cycles=400)[0][:, 0]
     n = 2 * loops.n_samples
     expected = values["bw_k"] * (z[:, :n] - z[:, n:].mean(axis=1, keepdims=True))
     np.testing.assert_allclose(force, expected, atol=2e-5 * np.abs(expected).max())

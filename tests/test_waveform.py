@@ -16,7 +16,7 @@ from hysid_model.readers.tidy import read_loops, write_loops
 from hysid_model.synth import RawRecord, model_force
 from hysid_model.uncertainty import cramer_rao_stderr
 from island.config import CampaignConfig, decode_config, encode_config
-from timedomain_reference import periodic_steady_state
+from timedomain_reference import periodic_steady_state, tabulated_drive
 
 X0 = 2e-3
 DISTORTED = np.array([-1j * X0, 0.03 * X0 * np.exp(0.7j), -0.1j * X0 * np.exp(0.4j), 0.0, 0.02 * X0])
@@ -92,8 +92,10 @@ def test_coulomb_friction_and_bouc_wen_follow_the_measured_displacement():
     )
     gamma, beta = (1 + shape["bw_r"]) / (2 * shape["bw_zy"]), (1 - shape["bw_r"]) / (2 * shape["bw_zy"])
 
+    velocity = tabulated_drive(lambda theta: waveform.displacement(xh, theta[None], 1)[0], 8192)
+
     def rhs(theta, z):  # Eq. 2.1b with A = 1, n = 1, driven by the measured waveform: dz/dtheta
-        dx = waveform.displacement(xh, np.full((1, 1), theta), 1)[0, 0]
+        dx = velocity(theta)
         return dx - gamma * abs(dx) * z - beta * dx * np.abs(z)
 
     z = periodic_steady_state(rhs, np.zeros((1, 1)), GRID[None, :], steps_per_cycle=8192, max_cycles=400)[0, 0]

@@ -28,57 +28,66 @@ class SteadyStateError(RuntimeError):
     """The integration did not settle on a periodic orbit within the allowed cycles."""
 
 
-def _rk4_cycle(rhs: Rhs, z: np.ndarray, k1: np.ndarray, steps: int, record: Callable | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _rk4_step(rhs: Rhs, theta: float | np.ndarray, z: np.ndarray, k1: np.ndarray, h: float) -> np.ndarray:
+    """One classical RK4 step of dz/dtheta = rhs from ``theta`` (``k1`` = rhs(theta, z))."""
+    k2 = rhs(theta + 0.5 * h, z + (0.5 * h) * k1)
+    k3 = rhs(theta + 0.5 * h, z + (0.5 * h) * k2)
+    k4 = rhs(theta + h, z + h * k3)
+    return z + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+def _rk4_cycle(rhs: Rhs, z: np.ndarray, k1: np.ndarray, steps: int, grid: list | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate one cycle theta = 0..2 pi in ``steps`` RK4 steps.
 
     ``k1`` is rhs(0, z). Returns the final state, rhs there (the next cycle's
     k1, rhs being 2 pi-periodic) and the largest |z| met on the grid.
-    ``record(j, z_j, f_j, z_j+1, f_j+1)`` is called for every step if given.
+    ``grid``, if given, receives (z_j, rhs_j) at every grid phase j = 0..steps.
     """
     h = TWO_PI / steps
     amplitude = np.abs(z)
+    if grid is not None:
+        grid.append((z, k1))
     for j in range(steps):
-        theta = TWO_PI * j / steps
-        k2 = rhs(theta + 0.5 * h, z + (0.5 * h) * k1)
-        k3 = rhs(theta + 0.5 * h, z + (0.5 * h) * k2)
-        k4 = rhs(theta + h, z + h * k3)
-        z_next = z + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        z_next = _rk4_step(rhs, TWO_PI * j / steps, z, k1, h)
         k1_next = rhs(TWO_PI * (j + 1) / steps, z_next)
-        if record is not None:
-            record(j, z, k1, z_next, k1_next)
+        if grid is not None:
+            grid.append((z_next, k1_next))
         np.maximum(amplitude, np.abs(z_next), out=amplitude)
         z, k1 = z_next, k1_next
     return z, k1, amplitude
 
 
-def _hermite_recorder(phase: np.ndarray, steps: int, out: np.ndarray) -> Callable:
-    """A ``record`` callback that fills ``out`` (S, N*K) with the cubic Hermite
-    interpolant of the RK4 grid at ``phase`` (N*K phases in [0, 2 pi), sample k
-    of batch element n at flat position n*K + k)."""
+def _hermite(z: np.ndarray, f: np.ndarray, phase: np.ndarray) -> np.ndarray:
+    """The cubic Hermite interpolant of an RK4 grid, z and its slope f = rhs at the phases 2 pi j / steps ``(steps + 1,
+    S, *batch)``, at ``phase`` ``(*batch, K)`` in [0, 2 pi): ``(S, *batch, K)``."""
+    steps = z.shape[0] - 1
     h = TWO_PI / steps
-    k_count = phase.shape[-1]
-    flat = phase.reshape(-1)
-    u = flat / h
-    step = np.clip(np.floor(u).astype(np.int64), 0, steps - 1)
-    u = u - step
-    order = np.argsort(step, kind="stable")
-    bounds = np.searchsorted(step[order], np.arange(steps + 1))
-    u = u[order]
-    h00 = (1.0 + 2.0 * u) * (1.0 - u) ** 2
-    h10 = h * u * (1.0 - u) ** 2
-    h01 = u**2 * (3.0 - 2.0 * u)
-    h11 = -h * u**2 * (1.0 - u)
-    element = order // k_count
+    u = phase / h
+    step = np.clip(np.floor(u).astype(np.int64), 0, steps - 1)[None]
+    u = (u - step[0])[None]
+    z, f = np.moveaxis(z, 0, -1), np.moveaxis(f, 0, -1)  # (S, *batch, steps + 1)
 
-    def record(j: int, z0: np.ndarray, f0: np.ndarray, z1: np.ndarray, f1: np.ndarray) -> None:
-        seg = slice(bounds[j], bounds[j + 1])
-        if seg.start == seg.stop:
-            return
-        n = element[seg]
-        s0, d0, s1, d1 = (a.reshape(a.shape[0], -1)[:, n] for a in (z0, f0, z1, f1))
-        out[:, order[seg]] = h00[seg] * s0 + h10[seg] * d0 + h01[seg] * s1 + h11[seg] * d1
+    def at(a: np.ndarray, j: np.ndarray) -> np.ndarray:
+        return np.take_along_axis(a, np.broadcast_to(j, a.shape[:-1] + j.shape[-1:]), axis=-1)
 
-    return record
+    h00, h10, h01, h11 = (1.0 + 2.0 * u) * (1.0 - u) ** 2, h * u * (1.0 - u) ** 2, u**2 * (3.0 - 2.0 * u), -h * u**2 * (1.0 - u)
+    return h00 * at(z, step) + h10 * at(f, step) + h01 * at(z, step + 1) + h11 * at(f, step + 1)
+
+
+def tabulated_drive(drive: Callable[[np.ndarray], np.ndarray], steps_per_cycle: int) -> Callable[[float], np.ndarray]:
+    """A drive of the phase alone (e.g. the measured x'(theta)), vectorized over phases on its last axis, computed once
+    on every phase an RK4 cycle of ``steps_per_cycle`` steps visits (the whole and half steps), for an ``rhs`` that
+    would otherwise recompute it in each of its 4 x steps calls per cycle: returns theta -> drive(theta) by lookup."""
+    half = 2 * steps_per_cycle
+    table = np.ascontiguousarray(np.moveaxis(drive(TWO_PI * np.arange(half + 1) / half), -1, 0))
+
+    def at(theta: float) -> np.ndarray:
+        j = round(theta * half / TWO_PI)
+        if abs(theta * half / TWO_PI - j) > 1e-6 or not 0 <= j <= half:
+            raise ValueError(f"phase {theta!r} is not on the RK4 grid of {steps_per_cycle} steps per cycle")
+        return table[j]
+
+    return at
 
 
 def periodic_steady_state(
@@ -134,20 +143,41 @@ def periodic_steady_state(
                 f"{worst:.3g} of its amplitude per cycle (tol {tol:g}) in {int(np.sum(~settled))} of {settled.size} "
                 "state values; raise max_cycles or check the term's damping"
             )
-        out = np.full((z.shape[0], phase.size), np.nan)
-        _rk4_cycle(rhs, z, k1, steps_per_cycle, _hermite_recorder(phase, steps_per_cycle, out))
-    return out.reshape(z.shape + phase.shape[-1:])
+        grid: list = []
+        _rk4_cycle(rhs, z, k1, steps_per_cycle, grid)
+        return _hermite(np.stack([g[0] for g in grid]), np.stack([g[1] for g in grid]), phase)
 
 
-def affine_periodic_start(rhs: Rhs, shape: tuple[int, ...], steps_per_cycle: int) -> np.ndarray:
-    """The periodic state at theta = 0 of a one-component affine law dz/dtheta = a(theta) z + b(theta) (a linear filter
-    driven by the motion), by shooting: a cycle of RK4 maps z0 to A z0 + B, two cycles (from 0 and from 1) give A and
-    B, and the fixed point B / (1 - A) is the orbit of the same grid. A start for :func:`periodic_steady_state`, which
-    then still checks that the state repeats, instead of waiting out ~1 / (2 pi rho) cycles of decay per e-fold."""
-    zero, one = np.zeros(shape), np.ones(shape)
-    b = _rk4_cycle(rhs, zero, np.asarray(rhs(0.0, zero), dtype=float), steps_per_cycle)[0]
-    a = _rk4_cycle(rhs, one, np.asarray(rhs(0.0, one), dtype=float), steps_per_cycle)[0] - b
-    return b / (1.0 - a)
+def affine_periodic_orbit(rhs: Rhs, shape: tuple[int, ...], phase_out: np.ndarray, *, steps_per_cycle: int, tol: float = 1e-10) -> np.ndarray:
+    """:func:`periodic_steady_state` of an affine law dz/dtheta = a(theta) z + b(theta) (a linear filter driven by the
+    motion) on the same RK4 grid, without its Python loop over steps: each RK4 step is then an affine map
+    z_j+1 = A_j z_j + B_j, found for every step at once by stepping 0 and 1 (``rhs`` vectorized over an array of
+    phases ``(steps, 1, ...)`` in front of the state's ``shape``), the cycle's fixed point z_0 = B / (1 - A) of their
+    composition z_N = A z_0 + B is the periodic orbit, and the orbit is checked to close within ``tol`` of its largest
+    |z| (:class:`SteadyStateError` if not). Returns z at ``phase_out`` (broadcastable to shape[1:] + (K,)) by the
+    same cubic Hermite interpolation, ``(*shape, K)``."""
+    steps = steps_per_cycle
+    theta = (TWO_PI * np.arange(steps + 1) / steps).reshape((steps + 1,) + (1,) * len(shape))
+
+    def step(z0: float) -> np.ndarray:
+        z = np.full((steps,) + shape, z0)
+        return _rk4_step(rhs, theta[:-1], z, rhs(theta[:-1], z), TWO_PI / steps)
+
+    offset = step(0.0)
+    gain = step(1.0) - offset
+
+    def run(z0: np.ndarray) -> np.ndarray:
+        z = np.empty((steps + 1,) + shape)
+        z[0] = z0
+        for j in range(steps):
+            z[j + 1] = gain[j] * z[j] + offset[j]
+        return z
+
+    z = run(run(np.zeros(shape))[-1] / (1.0 - np.prod(gain, axis=0)))
+    if not np.all(np.abs(z[-1] - z[0]) <= tol * np.abs(z).max(axis=0)):
+        raise SteadyStateError("the affine law's RK4 cycle has no periodic orbit within tol: is it damped?")
+    phase = np.mod(np.broadcast_to(np.asarray(phase_out, dtype=float), shape[1:] + np.shape(phase_out)[-1:]), TWO_PI)
+    return _hermite(z, rhs(theta, z), phase)
 
 
 ScalarRhs = Callable[[float, float], float]
