@@ -21,7 +21,7 @@ from hysid_model.errors import HysidWarning
 from hysid_model.synth import TRUE_PARAMS, synth_loops
 from island.config import CampaignConfig
 from island.migration import Migration
-from support import PSO_ISLANDS, coordinator_args, events, history_iterations, hysid, query, rows_of, secret_file, wait_for
+from support import PSO_ISLANDS, coordinator_args, events, history_iterations, hysid, query, rows_of, secret_file, sizes, wait_for
 
 SMALL = ["--population", "20", "--initial", "40", "--iterations", "15", "--interval", "5"]
 FIT_KEYS = {"params", "stderr", "fitness", "evaluations", "history"}
@@ -79,11 +79,12 @@ def test_campaign_of_island_processes_over_zenoh(tmp_path):
 
 @pytest.mark.slow
 def test_an_honest_campaign_of_two_island_processes_counts_no_message_rejected_or_unlisted(tmp_path):
-    """The main job with two islands of 400 iterations (GA and PSO, the staged share): no island counts a message
+    """The main job with two islands of 400 iterations (GA and PSO, the staged share; 20 members each, drawn from 40:
+    the messages of the default's 80 migrations per island at a tenth of its work): no island counts a message
     rejected, nor one that waited for the roster in vain (the roster goes out at every join, before the joiner hears
     it joined), the coordinator rejects none, and every move of the share is followed."""
     out = tmp_path / "out"
-    proc = subprocess.run(hysid("campaign", "--islands", "2", "--iterations", "400", "--json", "--out", str(out)), capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(hysid("campaign", "--islands", "2", *sizes(20, 40, 400), "--json", "--out", str(out)), capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert [(i["island"], i["rejected"], i["unlisted"]) for i in doc["islands"]] == [("island-0", 0, 0), ("island-1", 0, 0)]

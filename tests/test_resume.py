@@ -53,7 +53,7 @@ def test_a_killed_coordinator_resumed_takes_its_islands_back_and_ends_by_its_own
     island is recorded lost, no history row is lost, the new island takes migrants from the
     survivors, and the campaign ends by its evaluation budget with the right answer."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "r.sqlite"
-    budget = 400_000
+    budget = 100_000  # the outage (the survivors search on until they find the coordinator silent) and what follows fit in it many times
     first = start_coordinator(spawn, endpoint, "back", db, tmp_path / "out1", "--algos", "ga,pso", *SMALL, "--min-islands", "3", "--evaluations", str(budget))
     islands = {name: start_island(spawn, endpoint, "back", name, db, "--wait", "60") for name in ("a", "b", "c")}
     wait_for(lambda: all(rows_of(db, n) > 30 for n in islands), 90, "every island's history")
