@@ -208,8 +208,8 @@ def test_two_campaigns_on_one_network_do_not_cross_talk(spawn, tmp_path):
     port_a, port_b = free_port(), free_port()
     ep_a, ep_b = f"tcp/127.0.0.1:{port_a}", f"tcp/127.0.0.1:{port_b}"
     db_a, db_b = tmp_path / "a.sqlite", tmp_path / "b.sqlite"
-    coord_a = coordinator(spawn, ep_a, "alpha", db_a, "--budget", "60000", "--time-limit", "120")
-    coord_b = coordinator(spawn, ep_b, "beta", db_b, "--connect", ep_a, "--noise", "5", "--budget", "60000", "--time-limit", "120")
+    coord_a = coordinator(spawn, ep_a, "alpha", db_a, "--budget", "30000", "--time-limit", "120")
+    coord_b = coordinator(spawn, ep_b, "beta", db_b, "--connect", ep_a, "--noise", "5", "--budget", "30000", "--time-limit", "120")
     island(spawn, ep_a, "alpha", "same-name", db_a)
     island(spawn, ep_b, "beta", "same-name", db_b)
     session = open_session(session_config("client", connect=[ep_a]), ep_a)
