@@ -71,7 +71,7 @@ def island(spawn, endpoint: str, campaign: str, name: str, db: Path, *extra: str
 
 def test_a_killed_island_is_recorded_lost_and_the_campaign_finishes_with_the_rest(spawn, tmp_path):
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "k.sqlite"
-    coord = coordinator(spawn, endpoint, "kill", db, "--min-islands", "3", "--budget", "75000", "--time-limit", "120")
+    coord = coordinator(spawn, endpoint, "kill", db, "--min-islands", "3", "--budget", "150000", "--time-limit", "120")
     islands = {name: island(spawn, endpoint, "kill", name, db) for name in ("a", "b", "c")}
     wait_for(lambda: all(rows_of(db, n) > 20 for n in islands), 60, "every island's history")
     islands["b"].send_signal(signal.SIGKILL)
@@ -79,7 +79,7 @@ def test_a_killed_island_is_recorded_lost_and_the_campaign_finishes_with_the_res
     assert events(db, "b") == ["join", "lost"]
     assert events(db, "a") == events(db, "c") == ["join", "left"]
     assert {i["island"]: i["status"] for i in doc["islands"]} == {"a": "left", "b": "lost", "c": "left"}
-    assert doc["settings"]["stop_reason"] == "budget of 75,000 evaluations spent"
+    assert doc["settings"]["stop_reason"] == "budget of 150,000 evaluations spent"
     assert islands["a"].wait(30) == islands["c"].wait(30) == 0
 
 
@@ -208,8 +208,8 @@ def test_two_campaigns_on_one_network_do_not_cross_talk(spawn, tmp_path):
     port_a, port_b = free_port(), free_port()
     ep_a, ep_b = f"tcp/127.0.0.1:{port_a}", f"tcp/127.0.0.1:{port_b}"
     db_a, db_b = tmp_path / "a.sqlite", tmp_path / "b.sqlite"
-    coord_a = coordinator(spawn, ep_a, "alpha", db_a, "--budget", "30000", "--time-limit", "120")
-    coord_b = coordinator(spawn, ep_b, "beta", db_b, "--connect", ep_a, "--noise", "5", "--budget", "30000", "--time-limit", "120")
+    coord_a = coordinator(spawn, ep_a, "alpha", db_a, "--budget", "60000", "--time-limit", "120")
+    coord_b = coordinator(spawn, ep_b, "beta", db_b, "--connect", ep_a, "--noise", "5", "--budget", "60000", "--time-limit", "120")
     island(spawn, ep_a, "alpha", "same-name", db_a)
     island(spawn, ep_b, "beta", "same-name", db_b)
     session = open_session(session_config("client", connect=[ep_a]), ep_a)
