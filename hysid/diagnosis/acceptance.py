@@ -83,7 +83,8 @@ an amplitude-dependent damping and Bouc-Wen (not significant; three noise draws)
 4.9e-2 alone, 2e-4 at most beside; Bouc-Wen drawing one of two Jenkins sliders 9.8e-3 alone, 1.4e-3 beside (1 %
 noise; 2.3e-3 at 3 %, not significant); the effects standing in for the other slider beside that Bouc-Wen (a loss
 factor, a Zener relaxation, a force high-pass, an amplitude-dependent damping) 0.3-0.8 alone, 0.54-1.2 beside (1 %
-and 3 %); a cubic spring for a dead zone 4.9e-2 alone, 8e-3 beside an amplitude-dependent frequency."""
+and 3 %); a cubic spring for a dead zone 4.9e-2 alone, 8e-3 beside an amplitude-dependent frequency. (Each loop's column is
+now projected as the whole force is, :func:`shape_gain`: Bouc-Wen on the real friction damper reads 2.1e-3 so.)"""
 RANK_TOL = 1e-8
 """Singular values of the partners' unit forces (:func:`projected_out`) below this share of the largest are a force
 already counted (two partners of one shape)."""
