@@ -32,6 +32,7 @@ from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.synth import simulate_raw
+from test_realdata import isolator
 
 NOISE_PCT = 1.0
 LIBRARY = {"cubic_stiffness": {"k3": 1.25e9}, "hysteretic_damping": {"eta": 0.05}}
@@ -84,6 +85,24 @@ def test_a_library_effect_at_work_has_its_own_shape_and_is_taken(effects: tuple[
     assert after.chi2 < 0.6 * start.chi2 and np.isfinite(after.bic)
 
 
+def test_two_missing_effects_are_each_their_own_shape_with_the_others_force_beside() -> None:
+    """The softening isolator with Coulomb friction of tests/test_realdata.py (12 Hz, 0.2 kg, 24 loops, 1 % noise): from the
+    baseline both the friction and the amplitude-dependent frequency are missing. Alone, the friction's strength refitted
+    loop by loop takes up how the stiffness changes with amplitude (0.09 to 1.8 times its strength) and rule 9 refuses it,
+    and the amplitude-dependent frequency likewise; with the forces of the step's other contenders projected out (their
+    refits on the same model, one strength each) each is its own shape."""
+    loops, _ = isolator(noise_pct=1.0, seed=0, hidden={"coulomb_friction": {"F_d": 0.15 * 0.2 * (2 * np.pi * 12) ** 2 * 1e-3}})
+    harmonics = Harmonics.from_loops(loops)
+    start = initial_fit(harmonics, "baseline")
+    friction, frequency, damping = (added(start, harmonics, e) for e in ("coulomb_friction", "amplitude_dependent_frequency", "amplitude_dependent_damping"))
+    alone = own_shape(start, friction)
+    assert alone is not None and alone.startswith("is not the shape of what is left"), alone
+    assert own_shape(start, frequency) is not None
+    assert own_shape(start, friction, [frequency, damping]) is None
+    assert own_shape(start, frequency, [friction, damping]) is None
+    assert judge(start, friction, ("coulomb_friction",), harmonics, beside=[frequency, damping]) is None
+
+
 def test_a_law_replaces_library_effects_at_the_noise_only_with_fewer_parameters_and_a_better_bic() -> None:
     """Where the library ends adequate by stacking effects, a law proposed from the start model replaces them only
     with fewer parameters than they have and a BIC lower by the margin (the gap's dead zone has two)."""
@@ -129,3 +148,18 @@ def test_a_refused_effect_is_named_beside_a_proposed_term_only_where_it_earns_it
     assert verdicts["gaussian_velocity"] is None
     said = verdicts["velocity_sign"]
     assert said is not None and said.startswith("coulomb_friction added to baseline+term_") and "BIC changes by only" in said, said
+
+
+def test_without_a_proposal_a_library_effect_refused_for_its_shape_is_named_as_the_librarys_best() -> None:
+    """The gap specimen diagnosed without discovery: the cubic spring that stands in for the dead zone is refused by
+    its own shape, and, no law proposed in its place, it is named after all as the library's best, with why it is not
+    the loops' exact shape; the diagnosis stays unexplained (a real device whose law is near a library effect keeps the
+    library's name rather than none). With discovery the gap law is proposed and the cubic spring is not named."""
+    loops = cases.loops_of("gap", NOISE_PCT, 0)
+    alone = diagnose(loops, "baseline", discover=False)
+    assert "cubic_stiffness" in [s.effect for s in alone.steps], alone.rejected
+    assert alone.rejected["cubic_stiffness"].startswith("taken as the library's best for these loops, though not their exact shape: it is not the shape")
+    assert alone.status == "unexplained" and alone.final.effects[-1] == "cubic_stiffness"
+    assert len(alone.gap) == len(alone.steps) + 1
+    found = diagnose(loops, "baseline")
+    assert found.proposed and "cubic_stiffness" not in [s.effect for s in found.steps]

@@ -5,8 +5,11 @@ ends unexplained, from the start model, from the final library model and from th
 there by its own shape alone (:func:`refused_base`: rule 9 of :mod:`.acceptance`, every other rule passed; a
 device with two mechanisms, one in the library and one not); and where it ends adequate only by
 stacking effects (:func:`stacked`: two or more, or a sensor effect), from the start model, so that one law
-the library lacks can compete with the library effects that stand in for it together. Of the proposals the
-acceptance rules take (:mod:`.acceptance`), :func:`choose` keeps one, or none:
+the library lacks can compete with the library effects that stand in for it together. A proposal added to the
+model whose last round refused library effects by their own shape alone is judged by rule 9 with their forces as
+the contenders beside it (:func:`hysid.diagnosis.acceptance.own_shape`: a memory term for one Jenkins slider beside
+a Bouc-Wen spring for the other, whose strength loop by loop would otherwise take up the spring's misfit). Of the
+proposals the acceptance rules take (:mod:`.acceptance`), :func:`choose` keeps one, or none:
 
 * where the library search ended unexplained, the one with the lowest BIC, but the one added to the start
   model wherever it is within ``BIC_MARGIN`` of it and of the final library model (one law explains the
@@ -100,7 +103,8 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
     tally.expect(len(bases) * (2 + int(cross_validate)) + 1)
     tried, found = {}, []
     for base in bases:
-        proposal, why = propose(base, harmonics, soft_bounds(base.model), cross_validate, tally)
+        contenders = [r.step.after for r in result.shape_refused if r.step.before is base]
+        proposal, why = propose(base, harmonics, soft_bounds(base.model), cross_validate, tally, contenders)
         tried[base.spec] = why
         if proposal is not None:
             found.append(proposal)

@@ -20,7 +20,7 @@ plausible values, then the held-out frequencies.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -352,10 +352,13 @@ def parsimonious(proposal: Proposed, harmonics: Harmonics, bounds: dict[str, tup
     return Proposed(number, simpler, proposal.base, after, proposal.err)
 
 
-def propose(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]], cross_validate: bool, tally: Tally) -> tuple[Proposed | None, str]:
-    """A term proposed from what ``fit`` leaves, refitted with the whole model and taken by the acceptance rules,
-    or None; and why (what was tried, or why nothing was taken). Counts its fits in ``tally`` (it expects
-    the selection, the refit and, with ``cross_validate``, the held-out check)."""
+def propose(
+    fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float]], cross_validate: bool, tally: Tally, beside: Sequence[Fit] = ()
+) -> tuple[Proposed | None, str]:
+    """A term proposed from what ``fit`` leaves, refitted with the whole model and taken by the acceptance rules
+    (its own shape with the forces of the library contenders ``beside`` projected out, each added to ``fit``:
+    :func:`hysid.diagnosis.acceptance.own_shape`), or None; and why (what was tried, or why nothing was taken).
+    Counts its fits in ``tally`` (it expects the selection, the refit and, with ``cross_validate``, the held-out check)."""
     cols = Columns(fit, harmonics)
     law, err = select(cols, fit.residual)
     tally.done(f"discovery: {cols.matrix.shape[1]} candidate forces searched from {fit.spec}")
@@ -370,7 +373,7 @@ def propose(fit: Fit, harmonics: Harmonics, bounds: dict[str, tuple[float, float
     tally.done(f"discovery: refitted {fit.spec} with term_{number}")
     proposal = parsimonious(Proposed(number, law, fit, after, err), harmonics, bounds, tally)
     made, after = proposal.fit.effects[-1], proposal.fit
-    why = judge(fit, after, (made,), harmonics)
+    why = judge(fit, after, (made,), harmonics, beside=beside)
     if why is None and cross_validate:
         why = held_out(fit, after, harmonics)
         tally.done(f"discovery: {made} checked on held-out frequencies")

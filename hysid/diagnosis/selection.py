@@ -47,7 +47,7 @@ from itertools import combinations
 
 import numpy as np
 
-from hysid.criteria import BIC_MARGIN, SIGNIFICANCE
+from hysid.criteria import BIC_MARGIN, PARALLEL, SIGNIFICANCE
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge, own_shape
 from hysid.diagnosis.contest import refused_base, stacked, with_discovery, with_refused
 from hysid.diagnosis.fitting import Fit, final_identifiability, initial_fit, profile_errors, soft_bounds
@@ -71,8 +71,6 @@ from hysid_model.terms import Term, TermGroup
 
 TRIALS = 4
 """Contenders refitted per round (plus those parallel to the best)."""
-PARALLEL = 0.9
-"""|cos| between projected signatures above which two contenders are refitted together."""
 MAX_STEPS = 6
 PAIRS = 5
 """Best contenders whose pairs are scored together."""
@@ -260,7 +258,7 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
             effects = tuple(c.effect for c in members)
             refits[effects] = profile_errors(refit(fit, harmonics, members, bounds, joint))
             done(f"step {len(steps) + 1}: refitted with {label(effects)}", w)
-        verdicts = {effects: judge(fit, r, effects, harmonics, own=False) for effects, r in refits.items()}  # rule 9: see acceptance
+        verdicts = {effects: judge(fit, r, effects, harmonics, beside=beside(refits, effects)) for effects, r in refits.items()}
         for effects, why in [(e, degenerate(refits[e], e)) for e, v in verdicts.items() if v is None]:
             rivals = [r.bic for e, r in refits.items() if e != effects and verdicts[e] is None and degenerate(r, e) is None]
             if why is not None and degenerate_gives_way(refits[effects].bic, rivals):  # another explains as much without degenerating
@@ -348,11 +346,17 @@ def shape_refused(
     out = []
     for effects, after in sorted(refits.items(), key=lambda item: item[1].bic):
         why = verdicts[effects]
-        if len(effects) > 1 or why is None or why != own_shape(fit, after):
+        if len(effects) > 1 or why is None or why != own_shape(fit, after, beside(refits, effects)):
             continue
         if judge(fit, after, effects, harmonics, own=False) is None and degenerate(after, effects) is None:
             out.append(Refused(Step(effect=effects[0], confusable_with=[], score=scores[effects[0]], before=fit, after=after, rejected={}), why))
     return out
+
+
+def beside(refits: dict[tuple[str, ...], Fit], effects: tuple[str, ...]) -> list[Fit]:
+    """The other single effects of a round's ``refits``, each added to the same model: what rule 9 projects out when it
+    judges the refit of ``effects`` (:func:`hysid.diagnosis.acceptance.own_shape`)."""
+    return [r for e, r in refits.items() if len(e) == 1 and e[0] not in effects]
 
 
 def pair_steps(
