@@ -267,7 +267,7 @@ def tallied(result: dict[str, Any]) -> dict[str, Any]:
 
 def combined(parts: list[dict[str, Any]]) -> dict[str, Any]:
     """The results of runs of disjoint parts (laws, noise levels, controls, the real device: run side by side in
-    several processes) as one; ``bench_s`` is the longest part's, ``parts`` their number."""
+    several processes) as one, the laws in the bench's order; ``bench_s`` is the longest part's, ``parts`` their number."""
     if not parts or len({p.get("quick") for p in parts}) != 1 or len({p.get("points_per_branch") for p in parts}) != 1:
         raise HysidInputError("give the JSON of discovery runs of the same kind (all --quick or none, the same points per branch)", param="merge")
     keys = [(r["law"], r["noise_pct"]) for p in parts for r in p["laws"]] + [(c["control"], None) for p in parts for c in p["controls"]]
@@ -276,7 +276,7 @@ def combined(parts: list[dict[str, Any]]) -> dict[str, Any]:
     return tallied(
         {
             **parts[0],
-            "laws": [r for p in parts for r in p["laws"]],
+            "laws": sorted((r for p in parts for r in p["laws"]), key=lambda r: (list(dc.LAWS).index(r["law"]), r["noise_pct"])),
             "controls": [c for p in parts for c in p["controls"]],
             "real": next((p["real"] for p in parts if p["real"] is not None), None),
             "bench_s": max(p["bench_s"] for p in parts),
