@@ -127,12 +127,10 @@ def test_mixed_islands_with_an_evaluation_budget_all_search_until_the_coordinato
     """GA islands iterate many times faster than PSO ones: with a budget in evaluations none stops on
     its own iteration budget; every island searches, and migrates, until the coordinator's stop."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "m.sqlite"
-    coordinator = start_coordinator(
-        spawn, endpoint, "mixed", db, tmp_path / "out", "--algos", "ga,pso", *SMALL, "--min-islands", "4", "--evaluations", "120000"
-    )
+    coordinator = start_coordinator(spawn, endpoint, "mixed", db, tmp_path / "out", "--algos", "ga,pso", *SMALL, "--min-islands", "4", "--evaluations", "40000")
     islands = [start_island(spawn, endpoint, "mixed", f"{algo}-{i}", db, "--algo", algo) for i, algo in enumerate(["ga", "pso", "ga", "pso"])]
     doc = finished(coordinator)
-    assert doc["settings"]["stop_reason"] == "budget of 120,000 evaluations spent" and doc["settings"]["until_stopped"] is True
+    assert doc["settings"]["stop_reason"] == "budget of 40,000 evaluations spent" and doc["settings"]["until_stopped"] is True
     for p, err in islands:
         assert p.wait(30) == 0
         err.thread.join(10)
