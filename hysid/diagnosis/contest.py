@@ -37,9 +37,9 @@ import numpy as np
 from hysid.criteria import BIC_MARGIN
 from hysid.diagnosis.acceptance import held_out, judge
 from hysid.diagnosis.discovery import Proposed, propose
-from hysid.diagnosis.fitting import Fit, final_identifiability, fit_objective, make_model, profile_errors, soft_bounds
+from hysid.diagnosis.fitting import Fit, fit_objective, make_model, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import gap_metrics
-from hysid.diagnosis.naming import adequacy, loops_linear, residual_signature
+from hysid.diagnosis.naming import final_fields, loops_linear
 from hysid.diagnosis.refits import refit, weight
 from hysid.diagnosis.result import Diagnosis, Refused
 from hysid.diagnosis.scoring import score_candidates
@@ -139,7 +139,6 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
         }
         steps, pruned, gaps = [], {}, gaps[:1]
     fit = best.fit
-    check = adequacy(fit, harmonics)
     gaps.append(gap_metrics(fit, harmonics, cross_validate))
     tally.done(f"gap after the proposed {best.name}")
     return replace(
@@ -147,11 +146,8 @@ def with_discovery(result: Diagnosis, cross_validate: bool, tally: Tally) -> Dia
         steps=steps,
         pruned=pruned,
         rejected=rejected,
-        final=fit,
-        status="adequate" if check.adequate else "unexplained",
-        unexplained=None if check.adequate else residual_signature(fit, harmonics),
         gap=gaps,
-        identifiability=final_identifiability(fit, harmonics),
+        **final_fields(fit, harmonics),
         proposed=[best],
         set_aside=set_aside,
         discovery=tried,
@@ -190,18 +186,7 @@ def with_refused(result: Diagnosis, refused: Refused | None, cross_validate: boo
     tally.expect(1)
     gaps.append(gap_metrics(step.after, harmonics, cross_validate))
     tally.done(f"gap after {step.effect}, refused alone by its own shape, taken as the library's best")
-    check = adequacy(step.after, harmonics)
-    return replace(
-        result,
-        steps=steps,
-        pruned={},
-        rejected={**result.rejected, step.effect: taken},
-        final=step.after,
-        status="adequate" if check.adequate else "unexplained",
-        unexplained=None if check.adequate else residual_signature(step.after, harmonics),
-        gap=gaps,
-        identifiability=final_identifiability(step.after, harmonics),
-    )
+    return replace(result, steps=steps, pruned={}, rejected={**result.rejected, step.effect: taken}, gap=gaps, **final_fields(step.after, harmonics))
 
 
 def needed_beside(proposal: Proposed, effect: str, tally: Tally) -> str | None:

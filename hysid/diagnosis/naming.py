@@ -6,10 +6,12 @@ diagnosis; here the excess chi^2 is described by harmonic coefficient and by its
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from hysid.adequacy import Adequacy, groups, judge
-from hysid.diagnosis.fitting import Fit
+from hysid.diagnosis.fitting import Fit, final_identifiability
 from hysid.diagnosis.metrics import linear_per_loop_residual
 from hysid_model.harmonics import Harmonics
 
@@ -56,6 +58,19 @@ def excess_words(names: list[str], orders: np.ndarray, share: np.ndarray) -> str
     if other_parts:
         text += f"; {other} harmonics {100 * rest:.0f}% ({other_parts})"
     return text
+
+
+def final_fields(fit: Fit, harmonics: Harmonics) -> dict[str, Any]:
+    """What a diagnosis says of the model it ends with, as :class:`~hysid.diagnosis.result.Diagnosis` fields: ``final``,
+    ``status`` (adequate where :func:`adequacy` finds only noise left, else unexplained), ``unexplained`` (where the
+    excess sits, :func:`residual_signature`, or None) and the final model's ``identifiability``."""
+    adequate = adequacy(fit, harmonics).adequate
+    return {
+        "final": fit,
+        "status": "adequate" if adequate else "unexplained",
+        "unexplained": None if adequate else residual_signature(fit, harmonics),
+        "identifiability": final_identifiability(fit, harmonics),
+    }
 
 
 def residual_signature(fit: Fit, harmonics: Harmonics) -> dict:

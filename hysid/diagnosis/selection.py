@@ -50,9 +50,9 @@ import numpy as np
 from hysid.criteria import BIC_MARGIN, PARALLEL, SIGNIFICANCE
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge, own_shape
 from hysid.diagnosis.contest import refused_base, stacked, with_discovery, with_refused
-from hysid.diagnosis.fitting import Fit, final_identifiability, initial_fit, profile_errors, soft_bounds
+from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
-from hysid.diagnosis.naming import adequacy, residual_signature
+from hysid.diagnosis.naming import final_fields
 from hysid.diagnosis.plausible import implausible_effect
 from hysid.diagnosis.pruning import prune
 from hysid.diagnosis.refits import joint_contender, refit, weight
@@ -310,7 +310,6 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
     fit, pruned = prune(fit, harmonics)  # the last step: terms consistent with zero dropped
     tally.expect(bool(pruned))  # and the gap after it
     done(f"terms consistent with zero looked for{': dropped ' + ', '.join(pruned) if pruned else ''}")
-    check = adequacy(fit, harmonics)
     fits = [first] + [s.after for s in steps] + ([fit] if pruned else [])
 
     def gap(f: Fit, i: int) -> GapMetrics:
@@ -322,14 +321,11 @@ def search(harmonics: Harmonics, start: str, scored: tuple[str, ...], max_steps:
         harmonics=harmonics,
         start=first,
         steps=steps,
-        final=fit,
-        status="adequate" if check.adequate else "unexplained",
-        unexplained=None if check.adequate else residual_signature(fit, harmonics),
         not_identifiable=not_identifiable,
         rejected=rejected,
         gap=[gap(f, i) for i, f in enumerate(fits)],
         references=references(harmonics),
-        identifiability=final_identifiability(fit, harmonics),
+        **final_fields(fit, harmonics),
         last_scores=candidates,
         impossible=impossible,
         pruned=pruned,
