@@ -30,6 +30,7 @@ def loops():
     return hysid.load("synth", noise_pct=5.0, noise_seed=2)
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_fit_returns_a_result_that_reports_itself(loops, tmp_path, capsys):
     result = hysid.fit(loops, "thesis", bounds={"w0": (150.0, 250.0)}, algo="ga", seed=1, options=SMALL)
     assert list(result.params) == ["xi0", "S_xi", "w0", "S_w"] and list(result.stderr) == list(result.params)

@@ -185,6 +185,7 @@ def test_an_island_is_an_ask_tell_optimizer_that_restarts_once_it_has_stalled():
     assert alone.polish["restarts"] == 0 < pair.polish["restarts"]  # the island holding the best never restarts
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_fit_runs_memetic_islands_on_memory_models_and_the_thesis_run_elsewhere(problem):
     fitted = hysid.fit(problem.loops, problem.model, bounds=problem.bounds, termination=hysid.Termination(budget=1500))
     assert fitted.settings["algo"] == "memetic islands" and fitted.runs[0].algo == "memetic"

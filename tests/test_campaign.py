@@ -33,6 +33,7 @@ def json_of(capsys, out, *argv: str) -> dict:
     return json.loads(capsys.readouterr().out)
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations(tmp_path, capsys):
     out = tmp_path / "out"
     doc = json_of(capsys, out, "campaign", "--single-node", "--islands", "3", *SMALL)

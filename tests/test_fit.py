@@ -81,6 +81,7 @@ def test_derived_modal_values_match_the_list_under_table_5_3(clean_json):
         assert abs(hp["xi"] - hp["xi_fit"]) <= hp["resolution"]
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_fit_default_output_is_a_readable_summary(tmp_path, capsys):
     code, out, err = run_cli(capsys, ["fit", "synth", "--algo", "ga", "--noise", "10", "--noise-seed", "2", "--out", str(tmp_path / "r")])
     assert code == 0, err

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import threading
 
+import pytest
+
 from coordinator.intake import Intake
 from coordinator.store import Store
 from island.node import IslandNode
@@ -19,6 +21,7 @@ AHEAD = 6
 """Rounds the PSO islands search on before the stalled coordinator is let go."""
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_a_staged_ga_island_hands_over_after_its_first_round_however_far_behind_the_coordinator_is(tmp_path, monkeypatch):
     """The coordinator stalls on the first history that holds rows and is let go only once every GA island has
     searched its first round and the PSO islands are six rounds on: the GA islands still search one round as GA,

@@ -132,6 +132,7 @@ def trio(tmp_path: Path) -> Iterator[Campaign]:
     running.end()
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_each_island_of_a_process_joins_as_its_own_run_with_its_own_key_and_reports_everything(trio: Campaign) -> None:
     campaign = trio
     specs = host_specs("h", 3, campaign.c.config, seed=20)
@@ -148,6 +149,7 @@ def test_each_island_of_a_process_joins_as_its_own_run_with_its_own_key_and_repo
     assert {e for i, e in query(Path(campaign.c.store.path), "SELECT island, event FROM members")} == {"join", "left"}
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_a_coordinator_of_more_islands_than_it_follows_leaves_migration_to_them_and_says_so(trio: Campaign, monkeypatch: pytest.MonkeyPatch) -> None:
     """Past :data:`coordinator.intake.FOLLOWS_MIGRANTS_UP_TO` islands alive (2 here) the coordinator stops
     subscribing to migrant messages before the islands start; they still migrate to one another, report

@@ -50,6 +50,7 @@ def physical(values: dict[str, float]) -> dict[str, float]:
     return {k: float(v[0]) for k, v in to_physical(state).items()}
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 @pytest.mark.parametrize("where, reading", [("sensor", "fundamental"), ("motion", "measured")])
 def test_the_data_decide_and_the_fit_recovers_mass_stiffness_and_damping(where, reading, tmp_path):
     loops = loops_of(where, tmp_path)
@@ -65,6 +66,7 @@ def test_the_data_decide_and_the_fit_recovers_mass_stiffness_and_damping(where, 
         assert fitted[name] == pytest.approx(true[name], rel=0.02)
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_the_other_reading_is_many_standard_errors_off(tmp_path):
     """Reading the sensor's harmonics as motion drives the model with content the force does not have: the
     mass comes out far off (the failure this module exists to prevent)."""

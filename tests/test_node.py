@@ -426,6 +426,7 @@ def test_zenoh_island_ignores_forged_and_replayed_control_and_bad_history_querie
     assert node.stats["rejected"] == 7 and node.confirmed is False  # nobody confirmed its rows within 1 s
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_migrants_wait_for_the_roster_strangers_are_never_taken_and_a_flood_is_capped(router):
     """Zenoh does not order the coordinator's roster before a joiner's first puts; a sender only the
     roster makes a member, and an epoch takes at most k migrants from each in-neighbour."""

@@ -150,6 +150,7 @@ def test_a_refused_effect_is_named_beside_a_proposed_term_only_where_it_earns_it
     assert said is not None and said.startswith("coulomb_friction added to baseline+term_") and "BIC changes by only" in said, said
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_without_a_proposal_a_library_effect_refused_for_its_shape_is_named_as_the_librarys_best() -> None:
     """The gap specimen diagnosed without discovery: the cubic spring that stands in for the dead zone is refused by
     its own shape, and, no law proposed in its place, it is named after all as the library's best, with why it is not

@@ -266,6 +266,7 @@ def test_cli_synth_then_loops(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out) == rows
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_cli_synth_raw_is_extracted_back(tmp_path, capsys):
     out = tmp_path / "raw"
     assert main(["synth", str(out), "--raw", "--noise", "2"]) == 0

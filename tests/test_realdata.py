@@ -119,6 +119,7 @@ def test_given_bounds_are_kept_and_the_report_says_which_bound_held():
     assert "ended on a bound that was given" in text and "does not describe these loops" in text and "diagnos" in text
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_a_derived_bound_the_fit_ends_on_is_widened_and_the_fit_repeated(tmp_path):
     """Stiffness that softens by 98 % over the amplitude range: the slope S_w lies beyond the bound the
     survey suggests (wn moving by 90 % of its median), so the fit widens it and searches again."""

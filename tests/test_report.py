@@ -77,6 +77,7 @@ def test_jsondoc_turns_numpy_and_nan_into_plain_json():
     assert json.loads(text) == {"a": None, "b": [0, 1, 2], "c": [2, None], "d": True}
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_report_without_a_resonance_in_the_sweep(tmp_path):
     loops = synth_loops(0.0)
     low = loops.subset(np.flatnonzero(loops.freq_hz < 29.0))

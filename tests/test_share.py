@@ -361,6 +361,7 @@ def mixed_campaign(tmp_path, share: str, budget: int):
     return coordinator, outcome, db
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 @pytest.mark.parametrize("share", ["staged", "adaptive"])
 def test_a_campaign_s_moves_are_stored_followed_by_the_islands_and_reported(tmp_path, share):
     coordinator, outcome, db = mixed_campaign(tmp_path, share, budget=12_000)

@@ -39,6 +39,7 @@ def estimates(base: LoopSet, sigma: np.ndarray, draws: int, known: bool) -> tupl
     return np.array(thetas), covs, units, truth
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 @pytest.mark.parametrize(("known", "tolerance"), [(True, 0.10), (False, 0.15)], ids=["sigma-known", "sigma-estimated"])
 def test_the_thesis_weight_sandwich_is_the_spread_of_the_estimates_over_noise_draws(known, tolerance):
     """Six Synth loops, 5 points per branch, noise 2 % or 6 % of each loop's peak force: the thesis' weights

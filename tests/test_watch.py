@@ -33,6 +33,7 @@ def digest(path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_report_rebuilds_a_campaign_from_its_database_alone(finished, tmp_path, capsys):
     db, original = finished
     before = digest(db)
@@ -76,6 +77,7 @@ def test_watch_and_report_name_what_is_wrong_and_create_nothing(finished, tmp_pa
     assert "not a campaign database" in capsys.readouterr().err and junk.read_text() == "not a database\n"
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_watch_and_report_of_a_finished_campaign_create_no_file_and_take_its_output_directory(finished, tmp_path, capsys):
     """The README's "never written, nor created": watching or reporting a finished campaign leaves no -wal or -shm
     file beside its database (a read-only reader of a WAL database would create both); the campaign's output
