@@ -256,6 +256,7 @@ def test_one_record_with_zero_force_is_one_line(tmp_path):
     assert "r1.csv: the force is 0 N in every sample: no loop to extract" in err
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_a_force_clipped_at_a_fifth_of_its_largest_is_named(tmp_path):
     """A force channel saturated at 20 % of the sweep's largest force: the loops are usable but their force tops are
     the sensor's, which the warning says (as for a clipped displacement)."""
@@ -277,6 +278,7 @@ def test_a_fit_of_force_clipped_loops_writes_its_report(tmp_path):
     assert (out / "report.md").is_file() and (out / "half_power.png").is_file()
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_columns_swapped_with_plausible_magnitudes_are_named(tmp_path):
     """Force (about 10 N) and displacement (1 mm) swapped and scaled to look like a mm and tens of N: the fit gave
     xi0 at its bound with a generic warning. The loops generate energy, and their lag grows with frequency."""

@@ -109,6 +109,7 @@ def test_space_objective_has_the_objective_contract_and_a_chain_ruled_jacobian(o
     assert space.evaluations == 1 + 1 + 2 * u.size + 1
 
 
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_memetic_search_spends_its_budget_and_never_ends_above_its_starting_point(objective):
     start = starting_point(objective.loops, objective.model)
     result = memetic_search(objective, [start], 0, budget=800)

@@ -243,6 +243,7 @@ def test_a_softening_specimen_with_a_constant_dashpot_is_both_amplitude_slopes(t
 
 
 # --- identifiability ---------------------------------------------------------------------------------
+@pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_one_amplitude_fixes_the_amplitude_slopes_and_says_why(tmp_path):
     loops = hysid.load("synth", noise_pct=5.0)
     one = loops.subset(np.flatnonzero(np.isclose(loops.x0, 1e-3)))
