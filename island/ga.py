@@ -124,32 +124,10 @@ class GA(PopulationOptimizer):
     name = "GA"
 
     def __init__(
-        self,
-        bounds: np.ndarray,
-        seed: int,
-        *,
-        initial_population: int = 6000,
-        population: int = 500,
-        iterations: int = 18,
-        alpha_blx: float = 0.3,
-        mutation_rate: float = 0.05,
-        mutation_amount: float = 0.3,
-        addpop_amount: float = 0.2,
-        addpop_level: int = 4,
-        migrant_policy: str = "replace_worst",
-        redraw_limit: int = 100,
+        self, bounds: np.ndarray, seed: int, *, alpha_blx: float = 0.3, mutation_rate: float = 0.05, mutation_amount: float = 0.3, **shared: Any
     ) -> None:
-        super().__init__(
-            bounds,
-            seed,
-            population=population,
-            initial_population=initial_population,
-            iterations=iterations,
-            addpop_amount=addpop_amount,
-            addpop_level=addpop_level,
-            migrant_policy=migrant_policy,
-            redraw_limit=redraw_limit,
-        )
+        """``shared``: the options every algorithm has (:class:`island.population.PopulationOptimizer`)."""
+        super().__init__(bounds, seed, **shared)
         self.alpha_blx = check_float(self.name, "alpha_blx", alpha_blx, 0.0)
         self.mutation_rate = check_float(self.name, "mutation_rate", mutation_rate, 0.0, 1.0)
         self.mutation_amount = check_float(self.name, "mutation_amount", mutation_amount, 0.0)

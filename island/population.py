@@ -18,9 +18,10 @@ than at least 1 (the GA: even), ``_checked_population``; everything else lives h
 
 from __future__ import annotations
 
+import inspect
 from abc import abstractmethod
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -102,21 +103,35 @@ class Batch:
 
 
 class PopulationOptimizer(AskTell):
-    """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring). ``redraw_limit`` (not in
+    """Base of :class:`island.ga.GA` and :class:`island.pso.PSO` (see module docstring). The options every
+    algorithm has are this class' keywords, with the thesis' values as defaults (section 5.1); an algorithm's
+    ``__init__`` takes its own options and hands the rest (``**shared``) to this one. ``redraw_limit`` (not in
     the thesis) caps the rounds of "Couldn't calculate" redraws per batch."""
+
+    __signature__: ClassVar[inspect.Signature]
+    """An algorithm's whole signature, as :meth:`__init_subclass__` lays it out."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Lay out the algorithm's signature as its callers see it (``help``, :mod:`inspect`): ``bounds, seed``,
+        the sizes, its own options, then the other options every algorithm has, each with its default, in the
+        order of :meth:`_settings_with`."""
+        super().__init_subclass__(**kwargs)
+        common = list(inspect.signature(PopulationOptimizer.__init__).parameters.values())[1:]
+        own = [p for p in inspect.signature(cls.__init__).parameters.values() if p.kind is inspect.Parameter.KEYWORD_ONLY]
+        cls.__signature__ = inspect.Signature([*common[:5], *own, *common[5:]], return_annotation=None)
 
     def __init__(
         self,
         bounds: np.ndarray,
         seed: int,
         *,
-        population: int,
-        initial_population: int,
-        iterations: int,
-        addpop_amount: float,
-        addpop_level: int,
-        migrant_policy: str,
-        redraw_limit: int,
+        initial_population: int = 6000,
+        population: int = 500,
+        iterations: int = 18,
+        addpop_amount: float = 0.2,
+        addpop_level: int = 4,
+        migrant_policy: str = "replace_worst",
+        redraw_limit: int = 100,
     ) -> None:
         self.bounds = check_bounds(bounds)
         self.seed = check_int(self.name, "seed", seed, 0)

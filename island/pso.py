@@ -71,29 +71,14 @@ class PSO(PopulationOptimizer):
         bounds: np.ndarray,
         seed: int,
         *,
-        initial_population: int = 6000,
-        population: int = 500,
-        iterations: int = 18,
         phi1: float = 2.05,
         phi2: float = 2.05,
         synchronous: bool = False,
         neighbourhood: str = "global",
-        addpop_amount: float = 0.2,
-        addpop_level: int = 4,
-        migrant_policy: str = "replace_worst",
-        redraw_limit: int = 100,
+        **shared: Any,
     ) -> None:
-        super().__init__(
-            bounds,
-            seed,
-            population=population,
-            initial_population=initial_population,
-            iterations=iterations,
-            addpop_amount=addpop_amount,
-            addpop_level=addpop_level,
-            migrant_policy=migrant_policy,
-            redraw_limit=redraw_limit,
-        )
+        """``shared``: the options every algorithm has (:class:`island.population.PopulationOptimizer`)."""
+        super().__init__(bounds, seed, **shared)
         self.phi1 = check_float(self.name, "phi1", phi1, 0.0)
         self.phi2 = check_float(self.name, "phi2", phi2, 0.0)
         self.K = constriction(self.phi1, self.phi2)
