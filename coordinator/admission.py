@@ -27,10 +27,11 @@ import secrets
 import time
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from coordinator.held import Held
 from coordinator.link import Link
+from coordinator.records import RunInfo
 from hysid_model.errors import HysidInputError
 from island.algorithms import ALGORITHMS
 from island.coordinator_messages import Control, MemberState, encode_control
@@ -40,13 +41,7 @@ from island.secret import of_member
 from island.wire import MAX_MEMBERS, NAME_PATTERN, MessageRejected
 
 if TYPE_CHECKING:
-    from coordinator.histories import Gaps, HistoryChecks
-    from coordinator.keys import CampaignKeys
-    from coordinator.members import Member, Membership
-    from coordinator.sharing import Sharing
-    from coordinator.store import Store
-    from island.config import CampaignConfig
-    from island.secret import CampaignSecret
+    from coordinator.members import Member
 
 CHALLENGE_S = 30.0
 """A join challenge holds for this long (to at most twice this): the proof must come within it."""
@@ -58,47 +53,17 @@ MEMBER_RUNS = MAX_MEMBERS // 2
 share of the campaign's run slots."""
 
 
-@dataclass(frozen=True)
-class RunInfo:
-    """A run that joined: the public key it signs with, what it said it runs, when it joined (Unix time) and the
-    member it joined for ("": the shared member, of the campaign's shared secret)."""
-
-    key: bytes
-    algo: str
-    seed: int
-    joined: float
-    member: str = ""
-
-
 def member_name(member: str) -> str:
     """How a message names ``member``: ``member 'lab2'``, or the shared member of the campaign's shared secret."""
     return f"member {member!r}" if member else "the shared member (the campaign's shared secret)"
 
 
-class Admission:
+class Admission(Held):
     """The admission part of :class:`coordinator.state.Coordinator` (see the module docstring): its joins, runs,
     members' shares and roster (a part of the coordinator's state, which holds the store, membership, sharing and
     checks it uses)."""
 
-    if TYPE_CHECKING:  # what the coordinator holds and this part uses (set in Coordinator.__init__)
-        store: Store
-        config: CampaignConfig
-        name: str
-        run_id: str
-        keys: CampaignKeys
-        signing: bytes
-        secret: CampaignSecret
-        checks: HistoryChecks
-        sharing: Sharing
-        membership: Membership
-        gaps: Gaps
-        run_evaluations: dict[tuple[str, str], int]
-        evaluations: int
-        stop_reason: str | None
-        control_seq: int
-        control_at: float
-        changed: bool
-        announced_events: int
+    if TYPE_CHECKING:  # what the other parts give this one (the state it uses: Held)
 
         @property
         def members(self) -> dict[str, Member]: ...

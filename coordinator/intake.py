@@ -21,11 +21,11 @@ keeps from both, re-evaluated (a claimed fitness is never trusted).
 from __future__ import annotations
 
 import time
-from collections import OrderedDict
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from coordinator.held import Held
 from coordinator.histories import check_claim
 from coordinator.link import Link
 from coordinator.progress import IslandView
@@ -36,15 +36,7 @@ from island.sealing import check_replay
 from island.wire import MessageRejected
 
 if TYPE_CHECKING:
-    from coordinator.admission import RunInfo
-    from coordinator.histories import Gaps, HistoryChecks
-    from coordinator.members import Member, Membership
-    from coordinator.sharing import Sharing
-    from coordinator.store import Store
-    from coordinator.thinning import HistoryPolicy
-    from hysid_model.objective import Objective
-    from hysid_model.thesis_port import ThesisObjective
-    from island.sealing import ReplayGuard
+    from coordinator.members import Member
 
 EVALUATED_CACHE = 4096
 """Candidates whose fitness the coordinator keeps (the most recently seen)."""
@@ -53,36 +45,11 @@ FOLLOWS_MIGRANTS_UP_TO = 64
 and :mod:`coordinator.state`'s)."""
 
 
-class Intake:
+class Intake(Held):
     """The intake part of :class:`coordinator.state.Coordinator` (see the module docstring; the state it uses, the
     store, the checks, the membership and the share among it, is the coordinator's)."""
 
-    if TYPE_CHECKING:  # what the coordinator holds and this part uses (set in Coordinator.__init__)
-        store: Store
-        name: str
-        signing: bytes
-        objective: Objective | ThesisObjective
-        runs: dict[tuple[str, str], RunInfo]
-        current: dict[str, str]
-        checks: HistoryChecks
-        sharing: Sharing
-        membership: Membership
-        gaps: Gaps
-        policy: HistoryPolicy
-        islands: dict[tuple[str, str], IslandView]
-        evaluations: int
-        migrations: int
-        rows_since_commit: int
-        changed: bool
-        stop_reason: str | None
-        query_seq: int
-        follows_migrants: bool
-        best: StoredBest | None
-        best_message: bytes | None
-        best_trace: list[tuple[float, float, int, np.ndarray]]
-        _replays: ReplayGuard
-        _evaluated: OrderedDict[bytes, float]
-        _candidates: dict[str, Migrants]
+    if TYPE_CHECKING:  # what the other parts give this one (the state it uses: Held)
 
         @property
         def members(self) -> dict[str, Member]: ...

@@ -22,21 +22,13 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from coordinator.held import Held
 from coordinator.link import Link
 from coordinator.writes import StoreError
 from island.island_messages import Migrants, decode_history, decode_migrants
 from island.wire import MAX_BYTES, NAME_PATTERN, MessageRejected
 
 if TYPE_CHECKING:
-    from collections import Counter
-
-    from coordinator.admission import RunInfo
-    from coordinator.histories import Gaps
-    from coordinator.inbox import Inbox
-    from coordinator.members import Membership
-    from coordinator.store import Store
-    from hysid_model.objective import Objective
-    from hysid_model.thesis_port import ThesisObjective
     from island.island_messages import History
 
 REJECTED_PER_S, REJECTED_BURST = 200.0, 5000
@@ -62,23 +54,11 @@ class TokenBucket:
         return False
 
 
-class Receiving:
+class Receiving(Held):
     """The receiving part of :class:`coordinator.state.Coordinator` (see the module docstring; the state it uses,
     the inbox, the store and the membership among it, is the coordinator's)."""
 
-    if TYPE_CHECKING:  # what the coordinator holds and this part uses (set in Coordinator.__init__)
-        store: Store
-        name: str
-        prefix: str
-        objective: Objective | ThesisObjective
-        inbox: Inbox
-        runs: dict[tuple[str, str], RunInfo]
-        current: dict[str, str]
-        membership: Membership
-        gaps: Gaps
-        follows_migrants: bool
-        rejected: int
-        rejected_backlog: Counter[str]
+    if TYPE_CHECKING:  # its own rate of logged rejections (set in Coordinator.__init__), and what the other parts give it
         _rejected_log: TokenBucket
 
         def _join(self, link: Link, island: str, payload: bytes, reply: Callable[[bytes], None]) -> None: ...

@@ -1,6 +1,6 @@
 """The rows a campaign database holds that the coordinator writes and reads as Python records: the global best
 (:class:`StoredBest`), an island run's record (:class:`IslandRecord`), and the spans of iterations of a run's
-history (:data:`Span`, joined by :func:`merged`)."""
+history (:data:`Span`, joined by :func:`merged`), and a run that joined (:class:`RunInfo`)."""
 
 from __future__ import annotations
 
@@ -53,3 +53,15 @@ class IslandRecord:
 
     def as_dict(self) -> dict[str, Any]:
         return {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "best_x"}
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """A run that joined: the public key it signs with, what it said it runs, when it joined (Unix time) and the
+    member it joined for ("": the shared member, of the campaign's shared secret)."""
+
+    key: bytes
+    algo: str
+    seed: int
+    joined: float
+    member: str = ""
