@@ -357,28 +357,29 @@ def reference_text(doc: dict[str, Any]) -> str:
     return out
 
 
+LOOP_COLUMNS = (
+    ("label", "label", "{}"),
+    ("frequency_hz", "freq_Hz", "{:.6g}"),
+    ("x0_m", "X0_mm", "{:.4f}"),
+    ("peak_force_n", "Fpk_N", "{:.5g}"),
+    ("sigma_n", "sigma_N", "{:.3g}"),
+    ("cycles", "cycles", "{:d}"),
+    ("phase_deg", "phase_deg", "{:.2f}"),
+    ("x_distortion", "x_thd_%", "{:.2f}"),
+    ("k_dyn", "k_dyn_N/m", "{:.4g}"),
+    ("c_eq", "c_eq_Ns/m", "{:.4g}"),
+    ("loss_factor", "eta", "{:.3g}"),
+    ("energy_per_cycle", "E_cycle_J", "{:.4g}"),
+    ("fn_hz", "fn_Hz", "{:.4g}"),
+    ("xi", "xi", "{:.4g}"),
+)
+"""The columns ``hysid loops`` can show, in order: the row's key, the title, the format."""
+
+
 def loops_table(loops: LoopSet, rows: list[dict[str, Any]], survey: Survey | None = None) -> str:
     """``hysid loops``: one row per loop (label, frequency, X0, peak force, noise, cycles, phase, distortion,
-    and the equivalent-linear survey where given)."""
-    columns = [
-        ("label", "label", "{}"),
-        ("frequency_hz", "freq_Hz", "{:.6g}"),
-        ("x0_m", "X0_mm", "{:.4f}"),
-        ("peak_force_n", "Fpk_N", "{:.5g}"),
-        ("sigma_n", "sigma_N", "{:.3g}"),
-        ("cycles", "cycles", "{:d}"),
-    ]
-    if "phase_deg" in rows[0]:
-        columns += [("phase_deg", "phase_deg", "{:.2f}"), ("x_distortion", "x_thd_%", "{:.2f}")]
-    if "k_dyn" in rows[0]:
-        columns += [
-            ("k_dyn", "k_dyn_N/m", "{:.4g}"),
-            ("c_eq", "c_eq_Ns/m", "{:.4g}"),
-            ("loss_factor", "eta", "{:.3g}"),
-            ("energy_per_cycle", "E_cycle_J", "{:.4g}"),
-            ("fn_hz", "fn_Hz", "{:.4g}"),
-            ("xi", "xi", "{:.4g}"),
-        ]
+    and the equivalent-linear survey where given): the :data:`LOOP_COLUMNS` the rows hold."""
+    columns = [column for column in LOOP_COLUMNS if column[0] in rows[0]]
     scale = {"x0_m": 1e3, "x_distortion": 100.0}
     cells = []
     for row in rows:
