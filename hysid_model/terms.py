@@ -132,10 +132,20 @@ class Term:
         names it. The values need not lie within the model's bounds (clip them)."""
         return []
 
+    def strength_reach(self, scale: DataScale) -> float | None:
+        """How far the data's ``scale`` lets the strength reach, with a generous margin (:meth:`data_bounds`); None
+        (default): the strength keeps its own bounds."""
+        return None
+
     def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
-        """Search bounds of this term's parameters that hold the data's ``scale`` with generous
-        margins (default: the parameters' own bounds)."""
-        return {}
+        """Search bounds of this term's parameters that hold the data's ``scale`` with generous margins. Default: the
+        strength's from 0 to its :meth:`strength_reach` where it is one-sided (its lower bound 0, a physical sign),
+        else that far either side of 0; every other parameter keeps its own bounds."""
+        reach = self.strength_reach(scale)
+        if reach is None:
+            return {}
+        one_sided = next(p for p in self.params if p.name == self.strength).lower == 0.0
+        return {self.strength: (0.0 if one_sided else -reach, reach)}
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         """Stage 1: adjust ``state`` in place (default: nothing)."""
@@ -351,10 +361,9 @@ class AmplitudeDependentDamping(Term):
     )
     params = (Parameter("S_xi", "1/m", -10.0, 10.0, "slope of the damping ratio with amplitude"),)
 
-    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+    def strength_reach(self, scale: DataScale) -> float:
         """Slopes that change xi by up to 10 x its value (at least 0.1) over the largest amplitude."""
-        reach = 10.0 * max(scale.xi or 0.0, 0.01) / scale.x_max
-        return {"S_xi": (-reach, reach)}
+        return 10.0 * max(scale.xi or 0.0, 0.01) / scale.x_max
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.xi = state.xi + v["S_xi"] * kin.x0
@@ -375,10 +384,9 @@ class AmplitudeDependentFrequency(Term):
     )
     params = (Parameter("S_w", "rad/s/m", -10000.0, 10000.0, "slope of the natural frequency with amplitude"),)
 
-    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+    def strength_reach(self, scale: DataScale) -> float:
         """Slopes that move wn by up to 90 % over the largest amplitude (it stays positive)."""
-        reach = 0.9 * scale.wn_scale / scale.x_max
-        return {"S_w": (-reach, reach)}
+        return 0.9 * scale.wn_scale / scale.x_max
 
     def modal(self, v: Values, state: ModalState, kin: Kinematics) -> None:
         state.wn = state.wn + v["S_w"] * kin.x0

@@ -26,9 +26,9 @@ class CoulombFriction(Term):
     )
     params = (Parameter("F_d", "N", 0.0, 1.0e6, "friction force magnitude mu N", physical=(0.0, math.inf)),)
 
-    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+    def strength_reach(self, scale: DataScale) -> float:
         """Friction up to twice the largest peak force."""
-        return {"F_d": (0.0, 2.0 * scale.force)}
+        return 2.0 * scale.force
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """F_d sgn(x'), less its cycle mean where the displacement's reversals are not half a cycle apart

@@ -27,9 +27,9 @@ class TransducerMass(Term):
     )
     params = (Parameter("m_t", "kg", 0.0, 10.0, "transducer mass between the gauge and the specimen", physical=(0.0, math.inf)),)
 
-    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+    def strength_reach(self, scale: DataScale) -> float:
         """Up to 10 x the equivalent mass (or the mass that would resonate in the band)."""
-        return {"m_t": (0.0, 10.0 * scale.mass_scale)}
+        return 10.0 * scale.mass_scale
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """M x'': dynamic stiffness -M w^2 at each harmonic frequency."""

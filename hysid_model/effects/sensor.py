@@ -32,9 +32,9 @@ class ChargeAmplifierHighpass(MeasurementTerm):
     )
     params = (Parameter("f_c", "Hz", 0.0, 100.0, "cutoff frequency 1/(2 pi TC) of the charge amplifier (Eq. 4.3)", physical=(0.0, math.inf)),)
 
-    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+    def strength_reach(self, scale: DataScale) -> float:
         """Cutoffs up to 10 x the highest excitation frequency."""
-        return {"f_c": (0.0, 10.0 * scale.w_max / (2.0 * math.pi))}
+        return 10.0 * scale.w_max / (2.0 * math.pi)
 
     def gain(self, v: Values, kin: Kinematics, order: np.ndarray) -> np.ndarray:
         w = np.asarray(order, dtype=float)[None, None, :] * kin.omega[None, :, None]
@@ -63,10 +63,9 @@ class ChannelDelay(MeasurementTerm):
     )
     params = (Parameter("delay_s", "s", -0.01, 0.01, "delay of the force channel behind the displacement channel"),)
 
-    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+    def strength_reach(self, scale: DataScale) -> float:
         """Delays up to half a period of the highest frequency (beyond that the phase is ambiguous)."""
-        reach = math.pi / scale.w_max
-        return {"delay_s": (-reach, reach)}
+        return math.pi / scale.w_max
 
     def delay(self, v: Values, kin: Kinematics) -> np.ndarray:
         return v["delay_s"]

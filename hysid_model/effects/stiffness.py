@@ -28,9 +28,9 @@ class HystereticDamping(Term):
     )
     params = (Parameter("eta", "1", 0.0, 2.0, "loss factor of the complex stiffness", physical=(0.0, math.inf)),)
 
-    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+    def strength_reach(self, scale: DataScale) -> float:
         """Loss factors up to 10 x the survey's (at least 2)."""
-        return {"eta": (0.0, max(2.0, 10.0 * scale.loss_factor))}
+        return max(2.0, 10.0 * scale.loss_factor)
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """i eta k at every harmonic frequency (the complex spring's loss part)."""
@@ -56,10 +56,9 @@ class CubicStiffness(Term):
     )
     params = (Parameter("k3", "N/m^3", -1.0e16, 1.0e16, "cubic stiffness coefficient"),)
 
-    def data_bounds(self, scale: DataScale) -> dict[str, tuple[float, float]]:
+    def strength_reach(self, scale: DataScale) -> float:
         """Cubic stiffness that changes the stiffness by up to 10 x at the largest amplitude."""
-        reach = 10.0 * scale.stiffness / scale.x_max**2
-        return {"k3": (-reach, reach)}
+        return 10.0 * scale.stiffness / scale.x_max**2
 
     def force(self, v: Values, state: ModalState, kin: Kinematics) -> Coefficients:
         """k3 times the harmonics of x^3 (on a measured displacement: of its cube, orders 1..3K)."""
