@@ -17,10 +17,13 @@ import resource
 import socket
 import subprocess
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from hysid_model.errors import HysidInputError
 
 SINGLE_THREAD_ENV = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
 """Thread limits for BLAS/OpenMP so that a measurement uses one core."""
@@ -89,3 +92,12 @@ def write_section(path: Path, name: str, text: str) -> None:
     else:
         new = old.rstrip("\n") + ("\n\n" if old.strip() else "") + block + "\n"
     path.write_text(new, encoding="utf-8")
+
+
+def check_chosen(given: Iterable[str], known: Iterable[str], what: str) -> None:
+    """Every name ``given`` is one of ``known``, else a one-line error naming the first that is not and the
+    choices (the option is ``what``'s plural: ``--cases``, ``--specimens``, ...)."""
+    choices = list(known)
+    unknown = [n for n in given if n not in choices]
+    if unknown:
+        raise HysidInputError(f"unknown {what} {unknown[0]!r}; choose from {', '.join(choices)}", param=f"{what}s", value=unknown[0])

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from hysid.bench import check_chosen
 from hysid.bench import search_problems as sp
 from hysid.fit_result import FitResult
 from hysid.motion import choose_motion
@@ -229,9 +230,7 @@ def run(seeds: int = SEEDS, names: tuple[str, ...] | None = None) -> dict[str, A
     """Coverage of the reported standard errors: the truth within 2 of them in >= 90 % of 40 noise seeds, every quantity."""
     known = specimens()
     names = names if names else tuple(known)
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise HysidInputError(f"unknown specimen {unknown[0]!r}; choose from {', '.join(known)}", param="specimens", value=unknown[0])
+    check_chosen(names, known, "specimen")
     if seeds < 10:
         raise HysidInputError("need at least 10 noise seeds (a share of fewer says little)", param="seeds", value=seeds)
     result: dict[str, Any] = {

@@ -23,6 +23,7 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
+from hysid.bench import check_chosen
 from hysid.bench import diagnose_cases as dc
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -57,9 +58,7 @@ def run(names: tuple[str, ...] | None = None, workers: int | None = None, progre
     ``progress(done, total, what)`` is called as each seed's diagnosis comes in."""
     known = dc.cases()
     names = names if names else tuple(known)
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise HysidInputError(f"unknown case {unknown[0]!r}; choose from {', '.join(known)}", param="cases", value=unknown[0])
+    check_chosen(names, known, "case")
     workers = workers or len(os.sched_getaffinity(0))
     if workers < 1:
         raise HysidInputError("need at least 1 worker process", param="workers", value=workers)

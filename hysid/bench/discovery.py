@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import hysid
+from hysid.bench import check_chosen
 from hysid.bench import discovery_cases as dc
 from hysid.bench.validation import DAMPER, truth_nrmse
 from hysid_model.errors import HysidInputError
@@ -231,10 +232,8 @@ def run(
 ) -> dict[str, Any]:
     """Discovery: ten force laws the library lacks at two noise levels (shape error, parameters, NRMSE vs floor, time) and two controls."""
     seeds = (QUICK_SEEDS if quick else CONTROL_SEEDS) if seeds is None else seeds
-    for given, known, what in ((laws, dc.LAWS, "law"), (controls, dc.CONTROLS, "control")):
-        unknown = [n for n in given if n not in known]
-        if unknown:
-            raise HysidInputError(f"unknown {what} {unknown[0]!r}; choose from {', '.join(known)}", param=f"{what}s", value=unknown[0])
+    check_chosen(laws, dc.LAWS, "law")
+    check_chosen(controls, dc.CONTROLS, "control")
     if seeds < 1 or any(not 0.0 < n <= 100.0 for n in noise):
         raise HysidInputError("need at least one noise seed and noise levels in (0, 100] %", param="seeds", value=seeds)
     began = time.perf_counter()
