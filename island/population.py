@@ -118,7 +118,8 @@ class PopulationOptimizer(AskTell):
         super().__init_subclass__(**kwargs)
         common = list(inspect.signature(PopulationOptimizer.__init__).parameters.values())[1:]
         own = [p for p in inspect.signature(cls.__init__).parameters.values() if p.kind is inspect.Parameter.KEYWORD_ONLY]
-        cls.__signature__ = inspect.Signature([*common[:5], *own, *common[5:]], return_annotation=None)
+        after_sizes = [p.name for p in common].index("addpop_amount")
+        cls.__signature__ = inspect.Signature([*common[:after_sizes], *own, *common[after_sizes:]], return_annotation=None)
 
     def __init__(
         self,
