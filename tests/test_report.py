@@ -8,11 +8,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.image import imread
+from matplotlib.lines import Line2D
 
 from hysid.fitting import fit
 from hysid.report import jsondoc
 from hysid.report.figures import convergence_figure
+from hysid.report.style import figure_legend, new_figure
 from hysid_model.synth import synth_loops
 from support import GA_SMALL as SMALL_GA
 
@@ -94,3 +97,20 @@ def test_convergence_figure_skips_runs_without_history(tmp_path):
     bare = replace(result.runs[0], label="global best", history=[])
     path = convergence_figure(tmp_path / "c.png", [("", [result.runs[0], bare])], "best fitness")
     assert path.stat().st_size > 20_000
+
+
+def _legend_extent(labels: list[str]):
+    fig = new_figure(3.0)
+    legend = figure_legend(fig, [Line2D([], []) for _ in labels], labels, "outside upper center")
+    return fig, legend.get_window_extent(FigureCanvasAgg(fig).get_renderer())
+
+
+def test_a_figure_legend_fits_the_page_width_in_as_few_rows_as_it_can():
+    """Figures keep the page's width (no tight bounding box), so the figure legend must fit in it: entries that fit
+    stay on one row, ten long ones wrap onto more rows, and no row is wider than the figure."""
+    _, one = _legend_extent(["measured"])
+    fig, short = _legend_extent(["X0 = 0.5 mm", "X0 = 1 mm", "loops"])
+    assert short.height == pytest.approx(one.height) and short.width <= fig.bbox.width
+    fig, long = _legend_extent([f"X0 = {a} mm, fitted model (+- one standard error)" for a in range(1, 11)])
+    assert long.width <= fig.bbox.width
+    assert long.height > 1.5 * one.height

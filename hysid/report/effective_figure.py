@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.lines import Line2D
 
-from hysid.report.style import frequency_axis, new_figure, save, series_color, styled
+from hysid.report.style import figure_legend, frequency_axis, new_figure, save, series_color, styled
 from hysid_model.effective import OperatingPoint, loop_effective
 from hysid_model.frf import amplitude_levels
 from hysid_model.loops import LoopSet
@@ -56,5 +56,5 @@ def effective_figure(path: Path, loops: LoopSet, survey: Survey, points: Sequenc
     labels = [f"X0 = {a * 1e3:.3g} mm" for a in levels]
     handles += [Line2D([], [], color="0.4", marker="s", markersize=3.5), Line2D([], [], linestyle="none", marker="o", markerfacecolor="none", color="0.4")]
     labels += ["fitted model (+- one standard error)", "each loop's own"]
-    fig.legend(handles, labels, loc="outside upper center", ncol=min(len(labels), 4))
+    figure_legend(fig, handles, labels, "outside upper center")
     return save(fig, path)

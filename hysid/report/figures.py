@@ -34,6 +34,7 @@ from hysid.report.style import (
     PEAK,
     TRIAL,
     TRUE,
+    figure_legend,
     frequency_axis,
     frequency_ticks,
     math_name,
@@ -243,7 +244,7 @@ def residuals_figure(path: Path, loops: LoopSet, residuals: np.ndarray, force_am
     ax2.set_ylabel(r"mean residual (% of $|F_1|$)")
     ax2.set_title(r"(b) mean residual vs phase ($\pm 2$ s.e.)")
     handles, labels = _level_handles(levels)
-    fig.legend(handles + extra_h, labels + extra_l, loc="outside upper center", ncol=len(labels) + len(extra_l))
+    figure_legend(fig, handles + extra_h, labels + extra_l, "outside upper center")
     return save(fig, path)
 
 
@@ -282,7 +283,7 @@ def half_power_figure(
     labels += ["loops", "fitted model"]
     if not ok:
         axes[0].set_title("compliance over the sweep: no resonance peak with $-3$ dB points on both sides (no Eq. 2.7 estimate)")
-        fig.legend(handles, labels, loc="outside upper center", ncol=len(labels))
+        figure_legend(fig, handles, labels, "outside upper center")
         return save(fig, path)
     ax1, ax2 = axes
     width = max(hp.f2_hz - hp.f1_hz for hp in ok)
@@ -313,7 +314,7 @@ def half_power_figure(
         Line2D([], [], linestyle="none", marker="D", markersize=4.5, color=HALF_POWER),
     ]
     labels += ["resonance peak", "$-3$ dB points"]
-    fig.legend(handles, labels, loc="outside upper center", ncol=len(labels))
+    figure_legend(fig, handles, labels, "outside upper center")
     return save(fig, path)
 
 
@@ -365,7 +366,7 @@ def scatter_figure(
     if cramer_rao and any(v > 0 for v in cramer_rao.values()):
         handles.append(Patch(color="0.85"))
         labels.append("true $\\pm$ Cramer-Rao bound")
-    fig.legend(handles, labels, loc="outside lower center", ncol=len(labels))
+    figure_legend(fig, handles, labels, "outside lower center")
     return save(fig, path)
 
 
@@ -428,5 +429,5 @@ def survey_figure(path: Path, survey: Survey) -> Path:
     bar.ax.yaxis.set_major_formatter(FormatStrFormatter("%.3g"))
     bar.ax.yaxis.set_minor_formatter(NullFormatter())
     handles, labels = _level_handles(levels)
-    fig.legend(handles, labels, loc="outside upper center", ncol=min(len(labels), 6))
+    figure_legend(fig, handles, labels, "outside upper center")
     return save(fig, path)

@@ -8,14 +8,18 @@ GUI backend, no global state) inside :func:`styled`, and saved as PNG at
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, ParamSpec, TypeVar
+from typing import Any, Literal, ParamSpec, TypeVar
 
 import matplotlib as mpl
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.legend import Legend
 from matplotlib.ticker import FixedLocator, FormatStrFormatter, LogLocator, NullFormatter
 
 DPI = 200
@@ -39,9 +43,9 @@ RC: dict[str, Any] = {
     "legend.frameon": False,
     "mathtext.fontset": "dejavusans",
     "savefig.dpi": DPI,
-    "savefig.bbox": "tight",
-    "savefig.pad_inches": 0.05,
 }
+"""No ``savefig.bbox = "tight"``: constrained layout already fits the panels, titles and outside legends to the
+figure, and a figure keeps the size it was made at (a page's width, :data:`PAGE_WIDTH_IN`)."""
 
 TRIAL = "#0072B2"
 """Measured data: blue, as the thesis' loop plots (the thesis' 'trial')."""
@@ -110,6 +114,20 @@ def frequency_axis(ax: Axes, freq_hz: np.ndarray) -> None:
 
 def new_figure(height_in: float, width_in: float = PAGE_WIDTH_IN) -> Figure:
     return Figure(figsize=(width_in, height_in), layout="constrained")
+
+
+def figure_legend(fig: Figure, handles: Sequence[Artist], labels: Sequence[str], loc: Literal["outside upper center", "outside lower center"]) -> Legend:
+    """The figure's legend (``loc``: one of constrained layout's ``"outside ..."`` places) in as few rows as fit the
+    figure's width: every entry on one row where they fit, else the fewest rows of balanced length."""
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)  # Agg: the PNG writer's
+    renderer = canvas.get_renderer()
+    n = len(labels)
+    for rows in range(1, n + 1):
+        legend = fig.legend(handles, labels, loc=loc, ncol=math.ceil(n / rows))
+        if rows == n or legend.get_window_extent(renderer).width <= fig.bbox.width:
+            return legend
+        legend.remove()
+    raise ValueError("a legend needs at least one entry")
 
 
 def save(fig: Figure, path: Path) -> Path:
