@@ -20,12 +20,13 @@ a model on them (the sum of squares is that chi^2 over all loops).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from hysid_model.basis import design_matrix, harmonic_names
 from hysid_model.errors import HysidInputError
-from hysid_model.loops import LoopSet
+from hysid_model.loops import LoopSet, at_loops
 from hysid_model.model import Model
 from hysid_model.objective import ModelSpace, Objective
 
@@ -58,6 +59,9 @@ class Harmonics:
     sigma_known: np.ndarray
     q: np.ndarray
     r: np.ndarray
+
+    PER_LOOP: ClassVar[tuple[str, ...]] = ("coef", "sigma", "sigma_known", "q", "r")
+    """The array fields indexed ``[loop, ...]`` (:meth:`subset` takes them at the loops it keeps)."""
 
     @classmethod
     def from_loops(cls, loops: LoopSet, max_order: int = MAX_ORDER) -> Harmonics:
@@ -107,16 +111,9 @@ class Harmonics:
         return np.pi * self.loops.x0 * coef[..., self.names.index("c1")]
 
     def subset(self, index: np.ndarray) -> Harmonics:
+        """These harmonics at the loops ``index`` (:func:`~hysid_model.loops.at_loops`)."""
         idx = np.asarray(index, dtype=int)
-        return Harmonics(
-            loops=self.loops.subset(idx),
-            names=self.names,
-            coef=self.coef[idx],
-            sigma=self.sigma[idx],
-            sigma_known=self.sigma_known[idx],
-            q=self.q[idx],
-            r=self.r[idx],
-        )
+        return at_loops(self, idx, self.PER_LOOP, loops=self.loops.subset(idx))
 
 
 class HarmonicObjective(ModelSpace):

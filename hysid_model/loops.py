@@ -9,8 +9,8 @@ against all of them in one vectorized call.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -18,12 +18,23 @@ from hysid_model import waveform
 from hysid_model.errors import HysidInputError
 from hysid_model.kinematics import Kinematics
 
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
 MOTIONS = ("measured", "fundamental")
 """What a loop set's displacement harmonics are: the specimen's motion, or the sensor's distortion of a motion
 that is the fundamental alone (:attr:`LoopSet.motion`)."""
 INERTIA_LIMIT = 1e6
 """A known mass whose inertia force exceeds the measured forces a million times is a typo (a specimen at
 resonance with a damping ratio of 1e-4 stays at 5e3)."""
+
+Record = TypeVar("Record", bound="DataclassInstance")
+
+
+def at_loops(record: Record, idx: np.ndarray, per_loop: tuple[str, ...], **changes: Any) -> Record:
+    """``record`` (a dataclass holding one entry per loop) at the loops ``idx``: every field named in ``per_loop``
+    (an array indexed ``[loop, ...]``) taken at ``idx``, the fields in ``changes`` as given, the others as they are."""
+    return replace(record, **{name: getattr(record, name)[idx] for name in per_loop}, **changes)
 
 
 @dataclass
@@ -56,6 +67,9 @@ class LoopSet:
     meta: dict[str, Any] = field(default_factory=dict)
     x_harmonics: np.ndarray | None = None
     motion: str = "measured"
+
+    PER_LOOP: ClassVar[tuple[str, ...]] = ("freq_hz", "x0", "top", "bottom", "sigma", "cycles")
+    """The array fields indexed ``[loop, ...]`` (:meth:`subset` takes them at the loops it keeps)."""
 
     def __post_init__(self) -> None:
         self.freq_hz = np.asarray(self.freq_hz, dtype=float).reshape(-1)
@@ -219,21 +233,10 @@ class LoopSet:
         )
 
     def subset(self, index: np.ndarray | list[int]) -> LoopSet:
+        """These loops at ``index`` (:func:`at_loops`): the per-loop arrays, labels, ``meta["per_loop"]`` and harmonics."""
         idx = np.asarray(index, dtype=int)
-        return LoopSet(
-            name=self.name,
-            freq_hz=self.freq_hz[idx],
-            x0=self.x0[idx],
-            top=self.top[idx],
-            bottom=self.bottom[idx],
-            sigma=self.sigma[idx],
-            meq_kg=self.meq_kg,
-            cycles=self.cycles[idx],
-            labels=[self.labels[i] for i in idx],
-            meta=self._meta_subset(idx),
-            x_harmonics=None if self.x_harmonics is None else self.x_harmonics[idx],
-            motion=self.motion,
-        )
+        x_harmonics = None if self.x_harmonics is None else self.x_harmonics[idx]
+        return at_loops(self, idx, self.PER_LOOP, labels=[self.labels[i] for i in idx], meta=self._meta_subset(idx), x_harmonics=x_harmonics)
 
     def _meta_subset(self, idx: np.ndarray) -> dict[str, Any]:
         """``meta`` for a subset: per-loop lists under ``meta["per_loop"]`` are sliced with the loops."""
