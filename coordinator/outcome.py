@@ -77,37 +77,13 @@ def campaign_outcome(c: CampaignEnd, *, polish_best: bool = True) -> CampaignOut
     for rec in records:
         f = float(objective(rec.best_x[None, :])[0])
         rows = history.get((rec.island, rec.run), [])
-        runs.append(
-            RunResult(
-                label=f"{rec.island}/{rec.run}" if rec.island in several else rec.island,
-                algo=rec.algo,
-                seed=rec.seed,
-                theta=rec.best_x,
-                fitness=f,
-                evaluations=rec.evaluations,
-                history=rows,
-                search_theta=rec.best_x,
-                search_fitness=f,
-                wall_s=rows[-1]["wall_s"] if rows else 0.0,
-            )
-        )
+        label = f"{rec.island}/{rec.run}" if rec.island in several else rec.island
+        runs.append(RunResult.unpolished(label, rec.algo, rec.seed, rec.best_x, f, rec.evaluations, rows, rows[-1]["wall_s"] if rows else 0.0))
     best_stored = c.best
     global_best = None if best_stored is None else float(objective(best_stored.x[None, :])[0])
     if best_stored is not None and global_best is not None and (not runs or global_best < min(r.fitness for r in runs)):
-        runs.append(
-            RunResult(
-                label=f"global best (from {best_stored.island})",
-                algo=runs[0].algo if runs else c.config.algos[0],
-                seed=c.config.seed,
-                theta=best_stored.x,
-                fitness=global_best,
-                evaluations=0,
-                history=[],
-                search_theta=best_stored.x,
-                search_fitness=global_best,
-                wall_s=0.0,
-            )
-        )
+        algo = runs[0].algo if runs else c.config.algos[0]
+        runs.append(RunResult.unpolished(f"global best (from {best_stored.island})", algo, c.config.seed, best_stored.x, global_best, 0, []))
     if not runs:
         raise HysidInputError(f"campaign {c.name!r}: no island reported any result ({c.stop_reason or 'not run'})")
     best = int(np.argmin([r.fitness for r in runs]))

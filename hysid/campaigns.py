@@ -246,7 +246,7 @@ def confirmed(coordinator: Coordinator, outcome: CampaignOutcome, motion: Motion
             found = memetic_search(objective, [start], config.seed, budget=budget, time_limit_s=seconds, label=label)
         else:
             f = float(objective(start[None, :])[0])
-            found = RunResult(label, "polish", config.seed, start, f, 1, [], start, f, 0.0)
+            found = RunResult.unpolished(label, "polish", config.seed, start, f, 1, [])
         return polished(objective, found, config.seed)
 
     again = refit_under_other_reading(coordinator.loops, outcome.objective.model, best.theta, motion, under, refit)

@@ -121,6 +121,15 @@ class RunResult:
     wall_s: float
     polish: dict[str, Any] | None = None
 
+    @classmethod
+    def unpolished(
+        cls, label: str, algo: str, seed: int, theta: np.ndarray, fitness: float, evaluations: int, history: list[dict[str, float]], wall_s: float = 0.0
+    ) -> RunResult:
+        """A search's result before any polish: what the search found (``search_theta``, ``search_fitness``) is the
+        result itself (:func:`polish_run` may then move ``theta`` and ``fitness`` on)."""
+        theta = np.asarray(theta, dtype=float)
+        return cls(label, algo, seed, theta, fitness, evaluations, history, theta.copy(), fitness, wall_s)
+
     def __repr__(self) -> str:
         polish = ", polished" if self.polish else ""
         return f"<RunResult {self.label} ({self.algo}, seed {self.seed}): fitness {self.fitness:.6g} after {self.evaluations:,} evaluations{polish}>"
@@ -179,17 +188,8 @@ def optimize(
 
     rows = run(optimizer, objective, callback=callback, termination=termination, migrate=None if start is None else seed_start)
     x, f = optimizer.best(1)
-    result = RunResult(
-        label=label or f"{algo.upper()} seed {seed}",
-        algo=algo,
-        seed=seed,
-        theta=np.asarray(x[0], dtype=float),
-        fitness=float(f[0]),
-        evaluations=objective.evaluations - before,
-        history=[row.as_dict() for row in rows],
-        search_theta=np.asarray(x[0], dtype=float),
-        search_fitness=float(f[0]),
-        wall_s=0.0,
+    result = RunResult.unpolished(
+        label or f"{algo.upper()} seed {seed}", algo, seed, x[0], float(f[0]), objective.evaluations - before, [row.as_dict() for row in rows]
     )
     if polish:
         polish_run(objective, result)
