@@ -94,6 +94,11 @@ def write_section(path: Path, name: str, text: str) -> None:
     path.write_text(new, encoding="utf-8")
 
 
+def verdict(ok: bool) -> str:
+    """The word a bench's text gives a target it met (``PASS``) or missed (``FAIL``)."""
+    return "PASS" if ok else "FAIL"
+
+
 def check_chosen(given: Iterable[str], known: Iterable[str], what: str) -> None:
     """Every name ``given`` is one of ``known``, else a one-line error naming the first that is not and the
     choices (the option is ``what``'s plural: ``--cases``, ``--specimens``, ...)."""

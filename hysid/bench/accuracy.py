@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from hysid import thesis_tables as tt
+from hysid.bench import verdict
 from hysid.report import jsondoc
 from hysid.reproduce import cramer_rao_bounds
 from hysid_model.errors import HysidInputError
@@ -139,14 +140,10 @@ def run(seeds: int = DEFAULT_SEEDS, thesis_runs: int = THESIS_RUNS) -> dict[str,
     return jsondoc.plain(result)
 
 
-def _verdict(ok: bool) -> str:
-    return "PASS" if ok else "FAIL"
-
-
 def to_text(result: dict[str, Any]) -> str:
     lines = ["hysid bench accuracy (Synth set, section 5.2)"]
     c = result["clean"]
-    lines.append(f"1. noiseless, hysid defaults: every parameter within {c['rtol']:g} relative of Table 5.3  {_verdict(c['pass'])}")
+    lines.append(f"1. noiseless, hysid defaults: every parameter within {c['rtol']:g} relative of Table 5.3  {verdict(c['pass'])}")
     for algo, a in c["algos"].items():
         worst = max(a["max_rel_error"].values())
         lines.append(f"   {algo.upper()}: {a['runs_within_rtol']}/{a['runs']} runs, worst relative error {worst:.2g}")
@@ -154,7 +151,7 @@ def to_text(result: dict[str, Any]) -> str:
     lo, hi = cr["ratio_95pct_range_if_efficient"]
     lines.append(
         f"2. RMS error / Cramer-Rao bound, {cr['algo'].upper()} + polish, ML weights, {cr['seeds']} noise seeds "
-        f"(target <= {cr['target_ratio']:g}; an efficient estimator gives {lo:.2f}-{hi:.2f})  {_verdict(cr['pass'])}"
+        f"(target <= {cr['target_ratio']:g}; an efficient estimator gives {lo:.2f}-{hi:.2f})  {verdict(cr['pass'])}"
     )
     lines.append(f"   {'noise':>6}" + "".join(f"{p:>10}" for p in PARAMS))
     for noise, v in cr["noise"].items():
@@ -162,9 +159,9 @@ def to_text(result: dict[str, Any]) -> str:
     t = result["thesis_scale"]
     lines.append(
         f"3. thesis-faithful, RMS |mean of 4 - actual| / Table 5.13 scale over {t['runs_per_noise']} runs per noise level "
-        f"(target <= {t['factor']:g})  {_verdict(t['pass'])}"
+        f"(target <= {t['factor']:g})  {verdict(t['pass'])}"
     )
     for algo, a in t["algos"].items():
         lines.append(f"   {algo.upper():>6}" + "".join(f"{a['ratio'][p]:>10.3f}" for p in PARAMS))
-    lines.append(f"overall: {_verdict(result['pass'])} in {result['wall_s']:.0f} s")
+    lines.append(f"overall: {verdict(result['pass'])} in {result['wall_s']:.0f} s")
     return "\n".join(lines)

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from hysid.bench import check_chosen
+from hysid.bench import check_chosen, verdict
 from hysid.bench import search_problems as sp
 from hysid.fit_result import FitResult
 from hysid.motion import choose_motion
@@ -246,7 +246,7 @@ def to_text(result: dict[str, Any]) -> str:
     t = result["target"]
     lines = [
         f"hysid bench coverage: truth within {t['within_stderr']:g} reported standard errors in >= {100 * t['share']:.0f} % of the seeds, "
-        f"every reported quantity  {'PASS' if result['ok'] else 'FAIL'}"
+        f"every reported quantity  {verdict(result['ok'])}"
     ]
     for name, s in result["specimens"].items():
         lines.append(

@@ -23,7 +23,7 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
-from hysid.bench import check_chosen
+from hysid.bench import check_chosen, verdict
 from hysid.bench import diagnose_cases as dc
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -98,7 +98,7 @@ def run(names: tuple[str, ...] | None = None, workers: int | None = None, progre
 def to_text(result: dict[str, Any]) -> str:
     c = result["criterion"]
     lines = [
-        f"hysid bench diagnose: at least {c['required']} of {c['seeds']} seeds right per case  {'PASS' if result['ok'] else 'FAIL'}  "
+        f"hysid bench diagnose: at least {c['required']} of {c['seeds']} seeds right per case  {verdict(result['ok'])}  "
         f"({result['wall_s']:.0f} s wall, {result['cpu_s']:.0f} s CPU, {result['workers']} processes)"
     ]
     for name, case in result["cases"].items():
