@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
@@ -65,13 +65,24 @@ class Law:
     name: str
     formula: str
     force: Callable[..., np.ndarray]
-    truth: dict[str, float]
-    units: dict[str, str] = field(default_factory=dict)
-    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    params: dict[str, tuple[float, str, tuple[float, float]]]
+    """A row a parameter: its true value, unit and search bounds (low, high)."""
     issue: bool = True
     """One of the issue's five (else one of the laws unlike them)."""
     memory: bool = False
     """A force with memory (a function of x and v over whole cycles, :func:`jenkins`): a memory term must describe it."""
+
+    @property
+    def truth(self) -> dict[str, float]:
+        return {name: value for name, (value, _, _) in self.params.items()}
+
+    @property
+    def units(self) -> dict[str, str]:
+        return {name: unit for name, (_, unit, _) in self.params.items()}
+
+    @property
+    def bounds(self) -> dict[str, tuple[float, float]]:
+        return {name: bounds for name, (_, _, bounds) in self.params.items()}
 
     @property
     def n_params(self) -> int:
@@ -137,48 +148,26 @@ LAWS = {
             "fluid_viscous",
             "c |v|^alpha sgn v, alpha = 0.35",
             fluid_viscous,
-            {"hfv_c": 120.0, "hfv_alpha": 0.35},
-            {"hfv_c": "N (s/m)^alpha", "hfv_alpha": "1"},
-            {"hfv_c": (0.0, 1e4), "hfv_alpha": (0.05, 2.0)},
+            {"hfv_c": (120.0, "N (s/m)^alpha", (0.0, 1e4)), "hfv_alpha": (0.35, "1", (0.05, 2.0))},
         ),
-        Law("orifice", "c v |v|", orifice, {"hor_c": 800.0}, {"hor_c": "N s^2/m^2"}, {"hor_c": (0.0, 1e5)}),
-        Law("gap", "k (|x| - g)+ sgn x", gap, {"hgp_k": 8e4, "hgp_g": 1.2e-3}, {"hgp_k": "N/m", "hgp_g": "m"}, {"hgp_k": (0.0, 1e7), "hgp_g": (0.0, 1e-2)}),
+        Law("orifice", "c v |v|", orifice, {"hor_c": (800.0, "N s^2/m^2", (0.0, 1e5))}),
+        Law("gap", "k (|x| - g)+ sgn x", gap, {"hgp_k": (8e4, "N/m", (0.0, 1e7)), "hgp_g": (1.2e-3, "m", (0.0, 1e-2))}),
         Law(
             "stribeck",
             "F_c sgn v (1 + s exp(-(v/v_s)^2)), static F_c (1 + s)",
             stribeck,
-            {"hst_fc": 25.0, "hst_s": 1.4, "hst_vs": 0.04},
-            {"hst_fc": "N", "hst_s": "1", "hst_vs": "m/s"},
-            {"hst_fc": (0.0, 1e3), "hst_s": (0.0, 10.0), "hst_vs": (1e-4, 1.0)},
+            {"hst_fc": (25.0, "N", (0.0, 1e3)), "hst_s": (1.4, "1", (0.0, 10.0)), "hst_vs": (0.04, "m/s", (1e-4, 1.0))},
         ),
-        Law("asymmetric", "k x^2", asymmetric, {"has_k": 1.5e7}, {"has_k": "N/m^2"}, {"has_k": (-1e9, 1e9)}),
-        Law(
-            "saturating",
-            "F_0 tanh(v / v_0)",
-            saturating,
-            {"hsa_f": 50.0, "hsa_v": 0.08},
-            {"hsa_f": "N", "hsa_v": "m/s"},
-            {"hsa_f": (0.0, 1e4), "hsa_v": (1e-4, 10.0)},
-            issue=False,
-        ),
-        Law(
-            "one_sided_stop",
-            "k (x - g)+",
-            one_sided_stop,
-            {"hos_k": 6e4, "hos_g": 1.5e-3},
-            {"hos_k": "N/m", "hos_g": "m"},
-            {"hos_k": (0.0, 1e7), "hos_g": (0.0, 1e-2)},
-            issue=False,
-        ),
-        Law("wedge_friction", "mu_k |x| sgn v", wedge_friction, {"hwf_k": 1.5e4}, {"hwf_k": "N/m"}, {"hwf_k": (0.0, 1e7)}, issue=False),
-        Law("quintic", "k_5 x^5", quintic, {"hqu_k": 2.4e14}, {"hqu_k": "N/m^5"}, {"hqu_k": (-1e17, 1e17)}, issue=False),
+        Law("asymmetric", "k x^2", asymmetric, {"has_k": (1.5e7, "N/m^2", (-1e9, 1e9))}),
+        Law("saturating", "F_0 tanh(v / v_0)", saturating, {"hsa_f": (50.0, "N", (0.0, 1e4)), "hsa_v": (0.08, "m/s", (1e-4, 10.0))}, issue=False),
+        Law("one_sided_stop", "k (x - g)+", one_sided_stop, {"hos_k": (6e4, "N/m", (0.0, 1e7)), "hos_g": (1.5e-3, "m", (0.0, 1e-2))}, issue=False),
+        Law("wedge_friction", "mu_k |x| sgn v", wedge_friction, {"hwf_k": (1.5e4, "N/m", (0.0, 1e7))}, issue=False),
+        Law("quintic", "k_5 x^5", quintic, {"hqu_k": (2.4e14, "N/m^5", (-1e17, 1e17))}, issue=False),
         Law(
             "two_slider",
             "two Jenkins elements in parallel (Masing/Iwan): slip F and stiffness k, and 3 F with 0.2 k",
             two_slider,
-            {"hts_f": 20.0, "hts_k": 1e5, "hts_fr": 3.0, "hts_kr": 0.2},
-            {"hts_f": "N", "hts_k": "N/m", "hts_fr": "1", "hts_kr": "1"},
-            {"hts_f": (0.0, 1e3), "hts_k": (1.0, 1e7), "hts_fr": (0.0, 10.0), "hts_kr": (0.01, 10.0)},
+            {"hts_f": (20.0, "N", (0.0, 1e3)), "hts_k": (1e5, "N/m", (1.0, 1e7)), "hts_fr": (3.0, "1", (0.0, 10.0)), "hts_kr": (0.2, "1", (0.01, 10.0))},
             issue=False,
             memory=True,
         ),
