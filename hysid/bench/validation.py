@@ -101,9 +101,23 @@ def _simulated(model: str, values: dict[str, float], freq: np.ndarray, amp: np.n
     )
 
 
-def _linear(kind: dict[str, Any], rate_hz: float = RATE_HZ, freqs: tuple[float, ...] = (15.0, 25.0, 35.0, 45.0, 55.0)) -> Callable[[], LoopSet]:
+def _linear(
+    name: str,
+    kind: str,
+    description: str,
+    motion: dict[str, Any],
+    reading: str,
+    rate_hz: float = RATE_HZ,
+    freqs: tuple[float, ...] = (15.0, 25.0, 35.0, 45.0, 55.0),
+) -> Case:
+    """A case of the linear specimen ``LINEAR`` (truth: no effect, ``baseline`` at its values, the displacement read as
+    ``reading``), simulated with ``motion`` (the keywords of :func:`hysid_model.synth.simulate_raw`: distortion, sensor)."""
     freq, amp = sp.grid(np.array(freqs), np.array([0.5e-3, 1e-3]))
-    return lambda: sp.extracted("specimen", _simulated("baseline", LINEAR, freq, amp, rate_hz, **kind), None, POINTS)
+
+    def loops() -> LoopSet:
+        return sp.extracted("specimen", _simulated("baseline", LINEAR, freq, amp, rate_hz, **motion), None, POINTS)
+
+    return Case(name, kind, description, loops, frozenset(), reading, ("baseline", LINEAR, reading))
 
 
 def _mr_truth(level: dict[str, float]) -> dict[str, float]:
@@ -122,24 +136,8 @@ def cases() -> list[Case]:
     freq_f, amp_f = sp.grid(np.array([2.0, 4.0, 8.0]), np.array([2e-3, 4e-3, 6e-3]))
     freq_w, amp_w = sp.grid(np.array([10.0, 18.0, 30.0]), np.array([0.5e-3, 1.0e-3, 2.0e-3]))
     out = [
-        Case(
-            "sensor_distortion",
-            "sensor distortion",
-            "linear specimen, sensor adds 10 % 2nd and 5 % 3rd harmonic",
-            _linear({"sensor": DISTORTION}),
-            frozenset(),
-            "fundamental",
-            ("baseline", LINEAR, "fundamental"),
-        ),
-        Case(
-            "motion_distortion",
-            "sensor distortion",
-            "linear specimen, the same harmonics in the motion",
-            _linear({"distortion": DISTORTION}),
-            frozenset(),
-            "measured",
-            ("baseline", LINEAR, "measured"),
-        ),
+        _linear("sensor_distortion", "sensor distortion", "linear specimen, sensor adds 10 % 2nd and 5 % 3rd harmonic", {"sensor": DISTORTION}, "fundamental"),
+        _linear("motion_distortion", "sensor distortion", "linear specimen, the same harmonics in the motion", {"distortion": DISTORTION}, "measured"),
     ]
     for name, level in sp.MR_LEVELS.items():
         out.append(
@@ -172,14 +170,14 @@ def cases() -> list[Case]:
             "fundamental",
             ("baseline+bouc_wen", sp.WIRE_ROPE, "fundamental"),
         ),
-        Case(
+        _linear(
             "rational_rate",
             "rational sample rate",
             "linear specimen at 2048 Hz, 15-35 Hz, 5 % 3rd harmonic in the motion",
-            _linear({"distortion": {3: 0.05}}, 2048.0, (15.0, 20.0, 25.0, 32.0, 35.0)),
-            frozenset(),
+            {"distortion": {3: 0.05}},
             "measured",
-            ("baseline", LINEAR, "measured"),
+            2048.0,
+            (15.0, 20.0, 25.0, 32.0, 35.0),
         ),
         Case(
             "arts_friction_damper", "real device", "ARTS-Lab band-brake friction damper (data/arts-friction-damper)", lambda: load_dataset(DAMPER), None, None
