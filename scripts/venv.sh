@@ -1,4 +1,4 @@
-# Sourced by main.sh and test.sh: make .venv (once) and install hysid into it.
+# Sourced by main.sh, test.sh and lint.sh: make .venv (once) and install hysid into it (for the tests, compile its kernels).
 # Usage: . scripts/venv.sh EXTRAS   e.g. ". scripts/venv.sh test", or ". scripts/venv.sh \"\"" for none
 # (always pass an argument: without one, bash hands the caller's arguments to this script).
 set -euo pipefail
@@ -13,6 +13,10 @@ spec="$repo"
 stamp="$venv/.hysid-installed-${1:-main}"
 if [ ! -f "$stamp" ] || [ "$repo/pyproject.toml" -nt "$stamp" ]; then
   "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -e "$spec"
+  # for the tests: hysid's numba kernels compiled once into their cache beside the sources (about 30 s of CPU),
+  # so that the test processes do not compile the same kernels side by side (hysid/kernels.py); the main job
+  # (the thesis' model, closed form) uses none of them, and a command compiles what it uses on first use
+  case ",${1:-}," in *,test,*) "$venv/bin/python" -m hysid.kernels ;; esac
   touch "$stamp"
 fi
 export PATH="$venv/bin:$PATH"
