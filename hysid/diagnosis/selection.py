@@ -48,7 +48,7 @@ from itertools import combinations
 import numpy as np
 
 from hysid.criteria import BIC_MARGIN, PARALLEL, SIGNIFICANCE
-from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge, own_shape
+from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
 from hysid.diagnosis.contest import refused_base, stacked, with_discovery, with_refused
 from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
@@ -338,11 +338,13 @@ def shape_refused(
 ) -> list[Refused]:
     """The single effects of the last round (added to ``fit``) refused by rule 9 alone (:func:`hysid.diagnosis.acceptance.own_shape`):
     every other rule of :func:`hysid.diagnosis.acceptance.judge` passed and no shape parameter degenerates; best BIC first.
-    The held-out frequencies (rule 8) are checked where discovery starts from one (:func:`hysid.diagnosis.contest.with_discovery`)."""
+    A refused single effect's verdict is then rule 9's: judge's rules are the same but for rule 9, and a degenerate
+    one's is degenerate's. The held-out frequencies (rule 8) are checked where discovery starts from one
+    (:func:`hysid.diagnosis.contest.with_discovery`)."""
     out = []
     for effects, after in sorted(refits.items(), key=lambda item: item[1].bic):
         why = verdicts[effects]
-        if len(effects) > 1 or why is None or why != own_shape(fit, after, beside(refits, effects)):
+        if len(effects) > 1 or why is None:
             continue
         if judge(fit, after, effects, harmonics, own=False) is None and degenerate(after, effects) is None:
             out.append(Refused(Step(effect=effects[0], confusable_with=[], score=scores[effects[0]], before=fit, after=after, rejected={}), why))
