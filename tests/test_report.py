@@ -15,7 +15,7 @@ from matplotlib.lines import Line2D
 from hysid.fitting import fit
 from hysid.report import jsondoc
 from hysid.report.figures import convergence_figure
-from hysid.report.style import figure_legend, new_figure
+from hysid.report.style import figure_legend, new_figure, save, styled
 from hysid_model.synth import synth_loops
 from support import GA_SMALL as SMALL_GA
 
@@ -99,18 +99,32 @@ def test_convergence_figure_skips_runs_without_history(tmp_path):
     assert path.stat().st_size > 20_000
 
 
-def _legend_extent(labels: list[str]):
+@styled
+def _legend_extent(labels: list[str], png):
+    """The figure legend of ``labels`` on a page-wide figure in the reports' style, saved as ``png``: the figure and
+    the legend's extent."""
     fig = new_figure(3.0)
+    fig.add_subplot().plot([0.0, 1.0])
     legend = figure_legend(fig, [Line2D([], []) for _ in labels], labels, "outside upper center")
+    save(fig, png)
     return fig, legend.get_window_extent(FigureCanvasAgg(fig).get_renderer())
 
 
-def test_a_figure_legend_fits_the_page_width_in_as_few_rows_as_it_can():
-    """Figures keep the page's width (no tight bounding box), so the figure legend must fit in it: entries that fit
-    stay on one row, ten long ones wrap onto more rows, and no row is wider than the figure."""
-    _, one = _legend_extent(["measured"])
-    fig, short = _legend_extent(["X0 = 0.5 mm", "X0 = 1 mm", "loops"])
-    assert short.height == pytest.approx(one.height) and short.width <= fig.bbox.width
-    fig, long = _legend_extent([f"X0 = {a} mm, fitted model (+- one standard error)" for a in range(1, 11)])
-    assert long.width <= fig.bbox.width
-    assert long.height > 1.5 * one.height
+def _edges_blank(png) -> bool:
+    """Nothing is drawn on the two outermost pixel columns of either side: no text runs off the figure."""
+    image = imread(png)[:, :, :3]
+    return bool((image[:, :2] > 0.99).all() and (image[:, -2:] > 0.99).all())
+
+
+def test_a_figure_legend_fits_the_page_width_in_as_few_rows_as_it_can(tmp_path):
+    """Figures keep the page's width (no tight bounding box), so the figure legend must fit in it as saved: entries
+    that fit stay on one row, the five of the effective-stiffness figure (wider than the page at the resolution it
+    is saved at) and ten long ones wrap onto more rows, and nothing runs off either side of the saved image."""
+    _, one = _legend_extent(["measured"], tmp_path / "one.png")
+    fig, short = _legend_extent(["X0 = 0.5 mm", "X0 = 1 mm", "loops"], tmp_path / "short.png")
+    assert short.height == pytest.approx(one.height) and short.width <= fig.bbox.width and _edges_blank(tmp_path / "short.png")
+    effective = ["X0 = 0.5 mm", "X0 = 1 mm", "X0 = 1.5 mm", "fitted model (+- one standard error)", "each loop's own"]
+    fig, five = _legend_extent(effective, tmp_path / "five.png")
+    assert five.width <= fig.bbox.width and _edges_blank(tmp_path / "five.png")
+    fig, long = _legend_extent([f"X0 = {a} mm, fitted model (+- one standard error)" for a in range(1, 11)], tmp_path / "long.png")
+    assert long.width <= fig.bbox.width and long.height > 1.5 * one.height and _edges_blank(tmp_path / "long.png")

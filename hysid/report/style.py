@@ -113,7 +113,13 @@ def frequency_axis(ax: Axes, freq_hz: np.ndarray) -> None:
 
 
 def new_figure(height_in: float, width_in: float = PAGE_WIDTH_IN) -> Figure:
-    return Figure(figsize=(width_in, height_in), layout="constrained")
+    """A figure of ``width_in`` x ``height_in`` inches at :data:`DPI`, the resolution it is saved at: text is
+    measured for the layout (and :func:`figure_legend`) as it will be drawn, not at another resolution's hinting."""
+    return Figure(figsize=(width_in, height_in), dpi=DPI, layout="constrained")
+
+
+LEGEND_SHARE = 0.98
+"""The most of the figure's width a figure legend's row may take (constrained layout's pads stay clear)."""
 
 
 def figure_legend(fig: Figure, handles: Sequence[Artist], labels: Sequence[str], loc: Literal["outside upper center", "outside lower center"]) -> Legend:
@@ -124,7 +130,7 @@ def figure_legend(fig: Figure, handles: Sequence[Artist], labels: Sequence[str],
     n = len(labels)
     for rows in range(1, n + 1):
         legend = fig.legend(handles, labels, loc=loc, ncol=math.ceil(n / rows))
-        if rows == n or legend.get_window_extent(renderer).width <= fig.bbox.width:
+        if rows == n or legend.get_window_extent(renderer).width <= LEGEND_SHARE * fig.bbox.width:
             return legend
         legend.remove()
     raise ValueError("a legend needs at least one entry")
