@@ -20,6 +20,8 @@ them has them moved out to key files when it is opened for writing (:func:`move_
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import sqlite3
 
 from coordinator.keys import CampaignKeys, key_path
@@ -65,15 +67,16 @@ CREATE TABLE IF NOT EXISTS superseded (
 CREATE TABLE IF NOT EXISTS unfollowed (campaign TEXT PRIMARY KEY, islands INTEGER NOT NULL, up_to INTEGER NOT NULL, t REAL NOT NULL);
 """
 UPGRADES = (
-    ("migrations", "seq", "ALTER TABLE migrations ADD COLUMN seq INTEGER"),
-    ("rejected", "n", "ALTER TABLE rejected ADD COLUMN n INTEGER NOT NULL DEFAULT 1"),
-    ("commits", "elapsed_s", "ALTER TABLE commits ADD COLUMN elapsed_s REAL NOT NULL DEFAULT 0"),
-    ("commits", "pid", "ALTER TABLE commits ADD COLUMN pid INTEGER"),
-    ("commits", "host", "ALTER TABLE commits ADD COLUMN host TEXT"),
-    ("islands", "unlisted", "ALTER TABLE islands ADD COLUMN unlisted INTEGER NOT NULL DEFAULT 0"),
-    ("runs", "member", "ALTER TABLE runs ADD COLUMN member TEXT NOT NULL DEFAULT ''"),
+    ("migrations", "seq"),
+    ("rejected", "n"),
+    ("commits", "elapsed_s"),
+    ("commits", "pid"),
+    ("commits", "host"),
+    ("islands", "unlisted"),
+    ("runs", "member"),
 )
-"""Columns added since the first schema: a database written by an earlier hysid gets them on open."""
+"""Columns added since the first schema, as (table, column): a database written by an earlier hysid gets them on open,
+declared as :data:`SCHEMA` declares them (:func:`upgrade`)."""
 INDEXES = """
 CREATE UNIQUE INDEX IF NOT EXISTS migration_once ON migrations (campaign, island, run, seq);
 CREATE INDEX IF NOT EXISTS thinned_runs ON thinned (campaign, island, run, first);
@@ -92,12 +95,22 @@ def has_column(db: sqlite3.Connection, table: str, column: str) -> bool:
     return column in {row[1] for row in db.execute(f"PRAGMA table_info({table})")}
 
 
+@functools.cache
+def upgrade(table: str, column: str) -> str:
+    """The ``ALTER TABLE`` that adds ``column`` to ``table`` of an earlier hysid's database with the declaration
+    :data:`SCHEMA` gives it (type, ``NOT NULL``, ``DEFAULT``), as SQLite reads it from a fresh copy of the schema."""
+    with contextlib.closing(sqlite3.connect(":memory:")) as fresh:
+        fresh.executescript(SCHEMA)
+        _, name, kind, not_null, default, _ = next(row for row in fresh.execute(f"PRAGMA table_info({table})") if row[1] == column)
+    return f"ALTER TABLE {table} ADD COLUMN {name} {kind}" + (" NOT NULL" if not_null else "") + ("" if default is None else f" DEFAULT {default}")
+
+
 def prepare(db: sqlite3.Connection) -> None:
     """Create the tables, and add to a database of an earlier hysid the columns it lacks."""
     db.executescript(SCHEMA)
-    for table, column, upgrade in UPGRADES:
+    for table, column in UPGRADES:
         if not has_column(db, table, column):
-            db.execute(upgrade)
+            db.execute(upgrade(table, column))
     db.executescript(INDEXES)
 
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import sqlite3
 
 import numpy as np
 import pytest
 
 from coordinator.records import IslandRecord, StoredBest
-from coordinator.schema import has_table
+from coordinator.schema import SCHEMA, UPGRADES, has_table
 from coordinator.store import Store
 from hysid_model.errors import HysidInputError
 
@@ -187,6 +188,30 @@ def test_a_database_that_still_holds_keys_has_them_moved_out_when_opened_for_wri
     reader = Store.read_only(db)  # no warning any more
     assert not has_table(reader.db, "secrets") and reader.campaign_list()[0]["name"] == "old"
     reader.close()
+
+
+def columns(db: sqlite3.Connection) -> dict[str, list[tuple]]:
+    """Every table's columns as SQLite declares them: position, name, type, NOT NULL, default, primary key."""
+    tables = [t for (t,) in db.execute("SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")]
+    return {t: db.execute(f"PRAGMA table_info({t})").fetchall() for t in tables}
+
+
+def test_a_database_of_an_earlier_hysid_gets_the_columns_added_since_as_a_new_one_has_them(tmp_path):
+    """A database written before the columns of UPGRADES were added (today's tables without them) gets each, on open,
+    with the type, NOT NULL and default a new database declares, and the rows it held keep their values."""
+    old = sqlite3.connect(tmp_path / "old.sqlite")
+    old.executescript(SCHEMA)
+    for table, column in UPGRADES:
+        old.execute(f"ALTER TABLE {table} DROP COLUMN {column}")
+    old.execute("INSERT INTO commits (campaign, t) VALUES ('old', 5.0)")
+    old.commit()
+    assert all(column not in {c[1] for c in columns(old)[table]} for table, column in UPGRADES)
+    old.close()
+    upgraded, new = Store(tmp_path / "old.sqlite"), Store(tmp_path / "new.sqlite")
+    assert columns(upgraded.db) == columns(new.db)
+    assert upgraded.db.execute("SELECT campaign, t, elapsed_s, pid, host FROM commits").fetchall() == [("old", 5.0, 0.0, None, None)]
+    upgraded.close()
+    new.close()
 
 
 def test_a_campaign_left_running_by_a_coordinator_that_is_gone_reads_interrupted(tmp_path):
