@@ -8,5 +8,11 @@
 # with 3). Extra arguments go to pytest, and win: `bash scripts/test.sh -n 0`
 # runs in one process.
 . "$(dirname "${BASH_SOURCE[0]}")/venv.sh" test,lint  # lint: the checkers of scripts/lint.sh, one install for both
+# Python's bytecode caches are written (beside the sources, in the __pycache__ folders git ignores) even where
+# the environment says not to (PYTHONDONTWRITEBYTECODE, as on the machine these tests were timed on): the suite starts
+# hundreds of Python processes (its workers, CLI runs, coordinators and islands), and without the caches each
+# compiles hysid's modules again and each worker rewrites the tests' asserts again (the fast lane on 2 cores,
+# 3 workers, from no cache: 177-184 CPU-s without writing them, 145-151 s writing them).
+unset PYTHONDONTWRITEBYTECODE
 workers=$(($(nproc) + 1))
 exec python -m pytest -q -n "$((workers < 8 ? workers : 8))" --dist worksteal "$@"
