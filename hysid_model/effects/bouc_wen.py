@@ -332,16 +332,20 @@ class BoucWenSampler:
         Each distinct orbit (n, r, z_y, and shift) is computed once, at k_bw = 1, and scaled by each candidate's
         k_bw: a Jacobian's probes of every other parameter share their point's orbit (8 of the 14 probes of the
         ``mr_damper`` preset), and a candidate's force does not depend on the others it is evaluated with."""
-        if out.shape[0] == 1:
-            first = inverse = np.zeros(1, dtype=np.int64)
-        else:
+        first = inverse = np.arange(out.shape[0])
+        if out.shape[0] > 1:
             keys = np.column_stack([v[name][:, 0] for name in self.SHAPE] + ([] if shift is None else [shift]))
-            _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+            _, unique, shared = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+            if unique.size < out.shape[0]:  # else each orbit in the candidates' own order, with nothing to gather
+                first, inverse = unique, shared.reshape(-1)
         shapes: Values = {name: v[name][first] for name in self.SHAPE}
         shapes["bw_k"] = np.ones((first.size, 1))
         unit = np.zeros((first.size,) + out.shape[1:])
         self._add_orbits(shapes, None if shift is None else shift[first], unit)
-        out += v["bw_k"][:, 0, None, None] * unit[inverse.reshape(-1)]
+        if first.size < out.shape[0]:
+            unit = unit[inverse]
+        unit *= v["bw_k"][:, 0, None, None]
+        out += unit
 
     def _add_orbits(self, v: Values, shift: np.ndarray | None, out: np.ndarray) -> None:
         """The closed form for candidates with n = 1, the tabulated orbit (:mod:`hysid_model.bouc_wen_tables`) for the others."""
