@@ -28,6 +28,8 @@ from support import DAMPER
 
 HARMONICS = {2: 0.10, 3: 0.05}
 TRUTH = {"xi0": 0.03, "w0": 2 * np.pi * 40.0, "meq": 0.5}
+DAMPER_BUDGET = 2000
+"""The evaluation budget of the campaign on the real friction damper."""
 
 
 def records(where: str, seed: int = 3):
@@ -45,6 +47,26 @@ def loops_of(where: str, tmp_path, seed: int = 3):
         return hysid.load(tmp_path / where)
 
 
+@pytest.fixture(scope="module")
+def sensor(tmp_path_factory) -> tuple:
+    """The sensor's dataset directory, its loops, the data's choice and the baseline fitted to them (shared:
+    each test reads them, none changes them)."""
+    where = tmp_path_factory.mktemp("motion")
+    loops = loops_of("sensor", where)
+    return where / "sensor", loops, choose_motion(loops, "baseline"), hysid.fit(loops, "baseline")
+
+
+@pytest.fixture(scope="module")
+def damper_campaign(tmp_path_factory) -> tuple:
+    """The real friction damper searched by a campaign of 2 islands with an evaluation budget of :data:`DAMPER_BUDGET`, its database,
+    and the campaign's result rebuilt from that database (shared by the two tests of a campaign's refit)."""
+    db = tmp_path_factory.mktemp("damper") / "c.sqlite"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = hysid.campaign(hysid.load(DAMPER), "baseline+bouc_wen", islands=2, single_node=True, db=db, termination=Termination(budget=DAMPER_BUDGET))
+        return result, hysid.CampaignResult.from_database(db)
+
+
 def physical(values: dict[str, float]) -> dict[str, float]:
     state = build_model("baseline").modal(build_model("baseline").from_dict(values), 1e-3)
     return {k: float(v[0]) for k, v in to_physical(state).items()}
@@ -52,12 +74,14 @@ def physical(values: dict[str, float]) -> dict[str, float]:
 
 @pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 @pytest.mark.parametrize("where, reading", [("sensor", "fundamental"), ("motion", "measured")])
-def test_the_data_decide_and_the_fit_recovers_mass_stiffness_and_damping(where, reading, tmp_path):
-    loops = loops_of(where, tmp_path)
-    choice = choose_motion(loops, "baseline")
+def test_the_data_decide_and_the_fit_recovers_mass_stiffness_and_damping(where, reading, tmp_path, sensor):
+    if where == "sensor":
+        _, loops, choice, result = sensor
+    else:
+        loops = loops_of(where, tmp_path)
+        choice, result = choose_motion(loops, "baseline"), hysid.fit(loops, "baseline")
     assert choice.displacement == reading and choice.decided_by == "data"
     assert (choice.delta_bic < 0) == (reading == "fundamental") and abs(choice.delta_bic) > 1000
-    result = hysid.fit(loops, "baseline")
     assert result.displacement_model["displacement"] == reading
     for name, true in TRUTH.items():
         assert abs(result.params[name] - true) < 4 * result.stderr[name], (name, result.params[name], true, result.stderr[name])
@@ -67,26 +91,26 @@ def test_the_data_decide_and_the_fit_recovers_mass_stiffness_and_damping(where, 
 
 
 @pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
-def test_the_other_reading_is_many_standard_errors_off(tmp_path):
+def test_the_other_reading_is_many_standard_errors_off(sensor):
     """Reading the sensor's harmonics as motion drives the model with content the force does not have: the
     mass comes out far off (the failure this module exists to prevent)."""
-    loops = loops_of("sensor", tmp_path)
-    wrong = hysid.fit(loops, "baseline", displacement="measured")
+    _, loops, _, _ = sensor
+    wrong = hysid.fit(loops, "baseline", displacement="measured", algo="ga")
     assert wrong.displacement_model["decided_by"] == "user"
     assert abs(wrong.params["meq"] - TRUTH["meq"]) > 20 * wrong.stderr["meq"]
 
 
-def test_evidence_order_by_order(tmp_path):
+def test_evidence_order_by_order(tmp_path, sensor):
     """The evidence says, order by order, how strongly the force carries the displacement's harmonics."""
-    sensor, motion = (choose_motion(loops_of(w, tmp_path), "baseline") for w in ("sensor", "motion"))
-    for choice, far in ((sensor, False), (motion, True)):
+    motion = choose_motion(loops_of("motion", tmp_path), "baseline")
+    for choice, far in ((sensor[2], False), (motion, True)):
         shares = {e["order"]: e for e in choice.orders}
         assert shares[2]["displacement_share"] == pytest.approx(0.10, rel=0.01)
         assert (shares[2]["response"] > 1.0) == far
 
 
-def test_forced_readings_and_data_without_distortion(tmp_path):
-    loops = loops_of("sensor", tmp_path)
+def test_forced_readings_and_data_without_distortion(sensor):
+    _, loops, _, _ = sensor
     for asked in ("measured", "fundamental", "sine"):
         choice = choose_motion(loops, "baseline", asked)
         assert (choice.displacement, choice.decided_by) == (asked, "user")
@@ -95,32 +119,30 @@ def test_forced_readings_and_data_without_distortion(tmp_path):
         choose_motion(loops, "baseline", "wobbly")
 
 
-def test_confirmation_with_the_fitted_model_keeps_a_right_reading(tmp_path):
-    loops = loops_of("sensor", tmp_path)
-    choice = choose_motion(loops, "baseline")
-    result = hysid.fit(loops, "baseline")
+def test_confirmation_with_the_fitted_model_keeps_a_right_reading(sensor):
+    _, loops, choice, result = sensor
     assert confirm_motion(loops, result.model, result.theta, choice) is None
 
 
 @pytest.mark.slow  # over 3 s
-def test_cli_fit_and_diagnose_say_which_and_why(tmp_path, capsys):
-    loops_of("sensor", tmp_path)
-    assert main(["fit", str(tmp_path / "sensor"), "--model", "baseline", "--out", str(tmp_path / "fit")]) == 0
+def test_cli_fit_and_diagnose_say_which_and_why(tmp_path, capsys, sensor):
+    data = str(sensor[0])
+    assert main(["fit", data, "--model", "baseline", "--algo", "ga", "--out", str(tmp_path / "fit")]) == 0
     out = capsys.readouterr().out
     assert "displacement model: the motion is the fundamental" in out and "does not respond" in out
     document = json.loads((tmp_path / "fit" / "result.json").read_text())
     assert document["displacement_model"]["displacement"] == "fundamental"
-    assert main(["diagnose", str(tmp_path / "sensor"), "--json", "--out", str(tmp_path / "diag")]) == 0
+    assert main(["diagnose", data, "--json", "--out", str(tmp_path / "diag")]) == 0
     diagnosis = json.loads(capsys.readouterr().out)
     assert diagnosis["displacement_model"]["displacement"] == "fundamental" and diagnosis["status"] == "adequate"
     assert diagnosis["steps"] == []
-    assert main(["fit", str(tmp_path / "sensor"), "--model", "baseline", "--displacement", "measured", "--json", "--out", str(tmp_path / "f2")]) == 0
+    assert main(["fit", data, "--model", "baseline", "--algo", "ga", "--displacement", "measured", "--json", "--out", str(tmp_path / "f2")]) == 0
     assert json.loads(capsys.readouterr().out)["displacement_model"]["decided_by"] == "user"
 
 
 @pytest.mark.slow  # over 3 s
-def test_a_campaign_reads_the_displacement_as_fit_does_and_keeps_it_in_its_database(tmp_path):
-    loops = loops_of("sensor", tmp_path)
+def test_a_campaign_reads_the_displacement_as_fit_does_and_keeps_it_in_its_database(tmp_path, sensor):
+    _, loops, _, _ = sensor
     db = tmp_path / "c.sqlite"
     result = hysid.campaign(
         loops,
@@ -140,7 +162,7 @@ def test_a_campaign_reads_the_displacement_as_fit_does_and_keeps_it_in_its_datab
 
 
 @pytest.mark.slow  # about 13 s
-def test_a_campaign_confirms_the_reading_with_its_fitted_model_as_fit_does(tmp_path):
+def test_a_campaign_confirms_the_reading_with_its_fitted_model_as_fit_does(damper_campaign):
     """The real friction damper: the linear start reads its displacement harmonics as the sensor's, the fitted
     Bouc-Wen model as motion. fit refits under the model's reading; a campaign (and its result rebuilt from the
     database) must end at the same optimum, not at the linear start's reading."""
@@ -149,9 +171,7 @@ def test_a_campaign_confirms_the_reading_with_its_fitted_model_as_fit_does(tmp_p
         loops = hysid.load(DAMPER)
         fit = hysid.fit(loops, "baseline+bouc_wen")
         start = choose_motion(loops, "baseline+bouc_wen")
-        db = tmp_path / "c.sqlite"
-        result = hysid.campaign(loops, "baseline+bouc_wen", islands=2, single_node=True, db=db, termination=Termination(budget=2000))
-        again = hysid.CampaignResult.from_database(db)
+    result, again = damper_campaign
     assert start.displacement == "fundamental" and fit.displacement_model["displacement"] == "measured"
     for campaign in (result.fit, again.fit):
         assert campaign.displacement_model["displacement"] == "measured" and campaign.displacement_model["decided_by"] == "data"
@@ -161,15 +181,12 @@ def test_a_campaign_confirms_the_reading_with_its_fitted_model_as_fit_does(tmp_p
 
 
 @pytest.mark.slow  # a campaign on the real damper: 40 s on a loaded machine
-def test_a_campaigns_refit_under_the_other_reading_spends_the_campaigns_budget_not_fits():
+def test_a_campaigns_refit_under_the_other_reading_spends_the_campaigns_budget_not_fits(damper_campaign):
     """The rule: a campaign's refit under the reading its fitted model prefers searches within the campaign's own
-    evaluation budget, as its islands did, not within ``hysid fit``'s default (:data:`island.memetic.BUDGET`).
+    evaluation budget (:data:`DAMPER_BUDGET`), as its islands did, not within ``hysid fit``'s default (:data:`island.memetic.BUDGET`).
     The friction damper read as the linear start reads it, searched again as its Bouc-Wen fit reads it."""
-    budget = 2000
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = hysid.campaign(hysid.load(DAMPER), "baseline+bouc_wen", islands=2, single_node=True, termination=Termination(budget=budget))
+    result, _ = damper_campaign
     refit = result.fit.runs[-1]
     assert refit.label == "refit under the measured reading"
     searched = refit.history[-1]["evaluations"]  # the memetic search's, before its polish
-    assert budget <= searched < BUDGET / 2
+    assert DAMPER_BUDGET <= searched < BUDGET / 2
