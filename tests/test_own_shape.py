@@ -16,6 +16,7 @@ import pytest
 import hysid
 from hysid.bench import discovery_cases as cases
 from hysid.bench import search_problems as sp
+from hysid.bench.scale import isolator
 from hysid.diagnosis.acceptance import judge, own_shape
 from hysid.diagnosis.contest import choose, library_shape, needed_beside
 from hysid.diagnosis.discovery import Proposed, propose
@@ -32,7 +33,6 @@ from hysid_model.harmonics import Harmonics
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
 from hysid_model.synth import simulate_raw
-from test_realdata import isolator
 
 NOISE_PCT = 1.0
 LIBRARY = {"cubic_stiffness": {"k3": 1.25e9}, "hysteretic_damping": {"eta": 0.05}}
@@ -86,7 +86,7 @@ def test_a_library_effect_at_work_has_its_own_shape_and_is_taken(effects: tuple[
 
 
 def test_two_missing_effects_are_each_their_own_shape_with_the_others_force_beside() -> None:
-    """The softening isolator with Coulomb friction of tests/test_realdata.py (12 Hz, 0.2 kg, 24 loops, 1 % noise): from the
+    """The softening isolator with Coulomb friction of hysid/bench/scale.py (12 Hz, 0.2 kg, 24 loops, 1 % noise): from the
     baseline both the friction and the amplitude-dependent frequency are missing. Alone, the friction's strength refitted
     loop by loop takes up how the stiffness changes with amplitude (0.09 to 1.8 times its strength) and rule 9 refuses it,
     and the amplitude-dependent frequency likewise; with the forces of the step's other contenders projected out (their

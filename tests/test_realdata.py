@@ -10,49 +10,17 @@ import numpy as np
 import pytest
 
 import hysid
+from hysid.bench import scale
+from hysid.bench.scale import branches, isolator
 from hysid.cli import main
 from hysid_model.loops import LoopSet
 from hysid_model.model import build_model
-from hysid_model.objective import Objective
 from hysid_model.problem import prepare_model
 from hysid_model.survey import survey
 from hysid_model.synth import TRUE_PARAMS
-from support import DAMPER, GA_SMALL
+from support import DAMPER, GA_SMALL, ROOT
 
 SURVEY_KEYS = {"k_dyn", "c_eq", "loss_factor", "energy_per_cycle", "k_secant", "fn_hz", "xi"}
-POINTS = 40
-
-
-def branches(model, theta: np.ndarray, freqs: np.ndarray, amps: np.ndarray, noise_pct: float = 0.0, seed: int = 0, meq: float | None = None) -> LoopSet:
-    """Loops of any model on the ideal sine (its force on each branch as the objective sees it), with force
-    noise of ``noise_pct`` % of each loop's peak force."""
-    f, a = (g.reshape(-1) for g in np.meshgrid(freqs, amps))
-    x = np.linspace(-1.0, 1.0, POINTS)
-    pack = lambda part: np.stack([np.column_stack([x * ai, fi]) for ai, fi in zip(a, part)])
-    empty = LoopSet(
-        name="specimen", freq_hz=f, x0=a, top=pack(np.zeros((f.size, POINTS))), bottom=pack(np.zeros((f.size, POINTS))), sigma=np.ones(f.size), meq_kg=meq
-    )
-    force = Objective(empty, model, weights="ml").predict(theta)[0]
-    sigma = noise_pct / 100.0 * np.abs(force).max(axis=1)
-    force = force + sigma[:, None] * np.random.default_rng(seed).standard_normal(force.shape)
-    return LoopSet(
-        name="specimen", freq_hz=f, x0=a, top=pack(force[:, :POINTS]), bottom=pack(force[:, POINTS:]), sigma=np.where(sigma > 0, sigma, np.nan), meq_kg=meq
-    )
-
-
-ISOLATOR_FREQS = np.linspace(6.0, 20.0, 8)
-"""The isolator's default test frequencies (Hz)."""
-
-
-def isolator(noise_pct: float = 0.0, amps=(1e-3, 2e-3, 3e-3), freqs=ISOLATOR_FREQS, seed: int = 0, hidden: dict | None = None):
-    """A 1-DOF specimen far from the thesis' beams: 12 Hz, xi0 = 0.5, 0.2 kg, stiffness softening by
-    40 % over its amplitude range (wn by 23 %), optionally with hidden effects ``{effect: {param: value}}``."""
-    w0 = 2 * math.pi * 12.0
-    s_w = (math.sqrt(0.6) - 1.0) * w0 / amps[-1]
-    spec = "+".join(["thesis", *(hidden or {})])
-    model = build_model(spec).fix(meq=0.2)
-    values = {"xi0": 0.5, "S_xi": 0.0, "w0": w0, "S_w": s_w, **{k: v for params in (hidden or {}).values() for k, v in params.items()}}
-    return branches(model, model.from_dict(values), np.asarray(freqs), np.asarray(amps), noise_pct, seed, meq=None), values
 
 
 # --- the survey ------------------------------------------------------------------------------
@@ -179,10 +147,10 @@ def test_bounds_and_known_values_from_the_command_line_are_hard(tmp_path, capsys
 
 
 # --- a distorted shaker on a linear specimen whose stiffness softens, its dashpot constant --------------------
-def dashpot_records(noise: float = 0.01, seed: int = 0):
+def dashpot_records(noise: float = 0.01, seed: int = 0, tests: int = 8):
     """A 0.5 kg specimen, 20 Hz, c = 88 N s/m (xi 0.7 at small amplitude), k softening by 30 % over 1-3 mm,
-    driven with 10 % displacement THD for 1 s per test (so the faster tests hold more cycles); force
-    m x'' + c x' + k(X0) x from the displacement's own derivatives."""
+    driven at ``tests`` frequencies from 5 to 60 Hz per amplitude with 10 % displacement THD for 1 s per test
+    (so the faster tests hold more cycles); force m x'' + c x' + k(X0) x from the displacement's own derivatives."""
     from hysid_model import waveform
     from hysid_model.synth import RawRecord
 
@@ -193,7 +161,7 @@ def dashpot_records(noise: float = 0.01, seed: int = 0):
     for a in (1e-3, 2e-3, 3e-3):
         k = k0 * (1.0 - 0.3 * a / 3e-3)
         truth["k"][a] = k
-        for f in np.linspace(5.0, 60.0, 8):
+        for f in np.linspace(5.0, 60.0, tests):
             t = np.arange(int(fs)) / fs
             theta = 2 * np.pi * f * t + rng.uniform(0, 2 * np.pi)
             x, x1, x2 = (waveform.displacement(shape[None, :] * a, theta[None, :], d)[0] for d in (0, 1, 2))
@@ -228,7 +196,7 @@ def test_a_softening_specimen_with_a_constant_dashpot_is_both_amplitude_slopes(t
     the diagnosis names the two together, and says each loop is linear, so what remains is the law in amplitude."""
     from hysid_model.datasets import write_dataset
 
-    records, _ = dashpot_records(noise=0.005)
+    records, _ = dashpot_records(noise=0.005, tests=5)  # 15 tests: the diagnosis in about half the time of 24
     loops = hysid.load(write_dataset(tmp_path / "d", records, name="shaker"), n_points=40)
     diagnosis = hysid.diagnose(loops, cross_validate=False)
     steps = [(s.effect, s.joint_with) for s in diagnosis.steps]
@@ -321,8 +289,10 @@ def test_a_campaign_and_a_diagnosis_say_what_one_amplitude_cannot_tell():
 # --- diagnosis on real data -----------------------------------------------------------------------------
 @pytest.mark.slow  # over 3 s
 def test_the_gap_is_held_against_a_linear_fit_per_loop_and_the_repeatability():
-    loops, _ = isolator(noise_pct=2.0, hidden={"coulomb_friction": {"F_d": 0.3}})
-    again, _ = isolator(noise_pct=2.0, seed=1, hidden={"coulomb_friction": {"F_d": 0.3}})
+    """The isolator with friction tested twice at 4 frequencies per amplitude (12 loops, then their 12 repeats)."""
+    freqs = np.linspace(6.0, 20.0, 4)
+    loops, _ = isolator(noise_pct=2.0, freqs=freqs, hidden={"coulomb_friction": {"F_d": 0.3}})
+    again, _ = isolator(noise_pct=2.0, seed=1, freqs=freqs, hidden={"coulomb_friction": {"F_d": 0.3}})
     both = LoopSet(
         name="repeated",
         freq_hz=np.concatenate([loops.freq_hz, again.freq_hz]),
@@ -338,23 +308,27 @@ def test_the_gap_is_held_against_a_linear_fit_per_loop_and_the_repeatability():
     assert diagnosis.reaches in ("noise floor", "repeatability")
 
 
-@pytest.mark.slow
+def test_the_criterion_of_the_scale_bench_fails_a_seed_whose_two_scales_differ_or_miss_an_effect():
+    right = {"effects": ["amplitude_dependent_frequency", "coulomb_friction"], "status": "adequate"}
+    outcomes = {s: {str(seed): dict(right) for seed in scale.SEEDS} for s in scale.SCALES}
+    assert scale.verdict(outcomes)["ok"]
+    assert scale.verdict({**outcomes, "thesis": {**outcomes["thesis"], "1": {**right, "status": "unexplained"}}})["failed"] == [1]
+    assert not scale.verdict({**outcomes, "far": {**outcomes["far"], "0": {**right, "effects": right["effects"][::-1]}}})["ok"]
+    missing = {**right, "effects": ["amplitude_dependent_frequency"]}
+    assert scale.verdict({s: {**outcomes[s], "2": missing} for s in scale.SCALES})["failed"] == [2]
+    assert not scale.verdict({**outcomes, "far": {k: v for k, v in outcomes["far"].items() if k != "2"}})["ok"]  # a seed not run
+
+
+@pytest.mark.slow  # one diagnosis live (the other five from the bench)
 def test_a_specimen_far_from_the_thesis_gets_the_diagnosis_of_the_same_physics_at_the_thesis_scale():
     """12 Hz, xi0 = 0.5, 0.2 kg, 40 % softening, hidden friction; and the same dimensionless physics at 30 Hz,
-    0.04 kg, 0.5-1.5 mm (the thesis' beams): both diagnoses name the same effects with the same status."""
-    named = {}
-    for scale in ("far", "thesis"):
-        results = []
-        for seed in range(3):
-            if scale == "far":
-                loops, _ = isolator(noise_pct=1.0, seed=seed, hidden={"coulomb_friction": {"F_d": 0.15 * 0.2 * (2 * math.pi * 12) ** 2 * 1e-3}})
-            else:
-                w0, amps = 2 * math.pi * 30.0, np.array([0.5e-3, 1.0e-3, 1.5e-3])
-                model = build_model("thesis+coulomb_friction").fix(meq=0.04)
-                values = {"xi0": 0.5, "S_xi": 0.0, "w0": w0, "S_w": (math.sqrt(0.6) - 1.0) * w0 / amps[-1], "F_d": 0.15 * 0.04 * w0**2 * 0.5e-3}
-                loops = branches(model, model.from_dict(values), np.linspace(6.0, 20.0, 8) * 2.5, amps, 1.0, seed)
-            diagnosis = hysid.diagnose(loops, "baseline", cross_validate=False)
-            results.append((tuple(s.effect for s in diagnosis.steps), diagnosis.status))
-        named[scale] = results
-    assert named["far"] == named["thesis"], named
-    assert all("coulomb_friction" in effects and "amplitude_dependent_frequency" in effects for effects, _ in named["far"])
+    0.04 kg, 0.5-1.5 mm (the thesis' beams): both diagnoses name the same effects with the same status, over the
+    3 seeds of the committed `hysid bench scale` (which must have run today's specimens), and the far specimen's
+    cheapest seed again live, matching the bench's diagnosis at the thesis' scale."""
+    bench = json.loads(sorted((ROOT / "bench" / "results").glob("scale-*.json"))[-1].read_text())
+    assert bench["definitions"] == scale.definitions_hash(), "hysid/bench/scale.py changed since the bench ran: bash bench/run.sh scale"
+    assert scale.verdict(bench["outcomes"])["ok"], bench["outcomes"]
+    seed = min(scale.SEEDS, key=lambda s: bench["outcomes"]["far"][str(s)]["cpu_s"])
+    live = scale.outcome("far", seed)
+    assert scale.same(live, bench["outcomes"]["thesis"][str(seed)]), (seed, live, bench["outcomes"])
+    assert set(scale.NAMED) <= set(live["effects"])

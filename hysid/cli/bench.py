@@ -28,6 +28,7 @@ from hysid.bench import (
     interrupt,
     islands,
     objective,
+    scale,
     search,
     sites,
     validation,
@@ -154,6 +155,12 @@ def diagnose_command(
 ) -> None:
     report = lambda done, total, what: typer.echo(f"hysid bench diagnose: {done}/{total} {what}", err=True)
     emit(diagnose.run(tuple(c for c in cases.split(",") if c), workers or None, report), diagnose.to_text, as_json)
+
+
+@bench_app.command("scale", help=(scale.run.__doc__ or "").strip().splitlines()[0])
+def scale_command(as_json: bool = BENCH_JSON) -> None:
+    report = lambda done, total, what: typer.echo(f"hysid bench scale: {done}/{total} {what}", err=True)
+    emit(scale.run(report), scale.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
