@@ -155,9 +155,11 @@ class CampaignResult:
 
     def write_report(self, out_dir: str | Path, *, figures: bool = True) -> Path:
         """The ``hysid fit`` report of the campaign; its ``result.json`` holds the campaign document. ``figures=False``
-        leaves the figures out (a campaign stopped by Ctrl-C reports in seconds; ``hysid report DB`` draws them)."""
+        leaves the figures out, the seconds of drawing them (a campaign stopped by Ctrl-C reports so; a coordinator on a
+        server may too), and the report says why; ``hysid report DB`` draws them from the database."""
         db = self.fit.settings.get("db")
-        left_out = None if figures else "the campaign was interrupted" + (f" (`hysid report {db}` draws them)" if db and db != ":memory:" else "")
+        why = "the campaign was interrupted" if self.interrupted else "the report was asked for without figures"
+        left_out = None if figures else why + (f" (`hysid report {db}` draws them)" if db and db != ":memory:" else "")
         document, out_dir = self.to_dict(), Path(out_dir)
         self.fit.report = str(out_dir / markdown.REPORT)
         return markdown.write_fit_report(

@@ -26,14 +26,14 @@ def run_cli(capsys, args: list[str]) -> tuple[int, str, str]:
 
 @pytest.fixture(scope="module")
 def clean_json(tmp_path_factory):
-    """``hysid fit synth --json`` (GA for speed, polish on by default), run once for the module.
+    """``hysid fit synth --json`` (GA for speed, polish on by default; its report without figures), run once for the module.
 
     capsys is function-scoped, so this module-scoped run captures stdout/stderr itself.
     """
     out = tmp_path_factory.mktemp("fit") / "clean"
     stdout, stderr = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-        code = main(["fit", "synth", "--algo", "ga", "--runs", "2", "--seed", "3", "--json", "--out", str(out)])
+        code = main(["fit", "synth", "--algo", "ga", "--runs", "2", "--seed", "3", "--json", "--no-figures", "--out", str(out)])
     return code, stdout.getvalue(), stderr.getvalue(), out
 
 

@@ -127,16 +127,18 @@ def test_confirmation_with_the_fitted_model_keeps_a_right_reading(sensor):
 @pytest.mark.slow  # over 3 s
 def test_cli_fit_and_diagnose_say_which_and_why(tmp_path, capsys, sensor):
     data = str(sensor[0])
-    assert main(["fit", data, "--model", "baseline", "--algo", "ga", "--out", str(tmp_path / "fit")]) == 0
+    assert main(["fit", data, "--model", "baseline", "--algo", "ga", "--no-figures", "--out", str(tmp_path / "fit")]) == 0
     out = capsys.readouterr().out
     assert "displacement model: the motion is the fundamental" in out and "does not respond" in out
     document = json.loads((tmp_path / "fit" / "result.json").read_text())
     assert document["displacement_model"]["displacement"] == "fundamental"
-    assert main(["diagnose", data, "--json", "--out", str(tmp_path / "diag")]) == 0
+    assert main(["diagnose", data, "--json", "--no-figures", "--out", str(tmp_path / "diag")]) == 0
     diagnosis = json.loads(capsys.readouterr().out)
     assert diagnosis["displacement_model"]["displacement"] == "fundamental" and diagnosis["status"] == "adequate"
     assert diagnosis["steps"] == []
-    assert main(["fit", data, "--model", "baseline", "--algo", "ga", "--displacement", "measured", "--json", "--out", str(tmp_path / "f2")]) == 0
+    assert (
+        main(["fit", data, "--model", "baseline", "--algo", "ga", "--displacement", "measured", "--json", "--no-figures", "--out", str(tmp_path / "f2")]) == 0
+    )
     assert json.loads(capsys.readouterr().out)["displacement_model"]["decided_by"] == "user"
 
 

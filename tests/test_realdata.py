@@ -124,13 +124,13 @@ def test_bounds_and_known_values_from_the_command_line_are_hard(tmp_path, capsys
 
     loops, _ = isolator(noise_pct=1.0, freqs=np.linspace(6.0, 20.0, 4))
     write_loops(loops, tmp_path / "iso.loops")
-    fit_args = ["fit", str(tmp_path / "iso.loops"), "--algo", "ga", "--bound", "w0=100:500", "--fix", "S_xi=0", "--json"]
+    fit_args = ["fit", str(tmp_path / "iso.loops"), "--algo", "ga", "--bound", "w0=100:500", "--fix", "S_xi=0", "--json", "--no-figures"]
     assert main([*fit_args, "--out", str(tmp_path / "fit")]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["bounds"]["w0"] == [100.0, 500.0] and doc["fixed"]["S_xi"] == 0.0 and "S_xi" not in doc["params"]
     assert "w0" in doc["at_bounds"] and "w0" not in doc["settings"]["bounds_from_data"]
     assert "fixed S_xi = 0" in (tmp_path / "fit" / "report.md").read_text()
-    assert main(["diagnose", str(tmp_path / "iso.loops"), "--bound", "w0=100:500", "--json", "--out", str(tmp_path / "dx")]) == 0
+    assert main(["diagnose", str(tmp_path / "iso.loops"), "--bound", "w0=100:500", "--json", "--no-figures", "--out", str(tmp_path / "dx")]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["final_bounds"]["w0"] == [100.0, 500.0] and "w0" not in doc["bounds_from_data"] and "xi0" in doc["bounds_from_data"]
     for flag, bad, says in [

@@ -230,9 +230,10 @@ def test_a_loops_file_keeps_the_warnings_for_the_fits_that_read_it(tmp_path, bea
 def test_fit_diagnose_campaign_and_report_write_the_warnings_near_the_top(tmp_path, bearing, capsys):
     """The command line on the lab files with m under a mm header and the mass given: report.md, diagnosis.md and the
     campaign's report (also rebuilt from its database by hysid report) open with a Warnings section naming the unit
-    slip, result.json and diagnosis.json list it with its code, and stderr says it once per command."""
+    slip, result.json and diagnosis.json list it with its code, and stderr says it once per command. The reports are
+    written without their figures (--no-figures: none drawn, each report says so where they would be)."""
     data = str(lab_files(tmp_path / "metres", [bearing[k] for k in (0, 2, 3, 5)], x_scale=1.0, toml="meq_kg = 200\n"))
-    small = ["--points", "30", "--quiet"]
+    small = ["--points", "30", "--quiet", "--no-figures"]
     runs = {
         "fit": (["fit", data, "--model", "baseline", *small, "--out", str(tmp_path / "fit")], "report.md", "result.json"),
         "diagnose": (  # from the bearing's own model: the warnings, not the search (one step)
@@ -257,13 +258,14 @@ def test_fit_diagnose_campaign_and_report_write_the_warnings_near_the_top(tmp_pa
             "report.md",
             "result.json",
         ),
-        "report": (["report", str(tmp_path / "campaign" / "campaign.sqlite"), "--out", str(tmp_path / "report")], "report.md", "result.json"),
+        "report": (["report", str(tmp_path / "campaign" / "campaign.sqlite"), "--no-figures", "--out", str(tmp_path / "report")], "report.md", "result.json"),
     }
     for name, (argv, markdown, document) in runs.items():
         assert main(argv) == 0, name
         err = capsys.readouterr().err
         assert len(re.findall(f"is {THOUSAND} times", err)) == (0 if name == "report" else 1), (name, err)
         text = (tmp_path / name / markdown).read_text()
+        assert not list((tmp_path / name).glob("*.png")) and ": not drawn, the report was asked for without figures" in text, name
         assert "## Warnings" in text and text.index("## Warnings") < text.index("\n## ", text.index("## Warnings") + 1), name
         assert re.search(rf"- \*\*`unit_slip`\*\*: .*metres: the loops' inertia, .* is {THOUSAND} times the given mass", text), name
         codes = [w["code"] for w in json.loads((tmp_path / name / document).read_text())["warnings"]]

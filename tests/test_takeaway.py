@@ -86,6 +86,7 @@ def test_csv_flag_of_fit_campaign_and_diagnose(tmp_path, capsys):
                 *sizes(20, 40, 10),
                 "--quiet",
                 "--csv",
+                "--no-figures",
                 "--out",
                 str(tmp_path / "c"),
             ]

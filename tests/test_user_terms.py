@@ -409,10 +409,10 @@ def test_island_processes_import_the_users_module_and_recover_the_law(loops, tmp
 def test_the_command_line_diagnoses_with_candidates_and_fits_a_model_string(labterms, loops, tmp_path, capsys):
     data = tmp_path / "lab"
     write_dataset(data, loops, name="lab")
-    assert main(["diagnose", str(data), "--candidates", f"{MODULE}:drag,{MODULE}:dahl", "--out", str(tmp_path / "d"), "--json", "--quiet"]) == 0
+    assert main(["diagnose", str(data), "--candidates", f"{MODULE}:drag,{MODULE}:dahl", "--out", str(tmp_path / "d"), "--json", "--quiet", "--no-figures"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert [s["effect"] for s in doc["steps"]] == [f"{MODULE}:drag"]
     assert (tmp_path / "d" / "diagnosis.md").read_text().count(f"{MODULE}:drag") >= 1
-    assert main(["fit", str(data), "--model", SPEC, "--algo", "ga", "--out", str(tmp_path / "f"), "--json", "--quiet"]) == 0
+    assert main(["fit", str(data), "--model", SPEC, "--algo", "ga", "--out", str(tmp_path / "f"), "--json", "--quiet", "--no-figures"]) == 0
     fit = json.loads(capsys.readouterr().out)
     recovered(fit["params"], fit["stderr"])

@@ -132,6 +132,7 @@ def register(app: typer.Typer) -> None:
         db: Path | None = o.DB,
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
+        figures: bool = o.FIGURES,
         quiet: bool = o.QUIET,
         csv: bool = o.CSV,
         limits: Constraints = LAID_OUT,
@@ -182,7 +183,7 @@ def register(app: typer.Typer) -> None:
             if new_db:
                 discard_failed(target_dir, path, name)
             raise
-        o.show_result(result, target_dir, as_json, csv, figures=not result.interrupted)  # Ctrl-C: out in seconds
+        o.show_result(result, target_dir, as_json, csv, figures=figures and not result.interrupted)  # Ctrl-C: out in seconds
         return exit_status(result)
 
     @app.command("coordinator")
@@ -220,6 +221,7 @@ def register(app: typer.Typer) -> None:
         out: Path | None = o.OUT,
         as_json: bool = o.JSON,
         polish: bool = o.POLISH,
+        figures: bool = o.FIGURES,
         quiet: bool = o.QUIET,
         limits: Constraints = LAID_OUT,
     ) -> int | None:
@@ -287,7 +289,7 @@ def register(app: typer.Typer) -> None:
                 link.close()
                 session.close()
             result = finish(coordinator, coordinator.outcome(polish_best=polish), motion)
-            o.show_result(result, target_dir, as_json, csv=False, figures=not result.interrupted)
+            o.show_result(result, target_dir, as_json, csv=False, figures=figures and not result.interrupted)
         finally:
             store.close()
         return exit_status(result)

@@ -37,6 +37,7 @@ def register(app: typer.Typer) -> None:
         displacement: str = o.DISPLACEMENT,
         candidates: str | None = o.CANDIDATES,
         no_discover: bool = o.NO_DISCOVER,
+        figures: bool = o.FIGURES,
     ) -> None:
         """Find which effects of the library (and --candidates of your own) the model misses, step by step, and write a report."""
         bounds, effects = o.parse_bounds(bound), candidate_effects(o.parse_list(candidates))
@@ -53,6 +54,6 @@ def register(app: typer.Typer) -> None:
                 progress=lambda done, total, what: progress.update(done, what, total + REPORT_WORK),
             )
             progress.update(progress.done, "writing the report and its figures")
-            tables = o.write_result(result, target, csv, dataset)
+            tables = o.write_result(result, target, csv, dataset, figures)
             progress.update(progress.total, f"report written: {target}")
         o.print_result(result, as_json, tables)

@@ -38,6 +38,7 @@ def register(app: typer.Typer) -> None:
         csv: bool = o.CSV,
         quiet: bool = o.QUIET,
         limits: Constraints = LAID_OUT,
+        figures: bool = o.FIGURES,
     ) -> None:
         """Identify the model's parameters from DATASET in this process (no network)."""
         bounds, fixed, displacement = limits.bounds(), limits.fixed(), limits.displacement
@@ -61,7 +62,7 @@ def register(app: typer.Typer) -> None:
                 displacement=displacement,
                 progress=show,
             )
-        o.show_result(result, target, as_json, csv)
+        o.show_result(result, target, as_json, csv, figures=figures)
 
     reproduce = typer.Typer(help="Regenerate the thesis' published results.", no_args_is_help=True)
     app.add_typer(reproduce, name="reproduce")

@@ -127,6 +127,11 @@ ALGO = typer.Option("pso", "--algo", help="Optimizer: ga or pso (the thesis' set
 RUNS = typer.Option(1, "--runs", help="Independent runs with seeds SEED..SEED+RUNS-1; the best is reported.")
 SEED = typer.Option(0, "--seed", help="Seed of the first run (island i of a campaign uses SEED + i).")
 POLISH = typer.Option(True, "--polish/--no-polish", help="Refine the best by bounded least squares.")
+FIGURES = typer.Option(
+    True,
+    "--figures/--no-figures",
+    help="Draw the report's figures (PNG); --no-figures saves their seconds, the report saying where each would be ('hysid report DB' draws a campaign's later).",
+)
 OUT = typer.Option(None, "--out", help="Report directory, new or empty (default hysid-out/<command>-<time>).")
 JSON = typer.Option(False, "--json", help="Print one JSON object on stdout instead of the summary.")
 QUIET = typer.Option(False, "--quiet", help="No live progress on stderr.")
@@ -283,18 +288,16 @@ def check_writable(directory: Path, param: str) -> Path:
 
 def show_result(result: Any, target: Path, as_json: bool, csv: bool, dataset: str | None = None, figures: bool = True) -> None:
     """Write a result's report (and with ``csv`` its tables) to ``target``; print its JSON document or its summary.
-    ``figures=False``: a campaign's report without its figures (:meth:`hysid.campaigns.CampaignResult.write_report`)."""
+    ``figures=False``: the report without its figures (``write_report(..., figures=False)``)."""
     print_result(result, as_json, write_result(result, target, csv, dataset, figures))
 
 
 def write_result(result: Any, target: Path, csv: bool, dataset: str | None = None, figures: bool = True) -> dict[str, Path]:
     """The first half of :func:`show_result`: the report (and with ``csv`` the tables, returned) in ``target``."""
-    if not figures:
-        result.write_report(target, figures=False)
-    elif dataset is None:
-        result.write_report(target)
+    if dataset is None:
+        result.write_report(target, figures=figures)
     else:
-        result.write_report(target, dataset)
+        result.write_report(target, dataset, figures=figures)
     return result.to_csv(target) if csv else {}
 
 

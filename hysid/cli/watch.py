@@ -67,7 +67,8 @@ def register(app: typer.Typer) -> None:
         out: Path | None = o.OUT,
         as_json: bool = o.JSON,
         csv: bool = o.CSV,
+        figures: bool = o.FIGURES,
     ) -> None:
         """The report and figures of a finished or interrupted campaign, rebuilt from its database alone."""
         target = o.report_dir(out, "report")
-        o.show_result(CampaignResult.from_database(o.campaign_database(db), name), target, as_json, csv)
+        o.show_result(CampaignResult.from_database(o.campaign_database(db), name), target, as_json, csv, figures=figures)

@@ -21,6 +21,7 @@ from hysid.motion import MotionChoice
 from hysid.report import diagnosis as diagnosis_report
 from hysid.report import tables, text
 from hysid.report.bounds import widenings
+from hysid.report.markdown import NOT_ASKED
 from hysid.report.records import DiagnosisCurves, DiagnosisRecord, Estimates, ProposedForce
 from hysid_model import notices
 from hysid_model.effective import OperatingPoint, effective_table, operating_points
@@ -234,14 +235,16 @@ class Diagnosis:
         """The gap after each step, the status and what cannot be identified, as text."""
         return text.diagnosis_summary(self.to_dict(), self.record())
 
-    def write_report(self, out_dir: str | Path, dataset: str | None = None) -> Path:
+    def write_report(self, out_dir: str | Path, dataset: str | None = None, *, figures: bool = True) -> Path:
         """``diagnosis.md`` with its figures and ``diagnosis.json`` in ``out_dir``; returns the Markdown path.
 
-        ``dataset`` is how the reader reloads the data (default: the loop set's name).
+        ``dataset`` is how the reader reloads the data (default: the loop set's name); ``figures=False``: the
+        report without its figures (in a fraction of the time), saying where each would be.
         """
         out_dir = Path(out_dir)
         self.report = str(out_dir / diagnosis_report.DIAGNOSIS_MD)
-        return diagnosis_report.write_diagnosis_report(self.to_dict(), self.record(), self.curves(), out_dir, dataset or self.harmonics.loops.name)
+        left_out = None if figures else NOT_ASKED
+        return diagnosis_report.write_diagnosis_report(self.to_dict(), self.record(), self.curves(), out_dir, dataset or self.harmonics.loops.name, left_out)
 
     def _repr_markdown_(self) -> str:
         return diagnosis_report.overview(self.to_dict(), self.record())

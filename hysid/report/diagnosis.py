@@ -14,7 +14,7 @@ from hysid.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, SIGNIFICANCE
 from hysid.report import jsondoc, proposed
 from hysid.report.amplitudes import EFFECTIVE_TITLE, effective_rows, resonance_note
 from hysid.report.bounds import widened_sentence
-from hysid.report.markdown import MARKDOWN_POINTS, image, num, table, warnings_section, with_error
+from hysid.report.markdown import MARKDOWN_POINTS, num, picture, table, warnings_section, with_error
 from hysid.report.records import DiagnosisCurves, DiagnosisRecord
 from hysid.report.text import band_text, law_text, mass_text, reference_text
 from hysid_model.frf import amplitude_levels
@@ -99,18 +99,18 @@ DIAGNOSIS_MD = "diagnosis.md"
 """The name of a diagnosis' report in its directory."""
 
 
-def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves: DiagnosisCurves, out_dir: Path, dataset: str) -> Path:
+def write_diagnosis_report(
+    doc: dict[str, Any], record: DiagnosisRecord, curves: DiagnosisCurves, out_dir: Path, dataset: str, figures_left_out: str | None = None
+) -> Path:
     """Write ``diagnosis.md`` (``out_dir / DIAGNOSIS_MD``, which ``record.report`` names), its figures (of ``curves``)
-    and ``diagnosis.json`` (``doc``) into ``out_dir``; returns the Markdown path."""
+    and ``diagnosis.json`` (``doc``) into ``out_dir``; returns the Markdown path. ``figures_left_out``: why the
+    figures are not drawn (said where each would be), None to draw them."""
     from hysid.report import diagnosis_figures as figures  # matplotlib loads only when a report is drawn
     from hysid.report.effective_figure import effective_figure
 
     out = out_dir
     out.mkdir(parents=True, exist_ok=True)
     path = out / DIAGNOSIS_MD
-    gap = figures.gap_figure(out / "gap.png", record.labels, doc["gap"])
-    maps = figures.residual_map_figure(out / "residual_map.png", record.loops, curves, doc["start_model"], doc["final_model"])
-    loops = figures.loops_figure(out / "loops.png", record.loops, curves)
     measured = record.loops
     levels, _ = amplitude_levels(measured.x0)
     mass = mass_text(doc["final_fixed"].get("meq"))
@@ -136,7 +136,9 @@ def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves:
         "peak-to-peak force, mean over loops. Energy: relative RMS error of the loop area pi X0 c1. LOFO-CV: whitened "
         "RMS of each frequency's loops predicted by a fit without them.",
         "",
-        image(gap, out, "The gap between model and data after each step"),
+        picture(
+            lambda: figures.gap_figure(out / "gap.png", record.labels, doc["gap"]), out, "The gap between model and data after each step", figures_left_out
+        ),
         "",
         "## Effects named",
         "",
@@ -145,8 +147,8 @@ def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves:
         lines += _effect_section(step, i)
     if not doc["steps"]:
         lines += ["None.", ""]
-    drawn = [figures.proposed_force_figure(out / f"proposed_{p.name}.png", record.loops, p) for p in curves.proposed]
-    lines += proposed.section(doc, record, out, drawn)
+    drawn = [lambda p=p: figures.proposed_force_figure(out / f"proposed_{p.name}.png", record.loops, p) for p in curves.proposed]
+    lines += proposed.section(doc, record, out, drawn, figures_left_out)
     lines += ["## What is left", ""]
     if doc["status"] == "adequate":
         lines.append("The residual is consistent with the noise: its chi^2 and the chi^2 of every harmonic coefficient are within their noise range.")
@@ -178,7 +180,7 @@ def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves:
         "",
         table([""] + [f"`{n}`" for n in corr], [[f"`{a}`"] + ["" if r is None else f"{r:+.3f}" for r in row.values()] for a, row in corr.items()]),
     ]
-    effective = effective_figure(out / "effective.png", measured, survey(measured, doc["final_fixed"].get("meq")), record.estimates.effective)
+    effective = lambda: effective_figure(out / "effective.png", measured, survey(measured, doc["final_fixed"].get("meq")), record.estimates.effective)
     lines += [
         "",
         "## Effective stiffness and equivalent damping",
@@ -188,24 +190,31 @@ def write_diagnosis_report(doc: dict[str, Any], record: DiagnosisRecord, curves:
         "",
         table(*effective_rows(record.estimates.effective, MARKDOWN_POINTS)),
         "",
-        image(
+        picture(
             effective,
             out,
             "Effective stiffness and equivalent damping per amplitude against frequency: final model "
             "(one standard error) and each loop's own (the forces at its branches' ends, its area)",
+            figures_left_out,
         ),
     ]
     lines += [
         "",
-        image(maps, out, "Residual per loop over frequency x amplitude, before and after"),
+        picture(
+            lambda: figures.residual_map_figure(out / "residual_map.png", record.loops, curves, doc["start_model"], doc["final_model"]),
+            out,
+            "Residual per loop over frequency x amplitude, before and after",
+            figures_left_out,
+        ),
         "",
         "## Loops",
         "",
-        image(
-            loops,
+        picture(
+            lambda: figures.loops_figure(out / "loops.png", record.loops, curves),
             out,
             "Measured loops (points), start model (dashed) and final model (solid); rows: amplitudes, "
             "columns: the loop the start model fits worst and the one at the median frequency",
+            figures_left_out,
         ),
         "",
         "## Method",

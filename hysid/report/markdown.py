@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +62,16 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
 
 def image(path: Path, out_dir: Path, caption: str) -> str:
     return f"![{caption}]({path.relative_to(out_dir).as_posix()})\n\n*{caption}*"
+
+
+NOT_ASKED = "the report was asked for without figures"
+"""Why a report's figures are not drawn when its reader left them out."""
+
+
+def picture(draw: Callable[[], Path], out_dir: Path, caption: str, left_out: str | None) -> str:
+    """The figure ``draw()`` saves, as a Markdown image with its caption; where ``left_out`` says why it is not
+    drawn, the caption and that reason instead (nothing is drawn)."""
+    return f"*{caption}: not drawn, {left_out}.*" if left_out else image(draw(), out_dir, caption)
 
 
 def model_curves(result: FitRecord) -> list[tuple[np.ndarray, np.ndarray]]:

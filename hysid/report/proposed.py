@@ -4,18 +4,19 @@ the figure :mod:`hysid.report.diagnosis_figures`')."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from hysid.report.markdown import image, table, with_error
+from hysid.report.markdown import picture, table, with_error
 from hysid.report.records import DiagnosisRecord
 from hysid.report.text import KIND, evidence_text, fitted_text, law_text
 from hysid_model.discovery.proposal import MODULE, module_source
 
 
-def section(doc: dict[str, Any], record: DiagnosisRecord, out: Path, figures: list[Path]) -> list[str]:
+def section(doc: dict[str, Any], record: DiagnosisRecord, out: Path, figures: Sequence[Callable[[], Path]], left_out: str | None = None) -> list[str]:
     """The report's section on the proposed terms of a diagnosis (its document and record; with their ``figures``, one
-    each, and their module), or on what discovery tried."""
+    each, drawn unless ``left_out`` says why not, and their module), or on what discovery tried."""
     if not doc["proposed"]:
         if not doc["discovery"]:
             return []
@@ -48,7 +49,12 @@ def section(doc: dict[str, Any], record: DiagnosisRecord, out: Path, figures: li
             f"Defined in `{module.name}` with `hysid.term`: `PYTHONPATH={out} hysid fit DATA --model {entry['model']}`, "
             f"or `--candidates {MODULE}:{name}` to a diagnosis.",
             "",
-            image(figure, out, f"The proposed force {name} against displacement and velocity (lines) and what the final model leaves without it (points)"),
+            picture(
+                figure,
+                out,
+                f"The proposed force {name} against displacement and velocity (lines) and what the final model leaves without it (points)",
+                left_out,
+            ),
             "",
         ]
     for effect, why in doc["set_aside"].items():
