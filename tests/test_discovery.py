@@ -216,6 +216,7 @@ def test_diagnose_proposes_the_missing_law_instead_of_wrong_names_and_the_module
             "--json",
             "--quiet",
             "--no-discover",
+            "--no-figures",
             "--candidates",
             f"proposed:{found.name}",
             "--out",
