@@ -49,11 +49,11 @@ def loops_of(where: str, tmp_path, seed: int = 3):
 
 @pytest.fixture(scope="module")
 def sensor(tmp_path_factory) -> tuple:
-    """The sensor's dataset directory, its loops, the data's choice and the baseline fitted to them (shared:
+    """The sensor's dataset directory, its loops, the data's choice and the baseline fitted to them by the GA (shared:
     each test reads them, none changes them)."""
     where = tmp_path_factory.mktemp("motion")
     loops = loops_of("sensor", where)
-    return where / "sensor", loops, choose_motion(loops, "baseline"), hysid.fit(loops, "baseline")
+    return where / "sensor", loops, choose_motion(loops, "baseline"), hysid.fit(loops, "baseline", algo="ga")
 
 
 @pytest.fixture(scope="module")
@@ -79,7 +79,7 @@ def test_the_data_decide_and_the_fit_recovers_mass_stiffness_and_damping(where, 
         _, loops, choice, result = sensor
     else:
         loops = loops_of(where, tmp_path)
-        choice, result = choose_motion(loops, "baseline"), hysid.fit(loops, "baseline")
+        choice, result = choose_motion(loops, "baseline"), hysid.fit(loops, "baseline", algo="ga")
     assert choice.displacement == reading and choice.decided_by == "data"
     assert (choice.delta_bic < 0) == (reading == "fundamental") and abs(choice.delta_bic) > 1000
     assert result.displacement_model["displacement"] == reading
