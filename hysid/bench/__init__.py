@@ -10,6 +10,7 @@ machine a result came from.
 from __future__ import annotations
 
 import datetime
+import hashlib
 import json
 import os
 import platform
@@ -17,6 +18,7 @@ import resource
 import socket
 import subprocess
 import sys
+import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -92,6 +94,38 @@ def write_section(path: Path, name: str, text: str) -> None:
     else:
         new = old.rstrip("\n") + ("\n\n" if old.strip() else "") + block + "\n"
     path.write_text(new, encoding="utf-8")
+
+
+def git_commit() -> str | None:
+    """The commit of the checkout this code runs from (None outside a git checkout)."""
+    try:
+        done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True, text=True, timeout=30)
+    except OSError:
+        return None
+    if done.returncode != 0:
+        return None
+    return done.stdout.strip() or None
+
+
+def source_hash(path: str | Path) -> str:
+    """sha256 of a bench's module (its ``__file__``): its cases, seeds and criterion as a run ran them."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def sweep_result(bench: str, source: str | Path, outcomes: dict[str, Any], judged: dict[str, Any], began: float, cpu: float) -> dict[str, Any]:
+    """The result of a bench that sweeps seeds for a test, as that test reads it: the bench's name, ``definitions``
+    (:func:`source_hash` of ``source``, the module defining the sweep: the test refuses a result of other
+    definitions), the git commit, the ``outcomes`` and their verdict ``judged``, and the wall and CPU seconds since
+    ``began`` (:func:`time.perf_counter`) and ``cpu`` (:func:`time.process_time`)."""
+    return {
+        "bench": bench,
+        "definitions": source_hash(source),
+        "commit": git_commit(),
+        "outcomes": outcomes,
+        **judged,
+        "wall_s": time.perf_counter() - began,
+        "cpu_s": time.process_time() - cpu,
+    }
 
 
 def verdict(ok: bool) -> str:

@@ -15,15 +15,13 @@ from __future__ import annotations
 
 import os
 import resource
-import subprocess
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
-from pathlib import Path
 from typing import Any
 
-from hysid.bench import check_chosen, verdict
+from hysid.bench import check_chosen, git_commit, verdict
 from hysid.bench import diagnose_cases as dc
 from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
@@ -34,17 +32,6 @@ def seed_outcome(name: str, seed: int) -> dict[str, Any]:
     began, cpu = time.perf_counter(), time.process_time()
     record = dc.cases()[name].outcome(seed)
     return {**record, "wall_s": time.perf_counter() - began, "cpu_s": time.process_time() - cpu}
-
-
-def git_commit() -> str | None:
-    """The commit of the checkout this code runs from (None outside a git checkout)."""
-    try:
-        done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True, text=True, timeout=30)
-    except OSError:
-        return None
-    if done.returncode != 0:
-        return None
-    return done.stdout.strip() or None
 
 
 def children_cpu_s() -> float:

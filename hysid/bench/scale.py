@@ -12,19 +12,16 @@ live; :func:`definitions_hash` (of this file) ties the two.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import time
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 import hysid
-from hysid.bench import check_chosen
+from hysid.bench import check_chosen, source_hash, sweep_result
 from hysid.bench import verdict as pass_word
-from hysid.bench.diagnose import git_commit
 from hysid.report import jsondoc
 from hysid_model.loops import LoopSet
 from hysid_model.model import Model, build_model
@@ -127,16 +124,7 @@ def run(progress: Callable[[int, int, str], None] | None = None) -> dict[str, An
             outcomes[scale][str(seed)] = record = outcome(scale, seed)
             if progress is not None:
                 progress(sum(map(len, outcomes.values())), total, f"{scale} seed {seed}: {', '.join(record['effects']) or 'nothing'} ({record['status']})")
-    result = {
-        "bench": "scale",
-        "definitions": definitions_hash(),
-        "commit": git_commit(),
-        "outcomes": outcomes,
-        **verdict(outcomes),
-        "wall_s": time.perf_counter() - began,
-        "cpu_s": time.process_time() - cpu,
-    }
-    return jsondoc.plain(result)
+    return jsondoc.plain(sweep_result("scale", __file__, outcomes, verdict(outcomes), began, cpu))
 
 
 def to_text(result: dict[str, Any]) -> str:
@@ -149,4 +137,4 @@ def to_text(result: dict[str, Any]) -> str:
 
 def definitions_hash() -> str:
     """sha256 of this file: the specimens, their seeds and the criterion as the bench ran them."""
-    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+    return source_hash(__file__)

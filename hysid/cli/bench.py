@@ -30,6 +30,7 @@ from hysid.bench import (
     objective,
     scale,
     search,
+    shaker,
     sites,
     validation,
     write_section,
@@ -161,6 +162,12 @@ def diagnose_command(
 def scale_command(as_json: bool = BENCH_JSON) -> None:
     report = lambda done, total, what: typer.echo(f"hysid bench scale: {done}/{total} {what}", err=True)
     emit(scale.run(report), scale.to_text, as_json)
+
+
+@bench_app.command("shaker", help=(shaker.run.__doc__ or "").strip().splitlines()[0])
+def shaker_command(as_json: bool = BENCH_JSON) -> None:
+    report = lambda done, total, what: typer.echo(f"hysid bench shaker: {done}/{total} {what}", err=True)
+    emit(shaker.run(report), shaker.to_text, as_json)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
