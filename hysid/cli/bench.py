@@ -28,6 +28,7 @@ from hysid.bench import (
     interrupt,
     islands,
     objective,
+    proposals,
     scale,
     search,
     shaker,
@@ -162,6 +163,12 @@ def diagnose_command(
 def scale_command(as_json: bool = BENCH_JSON) -> None:
     report = lambda done, total, what: typer.echo(f"hysid bench scale: {done}/{total} {what}", err=True)
     emit(scale.run(report), scale.to_text, as_json)
+
+
+@bench_app.command("proposals", help=(proposals.run.__doc__ or "").strip().splitlines()[0])
+def proposals_command(as_json: bool = BENCH_JSON) -> None:
+    report = lambda done, total, what: typer.echo(f"hysid bench proposals: {done}/{total} {what}", err=True)
+    emit(proposals.run(report), proposals.to_text, as_json)
 
 
 @bench_app.command("shaker", help=(shaker.run.__doc__ or "").strip().splitlines()[0])
