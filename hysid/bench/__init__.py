@@ -19,7 +19,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +110,25 @@ def git_commit() -> str | None:
 def source_hash(path: str | Path) -> str:
     """sha256 of a bench's module (its ``__file__``): its cases, seeds and criterion as a run ran them."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def sweep(
+    groups: Iterable[str],
+    seeds: Iterable[int],
+    outcome: Callable[[str, int], dict[str, Any]],
+    say: Callable[[str, int, dict[str, Any]], str],
+    progress: Callable[[int, int, str], None] | None = None,
+) -> dict[str, dict[str, dict[str, Any]]]:
+    """Every group's ``outcome(group, seed)`` on every seed, by group and by seed (as text), in order; after each,
+    ``progress(done, total, say(group, seed, record))``."""
+    groups, seeds = list(groups), list(seeds)
+    outcomes: dict[str, dict[str, dict[str, Any]]] = {group: {} for group in groups}
+    for group in groups:
+        for seed in seeds:
+            outcomes[group][str(seed)] = record = outcome(group, seed)
+            if progress is not None:
+                progress(sum(map(len, outcomes.values())), len(groups) * len(seeds), say(group, seed, record))
+    return outcomes
 
 
 def sweep_result(bench: str, source: str | Path, outcomes: dict[str, Any], judged: dict[str, Any], began: float, cpu: float) -> dict[str, Any]:

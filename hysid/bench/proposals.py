@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from hysid.bench import source_hash, sweep_result
+from hysid.bench import source_hash, sweep, sweep_result
 from hysid.bench import verdict as pass_word
 from hysid.bench.discovery_cases import loops_of, truth_model
 from hysid.diagnosis.discovery import Proposed, propose
@@ -68,13 +68,8 @@ def run(progress: Callable[[int, int, str], None] | None = None) -> dict[str, An
 
     ``progress(done, total, what)`` is called as each proposal ends."""
     began, cpu = time.perf_counter(), time.process_time()
-    outcomes: dict[str, dict[str, dict[str, Any]]] = {c: {} for c in CONTROLS}
-    total = len(CONTROLS) * len(SEEDS)
-    for control in CONTROLS:
-        for seed in SEEDS:
-            outcomes[control][str(seed)] = record = outcome(control, seed)
-            if progress is not None:
-                progress(sum(map(len, outcomes.values())), total, f"{control} seed {seed}: {record['proposed'] or 'nothing proposed'}")
+    say = lambda control, seed, record: f"{control} seed {seed}: {record['proposed'] or 'nothing proposed'}"
+    outcomes = sweep(CONTROLS, SEEDS, outcome, say, progress)
     return jsondoc.plain(sweep_result("proposals", __file__, outcomes, verdict(outcomes), began, cpu))
 
 

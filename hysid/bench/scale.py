@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 import hysid
-from hysid.bench import check_chosen, source_hash, sweep_result
+from hysid.bench import check_chosen, source_hash, sweep, sweep_result
 from hysid.bench import verdict as pass_word
 from hysid.report import jsondoc
 from hysid_model.loops import LoopSet
@@ -117,13 +117,8 @@ def run(progress: Callable[[int, int, str], None] | None = None) -> dict[str, An
 
     ``progress(done, total, what)`` is called as each diagnosis ends."""
     began, cpu = time.perf_counter(), time.process_time()
-    outcomes: dict[str, dict[str, dict[str, Any]]] = {scale: {} for scale in SCALES}
-    total = len(SCALES) * len(SEEDS)
-    for scale in SCALES:
-        for seed in SEEDS:
-            outcomes[scale][str(seed)] = record = outcome(scale, seed)
-            if progress is not None:
-                progress(sum(map(len, outcomes.values())), total, f"{scale} seed {seed}: {', '.join(record['effects']) or 'nothing'} ({record['status']})")
+    say = lambda scale, seed, record: f"{scale} seed {seed}: {', '.join(record['effects']) or 'nothing'} ({record['status']})"
+    outcomes = sweep(SCALES, SEEDS, outcome, say, progress)
     return jsondoc.plain(sweep_result("scale", __file__, outcomes, verdict(outcomes), began, cpu))
 
 
