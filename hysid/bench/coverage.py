@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from hysid.bench import check_chosen, verdict
+from hysid.bench import check_chosen, git_commit, source_hash, verdict
 from hysid.bench import search_problems as sp
 from hysid.fit_result import FitResult
 from hysid.motion import choose_motion
@@ -193,19 +193,31 @@ def reported(result: FitResult, truth: dict[str, float]) -> dict[str, tuple[floa
     return out
 
 
+def seed_errors(specimen: Specimen, seed: int) -> tuple[FitResult, dict[str, float]]:
+    """``specimen``'s fit on noise draw ``seed`` and each reported quantity's |estimate - truth| in its reported
+    standard errors (inf where none is reported)."""
+    result = fitted(specimen, loops_of(specimen, seed), seed)
+    return result, {
+        name: abs(value - true) / se if np.isfinite(se) and se > 0 else np.inf for name, (value, se, true) in reported(result, specimen.truth).items()
+    }
+
+
 def specimen_coverage(specimen: Specimen, seeds: int) -> dict[str, Any]:
-    """Coverage of every reported quantity of ``specimen`` over ``seeds`` noise draws."""
+    """Coverage of every reported quantity of ``specimen`` over ``seeds`` noise draws, and each draw's errors of the
+    parameters (``per_seed``: a test runs a draw again against them)."""
     began = time.perf_counter()
     z: dict[str, list[float]] = {}
+    per_seed: dict[str, dict[str, float]] = {}
     not_identifiable: dict[str, int] = {}
     misfit = []
     for seed in range(seeds):
-        result = fitted(specimen, loops_of(specimen, seed), seed)
+        result, errors = seed_errors(specimen, seed)
         for name in result.not_identifiable:
             not_identifiable[name] = not_identifiable.get(name, 0) + 1
         misfit.append(result.misfit)
-        for name, (value, se, true) in reported(result, specimen.truth).items():
-            z.setdefault(name, []).append(abs(value - true) / se if np.isfinite(se) and se > 0 else np.inf)
+        for name, error in errors.items():
+            z.setdefault(name, []).append(error)
+        per_seed[str(seed)] = {name: errors[name] for name in result.model.names}
     quantities = {
         name: {"covered": float(np.mean(np.array(v) <= WITHIN)), "median_abs_z": float(np.median(v)), "without_error": int(np.sum(~np.isfinite(v)))}
         for name, v in z.items()
@@ -222,6 +234,7 @@ def specimen_coverage(specimen: Specimen, seeds: int) -> dict[str, Any]:
         "not_identifiable": not_identifiable,
         "misfit_median": float(np.median([m for m in misfit if m is not None])) if any(m is not None for m in misfit) else None,
         "ok": quantities[worst]["covered"] >= TARGET,
+        "per_seed": per_seed,
         "wall_s": time.perf_counter() - began,
     }
 
@@ -235,6 +248,8 @@ def run(seeds: int = SEEDS, names: tuple[str, ...] | None = None) -> dict[str, A
         raise HysidInputError("need at least 10 noise seeds (a share of fewer says little)", param="seeds", value=seeds)
     result: dict[str, Any] = {
         "bench": "coverage",
+        "definitions": definitions_hash(),
+        "commit": git_commit(),
         "target": {"within_stderr": WITHIN, "share": TARGET},
         "specimens": {name: specimen_coverage(known[name], seeds) for name in names},
     }
@@ -260,3 +275,9 @@ def to_text(result: dict[str, Any]) -> str:
         if s["not_identifiable"]:
             lines.append(f"    named not identifiable (seeds): {s['not_identifiable']}")
     return "\n".join(lines)
+
+
+def definitions_hash() -> str:
+    """sha256 of this file: the specimens, their seeds and the criterion as the bench ran them (the test that reads a
+    committed result refuses one of other definitions)."""
+    return source_hash(__file__)
