@@ -113,14 +113,19 @@ def source_hash(path: str | Path) -> str:
 
 
 def sweep(
+    bench: str,
+    source: str | Path,
     groups: Iterable[str],
     seeds: Iterable[int],
     outcome: Callable[[str, int], dict[str, Any]],
     say: Callable[[str, int, dict[str, Any]], str],
+    judge: Callable[[dict[str, dict[str, dict[str, Any]]]], dict[str, Any]],
     progress: Callable[[int, int, str], None] | None = None,
-) -> dict[str, dict[str, dict[str, Any]]]:
-    """Every group's ``outcome(group, seed)`` on every seed, by group and by seed (as text), in order; after each,
+) -> dict[str, Any]:
+    """The :func:`sweep_result` of bench ``bench`` (defined in ``source``): every group's ``outcome(group, seed)`` on
+    every seed, by group and by seed (as text), in order, judged by ``judge``; after each outcome,
     ``progress(done, total, say(group, seed, record))``."""
+    began, cpu = time.perf_counter(), time.process_time()
     groups, seeds = list(groups), list(seeds)
     outcomes: dict[str, dict[str, dict[str, Any]]] = {group: {} for group in groups}
     for group in groups:
@@ -128,7 +133,7 @@ def sweep(
             outcomes[group][str(seed)] = record = outcome(group, seed)
             if progress is not None:
                 progress(sum(map(len, outcomes.values())), len(groups) * len(seeds), say(group, seed, record))
-    return outcomes
+    return sweep_result(bench, source, outcomes, judge(outcomes), began, cpu)
 
 
 def sweep_result(bench: str, source: str | Path, outcomes: dict[str, Any], judged: dict[str, Any], began: float, cpu: float) -> dict[str, Any]:

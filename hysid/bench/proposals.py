@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from hysid.bench import source_hash, sweep, sweep_result
+from hysid.bench import source_hash, sweep
 from hysid.bench import verdict as pass_word
 from hysid.bench.discovery_cases import loops_of, truth_model
 from hysid.diagnosis.discovery import Proposed, propose
@@ -67,10 +67,8 @@ def run(progress: Callable[[int, int, str], None] | None = None) -> dict[str, An
     tests/test_discovery.py reads).
 
     ``progress(done, total, what)`` is called as each proposal ends."""
-    began, cpu = time.perf_counter(), time.process_time()
     say = lambda control, seed, record: f"{control} seed {seed}: {record['proposed'] or 'nothing proposed'}"
-    outcomes = sweep(CONTROLS, SEEDS, outcome, say, progress)
-    return jsondoc.plain(sweep_result("proposals", __file__, outcomes, verdict(outcomes), began, cpu))
+    return jsondoc.plain(sweep("proposals", __file__, CONTROLS, SEEDS, outcome, say, verdict, progress))
 
 
 def to_text(result: dict[str, Any]) -> str:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 import hysid
-from hysid.bench import check_chosen, source_hash, sweep, sweep_result
+from hysid.bench import check_chosen, source_hash, sweep
 from hysid.bench import verdict as pass_word
 from hysid.report import jsondoc
 from hysid_model.loops import LoopSet
@@ -116,10 +116,8 @@ def run(progress: Callable[[int, int, str], None] | None = None) -> dict[str, An
     statistics tests/test_realdata.py reads).
 
     ``progress(done, total, what)`` is called as each diagnosis ends."""
-    began, cpu = time.perf_counter(), time.process_time()
     say = lambda scale, seed, record: f"{scale} seed {seed}: {', '.join(record['effects']) or 'nothing'} ({record['status']})"
-    outcomes = sweep(SCALES, SEEDS, outcome, say, progress)
-    return jsondoc.plain(sweep_result("scale", __file__, outcomes, verdict(outcomes), began, cpu))
+    return jsondoc.plain(sweep("scale", __file__, SCALES, SEEDS, outcome, say, verdict, progress))
 
 
 def to_text(result: dict[str, Any]) -> str:
