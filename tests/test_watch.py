@@ -23,9 +23,9 @@ ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory):
-    """A finished single-node campaign: its database and its own result document."""
+    """A finished single-node campaign, reported without its figures: its database and its own result document."""
     out = tmp_path_factory.mktemp("campaign") / "out"
-    assert main(["campaign", "--single-node", "--islands", "3", *SMALL, "--iterations", "12", "--quiet", "--out", str(out)]) == 0
+    assert main(["campaign", "--single-node", "--islands", "3", *SMALL, "--iterations", "12", "--no-figures", "--quiet", "--out", str(out)]) == 0
     return out / "campaign.sqlite", json.loads((out / "result.json").read_text())
 
 
@@ -36,6 +36,8 @@ def digest(path) -> str:
 @pytest.mark.slow  # over 3 s (fast lane, 2 cores, 2026-11-29)
 def test_report_rebuilds_a_campaign_from_its_database_alone(finished, tmp_path, capsys):
     db, original = finished
+    first = (db.parent / "report.md").read_text()  # --no-figures: the report says why, and where they are drawn
+    assert f"not drawn, the report was asked for without figures (`hysid report {db}` draws them)" in first and not list(db.parent.glob("*.png"))
     before = digest(db)
     capsys.readouterr()
     assert main(["report", str(db), "--json", "--out", str(tmp_path / "again")]) == 0
