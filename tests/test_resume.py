@@ -102,9 +102,9 @@ def test_an_island_started_before_its_coordinator_waits_for_it_and_joins(spawn, 
     early, err = start_island(spawn, endpoint, "early", "first", db, "--wait", "60")
     err.wait_for("no campaign secret at", 60)  # its coordinator writes it when it starts
     assert early.poll() is None
-    coordinator = start_coordinator(spawn, endpoint, "early", db, tmp_path / "out", "--algos", "pso", *SMALL, "--evaluations", "20000")
+    coordinator = start_coordinator(spawn, endpoint, "early", db, tmp_path / "out", "--algos", "pso", *SMALL, "--evaluations", "5000")
     doc = finished(coordinator)
-    assert doc["settings"]["stop_reason"] == "budget of 20,000 evaluations spent"
+    assert doc["settings"]["stop_reason"] == "budget of 5,000 evaluations spent"
     assert [(i["island"], i["status"]) for i in doc["islands"]] == [("first", "left")]
     assert early.wait(30) == 0 and "waiting up to 60 s (--wait)" in err.text()
 
@@ -127,10 +127,10 @@ def test_mixed_islands_with_an_evaluation_budget_all_search_until_the_coordinato
     """GA islands iterate many times faster than PSO ones: with a budget in evaluations none stops on
     its own iteration budget; every island searches, and migrates, until the coordinator's stop."""
     endpoint, db = f"tcp/127.0.0.1:{free_port()}", tmp_path / "m.sqlite"
-    coordinator = start_coordinator(spawn, endpoint, "mixed", db, tmp_path / "out", "--algos", "ga,pso", *SMALL, "--min-islands", "4", "--evaluations", "40000")
+    coordinator = start_coordinator(spawn, endpoint, "mixed", db, tmp_path / "out", "--algos", "ga,pso", *SMALL, "--min-islands", "4", "--evaluations", "15000")
     islands = [start_island(spawn, endpoint, "mixed", f"{algo}-{i}", db, "--algo", algo) for i, algo in enumerate(["ga", "pso", "ga", "pso"])]
     doc = finished(coordinator)
-    assert doc["settings"]["stop_reason"] == "budget of 40,000 evaluations spent" and doc["settings"]["until_stopped"] is True
+    assert doc["settings"]["stop_reason"] == "budget of 15,000 evaluations spent" and doc["settings"]["until_stopped"] is True
     for p, err in islands:
         assert p.wait(30) == 0
         err.thread.join(10)
