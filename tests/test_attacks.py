@@ -114,6 +114,7 @@ def test_a_token_held_by_a_stranger_neither_keeps_a_campaign_open_nor_hides_a_lo
         "--min-islands",
         "2",
         "--quiet",
+        "--no-figures",
     )
     ready(endpoint, "held")
     session = stranger(endpoint)
@@ -359,6 +360,7 @@ def test_a_junk_flood_around_the_end_does_not_keep_the_coordinator_alive(spawn, 
         "--interval",
         "5",
         "--quiet",
+        "--no-figures",
     )
     ready(endpoint, "junk")
     a = island(spawn, endpoint, "junk", "a", db)

@@ -61,7 +61,7 @@ def test_single_node_campaign_gives_the_fit_document_plus_islands_and_migrations
 def test_campaign_of_island_processes_over_zenoh(tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run(
-        hysid("campaign", "--islands", "2", *PSO_ISLANDS, "--iterations", "200", "--json", "--out", str(out)),
+        hysid("campaign", "--islands", "2", *PSO_ISLANDS, "--iterations", "200", "--json", "--no-figures", "--out", str(out)),
         capture_output=True,
         text=True,
         timeout=120,
@@ -85,7 +85,9 @@ def test_an_honest_campaign_of_two_island_processes_counts_no_message_rejected_o
     rejected, nor one that waited for the roster in vain (the roster goes out at every join, before the joiner hears
     it joined), the coordinator rejects none, and every move of the share is followed."""
     out = tmp_path / "out"
-    proc = subprocess.run(hysid("campaign", "--islands", "2", *sizes(20, 40, 400), "--json", "--out", str(out)), capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        hysid("campaign", "--islands", "2", *sizes(20, 40, 400), "--json", "--no-figures", "--out", str(out)), capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert [(i["island"], i["rejected"], i["unlisted"]) for i in doc["islands"]] == [("island-0", 0, 0), ("island-1", 0, 0)]
@@ -221,7 +223,9 @@ def test_a_stored_campaign_is_never_overwritten(tmp_path, capsys):
     [(["--target", "1e-6"], "target fitness 1e-06 reached"), (["--stall", "3000"], "no improvement in 3,000 evaluations")],
 )
 def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path, capsys):
-    doc = json_of(capsys, tmp_path / "o", "campaign", "--single-node", "--islands", "2", *PSO_ISLANDS, "--iterations", "10000000", *rule, "--no-polish")
+    doc = json_of(
+        capsys, tmp_path / "o", "campaign", "--single-node", "--islands", "2", *PSO_ISLANDS, "--iterations", "10000000", *rule, "--no-polish", "--no-figures"
+    )
     assert doc["settings"]["stop_reason"] == reason
     assert all(i["status"] == "left" and i["final"] for i in doc["islands"])
     if rule[0] == "--target":
@@ -231,8 +235,10 @@ def test_target_and_stall_rules_stop_an_endless_campaign(rule, reason, tmp_path,
 @pytest.mark.slow
 def test_resuming_a_finished_campaign_reports_it_again_from_the_database(tmp_path, capsys):
     db = tmp_path / "c.sqlite"
-    first = json_of(capsys, tmp_path / "a", "campaign", "--single-node", "--islands", "2", *SMALL, "--db", str(db))
-    again = json_of(capsys, tmp_path / "b", "coordinator", "--resume", "--db", str(db), "--campaign", "campaign", "--listen", f"tcp/127.0.0.1:{free_port()}")
+    first = json_of(capsys, tmp_path / "a", "campaign", "--single-node", "--islands", "2", *SMALL, "--db", str(db), "--no-figures")
+    again = json_of(
+        capsys, tmp_path / "b", "coordinator", "--resume", "--db", str(db), "--campaign", "campaign", "--listen", f"tcp/127.0.0.1:{free_port()}", "--no-figures"
+    )
     assert again["settings"]["stop_reason"] == "every island finished"
     assert again["islands"] == first["islands"] and again["params"] == pytest.approx(first["params"], rel=1e-9)
     assert again["dataset"]["true_params"] == TRUE_PARAMS  # the loop set's metadata travelled through the database
@@ -250,14 +256,14 @@ def shadow_package(where):
 @pytest.mark.slow
 def test_a_folder_named_hysid_in_the_working_directory_does_not_shadow_the_islands_package(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(shadow_package(tmp_path / "parent"))
-    doc = json_of(capsys, tmp_path / "o", "campaign", "--islands", "2", "--algos", "pso", *SMALL, "--no-polish")
+    doc = json_of(capsys, tmp_path / "o", "campaign", "--islands", "2", "--algos", "pso", *SMALL, "--no-polish", "--no-figures")
     assert [(i["island"], i["iterations"], i["status"]) for i in doc["islands"]] == [("island-0", 15, "left"), ("island-1", 15, "left")]
 
 
 @pytest.mark.slow
 def test_a_failed_campaign_leaves_no_directory_that_blocks_the_next_run(tmp_path, monkeypatch, capsys):
     out = tmp_path / "o"
-    argv = ["campaign", "--islands", "1", "--algos", "pso", *SMALL, "--no-polish", "--json", "--quiet", "--out", str(out)]
+    argv = ["campaign", "--islands", "1", "--algos", "pso", *SMALL, "--no-polish", "--no-figures", "--json", "--quiet", "--out", str(out)]
     monkeypatch.setenv("PYTHONPATH", str(shadow_package(tmp_path / "broken")))  # every island process fails at its start
     assert main(argv) == 2
     err = capsys.readouterr().err
@@ -288,7 +294,7 @@ def test_an_unfinished_campaign_database_in_out_is_kept_and_named(tmp_path, caps
 @pytest.mark.slow  # over 3 s
 def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_the_stop(tmp_path, capsys):
     argv = ["campaign", "--single-node", "--islands", "2", "--algos", "ga,pso", "--share", "fixed", "--population", "20", "--initial", "40", "--interval", "5"]
-    doc = json_of(capsys, tmp_path / "o", *argv, "--evaluations", "6000", "--no-polish")
+    doc = json_of(capsys, tmp_path / "o", *argv, "--evaluations", "6000", "--no-polish", "--no-figures")
     assert doc["settings"]["stop_reason"] == "budget of 6,000 evaluations spent" and doc["settings"]["until_stopped"] is True
     assert doc["settings"]["share"] == "fixed" and doc["settings"]["moves"] == []
     ga, pso = doc["islands"]
@@ -299,7 +305,7 @@ def test_an_evaluation_budget_keeps_ga_and_pso_islands_searching_together_until_
 
 @pytest.mark.slow  # over 3 s
 def test_iterations_given_stay_each_islands_own_budget(tmp_path, capsys):
-    doc = json_of(capsys, tmp_path / "o", "campaign", "--single-node", "--islands", "2", *SMALL, "--time", "600", "--no-polish")
+    doc = json_of(capsys, tmp_path / "o", "campaign", "--single-node", "--islands", "2", *SMALL, "--time", "600", "--no-polish", "--no-figures")
     assert doc["settings"]["stop_reason"] == "every island finished" and doc["settings"]["until_stopped"] is False
     assert [i["iterations"] for i in doc["islands"]] == [15, 15]
 

@@ -405,6 +405,7 @@ def test_a_campaign_runs_with_the_secure_recipe_and_an_island_cannot_take_anothe
             "pso",
             *sizes(20, 40, 300),
             "--no-polish",
+            "--no-figures",
             "--quiet",
             "--json",
         )

@@ -34,7 +34,7 @@ from support import PSO_ISLANDS, Peer, coordinator_args, events, query, ready, r
 
 pytestmark = pytest.mark.slow  # processes, kills and restarts: the full suite runs these
 
-ENDLESS = [*PSO_ISLANDS, "--iterations", "10000000", "--interval", "5", "--quiet"]
+ENDLESS = [*PSO_ISLANDS, "--iterations", "10000000", "--interval", "5", "--quiet", "--no-figures"]  # the report, without its seconds of figures
 BOUNDS = np.array([[0.0, 0.1], [-10.0, 10.0], [100.0, 500.0], [-1e4, 1e4]])  # Table 5.4 (the Synth set's bounds)
 TRUTH = np.array([TRUE_PARAMS[n] for n in ("xi0", "S_xi", "w0", "S_w")])
 
@@ -252,6 +252,7 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
         "--budget",
         "100000000",
         "--quiet",
+        "--no-figures",
     )  # islands run long enough to hear every attack (sent by their ~50th iteration) and the 5 s a decoy's message may wait
     ready(endpoint, "steer")
     islands = {name: island(spawn, endpoint, "steer", name, db) for name in ("a", "c")}
@@ -305,7 +306,7 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     assert doc["settings"]["stop_reason"] == "every island finished"
     assert {i["island"] for i in doc["islands"]} == {"a", "c"} and doc["evaluations"] < 10**6
     reasons = doc["migrations"]["rejected_reasons"]
-    assert reasons["unjoined"] >= 300 + 3 and reasons["forged"] >= 1 and reasons["replay"] >= 87  # the first three may be the originals
+    assert reasons["unjoined"] >= 300 + 3 and reasons["forged"] >= 1 and reasons["replay"] >= 87, reasons  # the first three may be the originals
     assert migrations_are_unique(db) and not query(db, "SELECT 1 FROM migrations WHERE island IN ('b', 'ghost', 'mallory')")
     assert {e for (e,) in query(db, "SELECT DISTINCT island FROM members")} == {"a", "c", "mallory"}
     a_doc, c_doc = (next(i for i in doc["islands"] if i["island"] == name) for name in ("a", "c"))
@@ -385,7 +386,19 @@ def test_rows_sent_while_the_coordinator_was_down_arrive_when_it_returns_and_the
         wait_for(lambda: node.finished, 120, "the island to finish its budget with nobody listening")
         assert len(node.rows) == 1201 > stored_before and worker.is_alive()  # it waits for a confirmation
         second = spawn(
-            "coordinator", "--listen", endpoint, "--campaign", "down", "--db", str(db), "--resume", "--out", str(tmp_path / "out2"), "--json", "--quiet"
+            "coordinator",
+            "--listen",
+            endpoint,
+            "--campaign",
+            "down",
+            "--db",
+            str(db),
+            "--resume",
+            "--out",
+            str(tmp_path / "out2"),
+            "--json",
+            "--quiet",
+            "--no-figures",
         )
         doc = finished(second, timeout=90)
         worker.join(30)

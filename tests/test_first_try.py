@@ -202,6 +202,7 @@ def test_island_and_coordinator_count_iterations_alike_and_a_quiet_coordinator_s
             "7",
             "--json",
             "--quiet",
+            "--no-figures",
         ),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

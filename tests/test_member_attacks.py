@@ -157,7 +157,7 @@ def test_the_secret_of_one_launched_island_process_is_one_member_and_cannot_end_
     claiming the plausible maximum: they count for that member only, which counts no further than the other island."""
     out = tmp_path / "out"
     campaign = subprocess.Popen(
-        hysid("campaign", "--islands", "2", "--budget", str(BUDGET), "--out", str(out), *SMALL),
+        hysid("campaign", "--islands", "2", "--budget", str(BUDGET), "--out", str(out), "--no-figures", *SMALL),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

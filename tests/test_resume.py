@@ -26,7 +26,7 @@ SMALL = ["--population", "20", "--initial", "40", "--interval", "5"]
 
 
 def start_coordinator(spawn, endpoint: str, campaign: str, db: Path, out: Path, *extra: str) -> subprocess.Popen:
-    p = spawn("coordinator", "--listen", endpoint, "--campaign", campaign, "--db", str(db), "--out", str(out), "--json", "--quiet", *extra)
+    p = spawn("coordinator", "--listen", endpoint, "--campaign", campaign, "--db", str(db), "--out", str(out), "--json", "--quiet", "--no-figures", *extra)
     ready(endpoint, campaign, process=p)  # an island started before it may end its campaign before the first look
     return p
 

@@ -182,6 +182,7 @@ def _campaign(lab: Lab, sites: list[Site], time_limit_s: float, workdir: Path, p
             "--time-limit",
             f"{time_limit_s:g}",
             *ISLAND_SETTINGS,
+            "--no-figures",  # the bench reads the database, not the report's figures
             "synth",
         ),
         stdout=subprocess.DEVNULL,
