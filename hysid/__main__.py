@@ -8,15 +8,37 @@ interrupt can be caught around that import.
 from __future__ import annotations
 
 import gc
+import signal
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as shells report it (:data:`hysid.cli.options.INTERRUPTED`)."""
 
 
+@contextmanager
+def interrupt_after_loading() -> Iterator[None]:
+    """Ctrl-C while the command line loads is raised once it has loaded: raised inside an import it may land in one of
+    importlib's own callbacks, where Python prints it as ignored (a traceback) and the command runs on as if no key had
+    been pressed. A SIGINT that whoever started hysid ignores or handles stays so."""
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    pressed: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: pressed.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if pressed:
+        raise KeyboardInterrupt
+
+
 def main() -> int:
     try:
-        from hysid.cli import main as run
+        with interrupt_after_loading():
+            from hysid.cli import main as run
 
         status = run()
     except KeyboardInterrupt:  # while the command line loads, or builds itself before it handles Ctrl-C on its own
