@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -113,6 +114,11 @@ def drive(opt, objective):
 def hysid(*args: str) -> list[str]:
     """The command line of ``hysid ARGS`` as a separate process."""
     return [sys.executable, "-m", "hysid", *args]
+
+
+def stderr_read(command: list[str], **popen: Any) -> subprocess.Popen:
+    """``command`` as a background process whose stderr (text) the test reads and whose stdout it drops."""
+    return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, **popen)
 
 
 def interruptible() -> None:

@@ -18,7 +18,7 @@ import pytest
 from coordinator.launch import free_port
 from coordinator.store import Store
 from hysid.cli import main
-from support import PSO_ISLANDS, coordinator_args, hysid
+from support import PSO_ISLANDS, coordinator_args, hysid, stderr_read
 
 
 @pytest.fixture
@@ -121,11 +121,8 @@ def test_a_database_disk_that_fills_up_mid_run_stops_the_campaign_cleanly(mount,
         text=True,
     )
     islands = [
-        subprocess.Popen(
+        stderr_read(
             hysid("island", "--connect", endpoint, "--campaign", "full", "--id", name, "--quiet", "--wait", "10", "--secret-file", f"{db}-full.secret"),
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
         )
         for name in ("a", "b")
     ]

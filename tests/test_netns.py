@@ -16,7 +16,7 @@ import pytest
 import zenoh
 
 from hysid.bench.netns import SUBNET, Lab, NamespacesUnavailable, ip, unavailable
-from support import time_boxed
+from support import stderr_read, time_boxed
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -140,7 +140,7 @@ def zenoh_file(tmp_path: Path, name: str, settings: dict[str, object]) -> Path:
 def run_campaign(lab: Lab, tmp_path: Path, campaign: str, coordinator_config: Path, island_configs: dict[str, Path], protocol: str) -> Path:
     """The coordinator in the hub namespace, island h<k> in namespace h<k>; returns the report directory."""
     out = tmp_path / "out"
-    coordinator = subprocess.Popen(
+    coordinator = stderr_read(
         lab.command(
             lab.hub,
             *HYSID,
@@ -158,15 +158,12 @@ def run_campaign(lab: Lab, tmp_path: Path, campaign: str, coordinator_config: Pa
             *TIME_BOXED_CAMPAIGN,
             "synth",
         ),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
         cwd=tmp_path,
     )
     islands = []
     try:
         islands = [
-            subprocess.Popen(
+            stderr_read(
                 lab.command(
                     lab.host(k),
                     *HYSID,
@@ -185,9 +182,6 @@ def run_campaign(lab: Lab, tmp_path: Path, campaign: str, coordinator_config: Pa
                     "--secret-file",
                     str(out / f"campaign.sqlite-{campaign}.secret"),
                 ),
-                stdout=subprocess.DEVNULL,
-                stderr=subprocess.PIPE,
-                text=True,
                 cwd=tmp_path,
             )
             for k, name in enumerate(ISLANDS, start=1)

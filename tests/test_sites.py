@@ -20,7 +20,7 @@ from coordinator.launch import free_port
 from hysid.bench.netns import NamespacesUnavailable
 from hysid.bench.sites import Site, campaign
 from hysid.cli import main
-from support import coordinator_args, hysid, query, time_boxed
+from support import coordinator_args, hysid, query, stderr_read, time_boxed
 
 pytestmark = pytest.mark.timeout(120)
 DEPLOY = Path(__file__).resolve().parents[1] / "deploy"
@@ -85,7 +85,7 @@ def test_islands_behind_a_router_take_part_in_a_campaign(tmp_path: Path) -> None
         ready = router.stderr.readline()
         assert " ready (listening on " + site in ready, ready
         db = tmp_path / "c.sqlite"
-        coordinator = subprocess.Popen(
+        coordinator = stderr_read(
             hysid(
                 *coordinator_args(upstream, "behind", db, tmp_path / "out"),
                 "--quiet",
@@ -93,9 +93,6 @@ def test_islands_behind_a_router_take_part_in_a_campaign(tmp_path: Path) -> None
                 *time_boxed(2, 6),
                 "synth",
             ),
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
         )
         processes.append(coordinator)
         islands = [
