@@ -306,7 +306,10 @@ def test_outsiders_and_a_broken_island_cannot_steer_a_campaign(spawn, tmp_path):
     assert doc["settings"]["stop_reason"] == "every island finished"
     assert {i["island"] for i in doc["islands"]} == {"a", "c"} and doc["evaluations"] < 10**6
     reasons = doc["migrations"]["rejected_reasons"]
-    assert reasons["unjoined"] >= 300 + 3 and reasons["forged"] >= 1 and reasons["replay"] >= 87, reasons  # the first three may be the originals
+    # each of the 87 replays (the first three may be the originals) rejected as one, or, where the coordinator's inbox
+    # was crowded (a loaded machine), superseded by a newer message of a before it was handled (coordinator.inbox)
+    superseded = query(db, "SELECT coalesce(sum(messages), 0) FROM superseded WHERE island = 'a'")[0][0]
+    assert reasons["unjoined"] >= 300 + 3 and reasons["forged"] >= 1 and reasons["replay"] + superseded >= 87, (reasons, superseded)
     assert migrations_are_unique(db) and not query(db, "SELECT 1 FROM migrations WHERE island IN ('b', 'ghost', 'mallory')")
     assert {e for (e,) in query(db, "SELECT DISTINCT island FROM members")} == {"a", "c", "mallory"}
     a_doc, c_doc = (next(i for i in doc["islands"] if i["island"] == name) for name in ("a", "c"))
