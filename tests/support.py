@@ -116,6 +116,14 @@ def hysid(*args: str) -> list[str]:
     return [sys.executable, "-m", "hysid", *args]
 
 
+def committed_bench(name: str, definitions: str) -> dict:
+    """The newest committed ``hysid bench NAME`` result (bench/results/NAME-*.json), which must have run today's
+    ``definitions`` (the sha256 of the module defining its cases, seeds and criterion): else it is to be run again."""
+    result = json.loads(sorted((ROOT / "bench" / "results").glob(f"{name}-*.json"))[-1].read_text())
+    assert result["definitions"] == definitions, f"the definitions of hysid bench {name} changed since it ran: bash bench/run.sh {name}"
+    return result
+
+
 def stderr_read(command: list[str], **popen: Any) -> subprocess.Popen:
     """``command`` as a background process whose stderr (text) the test reads and whose stdout it drops."""
     return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, **popen)

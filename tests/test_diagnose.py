@@ -19,19 +19,18 @@ from hysid.cli import main
 from hysid.diagnosis.selection import diagnose
 from hysid_model.datasets import write_dataset
 from hysid_model.effects import EFFECTS
-from support import ROOT
+from support import committed_bench
 
 
 @pytest.fixture(scope="module")
 def bench() -> dict:
-    """The newest committed `hysid bench diagnose` result."""
-    return json.loads(sorted((ROOT / "bench" / "results").glob("diagnose-*.json"))[-1].read_text())
+    """The newest committed `hysid bench diagnose` result (its cases today's)."""
+    return committed_bench("diagnose", dc.definitions_hash())
 
 
 def seeds_then_live(bench: dict, name: str) -> dict:
     """Case ``name``'s criterion over the bench's seeds (its definitions today's), then its cheapest right seed run
     live: the outcome must again be right, its every-seed checks held."""
-    assert bench["definitions"] == dc.definitions_hash(), "hysid/bench/diagnose_cases.py changed since the bench ran: bash bench/run.sh diagnose"
     case = dc.cases()[name]
     records = {int(seed): r for seed, r in bench["cases"][name]["per_seed"].items()}
     verdict = dc.verdict(case, records)

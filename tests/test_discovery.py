@@ -29,7 +29,7 @@ from hysid_model.model import build_model, effect_term
 from hysid_model.readers.tidy import write_loops
 from hysid_model.synth import simulate_raw
 from hysid_model.terms import ModalState
-from support import ROOT
+from support import committed_bench
 
 
 def micro_slip(x, v, k2):
@@ -172,8 +172,7 @@ def test_the_criterion_of_the_proposals_bench_fails_a_second_proposal_or_a_seed_
 def test_false_discoveries_are_rare_over_twenty_noise_seeds() -> None:
     """At most one law proposed over the 20 noise seeds of each control of the committed `hysid bench proposals` (which
     must have run today's definitions), and each control's cheapest seed again live, as the bench found it."""
-    bench = json.loads(sorted((ROOT / "bench" / "results").glob("proposals-*.json"))[-1].read_text())
-    assert bench["definitions"] == proposals.definitions_hash(), "hysid/bench/proposals.py changed since the bench ran: bash bench/run.sh proposals"
+    bench = committed_bench("proposals", proposals.definitions_hash())
     assert proposals.verdict(bench["outcomes"])["ok"], bench["outcomes"]
     for control, records in bench["outcomes"].items():
         seed = min(proposals.SEEDS, key=lambda s: records[str(s)]["cpu_s"])

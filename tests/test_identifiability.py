@@ -13,7 +13,7 @@ import hysid
 from hysid.bench import coverage
 from hysid.fit_result import parameter_covariance
 from hysid.identifiability import side_width
-from support import ROOT
+from support import committed_bench
 
 
 @pytest.fixture(scope="module")
@@ -73,9 +73,7 @@ def test_over_40_noise_seeds_the_truth_lies_within_two_reported_errors_in_90_per
     """hysid bench coverage (bench/results/coverage-*.json, which must have run today's definitions): the cheap
     linear bearing, the bearing fitted with mr_damper and the fluid damper as a user's term, each over 40 noise seeds;
     and the linear bearing's first seed fitted again live, to the bench's errors."""
-    committed = sorted((ROOT / "bench" / "results").glob("coverage-*.json"))[-1]
-    bench = json.loads(committed.read_text())
-    assert bench["definitions"] == coverage.definitions_hash(), "hysid/bench/coverage.py changed since the bench ran: bash bench/run.sh coverage"
+    bench = committed_bench("coverage", coverage.definitions_hash())
     worst = bench["specimens"]["linear_bearing"]
     assert worst["ok"] and worst["worst_covered"] >= 0.9, coverage.to_text(bench)
     assert worst["quantities"]["w0"]["without_error"] == 0 and not worst["not_identifiable"]

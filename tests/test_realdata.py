@@ -18,7 +18,7 @@ from hysid_model.model import build_model
 from hysid_model.problem import prepare_model
 from hysid_model.survey import survey
 from hysid_model.synth import TRUE_PARAMS
-from support import DAMPER, GA_SMALL, ROOT
+from support import DAMPER, GA_SMALL, committed_bench
 
 SURVEY_KEYS = {"k_dyn", "c_eq", "loss_factor", "energy_per_cycle", "k_secant", "fn_hz", "xi"}
 
@@ -325,8 +325,7 @@ def test_a_specimen_far_from_the_thesis_gets_the_diagnosis_of_the_same_physics_a
     0.04 kg, 0.5-1.5 mm (the thesis' beams): both diagnoses name the same effects with the same status, over the
     3 seeds of the committed `hysid bench scale` (which must have run today's specimens), and the far specimen's
     cheapest seed again live, matching the bench's diagnosis at the thesis' scale."""
-    bench = json.loads(sorted((ROOT / "bench" / "results").glob("scale-*.json"))[-1].read_text())
-    assert bench["definitions"] == scale.definitions_hash(), "hysid/bench/scale.py changed since the bench ran: bash bench/run.sh scale"
+    bench = committed_bench("scale", scale.definitions_hash())
     assert scale.verdict(bench["outcomes"])["ok"], bench["outcomes"]
     seed = min(scale.SEEDS, key=lambda s: bench["outcomes"]["far"][str(s)]["cpu_s"])
     live = scale.outcome("far", seed)

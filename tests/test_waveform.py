@@ -3,8 +3,6 @@ term's force on it against a time-domain reference; extraction keeps it; fits us
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
@@ -18,7 +16,7 @@ from hysid_model.model import build_model
 from hysid_model.readers.tidy import read_loops, write_loops
 from hysid_model.synth import model_force
 from island.config import CampaignConfig, decode_config, encode_config
-from support import ROOT
+from support import committed_bench
 from timedomain_reference import periodic_steady_state, tabulated_drive
 
 GRID = np.linspace(0.0, 2 * np.pi, 4000, endpoint=False)
@@ -133,8 +131,7 @@ def test_a_distorted_shaker_is_fitted_at_the_cramer_rao_bound_and_the_ideal_sine
     displacement as the ideal sine (the thesis' Eq. 4.5) is off by many standard errors. The 8 seeds of the
     committed `hysid bench shaker` (which must have run today's definitions), and its cheapest seed fitted
     again live, to the bench's errors."""
-    bench = json.loads(sorted((ROOT / "bench" / "results").glob("shaker-*.json"))[-1].read_text())
-    assert bench["definitions"] == shaker.definitions_hash(), "hysid/bench/shaker.py changed since the bench ran: bash bench/run.sh shaker"
+    bench = committed_bench("shaker", shaker.definitions_hash())
     judged = shaker.verdict(bench["outcomes"])
     assert judged["ok"], judged  # an efficient estimator: 1 +- 0.25 over 8 draws; the sine many bounds off
     seed = min(shaker.SEEDS, key=lambda s: bench["outcomes"][str(s)]["cpu_s"])

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import typer
@@ -159,22 +160,18 @@ def diagnose_command(
     emit(diagnose.run(tuple(c for c in cases.split(",") if c), workers or None, report), diagnose.to_text, as_json)
 
 
-@bench_app.command("scale", help=(scale.run.__doc__ or "").strip().splitlines()[0])
-def scale_command(as_json: bool = BENCH_JSON) -> None:
-    report = lambda done, total, what: typer.echo(f"hysid bench scale: {done}/{total} {what}", err=True)
-    emit(scale.run(report), scale.to_text, as_json)
+def register_sweep(module: ModuleType) -> None:
+    """``hysid bench NAME`` of a seed sweep a test reads (:func:`hysid.bench.sweep`): its progress on stderr, its result."""
+    name = module.__name__.rsplit(".", 1)[-1]
+
+    @bench_app.command(name, help=(module.run.__doc__ or "").strip().splitlines()[0])
+    def sweep_command(as_json: bool = BENCH_JSON) -> None:
+        report = lambda done, total, what: typer.echo(f"hysid bench {name}: {done}/{total} {what}", err=True)
+        emit(module.run(report), module.to_text, as_json)
 
 
-@bench_app.command("proposals", help=(proposals.run.__doc__ or "").strip().splitlines()[0])
-def proposals_command(as_json: bool = BENCH_JSON) -> None:
-    report = lambda done, total, what: typer.echo(f"hysid bench proposals: {done}/{total} {what}", err=True)
-    emit(proposals.run(report), proposals.to_text, as_json)
-
-
-@bench_app.command("shaker", help=(shaker.run.__doc__ or "").strip().splitlines()[0])
-def shaker_command(as_json: bool = BENCH_JSON) -> None:
-    report = lambda done, total, what: typer.echo(f"hysid bench shaker: {done}/{total} {what}", err=True)
-    emit(shaker.run(report), shaker.to_text, as_json)
+for sweep_module in (scale, proposals, shaker):
+    register_sweep(sweep_module)
 
 
 @bench_app.command("coordinator", help=(coordinator.run.__doc__ or "").strip().splitlines()[0])
