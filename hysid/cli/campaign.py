@@ -27,7 +27,7 @@ from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult, campaign, finish
 from hysid.cli import options as o
-from hysid.cli.groups import LAID_OUT, Constraints, Reading, Search, Stop, grouped
+from hysid.cli.groups import LAID_OUT, Constraints, Output, Reading, Search, Stop, grouped
 from hysid.cli.progress import Progress, announcing_stop, campaign_reporter
 from hysid.motion import choose_motion
 from hysid.report.campaign_text import campaign_progress_line
@@ -128,13 +128,9 @@ def register(app: typer.Typer) -> None:
         reading: Reading = LAID_OUT,
         stop: Stop = LAID_OUT,
         single_node: bool = typer.Option(False, "--single-node", help="All islands in this process, migrating in memory (no network)."),
-        out: Path | None = o.OUT,
+        output: Output = LAID_OUT,
         db: Path | None = o.DB,
-        as_json: bool = o.JSON,
         polish: bool = o.POLISH,
-        figures: bool = o.FIGURES,
-        quiet: bool = o.QUIET,
-        csv: bool = o.CSV,
         limits: Constraints = LAID_OUT,
     ) -> int | None:
         """Run GA/PSO islands on this machine that share their best candidates; report the polished global best."""
@@ -148,7 +144,7 @@ def register(app: typer.Typer) -> None:
         seed, share = search.seed, search.share
         island_specs(islands, algo_list, seed)  # every setting is checked before the report directory is made
         CampaignConfig(name=name, algos=algo_list, options=sizes, migration=migration, seed=seed, min_islands=islands, until_stopped=until_stopped, share=share)
-        target_dir = o.report_dir(out, "campaign")
+        target_dir = output.directory("campaign")
         path = database(db, target_dir, name, resuming=False)
         new_db = not path.exists()
         loops = reading.load(dataset or "synth")
@@ -156,7 +152,7 @@ def register(app: typer.Typer) -> None:
             loops, model, bounds, algo_list, search.population, search.initial, search.iterations, termination
         )
         try:
-            with Progress("campaign", islands * (iterations or 0) or 100, enabled=not (quiet or as_json)) as bar:
+            with Progress("campaign", islands * (iterations or 0) or 100, enabled=output.live) as bar:
                 result = campaign(
                     loops,
                     model,
@@ -183,7 +179,7 @@ def register(app: typer.Typer) -> None:
             if new_db:
                 discard_failed(target_dir, path, name)
             raise
-        o.show_result(result, target_dir, as_json, csv, figures=figures and not result.interrupted)  # Ctrl-C: out in seconds
+        output.show(result, target_dir, figures=not result.interrupted)  # Ctrl-C: out in seconds
         return exit_status(result)
 
     @app.command("coordinator")
@@ -218,11 +214,8 @@ def register(app: typer.Typer) -> None:
         weights: str | None = o.WEIGHTS,
         reading: Reading = LAID_OUT,
         stop: Stop = LAID_OUT,
-        out: Path | None = o.OUT,
-        as_json: bool = o.JSON,
+        output: Output = LAID_OUT,
         polish: bool = o.POLISH,
-        figures: bool = o.FIGURES,
-        quiet: bool = o.QUIET,
         limits: Constraints = LAID_OUT,
     ) -> int | None:
         """Serve a campaign over Zenoh to islands ('hysid island'), record it in SQLite, report the result."""
@@ -235,7 +228,7 @@ def register(app: typer.Typer) -> None:
             raise HysidInputError(f"--resume takes the loop set from {db}; drop DATASET {dataset!r}")
         if resume_db and (bounds or fixed):
             raise HysidInputError(f"--resume takes the bounds and fixed values from {db}; drop --bound and --fix")
-        target_dir = o.report_dir(out, "coordinator")
+        target_dir = output.directory("coordinator")
         path = database(db, target_dir, name, resuming=resume_db)
         motion = None
         if not resume_db:  # every argument is checked before the database is written or a session opened
@@ -268,14 +261,14 @@ def register(app: typer.Typer) -> None:
             if resume_db:
                 said = resumed_from(store, name)
                 coordinator = resume(store, name, termination)
-                if said and not quiet:
+                if said and not output.quiet:
                     print(said, file=sys.stderr, flush=True)
             else:
                 coordinator = Coordinator(store, config, loops, termination, dataset=dataset or "synth")
             kept = keep_secret(coordinator.secret, secret_file or secret_path(path, name))
             for member in members:
                 kept_member = keep_secret(coordinator.keys.member_secret(member), member_path(path, name, member))
-                if not quiet:
+                if not output.quiet:
                     print(f"hysid: member {member!r}'s secret {kept_member}", file=sys.stderr, flush=True)
             zconfig = session_config("router", listen=listen, connect=connect, config_file=config_file)
             session = open_session(zconfig, f"listen {', '.join(listen) or (f'as in {config_file}' if config_file else DEFAULT_ENDPOINT)}")
@@ -284,12 +277,12 @@ def register(app: typer.Typer) -> None:
                 f"coordinator of campaign {name!r} ready (database {store.path}, islands' shared secret {kept})", file=sys.stderr, flush=True
             )  # also with --quiet: scripts wait for it
             try:
-                serve(coordinator, link, announcing_stop(None if quiet else print_progress, print_line))
+                serve(coordinator, link, announcing_stop(None if output.quiet else print_progress, print_line))
             finally:
                 link.close()
                 session.close()
             result = finish(coordinator, coordinator.outcome(polish_best=polish), motion)
-            o.show_result(result, target_dir, as_json, csv=False, figures=figures and not result.interrupted)
+            output.show(result, target_dir, figures=not result.interrupted)
         finally:
             store.close()
         return exit_status(result)

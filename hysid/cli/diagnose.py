@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 
 from hysid.cli import options as o
-from hysid.cli.groups import Reading, grouped, laid_out
+from hysid.cli.groups import LAID_OUT, Constraints, Output, Reading, grouped, laid_out
 from hysid.cli.progress import Progress
 from hysid.diagnosis.scoring import candidate_effects
 from hysid.diagnosis.selection import diagnose
@@ -18,6 +16,8 @@ REPORT_WORK = 4.0
 
 READING = laid_out("points", "skip_rows", "noise", "noise_seed")
 """The loops' reading options in the order ``diagnose --help`` has always listed them."""
+LIMITS = laid_out("bound", "displacement")
+"""The constraints ``diagnose`` takes: not ``--fix`` (:func:`hysid.diagnosis.selection.diagnose` fits every parameter)."""
 
 
 def register(app: typer.Typer) -> None:
@@ -28,32 +28,27 @@ def register(app: typer.Typer) -> None:
     def diagnose_command(
         dataset: str = o.DATASET,
         model: str = o.START_MODEL,
-        out: Path | None = o.OUT,
-        as_json: bool = o.JSON,
+        output: Output = LAID_OUT,
         reading: Reading = READING,
-        csv: bool = o.CSV,
-        quiet: bool = o.QUIET,
-        bound: list[str] | None = o.BOUND,
-        displacement: str = o.DISPLACEMENT,
+        limits: Constraints = LIMITS,
         candidates: str | None = o.CANDIDATES,
         no_discover: bool = o.NO_DISCOVER,
-        figures: bool = o.FIGURES,
     ) -> None:
         """Find which effects of the library (and --candidates of your own) the model misses, step by step, and write a report."""
-        bounds, effects = o.parse_bounds(bound), candidate_effects(o.parse_list(candidates))
-        target = o.report_dir(out, "diagnose")
+        effects = candidate_effects(o.parse_list(candidates))
+        target = output.directory("diagnose")
         loops = reading.load(dataset)
-        with Progress("diagnosing", 1, enabled=not (quiet or as_json)) as progress:  # in fits (hysid.diagnosis.tally)
+        with Progress("diagnosing", 1, enabled=output.live) as progress:  # in fits (hysid.diagnosis.tally)
             result = diagnose(
                 loops,
                 model,
-                bounds=bounds,
+                bounds=limits.bounds(),
                 candidates=effects,
-                displacement=displacement,
+                displacement=limits.displacement,
                 discover=not no_discover,
                 progress=lambda done, total, what: progress.update(done, what, total + REPORT_WORK),
             )
             progress.update(progress.done, "writing the report and its figures")
-            tables = o.write_result(result, target, csv, dataset, figures)
+            tables = output.write(result, target, dataset)
             progress.update(progress.total, f"report written: {target}")
-        o.print_result(result, as_json, tables)
+        output.print(result, tables)

@@ -8,7 +8,7 @@ import typer
 
 from hysid import thesis_tables as tt
 from hysid.cli import options as o
-from hysid.cli.groups import LAID_OUT, Constraints, Reading, grouped
+from hysid.cli.groups import LAID_OUT, Constraints, Output, Reading, grouped
 from hysid.cli.progress import Progress
 from hysid.fitting import fit
 from hysid.report import jsondoc
@@ -31,20 +31,16 @@ def register(app: typer.Typer) -> None:
         runs: int = o.RUNS,
         seed: int = o.SEED,
         weights: str | None = o.WEIGHTS,
-        out: Path | None = o.OUT,
-        as_json: bool = o.JSON,
+        output: Output = LAID_OUT,
         polish: bool = o.POLISH,
         reading: Reading = LAID_OUT,
-        csv: bool = o.CSV,
-        quiet: bool = o.QUIET,
         limits: Constraints = LAID_OUT,
-        figures: bool = o.FIGURES,
     ) -> None:
         """Identify the model's parameters from DATASET in this process (no network)."""
         bounds, fixed, displacement = limits.bounds(), limits.fixed(), limits.displacement
-        target = o.report_dir(out, "fit")
+        target = output.directory("fit")
         loops = reading.load(dataset)
-        with Progress("fitting", max(runs, 1) * ROWS_PER_RUN, enabled=not (quiet or as_json)) as progress:
+        with Progress("fitting", max(runs, 1) * ROWS_PER_RUN, enabled=output.live) as progress:
 
             def show(i: int, row: HistoryRow) -> None:
                 progress.update(i * ROWS_PER_RUN + row.iteration + 1, f"run {i + 1}/{runs}, best {row.best_fitness:.4g}")
@@ -62,7 +58,7 @@ def register(app: typer.Typer) -> None:
                 displacement=displacement,
                 progress=show,
             )
-        o.show_result(result, target, as_json, csv, figures=figures)
+        output.show(result, target)
 
     reproduce = typer.Typer(help="Regenerate the thesis' published results.", no_args_is_help=True)
     app.add_typer(reproduce, name="reproduce")

@@ -1,4 +1,4 @@
-"""Options that travel together, declared once: the islands' search, the reading of the loops, the stop rules, the constraints.
+"""Options that travel together, declared once: the islands' search, the reading of the loops, the stop rules, the constraints, the output.
 
 A command names a group as one parameter (``search: Search``) and :func:`grouped`
 lays the group's options out in its place, in the group's order, with the
@@ -15,9 +15,11 @@ import functools
 import inspect
 import typing
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from hysid.cli import options as o
+from hysid.report import jsondoc
 from hysid_model.datasets import load_dataset
 from hysid_model.loops import LoopSet
 from island.migration import Migration
@@ -87,13 +89,57 @@ class Constraints:
         return o.parse_fixed(self.fix)
 
 
-GROUPS = (Search, Reading, Stop, Constraints)
+@dataclasses.dataclass
+class Output:
+    """Where and how a command reports its result: ``--out``, ``--json``, ``--csv``, ``--quiet``, ``--figures``."""
+
+    out: Path | None = o.OUT
+    as_json: bool = o.JSON
+    csv: bool = o.CSV
+    quiet: bool = o.QUIET
+    figures: bool = o.FIGURES
+
+    @property
+    def live(self) -> bool:
+        """Whether live progress goes to stderr: not with ``--quiet``, nor with ``--json``."""
+        return not (self.quiet or self.as_json)
+
+    def directory(self, kind: str) -> Path:
+        """The report directory, checked before any work (:func:`hysid.cli.options.report_dir`)."""
+        return o.report_dir(self.out, kind)
+
+    def write(self, result: Any, target: Path, dataset: str | None = None, figures: bool = True) -> dict[str, Path]:
+        """The result's report in ``target``, with its figures unless ``--no-figures`` or ``figures=False``
+        (``write_report(..., figures=False)``); with ``--csv`` its tables too, returned."""
+        drawn = self.figures and figures
+        if dataset is None:
+            result.write_report(target, figures=drawn)
+        else:
+            result.write_report(target, dataset, figures=drawn)
+        return result.to_csv(target) if self.csv else {}
+
+    def print(self, result: Any, tables: dict[str, Path]) -> None:
+        """The result's JSON document (``--json``) or its summary and the ``tables`` written, on stdout."""
+        if self.as_json:
+            print(jsondoc.dumps(result.to_dict()))
+            return
+        print(result.summary())
+        if tables:
+            print(f"tables: {', '.join(str(p) for p in tables.values())}")
+
+    def show(self, result: Any, target: Path, figures: bool = True) -> None:
+        """:meth:`write`, then :meth:`print`."""
+        self.print(result, self.write(result, target, figures=figures))
+
+
+GROUPS = (Search, Reading, Stop, Constraints, Output)
 
 
 @dataclasses.dataclass(frozen=True)
 class LaidOut:
     """The default of a group's parameter in a command's signature, which :func:`grouped` replaces by the group's
-    options: in ``order`` (their names) where given, else in the group's."""
+    options: in ``order`` (their names) where given, else in the group's. A field ``order`` leaves out is no option
+    of the command: the group holds its default."""
 
     order: tuple[str, ...] = ()
 
@@ -102,7 +148,7 @@ LAID_OUT: Any = LaidOut()
 
 
 def laid_out(*order: str) -> Any:
-    """A group's options in another ``order`` (as a command listed them before they were a group)."""
+    """A group's options in another ``order`` (as a command listed them before they were a group), or some of them."""
     return LaidOut(order)
 
 
@@ -125,7 +171,7 @@ def grouped(command: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(command)
     def run(**given: Any) -> Any:
         for name, group in groups.items():
-            given[name] = group(**{f.name: given.pop(f.name) for f in dataclasses.fields(group)})
+            given[name] = group(**{f.name: given.pop(f.name) if f.name in given else typing.cast(Any, f.default).default for f in dataclasses.fields(group)})
         return command(**given)
 
     run.__signature__ = inspect.Signature(layout, return_annotation=hints.get("return", inspect.Signature.empty))  # type: ignore[attr-defined]

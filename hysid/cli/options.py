@@ -17,7 +17,6 @@ import typer
 
 from coordinator.store import Store
 from hysid.campaigns import default_options, island_settings
-from hysid.report import jsondoc
 from hysid_model.errors import HysidInputError
 from hysid_model.loops import LoopSet
 from hysid_model.presets import PRESETS
@@ -284,31 +283,6 @@ def check_writable(directory: Path, param: str) -> Path:
         except OSError:
             pass
     return directory
-
-
-def show_result(result: Any, target: Path, as_json: bool, csv: bool, dataset: str | None = None, figures: bool = True) -> None:
-    """Write a result's report (and with ``csv`` its tables) to ``target``; print its JSON document or its summary.
-    ``figures=False``: the report without its figures (``write_report(..., figures=False)``)."""
-    print_result(result, as_json, write_result(result, target, csv, dataset, figures))
-
-
-def write_result(result: Any, target: Path, csv: bool, dataset: str | None = None, figures: bool = True) -> dict[str, Path]:
-    """The first half of :func:`show_result`: the report (and with ``csv`` the tables, returned) in ``target``."""
-    if dataset is None:
-        result.write_report(target, figures=figures)
-    else:
-        result.write_report(target, dataset, figures=figures)
-    return result.to_csv(target) if csv else {}
-
-
-def print_result(result: Any, as_json: bool, tables: dict[str, Path]) -> None:
-    """The second half of :func:`show_result`: the JSON document or the summary (and the ``tables`` written)."""
-    if as_json:
-        print(jsondoc.dumps(result.to_dict()))
-        return
-    print(result.summary())
-    if tables:
-        print(f"tables: {', '.join(str(p) for p in tables.values())}")
 
 
 def parse_bounds(values: list[str] | None) -> dict[str, tuple[float, float]]:

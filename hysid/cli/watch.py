@@ -14,12 +14,15 @@ from rich.text import Text
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
 from hysid.cli import options as o
+from hysid.cli.groups import Output, grouped, laid_out
 from hysid.report.campaign_text import campaign_progress_line, watch_text
 from hysid.watch import snapshot
 from hysid_model.errors import HysidInputError
 
 CAMPAIGN_DB = typer.Argument(..., help="Campaign database (SQLite) of 'hysid campaign' or 'hysid coordinator', or the output directory holding it.")
 CAMPAIGN_NAME = typer.Option(None, "--campaign", help="Campaign in the database (default: the latest).")
+REPORT_OUTPUT = laid_out("out", "as_json", "csv", "figures")
+"""The output options of ``hysid report``: no ``--quiet``, as it shows no live progress."""
 
 
 def register(app: typer.Typer) -> None:
@@ -61,14 +64,12 @@ def register(app: typer.Typer) -> None:
             store.close()
 
     @app.command("report")
+    @grouped
     def report_command(
         db: Path = CAMPAIGN_DB,
         name: str | None = CAMPAIGN_NAME,
-        out: Path | None = o.OUT,
-        as_json: bool = o.JSON,
-        csv: bool = o.CSV,
-        figures: bool = o.FIGURES,
+        output: Output = REPORT_OUTPUT,
     ) -> None:
         """The report and figures of a finished or interrupted campaign, rebuilt from its database alone."""
-        target = o.report_dir(out, "report")
-        o.show_result(CampaignResult.from_database(o.campaign_database(db), name), target, as_json, csv, figures=figures)
+        target = output.directory("report")
+        output.show(CampaignResult.from_database(o.campaign_database(db), name), target)
