@@ -31,6 +31,7 @@ import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Collection
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,6 +45,7 @@ JOIN_GRACE_S = 5.0
 """How long migrants from a sender that is not (yet) a member wait for the roster to list it."""
 
 
+@dataclass(eq=False)
 class Arrivals:
     """The migrant messages of campaign ``campaign`` (search space ``bounds``) that arrived (see the module
     docstring). ``key_for(island, run)`` is the public key the roster lists for a run (None: not listed),
@@ -51,31 +53,21 @@ class Arrivals:
     in vain for the roster; ``known(island, run)`` what the roster says of a run's message numbers
     (:data:`island.sealing.Known`; None: nothing). Thread-safe."""
 
-    def __init__(
-        self,
-        campaign: str,
-        bounds: np.ndarray,
-        key_for: KeyLookup,
-        members: Callable[[], list[str]],
-        on_reject: Callable[[], None],
-        on_unlisted: Callable[[], None],
-        known: Callable[[str, str], Known | None] | None = None,
-    ) -> None:
-        self.campaign = campaign
-        self.bounds = bounds
-        self.key_for = key_for
-        self.members = members
-        self.on_reject = on_reject
-        self.on_unlisted = on_unlisted
-        self.known = known or (lambda island, run: None)
-        self._lock = threading.Lock()
-        self._replays = ReplayGuard()
-        self._latest: OrderedDict[str, tuple[float, Migrants]] = OrderedDict()
-        """Each sender's newest valid migrant message and when it arrived."""
-        self._pending: OrderedDict[str, tuple[float, Envelope]] = OrderedDict()
-        """Each sender's newest message from a run the roster does not list yet (checked once it does)."""
-        self._takers: set[str] = set()
-        """The islands taking from these arrivals (:meth:`join`, :meth:`leave`)."""
+    campaign: str
+    bounds: np.ndarray
+    key_for: KeyLookup
+    members: Callable[[], list[str]]
+    on_reject: Callable[[], None]
+    on_unlisted: Callable[[], None]
+    known: Callable[[str, str], Known | None] = field(default=lambda island, run: None)
+    _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
+    _replays: ReplayGuard = field(default_factory=ReplayGuard, init=False, repr=False)
+    _latest: OrderedDict[str, tuple[float, Migrants]] = field(default_factory=OrderedDict, init=False, repr=False)
+    """Each sender's newest valid migrant message and when it arrived."""
+    _pending: OrderedDict[str, tuple[float, Envelope]] = field(default_factory=OrderedDict, init=False, repr=False)
+    """Each sender's newest message from a run the roster does not list yet (checked once it does)."""
+    _takers: set[str] = field(default_factory=set, init=False, repr=False)
+    """The islands taking from these arrivals (:meth:`join`, :meth:`leave`)."""
 
     def join(self, island: str) -> None:
         """``island`` takes from these arrivals from now on."""
