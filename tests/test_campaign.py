@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import signal
@@ -237,11 +238,24 @@ def test_resuming_a_finished_campaign_reports_it_again_from_the_database(tmp_pat
     db = tmp_path / "c.sqlite"
     first = json_of(capsys, tmp_path / "a", "campaign", "--single-node", "--islands", "2", *SMALL, "--db", str(db), "--no-figures")
     again = json_of(
-        capsys, tmp_path / "b", "coordinator", "--resume", "--db", str(db), "--campaign", "campaign", "--listen", f"tcp/127.0.0.1:{free_port()}", "--no-figures"
+        capsys,
+        tmp_path / "b",
+        "coordinator",
+        "--resume",
+        "--db",
+        str(db),
+        "--campaign",
+        "campaign",
+        "--listen",
+        f"tcp/127.0.0.1:{free_port()}",
+        "--no-figures",
+        "--csv",
     )
     assert again["settings"]["stop_reason"] == "every island finished"
     assert again["islands"] == first["islands"] and again["params"] == pytest.approx(first["params"], rel=1e-9)
     assert again["dataset"]["true_params"] == TRUE_PARAMS  # the loop set's metadata travelled through the database
+    with open(tmp_path / "b" / "islands.csv", newline="") as f:  # --csv: the coordinator's tables, as a campaign's
+        assert [row["island"] for row in csv.DictReader(f)] == [i["island"] for i in first["islands"]]
 
 
 def shadow_package(where):
