@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 import hysid
+from hysid_model.datasets import loop_set
 from hysid_model.effects import EFFECTS
 from hysid_model.extraction import extract_loop
 from hysid_model.harmonics import Harmonics
@@ -91,18 +92,10 @@ def raw_records(model: Model, theta: np.ndarray, seed: int, freqs: np.ndarray = 
 
 
 def extracted(records, meq_kg: float | None = MEQ) -> LoopSet:
-    """Loops from raw records by the same extraction real data go through."""
+    """Loops from raw records by the same extraction real data go through (:func:`hysid_model.datasets.loop_set`:
+    cycles, the displacement's harmonics and whether the reversals are resolved, as a dataset's)."""
     loops = [extract_loop(r.t, r.x, r.force, source=r.label, n_points=POINTS, nominal_freq_hz=r.freq_hz, steady_window=(0.0, r.t[-1])) for r in records]
-    return LoopSet(
-        name="hidden",
-        freq_hz=np.array([e.freq_hz for e in loops]),
-        x0=np.array([e.x0 for e in loops]),
-        top=np.stack([e.top for e in loops]),
-        bottom=np.stack([e.bottom for e in loops]),
-        sigma=np.array([e.sigma for e in loops]),
-        meq_kg=meq_kg,
-        labels=[r.label for r in records],
-    )
+    return loop_set("hidden", loops, [r.label for r in records], meq_kg)
 
 
 def hidden(model: Model, theta: np.ndarray, seed: int, freqs: np.ndarray = FREQS) -> LoopSet:
