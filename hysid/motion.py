@@ -40,7 +40,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from hysid.criteria import BIC_MARGIN
-from hysid.diagnosis.fitting import fit_objective
+from hysid.harmonic_fits import fit_objective
 from hysid_model.errors import HysidInputError
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.loops import LoopSet

@@ -15,10 +15,10 @@ import pytest
 
 from hysid.criteria import BIC_MARGIN
 from hysid.diagnosis.acceptance import binding, held_out, judge, visible_error
-from hysid.diagnosis.fitting import Fit, initial_fit, make_model, profile_errors, soft_bounds
 from hysid.diagnosis.plausible import MAX_DELAY_S, implausible_effect, implausible_values, mass_note
 from hysid.diagnosis.refits import refit
 from hysid.diagnosis.scoring import score_candidates
+from hysid.harmonic_fits import Fit, initial_fit, make_model, profile_errors, soft_bounds
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import build_model

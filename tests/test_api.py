@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import hysid
-from hysid.diagnosis.fitting import initial_fit
 from hysid.diagnosis.result import Step
+from hysid.harmonic_fits import initial_fit
 from hysid_model.harmonics import Harmonics
 from hysid_model.objective import Objective
 from hysid_model.synth import MEQ_KG, TRUE_PARAMS

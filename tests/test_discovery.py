@@ -18,9 +18,9 @@ from hysid.bench.discovery_cases import LAWS, loops_of
 from hysid.bench.proposals import NOISE_PCT, proposal
 from hysid.diagnosis.contest import choose
 from hysid.diagnosis.discovery import propose, simple_value
-from hysid.diagnosis.fitting import fit_objective, initial_fit, make_model, soft_bounds
 from hysid.diagnosis.selection import diagnose
 from hysid.diagnosis.tally import Tally
+from hysid.harmonic_fits import fit_objective, initial_fit, make_model, soft_bounds
 from hysid_model.datasets import load_dataset, write_dataset
 from hysid_model.discovery.features import library, scales
 from hysid_model.discovery.frols import frols

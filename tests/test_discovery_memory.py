@@ -16,9 +16,9 @@ from hysid.bench.discovery import loop_motion, shape_error, shape_phases
 from hysid.bench.discovery_cases import LAWS, jenkins, loops_of, truth_model
 from hysid.bench.validation import truth_nrmse
 from hysid.diagnosis.discovery import propose
-from hysid.diagnosis.fitting import initial_fit, make_model, soft_bounds
 from hysid.diagnosis.refits import best_of, data_starts
 from hysid.diagnosis.tally import Tally
+from hysid.harmonic_fits import initial_fit, make_model, soft_bounds
 from hysid_model.discovery.memory import memory_families
 from hysid_model.discovery.proposal import Law, expression, function_source, make_term, module_source
 from hysid_model.harmonics import HarmonicObjective, Harmonics

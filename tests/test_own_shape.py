@@ -21,11 +21,11 @@ from hysid.diagnosis.acceptance import judge, own_shape
 from hysid.diagnosis.contest import choose, library_shape, needed_beside
 from hysid.diagnosis.discovery import Proposed, propose
 from hysid.diagnosis.discovery import refit as discovery_refit
-from hysid.diagnosis.fitting import Fit, initial_fit, soft_bounds
 from hysid.diagnosis.refits import refit
 from hysid.diagnosis.scoring import score_candidates
 from hysid.diagnosis.selection import diagnose
 from hysid.diagnosis.tally import Tally
+from hysid.harmonic_fits import Fit, initial_fit, soft_bounds
 from hysid_model.datasets import write_dataset
 from hysid_model.discovery.features import library, scales
 from hysid_model.discovery.proposal import Law

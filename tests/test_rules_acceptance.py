@@ -12,7 +12,7 @@ import pytest
 
 from hysid.criteria import BIC_MARGIN, MIN_SHARE
 from hysid.diagnosis.acceptance import created_order, degenerate_gives_way, judge
-from hysid.diagnosis.fitting import Fit, make_model
+from hysid.harmonic_fits import Fit, make_model
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import build_model
 from hysid_model.objective import Objective

@@ -111,7 +111,7 @@ def branch_sigma() -> np.ndarray:
 
 def residual_energy(model: Model, theta: np.ndarray, sigma: np.ndarray, freqs: np.ndarray = FREQS) -> float:
     """chi^2 the baseline leaves on noiseless loops with the hidden effect(s): residual energy / noise variance."""
-    from hysid.diagnosis.fitting import initial_fit  # scipy.optimize loads only when a case runs (fast CLI start)
+    from hysid.harmonic_fits import initial_fit  # scipy.optimize loads only when a case runs (fast CLI start)
 
     f, a = grid(freqs)
     x = np.linspace(-1.0, 1.0, POINTS)

@@ -45,8 +45,8 @@ from hysid_model.kinematics import Kinematics
 from hysid_model.loops import LoopSet
 
 if TYPE_CHECKING:  # the result's type only: hysid --help loads no diagnosis (scipy.optimize) through the bench
-    from hysid.diagnosis.fitting import Fit
     from hysid.diagnosis.result import Diagnosis
+    from hysid.harmonic_fits import Fit
 
 SHAPE_SAMPLES = 256
 """Uniform phases per loop at which the shape error compares the forces."""

@@ -20,8 +20,8 @@ from hysid.bench import source_hash, sweep
 from hysid.bench import verdict as pass_word
 from hysid.bench.discovery_cases import loops_of, truth_model
 from hysid.diagnosis.discovery import Proposed, propose
-from hysid.diagnosis.fitting import Fit, fit_objective, initial_fit, make_model, soft_bounds
 from hysid.diagnosis.tally import Tally
+from hysid.harmonic_fits import Fit, fit_objective, initial_fit, make_model, soft_bounds
 from hysid.report import jsondoc
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 

@@ -59,9 +59,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from hysid.criteria import BIC_MARGIN, MIN_SHARE, MIN_Z, PARALLEL, SIGNIFICANCE
-from hysid.diagnosis.fitting import Fit
 from hysid.diagnosis.metrics import cross_validated_rms, energy_error_pct, nrmse_pct
 from hysid.diagnosis.plausible import implausible_values
+from hysid.harmonic_fits import Fit
 from hysid_model.harmonics import Harmonics
 from hysid_model.model import effect_term
 from hysid_model.uncertainty import jacobian_covariance

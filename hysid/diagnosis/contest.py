@@ -37,13 +37,13 @@ import numpy as np
 from hysid.criteria import BIC_MARGIN
 from hysid.diagnosis.acceptance import held_out, judge
 from hysid.diagnosis.discovery import Proposed, propose
-from hysid.diagnosis.fitting import Fit, fit_objective, make_model, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import gap_metrics
 from hysid.diagnosis.naming import final_fields, loops_linear
 from hysid.diagnosis.refits import refit, weight
 from hysid.diagnosis.result import Diagnosis, Refused
 from hysid.diagnosis.scoring import score_candidates
 from hysid.diagnosis.tally import Tally
+from hysid.harmonic_fits import Fit, fit_objective, make_model, profile_errors, soft_bounds
 from hysid_model.harmonics import HarmonicObjective
 from hysid_model.model import effect_term
 from hysid_model.terms import MeasurementTerm

@@ -28,9 +28,9 @@ import numpy as np
 
 from hysid.criteria import BIC_MARGIN, SIGNIFICANCE
 from hysid.diagnosis.acceptance import held_out, judge
-from hysid.diagnosis.fitting import Fit, fit_objective, make_model
 from hysid.diagnosis.metrics import cross_validated_rms
 from hysid.diagnosis.tally import Tally
+from hysid.harmonic_fits import Fit, fit_objective, make_model
 from hysid_model.discovery.features import Family, columns, library, scales
 from hysid_model.discovery.frols import frols, refine
 from hysid_model.discovery.memory import is_memory, memory_families

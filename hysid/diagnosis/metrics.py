@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from hysid.diagnosis.fitting import Fit
+from hysid.harmonic_fits import Fit
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from island.polish import polish
 

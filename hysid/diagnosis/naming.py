@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 
 from hysid.adequacy import Adequacy, groups, judge
-from hysid.diagnosis.fitting import Fit, final_identifiability
 from hysid.diagnosis.metrics import linear_per_loop_residual
+from hysid.harmonic_fits import Fit, final_identifiability
 from hysid_model.harmonics import Harmonics
 
 TREND = 0.5

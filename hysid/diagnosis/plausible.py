@@ -65,7 +65,7 @@ def implausible_effect(effect: str, loops: LoopSet) -> str | None:
 
 
 def implausible_values(fit: object, loops: LoopSet) -> dict[str, str]:
-    """The fitted values of ``fit`` (a diagnosis :class:`~hysid.diagnosis.fitting.Fit`) no measurement chain
+    """The fitted values of ``fit`` (a diagnosis :class:`~hysid.harmonic_fits.Fit`) no measurement chain
     produces, each with why."""
     params = fit.params()  # type: ignore[attr-defined]
     out = {}

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hysid.diagnosis.fitting import Fit, fit_objective, make_model, soft_bounds
+from hysid.harmonic_fits import Fit, fit_objective, make_model, soft_bounds
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.terms import Oscillator
 

@@ -38,9 +38,9 @@ from __future__ import annotations
 import numpy as np
 
 from hysid.criteria import BIC_MARGIN
-from hysid.diagnosis.fitting import Fit, fit_objective, make_model
 from hysid.diagnosis.scoring import Candidate
 from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT
+from hysid.harmonic_fits import Fit, fit_objective, make_model
 from hysid_model.harmonics import HarmonicObjective, Harmonics
 from hysid_model.model import Model, effect_term
 from island.memetic import memetic_search, needs_islands

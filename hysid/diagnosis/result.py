@@ -11,11 +11,11 @@ from typing import Any
 import numpy as np
 
 from hysid.diagnosis.discovery import Proposed
-from hysid.diagnosis.fitting import Fit, make_model
 from hysid.diagnosis.metrics import GapMetrics, References, loop_whitened_rms
 from hysid.diagnosis.plausible import mass_note
 from hysid.diagnosis.pruning import zero_like
 from hysid.diagnosis.scoring import Candidate
+from hysid.harmonic_fits import Fit, make_model
 from hysid.identifiability import Identifiability
 from hysid.motion import MotionChoice
 from hysid.report import diagnosis as diagnosis_report

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hysid.diagnosis.fitting import Fit, make_model
+from hysid.harmonic_fits import Fit, make_model
 from hysid_model.effects import EFFECTS
 from hysid_model.errors import HysidInputError
 from hysid_model.frf import amplitude_levels

@@ -50,7 +50,6 @@ import numpy as np
 from hysid.criteria import BIC_MARGIN, PARALLEL, SIGNIFICANCE
 from hysid.diagnosis.acceptance import degenerate, degenerate_gives_way, held_out, judge
 from hysid.diagnosis.contest import refused_base, stacked, with_discovery, with_refused
-from hysid.diagnosis.fitting import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.diagnosis.metrics import GapMetrics, gap_metrics, references
 from hysid.diagnosis.naming import final_fields
 from hysid.diagnosis.plausible import implausible_effect
@@ -59,6 +58,7 @@ from hysid.diagnosis.refits import joint_contender, refit, weight
 from hysid.diagnosis.result import Diagnosis, Refused, Step
 from hysid.diagnosis.scoring import Candidate, candidate_effects, joint_score, score_candidates
 from hysid.diagnosis.tally import MEMORY_FIT_WEIGHT, Report, Tally
+from hysid.harmonic_fits import Fit, initial_fit, profile_errors, soft_bounds
 from hysid.motion import WORDS, MotionChoice, choose_motion, confirm_motion
 from hysid_model import notices
 from hysid_model.errors import HysidInputError

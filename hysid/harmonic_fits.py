@@ -1,9 +1,11 @@
 """Fitting a model to the harmonic coefficients: the survey's linear start, data-derived bounds, polish.
 
-The diagnosis compares models by their chi^2 on the whitened harmonic
-coefficients (:class:`hysid_model.harmonics.HarmonicObjective`); every model it
-meets is smooth and low-dimensional, so a good start plus the bounded
-least-squares polish of :mod:`island.polish` finds the optimum.
+The diagnosis (:mod:`hysid.diagnosis`) compares models by their chi^2 on the
+whitened harmonic coefficients (:class:`hysid_model.harmonics.HarmonicObjective`),
+and the choice of the displacement reading (:mod:`hysid.motion`) the readings
+by theirs; every model they meet is smooth and low-dimensional, so a good start
+plus the bounded least-squares polish of :mod:`island.polish` finds the
+optimum. Both build on these fits, so they live below both.
 """
 
 from __future__ import annotations
