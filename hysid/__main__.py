@@ -38,7 +38,10 @@ def interrupt_after_loading() -> Iterator[None]:
 def main() -> int:
     try:
         with interrupt_after_loading():
+            from hysid.cli import load_commands
             from hysid.cli import main as run
+
+            load_commands(sys.argv[1:])  # the command's own modules, loaded here too
 
         status = run()
     except KeyboardInterrupt:  # while the command line loads, or builds itself before it handles Ctrl-C on its own

@@ -247,12 +247,13 @@ def test_a_campaign_on_a_model_with_memory_gets_the_same_islands_from_the_comman
     ones (small swarms, an evaluation budget, searching until the stop order), and sizes given are kept."""
     from hysid.campaigns import island_settings
     from hysid.cli import options as o
+    from hysid.cli.plans import island_plan
     from island.termination import Termination
 
-    cli = o.island_plan(loops, "thesis+bouc_wen", None, ["ga", "pso"], None, None, None, Termination())
+    cli = island_plan(loops, "thesis+bouc_wen", None, ["ga", "pso"], None, None, None, Termination())
     python = island_settings(loops, "thesis+bouc_wen", None, ["ga", "pso"], None, None, None)
     assert cli[:3] == python and cli[0]["pso"]["population"] < o.ISLAND_POPULATION and python[1].budget and python[2] is True
-    given = o.island_plan(loops, "thesis+bouc_wen", None, ["ga", "pso"], 50, None, None, Termination())
+    given = island_plan(loops, "thesis+bouc_wen", None, ["ga", "pso"], 50, None, None, Termination())
     assert given[0]["ga"] == {"population": 50, "initial_population": o.ISLAND_INITIAL, "iterations": o.ISLAND_ITERATIONS} and given[2] is False
-    thesis = o.island_plan(loops, "thesis", None, ["ga", "pso"], None, None, None, Termination(time_limit_s=5))
+    thesis = island_plan(loops, "thesis", None, ["ga", "pso"], None, None, None, Termination(time_limit_s=5))
     assert thesis[0]["pso"]["population"] == o.ISLAND_POPULATION and thesis[1].budget is None and thesis[2] is True

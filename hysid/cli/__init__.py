@@ -10,24 +10,95 @@ report (marked interrupted). Warnings of the library (:class:`HysidWarning`) pri
 
 from __future__ import annotations
 
+import importlib
 import sys
 import warnings
+from collections.abc import Iterator, MutableMapping, Sequence
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any, TextIO
 
 import typer
+from typer.core import TyperGroup
 
-from hysid.cli import bench, campaign, data, diagnose, fit, island, router, watch
 from hysid.cli.options import INTERRUPTED, error_line
 from hysid_model.errors import HysidInputError, HysidWarning
+
+COMMANDS = {
+    "synth": "data",
+    "loops": "data",
+    "fit": "fit",
+    "campaign": "campaign",
+    "coordinator": "campaign",
+    "island": "island",
+    "router": "router",
+    "diagnose": "diagnose",
+    "watch": "watch",
+    "report": "watch",
+    "models": "",
+    "reproduce": "fit",
+    "bench": "bench",
+}
+"""Each command and the module of :mod:`hysid.cli` that registers it ("": this one), in the order ``hysid --help``
+lists them."""
+SETTINGS: dict[str, Any] = {"add_completion": False, "pretty_exceptions_enable": False, "rich_markup_mode": None}
+
+
+def command_modules(argv: Sequence[str]) -> list[str]:
+    """The modules of :mod:`hysid.cli` a command line ``argv`` needs: its command's, or every one where it names
+    none (``hysid --help`` lists them all) or one that is not a command."""
+    first = next((a for a in argv if not a.startswith("-")), "")
+    module = COMMANDS.get(first)
+    return [module] if module else sorted({m for m in COMMANDS.values() if m})
+
+
+def load_commands(argv: Sequence[str]) -> None:
+    """Import what :func:`command_modules` names (``python -m hysid`` does it while Ctrl-C waits, :mod:`hysid.__main__`)."""
+    for module in command_modules(argv):
+        importlib.import_module(f"hysid.cli.{module}")
+
+
+class CommandTable(MutableMapping[str, Any]):
+    """The commands of ``hysid`` by name, each module of :mod:`hysid.cli` imported when one of its commands is
+    looked up: a command starts with what it needs (``hysid island``, started hundreds of times by a campaign,
+    loads no coordinator, report or bench), and ``hysid --help`` looks them all up."""
+
+    def __init__(self, loaded: MutableMapping[str, Any]) -> None:
+        self._loaded = dict(loaded)
+
+    def __getitem__(self, name: str) -> Any:
+        if name not in self._loaded and COMMANDS.get(name):
+            commands = typer.Typer(**SETTINGS)
+            importlib.import_module(f"hysid.cli.{COMMANDS[name]}").register(commands)
+            self._loaded.update(typer.main.get_group(commands).commands)
+        return self._loaded[name]
+
+    def __setitem__(self, name: str, command: Any) -> None:
+        self._loaded[name] = command
+
+    def __delitem__(self, name: str) -> None:
+        del self._loaded[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([*COMMANDS, *(n for n in self._loaded if n not in COMMANDS)])
+
+    def __len__(self) -> int:
+        return len(set(COMMANDS) | set(self._loaded))
+
+
+class Commands(TyperGroup):
+    """hysid's command group: its commands in a :class:`CommandTable`."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.commands = CommandTable(self.commands)
+
 
 app = typer.Typer(
     name="hysid",
     help="Identify damping, natural frequency and missing physics from hysteresis loops.",
-    add_completion=False,
     no_args_is_help=True,
-    pretty_exceptions_enable=False,
-    rich_markup_mode=None,
+    cls=Commands,
+    **SETTINGS,
 )
 
 
@@ -49,10 +120,6 @@ def root(
     _version: bool = typer.Option(False, "--version", callback=show_version, is_eager=True, help="Print hysid's version and exit."),
 ) -> None:
     """Identify damping, natural frequency and missing physics from hysteresis loops."""
-
-
-for module in (data, fit, bench, campaign, island, router, diagnose, watch):
-    module.register(app)
 
 
 @app.command("models")

@@ -27,7 +27,9 @@ from coordinator.state import Coordinator, resume
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult, campaign, finish
 from hysid.cli import options as o
+from hysid.cli.directories import DB_NAME, check_writable
 from hysid.cli.groups import LAID_OUT, Constraints, Output, Reading, Search, Stop, grouped
+from hysid.cli.plans import island_budget, island_plan, island_sizes
 from hysid.cli.progress import Progress, announcing_stop, campaign_reporter
 from hysid.motion import choose_motion
 from hysid.report.campaign_text import campaign_progress_line
@@ -49,14 +51,14 @@ def print_line(line: str) -> None:
 def database(db: Path | None, out: Path, campaign_name: str, resuming: bool) -> Path:
     """The campaign database: ``--db`` or OUT/campaign.sqlite; a stored campaign is only ever resumed.
     Whether it can be written is checked here, before any work."""
-    path = db if db is not None else out / o.DB_NAME
+    path = db if db is not None else out / DB_NAME
     if resuming:
         if db is None:
             raise HysidInputError("--resume needs --db FILE, the database of the coordinator to carry on")
         if not db.is_file():
             raise HysidInputError("no such file to resume", param="db", value=db)
     elif db is not None and not db.exists():
-        o.check_writable(db.parent, "db")
+        check_writable(db.parent, "db")
     if path.is_file():
         store = Store(path)  # opening it checks that it can be written
         try:
@@ -137,8 +139,8 @@ def register(app: typer.Typer) -> None:
         bounds, fixed, displacement = limits.bounds(), limits.fixed(), limits.displacement
         algo_list = search.algo_list()
         termination = stop.termination()
-        iterations, until_stopped = o.island_budget(search.iterations, termination)
-        sizes = o.island_sizes(search.population, search.initial, iterations)
+        iterations, until_stopped = island_budget(search.iterations, termination)
+        sizes = island_sizes(search.population, search.initial, iterations)
         migration = search.migration()
         check_name("campaign", name)
         seed, share = search.seed, search.share
@@ -148,7 +150,7 @@ def register(app: typer.Typer) -> None:
         path = database(db, target_dir, name, resuming=False)
         new_db = not path.exists()
         loops = reading.load(dataset or "synth")
-        plan, termination, until_stopped, iterations = o.island_plan(
+        plan, termination, until_stopped, iterations = island_plan(
             loops, model, bounds, algo_list, search.population, search.initial, search.iterations, termination
         )
         try:
@@ -232,10 +234,10 @@ def register(app: typer.Typer) -> None:
         path = database(db, target_dir, name, resuming=resume_db)
         motion = None
         if not resume_db:  # every argument is checked before the database is written or a session opened
-            o.island_sizes(search.population, search.initial, search.iterations)  # checked before the loops are read
+            island_sizes(search.population, search.initial, search.iterations)  # checked before the loops are read
             migration = search.migration()
             loops = reading.load(dataset or "synth")
-            sizes, termination, until_stopped, _ = o.island_plan(
+            sizes, termination, until_stopped, _ = island_plan(
                 loops, model, bounds, search.algo_list(), search.population, search.initial, search.iterations, termination
             )
             motion = choose_motion(loops, model, displacement, bounds=bounds, fixed=fixed)

@@ -8,6 +8,7 @@ from typing import Any
 import typer
 
 from hysid.cli import options as o
+from hysid.cli.directories import report_dir
 from hysid.cli.groups import LAID_OUT, Reading, grouped
 from hysid.report import jsondoc
 from hysid.report.text import loops_table
@@ -30,7 +31,7 @@ def register(app: typer.Typer) -> None:
         raw: bool = typer.Option(False, "--raw", help="Write raw time series (one CSV per loop, manifest.csv, dataset.toml) instead of branches."),
     ) -> None:
         """Write the thesis' Synth set (Tables 5.2-5.4, 120 loops) as a dataset directory."""
-        out_dir = o.report_dir(out_dir, "synth", param="out_dir")
+        out_dir = report_dir(out_dir, "synth", param="out_dir")
         if raw:
             records = synth_raw(noise, noise_seed)
             write_dataset(
@@ -63,7 +64,7 @@ def register(app: typer.Typer) -> None:
         """List a dataset's loops and their equivalent-linear survey: frequency, X0, force, noise, cycles,
         dynamic stiffness, equivalent damping, loss factor, energy per cycle, and fn, xi where the mass is known or estimated;
         displacement distortion and clipping, and, without a manifest, the manifest.csv of the frequencies estimated."""
-        target = None if out is None else o.report_dir(out, "loops")
+        target = None if out is None else report_dir(out, "loops")
         loops = reading.load(dataset)
         found = survey(loops)
         rows = [{**row, **extra} for row, extra in zip(loops.rows(), found.rows())]

@@ -8,6 +8,7 @@ import typer
 
 from hysid import thesis_tables as tt
 from hysid.cli import options as o
+from hysid.cli.directories import report_dir
 from hysid.cli.groups import LAID_OUT, Constraints, Output, Reading, grouped
 from hysid.cli.progress import Progress
 from hysid.fitting import fit
@@ -73,7 +74,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Section 5.2.1 again: Tables 5.5-5.13 and Figs. 5.2-5.13 next to the thesis' numbers."""
         noise_seeds = parse_seeds(seeds_noise, runs)
-        target = o.report_dir(out, "reproduce")
+        target = report_dir(out, "reproduce")
         total = len(noise_seeds) * len(tt.NOISE_LEVELS) * len(SETTINGS) * len(tt.ALGOS)
         with Progress("reproducing", total, enabled=not as_json) as progress:
             rep = reproduce_thesis(noise_seeds=noise_seeds, seed=seed, progress=lambda what: progress.advance(what))

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from hysid.cli import options as o
+from hysid.cli.directories import report_dir
 from hysid.report import jsondoc
 from hysid_model.datasets import load_dataset
 from hysid_model.loops import LoopSet
@@ -106,7 +107,7 @@ class Output:
 
     def directory(self, kind: str) -> Path:
         """The report directory, checked before any work (:func:`hysid.cli.options.report_dir`)."""
-        return o.report_dir(self.out, kind)
+        return report_dir(self.out, kind)
 
     def write(self, result: Any, target: Path, dataset: str | None = None, figures: bool = True) -> dict[str, Path]:
         """The result's report in ``target``, with its figures unless ``--no-figures`` or ``figures=False``

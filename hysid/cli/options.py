@@ -2,26 +2,17 @@
 
 Commands take their options from here, so ``--json`` means the same (one JSON
 object on stdout, bound to ``as_json``) and ``--out`` follows one policy
-everywhere (:func:`report_dir`). :data:`FLAGS` maps the Python parameter a
+everywhere (:func:`hysid.cli.directories.report_dir`). :data:`FLAGS` maps the Python parameter a
 library error names to the flag the user typed.
 """
 
 from __future__ import annotations
 
-import datetime as dt
-import os
-from pathlib import Path
-from typing import Any
-
 import typer
 
-from coordinator.store import Store
-from hysid.campaigns import default_options, island_settings
 from hysid_model.errors import HysidInputError
-from hysid_model.loops import LoopSet
 from hysid_model.presets import PRESETS
 from island.algorithms import ALGORITHMS
-from island.termination import Termination
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as shells report it: also of a campaign that stopped at Ctrl-C and
@@ -184,107 +175,6 @@ DISPLACEMENT = typer.Option(
 FIX = typer.Option(None, "--fix", metavar="NAME=VALUE", help="A parameter known, not searched (repeatable), e.g. --fix meq=0.2.")
 
 
-DB_NAME = "campaign.sqlite"
-"""The database a campaign's output directory holds (``--db`` not given)."""
-
-
-def campaign_database(path: Path) -> Path:
-    """The database ``path`` names: itself, or for a campaign's output directory the ``campaign.sqlite`` in it."""
-    if not path.is_dir():
-        return path
-    if (path / DB_NAME).is_file():
-        return path / DB_NAME
-    raise HysidInputError(f"{path}: a directory without {DB_NAME}; give the campaign database (--db of the campaign, or OUT/{DB_NAME})")
-
-
-def report_dir(out: Path | None, kind: str, param: str = "out") -> Path:
-    """Where a command writes: ``out`` if new or empty, else (not given) a new ``hysid-out/<kind>-<time>``.
-
-    Every command that writes a directory (``fit``, ``diagnose``, ``synth``,
-    ``campaign``, ``coordinator``, ``reproduce``, ``report``) checks it here
-    before any work, so that a run never ends in an error after its work is
-    done, and never overwrites an earlier report; a directory that cannot be
-    written (read-only or full file system) fails here too. ``param`` names
-    the option or argument in errors.
-    """
-    if out is None:
-        stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-        base = Path("hysid-out") / f"{kind}-{stamp}"
-        out, n = base, 1
-        while out.exists():
-            n += 1
-            out = base.with_name(f"{base.name}-{n}")
-        return check_writable(out, param)
-    if out.exists() and not out.is_dir():
-        raise HysidInputError("exists and is not a directory", param=param, value=out)
-    if out.exists() and any(out.iterdir()):
-        if (out / DB_NAME).is_file() and not (out / "report.md").exists():
-            running = running_campaign(out / DB_NAME)
-            if running is not None:
-                raise HysidInputError(
-                    f"is the output directory of campaign {running!r}, which is still running (its coordinator writes "
-                    f"{out / DB_NAME}): two runs cannot share one {FLAGS.get(param, param)}; choose a new directory "
-                    "(nothing was written)",
-                    param=param,
-                    value=out,
-                )
-            raise HysidInputError(
-                f"holds the database of a campaign that did not finish ({out / DB_NAME}, no report.md): carry it on with "
-                f"'hysid coordinator --resume --db {out / DB_NAME} --out NEW_DIR', or choose a new directory (nothing was written)",
-                param=param,
-                value=out,
-            )
-        raise HysidInputError("already exists and is not empty; choose a new directory (nothing was written)", param=param, value=out)
-    return check_writable(out, param)
-
-
-def running_campaign(db: Path) -> str | None:
-    """The name of a campaign in ``db`` that did not stop and whose coordinator still commits (it did, within
-    :data:`coordinator.queries.COORDINATOR_LEASE_S`), else None (also for a file that is no campaign database)."""
-    try:
-        store = Store.read_only(db)
-    except HysidInputError:
-        return None
-    try:
-        return next(
-            (
-                c["name"]
-                for c in store.campaign_list()
-                if c["status"] != "stopped" and store.last_commit(c["name"]) is not None and store.gone_since(c["name"]) is None
-            ),
-            None,
-        )
-    finally:
-        store.close()
-
-
-PROBE_BYTES = 64 << 10
-"""What :func:`check_writable` writes: a disk with less room left is as good as full."""
-
-
-def check_writable(directory: Path, param: str) -> Path:
-    """``directory`` if it can be created and written (a probe file is written and removed, and
-    directories made for it are removed again), else a one-line :class:`HysidInputError`."""
-    made = [p for p in [directory, *directory.parents] if not p.exists()]
-    probe = directory / f".hysid-probe-{os.getpid()}"
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-        with open(probe, "wb") as f:
-            f.write(bytes(PROBE_BYTES))
-            f.flush()
-            os.fsync(f.fileno())
-    except OSError as exc:
-        raise HysidInputError(f"cannot write there ({exc.strerror or exc}); nothing was run", param=param, value=directory) from None
-    finally:
-        try:
-            probe.unlink(missing_ok=True)
-            for p in made:
-                p.rmdir()
-        except OSError:
-            pass
-    return directory
-
-
 def parse_bounds(values: list[str] | None) -> dict[str, tuple[float, float]]:
     """``--bound w0=10:200 --bound S_w=-1e4:0`` as ``{"w0": (10.0, 200.0), ...}`` (names checked by the library)."""
     bounds = {}
@@ -325,43 +215,3 @@ def parse_algos(value: str) -> list[str]:
     if not algos or any(a not in ALGORITHMS for a in algos):
         raise HysidInputError(f"give a comma-separated list of {', '.join(ALGORITHMS)}", param="algos", value=value)
     return algos
-
-
-def island_sizes(population: int | None, initial: int | None, iterations: int | None) -> dict[str, dict[str, Any]]:
-    """The per-island sizes of ``--population``, ``--initial``, ``--iterations`` (None: not given) for every algorithm."""
-    population = ISLAND_POPULATION if population is None else population
-    initial = max(ISLAND_INITIAL, population) if initial is None else initial
-    if initial < population:
-        raise HysidInputError(f"must be at least --population {population}", param="initial_population", value=initial)
-    counts = {} if iterations is None else {"iterations": iterations}
-    return {algo: {"population": population, "initial_population": initial, **counts} for algo in ALGORITHMS}
-
-
-def island_plan(
-    loops: LoopSet,
-    model: str,
-    bounds: dict[str, tuple[float, float]] | None,
-    algos: list[str],
-    population: int | None,
-    initial: int | None,
-    iterations: int | None,
-    termination: Termination,
-) -> tuple[dict[str, dict[str, Any]] | None, Termination, bool, int | None]:
-    """The islands' ``(options, termination, until_stopped, iterations)`` from ``--population``, ``--initial``,
-    ``--iterations`` and the stop rules: with none of the three given on a model with memory, the library's
-    defaults (:func:`hysid.campaigns.island_settings`: memetic islands), so that the command line and Python
-    search alike; else these sizes, each island running :func:`island_budget`'s iterations."""
-    if population is None and initial is None and iterations is None and default_options(loops, model, bounds, algos) is not None:
-        options, chosen, until_stopped = island_settings(loops, model, bounds, algos, None, termination, None)
-        return options, chosen or termination, until_stopped, None  # chosen: never None when termination is given
-    iterations, until_stopped = island_budget(iterations, termination)
-    return island_sizes(population, initial, iterations), termination, until_stopped, iterations
-
-
-def island_budget(iterations: int | None, termination: Termination) -> tuple[int | None, bool]:
-    """Each island's iteration budget and whether it searches until the campaign stops: without
-    ``--iterations``, a budget in evaluations or time (:attr:`Termination.bounded`) lets every island
-    run until the stop order, else each runs :data:`ISLAND_ITERATIONS`."""
-    if iterations is not None:
-        return iterations, False
-    return (None, True) if termination.bounded else (ISLAND_ITERATIONS, False)

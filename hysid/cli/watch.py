@@ -13,7 +13,7 @@ from rich.text import Text
 
 from coordinator.store import Store
 from hysid.campaigns import CampaignResult
-from hysid.cli import options as o
+from hysid.cli.directories import campaign_database
 from hysid.cli.groups import Output, grouped, laid_out
 from hysid.report.campaign_text import campaign_progress_line, watch_text
 from hysid.watch import snapshot
@@ -41,7 +41,7 @@ def register(app: typer.Typer) -> None:
         On a terminal the view redraws in place; otherwise one progress line per refresh, and the full view at the end."""
         if not interval > 0:
             raise HysidInputError("must be a positive number of seconds", param="interval", value=interval)
-        store = Store.read_only(o.campaign_database(db))
+        store = Store.read_only(campaign_database(db))
         try:
             snap = snapshot(store, name)
             if once:
@@ -72,4 +72,4 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """The report and figures of a finished or interrupted campaign, rebuilt from its database alone."""
         target = output.directory("report")
-        output.show(CampaignResult.from_database(o.campaign_database(db), name), target)
+        output.show(CampaignResult.from_database(campaign_database(db), name), target)
