@@ -167,6 +167,40 @@ def test_the_command_line_and_an_island_start_without_the_heavy_scientific_modul
     assert done.stdout.strip() == "[]"
 
 
+def test_an_island_command_loads_only_what_an_island_needs():
+    """The rule of hysid.cli.CommandTable: a command loads its own module of the command line, so ``hysid island``
+    (once per island process) loads no coordinator, report, bench or front-door fit, and every command is still there."""
+    from hysid.cli import command_modules
+
+    assert command_modules(["island", "--connect", "tcp/127.0.0.1:7447"]) == ["island"]
+    assert command_modules(["models"]) == [] and command_modules(["--version"]) == command_modules(["nonsense"])
+    assert {"bench", "campaign", "data", "diagnose", "fit", "island", "router", "watch"} == set(command_modules(["--help"]))
+    code = (
+        "import sys, hysid.cli; hysid.cli.load_commands(['island']); "
+        "print(sorted(m for m in sys.modules if m.startswith(('coordinator', 'hysid.report', 'hysid.bench', 'hysid.fitting', 'hysid.campaigns'))))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+    everything = subprocess.run([sys.executable, "-m", "hysid", "--help"], capture_output=True, text=True, timeout=60)
+    listed = everything.stdout.split("Commands:")[1]
+    assert [line.split()[0] for line in listed.strip().splitlines()] == [
+        "synth",
+        "loops",
+        "fit",
+        "campaign",
+        "coordinator",
+        "island",
+        "router",
+        "diagnose",
+        "watch",
+        "report",
+        "models",
+        "reproduce",
+        "bench",
+    ]
+
+
 def test_data_flows_one_way_between_the_packages():
     """files -> loops -> objective (hysid_model) -> optimizer, island (island) -> coordinator -> report (hysid)."""
     above = {"hysid_model": ("island", "coordinator", "hysid"), "island": ("coordinator", "hysid"), "coordinator": ("hysid",)}

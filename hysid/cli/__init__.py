@@ -47,8 +47,9 @@ def command_modules(argv: Sequence[str]) -> list[str]:
     """The modules of :mod:`hysid.cli` a command line ``argv`` needs: its command's, or every one where it names
     none (``hysid --help`` lists them all) or one that is not a command."""
     first = next((a for a in argv if not a.startswith("-")), "")
-    module = COMMANDS.get(first)
-    return [module] if module else sorted({m for m in COMMANDS.values() if m})
+    if first not in COMMANDS:
+        return sorted({m for m in COMMANDS.values() if m})
+    return [COMMANDS[first]] if COMMANDS[first] else []
 
 
 def load_commands(argv: Sequence[str]) -> None:
